@@ -1,0 +1,358 @@
+//! Symmetric banded matrices and their Cholesky factorisation.
+//!
+//! Mass, damping and stiffness matrices of 1D finite elements and chains are banded (bandwidth 1
+//! for linear elements, 0 for a lumped mass); storing only the lower band makes products and
+//! solves O(n · bandwidth). A dense symmetric matrix is the special case bandwidth = n − 1.
+
+use thiserror::Error;
+
+/// Symmetric matrix stored by its lower band: entry (i, j) with i − kd ≤ j ≤ i.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SymBand {
+    n: usize,
+    kd: usize,
+    /// Row-major lower band: row i holds columns i−kd ..= i at offsets 0 ..= kd
+    /// (entries left of column 0 are zero and never read).
+    data: Vec<f64>,
+}
+
+/// Why a symmetric band matrix could not be built or factorised.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum BandError {
+    /// The matrix is not symmetric positive definite: pivot `row` was `pivot` ≤ 0.
+    #[error("not positive definite (pivot {pivot:e} at row {row})")]
+    NotPositiveDefinite {
+        /// Row where the factorisation broke down.
+        row: usize,
+        /// The non-positive pivot.
+        pivot: f64,
+    },
+    /// Entry (i, j) differs from entry (j, i).
+    #[error("not symmetric: entry ({i},{j}) = {a:e} but ({j},{i}) = {b:e}")]
+    NotSymmetric {
+        /// Row.
+        i: usize,
+        /// Column.
+        j: usize,
+        /// Entry (i, j).
+        a: f64,
+        /// Entry (j, i).
+        b: f64,
+    },
+    /// An entry is NaN or infinite.
+    #[error("entry ({i},{j}) is not finite")]
+    NotFinite {
+        /// Row.
+        i: usize,
+        /// Column.
+        j: usize,
+    },
+    /// A row has the wrong length, or a triplet is out of range.
+    #[error("expected a {n}×{n} matrix: {what}")]
+    Shape {
+        /// Expected order.
+        n: usize,
+        /// What was wrong.
+        what: String,
+    },
+}
+
+impl SymBand {
+    /// The n×n zero matrix with half-bandwidth `kd`.
+    pub fn zeros(n: usize, kd: usize) -> Self {
+        let kd = kd.min(n.saturating_sub(1));
+        Self { n, kd, data: vec![0.0; n * (kd + 1)] }
+    }
+
+    /// Diagonal matrix.
+    pub fn diagonal(d: &[f64]) -> Self {
+        Self { n: d.len(), kd: 0, data: d.to_vec() }
+    }
+
+    /// From dense rows; the bandwidth is found from the non-zeros. Checks shape, finiteness and
+    /// symmetry (to a relative tolerance of 1e-12 of the largest entry).
+    pub fn from_dense_rows(rows: &[Vec<f64>]) -> Result<Self, BandError> {
+        let n = rows.len();
+        let mut kd = 0;
+        let mut scale = 0.0f64;
+        for (i, r) in rows.iter().enumerate() {
+            if r.len() != n {
+                return Err(BandError::Shape { n, what: format!("row {i} has {} entries", r.len()) });
+            }
+            for (j, &a) in r.iter().enumerate() {
+                if !a.is_finite() {
+                    return Err(BandError::NotFinite { i, j });
+                }
+                if a != 0.0 {
+                    kd = kd.max(i.abs_diff(j));
+                }
+                scale = scale.max(a.abs());
+            }
+        }
+        for i in 0..n {
+            for j in 0..i {
+                let (a, b) = (rows[i][j], rows[j][i]);
+                if (a - b).abs() > 1e-12 * scale {
+                    return Err(BandError::NotSymmetric { i, j, a, b });
+                }
+            }
+        }
+        let mut m = Self::zeros(n, kd);
+        for i in 0..n {
+            for j in i.saturating_sub(kd)..=i {
+                m.set(i, j, rows[i][j]);
+            }
+        }
+        Ok(m)
+    }
+
+    /// From (row, column, value) triplets; repeated entries add up (finite-element assembly).
+    /// Both triangles may be given, and must then agree; a triplet in one triangle only stands
+    /// for both.
+    pub fn from_triplets(n: usize, triplets: &[(usize, usize, f64)]) -> Result<Self, BandError> {
+        let mut lower = std::collections::BTreeMap::<(usize, usize), f64>::new();
+        let mut upper = std::collections::BTreeMap::<(usize, usize), f64>::new();
+        for &(i, j, a) in triplets {
+            if i >= n || j >= n {
+                return Err(BandError::Shape { n, what: format!("triplet ({i},{j}) is out of range") });
+            }
+            if !a.is_finite() {
+                return Err(BandError::NotFinite { i, j });
+            }
+            if j <= i {
+                *lower.entry((i, j)).or_default() += a;
+            } else {
+                *upper.entry((j, i)).or_default() += a;
+            }
+        }
+        let scale = lower.values().chain(upper.values()).fold(0.0f64, |s, a| s.max(a.abs()));
+        let mut merged = lower.clone();
+        for (&(i, j), &b) in &upper {
+            match lower.get(&(i, j)) {
+                Some(&a) if (a - b).abs() > 1e-12 * scale => {
+                    return Err(BandError::NotSymmetric { i, j, a, b });
+                }
+                Some(_) => {}
+                None => {
+                    merged.insert((i, j), b);
+                }
+            }
+        }
+        let kd = merged.iter().filter(|(_, a)| **a != 0.0).map(|(&(i, j), _)| i - j).max().unwrap_or(0);
+        let mut m = Self::zeros(n, kd);
+        for (&(i, j), &a) in &merged {
+            if a != 0.0 {
+                m.set(i, j, a);
+            }
+        }
+        Ok(m)
+    }
+
+    /// Order n.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
+    /// Half-bandwidth.
+    pub fn kd(&self) -> usize {
+        self.kd
+    }
+
+    /// Entry (i, j) (either triangle).
+    pub fn get(&self, i: usize, j: usize) -> f64 {
+        let (i, j) = if j > i { (j, i) } else { (i, j) };
+        if i - j > self.kd { 0.0 } else { self.data[i * (self.kd + 1) + self.kd + j - i] }
+    }
+
+    /// Sets entry (i, j) and its mirror. Panics if (i, j) is outside the band (a programming
+    /// error: builders size the band first).
+    pub fn set(&mut self, i: usize, j: usize, a: f64) {
+        let (i, j) = if j > i { (j, i) } else { (i, j) };
+        assert!(i - j <= self.kd, "entry ({i},{j}) outside band {}", self.kd);
+        self.data[i * (self.kd + 1) + self.kd + j - i] = a;
+    }
+
+    /// Adds `a` to entry (i, j) (and its mirror).
+    pub fn add(&mut self, i: usize, j: usize, a: f64) {
+        let v = self.get(i, j);
+        self.set(i, j, v + a);
+    }
+
+    /// `a·self + b·other` with the larger bandwidth (e.g. Ŵ = M + θhC + θ²h²K).
+    pub fn combine(terms: &[(f64, &SymBand)]) -> SymBand {
+        let n = terms.first().map_or(0, |t| t.1.n);
+        let kd = terms.iter().map(|t| t.1.kd).max().unwrap_or(0);
+        let mut out = SymBand::zeros(n, kd);
+        for &(c, m) in terms {
+            if c == 0.0 {
+                continue;
+            }
+            for i in 0..n {
+                for j in i.saturating_sub(m.kd)..=i {
+                    out.add(i, j, c * m.get(i, j));
+                }
+            }
+        }
+        out
+    }
+
+    /// True when every entry is zero.
+    pub fn is_zero(&self) -> bool {
+        self.data.iter().all(|&a| a == 0.0)
+    }
+
+    /// y = A x, O(n · kd).
+    pub fn mul_into(&self, x: &[f64], y: &mut [f64]) {
+        let (n, kd) = (self.n, self.kd);
+        if kd == 0 {
+            for i in 0..n {
+                y[i] = self.data[i] * x[i];
+            }
+            return;
+        }
+        y[..n].fill(0.0);
+        for i in 0..n {
+            let row = &self.data[i * (kd + 1)..(i + 1) * (kd + 1)];
+            let j0 = i.saturating_sub(kd);
+            let mut acc = row[kd] * x[i];
+            for j in j0..i {
+                let a = row[kd + j - i];
+                acc += a * x[j];
+                y[j] += a * x[i];
+            }
+            y[i] += acc;
+        }
+    }
+
+    /// xᵀ A y, O(n · kd), without a temporary.
+    pub fn quad(&self, x: &[f64], y: &[f64]) -> f64 {
+        let (n, kd) = (self.n, self.kd);
+        let mut s = 0.0;
+        for i in 0..n {
+            let row = &self.data[i * (kd + 1)..(i + 1) * (kd + 1)];
+            s += row[kd] * x[i] * y[i];
+            for j in i.saturating_sub(kd)..i {
+                let a = row[kd + j - i];
+                s += a * (x[i] * y[j] + x[j] * y[i]);
+            }
+        }
+        s
+    }
+
+    /// Cholesky factorisation A = L Lᵀ (L has the same band).
+    pub fn cholesky(&self) -> Result<BandCholesky, BandError> {
+        let (n, kd) = (self.n, self.kd);
+        let w = kd + 1;
+        let mut l = self.data.clone();
+        for i in 0..n {
+            let j0 = i.saturating_sub(kd);
+            for j in j0..=i {
+                // L[i][j] = (A[i][j] − Σ_{k<j} L[i][k] L[j][k]) / L[j][j]
+                let mut s = l[i * w + kd + j - i];
+                let k0 = j0.max(j.saturating_sub(kd));
+                for k in k0..j {
+                    s -= l[i * w + kd + k - i] * l[j * w + kd + k - j];
+                }
+                if j == i {
+                    if s <= 0.0 || !s.is_finite() {
+                        return Err(BandError::NotPositiveDefinite { row: i, pivot: s });
+                    }
+                    l[i * w + kd] = s.sqrt();
+                } else {
+                    l[i * w + kd + j - i] = s / l[j * w + kd];
+                }
+            }
+        }
+        Ok(BandCholesky { n, kd, l })
+    }
+}
+
+/// Cholesky factor of a [`SymBand`]: solves in O(n · kd).
+#[derive(Debug, Clone)]
+pub struct BandCholesky {
+    n: usize,
+    kd: usize,
+    l: Vec<f64>,
+}
+
+impl BandCholesky {
+    /// Order n.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
+    /// Solves A x = b in place (b becomes x).
+    pub fn solve_in_place(&self, b: &mut [f64]) {
+        let (n, kd) = (self.n, self.kd);
+        let w = kd + 1;
+        let l = &self.l;
+        // L y = b
+        for i in 0..n {
+            let row = &l[i * w..(i + 1) * w];
+            let mut s = b[i];
+            for j in i.saturating_sub(kd)..i {
+                s -= row[kd + j - i] * b[j];
+            }
+            b[i] = s / row[kd];
+        }
+        // Lᵀ x = y
+        for i in (0..n).rev() {
+            let xi = b[i] / l[i * w + kd];
+            b[i] = xi;
+            let row = &l[i * w..(i + 1) * w];
+            for j in i.saturating_sub(kd)..i {
+                b[j] -= row[kd + j - i] * xi;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dense(a: &SymBand) -> Vec<Vec<f64>> {
+        (0..a.n()).map(|i| (0..a.n()).map(|j| a.get(i, j)).collect()).collect()
+    }
+
+    #[test]
+    fn band_solve_matches_dense_product() {
+        // Pentadiagonal SPD matrix.
+        let n = 9;
+        let mut a = SymBand::zeros(n, 2);
+        for i in 0..n {
+            a.set(i, i, 6.0 + i as f64);
+            if i >= 1 {
+                a.set(i, i - 1, -1.5);
+            }
+            if i >= 2 {
+                a.set(i, i - 2, 0.5);
+            }
+        }
+        let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.7).sin()).collect();
+        let mut b = vec![0.0; n];
+        a.mul_into(&x, &mut b);
+        let d = dense(&a);
+        for i in 0..n {
+            let bi: f64 = (0..n).map(|j| d[i][j] * x[j]).sum();
+            assert!((bi - b[i]).abs() < 1e-13);
+        }
+        assert!((a.quad(&x, &x) - x.iter().zip(&b).map(|(p, q)| p * q).sum::<f64>()).abs() < 1e-12);
+        let f = a.cholesky().unwrap();
+        f.solve_in_place(&mut b);
+        for i in 0..n {
+            assert!((b[i] - x[i]).abs() < 1e-13, "{} vs {}", b[i], x[i]);
+        }
+    }
+
+    #[test]
+    fn rejects_indefinite_and_asymmetric() {
+        let a = SymBand::from_dense_rows(&[vec![1.0, 2.0], vec![2.0, 1.0]]).unwrap();
+        assert!(matches!(a.cholesky(), Err(BandError::NotPositiveDefinite { row: 1, .. })));
+        let e = SymBand::from_dense_rows(&[vec![1.0, 2.0], vec![2.5, 1.0]]).unwrap_err();
+        assert!(matches!(e, BandError::NotSymmetric { i: 1, j: 0, .. }));
+        let t = SymBand::from_triplets(3, &[(0, 0, 1.0), (2, 0, 0.5), (1, 1, 2.0), (2, 2, 3.0)]).unwrap();
+        assert_eq!(t.kd(), 2);
+        assert_eq!(t.get(0, 2), 0.5);
+    }
+}

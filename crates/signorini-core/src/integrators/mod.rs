@@ -1,0 +1,249 @@
+//! Time integrators of linear models with unilateral contact, and the run loop that drives any
+//! of them, records energy terms and reports to an [`Observer`].
+//!
+//! A scheme holds only its run constants (factorisations, Delassus operator) and scratch
+//! buffers; the state ([`LinearState`]) comes in explicitly, so a run can be paused and resumed.
+
+pub mod moreau_jean;
+
+use crate::contact::LcpStats;
+use crate::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS, EnergyTerms};
+use crate::lcp::LcpError;
+use crate::model::LinearModel;
+use crate::observer::{Columns, Observer, Progress, StepRecord};
+use std::ops::ControlFlow;
+use thiserror::Error;
+
+/// State of a linear model at t_k.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearState {
+    /// Step number k.
+    pub step: u64,
+    /// Time t_k.
+    pub t: f64,
+    /// Positions q_k.
+    pub q: Vec<f64>,
+    /// Velocities v_k.
+    pub v: Vec<f64>,
+}
+
+impl LinearState {
+    /// The model's initial state at t = 0.
+    pub fn initial(model: &LinearModel) -> Self {
+        Self { step: 0, t: 0.0, q: model.q0.clone(), v: model.v0.clone() }
+    }
+}
+
+/// What one step produced besides the new state.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct StepReport {
+    /// Energy terms of the step.
+    pub energy: EnergyTerms,
+    /// Gap of each contact at t_{k+1}.
+    pub gap: Vec<f64>,
+    /// Local velocity U_{k+1} of each contact.
+    pub local_velocity: Vec<f64>,
+    /// Impulse P_{k+1} of each contact.
+    pub impulse: Vec<f64>,
+    /// The step's LCP.
+    pub lcp: LcpStats,
+}
+
+impl StepReport {
+    /// A report sized for `contacts` contacts.
+    pub fn with_contacts(contacts: usize) -> Self {
+        Self { gap: vec![0.0; contacts], local_velocity: vec![0.0; contacts], impulse: vec![0.0; contacts], ..Default::default() }
+    }
+
+    /// Fills gaps and local velocities from the state at t.
+    pub fn fill_contacts(&mut self, model: &LinearModel, q: &[f64], v: &[f64], t: f64) {
+        for (a, c) in model.contacts.iter().enumerate() {
+            self.gap[a] = c.gap(q, t);
+            self.local_velocity[a] = c.local_velocity(v, t);
+        }
+    }
+}
+
+/// Why a step failed.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum StepError {
+    /// The contact LCP could not be solved to tolerance.
+    #[error("step {step} (t = {t}): contact LCP failed: {source}")]
+    Lcp {
+        /// Step number (of the state reached).
+        step: u64,
+        /// Time t_{k+1}.
+        t: f64,
+        /// The solver's error.
+        source: LcpError,
+    },
+    /// The state became NaN or infinite.
+    #[error("step {step} (t = {t}): the state is no longer finite")]
+    NotFinite {
+        /// Step number (of the state reached).
+        step: u64,
+        /// Time t_{k+1}.
+        t: f64,
+    },
+}
+
+/// A one-step method for a [`LinearModel`].
+pub trait LinearScheme {
+    /// Advances `state` by one step, writing the step's terms into `report`.
+    fn step(&mut self, model: &LinearModel, state: &mut LinearState, report: &mut StepReport) -> Result<(), StepError>;
+
+    /// The scheme's algorithmic energy H at `state` (the mechanical energy for Moreau–Jean).
+    fn algorithmic_energy(&self, model: &LinearModel, state: &LinearState) -> f64;
+
+    /// Step size h.
+    fn step_size(&self) -> f64;
+}
+
+/// Output settings of a run.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct OutputOptions {
+    /// Record every k-th step (≥ 1); the last step is always recorded.
+    pub every: u64,
+    /// Dofs whose q_j, v_j are recorded.
+    pub probes: Vec<usize>,
+}
+
+/// What a linear run measured over all its steps (recorded or not).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct LinearRunStats {
+    /// Steps done.
+    pub steps: u64,
+    /// Final time.
+    pub t_end: f64,
+    /// max_k |balance_residual|.
+    pub max_abs_balance_residual: f64,
+    /// Mechanical energy at t₀.
+    pub energy_initial: f64,
+    /// Mechanical energy at the end.
+    pub energy_final: f64,
+    /// Largest mechanical energy seen.
+    pub energy_max: f64,
+    /// Largest |algorithmic energy| seen.
+    pub algorithmic_energy_max: f64,
+    /// Impacts: (step, contact) pairs whose impulse became positive after a step without.
+    pub impacts: u64,
+    /// Largest LCP complementarity error.
+    pub lcp_max_error: f64,
+    /// Steps that solved a non-empty LCP.
+    pub lcp_solves: u64,
+    /// Cumulative works at the end: external, damping, contact.
+    pub work_ext_total: f64,
+    /// See `work_ext_total`.
+    pub work_damping_total: f64,
+    /// See `work_ext_total`.
+    pub work_contact_total: f64,
+}
+
+/// Column names of a linear run: energy terms, cumulative works, then `gap_α, u_α, p_α` per
+/// contact, then `q_j, v_j` per probe.
+pub fn linear_columns(contacts: usize, probes: &[usize]) -> Columns {
+    let mut names: Vec<String> = ENERGY_COLUMNS.iter().chain(&CUMULATIVE_COLUMNS).map(|s| s.to_string()).collect();
+    for a in 0..contacts {
+        names.extend([format!("gap_{a}"), format!("u_{a}"), format!("p_{a}")]);
+    }
+    for j in probes {
+        names.extend([format!("q_{j}"), format!("v_{j}")]);
+    }
+    Columns::new(names)
+}
+
+/// Why a run ended early.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum RunStop {
+    /// A step failed.
+    #[error(transparent)]
+    Step(#[from] StepError),
+    /// The observer asked to stop (cancellation) after `step` steps.
+    #[error("stopped by the observer after {step} steps")]
+    Stopped {
+        /// Steps done.
+        step: u64,
+    },
+}
+
+/// Runs `steps` steps of `scheme` from `state`, recording per `output`.
+pub fn run_linear(
+    model: &LinearModel,
+    scheme: &mut dyn LinearScheme,
+    state: &mut LinearState,
+    steps: u64,
+    output: &OutputOptions,
+    observer: &mut dyn Observer,
+) -> Result<LinearRunStats, RunStop> {
+    let m = model.contacts.len();
+    let columns = linear_columns(m, &output.probes);
+    observer.start(&columns);
+    let every = output.every.max(1);
+    let mut report = StepReport::with_contacts(m);
+    report.fill_contacts(model, &state.q, &state.v, state.t);
+    let (kin, strain) = model.energy(&state.q, &state.v);
+    report.energy = EnergyTerms {
+        kinetic: kin,
+        strain,
+        algorithmic_energy: scheme.algorithmic_energy(model, state),
+        ..Default::default()
+    };
+    let e0 = kin + strain;
+    let mut stats = LinearRunStats {
+        t_end: state.t,
+        energy_initial: e0,
+        energy_final: e0,
+        energy_max: e0,
+        algorithmic_energy_max: report.energy.algorithmic_energy.abs(),
+        ..Default::default()
+    };
+    let mut row = Vec::with_capacity(columns.len());
+    let mut previous_impulse = vec![0.0; m];
+    let record = |report: &StepReport, stats: &LinearRunStats, state: &LinearState, row: &mut Vec<f64>| {
+        row.clear();
+        row.extend_from_slice(&report.energy.values());
+        row.extend([stats.work_ext_total, stats.work_damping_total, stats.work_contact_total]);
+        for a in 0..m {
+            row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
+        }
+        for &j in &output.probes {
+            row.extend([state.q[j], state.v[j]]);
+        }
+    };
+    record(&report, &stats, state, &mut row);
+    if observer.observe(&StepRecord { step: state.step, t: state.t, values: &row }).is_break() {
+        return Err(RunStop::Stopped { step: 0 });
+    }
+    for k in 1..=steps {
+        scheme.step(model, state, &mut report)?;
+        let e = &report.energy;
+        if !(e.energy().is_finite() && e.algorithmic_energy.is_finite()) {
+            return Err(StepError::NotFinite { step: state.step, t: state.t }.into());
+        }
+        stats.steps = k;
+        stats.t_end = state.t;
+        stats.work_ext_total += e.work_ext;
+        stats.work_damping_total += e.work_damping;
+        stats.work_contact_total += e.work_contact;
+        stats.max_abs_balance_residual = stats.max_abs_balance_residual.max(e.balance_residual.abs());
+        stats.energy_final = e.energy();
+        stats.energy_max = stats.energy_max.max(e.energy());
+        stats.algorithmic_energy_max = stats.algorithmic_energy_max.max(e.algorithmic_energy.abs());
+        stats.lcp_max_error = stats.lcp_max_error.max(report.lcp.error);
+        stats.lcp_solves += u64::from(report.lcp.size > 0);
+        for (p_old, &p) in previous_impulse.iter_mut().zip(&report.impulse) {
+            stats.impacts += u64::from(p > 0.0 && *p_old <= 0.0);
+            *p_old = p;
+        }
+        if k % every == 0 || k == steps {
+            record(&report, &stats, state, &mut row);
+            if observer.observe(&StepRecord { step: state.step, t: state.t, values: &row }).is_break() {
+                return Err(RunStop::Stopped { step: k });
+            }
+        }
+        if let ControlFlow::Break(()) = observer.progress(Progress { done: k, total: steps, t: state.t }) {
+            return Err(RunStop::Stopped { step: k });
+        }
+    }
+    Ok(stats)
+}

@@ -1,0 +1,237 @@
+//! The Moreau–Jean θ-scheme, Acary 2016 (21)–(24), and its variant (29).
+//!
+//! One step from (t_k, q_k, v_k) with step h:
+//!
+//! ```text
+//! M(v_{k+1} − v_k) + h K q_{k+θ} + h C v_{k+θ} − h F_{k+θ} = G P_{k+1}          (21a)
+//! q_{k+1} = q_k + h v_{k+θ}             (21b)   — variant: q_{k+1} = q_k + h v_{k+1/2}  (29b)
+//! U_{k+1} = Gᵀ v_{k+1} (+ ẇ)            (21c)
+//! 0 ≤ U^α_{k+1} + e_α U^α_k ⊥ P^α_{k+1} ≥ 0 on the index set (24), P^α = 0 elsewhere  (21d)
+//! ```
+//!
+//! Eliminating q_{k+1} gives `Ŵ (v_{k+1} − v_k) = h(F_{k+θ} − K(q_k + θ h v_k) − C v_k) + G P`
+//! with the iteration matrix `Ŵ = M + θhC + θ²h²K` (variant: `M + θhC + ½θh²K`), factorised
+//! once per run. The free velocity is the solution with P = 0; the Delassus operator is
+//! `W = Gᵀ Ŵ⁻¹ G`.
+//!
+//! Energy terms (Lemma 1, (31)–(33)): `work_ext = h v_{k+θ}ᵀ F_{k+θ}`,
+//! `work_damping = −h v_{k+θ}ᵀ C v_{k+θ}`, `work_contact = v_{k+θ}ᵀ G P_{k+1}` (= U_{k+θ}ᵀP for a
+//! fixed obstacle), `numerical_dissipation = (½ − θ)(‖Δv‖²_M + ‖Δq‖²_K)`. For the variant the
+//! same derivation with (29b) gives v_{k+1/2} in place of the outer v_{k+θ} of the three works
+//! (`work_damping = −h v_{k+1/2}ᵀ C v_{k+θ}`) and `numerical_dissipation = (½ − θ)‖Δq‖²_K`,
+//! which is (91) of Corollary 1 with γ = 2β = θ.
+
+use super::{LinearScheme, LinearState, StepError, StepReport};
+use crate::band::{BandCholesky, BandError, SymBand};
+use crate::contact::{Delassus, IndexSetRule};
+use crate::energy::EnergyTerms;
+use crate::lcp::LcpOptions;
+use crate::model::LinearModel;
+
+/// Parameters of the Moreau–Jean scheme.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoreauJeanParams {
+    /// θ ∈ [0, 1]; ½ ≤ θ ≤ 1/(1+ē) makes the scheme dissipative (Proposition 1). Default ½.
+    pub theta: f64,
+    /// Position update (29b) `q_{k+1} = q_k + h v_{k+1/2}` instead of (21b).
+    pub variant: bool,
+    /// Index-set rule, (24) by default.
+    pub index_set: IndexSetRule,
+}
+
+impl Default for MoreauJeanParams {
+    fn default() -> Self {
+        Self { theta: 0.5, variant: false, index_set: IndexSetRule::default() }
+    }
+}
+
+/// The Moreau–Jean scheme for one model and one step size.
+#[derive(Debug, Clone)]
+pub struct MoreauJean {
+    params: MoreauJeanParams,
+    h: f64,
+    lcp: LcpOptions,
+    /// Cholesky factor of Ŵ.
+    factor: BandCholesky,
+    delassus: Delassus,
+    has_damping: bool,
+    /// Energy (kinetic, strain) at the state of the last step, keyed by step number.
+    last_energy: Option<(u64, f64, f64)>,
+    /// F(t_{k+1}) of the last step and its time (NaN before the first step).
+    f_next: Vec<f64>,
+    f_next_t: f64,
+    scratch: Scratch,
+    active: Vec<usize>,
+    lcp_rhs: Vec<f64>,
+}
+
+#[derive(Debug, Clone)]
+struct Scratch {
+    f_k: Vec<f64>,
+    f_theta: Vec<f64>,
+    tmp: Vec<f64>,
+    work: Vec<f64>,
+    v_new: Vec<f64>,
+    v_theta: Vec<f64>,
+    v_pos: Vec<f64>,
+    dv: Vec<f64>,
+    dq: Vec<f64>,
+}
+
+impl MoreauJean {
+    /// Prepares the scheme: factorises Ŵ and precomputes the Delassus operator.
+    pub fn new(model: &LinearModel, params: MoreauJeanParams, h: f64, lcp: LcpOptions) -> Result<Self, BandError> {
+        let theta = params.theta;
+        let k_coef = if params.variant { 0.5 * theta * h * h } else { theta * theta * h * h };
+        let w_hat = SymBand::combine(&[(1.0, &model.mass), (theta * h, &model.damping), (k_coef, &model.stiffness)]);
+        let factor = w_hat.cholesky()?;
+        let delassus = Delassus::new(&factor, &model.contacts);
+        let n = model.dofs();
+        let z = vec![0.0; n];
+        Ok(Self {
+            params,
+            h,
+            lcp,
+            factor,
+            delassus,
+            has_damping: !model.damping.is_zero(),
+            last_energy: None,
+            f_next: z.clone(),
+            f_next_t: f64::NAN,
+            scratch: Scratch {
+                f_k: z.clone(),
+                f_theta: z.clone(),
+                tmp: z.clone(),
+                work: z.clone(),
+                v_new: z.clone(),
+                v_theta: z.clone(),
+                v_pos: z.clone(),
+                dv: z.clone(),
+                dq: z,
+            },
+            active: Vec::new(),
+            lcp_rhs: Vec::new(),
+        })
+    }
+}
+
+impl LinearScheme for MoreauJean {
+    fn step_size(&self) -> f64 {
+        self.h
+    }
+
+    fn algorithmic_energy(&self, model: &LinearModel, state: &LinearState) -> f64 {
+        let (k, s) = model.energy(&state.q, &state.v);
+        k + s
+    }
+
+    fn step(&mut self, model: &LinearModel, state: &mut LinearState, report: &mut StepReport) -> Result<(), StepError> {
+        let (h, theta) = (self.h, self.params.theta);
+        let t_k = state.t;
+        let step = state.step + 1;
+        let t_next = (step as f64) * h;
+        let s = &mut self.scratch;
+        let n = state.q.len();
+
+        // F_k (reused from the previous step when the time matches) and F_{k+1}.
+        if self.f_next_t == t_k {
+            s.f_k.copy_from_slice(&self.f_next);
+        } else {
+            model.force.eval_into(t_k, &mut s.f_k);
+        }
+        model.force.eval_into(t_next, &mut self.f_next);
+        self.f_next_t = t_next;
+        for i in 0..n {
+            s.f_theta[i] = (1.0 - theta) * s.f_k[i] + theta * self.f_next[i];
+        }
+
+        // Free velocity: Ŵ Δv_free = h (F_{k+θ} − K (q_k + θ h v_k) − C v_k), (21a) with P = 0.
+        for i in 0..n {
+            s.tmp[i] = state.q[i] + theta * h * state.v[i];
+        }
+        model.stiffness.mul_into(&s.tmp, &mut s.work);
+        for i in 0..n {
+            s.v_new[i] = h * (s.f_theta[i] - s.work[i]);
+        }
+        if self.has_damping {
+            model.damping.mul_into(&state.v, &mut s.work);
+            for i in 0..n {
+                s.v_new[i] -= h * s.work[i];
+            }
+        }
+        self.factor.solve_in_place(&mut s.v_new);
+        for i in 0..n {
+            s.v_new[i] += state.v[i];
+        }
+
+        // Index set (24) (or the predicted-gap rule) and the impulse LCP (21c)–(21d).
+        self.active.clear();
+        self.lcp_rhs.clear();
+        for (a, c) in model.contacts.iter().enumerate() {
+            if self.params.index_set.is_active(c, &state.q, &state.v, t_k, h) {
+                self.active.push(a);
+                let u_free = c.local_velocity(&s.v_new, t_next);
+                let u_k = c.local_velocity(&state.v, t_k);
+                self.lcp_rhs.push(u_free + c.restitution * u_k);
+            }
+        }
+        report.lcp = self
+            .delassus
+            .apply_impulse(&self.active, &self.lcp_rhs, &self.lcp, &mut report.impulse, &mut s.v_new)
+            .map_err(|source| StepError::Lcp { step, t: t_next, source })?;
+
+        // Positions (21b) or (29b).
+        for i in 0..n {
+            s.v_theta[i] = (1.0 - theta) * state.v[i] + theta * s.v_new[i];
+            s.v_pos[i] = if self.params.variant { 0.5 * (state.v[i] + s.v_new[i]) } else { s.v_theta[i] };
+            s.dv[i] = s.v_new[i] - state.v[i];
+            s.dq[i] = h * s.v_pos[i];
+        }
+
+        // Energy terms, Lemma 1 (33) / Corollary 1 (91).
+        let (kin_k, strain_k) = match self.last_energy {
+            Some((k, kin, st)) if k == state.step => (kin, st),
+            _ => model.energy(&state.q, &state.v),
+        };
+        let mut work_ext = 0.0;
+        for i in 0..n {
+            work_ext += s.v_pos[i] * s.f_theta[i];
+        }
+        work_ext *= h;
+        let work_damping = if self.has_damping { -h * model.damping.quad(&s.v_pos, &s.v_theta) } else { 0.0 };
+        let work_contact: f64 = self
+            .active
+            .iter()
+            .map(|&a| report.impulse[a] * model.contacts[a].project(&s.v_pos))
+            .sum();
+        let dq_k_dq = model.stiffness.quad(&s.dq, &s.dq);
+        let numerical_dissipation = if self.params.variant {
+            (0.5 - theta) * dq_k_dq
+        } else {
+            (0.5 - theta) * (model.mass.quad(&s.dv, &s.dv) + dq_k_dq)
+        };
+
+        for i in 0..n {
+            state.q[i] += s.dq[i];
+        }
+        state.v.copy_from_slice(&s.v_new);
+        state.t = t_next;
+        state.step = step;
+
+        let (kin, strain) = model.energy(&state.q, &state.v);
+        self.last_energy = Some((step, kin, strain));
+        let delta = (kin + strain) - (kin_k + strain_k);
+        report.energy = EnergyTerms {
+            kinetic: kin,
+            strain,
+            work_ext,
+            work_damping,
+            work_contact,
+            numerical_dissipation,
+            algorithmic_energy: kin + strain,
+            balance_residual: delta - work_ext - work_damping - work_contact - numerical_dissipation,
+        };
+        report.fill_contacts(model, &state.q, &state.v, t_next);
+        Ok(())
+    }
+}

@@ -1,0 +1,358 @@
+//! A validated job and how to run it: [`Job::from_spec`] checks a [`JobSpec`] once and builds
+//! its model and integrator; [`run`] runs it, reporting to an [`Observer`], and returns the
+//! summary and any tables or figures the job makes.
+
+use crate::band::SymBand;
+use crate::contact::{Activation, IndexSetRule};
+use crate::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
+use crate::integrators::{LinearScheme, LinearState, OutputOptions, RunStop, StepError, run_linear};
+use crate::lcp::LcpOptions;
+use crate::model::{Contact, Forcing, HarmonicLoad, LinearModel, ModelError};
+use crate::observer::Observer;
+use crate::scenes::Bar;
+use crate::spec::{IntegratorSpec, JobSpec, LinearSpec, ModelSpec, MoreauJeanSpec, SpecError, TimeSpec};
+use serde_json::{Map, Value, json};
+use thiserror::Error;
+
+/// A table an analysis produces besides the step records (e.g. `backbone`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Table {
+    /// File stem, e.g. `backbone` for `backbone.csv`.
+    pub name: String,
+    /// Column names.
+    pub columns: Vec<String>,
+    /// Rows of values.
+    pub rows: Vec<Vec<f64>>,
+}
+
+/// A picture a job produces (SVG text).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Figure {
+    /// File stem, e.g. `backbone` for `backbone.svg`.
+    pub name: String,
+    /// SVG document.
+    pub svg: String,
+}
+
+/// What a finished run returns (the step records went to the observer).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RunOutput {
+    /// `summary.json` (the caller adds `wall_s` and `steps_per_s`).
+    pub summary: Map<String, Value>,
+    /// Extra tables.
+    pub tables: Vec<Table>,
+    /// Figures.
+    pub figures: Vec<Figure>,
+}
+
+/// Why a run failed.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum RunError {
+    /// A step failed.
+    #[error(transparent)]
+    Step(#[from] StepError),
+    /// The observer stopped the run (cancellation).
+    #[error("stopped after {step} steps")]
+    Stopped {
+        /// Steps done.
+        step: u64,
+    },
+}
+
+impl From<RunStop> for RunError {
+    fn from(s: RunStop) -> Self {
+        match s {
+            RunStop::Step(e) => RunError::Step(e),
+            RunStop::Stopped { step } => RunError::Stopped { step },
+        }
+    }
+}
+
+/// Size of a job, for the service's limits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct JobSize {
+    /// Degrees of freedom.
+    pub dofs: u64,
+    /// Time steps (or analysis tasks).
+    pub steps: u64,
+    /// Rough memory estimate of the recorded output, in bytes.
+    pub output_bytes: u64,
+}
+
+/// A validated, ready-to-run job.
+#[derive(Debug, Clone)]
+pub struct Job {
+    spec: JobSpec,
+    kind: JobKind,
+}
+
+#[derive(Debug, Clone)]
+enum JobKind {
+    Linear(Box<LinearJob>),
+}
+
+#[derive(Debug, Clone)]
+struct LinearJob {
+    model: LinearModel,
+    scheme: LinearSchemeChoice,
+    h: f64,
+    steps: u64,
+    lcp: LcpOptions,
+    output: OutputOptions,
+}
+
+#[derive(Debug, Clone)]
+enum LinearSchemeChoice {
+    MoreauJean(MoreauJeanParams),
+}
+
+impl Job {
+    /// Validates `spec` and builds the job. Every error names the offending field.
+    pub fn from_spec(spec: &JobSpec) -> Result<Job, SpecError> {
+        let model_spec = spec.model.as_ref().ok_or_else(|| SpecError::new("model", "missing section"))?;
+        let time = spec.time.as_ref().ok_or_else(|| SpecError::new("time", "missing section"))?;
+        let model = build_model(model_spec)?;
+        let (h, steps) = fixed_steps(time)?;
+        let lcp = lcp_options(spec)?;
+        let output = output_options(spec, model.dofs())?;
+        let scheme = match &spec.integrator {
+            IntegratorSpec::MoreauJean(p) => LinearSchemeChoice::MoreauJean(moreau_jean_params(p, false)?),
+            IntegratorSpec::MoreauJeanVariant(p) => LinearSchemeChoice::MoreauJean(moreau_jean_params(p, true)?),
+        };
+        Ok(Job { spec: spec.clone(), kind: JobKind::Linear(Box::new(LinearJob { model, scheme, h, steps, lcp, output })) })
+    }
+
+    /// The spec this job was built from.
+    pub fn spec(&self) -> &JobSpec {
+        &self.spec
+    }
+
+    /// Size of the job.
+    pub fn size(&self) -> JobSize {
+        match &self.kind {
+            JobKind::Linear(j) => {
+                let recorded = j.steps / j.output.every.max(1) + 2;
+                let columns = 12 + 3 * j.model.contacts.len() + 2 * j.output.probes.len() + 2;
+                JobSize { dofs: j.model.dofs() as u64, steps: j.steps, output_bytes: recorded * columns as u64 * 8 }
+            }
+        }
+    }
+}
+
+/// Runs a validated job to the end (or until the observer stops it).
+pub fn run(job: &Job, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
+    match &job.kind {
+        JobKind::Linear(j) => run_linear_job(job, j, observer),
+    }
+}
+
+fn run_linear_job(job: &Job, j: &LinearJob, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
+    let mut scheme: Box<dyn LinearScheme> = match j.scheme {
+        LinearSchemeChoice::MoreauJean(p) => Box::new(
+            MoreauJean::new(&j.model, p, j.h, j.lcp)
+                .map_err(|_| RunError::Step(StepError::NotFinite { step: 0, t: 0.0 }))?,
+        ),
+    };
+    let mut state = LinearState::initial(&j.model);
+    let stats = run_linear(&j.model, scheme.as_mut(), &mut state, j.steps, &j.output, observer)?;
+    let mut summary = header(job);
+    summary.extend(
+        json!({
+            "kind": "time_integration",
+            "dofs": j.model.dofs(),
+            "contacts": j.model.contacts.len(),
+            "h": j.h,
+            "steps": stats.steps,
+            "t_end": stats.t_end,
+            "max_abs_balance_residual": stats.max_abs_balance_residual,
+            "energy_initial": stats.energy_initial,
+            "energy_final": stats.energy_final,
+            "energy_max": stats.energy_max,
+            "algorithmic_energy_max": stats.algorithmic_energy_max,
+            "impacts": stats.impacts,
+            "lcp_max_error": stats.lcp_max_error,
+            "lcp_solves": stats.lcp_solves,
+            "work_ext_total": stats.work_ext_total,
+            "work_damping_total": stats.work_damping_total,
+            "work_contact_total": stats.work_contact_total,
+        })
+        .as_object()
+        .cloned()
+        .unwrap_or_default(),
+    );
+    Ok(RunOutput { summary, tables: Vec::new(), figures: Vec::new() })
+}
+
+fn header(job: &Job) -> Map<String, Value> {
+    let mut m = Map::new();
+    if let Some(name) = &job.spec.name {
+        m.insert("name".into(), json!(name));
+    }
+    if let Some(model) = &job.spec.model {
+        m.insert("scene".into(), json!(model.scene()));
+    }
+    m.insert("scheme".into(), json!(job.spec.integrator.scheme()));
+    m
+}
+
+/// Builds the linear model of a scene; errors carry `model.`-prefixed fields.
+pub fn build_model(spec: &ModelSpec) -> Result<LinearModel, SpecError> {
+    let result = match spec {
+        ModelSpec::BouncingBall(b) => b.build(),
+        ModelSpec::Bar(b) => b.resolve(Bar::default()).build(),
+        ModelSpec::DepBar(b) => b.resolve(Bar::doyen_ern_piperno(100)).build(),
+        ModelSpec::Chain(c) => c.build(),
+        ModelSpec::Linear(l) => build_linear(l),
+    };
+    result.map_err(|e| SpecError::new(format!("model.{}", e.field()), e.reason()))
+}
+
+fn matrix(
+    name: &str,
+    rows: &Option<Vec<Vec<f64>>>,
+    triplets: &Option<Vec<(usize, usize, f64)>>,
+    n: usize,
+) -> Result<SymBand, ModelError> {
+    let tname = format!("{name}_triplets");
+    match (rows, triplets) {
+        (Some(_), Some(_)) => Err(ModelError::OutOfRange {
+            field: name.into(),
+            value: 0.0,
+            range: "one spelling: give the dense rows or the triplets, not both",
+        }),
+        (Some(r), None) => {
+            let m = SymBand::from_dense_rows(r).map_err(|source| ModelError::Matrix { field: name.into(), source })?;
+            if m.n() != n {
+                return Err(ModelError::Dimension { field: name.into(), expected: n, found: m.n() });
+            }
+            Ok(m)
+        }
+        (None, Some(t)) => SymBand::from_triplets(n, t).map_err(|source| ModelError::Matrix { field: tname, source }),
+        (None, None) => Ok(SymBand::zeros(n, 0)),
+    }
+}
+
+fn build_linear(l: &LinearSpec) -> Result<LinearModel, ModelError> {
+    // The order n comes from the mass matrix.
+    let n = match (&l.mass, &l.mass_triplets) {
+        (Some(r), _) => r.len(),
+        (None, Some(t)) => t.iter().map(|&(i, j, _)| i.max(j) + 1).max().unwrap_or(0),
+        (None, None) => {
+            return Err(ModelError::Dimension { field: "mass".into(), expected: 1, found: 0 });
+        }
+    };
+    if n == 0 {
+        return Err(ModelError::Dimension { field: "mass".into(), expected: 1, found: 0 });
+    }
+    let mass = matrix("mass", &l.mass, &l.mass_triplets, n)?;
+    let stiffness = matrix("stiffness", &l.stiffness, &l.stiffness_triplets, n)?;
+    let damping = matrix("damping", &l.damping, &l.damping_triplets, n)?;
+    let m = l.g_matrix.len();
+    let offsets = l.g_offset.clone().unwrap_or_else(|| vec![0.0; m]);
+    crate::model::check_vector("g_offset", &offsets, m)?;
+    crate::model::check_vector("restitution", &l.restitution, m)?;
+    let mut contacts = Vec::with_capacity(m);
+    for (a, row) in l.g_matrix.iter().enumerate() {
+        crate::model::check_vector(&format!("g_matrix[{a}]"), row, n)?;
+        contacts.push(Contact {
+            g: row.iter().enumerate().filter(|(_, c)| **c != 0.0).map(|(i, &c)| (i, c)).collect(),
+            offset: offsets[a],
+            motion: None,
+            restitution: l.restitution[a],
+        });
+    }
+    let force = Forcing {
+        constant: l.force.clone().unwrap_or_else(|| vec![0.0; n]),
+        harmonic: l
+            .harmonic_force
+            .iter()
+            .map(|h| HarmonicLoad { shape: h.shape.clone(), omega: h.omega, phase: h.phase })
+            .collect(),
+    };
+    let model = LinearModel::new(
+        mass,
+        damping,
+        stiffness,
+        force,
+        contacts,
+        l.q0.clone().unwrap_or_else(|| vec![0.0; n]),
+        l.v0.clone().unwrap_or_else(|| vec![0.0; n]),
+    );
+    // Contact rows are validated by LinearModel with `contacts[α]`; the spec calls them g_matrix.
+    model.map_err(|e| match e {
+        ModelError::OutOfRange { field, value, range } if field.starts_with("contacts[") => {
+            let field = field.replace("contacts", "g_matrix").replace(".g", "").replace(".restitution", "");
+            ModelError::OutOfRange { field, value, range }
+        }
+        other => other,
+    })
+}
+
+/// Constant step size and number of steps from `[time]`.
+pub fn fixed_steps(time: &TimeSpec) -> Result<(f64, u64), SpecError> {
+    if !time.h.is_finite() || time.h <= 0.0 {
+        return Err(SpecError::new("time.h", format!("must be a finite number > 0, got {}", time.h)));
+    }
+    if time.pattern.is_some() {
+        return Err(SpecError::new("time.pattern", "variable step sizes are supported by the SOI2 schemes only"));
+    }
+    if time.adjust.is_some() {
+        return Err(SpecError::new("time.adjust", "the adjusting formulas belong to the SOI2 schemes only"));
+    }
+    let steps = match (time.t_end, time.steps) {
+        (Some(_), Some(_)) => return Err(SpecError::new("time.steps", "give t_end or steps, not both")),
+        (None, None) => return Err(SpecError::new("time.t_end", "missing: give t_end or steps")),
+        (None, Some(n)) => n,
+        (Some(t), None) => {
+            if !t.is_finite() || t < 0.0 {
+                return Err(SpecError::new("time.t_end", format!("must be a finite number ≥ 0, got {t}")));
+            }
+            // Round to the nearest step when t_end is a multiple of h up to round-off.
+            let ratio = t / time.h;
+            let nearest = ratio.round();
+            if (ratio - nearest).abs() <= 1e-9 * ratio.max(1.0) { nearest as u64 } else { ratio.ceil() as u64 }
+        }
+    };
+    Ok((time.h, steps))
+}
+
+fn lcp_options(spec: &JobSpec) -> Result<LcpOptions, SpecError> {
+    let c = &spec.contact_solver;
+    if !c.tolerance.is_finite() || c.tolerance <= 0.0 {
+        return Err(SpecError::new("contact_solver.tolerance", format!("must be > 0, got {}", c.tolerance)));
+    }
+    if c.max_iterations == 0 {
+        return Err(SpecError::new("contact_solver.max_iterations", "must be ≥ 1"));
+    }
+    Ok(LcpOptions { kind: c.kind, tolerance: c.tolerance, max_iterations: c.max_iterations })
+}
+
+fn output_options(spec: &JobSpec, dofs: usize) -> Result<OutputOptions, SpecError> {
+    let o = &spec.output;
+    if o.every == 0 {
+        return Err(SpecError::new("output.every", "must be ≥ 1"));
+    }
+    if let Some(&j) = o.probes.iter().find(|&&j| j >= dofs) {
+        return Err(SpecError::new("output.probes", format!("dof {j} does not exist (the model has {dofs} dofs)")));
+    }
+    Ok(OutputOptions { every: o.every, probes: o.probes.clone() })
+}
+
+fn moreau_jean_params(p: &MoreauJeanSpec, variant: bool) -> Result<MoreauJeanParams, SpecError> {
+    if !p.theta.is_finite() || !(0.0..=1.0).contains(&p.theta) {
+        return Err(SpecError::new("integrator.theta", format!("must be in [0, 1], got {}", p.theta)));
+    }
+    let gamma = match (p.activation, p.activation_gamma) {
+        (Activation::GapAndVelocity, Some(_)) => {
+            return Err(SpecError::new(
+                "integrator.activation_gamma",
+                "only used with activation = \"predicted_gap\"",
+            ));
+        }
+        (_, Some(g)) if !g.is_finite() || g <= 0.0 => {
+            return Err(SpecError::new("integrator.activation_gamma", format!("must be > 0, got {g}")));
+        }
+        (_, g) => g.unwrap_or(1.0),
+    };
+    Ok(MoreauJeanParams { theta: p.theta, variant, index_set: IndexSetRule { activation: p.activation, gamma } })
+}

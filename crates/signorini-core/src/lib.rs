@@ -1,0 +1,18 @@
+//! Numerical core of Signorini: linear and nonlinear mechanical models with unilateral
+//! contacts, event-capturing time integrators with exact discrete energy bookkeeping, LCP
+//! solvers, and nonsmooth modal analysis.
+//!
+//! Pure computation: no async, no files, no network, no printing. A run reports through an
+//! [`observer::Observer`]; the service decides where the records go.
+#![warn(missing_docs)]
+
+pub mod band;
+pub mod contact;
+pub mod energy;
+pub mod integrators;
+pub mod job;
+pub mod lcp;
+pub mod model;
+pub mod observer;
+pub mod scenes;
+pub mod spec;

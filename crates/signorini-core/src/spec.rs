@@ -1,0 +1,263 @@
+//! The job spec: one serde schema for the three spellings (TOML for the CLI, JSON over HTTP,
+//! protobuf over gRPC converts to it). The field names pinned in DESIGN.md §7 are a public
+//! contract: add fields freely, rename none. Unknown fields are rejected.
+//!
+//! A spec is only data; [`crate::job::Job::from_spec`] validates it once and builds the model
+//! and the integrator, with errors that name the field ([`SpecError`]).
+
+use crate::contact::Activation;
+use crate::lcp::LcpSolverKind;
+use crate::scenes::{BarSpec, BouncingBall, Chain};
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+/// A whole job.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JobSpec {
+    /// Optional label.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// The model (required by time-integration jobs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<ModelSpec>,
+    /// The integrator; Moreau–Jean with θ = ½ when absent.
+    #[serde(default)]
+    pub integrator: IntegratorSpec,
+    /// Step size and duration (required by time-integration jobs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time: Option<TimeSpec>,
+    /// LCP solver settings.
+    #[serde(default)]
+    pub contact_solver: ContactSolverSpec,
+    /// What to record.
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+/// `[model]`: the scene and its parameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "scene", rename_all = "snake_case")]
+pub enum ModelSpec {
+    /// A ball bouncing on the ground.
+    BouncingBall(BouncingBall),
+    /// Elastic bar of linear finite elements against an obstacle.
+    Bar(BarSpec),
+    /// The Doyen–Ern–Piperno bouncing bar (defaults from Yoong et al. 2018, Table 1).
+    DepBar(BarSpec),
+    /// Masses and springs, one contact per mass.
+    Chain(Chain),
+    /// Raw matrices.
+    Linear(LinearSpec),
+}
+
+impl ModelSpec {
+    /// The scene's name as written in specs.
+    pub fn scene(&self) -> &'static str {
+        match self {
+            ModelSpec::BouncingBall(_) => "bouncing_ball",
+            ModelSpec::Bar(_) => "bar",
+            ModelSpec::DepBar(_) => "dep_bar",
+            ModelSpec::Chain(_) => "chain",
+            ModelSpec::Linear(_) => "linear",
+        }
+    }
+}
+
+/// One harmonic term of the force of a `linear` model: `shape · sin(omega t + phase)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HarmonicForceSpec {
+    /// Amplitude per dof.
+    pub shape: Vec<f64>,
+    /// Angular frequency.
+    pub omega: f64,
+    /// Phase (default 0).
+    #[serde(default)]
+    pub phase: f64,
+}
+
+/// `scene = "linear"`: `M q̈ + C q̇ + K q = F(t) + G λ`, `g = g_matrix · q + g_offset ≥ 0`.
+/// Each matrix is given as dense rows (`mass`) or as triplets (`mass_triplets`), not both.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinearSpec {
+    /// M as dense rows.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mass: Option<Vec<Vec<f64>>>,
+    /// M as `[row, col, value]` triplets (repeated entries add up).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mass_triplets: Option<Vec<(usize, usize, f64)>>,
+    /// K as dense rows (zero when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stiffness: Option<Vec<Vec<f64>>>,
+    /// K as triplets.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stiffness_triplets: Option<Vec<(usize, usize, f64)>>,
+    /// C as dense rows (zero when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub damping: Option<Vec<Vec<f64>>>,
+    /// C as triplets.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub damping_triplets: Option<Vec<(usize, usize, f64)>>,
+    /// Constant force (zero when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force: Option<Vec<f64>>,
+    /// Harmonic force terms.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub harmonic_force: Vec<HarmonicForceSpec>,
+    /// Gᵀ: one row per contact, n entries each.
+    #[serde(default)]
+    pub g_matrix: Vec<Vec<f64>>,
+    /// w: one offset per contact (zero when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub g_offset: Option<Vec<f64>>,
+    /// Restitution per contact.
+    #[serde(default)]
+    pub restitution: Vec<f64>,
+    /// Initial positions (zero when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub q0: Option<Vec<f64>>,
+    /// Initial velocities (zero when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub v0: Option<Vec<f64>>,
+}
+
+/// `[integrator]`: the scheme and its parameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "scheme", rename_all = "snake_case")]
+pub enum IntegratorSpec {
+    /// Moreau–Jean θ-scheme, Acary 2016 (21)–(24).
+    MoreauJean(MoreauJeanSpec),
+    /// Its variant (29): `q_{k+1} = q_k + h v_{k+1/2}`.
+    MoreauJeanVariant(MoreauJeanSpec),
+}
+
+impl Default for IntegratorSpec {
+    fn default() -> Self {
+        IntegratorSpec::MoreauJean(MoreauJeanSpec::default())
+    }
+}
+
+impl IntegratorSpec {
+    /// The scheme's name as written in specs.
+    pub fn scheme(&self) -> &'static str {
+        match self {
+            IntegratorSpec::MoreauJean(_) => "moreau_jean",
+            IntegratorSpec::MoreauJeanVariant(_) => "moreau_jean_variant",
+        }
+    }
+}
+
+fn half() -> f64 {
+    0.5
+}
+
+/// Parameters of `moreau_jean` and `moreau_jean_variant`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MoreauJeanSpec {
+    /// θ ∈ [0, 1], default ½.
+    #[serde(default = "half")]
+    pub theta: f64,
+    /// Index-set rule: `gap_and_velocity` ((24), default) or `predicted_gap` (Siconos').
+    #[serde(default)]
+    pub activation: Activation,
+    /// γ > 0 of the predicted-gap rule `g(q_k) + γ h U_k ≤ 0`, default 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub activation_gamma: Option<f64>,
+}
+
+impl Default for MoreauJeanSpec {
+    fn default() -> Self {
+        Self { theta: 0.5, activation: Activation::default(), activation_gamma: None }
+    }
+}
+
+/// `[time]`: step size and duration (`t_end` or `steps`, not both).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeSpec {
+    /// Step size h > 0.
+    pub h: f64,
+    /// Final time ≥ 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t_end: Option<f64>,
+    /// Number of steps.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub steps: Option<u64>,
+    /// Relative step sizes repeated over the run (variable-step schemes only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pattern: Option<Vec<f64>>,
+    /// Use the step-size adjusting formulas (variable-step schemes only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub adjust: Option<bool>,
+}
+
+fn default_tolerance() -> f64 {
+    1e-12
+}
+
+fn default_max_iterations() -> usize {
+    100_000
+}
+
+/// `[contact_solver]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactSolverSpec {
+    /// `auto` (default), `lemke`, `pgs` or `enum`.
+    #[serde(default)]
+    pub kind: LcpSolverKind,
+    /// Largest complementarity error accepted, default 1e-12.
+    #[serde(default = "default_tolerance")]
+    pub tolerance: f64,
+    /// Pivot or sweep budget, default 100 000.
+    #[serde(default = "default_max_iterations")]
+    pub max_iterations: usize,
+}
+
+impl Default for ContactSolverSpec {
+    fn default() -> Self {
+        Self { kind: LcpSolverKind::Auto, tolerance: default_tolerance(), max_iterations: default_max_iterations() }
+    }
+}
+
+fn one() -> u64 {
+    1
+}
+
+/// `[output]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Record every k-th step (≥ 1, default 1); the last step is always recorded.
+    #[serde(default = "one")]
+    pub every: u64,
+    /// Dofs whose q_j, v_j are recorded (default none).
+    #[serde(default)]
+    pub probes: Vec<usize>,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        Self { every: 1, probes: Vec::new() }
+    }
+}
+
+/// An invalid spec: which field, and why.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("{field}: {reason}")]
+pub struct SpecError {
+    /// Dotted path of the field, e.g. `model.mass` or `time.h`.
+    pub field: String,
+    /// What is wrong with it.
+    pub reason: String,
+}
+
+impl SpecError {
+    /// An error on `field`.
+    pub fn new(field: impl Into<String>, reason: impl Into<String>) -> Self {
+        Self { field: field.into(), reason: reason.into() }
+    }
+}
