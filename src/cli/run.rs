@@ -1,0 +1,105 @@
+//! `signorini run SPEC --out DIR`: validate a spec, run it in-process, write the results.
+
+use crate::output::{CsvSteps, clear_results, write_figure, write_summary, write_table};
+use crate::spec_file::{self, Format};
+use anyhow::{Context, Result, anyhow};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::json;
+use signorini_core::job::{self, RunOutput};
+use signorini_core::observer::{Columns, Observer, Progress, StepRecord};
+use std::ops::ControlFlow;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+/// Arguments of `signorini run`.
+#[derive(Debug, Args)]
+#[command(after_help = "\
+The spec is TOML (or JSON if the file ends in .json) with the sections
+[model] (scene = bouncing_ball | bar | dep_bar | chain | linear …), [integrator] (scheme = moreau_jean …),
+[time] (h, t_end or steps), [contact_solver], [output] (every, probes). Examples: examples/*.toml
+
+Writes DIR/steps.csv (step, t, energy terms, gap/u/p per contact, q/v per probe) and
+DIR/summary.json (steps, wall_s, steps_per_s, max_abs_balance_residual, energies, impacts, …).
+
+  signorini run examples/bouncing_ball.toml --out out/ball")]
+pub struct RunArgs {
+    /// Job spec file (TOML, or JSON when it ends in .json).
+    pub spec: PathBuf,
+    /// Directory for steps.csv and summary.json (created if missing).
+    #[arg(long, short, default_value = "out")]
+    pub out: PathBuf,
+    /// No progress bar and no summary on stdout.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// Writes rows to steps.csv and drives a progress bar.
+struct CliObserver {
+    csv: CsvSteps,
+    bar: ProgressBar,
+    last_draw: Instant,
+}
+
+impl Observer for CliObserver {
+    fn start(&mut self, columns: &Columns) {
+        self.csv.start(columns);
+    }
+
+    fn observe(&mut self, record: &StepRecord<'_>) -> ControlFlow<()> {
+        self.csv.observe(record)
+    }
+
+    fn progress(&mut self, p: Progress) -> ControlFlow<()> {
+        if p.done % 1024 == 0 && self.last_draw.elapsed() > Duration::from_millis(100) {
+            self.bar.set_length(p.total);
+            self.bar.set_position(p.done);
+            self.last_draw = Instant::now();
+        }
+        ControlFlow::Continue(())
+    }
+}
+
+/// Runs the command.
+pub fn run(args: RunArgs) -> Result<()> {
+    let text = std::fs::read_to_string(&args.spec).with_context(|| format!("reading {}", args.spec.display()))?;
+    let job = spec_file::load(&text, Format::of_path(&args.spec))
+        .map_err(|e| anyhow!("invalid spec {}: {e}", args.spec.display()))?;
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    clear_results(&args.out)?;
+
+    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(job.size().steps) };
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} steps ({per_sec}, eta {eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut observer = CliObserver { csv: CsvSteps::create(&args.out)?, bar, last_draw: Instant::now() };
+    let started = Instant::now();
+    let result = job::run(&job, &mut observer);
+    let wall = started.elapsed().as_secs_f64();
+    observer.bar.finish_and_clear();
+    let output: RunOutput = match result {
+        Ok(o) => o,
+        Err(e) => {
+            observer.csv.discard();
+            return Err(anyhow!("run failed: {e}"));
+        }
+    };
+    observer.csv.finish()?;
+    for t in &output.tables {
+        write_table(&args.out, t)?;
+    }
+    for f in &output.figures {
+        write_figure(&args.out, f)?;
+    }
+    let mut summary = output.summary;
+    let steps = summary.get("steps").and_then(|s| s.as_f64()).unwrap_or(0.0);
+    summary.insert("wall_s".into(), json!(wall));
+    summary.insert("steps_per_s".into(), json!(if wall > 0.0 { steps / wall } else { 0.0 }));
+    write_summary(&args.out, &summary)?;
+    if !args.quiet {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+        println!("results in {}", args.out.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,6 @@
+//! The Signorini binary's library: job-spec files, output writers, the CLI, and the service.
+//! The numerics live in `signorini-core`; this crate only moves data in and out.
+
+pub mod cli;
+pub mod output;
+pub mod spec_file;

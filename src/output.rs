@@ -1,0 +1,146 @@
+//! Writing a run's results to a directory: `steps.csv` (header `step,t,` then the run's columns),
+//! `summary.json`, one `NAME.csv` per extra table and one `NAME.svg` per figure.
+//!
+//! Files are written under a temporary name and renamed when complete, and stale results of an
+//! earlier run in the same directory are removed first: a failed run never leaves files that
+//! look like valid results.
+
+use anyhow::{Context, Result};
+use serde_json::{Map, Value};
+use signorini_core::job::{Figure, Table};
+use signorini_core::observer::{Columns, Observer, StepRecord};
+use std::fs::{self, File};
+use std::io::{BufWriter, Write};
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+
+/// Formats one value as CSV: shortest text that reads back to the same f64.
+pub fn fmt_value(x: f64) -> String {
+    format!("{x:?}")
+}
+
+/// The CSV header of a step table.
+pub fn csv_header(columns: &[String]) -> String {
+    let mut s = String::from("step,t");
+    for c in columns {
+        s.push(',');
+        s.push_str(c);
+    }
+    s
+}
+
+/// An [`Observer`] writing `steps.csv` rows as they come.
+pub struct CsvSteps {
+    path: PathBuf,
+    partial: PathBuf,
+    out: BufWriter<File>,
+    error: Option<std::io::Error>,
+}
+
+impl CsvSteps {
+    /// Opens `DIR/steps.csv.partial` for writing.
+    pub fn create(dir: &Path) -> Result<Self> {
+        let path = dir.join("steps.csv");
+        let partial = dir.join("steps.csv.partial");
+        let file = File::create(&partial).with_context(|| format!("creating {}", partial.display()))?;
+        Ok(Self { path, partial, out: BufWriter::with_capacity(1 << 20, file), error: None })
+    }
+
+    fn write_row(&mut self, r: &StepRecord<'_>) -> std::io::Result<()> {
+        write!(self.out, "{},{:?}", r.step, r.t)?;
+        for v in r.values {
+            write!(self.out, ",{v:?}")?;
+        }
+        writeln!(self.out)
+    }
+
+    /// Flushes and renames to `steps.csv`.
+    pub fn finish(mut self) -> Result<()> {
+        if let Some(e) = self.error.take() {
+            return Err(e).context("writing steps.csv");
+        }
+        self.out.flush().context("writing steps.csv")?;
+        drop(self.out);
+        fs::rename(&self.partial, &self.path).context("renaming steps.csv")
+    }
+
+    /// Removes the partial file (after a failed run).
+    pub fn discard(self) {
+        drop(self.out);
+        let _ = fs::remove_file(&self.partial);
+    }
+}
+
+impl Observer for CsvSteps {
+    fn start(&mut self, columns: &Columns) {
+        if let Err(e) = writeln!(self.out, "{}", csv_header(columns.names())) {
+            self.error = Some(e);
+        }
+    }
+
+    fn observe(&mut self, record: &StepRecord<'_>) -> ControlFlow<()> {
+        match self.write_row(record) {
+            Ok(()) => ControlFlow::Continue(()),
+            Err(e) => {
+                self.error = Some(e);
+                ControlFlow::Break(())
+            }
+        }
+    }
+}
+
+/// Names of every file a run may leave in its output directory.
+pub fn result_files(dir: &Path) -> Vec<PathBuf> {
+    let mut v = vec![dir.join("steps.csv"), dir.join("summary.json"), dir.join("steps.csv.partial")];
+    if let Ok(entries) = fs::read_dir(dir) {
+        for e in entries.flatten() {
+            let p = e.path();
+            if matches!(p.extension().and_then(|x| x.to_str()), Some("csv" | "svg")) {
+                v.push(p);
+            }
+        }
+    }
+    v
+}
+
+/// Removes results of an earlier run from `dir`.
+pub fn clear_results(dir: &Path) -> Result<()> {
+    for p in result_files(dir) {
+        match fs::remove_file(&p) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(e).with_context(|| format!("removing stale {}", p.display())),
+        }
+    }
+    Ok(())
+}
+
+/// Writes `text` to `path` atomically (temporary file, then rename).
+pub fn write_atomic(path: &Path, text: &str) -> Result<()> {
+    let tmp = path.with_extension("partial");
+    fs::write(&tmp, text).with_context(|| format!("writing {}", tmp.display()))?;
+    fs::rename(&tmp, path).with_context(|| format!("renaming {}", path.display()))
+}
+
+/// Writes a table as CSV.
+pub fn write_table(dir: &Path, table: &Table) -> Result<()> {
+    let mut s = table.columns.join(",");
+    s.push('\n');
+    for row in &table.rows {
+        let cells: Vec<String> = row.iter().map(|&x| fmt_value(x)).collect();
+        s.push_str(&cells.join(","));
+        s.push('\n');
+    }
+    write_atomic(&dir.join(format!("{}.csv", table.name)), &s)
+}
+
+/// Writes a figure as SVG.
+pub fn write_figure(dir: &Path, figure: &Figure) -> Result<()> {
+    write_atomic(&dir.join(format!("{}.svg", figure.name)), &figure.svg)
+}
+
+/// Writes `summary.json` (pretty-printed). Written last: its presence marks a complete result.
+pub fn write_summary(dir: &Path, summary: &Map<String, Value>) -> Result<()> {
+    let text = serde_json::to_string_pretty(summary)?;
+    write_atomic(&dir.join("summary.json"), &(text + "\n"))
+}

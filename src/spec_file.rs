@@ -1,0 +1,81 @@
+//! Reading job specs from TOML or JSON text, with errors that name the field.
+
+use signorini_core::job::Job;
+use signorini_core::spec::{JobSpec, SpecError};
+use std::path::Path;
+
+/// Spec text formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// TOML (`.toml`).
+    Toml,
+    /// JSON (`.json`).
+    Json,
+}
+
+impl Format {
+    /// The format a path's extension names (TOML unless it ends in `.json`).
+    pub fn of_path(path: &Path) -> Format {
+        match path.extension().and_then(|e| e.to_str()) {
+            Some(e) if e.eq_ignore_ascii_case("json") => Format::Json,
+            _ => Format::Toml,
+        }
+    }
+}
+
+/// Parses spec text. Errors name the field by its dotted path (`model.mas: unknown field …`).
+pub fn parse(text: &str, format: Format) -> Result<JobSpec, SpecError> {
+    match format {
+        Format::Json => {
+            let de = &mut serde_json::Deserializer::from_str(text);
+            serde_path_to_error::deserialize(de).map_err(|e| located(e.path().to_string(), e.inner().to_string()))
+        }
+        Format::Toml => {
+            let de = toml::Deserializer::parse(text).map_err(|e| SpecError::new("spec", e.message().to_string()))?;
+            serde_path_to_error::deserialize(de).map_err(|e| located(e.path().to_string(), e.inner().message().to_string()))
+        }
+    }
+}
+
+/// Parses and validates: the one entry point from text to a runnable [`Job`].
+pub fn load(text: &str, format: Format) -> Result<Job, SpecError> {
+    Job::from_spec(&parse(text, format)?)
+}
+
+/// Turns serde's (path, message) into a field error. serde reports an unknown tag as an error
+/// on the enclosing section; we name the tag field (`model.scene`, `integrator.scheme`).
+fn located(path: String, message: String) -> SpecError {
+    let path = if path == "." { String::new() } else { path };
+    let field = if message.starts_with("unknown variant") {
+        match path.as_str() {
+            "model" => "model.scene".to_string(),
+            "integrator" => "integrator.scheme".to_string(),
+            _ => path,
+        }
+    } else if let Some(rest) = message.strip_prefix("unknown field `") {
+        let name = rest.split('`').next().unwrap_or_default();
+        if path.is_empty() { name.to_string() } else { format!("{path}.{name}") }
+    } else if let Some(rest) = message.strip_prefix("missing field `") {
+        let name = rest.split('`').next().unwrap_or_default();
+        if path.is_empty() { name.to_string() } else { format!("{path}.{name}") }
+    } else {
+        path
+    };
+    let field = if field.is_empty() { "spec".to_string() } else { field };
+    SpecError::new(field, message)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unknown_field_and_scene_are_named() {
+        let e = parse("[model]\nscene = \"bouncing_ball\"\nmas = 1.0\n[time]\nh = 0.01\nsteps = 1\n", Format::Toml).unwrap_err();
+        assert_eq!(e.field, "model.mas", "{e}");
+        let e = parse("[model]\nscene = \"bouncy\"\n[time]\nh = 0.01\nsteps = 1\n", Format::Toml).unwrap_err();
+        assert_eq!(e.field, "model.scene", "{e}");
+        let e = parse(r#"{"model": {"scene": "chain", "masses": "x"}, "time": {"h": 1, "steps": 1}}"#, Format::Json).unwrap_err();
+        assert_eq!(e.field, "model.masses", "{e}");
+    }
+}
