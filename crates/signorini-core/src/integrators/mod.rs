@@ -4,7 +4,9 @@
 //! A scheme holds only its run constants (factorisations, Delassus operator) and scratch
 //! buffers; the state ([`LinearState`]) comes in explicitly, so a run can be paused and resumed.
 
+pub mod alpha;
 pub mod moreau_jean;
+pub mod position_contact;
 
 use crate::contact::LcpStats;
 use crate::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS, EnergyTerms};

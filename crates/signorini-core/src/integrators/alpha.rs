@@ -1,0 +1,956 @@
+//! The nonsmooth Newmark / HHT / generalized-α / Krenk–Høgsberg (KH) family, Acary 2016
+//! (25)–(30), with the algorithmic energy of Lemma 2 and Propositions 2–4.
+//!
+//! # The scheme
+//!
+//! One step from (t_k, q_k, v_k, a_k) with step h (Acary 2016, (25a)–(25i)):
+//!
+//! ```text
+//! M v̇_{k+1} + K q_{k+1} + C v_{k+1} = F_{k+1}                                    (25a)
+//! M w_{k+1} = G P_{k+1}                                                         (25b)
+//! U_{k+1} = Gᵀ v_{k+1} (+ ẇ)                                                     (25c)
+//! 0 ≤ U^α_{k+1} + e_α U^α_k ⊥ P^α_{k+1} ≥ 0 on the index set (24), P^α = 0 elsewhere  (25d)
+//! (1 − α_m) a_{k+1} + α_m a_k = (1 − α_f) v̇_{k+1} + α_f v̇_k                       (25e)
+//! q̃_{k+1} = q_k + h v_k + h²(½ − β) a_k + h² β a_{k+1}                            (25f)
+//! ṽ_{k+1} = v_k + h(1 − γ) a_k + h γ a_{k+1}                                     (25g)
+//! v_{k+1} = ṽ_{k+1} + w_{k+1}                                                    (25h)
+//! q_{k+1} = q̃_{k+1} + (h/2) w_{k+1}                                              (25i)
+//! ```
+//!
+//! Multiplying (25e) by M and using (25a) at t_k and t_{k+1} gives the characteristic relation
+//! (53), `(1−α_m) M a_{k+1} + α_m M a_k = (1−α_f)[F − Kq − Cv]_{k+1} + α_f [F − Kq − Cv]_k`,
+//! which is what a step solves (v̇_k never needs storing). The KH variant replaces (25a), (25e)
+//! by (30), where damping and load take the inertial weights:
+//! `(1−α_m)[M a + C v − F]_{k+1} + α_m[M a + C v − F]_k = −(1−α_f) K q_{k+1} − α_f K q_k`.
+//! Both are `(1−α_M) M a_{k+1} + (1−α_C) C v_{k+1} + (1−α_K) K q_{k+1} − (1−α_L) F_{k+1} =
+//! −α_M M a_k − α_C C v_k − α_K K q_k + α_L F_k` with per-term weights ([`Weighting`]).
+//!
+//! **No splitting.** Substituting (25f)–(25i) leaves two unknowns, a_{k+1} and P_{k+1}:
+//! `S a_{k+1} = b_k − [(1−α_C) C + (1−α_K)(h/2) K] M⁻¹ G P_{k+1}` with the iteration matrix
+//! `S = (1−α_M) M + (1−α_C) γ h C + (1−α_K) β h² K` (factorised once per run). Then
+//! `v_{k+1} = v_free + Ŵ G P` with `Ŵ = M⁻¹ − γh S⁻¹[(1−α_C) C + (1−α_K)(h/2) K] M⁻¹`, and
+//! the one LCP per step is `0 ≤ Gᵀ Ŵ G P + U_free + e∘U_k ⊥ P ≥ 0` on the index set: smooth
+//! acceleration and impulse come out together. `Gᵀ Ŵ G = Gᵀ S⁻¹[(1−α_M) M + (1−α_K)h²(β − γ/2) K]
+//! M⁻¹ G` is symmetric positive definite when C = 0 or C commutes with K M⁻¹ (Rayleigh damping)
+//! and 2β ≥ γ; otherwise it is solved by Lemke's method as a general LCP.
+//!
+//! # Consistent start
+//!
+//! `a_0 = v̇_0 = M⁻¹(F_0 − K q_0 − C v_0)` (the equation of motion at t_0, contact forces taken
+//! as zero) and filters `z_0 = x_0 = y_0 = 0`: then the residual `r_k = M a_k + C v_k + K q_k − F_k`
+//! equals the filter force `f^A_k = (η/ν)[K z_k + C x_k − y_k]` of (51) at k = 0, and the
+//! relation (53) carries the equality to every step, so the identities hold from step 1. A scheme
+//! asked to step from a state it did not produce (a resumed run) starts consistently again there.
+//!
+//! # Energy (Lemma 2, Propositions 2–4)
+//!
+//! With `ν = ½ − α_m`, `η = α_f − α_m` (50) and the filters discretised by the mid-point rule
+//! (48), `(½+ν) z_{k+1} + (½−ν) z_k = ν (q_{k+1} − q_k)`, and likewise x with v and y with F (52):
+//!
+//! * `algorithmic_energy` H (55) `= ½vᵀMv + ½qᵀKq + (h²/4)(2β − γ) aᵀMa + (η/(2ν²))(ν − γ + ½) zᵀKz`;
+//! * `work_ext` `= Δqᵀ[F_{k,γ} − (η/ν) y_{k,γ}]` — (56) for Newmark and KH (no y filter), (79) for
+//!   HHT, where `2y_{k+1} = F_{k+1} − F_k` turns it into `Δqᵀ[(1−α)F_{k,γ} + αF_{k−1,γ}]` (85);
+//! * `work_damping` `= −Δqᵀ C[v_{k,γ} − (η/ν) x_{k,γ}]` — (57), (80) likewise;
+//! * `work_contact` `= (Gᵀv_{k+1/2})ᵀ P_{k+1}`, that is `U_{k+1/2}ᵀ P_{k+1}` for a fixed obstacle
+//!   (Lemma 3: ≤ 0); with a moving obstacle it is the work on the body;
+//! * `numerical_dissipation` `= −½h²(γ − ½)(2β − γ)‖Δa‖²_M − (γ − ½ − η)‖Δq‖²_K
+//!   − (η/ν)(ν − γ + ½)‖Δz‖²_K`, the right-hand side of (58) without the contact term: (73) for
+//!   KH, (81) for HHT, (87) for Newmark (where the paper's `h/2` before ‖Δa‖² is `h²/2`, as (62)
+//!   shows);
+//! * `balance_residual` `= ΔH − work_ext − work_damping − work_contact − numerical_dissipation`,
+//!   zero up to round-off: Lemma 2 (58) with the x, y filter terms moved into the two works.
+//!
+//! ΔH is evaluated in difference form (`½(v_{k+1}+v_k)ᵀ M Δv + …`) so that it keeps its relative
+//! accuracy when H is large and the step changes it little.
+//!
+//! When ν = 0 (α_m = ½) the filters (48) vanish; the scheme then requires η = 0 (Remark 1), and
+//! the filter terms are zero.
+
+use super::{LinearScheme, LinearState, StepError, StepReport};
+use crate::band::{BandCholesky, BandError, SymBand};
+use crate::contact::{IndexSetRule, LcpStats};
+use crate::energy::EnergyTerms;
+use crate::lcp::{self, Lcp, LcpOptions};
+use crate::model::LinearModel;
+use std::fmt;
+
+/// Tolerance of the parameter conditions, so that parameters computed from ρ∞ by (27) are not
+/// rejected by one ulp.
+const PARAM_TOL: f64 = 1e-12;
+
+/// Which member of the family: fixes which stability conditions apply and, for KH, the weights.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AlphaScheme {
+    /// Nonsmooth Newmark: α_m = α_f = 0; dissipative for 2β ≥ γ ≥ ½ (89).
+    Newmark,
+    /// Nonsmooth HHT (78): α_m = 0, α_f = α; dissipative for 2β ≥ γ ≥ ½, 0 ≤ α ≤ γ − ½ ≤ ½ (83).
+    Hht,
+    /// Nonsmooth generalized-α (25), Chung–Hulbert weighting (53). Accepted for
+    /// α_m ≤ α_f ≤ ½, γ ≥ ½ + α_f − α_m, β ≥ ¼ + ½(α_f − α_m) (Chung & Hulbert 1993); Lemma 2
+    /// gives the identity but no sign.
+    GeneralizedAlpha,
+    /// Nonsmooth KH generalized-α (30); dissipative under (76).
+    KrenkHogsberg,
+}
+
+impl AlphaScheme {
+    /// The scheme's name in job specs.
+    pub fn name(self) -> &'static str {
+        match self {
+            AlphaScheme::Newmark => "ns_newmark",
+            AlphaScheme::Hht => "ns_hht",
+            AlphaScheme::GeneralizedAlpha => "ns_generalized_alpha",
+            AlphaScheme::KrenkHogsberg => "ns_kh_alpha",
+        }
+    }
+}
+
+/// Parameters of the α-family. Build them with [`AlphaParams::newmark`], [`AlphaParams::hht`],
+/// [`AlphaParams::from_rho_inf`] or directly, then [`AlphaParams::validate`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AlphaParams {
+    /// Member of the family.
+    pub scheme: AlphaScheme,
+    /// α_m < 1 (≤ ½ for stability).
+    pub alpha_m: f64,
+    /// α_f ≤ 1.
+    pub alpha_f: f64,
+    /// β ≥ 0.
+    pub beta: f64,
+    /// γ ≥ 0.
+    pub gamma: f64,
+    /// Index-set rule, (24) by default.
+    pub index_set: IndexSetRule,
+}
+
+/// A parameter set the family cannot run, or that is outside the scheme's stability or
+/// dissipation conditions. `field` is the parameter's spec name.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ParamError {
+    /// Spec field name (`alpha_m`, `alpha_f`, `alpha`, `beta`, `gamma`, `rho_inf`).
+    pub field: &'static str,
+    /// What is wrong.
+    pub reason: String,
+    /// True when the parameters are runnable but outside the proven conditions (a spec may
+    /// accept them with `allow_unstable = true`).
+    pub stability: bool,
+}
+
+impl fmt::Display for ParamError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.field, self.reason)
+    }
+}
+
+impl std::error::Error for ParamError {}
+
+fn hard(field: &'static str, reason: String) -> ParamError {
+    ParamError {
+        field,
+        reason,
+        stability: false,
+    }
+}
+
+fn unstable(field: &'static str, reason: String) -> ParamError {
+    ParamError {
+        field,
+        reason,
+        stability: true,
+    }
+}
+
+impl AlphaParams {
+    /// Nonsmooth Newmark (α_m = α_f = 0). β = ¼, γ = ½ is the trapezoidal rule (Corollary 1).
+    pub fn newmark(beta: f64, gamma: f64) -> Self {
+        Self {
+            scheme: AlphaScheme::Newmark,
+            alpha_m: 0.0,
+            alpha_f: 0.0,
+            beta,
+            gamma,
+            index_set: IndexSetRule::default(),
+        }
+    }
+
+    /// Nonsmooth HHT with the second-order choice γ = ½ + α, β = (1 + α)²/4.
+    pub fn hht(alpha: f64) -> Self {
+        Self::hht_with(alpha, 0.25 * (1.0 + alpha) * (1.0 + alpha), 0.5 + alpha)
+    }
+
+    /// Nonsmooth HHT (78) with explicit β, γ.
+    pub fn hht_with(alpha: f64, beta: f64, gamma: f64) -> Self {
+        Self {
+            scheme: AlphaScheme::Hht,
+            alpha_m: 0.0,
+            alpha_f: alpha,
+            beta,
+            gamma,
+            index_set: IndexSetRule::default(),
+        }
+    }
+
+    /// Generalized-α or KH parameters from the spectral radius at infinity ρ∞ ∈ [0, 1] by (27):
+    /// `α_m = (2ρ∞ − 1)/(ρ∞ + 1)`, `α_f = ρ∞/(ρ∞ + 1)`, γ by (26) `γ = ½ + α_f − α_m`,
+    /// `β = ¼(γ + ½)²`.
+    pub fn from_rho_inf(scheme: AlphaScheme, rho_inf: f64) -> Self {
+        let alpha_m = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0);
+        let alpha_f = rho_inf / (rho_inf + 1.0);
+        let gamma = 0.5 + alpha_f - alpha_m;
+        let beta = 0.25 * (gamma + 0.5) * (gamma + 0.5);
+        Self {
+            scheme,
+            alpha_m,
+            alpha_f,
+            beta,
+            gamma,
+            index_set: IndexSetRule::default(),
+        }
+    }
+
+    /// Filter time-scale parameter ν = ½ − α_m (50).
+    pub fn nu(&self) -> f64 {
+        0.5 - self.alpha_m
+    }
+
+    /// Filter strength η = α_f − α_m (50).
+    pub fn eta(&self) -> f64 {
+        self.alpha_f - self.alpha_m
+    }
+
+    /// The weights (α_M, α_C, α_K, α_L) on the t_k terms of M a, C v, K q, F.
+    pub fn weights(&self) -> Weighting {
+        let (am, af) = (self.alpha_m, self.alpha_f);
+        match self.scheme {
+            AlphaScheme::KrenkHogsberg => Weighting {
+                mass: am,
+                damping: am,
+                stiffness: af,
+                load: am,
+            },
+            _ => Weighting {
+                mass: am,
+                damping: af,
+                stiffness: af,
+                load: af,
+            },
+        }
+    }
+
+    /// Checks that the scheme can run (finite values, α_m < 1, α_f ≤ 1, β, γ ≥ 0, η = 0 when
+    /// ν = 0) and that the parameters satisfy the scheme's stability/dissipation conditions
+    /// ([`AlphaScheme`]). Errors with `stability = true` concern only the latter.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        let hht = self.scheme == AlphaScheme::Hht;
+        let f_name = if hht { "alpha" } else { "alpha_f" };
+        for (field, x) in [
+            ("alpha_m", self.alpha_m),
+            (f_name, self.alpha_f),
+            ("beta", self.beta),
+            ("gamma", self.gamma),
+        ] {
+            if !x.is_finite() {
+                return Err(hard(field, format!("must be finite, got {x}")));
+            }
+        }
+        if self.alpha_m >= 1.0 {
+            return Err(hard(
+                "alpha_m",
+                format!(
+                    "must be < 1 (α_m = 1 leaves a_(k+1) undetermined), got {}",
+                    self.alpha_m
+                ),
+            ));
+        }
+        if self.alpha_f > 1.0 {
+            return Err(hard(f_name, format!("must be ≤ 1, got {}", self.alpha_f)));
+        }
+        if self.beta < 0.0 {
+            return Err(hard("beta", format!("must be ≥ 0, got {}", self.beta)));
+        }
+        if self.gamma < 0.0 {
+            return Err(hard("gamma", format!("must be ≥ 0, got {}", self.gamma)));
+        }
+        if self.nu().abs() <= PARAM_TOL && self.eta().abs() > PARAM_TOL {
+            return Err(hard(
+                "alpha_f",
+                format!(
+                    "α_m = ½ requires α_f = ½ (ν = 0 makes the filter (48) vanish, Remark 1), got α_f = {}",
+                    self.alpha_f
+                ),
+            ));
+        }
+        let (am, af, b, g) = (self.alpha_m, self.alpha_f, self.beta, self.gamma);
+        let tol = PARAM_TOL;
+        match self.scheme {
+            AlphaScheme::Newmark | AlphaScheme::Hht | AlphaScheme::KrenkHogsberg => {
+                if g < 0.5 - tol {
+                    return Err(unstable(
+                        "gamma",
+                        format!("must be ≥ ½ for dissipation ((89), (83), (76)), got {g}"),
+                    ));
+                }
+                if 2.0 * b < g - tol {
+                    return Err(unstable(
+                        "beta",
+                        format!("2β ≥ γ is required for dissipation, got β = {b}, γ = {g}"),
+                    ));
+                }
+            }
+            AlphaScheme::GeneralizedAlpha => {}
+        }
+        match self.scheme {
+            AlphaScheme::Newmark => {
+                if am != 0.0 || af != 0.0 {
+                    return Err(hard(
+                        "alpha_f",
+                        "nonsmooth Newmark has α_m = α_f = 0".into(),
+                    ));
+                }
+            }
+            AlphaScheme::Hht => {
+                if am != 0.0 {
+                    return Err(hard("alpha_m", "nonsmooth HHT has α_m = 0".into()));
+                }
+                if af < -tol || af > g - 0.5 + tol || g - 0.5 > 0.5 + tol {
+                    return Err(unstable(
+                        "alpha",
+                        format!("(83) requires 0 ≤ α ≤ γ − ½ ≤ ½, got α = {af}, γ = {g}"),
+                    ));
+                }
+            }
+            AlphaScheme::KrenkHogsberg => {
+                let eta = af - am;
+                if eta < -tol || eta > g - 0.5 + tol || g - 0.5 > 0.5 - am + tol {
+                    return Err(unstable(
+                        "alpha_f",
+                        format!(
+                            "(76) requires 0 ≤ α_f − α_m ≤ γ − ½ ≤ ½ − α_m, got α_m = {am}, α_f = {af}, γ = {g}"
+                        ),
+                    ));
+                }
+            }
+            AlphaScheme::GeneralizedAlpha => {
+                if am > af + tol || af > 0.5 + tol {
+                    return Err(unstable(
+                        "alpha_f",
+                        format!("stability requires α_m ≤ α_f ≤ ½, got α_m = {am}, α_f = {af}"),
+                    ));
+                }
+                if g < 0.5 + af - am - tol {
+                    return Err(unstable(
+                        "gamma",
+                        format!("stability requires γ ≥ ½ + α_f − α_m, got γ = {g}"),
+                    ));
+                }
+                if b < 0.25 + 0.5 * (af - am) - tol {
+                    return Err(unstable(
+                        "beta",
+                        format!("stability requires β ≥ ¼ + ½(α_f − α_m), got β = {b}"),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The coefficients the smooth part of a step needs.
+    pub(crate) fn coefficients(&self) -> Coefficients {
+        Coefficients {
+            beta: self.beta,
+            gamma: self.gamma,
+            nu: self.nu(),
+            eta: self.eta(),
+            weights: self.weights(),
+            xy_filters: self.scheme != AlphaScheme::KrenkHogsberg,
+        }
+    }
+}
+
+/// The weights α_M, α_C, α_K, α_L of the t_k terms of M a, C v, K q and F in the collocation
+/// relation (the t_{k+1} terms take 1 − α). Chung–Hulbert (53): (α_m, α_f, α_f, α_f);
+/// Krenk–Høgsberg (30): (α_m, α_m, α_f, α_m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Weighting {
+    /// α_M.
+    pub mass: f64,
+    /// α_C.
+    pub damping: f64,
+    /// α_K.
+    pub stiffness: f64,
+    /// α_L.
+    pub load: f64,
+}
+
+/// Coefficients shared by the nonsmooth family and the position-contact baselines.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Coefficients {
+    pub beta: f64,
+    pub gamma: f64,
+    pub nu: f64,
+    pub eta: f64,
+    pub weights: Weighting,
+    /// Whether the x (damping) and y (load) filters of (52) enter: Chung–Hulbert weighting only.
+    pub xy_filters: bool,
+}
+
+/// Per-step history of the smooth part at t_k (one of two buffers swapped every step).
+#[derive(Debug, Clone)]
+pub(crate) struct Frame {
+    pub a: Vec<f64>,
+    pub ma: Vec<f64>,
+    pub kq: Vec<f64>,
+    pub cv: Vec<f64>,
+    pub f: Vec<f64>,
+    pub z: Vec<f64>,
+    pub kz: Vec<f64>,
+    pub cx: Vec<f64>,
+    pub y: Vec<f64>,
+    /// Contact forces λ_k of a position-contact baseline (zero for the nonsmooth family).
+    pub lambda: Vec<f64>,
+    /// The λ filter (y of (52) applied to Gλ, in contact coordinates).
+    pub ylam: Vec<f64>,
+}
+
+impl Frame {
+    fn zeros(n: usize, m: usize) -> Self {
+        let z = vec![0.0; n];
+        Self {
+            a: z.clone(),
+            ma: z.clone(),
+            kq: z.clone(),
+            cv: z.clone(),
+            f: z.clone(),
+            z: z.clone(),
+            kz: z.clone(),
+            cx: z.clone(),
+            y: z,
+            lambda: vec![0.0; m],
+            ylam: vec![0.0; m],
+        }
+    }
+}
+
+/// Scratch vectors of one step; after [`AlphaCore::predict`] `a`, `q`, `v` hold the free
+/// (impulse- and force-free) a_{k+1}, q_{k+1}, v_{k+1}; the scheme then corrects them.
+#[derive(Debug, Clone)]
+pub(crate) struct Scratch {
+    pub a: Vec<f64>,
+    pub q: Vec<f64>,
+    pub v: Vec<f64>,
+    tmp: Vec<f64>,
+    tmp2: Vec<f64>,
+}
+
+/// The smooth part shared by [`NonsmoothAlpha`] and the position-contact baselines: predictor,
+/// iteration matrix S, history, filters and the energy bookkeeping of Lemma 2.
+#[derive(Debug, Clone)]
+pub(crate) struct AlphaCore {
+    pub h: f64,
+    pub c: Coefficients,
+    /// η/ν (0 when the filters are off).
+    ratio: f64,
+    /// Coefficient of zᵀKz in H (55).
+    cz: f64,
+    filters: bool,
+    has_damping: bool,
+    pub s_factor: BandCholesky,
+    pub m_factor: BandCholesky,
+    /// History at t_k and the buffer for t_{k+1}.
+    pub cur: Frame,
+    pub nxt: Frame,
+    /// Step number `cur` describes.
+    cur_step: Option<u64>,
+    pub s: Scratch,
+}
+
+/// How the contact works of a step are computed by [`AlphaCore::finish`].
+pub(crate) enum ContactWork {
+    /// The nonsmooth family: `(Gᵀ v_{k+1/2})ᵀ P_{k+1}`, computed by the caller.
+    Impulse(f64),
+    /// A position-contact baseline: λ_{k+1} is in `nxt.lambda`; the work is the load work of
+    /// the force Gλ, `Δqᵀ G[λ_{k,γ} − (η/ν) ỹ_{k,γ}]`.
+    Force,
+}
+
+impl AlphaCore {
+    pub fn new(model: &LinearModel, c: Coefficients, h: f64) -> Result<Self, BandError> {
+        let w = c.weights;
+        let s = SymBand::combine(&[
+            (1.0 - w.mass, &model.mass),
+            ((1.0 - w.damping) * c.gamma * h, &model.damping),
+            ((1.0 - w.stiffness) * c.beta * h * h, &model.stiffness),
+        ]);
+        let s_factor = s.cholesky()?;
+        let m_factor = model.mass.cholesky()?;
+        let filters = c.nu.abs() > PARAM_TOL && c.eta != 0.0;
+        let (ratio, cz) = if filters {
+            (
+                c.eta / c.nu,
+                c.eta / (2.0 * c.nu * c.nu) * (c.nu - c.gamma + 0.5),
+            )
+        } else {
+            (0.0, 0.0)
+        };
+        let (n, m) = (model.dofs(), model.contacts.len());
+        let z = vec![0.0; n];
+        Ok(Self {
+            h,
+            c,
+            ratio,
+            cz,
+            filters,
+            has_damping: !model.damping.is_zero(),
+            s_factor,
+            m_factor,
+            cur: Frame::zeros(n, m),
+            nxt: Frame::zeros(n, m),
+            cur_step: None,
+            s: Scratch {
+                a: z.clone(),
+                q: z.clone(),
+                v: z.clone(),
+                tmp: z.clone(),
+                tmp2: z,
+            },
+        })
+    }
+
+    /// Consistent start at `state` into `frame`: a = M⁻¹(F − Kq − Cv), filters and λ zero.
+    fn start_frame(&self, model: &LinearModel, state: &LinearState, frame: &mut Frame) {
+        model.force.eval_into(state.t, &mut frame.f);
+        model.stiffness.mul_into(&state.q, &mut frame.kq);
+        if self.has_damping {
+            model.damping.mul_into(&state.v, &mut frame.cv);
+        } else {
+            frame.cv.fill(0.0);
+        }
+        for i in 0..frame.a.len() {
+            frame.a[i] = frame.f[i] - frame.kq[i] - frame.cv[i];
+        }
+        self.m_factor.solve_in_place(&mut frame.a);
+        model.mass.mul_into(&frame.a, &mut frame.ma);
+        for v in [
+            &mut frame.z,
+            &mut frame.kz,
+            &mut frame.cx,
+            &mut frame.y,
+            &mut frame.lambda,
+            &mut frame.ylam,
+        ] {
+            v.fill(0.0);
+        }
+    }
+
+    /// Makes `cur` describe `state` (a consistent start unless the last step produced it).
+    pub fn ensure_history(&mut self, model: &LinearModel, state: &LinearState) {
+        if self.cur_step != Some(state.step) {
+            let mut frame = std::mem::replace(&mut self.cur, Frame::zeros(0, 0));
+            self.start_frame(model, state, &mut frame);
+            self.cur = frame;
+            self.cur_step = Some(state.step);
+        }
+    }
+
+    /// H (55) at `state` given its history frame.
+    fn algorithmic_energy_of(
+        &self,
+        model: &LinearModel,
+        state: &LinearState,
+        frame: &Frame,
+    ) -> f64 {
+        let (kin, _) = model.energy(&state.q, &state.v);
+        let strain = 0.5 * dot(&state.q, &frame.kq);
+        let h2 = self.h * self.h;
+        kin + strain
+            + 0.25 * h2 * (2.0 * self.c.beta - self.c.gamma) * dot(&frame.a, &frame.ma)
+            + self.cz * dot(&frame.z, &frame.kz)
+    }
+
+    /// H (55) at `state` (from the history when the last step produced `state`, else from a
+    /// consistent start there).
+    pub fn algorithmic_energy(&self, model: &LinearModel, state: &LinearState) -> f64 {
+        if self.cur_step == Some(state.step) {
+            self.algorithmic_energy_of(model, state, &self.cur)
+        } else {
+            let mut frame = Frame::zeros(model.dofs(), model.contacts.len());
+            self.start_frame(model, state, &mut frame);
+            self.algorithmic_energy_of(model, state, &frame)
+        }
+    }
+
+    /// Free step: F_{k+1} into `nxt.f`, and the solution of the collocation relation with no
+    /// impulse (and, for the baselines, no new contact force) into `s.a`, `s.q`, `s.v`.
+    /// Returns t_{k+1}.
+    pub fn predict(&mut self, model: &LinearModel, state: &LinearState) -> f64 {
+        self.ensure_history(model, state);
+        let h = self.h;
+        let (beta, gamma) = (self.c.beta, self.c.gamma);
+        let w = self.c.weights;
+        let t_next = (state.step + 1) as f64 * h;
+        model.force.eval_into(t_next, &mut self.nxt.f);
+        let n = state.q.len();
+        let (cur, s) = (&self.cur, &mut self.s);
+        // Predictors q̂ = q_k + h v_k + h²(½ − β) a_k (in s.q), v̂ = v_k + h(1 − γ) a_k (in s.v).
+        let cq = h * h * (0.5 - beta);
+        let cv = h * (1.0 - gamma);
+        for i in 0..n {
+            s.q[i] = state.q[i] + h * state.v[i] + cq * cur.a[i];
+            s.v[i] = state.v[i] + cv * cur.a[i];
+        }
+        // b = (1−α_L) F_{k+1} + α_L F_k − α_M M a_k − α_C C v_k − α_K K q_k − (1−α_C) C v̂ − (1−α_K) K q̂.
+        model.stiffness.mul_into(&s.q, &mut s.tmp);
+        for i in 0..n {
+            s.a[i] = (1.0 - w.load) * self.nxt.f[i] + w.load * cur.f[i]
+                - w.mass * cur.ma[i]
+                - w.damping * cur.cv[i]
+                - w.stiffness * cur.kq[i]
+                - (1.0 - w.stiffness) * s.tmp[i];
+        }
+        if self.has_damping {
+            model.damping.mul_into(&s.v, &mut s.tmp);
+            for i in 0..n {
+                s.a[i] -= (1.0 - w.damping) * s.tmp[i];
+            }
+        }
+        // A baseline's contact force at t_k enters with the load weight.
+        for (c, &l) in model.contacts.iter().zip(&cur.lambda) {
+            if l != 0.0 {
+                for &(i, g) in &c.g {
+                    s.a[i] += w.load * l * g;
+                }
+            }
+        }
+        self.s_factor.solve_in_place(&mut s.a);
+        let (ca, cva) = (h * h * beta, h * gamma);
+        for i in 0..n {
+            s.q[i] += ca * s.a[i];
+            s.v[i] += cva * s.a[i];
+        }
+        t_next
+    }
+
+    /// Completes a step whose a_{k+1}, q_{k+1}, v_{k+1} are in `s.a`, `s.q`, `s.v` (and, for a
+    /// baseline, λ_{k+1} in `nxt.lambda`): history, filters, energy terms, then the new state.
+    pub fn finish(
+        &mut self,
+        model: &LinearModel,
+        state: &mut LinearState,
+        t_next: f64,
+        contact: ContactWork,
+        report: &mut StepReport,
+    ) {
+        let n = state.q.len();
+        let (h, beta, gamma, nu) = (self.h, self.c.beta, self.c.gamma, self.c.nu);
+        let eta = self.c.eta;
+        let (cur, nxt, s) = (&self.cur, &mut self.nxt, &mut self.s);
+        nxt.a.copy_from_slice(&s.a);
+        model.mass.mul_into(&s.a, &mut nxt.ma);
+        model.stiffness.mul_into(&s.q, &mut nxt.kq);
+        if self.has_damping {
+            model.damping.mul_into(&s.v, &mut nxt.cv);
+        } else {
+            nxt.cv.fill(0.0);
+        }
+        let ratio = self.ratio;
+        let xy = self.filters && self.c.xy_filters;
+        // Filters (48), (52): (½+ν) z_{k+1} + (½−ν) z_k = ν Δq (and K z, C x, y alike).
+        if self.filters {
+            let (p, m) = (0.5 + nu, 0.5 - nu);
+            for i in 0..n {
+                nxt.z[i] = (nu * (s.q[i] - state.q[i]) - m * cur.z[i]) / p;
+                nxt.kz[i] = (nu * (nxt.kq[i] - cur.kq[i]) - m * cur.kz[i]) / p;
+            }
+            if xy {
+                for i in 0..n {
+                    nxt.cx[i] = (nu * (nxt.cv[i] - cur.cv[i]) - m * cur.cx[i]) / p;
+                    nxt.y[i] = (nu * (nxt.f[i] - cur.f[i]) - m * cur.y[i]) / p;
+                }
+                for a in 0..nxt.lambda.len() {
+                    nxt.ylam[a] = (nu * (nxt.lambda[a] - cur.lambda[a]) - m * cur.ylam[a]) / p;
+                }
+            }
+        }
+        // Works (56)–(57) / (79)–(80) with the x, y filter terms of (58), and the quadratic
+        // terms, all in difference form.
+        let (g1, g0) = (gamma, 1.0 - gamma);
+        let rx = if xy { ratio } else { 0.0 };
+        let mut work_ext = 0.0;
+        let mut work_damping = 0.0;
+        let mut dq_k_dq = 0.0;
+        let mut da_m_da = 0.0;
+        let mut dz_k_dz = 0.0;
+        let mut d_strain = 0.0;
+        let mut d_aterm = 0.0;
+        let mut d_zterm = 0.0;
+        for i in 0..n {
+            let dq = s.q[i] - state.q[i];
+            s.tmp[i] = s.v[i] - state.v[i];
+            s.tmp2[i] = s.v[i] + state.v[i];
+            let f_g = g1 * nxt.f[i] + g0 * cur.f[i] - rx * (g1 * nxt.y[i] + g0 * cur.y[i]);
+            work_ext += dq * f_g;
+            let dkq = nxt.kq[i] - cur.kq[i];
+            dq_k_dq += dq * dkq;
+            d_strain += (s.q[i] + state.q[i]) * dkq;
+            let dma = nxt.ma[i] - cur.ma[i];
+            let da = nxt.a[i] - cur.a[i];
+            da_m_da += da * dma;
+            d_aterm += (nxt.a[i] + cur.a[i]) * dma;
+        }
+        if self.has_damping {
+            for i in 0..n {
+                let dq = s.q[i] - state.q[i];
+                let cv_g = g1 * nxt.cv[i] + g0 * cur.cv[i] - rx * (g1 * nxt.cx[i] + g0 * cur.cx[i]);
+                work_damping -= dq * cv_g;
+            }
+        }
+        if self.filters {
+            for i in 0..n {
+                let dkz = nxt.kz[i] - cur.kz[i];
+                dz_k_dz += (nxt.z[i] - cur.z[i]) * dkz;
+                d_zterm += (nxt.z[i] + cur.z[i]) * dkz;
+            }
+        }
+        let d_kin = 0.5 * model.mass.quad(&s.tmp2, &s.tmp);
+        let h2 = h * h;
+        let delta_h =
+            d_kin + 0.5 * d_strain + 0.25 * h2 * (2.0 * beta - gamma) * d_aterm + self.cz * d_zterm;
+        let work_contact = match contact {
+            ContactWork::Impulse(w) => w,
+            ContactWork::Force => {
+                let ry = if xy { ratio } else { 0.0 };
+                let mut w = 0.0;
+                for (a, c) in model.contacts.iter().enumerate() {
+                    let l_g = g1 * nxt.lambda[a] + g0 * cur.lambda[a]
+                        - ry * (g1 * nxt.ylam[a] + g0 * cur.ylam[a]);
+                    if l_g != 0.0 {
+                        w += l_g * (c.project(&s.q) - c.project(&state.q));
+                    }
+                }
+                w
+            }
+        };
+        let numerical_dissipation = -0.5 * h2 * (gamma - 0.5) * (2.0 * beta - gamma) * da_m_da
+            - (gamma - 0.5 - eta) * dq_k_dq
+            - ratio * (nu - gamma + 0.5) * dz_k_dz;
+
+        state.q.copy_from_slice(&s.q);
+        state.v.copy_from_slice(&s.v);
+        state.t = t_next;
+        state.step += 1;
+        std::mem::swap(&mut self.cur, &mut self.nxt);
+        self.cur_step = Some(state.step);
+
+        let (kin, _) = model.energy(&state.q, &state.v);
+        let strain = 0.5 * dot(&state.q, &self.cur.kq);
+        let alg = self.algorithmic_energy_of(model, state, &self.cur);
+        report.energy = EnergyTerms {
+            kinetic: kin,
+            strain,
+            work_ext,
+            work_damping,
+            work_contact,
+            numerical_dissipation,
+            algorithmic_energy: alg,
+            balance_residual: delta_h
+                - work_ext
+                - work_damping
+                - work_contact
+                - numerical_dissipation,
+        };
+        report.fill_contacts(model, &state.q, &state.v, t_next);
+    }
+}
+
+fn dot(x: &[f64], y: &[f64]) -> f64 {
+    x.iter().zip(y).map(|(a, b)| a * b).sum()
+}
+
+/// The nonsmooth α-family scheme (25) / (30) for one model and one step size.
+#[derive(Debug, Clone)]
+pub struct NonsmoothAlpha {
+    params: AlphaParams,
+    lcp: LcpOptions,
+    core: AlphaCore,
+    /// Per contact α (n entries each): the change of a_{k+1}, v_{k+1}, q_{k+1} per unit P^α.
+    a_cols: Vec<f64>,
+    v_cols: Vec<f64>,
+    q_cols: Vec<f64>,
+    /// Delassus operator `W = Gᵀ Ŵ G`, row-major m×m (not symmetric in general).
+    w: Vec<f64>,
+    active: Vec<usize>,
+    lcp_m: Vec<f64>,
+    lcp_rhs: Vec<f64>,
+}
+
+impl NonsmoothAlpha {
+    /// Prepares the scheme: factorises S and M, precomputes the impulse columns and the
+    /// Delassus operator. `params` should have passed [`AlphaParams::validate`].
+    pub fn new(
+        model: &LinearModel,
+        params: AlphaParams,
+        h: f64,
+        lcp: LcpOptions,
+    ) -> Result<Self, BandError> {
+        let core = AlphaCore::new(model, params.coefficients(), h)?;
+        let (n, m) = (model.dofs(), model.contacts.len());
+        let w8 = params.weights();
+        let (beta, gamma) = (params.beta, params.gamma);
+        let mut a_cols = vec![0.0; n * m];
+        let mut v_cols = vec![0.0; n * m];
+        let mut q_cols = vec![0.0; n * m];
+        let mut x = vec![0.0; n];
+        let mut y = vec![0.0; n];
+        let mut t = vec![0.0; n];
+        for (a, c) in model.contacts.iter().enumerate() {
+            // x = M⁻¹ G_α (w per unit impulse), y = S⁻¹[(1−α_C) C + (1−α_K)(h/2) K] x.
+            x.fill(0.0);
+            for &(i, g) in &c.g {
+                x[i] += g;
+            }
+            core.m_factor.solve_in_place(&mut x);
+            model.stiffness.mul_into(&x, &mut y);
+            model.damping.mul_into(&x, &mut t);
+            for i in 0..n {
+                y[i] = (1.0 - w8.stiffness) * 0.5 * h * y[i] + (1.0 - w8.damping) * t[i];
+            }
+            core.s_factor.solve_in_place(&mut y);
+            for i in 0..n {
+                a_cols[a * n + i] = -y[i];
+                v_cols[a * n + i] = x[i] - gamma * h * y[i];
+                q_cols[a * n + i] = 0.5 * h * x[i] - beta * h * h * y[i];
+            }
+        }
+        let mut w = vec![0.0; m * m];
+        for (a, c) in model.contacts.iter().enumerate() {
+            for b in 0..m {
+                w[a * m + b] = c.project(&v_cols[b * n..(b + 1) * n]);
+            }
+        }
+        Ok(Self {
+            params,
+            lcp,
+            core,
+            a_cols,
+            v_cols,
+            q_cols,
+            w,
+            active: Vec::new(),
+            lcp_m: Vec::new(),
+            lcp_rhs: Vec::new(),
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &AlphaParams {
+        &self.params
+    }
+
+    /// The smooth acceleration a_k of the last state this scheme produced (or of a consistent
+    /// start at `state`).
+    pub fn acceleration(&mut self, model: &LinearModel, state: &LinearState) -> &[f64] {
+        self.core.ensure_history(model, state);
+        &self.core.cur.a
+    }
+}
+
+impl LinearScheme for NonsmoothAlpha {
+    fn step_size(&self) -> f64 {
+        self.core.h
+    }
+
+    fn algorithmic_energy(&self, model: &LinearModel, state: &LinearState) -> f64 {
+        self.core.algorithmic_energy(model, state)
+    }
+
+    fn step(
+        &mut self,
+        model: &LinearModel,
+        state: &mut LinearState,
+        report: &mut StepReport,
+    ) -> Result<(), StepError> {
+        let h = self.core.h;
+        let t_k = state.t;
+        let step = state.step + 1;
+        let t_next = self.core.predict(model, state);
+        let n = state.q.len();
+        let m = model.contacts.len();
+
+        // Index set (24) and the LCP on the combined system (25c)–(25d).
+        self.active.clear();
+        self.lcp_rhs.clear();
+        for (a, c) in model.contacts.iter().enumerate() {
+            if self
+                .params
+                .index_set
+                .is_active(c, &state.q, &state.v, t_k, h)
+            {
+                self.active.push(a);
+                let u_free = c.local_velocity(&self.core.s.v, t_next);
+                let u_k = c.local_velocity(&state.v, t_k);
+                self.lcp_rhs.push(u_free + c.restitution * u_k);
+            }
+        }
+        report.impulse.fill(0.0);
+        report.lcp = LcpStats::default();
+        if !self.active.is_empty() {
+            self.lcp_m.clear();
+            for &a in &self.active {
+                for &b in &self.active {
+                    self.lcp_m.push(self.w[a * m + b]);
+                }
+            }
+            let sol = lcp::solve(
+                Lcp {
+                    m: &self.lcp_m,
+                    q: &self.lcp_rhs,
+                },
+                &self.lcp,
+            )
+            .map_err(|source| StepError::Lcp {
+                step,
+                t: t_next,
+                source,
+            })?;
+            report.lcp = LcpStats {
+                size: self.active.len(),
+                iterations: sol.iterations,
+                error: sol.error,
+            };
+            let s = &mut self.core.s;
+            for (r, &a) in self.active.iter().enumerate() {
+                let p = sol.z[r];
+                report.impulse[a] = p;
+                if p != 0.0 {
+                    let (ac, vc, qc) = (
+                        &self.a_cols[a * n..(a + 1) * n],
+                        &self.v_cols[a * n..(a + 1) * n],
+                        &self.q_cols[a * n..(a + 1) * n],
+                    );
+                    for i in 0..n {
+                        s.a[i] += p * ac[i];
+                        s.v[i] += p * vc[i];
+                        s.q[i] += p * qc[i];
+                    }
+                }
+            }
+        }
+        // work_contact = (Gᵀ v_{k+1/2})ᵀ P_{k+1} (Lemma 2; U_{k+1/2}ᵀP for a fixed obstacle).
+        let mut work_contact = 0.0;
+        for &a in &self.active {
+            let p = report.impulse[a];
+            if p != 0.0 {
+                let c = &model.contacts[a];
+                work_contact += p * 0.5 * (c.project(&self.core.s.v) + c.project(&state.v));
+            }
+        }
+        self.core.finish(
+            model,
+            state,
+            t_next,
+            ContactWork::Impulse(work_contact),
+            report,
+        );
+        Ok(())
+    }
+}
