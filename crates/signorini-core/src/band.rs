@@ -7,13 +7,14 @@
 use std::sync::OnceLock;
 use thiserror::Error;
 
-/// Symmetric matrix stored by its lower band: entry (i, j) with i − kd ≤ j ≤ i.
+/// Symmetric matrix stored by its lower band, one diagonal after the other: diagonal k
+/// (k = 0 ..= kd) holds A[i][i−k] at position i (positions i < k unused). Products and quadratic
+/// forms then run along contiguous diagonals, which the compiler vectorises.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SymBand {
     n: usize,
     kd: usize,
-    /// Row-major lower band: row i holds columns i−kd ..= i at offsets 0 ..= kd
-    /// (entries left of column 0 are zero and never read).
+    /// Diagonal k at `[k n, (k+1) n)`.
     data: Vec<f64>,
     /// Row sums s_i = Σ_j A_ij, computed on first use by [`SymBand::quad`].
     row_sums: OnceLock<Vec<f64>>,
@@ -161,10 +162,15 @@ impl SymBand {
         self.kd
     }
 
+    /// Diagonal k: entry i is A[i][i−k] (entries i < k are zero).
+    fn diag(&self, k: usize) -> &[f64] {
+        &self.data[k * self.n..(k + 1) * self.n]
+    }
+
     /// Entry (i, j) (either triangle).
     pub fn get(&self, i: usize, j: usize) -> f64 {
         let (i, j) = if j > i { (j, i) } else { (i, j) };
-        if i - j > self.kd { 0.0 } else { self.data[i * (self.kd + 1) + self.kd + j - i] }
+        if i - j > self.kd { 0.0 } else { self.data[(i - j) * self.n + i] }
     }
 
     /// Sets entry (i, j) and its mirror. Panics if (i, j) is outside the band (a programming
@@ -172,7 +178,7 @@ impl SymBand {
     pub fn set(&mut self, i: usize, j: usize, a: f64) {
         let (i, j) = if j > i { (j, i) } else { (i, j) };
         assert!(i - j <= self.kd, "entry ({i},{j}) outside band {}", self.kd);
-        self.data[i * (self.kd + 1) + self.kd + j - i] = a;
+        self.data[(i - j) * self.n + i] = a;
         self.row_sums = OnceLock::new();
     }
 
@@ -182,18 +188,18 @@ impl SymBand {
         self.set(i, j, v + a);
     }
 
-    /// `a·self + b·other` with the larger bandwidth (e.g. Ŵ = M + θhC + θ²h²K).
+    /// Σ c_t A_t with the largest bandwidth (e.g. Ŵ = M + θhC + θ²h²K).
     pub fn combine(terms: &[(f64, &SymBand)]) -> SymBand {
         let n = terms.first().map_or(0, |t| t.1.n);
-        let kd = terms.iter().map(|t| t.1.kd).max().unwrap_or(0);
+        let kd = terms.iter().filter(|t| t.0 != 0.0).map(|t| t.1.kd).max().unwrap_or(0);
         let mut out = SymBand::zeros(n, kd);
         for &(c, m) in terms {
             if c == 0.0 {
                 continue;
             }
-            for i in 0..n {
-                for j in i.saturating_sub(m.kd)..=i {
-                    out.add(i, j, c * m.get(i, j));
+            for k in 0..=m.kd {
+                for (o, a) in out.data[k * n..(k + 1) * n].iter_mut().zip(m.diag(k)) {
+                    *o += c * a;
                 }
             }
         }
@@ -207,24 +213,19 @@ impl SymBand {
 
     /// y = A x, O(n · kd).
     pub fn mul_into(&self, x: &[f64], y: &mut [f64]) {
-        let (n, kd) = (self.n, self.kd);
-        if kd == 0 {
-            for i in 0..n {
-                y[i] = self.data[i] * x[i];
-            }
-            return;
+        let n = self.n;
+        let (x, y) = (&x[..n], &mut y[..n]);
+        for ((yi, a), xi) in y.iter_mut().zip(self.diag(0)).zip(x) {
+            *yi = a * xi;
         }
-        y[..n].fill(0.0);
-        for i in 0..n {
-            let row = &self.data[i * (kd + 1)..(i + 1) * (kd + 1)];
-            let j0 = i.saturating_sub(kd);
-            let mut acc = row[kd] * x[i];
-            for j in j0..i {
-                let a = row[kd + j - i];
-                acc += a * x[j];
-                y[j] += a * x[i];
+        for k in 1..=self.kd {
+            let d = &self.diag(k)[k..];
+            for ((yi, a), xj) in y[k..].iter_mut().zip(d).zip(&x[..n - k]) {
+                *yi += a * xj;
             }
-            y[i] += acc;
+            for ((yj, a), xi) in y[..n - k].iter_mut().zip(d).zip(&x[k..]) {
+                *yj += a * xi;
+            }
         }
     }
 
@@ -238,64 +239,74 @@ impl SymBand {
     /// when a stiffness matrix (small row sums) meets a large rigid-body displacement: a free
     /// bar translated by 5 m would otherwise lose 8 digits of its strain energy.
     pub fn quad(&self, x: &[f64], y: &[f64]) -> f64 {
-        let (n, kd) = (self.n, self.kd);
+        let n = self.n;
+        let (x, y) = (&x[..n], &y[..n]);
         let sums = self.row_sums.get_or_init(|| {
-            let mut s = vec![0.0; n];
-            for i in 0..n {
-                let row = &self.data[i * (kd + 1)..(i + 1) * (kd + 1)];
-                s[i] += row[kd];
-                for j in i.saturating_sub(kd)..i {
-                    s[i] += row[kd + j - i];
-                    s[j] += row[kd + j - i];
+            let mut s = self.diag(0).to_vec();
+            for k in 1..=self.kd {
+                let d = &self.diag(k)[k..];
+                for (si, a) in s[k..].iter_mut().zip(d) {
+                    *si += a;
+                }
+                for (sj, a) in s[..n - k].iter_mut().zip(d) {
+                    *sj += a;
                 }
             }
             s
         });
-        let mut total = 0.0;
-        for i in 0..n {
-            let row = &self.data[i * (kd + 1)..(i + 1) * (kd + 1)];
-            total += sums[i] * x[i] * y[i];
-            for j in i.saturating_sub(kd)..i {
-                total -= row[kd + j - i] * (x[i] - x[j]) * (y[i] - y[j]);
-            }
+        let mut total: f64 = sums.iter().zip(x).zip(y).map(|((s, a), b)| s * a * b).sum();
+        for k in 1..=self.kd {
+            let d = &self.diag(k)[k..];
+            total -= d
+                .iter()
+                .zip(x[k..].iter().zip(&x[..n - k]))
+                .zip(y[k..].iter().zip(&y[..n - k]))
+                .map(|((a, (xi, xj)), (yi, yj))| a * (xi - xj) * (yi - yj))
+                .sum::<f64>();
         }
         total
     }
 
-    /// Cholesky factorisation A = L Lᵀ (L has the same band).
+    /// Factorisation A = L D Lᵀ (L unit lower triangular with the same band, D > 0).
+    /// Fails with [`BandError::NotPositiveDefinite`] when a pivot is not positive.
     pub fn cholesky(&self) -> Result<BandCholesky, BandError> {
         let (n, kd) = (self.n, self.kd);
-        let w = kd + 1;
-        let mut l = self.data.clone();
+        let mut l = vec![0.0; n * (kd + 1)];
+        let mut d = vec![0.0; n];
         for i in 0..n {
             let j0 = i.saturating_sub(kd);
-            for j in j0..=i {
-                // L[i][j] = (A[i][j] − Σ_{k<j} L[i][k] L[j][k]) / L[j][j]
-                let mut s = l[i * w + kd + j - i];
-                let k0 = j0.max(j.saturating_sub(kd));
-                for k in k0..j {
-                    s -= l[i * w + kd + k - i] * l[j * w + kd + k - j];
+            for j in j0..i {
+                // L[i][j] = (A[i][j] − Σ_{m<j} L[i][m] D[m] L[j][m]) / D[j]
+                let mut s = self.data[(i - j) * n + i];
+                for m in j0.max(j.saturating_sub(kd))..j {
+                    s -= l[(i - m) * n + i] * d[m] * l[(j - m) * n + j];
                 }
-                if j == i {
-                    if s <= 0.0 || !s.is_finite() {
-                        return Err(BandError::NotPositiveDefinite { row: i, pivot: s });
-                    }
-                    l[i * w + kd] = s.sqrt();
-                } else {
-                    l[i * w + kd + j - i] = s / l[j * w + kd];
-                }
+                l[(i - j) * n + i] = s / d[j];
             }
+            let mut p = self.data[i];
+            for m in j0..i {
+                let lim = l[(i - m) * n + i];
+                p -= lim * lim * d[m];
+            }
+            if p <= 0.0 || !p.is_finite() {
+                return Err(BandError::NotPositiveDefinite { row: i, pivot: p });
+            }
+            d[i] = p;
         }
-        Ok(BandCholesky { n, kd, l })
+        let inv_d = d.iter().map(|p| 1.0 / p).collect();
+        Ok(BandCholesky { n, kd, l, inv_d })
     }
 }
 
-/// Cholesky factor of a [`SymBand`]: solves in O(n · kd).
+/// L D Lᵀ factor of a [`SymBand`]: solves in O(n · kd) with no division (the inverse pivots are
+/// stored), a forward and a backward sweep along the band.
 #[derive(Debug, Clone)]
 pub struct BandCholesky {
     n: usize,
     kd: usize,
+    /// Sub-diagonals of L in the storage of [`SymBand`] (diagonal 0 unused: L is unit).
     l: Vec<f64>,
+    inv_d: Vec<f64>,
 }
 
 impl BandCholesky {
@@ -307,24 +318,49 @@ impl BandCholesky {
     /// Solves A x = b in place (b becomes x).
     pub fn solve_in_place(&self, b: &mut [f64]) {
         let (n, kd) = (self.n, self.kd);
-        let w = kd + 1;
-        let l = &self.l;
-        // L y = b
-        for i in 0..n {
-            let row = &l[i * w..(i + 1) * w];
-            let mut s = b[i];
-            for j in i.saturating_sub(kd)..i {
-                s -= row[kd + j - i] * b[j];
+        let b = &mut b[..n];
+        match kd {
+            0 => {}
+            1 => {
+                // Tridiagonal: one recurrence each way, no bounds checks.
+                let l1 = &self.l[n..2 * n];
+                let mut prev = b[0];
+                for (bi, li) in b[1..].iter_mut().zip(&l1[1..]) {
+                    prev = *bi - li * prev;
+                    *bi = prev;
+                }
             }
-            b[i] = s / row[kd];
+            _ => {
+                for i in 1..n {
+                    let mut s = b[i];
+                    for k in 1..=kd.min(i) {
+                        s -= self.l[k * n + i] * b[i - k];
+                    }
+                    b[i] = s;
+                }
+            }
         }
-        // Lᵀ x = y
-        for i in (0..n).rev() {
-            let xi = b[i] / l[i * w + kd];
-            b[i] = xi;
-            let row = &l[i * w..(i + 1) * w];
-            for j in i.saturating_sub(kd)..i {
-                b[j] -= row[kd + j - i] * xi;
+        for (bi, w) in b.iter_mut().zip(&self.inv_d) {
+            *bi *= w;
+        }
+        match kd {
+            0 => {}
+            1 => {
+                let l1 = &self.l[n..2 * n];
+                let mut next = b[n - 1];
+                for (bi, li) in b[..n - 1].iter_mut().rev().zip(l1[1..].iter().rev()) {
+                    next = *bi - li * next;
+                    *bi = next;
+                }
+            }
+            _ => {
+                for i in (0..n.saturating_sub(1)).rev() {
+                    let mut s = b[i];
+                    for k in 1..=kd.min(n - 1 - i) {
+                        s -= self.l[k * n + i + k] * b[i + k];
+                    }
+                    b[i] = s;
+                }
             }
         }
     }
@@ -335,7 +371,9 @@ mod tests {
     use super::*;
 
     fn dense(a: &SymBand) -> Vec<Vec<f64>> {
-        (0..a.n()).map(|i| (0..a.n()).map(|j| a.get(i, j)).collect()).collect()
+        (0..a.n())
+            .map(|i| (0..a.n()).map(|j| a.get(i, j)).collect())
+            .collect()
     }
 
     #[test]
@@ -371,10 +409,14 @@ mod tests {
     #[test]
     fn rejects_indefinite_and_asymmetric() {
         let a = SymBand::from_dense_rows(&[vec![1.0, 2.0], vec![2.0, 1.0]]).unwrap();
-        assert!(matches!(a.cholesky(), Err(BandError::NotPositiveDefinite { row: 1, .. })));
+        assert!(matches!(
+            a.cholesky(),
+            Err(BandError::NotPositiveDefinite { row: 1, .. })
+        ));
         let e = SymBand::from_dense_rows(&[vec![1.0, 2.0], vec![2.5, 1.0]]).unwrap_err();
         assert!(matches!(e, BandError::NotSymmetric { i: 1, j: 0, .. }));
-        let t = SymBand::from_triplets(3, &[(0, 0, 1.0), (2, 0, 0.5), (1, 1, 2.0), (2, 2, 3.0)]).unwrap();
+        let t = SymBand::from_triplets(3, &[(0, 0, 1.0), (2, 0, 0.5), (1, 1, 2.0), (2, 2, 3.0)])
+            .unwrap();
         assert_eq!(t.kd(), 2);
         assert_eq!(t.get(0, 2), 0.5);
     }

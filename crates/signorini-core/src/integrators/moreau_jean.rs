@@ -41,7 +41,11 @@ pub struct MoreauJeanParams {
 
 impl Default for MoreauJeanParams {
     fn default() -> Self {
-        Self { theta: 0.5, variant: false, index_set: IndexSetRule::default() }
+        Self {
+            theta: 0.5,
+            variant: false,
+            index_set: IndexSetRule::default(),
+        }
     }
 }
 
@@ -71,7 +75,6 @@ struct Scratch {
     f_theta: Vec<f64>,
     tmp: Vec<f64>,
     work: Vec<f64>,
-    v_new: Vec<f64>,
     v_theta: Vec<f64>,
     v_pos: Vec<f64>,
     dv: Vec<f64>,
@@ -80,10 +83,23 @@ struct Scratch {
 
 impl MoreauJean {
     /// Prepares the scheme: factorises Ŵ and precomputes the Delassus operator.
-    pub fn new(model: &LinearModel, params: MoreauJeanParams, h: f64, lcp: LcpOptions) -> Result<Self, BandError> {
+    pub fn new(
+        model: &LinearModel,
+        params: MoreauJeanParams,
+        h: f64,
+        lcp: LcpOptions,
+    ) -> Result<Self, BandError> {
         let theta = params.theta;
-        let k_coef = if params.variant { 0.5 * theta * h * h } else { theta * theta * h * h };
-        let w_hat = SymBand::combine(&[(1.0, &model.mass), (theta * h, &model.damping), (k_coef, &model.stiffness)]);
+        let k_coef = if params.variant {
+            0.5 * theta * h * h
+        } else {
+            theta * theta * h * h
+        };
+        let w_hat = SymBand::combine(&[
+            (1.0, &model.mass),
+            (theta * h, &model.damping),
+            (k_coef, &model.stiffness),
+        ]);
         let factor = w_hat.cholesky()?;
         let delassus = Delassus::new(&factor, &model.contacts);
         let n = model.dofs();
@@ -100,10 +116,9 @@ impl MoreauJean {
             f_next_t: f64::NAN,
             scratch: Scratch {
                 f_k: z.clone(),
-                f_theta: z.clone(),
+                f_theta: model.force.constant.clone(),
                 tmp: z.clone(),
                 work: z.clone(),
-                v_new: z.clone(),
                 v_theta: z.clone(),
                 v_pos: z.clone(),
                 dv: z.clone(),
@@ -125,7 +140,12 @@ impl LinearScheme for MoreauJean {
         k + s
     }
 
-    fn step(&mut self, model: &LinearModel, state: &mut LinearState, report: &mut StepReport) -> Result<(), StepError> {
+    fn step(
+        &mut self,
+        model: &LinearModel,
+        state: &mut LinearState,
+        report: &mut StepReport,
+    ) -> Result<(), StepError> {
         let (h, theta) = (self.h, self.params.theta);
         let t_k = state.t;
         let step = state.step + 1;
@@ -133,88 +153,87 @@ impl LinearScheme for MoreauJean {
         let s = &mut self.scratch;
         let n = state.q.len();
 
-        // F_k (reused from the previous step when the time matches) and F_{k+1}.
-        if self.f_next_t == t_k {
-            s.f_k.copy_from_slice(&self.f_next);
-        } else {
-            model.force.eval_into(t_k, &mut s.f_k);
-        }
-        model.force.eval_into(t_next, &mut self.f_next);
-        self.f_next_t = t_next;
-        for i in 0..n {
-            s.f_theta[i] = (1.0 - theta) * s.f_k[i] + theta * self.f_next[i];
+        // F_{k+θ}: constant forces need no work per step.
+        if !model.force.harmonic.is_empty() {
+            if self.f_next_t == t_k {
+                s.f_k.copy_from_slice(&self.f_next);
+            } else {
+                model.force.eval_into(t_k, &mut s.f_k);
+            }
+            model.force.eval_into(t_next, &mut self.f_next);
+            self.f_next_t = t_next;
+            for ((ft, fk), fn_) in s.f_theta.iter_mut().zip(&s.f_k).zip(&self.f_next) {
+                *ft = (1.0 - theta) * fk + theta * fn_;
+            }
         }
 
         // Free velocity: Ŵ Δv_free = h (F_{k+θ} − K (q_k + θ h v_k) − C v_k), (21a) with P = 0.
-        for i in 0..n {
-            s.tmp[i] = state.q[i] + theta * h * state.v[i];
+        for ((t, q), v) in s.tmp.iter_mut().zip(&state.q).zip(&state.v) {
+            *t = q + theta * h * v;
         }
         model.stiffness.mul_into(&s.tmp, &mut s.work);
-        for i in 0..n {
-            s.v_new[i] = h * (s.f_theta[i] - s.work[i]);
+        for ((dv, f), kq) in s.dv.iter_mut().zip(&s.f_theta).zip(&s.work) {
+            *dv = h * (f - kq);
         }
         if self.has_damping {
             model.damping.mul_into(&state.v, &mut s.work);
-            for i in 0..n {
-                s.v_new[i] -= h * s.work[i];
+            for (dv, cv) in s.dv.iter_mut().zip(&s.work) {
+                *dv -= h * cv;
             }
         }
-        self.factor.solve_in_place(&mut s.v_new);
-        for i in 0..n {
-            s.v_new[i] += state.v[i];
-        }
+        self.factor.solve_in_place(&mut s.dv);
 
-        // Index set (24) (or the predicted-gap rule) and the impulse LCP (21c)–(21d).
+        // Index set (24) (or the predicted-gap rule) and the impulse LCP (21c)–(21d):
+        // U_free = Gᵀ(v_k + Δv_free) + ẇ(t_{k+1}); the impulse adds Ŵ⁻¹ G P to Δv.
         self.active.clear();
         self.lcp_rhs.clear();
         for (a, c) in model.contacts.iter().enumerate() {
             if self.params.index_set.is_active(c, &state.q, &state.v, t_k, h) {
                 self.active.push(a);
-                let u_free = c.local_velocity(&s.v_new, t_next);
+                let u_free = c.project(&state.v) + c.project(&s.dv) + c.w_rate(t_next);
                 let u_k = c.local_velocity(&state.v, t_k);
                 self.lcp_rhs.push(u_free + c.restitution * u_k);
             }
         }
         report.lcp = self
             .delassus
-            .apply_impulse(&self.active, &self.lcp_rhs, &self.lcp, &mut report.impulse, &mut s.v_new)
+            .apply_impulse(&self.active, &self.lcp_rhs, &self.lcp, &mut report.impulse, &mut s.dv)
             .map_err(|source| StepError::Lcp { step, t: t_next, source })?;
 
-        // Positions (21b) or (29b).
-        for i in 0..n {
-            s.v_theta[i] = (1.0 - theta) * state.v[i] + theta * s.v_new[i];
-            s.v_pos[i] = if self.params.variant { 0.5 * (state.v[i] + s.v_new[i]) } else { s.v_theta[i] };
-            s.dv[i] = s.v_new[i] - state.v[i];
-            s.dq[i] = h * s.v_pos[i];
-        }
-
-        // Energy terms, Lemma 1 (33) / Corollary 1 (91).
+        // Energy of the state the step starts from (cached from the previous step).
         let (kin_k, strain_k) = match self.last_energy {
             Some((k, kin, st)) if k == state.step => (kin, st),
             _ => model.energy(&state.q, &state.v),
         };
+
+        // Positions (21b) or (29b), the new state and the external work (31), in one sweep.
+        let variant = self.params.variant;
         let mut work_ext = 0.0;
         for i in 0..n {
-            work_ext += s.v_pos[i] * s.f_theta[i];
+            let (v, dv) = (state.v[i], s.dv[i]);
+            let v_theta = v + theta * dv;
+            let v_pos = if variant { v + 0.5 * dv } else { v_theta };
+            s.v_theta[i] = v_theta;
+            s.v_pos[i] = v_pos;
+            s.dq[i] = h * v_pos;
+            work_ext += v_pos * s.f_theta[i];
+            state.q[i] += h * v_pos;
+            state.v[i] = v + dv;
         }
         work_ext *= h;
+
+        // The other terms of Lemma 1 (33) / Corollary 1 (91).
         let work_damping = if self.has_damping { -h * model.damping.quad(&s.v_pos, &s.v_theta) } else { 0.0 };
         let work_contact: f64 = self
             .active
             .iter()
             .map(|&a| report.impulse[a] * model.contacts[a].project(&s.v_pos))
             .sum();
-        let dq_k_dq = model.stiffness.quad(&s.dq, &s.dq);
-        let numerical_dissipation = if self.params.variant {
-            (0.5 - theta) * dq_k_dq
-        } else {
-            (0.5 - theta) * (model.mass.quad(&s.dv, &s.dv) + dq_k_dq)
+        let numerical_dissipation = match (theta == 0.5, variant) {
+            (true, _) => 0.0,
+            (false, true) => (0.5 - theta) * model.stiffness.quad(&s.dq, &s.dq),
+            (false, false) => (0.5 - theta) * (model.mass.quad(&s.dv, &s.dv) + model.stiffness.quad(&s.dq, &s.dq)),
         };
-
-        for i in 0..n {
-            state.q[i] += s.dq[i];
-        }
-        state.v.copy_from_slice(&s.v_new);
         state.t = t_next;
         state.step = step;
 
@@ -229,7 +248,11 @@ impl LinearScheme for MoreauJean {
             work_contact,
             numerical_dissipation,
             algorithmic_energy: kin + strain,
-            balance_residual: delta - work_ext - work_damping - work_contact - numerical_dissipation,
+            balance_residual: delta
+                - work_ext
+                - work_damping
+                - work_contact
+                - numerical_dissipation,
         };
         report.fill_contacts(model, &state.q, &state.v, t_next);
         Ok(())

@@ -1,0 +1,68 @@
+//! Per-step cost of Moreau–Jean (θ = ½) on the `bar` scene: lumped mass, fixed left end, one
+//! contact at the right end, energy bookkeeping on (every term of DESIGN.md §5 at every step).
+//!
+//! ```text
+//! cargo bench -p signorini-core --bench moreau_jean
+//! ```
+//!
+//! Prints one JSON line per N with steps/s and ns per dof and step. The scene matches
+//! `scripts/siconos/bench.py`, so the two are directly comparable.
+
+use signorini_core::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
+use signorini_core::integrators::{LinearState, OutputOptions, run_linear};
+use signorini_core::lcp::LcpOptions;
+use signorini_core::observer::{Observer, StepRecord};
+use signorini_core::scenes::Bar;
+use std::ops::ControlFlow;
+use std::time::Instant;
+
+/// Counts records, keeps nothing (the benchmark measures the integrator, not the output).
+struct Count(u64);
+
+impl Observer for Count {
+    fn observe(&mut self, _: &StepRecord<'_>) -> ControlFlow<()> {
+        self.0 += 1;
+        ControlFlow::Continue(())
+    }
+}
+
+fn main() {
+    let quick = std::env::args().any(|a| a == "--quick");
+    for elements in [100usize, 1_000, 10_000, 100_000] {
+        let bar = Bar {
+            elements,
+            gap: 1e-3 + 1e-7,
+            initial_velocity: 1.0,
+            ..Default::default()
+        };
+        let model = bar.build().expect("valid bar");
+        let h = 1e-4;
+        let scheme_params = MoreauJeanParams::default();
+        // Steps per repetition chosen for roughly 0.3–1 s of work.
+        let steps = (if quick { 2e6 } else { 2e7 } / elements as f64).max(50.0) as u64;
+        let mut best = f64::INFINITY;
+        let mut impacts = 0;
+        for _ in 0..3 {
+            let mut scheme =
+                MoreauJean::new(&model, scheme_params, h, LcpOptions::default()).expect("SPD");
+            let mut state = LinearState::initial(&model);
+            let output = OutputOptions {
+                every: u64::MAX,
+                probes: vec![],
+            };
+            let mut count = Count(0);
+            let t0 = Instant::now();
+            let stats = run_linear(&model, &mut scheme, &mut state, steps, &output, &mut count)
+                .expect("run");
+            best = best.min(t0.elapsed().as_secs_f64());
+            impacts = stats.impacts;
+            std::hint::black_box(&state);
+        }
+        let steps_per_s = steps as f64 / best;
+        let dofs = model.dofs() as f64;
+        println!(
+            "{{\"bench\":\"moreau_jean_bar\",\"elements\":{elements},\"steps\":{steps},\"h\":{h},\"impacts\":{impacts},\"seconds\":{best:.4},\"steps_per_s\":{steps_per_s:.0},\"ns_per_dof_step\":{:.2}}}",
+            1e9 / (steps_per_s * dofs)
+        );
+    }
+}

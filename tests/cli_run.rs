@@ -1,0 +1,177 @@
+//! `signorini run` end to end: the examples run and produce consistent files; bad input is
+//! refused with a message naming the field, a non-zero exit, and no result files.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn signorini() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_signorini"))
+}
+
+fn run_spec(dir: &Path, name: &str, spec: &str) -> (Output, PathBuf) {
+    let spec_path = dir.join(name);
+    std::fs::write(&spec_path, spec).unwrap();
+    let out = dir.join("out");
+    let output = signorini().arg("run").arg(&spec_path).arg("--out").arg(&out).arg("--quiet").output().unwrap();
+    (output, out)
+}
+
+/// Runs a bad spec and checks: exit status non-zero, stderr names `field`, no result files.
+fn assert_refused(spec: &str, field: &str, reason_fragment: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    // A stale result from an earlier run must not survive a failed one either.
+    let out = dir.path().join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("summary.json"), "{\"stale\": true}").unwrap();
+    let name = if spec.trim_start().starts_with('{') { "spec.json" } else { "spec.toml" };
+    let (output, out) = run_spec(dir.path(), name, spec);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "accepted a bad spec; stderr: {stderr}");
+    assert!(stderr.contains(field), "stderr does not name `{field}`: {stderr}");
+    assert!(stderr.contains(reason_fragment), "stderr does not say `{reason_fragment}`: {stderr}");
+    for f in ["steps.csv", "summary.json", "steps.csv.partial"] {
+        assert!(!out.join(f).exists(), "{f} left behind after a refused spec");
+    }
+}
+
+const BALL_TIME: &str = "[time]\nh = 0.01\nsteps = 10\n";
+
+#[test]
+fn mass_not_positive_definite() {
+    assert_refused(
+        "[model]\nscene = \"linear\"\nmass = [[1.0, 2.0], [2.0, 1.0]]\n[time]\nh = 0.01\nsteps = 10\n",
+        "model.mass",
+        "not symmetric positive definite",
+    );
+}
+
+#[test]
+fn mass_not_symmetric() {
+    assert_refused(
+        "[model]\nscene = \"linear\"\nmass = [[1.0, 0.5], [0.0, 1.0]]\n[time]\nh = 0.01\nsteps = 10\n",
+        "model.mass",
+        "not symmetric",
+    );
+}
+
+#[test]
+fn dimension_mismatch() {
+    assert_refused(
+        "[model]\nscene = \"linear\"\nmass = [[1.0, 0.0], [0.0, 1.0]]\nq0 = [0.0, 0.0, 1.0]\n[time]\nh = 0.01\nsteps = 10\n",
+        "model.q0",
+        "expected 2 entries, got 3",
+    );
+}
+
+#[test]
+fn nan_entry() {
+    assert_refused(
+        "[model]\nscene = \"linear\"\nmass = [[1.0, 0.0], [0.0, nan]]\n[time]\nh = 0.01\nsteps = 10\n",
+        "model.mass",
+        "not finite",
+    );
+}
+
+#[test]
+fn infinite_entry() {
+    assert_refused(
+        &format!("[model]\nscene = \"bouncing_ball\"\nv0 = -inf\n{BALL_TIME}"),
+        "model.v0",
+        "not finite",
+    );
+}
+
+#[test]
+fn non_positive_step() {
+    assert_refused("[model]\nscene = \"bouncing_ball\"\n[time]\nh = 0.0\nsteps = 10\n", "time.h", "> 0");
+    assert_refused("[model]\nscene = \"bouncing_ball\"\n[time]\nh = -0.1\nsteps = 10\n", "time.h", "> 0");
+}
+
+#[test]
+fn negative_end_time() {
+    assert_refused("[model]\nscene = \"bouncing_ball\"\n[time]\nh = 0.01\nt_end = -1.0\n", "time.t_end", "≥ 0");
+}
+
+#[test]
+fn theta_outside_unit_interval() {
+    assert_refused(
+        &format!("[model]\nscene = \"bouncing_ball\"\n[integrator]\nscheme = \"moreau_jean\"\ntheta = 1.5\n{BALL_TIME}"),
+        "integrator.theta",
+        "[0, 1]",
+    );
+}
+
+#[test]
+fn restitution_outside_unit_interval() {
+    assert_refused(
+        &format!("[model]\nscene = \"bouncing_ball\"\nrestitution = 1.2\n{BALL_TIME}"),
+        "model.restitution",
+        "[0, 1]",
+    );
+    assert_refused(
+        "[model]\nscene = \"chain\"\nrestitution = -0.1\n[time]\nh = 0.01\nsteps = 10\n",
+        "model.restitution",
+        "[0, 1]",
+    );
+}
+
+#[test]
+fn unknown_field() {
+    assert_refused(&format!("[model]\nscene = \"bouncing_ball\"\nmas = 2.0\n{BALL_TIME}"), "model.mas", "unknown field");
+    assert_refused(
+        r#"{"model": {"scene": "bouncing_ball"}, "time": {"h": 0.01, "steps": 10, "stpes": 3}}"#,
+        "time.stpes",
+        "unknown field",
+    );
+}
+
+#[test]
+fn unknown_scene() {
+    assert_refused(&format!("[model]\nscene = \"trampoline\"\n{BALL_TIME}"), "model.scene", "unknown variant");
+}
+
+#[test]
+fn example_specs_run_and_their_files_agree() {
+    let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples");
+    for name in ["bouncing_ball", "bar", "chain", "linear", "dep_bar"] {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join(name);
+        let status = signorini()
+            .args(["run", "--quiet", "--out"])
+            .arg(&out)
+            .arg(examples.join(format!("{name}.toml")))
+            .status()
+            .unwrap();
+        assert!(status.success(), "{name} failed");
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+        for key in [
+            "steps",
+            "wall_s",
+            "steps_per_s",
+            "max_abs_balance_residual",
+            "energy_initial",
+            "energy_final",
+            "energy_max",
+            "impacts",
+            "lcp_max_error",
+        ] {
+            assert!(summary.get(key).is_some(), "{name}: summary lacks {key}");
+        }
+        let csv = std::fs::read_to_string(out.join("steps.csv")).unwrap();
+        let mut lines = csv.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        assert_eq!(&header[..4], &["step", "t", "kinetic", "strain"]);
+        assert!(header.contains(&"gap_0") && header.contains(&"u_0") && header.contains(&"p_0"));
+        let residual = header.iter().position(|c| *c == "balance_residual").unwrap();
+        let energy = header.iter().position(|c| *c == "energy").unwrap();
+        let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+        // The summary's maximum is the maximum over every step; the recorded rows are a subset.
+        let max_row = rows.iter().map(|r| r[residual].abs()).fold(0.0, f64::max);
+        let max_summary = summary["max_abs_balance_residual"].as_f64().unwrap();
+        assert!(max_row <= max_summary);
+        assert!(max_summary <= 1e-10 * summary["energy_max"].as_f64().unwrap().max(1.0), "{name}: {max_summary:e}");
+        assert_eq!(rows.last().unwrap()[0] as u64, summary["steps"].as_u64().unwrap());
+        assert_eq!(rows.first().unwrap()[energy], summary["energy_initial"].as_f64().unwrap());
+    }
+}
