@@ -36,10 +36,13 @@ run (190 of 200 steps with an impulse), at N = 100 (t_end = 2) about half the st
 
 Timing: wall clock of the loop `computeOneStep(); nextStep()` only (model set-up and the first
 factorisation of W, done in TimeStepping's initialisation, are reported apart as `setup_s`).
-One JSON line per N on stdout.
+`cpu_s` is the process CPU time of the same loop (less sensitive to other jobs on a shared
+machine than the wall clock; `load_avg_1min` says how busy the machine was). One JSON line per N
+on stdout.
 """
 
 import json
+import os
 import sys
 import time
 
@@ -85,11 +88,13 @@ def bench(n, steps):
     setup = time.perf_counter() - t0
     with_impulse = 0
     t1 = time.perf_counter()
+    c1 = time.process_time()
     for _ in range(steps):
         sim.computeOneStep()
         sim.nextStep()
         with_impulse += inter.lambda_(1)[0] > 0.0
     wall = time.perf_counter() - t1
+    cpu = time.process_time() - c1
     q = np.array(ds.q())
     v = np.array(ds.velocity())
     return {
@@ -108,6 +113,9 @@ def bench(n, steps):
         "wall_s": round(wall, 4),
         "steps_per_s": round(steps / wall, 1),
         "us_per_step": round(1e6 * wall / steps, 2),
+        "cpu_s": round(cpu, 4),
+        "cpu_steps_per_s": round(steps / cpu, 1),
+        "load_avg_1min": os.getloadavg()[0],
         "steps_with_impulse": int(with_impulse),
         "q_tip_final": float(q[-1]),
         "v_tip_final": float(v[-1]),

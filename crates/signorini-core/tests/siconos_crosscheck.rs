@@ -284,3 +284,67 @@ fn default_index_set_differs_as_documented() {
         }
     }
 }
+
+/// The speed-comparison scene of `scripts/siconos/bench.py` (docs/siconos.md §5): our run must
+/// end in the state Siconos printed (`q_tip_final`, `v_tip_final`, `q_0_final`), so both sides
+/// time the same computation. N = 100: 20 000 steps, 10 081 of them with an impulse.
+#[test]
+fn bench_scene_ends_where_siconos_ends() {
+    for (elements, steps, q_tip, v_tip, q_0, with_impulse) in [
+        (
+            100usize,
+            20_000u64,
+            -0.9734956847766547,
+            -0.3179620398761584,
+            -0.005692193378369261,
+            10_081usize,
+        ),
+        (
+            1000,
+            200,
+            0.0010500000000000002,
+            0.0,
+            0.0009993172323745877,
+            190,
+        ),
+    ] {
+        let spec: JobSpec = serde_json::from_value(serde_json::json!({
+            "model": {"scene": "bar", "elements": elements, "length": 1.0, "young": 1.0, "density": 1.0,
+                      "area": 1.0, "mass_matrix": "lumped", "left": "fixed", "gap": 1e-3 + 3.7e-6,
+                      "restitution": 0.0, "initial_velocity": 1.0},
+            "integrator": {"scheme": "moreau_jean", "theta": 0.5, "activation": "predicted_gap",
+                           "activation_gamma": 0.5},
+            "time": {"h": 1e-4, "steps": steps},
+            "contact_solver": {"kind": "lemke"},
+            "output": {"every": 1, "probes": [0, elements - 1]},
+        }))
+        .expect("spec");
+        let rec = run_spec(&spec);
+        let last = |c: &str| *rec.column(c).expect("column").last().expect("rows");
+        let ours = [
+            last(&format!("q_{}", elements - 1)),
+            last(&format!("v_{}", elements - 1)),
+            last("q_0"),
+        ];
+        let impulses = rec
+            .column("p_0")
+            .expect("p_0")
+            .iter()
+            .filter(|&&p| p > 0.0)
+            .count();
+        println!(
+            "bench N = {elements}: ours {ours:?}, Siconos {:?}, impulses {impulses}",
+            [q_tip, v_tip, q_0]
+        );
+        assert_eq!(
+            impulses, with_impulse,
+            "N = {elements}: steps with an impulse"
+        );
+        for (a, b) in ours.iter().zip([q_tip, v_tip, q_0]) {
+            assert!(
+                (a - b).abs() <= 1e-9 * (1.0 + b.abs()),
+                "N = {elements}: {a:e} vs Siconos {b:e}"
+            );
+        }
+    }
+}
