@@ -1,0 +1,315 @@
+//! Forced response of the lightly damped bar (§7): a harmonically moving wall
+//! `w(t) = w0 sin ωt` or a distributed force `f0 sin ωt`, swept over ω for several damping
+//! values. Each (damping, ω) is an independent WFEM run of Algorithm 2 (with the source step of
+//! [`crate::wfem`]): `transient_periods` forcing periods to reach the steady state, then the cell
+//! energy averaged over `average_periods` periods. Tasks run in parallel on scoped threads.
+
+use super::{scan, svg};
+use crate::job::{RunError, RunOutput, Table};
+use crate::observer::{Observer, Progress};
+use crate::scenes::HarmonicSpec;
+use crate::spec::SpecError;
+use crate::wfem::{WaveBar, step};
+use serde::{Deserialize, Serialize};
+use serde_json::{Map, Value, json};
+use std::ops::ControlFlow;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+/// How the bar is driven.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Excitation {
+    /// Harmonically moving wall (f0 = 0, w0 ≠ 0).
+    #[default]
+    Wall,
+    /// Harmonic distributed force (f0 ≠ 0, w0 = 0).
+    Force,
+}
+
+fn d_cells() -> usize {
+    100
+}
+fn d_one() -> f64 {
+    1.0
+}
+fn d_gap() -> f64 {
+    1e-3
+}
+fn d_amp() -> f64 {
+    2e-3
+}
+fn d_damping() -> Vec<f64> {
+    vec![0.02, 0.05, 0.1]
+}
+fn d_transient() -> usize {
+    150
+}
+fn d_average() -> usize {
+    20
+}
+
+/// `kind = "forced_response"`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ForcedResponseSpec {
+    /// Cells N ≥ 2 (default 100).
+    #[serde(default = "d_cells")]
+    pub cells: usize,
+    /// Length (default 1).
+    #[serde(default = "d_one")]
+    pub length: f64,
+    /// Young's modulus (default 1).
+    #[serde(default = "d_one")]
+    pub young: f64,
+    /// Density (default 1).
+    #[serde(default = "d_one")]
+    pub density: f64,
+    /// Section (default 1).
+    #[serde(default = "d_one")]
+    pub area: f64,
+    /// Gap g0 (default 10⁻³).
+    #[serde(default = "d_gap")]
+    pub gap: f64,
+    /// `wall` (default) or `force`.
+    #[serde(default)]
+    pub excitation: Excitation,
+    /// w0 (wall) or f0 per unit length (force); default 2·10⁻³.
+    #[serde(default = "d_amp")]
+    pub amplitude: f64,
+    /// Forcing frequencies as multiples of ω₁ (default 29 values from 0.8 to 2.2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub omegas: Option<Vec<f64>>,
+    /// Viscous damping values γ (1/s), default [0.02, 0.05, 0.1].
+    #[serde(default = "d_damping")]
+    pub damping: Vec<f64>,
+    /// Forcing periods skipped before averaging (default 150).
+    #[serde(default = "d_transient")]
+    pub transient_periods: usize,
+    /// Forcing periods averaged (default 20).
+    #[serde(default = "d_average")]
+    pub average_periods: usize,
+    /// Overlay the backbone of the same bar on the figure (default true).
+    #[serde(default = "d_true")]
+    pub backbone: bool,
+}
+
+fn d_true() -> bool {
+    true
+}
+
+/// A validated forced-response sweep.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ForcedResponseJob {
+    /// N.
+    pub cells: usize,
+    /// Bar without forcing or damping.
+    pub bar: WaveBar,
+    /// Excitation.
+    pub excitation: Excitation,
+    /// Amplitude.
+    pub amplitude: f64,
+    /// ω/ω₁ values.
+    pub omegas: Vec<f64>,
+    /// Damping values.
+    pub damping: Vec<f64>,
+    /// Transient periods.
+    pub transient_periods: usize,
+    /// Averaged periods.
+    pub average_periods: usize,
+    /// Overlay the backbone.
+    pub backbone: bool,
+}
+
+impl ForcedResponseJob {
+    /// Validates the spec.
+    pub fn from_spec(s: &ForcedResponseSpec) -> Result<Self, SpecError> {
+        if s.cells < 2 || s.cells > 100_000 {
+            return Err(SpecError::new("analysis.cells", format!("must be in [2, 10⁵], got {}", s.cells)));
+        }
+        let mut bar = WaveBar::unit(s.cells, s.gap);
+        for (field, x, dst) in [
+            ("analysis.length", s.length, &mut bar.length),
+            ("analysis.young", s.young, &mut bar.young),
+            ("analysis.density", s.density, &mut bar.density),
+            ("analysis.area", s.area, &mut bar.area),
+        ] {
+            *dst = super::positive(field, x)?;
+        }
+        if !s.gap.is_finite() {
+            return Err(SpecError::new("analysis.gap", format!("must be finite, got {}", s.gap)));
+        }
+        if !s.amplitude.is_finite() || s.amplitude == 0.0 {
+            return Err(SpecError::new("analysis.amplitude", format!("must be finite and ≠ 0, got {}", s.amplitude)));
+        }
+        let omegas = s.omegas.clone().unwrap_or_else(|| (0..29).map(|i| 0.8 + 0.05 * i as f64).collect());
+        if omegas.is_empty() || omegas.iter().any(|w| !(w.is_finite() && *w > 0.0)) {
+            return Err(SpecError::new("analysis.omegas", "must be a non-empty list of finite numbers > 0"));
+        }
+        if s.damping.is_empty() || s.damping.iter().any(|g| !(g.is_finite() && *g >= 0.0)) {
+            return Err(SpecError::new("analysis.damping", "must be a non-empty list of finite numbers ≥ 0"));
+        }
+        if s.average_periods == 0 {
+            return Err(SpecError::new("analysis.average_periods", "must be ≥ 1"));
+        }
+        Ok(ForcedResponseJob {
+            cells: s.cells,
+            bar,
+            excitation: s.excitation,
+            amplitude: s.amplitude,
+            omegas,
+            damping: s.damping.clone(),
+            transient_periods: s.transient_periods,
+            average_periods: s.average_periods,
+            backbone: s.backbone,
+        })
+    }
+
+    /// Number of independent runs.
+    pub fn tasks(&self) -> u64 {
+        (self.omegas.len() * self.damping.len()) as u64
+    }
+
+    /// The driven bar for one task.
+    pub fn driven_bar(&self, omega_over_omega1: f64, damping: f64) -> WaveBar {
+        let mut bar = self.bar.clone();
+        let omega1 = std::f64::consts::PI * bar.wave_speed() / (2.0 * bar.length);
+        let h = HarmonicSpec { amplitude: self.amplitude, omega: omega_over_omega1 * omega1 };
+        match self.excitation {
+            Excitation::Wall => bar.wall_motion = Some(HarmonicSpec { amplitude: -h.amplitude, omega: h.omega }),
+            Excitation::Force => bar.harmonic_force = Some(h),
+        }
+        bar.damping = damping;
+        bar
+    }
+}
+
+/// Steady-state response of one (ω, γ) task.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Response {
+    /// ω/ω₁.
+    pub omega_over_omega1: f64,
+    /// γ.
+    pub damping: f64,
+    /// Mean cell energy over the averaging periods.
+    pub mean_energy: f64,
+    /// Largest |balance residual| of the run, relative to the largest energy.
+    pub balance_residual: f64,
+}
+
+/// Runs one task: the bar (wall pushing toward the bar first) starting at rest.
+pub fn respond(job: &ForcedResponseJob, omega_over_omega1: f64, damping: f64) -> Response {
+    let bar = job.driven_bar(omega_over_omega1, damping);
+    let omega = omega_over_omega1 * std::f64::consts::PI * bar.wave_speed() / (2.0 * bar.length);
+    let steps_per_period = 2.0 * std::f64::consts::PI / omega / bar.dt();
+    let transient = (job.transient_periods as f64 * steps_per_period).round() as u64;
+    let average = ((job.average_periods as f64 * steps_per_period).round() as u64).max(1);
+    let mut state = bar.initial_state();
+    let mut e_prev = state.energy(&bar);
+    let mut sum = 0.0;
+    let mut worst: f64 = 0.0;
+    let mut e_max = e_prev;
+    for k in 0..transient + average {
+        let terms = step(&bar, &mut state);
+        // The energy balance of the step (the sums are O(N), as the source step already is).
+        let e = state.energy(&bar);
+        worst = worst.max((e - e_prev - terms.work_ext - terms.work_damping - terms.work_contact).abs());
+        e_max = e_max.max(e);
+        e_prev = e;
+        if k >= transient {
+            sum += e;
+        }
+    }
+    Response {
+        omega_over_omega1,
+        damping,
+        mean_energy: sum / average as f64,
+        balance_residual: if e_max > 0.0 { worst / e_max } else { worst },
+    }
+}
+
+/// Runs the sweep: every (γ, ω) task on the worker threads, `forced_response` table, figure.
+pub fn run_forced(job: &ForcedResponseJob, mut summary: Map<String, Value>, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
+    let tasks: Vec<(f64, f64)> = job.damping.iter().flat_map(|&g| job.omegas.iter().map(move |&w| (g, w))).collect();
+    let total = tasks.len() as u64;
+    let next = AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
+    let results: Mutex<Vec<Response>> = Mutex::new(Vec::new());
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let (tx, rx) = std::sync::mpsc::channel::<()>();
+    let mut stopped = false;
+    std::thread::scope(|s| {
+        for _ in 0..threads {
+            let tx = tx.clone();
+            let (next, stop, results, tasks) = (&next, &stop, &results, &tasks);
+            s.spawn(move || {
+                loop {
+                    if stop.load(Ordering::Relaxed) {
+                        break;
+                    }
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(&(g, w)) = tasks.get(i) else { break };
+                    let r = respond(job, w, g);
+                    if let Ok(mut v) = results.lock() {
+                        v.push(r);
+                    }
+                    let _ = tx.send(());
+                }
+            });
+        }
+        drop(tx);
+        // The calling thread reports progress and honours cancellation.
+        let mut done = 0u64;
+        for () in rx.iter() {
+            done += 1;
+            if let ControlFlow::Break(()) = observer.progress(Progress { done, total, t: 0.0 }) {
+                stop.store(true, Ordering::Relaxed);
+                stopped = true;
+            }
+        }
+    });
+    let mut results = results.into_inner().unwrap_or_default();
+    if stopped {
+        return Err(RunError::Stopped { step: results.len() as u64 });
+    }
+    results.sort_by(|a, b| a.damping.total_cmp(&b.damping).then(a.omega_over_omega1.total_cmp(&b.omega_over_omega1)));
+    let e_lin = super::linear_grazing_energy(&job.bar);
+    let rows: Vec<Vec<f64>> = results
+        .iter()
+        .map(|r| vec![r.damping, r.omega_over_omega1, r.mean_energy, r.mean_energy / e_lin, r.balance_residual])
+        .collect();
+    let backbone = if job.backbone {
+        let n = job.cells;
+        scan(&job.bar, (2 * n, 4 * n), 1, false, threads, &|| ControlFlow::Continue(())).unwrap_or_default()
+    } else {
+        Vec::new()
+    };
+    let figure = svg::forced_figure(&results, e_lin, &backbone, job.excitation);
+    let worst = results.iter().fold(0.0f64, |m, r| m.max(r.balance_residual));
+    summary.extend(
+        json!({
+            "kind": "forced_response",
+            "cells": job.cells,
+            "gap": job.bar.gap,
+            "excitation": job.excitation,
+            "amplitude": job.amplitude,
+            "tasks": total,
+            "max_relative_balance_residual": worst,
+            "energy_linear_grazing": e_lin,
+        })
+        .as_object()
+        .cloned()
+        .unwrap_or_default(),
+    );
+    Ok(RunOutput {
+        summary,
+        tables: vec![Table {
+            name: "forced_response".into(),
+            columns: ["damping", "omega_over_omega1", "mean_energy", "energy_normalized", "relative_balance_residual"]
+                .map(String::from)
+                .to_vec(),
+            rows,
+        }],
+        figures: vec![figure],
+    })
+}

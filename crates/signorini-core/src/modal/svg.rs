@@ -1,0 +1,259 @@
+//! Hand-written SVG figures (no fonts or files needed): frequency–energy backbones with the
+//! linear frequencies and the main-branch asymptotes, space–time displacement of an orbit, and
+//! forced-response curves over the backbones.
+
+use super::forced::{Excitation, Response};
+use super::orbit::Orbit;
+use super::{BackbonePoint, main_asymptote};
+use crate::job::Figure;
+use crate::wfem::{WaveBar, WaveState, transport};
+use std::fmt::Write;
+
+const W: f64 = 720.0;
+const H: f64 = 480.0;
+const ML: f64 = 70.0;
+const MR: f64 = 20.0;
+const MT: f64 = 40.0;
+const MB: f64 = 50.0;
+
+struct Axes {
+    x: (f64, f64),
+    y: (f64, f64),
+}
+
+impl Axes {
+    fn px(&self, x: f64) -> f64 {
+        ML + (x - self.x.0) / (self.x.1 - self.x.0) * (W - ML - MR)
+    }
+    fn py(&self, y: f64) -> f64 {
+        H - MB - (y - self.y.0) / (self.y.1 - self.y.0) * (H - MT - MB)
+    }
+}
+
+fn header(s: &mut String, title: &str) {
+    let _ = write!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" font-family="sans-serif" font-size="12"><rect width="100%" height="100%" fill="white"/><text x="{}" y="22" text-anchor="middle" font-size="15">{title}</text>"#,
+        W / 2.0
+    );
+}
+
+fn frame(s: &mut String, ax: &Axes, xlabel: &str, ylabel: &str, log_y: bool) {
+    let _ = write!(
+        s,
+        r#"<rect x="{ML}" y="{MT}" width="{}" height="{}" fill="none" stroke="black"/>"#,
+        W - ML - MR,
+        H - MT - MB
+    );
+    for i in 0..=5 {
+        let x = ax.x.0 + (ax.x.1 - ax.x.0) * i as f64 / 5.0;
+        let _ = write!(s, r#"<text x="{:.1}" y="{}" text-anchor="middle">{:.2}</text>"#, ax.px(x), H - MB + 16.0, x);
+        let y = ax.y.0 + (ax.y.1 - ax.y.0) * i as f64 / 5.0;
+        let label = if log_y { format!("1e{y:.1}") } else { format!("{y:.3}") };
+        let _ = write!(s, r#"<text x="{}" y="{:.1}" text-anchor="end">{label}</text>"#, ML - 4.0, ax.py(y) + 4.0);
+    }
+    let _ = write!(s, r#"<text x="{}" y="{}" text-anchor="middle">{xlabel}</text>"#, (ML + W - MR) / 2.0, H - 12.0);
+    let _ = write!(
+        s,
+        r#"<text x="16" y="{}" text-anchor="middle" transform="rotate(-90 16 {})">{ylabel}</text>"#,
+        (MT + H - MB) / 2.0,
+        (MT + H - MB) / 2.0
+    );
+}
+
+fn vline(s: &mut String, ax: &Axes, x: f64, color: &str, dash: &str) {
+    if x > ax.x.0 && x < ax.x.1 {
+        let _ = write!(
+            s,
+            r#"<line x1="{0:.1}" x2="{0:.1}" y1="{MT}" y2="{1}" stroke="{color}" stroke-dasharray="{dash}"/>"#,
+            ax.px(x),
+            H - MB
+        );
+    }
+}
+
+fn gap_color(g: f64) -> &'static str {
+    if g > 0.0 {
+        "#1f77b4"
+    } else if g < 0.0 {
+        "#d62728"
+    } else {
+        "#2ca02c"
+    }
+}
+
+fn draw_backbone_points(s: &mut String, ax: &Axes, points: &[&BackbonePoint]) {
+    for pt in points {
+        let e = pt.energy_normalized;
+        if !(e > 0.0) {
+            continue;
+        }
+        let (x, y) = (pt.omega_over_omega1, e.log10());
+        if x < ax.x.0 || x > ax.x.1 || y < ax.y.0 || y > ax.y.1 {
+            continue;
+        }
+        let _ = write!(s, r#"<circle cx="{:.1}" cy="{:.1}" r="1.8" fill="{}"/>"#, ax.px(x), ax.py(y), gap_color(pt.gap));
+    }
+}
+
+fn legend_and_lines(s: &mut String, ax: &Axes) {
+    // Linear frequencies: ω_k = (2k−1)ω₁ (fixed–free), Ω_k = 2k ω₁ (fixed–fixed), (10).
+    for k in 1..=8 {
+        vline(s, ax, (2 * k - 1) as f64, "#888", "4 3");
+        vline(s, ax, (2 * k) as f64, "#bbb", "2 2");
+        vline(s, ax, main_asymptote(k), "#8c564b", "6 2 1 2");
+    }
+    let items = [
+        ("#1f77b4", "g0 > 0"),
+        ("#2ca02c", "g0 = 0"),
+        ("#d62728", "g0 < 0"),
+        ("#888", "ω_k (fixed–free)"),
+        ("#bbb", "Ω_k (fixed–fixed)"),
+        ("#8c564b", "asymptotes ω₁(ω_k/ω₁+1)²/(ω_k/ω₁+2)"),
+    ];
+    for (i, (c, label)) in items.iter().enumerate() {
+        let y = MT + 14.0 + 15.0 * i as f64;
+        let _ = write!(
+            s,
+            r#"<rect x="{}" y="{}" width="10" height="10" fill="{c}"/><text x="{}" y="{}">{label}</text>"#,
+            ML + 8.0,
+            y - 9.0,
+            ML + 22.0,
+            y
+        );
+    }
+}
+
+fn y_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in values.filter(|v| v.is_finite()) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !lo.is_finite() {
+        return (-1.0, 1.0);
+    }
+    if hi - lo < 1e-3 {
+        (lo - 0.5, hi + 0.5)
+    } else {
+        (lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo))
+    }
+}
+
+/// Frequency–energy plot (Figs. 5–6): admissible points of every gap, log₁₀ of the normalised
+/// energy against ω/ω₁, with ω_k, Ω_k and the main-branch asymptotes.
+pub fn backbone_figure(scans: &[(WaveBar, Vec<BackbonePoint>)], x_range: Option<(f64, f64)>) -> Figure {
+    let pts: Vec<&BackbonePoint> = scans.iter().flat_map(|(_, p)| p.iter()).filter(|p| p.orbit.is_some()).collect();
+    let x = x_range.unwrap_or_else(|| {
+        let hi = pts.iter().map(|p| p.omega_over_omega1).fold(2.2f64, f64::max).min(8.5);
+        (0.5, hi + 0.1)
+    });
+    let y = y_range(pts.iter().filter(|p| p.energy_normalized > 0.0).map(|p| p.energy_normalized.log10()));
+    let ax = Axes { x, y };
+    let mut s = String::new();
+    header(&mut s, "Nonsmooth modes: frequency–energy backbones");
+    frame(&mut s, &ax, "ω / ω₁", "energy / E_lin (log₁₀)", true);
+    legend_and_lines(&mut s, &ax);
+    draw_backbone_points(&mut s, &ax, &pts);
+    s.push_str("</svg>");
+    Figure { name: "backbone".into(), svg: s }
+}
+
+/// Space–time displacement u(x, t) of an orbit over one period (Figs. 9, 13): a colour map
+/// (blue negative, red positive), x to the right, t upward.
+pub fn space_time_figure(name: &str, bar: &WaveBar, orbit: &Orbit) -> Figure {
+    let n = bar.cells;
+    let t_steps = orbit.period_steps();
+    let mut state = WaveState::from_ring(orbit.ring.clone(), 0.0, orbit.u[0]);
+    let nx = n.min(80);
+    let nt = t_steps.min(120);
+    let mut field: Vec<Vec<f64>> = Vec::with_capacity(nt);
+    let mut step = 0;
+    for &(end, steps) in &orbit.phases {
+        for _ in 0..steps {
+            if step * nt / t_steps.max(1) >= field.len() {
+                let u = state.interface_displacements(bar);
+                field.push((0..nx).map(|j| u[(j * n) / nx + 1]).collect());
+            }
+            transport(bar, &mut state, end, 0.0);
+            step += 1;
+        }
+    }
+    let umax = field.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs())).max(1e-300);
+    let ax = Axes { x: (0.0, bar.length), y: (0.0, t_steps as f64 * bar.dt()) };
+    let mut s = String::new();
+    header(&mut s, &format!("Space–time displacement, {} ({} + {} steps)", name, orbit.phases[0].1, orbit.contact_steps()));
+    let cw = (W - ML - MR) / nx as f64;
+    let ch = (H - MT - MB) / field.len().max(1) as f64;
+    for (i, row) in field.iter().enumerate() {
+        for (j, &u) in row.iter().enumerate() {
+            let r = u / umax;
+            let (cr, cg, cb) = if r >= 0.0 {
+                (255.0, 255.0 * (1.0 - r), 255.0 * (1.0 - r))
+            } else {
+                (255.0 * (1.0 + r), 255.0 * (1.0 + r), 255.0)
+            };
+            let _ = write!(
+                s,
+                r#"<rect x="{:.2}" y="{:.2}" width="{:.2}" height="{:.2}" fill="rgb({},{},{})"/>"#,
+                ML + j as f64 * cw,
+                H - MB - (i + 1) as f64 * ch,
+                cw + 0.3,
+                ch + 0.3,
+                cr as u8,
+                cg as u8,
+                cb as u8
+            );
+        }
+    }
+    frame(&mut s, &ax, "x", "t", false);
+    let _ = write!(s, r#"<text x="{}" y="{}" text-anchor="end">max |u| = {umax:.3e}</text>"#, W - MR, MT - 6.0);
+    s.push_str("</svg>");
+    Figure { name: name.into(), svg: s }
+}
+
+/// Forced-response curves (Figs. 23–25): mean energy per damping value against ω/ω₁, over the
+/// backbone points of the same bar.
+pub fn forced_figure(results: &[Response], e_lin: f64, backbone: &[BackbonePoint], excitation: Excitation) -> Figure {
+    let palette = ["#9467bd", "#ff7f0e", "#17becf", "#e377c2", "#7f7f7f", "#bcbd22"];
+    let xs = results.iter().map(|r| r.omega_over_omega1);
+    let (xlo, xhi) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
+    let ax_x = if xlo.is_finite() { (xlo - 0.05, xhi + 0.05) } else { (0.5, 2.5) };
+    let bb: Vec<&BackbonePoint> = backbone.iter().filter(|p| p.orbit.is_some()).collect();
+    let ys = results
+        .iter()
+        .map(|r| (r.mean_energy / e_lin).log10())
+        .chain(bb.iter().filter(|p| p.omega_over_omega1 >= ax_x.0 && p.omega_over_omega1 <= ax_x.1).map(|p| p.energy_normalized.log10()));
+    let ax = Axes { x: ax_x, y: y_range(ys) };
+    let mut s = String::new();
+    let what = match excitation {
+        Excitation::Wall => "moving wall",
+        Excitation::Force => "distributed force",
+    };
+    header(&mut s, &format!("Forced response ({what}) over the backbone"));
+    frame(&mut s, &ax, "ω / ω₁", "mean energy / E_lin (log₁₀)", true);
+    legend_and_lines(&mut s, &ax);
+    draw_backbone_points(&mut s, &ax, &bb);
+    let mut dampings: Vec<f64> = results.iter().map(|r| r.damping).collect();
+    dampings.dedup();
+    for (i, g) in dampings.iter().enumerate() {
+        let color = palette[i % palette.len()];
+        let pts: Vec<String> = results
+            .iter()
+            .filter(|r| r.damping == *g && r.mean_energy > 0.0)
+            .map(|r| format!("{:.1},{:.1}", ax.px(r.omega_over_omega1), ax.py((r.mean_energy / e_lin).log10())))
+            .collect();
+        let _ = write!(s, r#"<polyline points="{}" fill="none" stroke="{color}" stroke-width="1.6"/>"#, pts.join(" "));
+        let y = MT + 14.0 + 15.0 * (6 + i) as f64;
+        let _ = write!(
+            s,
+            r#"<rect x="{}" y="{}" width="10" height="10" fill="{color}"/><text x="{}" y="{}">γ = {g}</text>"#,
+            ML + 8.0,
+            y - 9.0,
+            ML + 22.0,
+            y
+        );
+    }
+    s.push_str("</svg>");
+    Figure { name: "forced_response".into(), svg: s }
+}

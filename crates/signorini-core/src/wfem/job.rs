@@ -1,0 +1,243 @@
+//! Jobs on wave finite elements: time integration (`scheme = "wfem"`), nonsmooth modal analysis
+//! and forced-response sweeps (`[analysis]`). [`crate::job`] dispatches here.
+
+use super::{WaveBar, WaveState, step};
+use crate::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS};
+use crate::integrators::StepError;
+use crate::job::{RunError, RunOutput};
+use crate::modal::{self, AnalysisSpec, ForcedResponseJob, ModalJob};
+use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::scenes::Bar;
+use crate::spec::{IntegratorSpec, JobSpec, ModelSpec, SpecError};
+use serde_json::{Map, Value, json};
+use std::ops::ControlFlow;
+
+/// A validated job on wave finite elements.
+#[derive(Debug, Clone)]
+pub enum WaveJob {
+    /// Time integration of a `bar`/`dep_bar` scene by Algorithm 2.
+    Integrate {
+        /// The bar.
+        bar: WaveBar,
+        /// Number of steps.
+        steps: u64,
+        /// Record every k-th step.
+        every: u64,
+    },
+    /// Nonsmooth modal analysis (§§4–6).
+    Modes(Box<ModalJob>),
+    /// Forced-response sweep (§7).
+    Forced(Box<ForcedResponseJob>),
+}
+
+impl WaveJob {
+    /// The wave job of `spec`, if it is one (`[analysis]` present, or `scheme = "wfem"`).
+    pub fn from_spec(spec: &JobSpec) -> Result<Option<WaveJob>, SpecError> {
+        if let Some(analysis) = &spec.analysis {
+            return match analysis {
+                AnalysisSpec::NonsmoothModes(m) => Ok(Some(WaveJob::Modes(Box::new(ModalJob::from_spec(m)?)))),
+                AnalysisSpec::ForcedResponse(f) => Ok(Some(WaveJob::Forced(Box::new(ForcedResponseJob::from_spec(f)?)))),
+            };
+        }
+        if !matches!(spec.integrator, IntegratorSpec::Wfem(_)) {
+            return Ok(None);
+        }
+        let model = spec.model.as_ref().ok_or_else(|| SpecError::new("model", "missing section"))?;
+        let bar = match model {
+            ModelSpec::Bar(b) => b.resolve(Bar::default()),
+            ModelSpec::DepBar(b) => b.resolve(Bar::doyen_ern_piperno(100)),
+            other => {
+                return Err(SpecError::new(
+                    "model.scene",
+                    format!("scheme \"wfem\" runs the scenes \"bar\" and \"dep_bar\", not \"{}\"", other.scene()),
+                ));
+            }
+        };
+        let bar = WaveBar::from_bar(&bar).map_err(|e| match e {
+            super::WfemError::OutOfRange { field, .. } | super::WfemError::Unsupported { field, .. } => {
+                SpecError::new(format!("model.{field}"), e.to_string())
+            }
+        })?;
+        let time = spec.time.as_ref().ok_or_else(|| SpecError::new("time", "missing section"))?;
+        let dt = bar.dt();
+        if !(time.h.is_finite() && (time.h - dt).abs() <= 1e-6 * dt) {
+            return Err(SpecError::new(
+                "time.h",
+                format!("wave finite elements step by Δt = Δx/c = {dt:e} exactly (cells = elements), got {}", time.h),
+            ));
+        }
+        let (_, steps) = crate::job::fixed_steps(time)?;
+        if spec.output.every == 0 {
+            return Err(SpecError::new("output.every", "must be ≥ 1"));
+        }
+        if !spec.output.probes.is_empty() {
+            return Err(SpecError::new("output.probes", "wave finite elements record the contact end; probes are not supported"));
+        }
+        Ok(Some(WaveJob::Integrate { bar, steps, every: spec.output.every }))
+    }
+
+    /// (degrees of freedom, steps or tasks) for the service's limits.
+    pub fn size(&self) -> (u64, u64) {
+        match self {
+            WaveJob::Integrate { bar, steps, .. } => (2 * bar.cells as u64, *steps),
+            WaveJob::Modes(m) => (2 * m.cells as u64, m.tasks()),
+            WaveJob::Forced(f) => (2 * f.cells as u64, f.tasks()),
+        }
+    }
+
+    /// Runs the job; `summary` holds the spec's header fields.
+    pub fn run(&self, mut summary: Map<String, Value>, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
+        match self {
+            WaveJob::Integrate { bar, steps, every } => {
+                let mut state = bar.initial_state();
+                let stats = run_wave(bar, &mut state, *steps, *every, observer)?;
+                summary.extend(stats.summary(bar));
+                Ok(RunOutput { summary, tables: Vec::new(), figures: Vec::new() })
+            }
+            WaveJob::Modes(m) => modal::run_modes(m, summary, observer),
+            WaveJob::Forced(f) => modal::forced::run_forced(f, summary, observer),
+        }
+    }
+}
+
+/// Columns of a WFEM run: the energy terms, the cumulative works, `gap_0, u_0, p_0` (gap, gap
+/// rate and contact impulse `−S σ* Δt ≥ 0` of the step), then `u_end` (contact-end displacement)
+/// and `contact_force` (`r = S σ*`, (52), ≤ 0).
+pub fn wave_columns() -> Columns {
+    let mut names: Vec<String> = ENERGY_COLUMNS.iter().chain(&CUMULATIVE_COLUMNS).map(|s| s.to_string()).collect();
+    names.extend(["gap_0", "u_0", "p_0", "u_end", "contact_force"].map(String::from));
+    Columns::new(names)
+}
+
+/// What a WFEM run measured over all its steps.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct WaveRunStats {
+    /// Steps done.
+    pub steps: u64,
+    /// Final time.
+    pub t_end: f64,
+    /// Cell energy at t = 0.
+    pub energy_initial: f64,
+    /// Cell energy at the end.
+    pub energy_final: f64,
+    /// max |balance_residual| over the records.
+    pub max_abs_balance_residual: f64,
+    /// Cumulative works.
+    pub work_ext_total: f64,
+    /// See `work_ext_total`.
+    pub work_damping_total: f64,
+    /// See `work_ext_total`.
+    pub work_contact_total: f64,
+    /// Number of gap closures (free → contact switches).
+    pub closures: u64,
+    /// Steps spent in contact.
+    pub contact_steps: u64,
+}
+
+impl WaveRunStats {
+    fn summary(&self, bar: &WaveBar) -> Map<String, Value> {
+        json!({
+            "kind": "time_integration",
+            "cells": bar.cells,
+            "dofs": 2 * bar.cells,
+            "contacts": 1,
+            "h": bar.dt(),
+            "steps": self.steps,
+            "t_end": self.t_end,
+            "energy_initial": self.energy_initial,
+            "energy_final": self.energy_final,
+            "max_abs_balance_residual": self.max_abs_balance_residual,
+            "work_ext_total": self.work_ext_total,
+            "work_damping_total": self.work_damping_total,
+            "work_contact_total": self.work_contact_total,
+            "closures": self.closures,
+            "contact_steps": self.contact_steps,
+        })
+        .as_object()
+        .cloned()
+        .unwrap_or_default()
+    }
+}
+
+/// Runs `steps` steps of Algorithm 2 from `state`, recording every `every`-th step (and the
+/// last). The work columns of a record sum the steps since the previous record, so
+/// `balance_residual = ΔE − work_ext − work_damping − work_contact` over that interval
+/// (per step with `every = 1`); WFEM has no numerical dissipation.
+pub fn run_wave(
+    bar: &WaveBar,
+    state: &mut WaveState,
+    steps: u64,
+    every: u64,
+    observer: &mut dyn Observer,
+) -> Result<WaveRunStats, RunError> {
+    let columns = wave_columns();
+    observer.start(&columns);
+    let every = every.max(1);
+    let dt = bar.dt();
+    let (kin, strain) = state.energies(bar);
+    let mut e_prev = kin + strain;
+    let mut stats = WaveRunStats { energy_initial: e_prev, energy_final: e_prev, ..Default::default() };
+    let mut row = Vec::with_capacity(columns.len());
+    let (mut w_ext, mut w_damp, mut w_contact) = (0.0, 0.0, 0.0);
+    let mut last = super::StepTerms::default();
+    let mut was_contact = false;
+    let push_row = |row: &mut Vec<f64>,
+                        kin: f64,
+                        strain: f64,
+                        works: [f64; 3],
+                        residual: f64,
+                        totals: [f64; 3],
+                        state: &WaveState,
+                        terms: &super::StepTerms| {
+        row.clear();
+        row.extend([kin, strain, kin + strain, works[0], works[1], works[2], 0.0, kin + strain, residual]);
+        row.extend(totals);
+        let gap = bar.gap + bar.wall(state.step as f64 * dt) - state.u_right;
+        row.extend([
+            gap,
+            terms.wall_velocity - terms.end_velocity,
+            -bar.area * terms.contact_stress * dt,
+            state.u_right,
+            bar.area * terms.contact_stress,
+        ]);
+    };
+    push_row(&mut row, kin, strain, [0.0; 3], 0.0, [0.0; 3], state, &last);
+    if observer.observe(&StepRecord { step: state.step, t: state.step as f64 * dt, values: &row }).is_break() {
+        return Err(RunError::Stopped { step: 0 });
+    }
+    for k in 1..=steps {
+        last = step(bar, state);
+        w_ext += last.work_ext;
+        w_damp += last.work_damping;
+        w_contact += last.work_contact;
+        stats.work_ext_total += last.work_ext;
+        stats.work_damping_total += last.work_damping;
+        stats.work_contact_total += last.work_contact;
+        stats.closures += u64::from(last.contact && !was_contact);
+        stats.contact_steps += u64::from(last.contact);
+        was_contact = last.contact;
+        if k % every == 0 || k == steps {
+            let (kin, strain) = state.energies(bar);
+            let e = kin + strain;
+            if !e.is_finite() || !state.u_right.is_finite() {
+                return Err(StepError::NotFinite { step: state.step, t: state.step as f64 * dt }.into());
+            }
+            let residual = (e - e_prev) - (w_ext + w_damp + w_contact);
+            stats.max_abs_balance_residual = stats.max_abs_balance_residual.max(residual.abs());
+            e_prev = e;
+            let totals = [stats.work_ext_total, stats.work_damping_total, stats.work_contact_total];
+            push_row(&mut row, kin, strain, [w_ext, w_damp, w_contact], residual, totals, state, &last);
+            (w_ext, w_damp, w_contact) = (0.0, 0.0, 0.0);
+            if observer.observe(&StepRecord { step: state.step, t: state.step as f64 * dt, values: &row }).is_break() {
+                return Err(RunError::Stopped { step: k });
+            }
+        }
+        if let ControlFlow::Break(()) = observer.progress(Progress { done: k, total: steps, t: state.step as f64 * dt }) {
+            return Err(RunError::Stopped { step: k });
+        }
+    }
+    stats.steps = steps;
+    stats.t_end = state.step as f64 * dt;
+    stats.energy_final = e_prev;
+    Ok(stats)
+}
