@@ -4,16 +4,13 @@
 
 use crate::band::SymBand;
 use crate::contact::{Activation, IndexSetRule};
-use crate::integrators::alpha::{AlphaParams, AlphaScheme, NonsmoothAlpha, ParamError};
 use crate::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
-use crate::integrators::position_contact::{PositionContact, PositionContactParams};
 use crate::integrators::{LinearScheme, LinearState, OutputOptions, RunStop, StepError, run_linear};
 use crate::lcp::LcpOptions;
 use crate::model::{Contact, Forcing, HarmonicLoad, LinearModel, ModelError};
 use crate::observer::Observer;
 use crate::scenes::Bar;
 use crate::spec::{IntegratorSpec, JobSpec, LinearSpec, ModelSpec, MoreauJeanSpec, SpecError, TimeSpec};
-use crate::spec::{NsAlphaSpec, PositionContactSpec};
 use serde_json::{Map, Value, json};
 use thiserror::Error;
 
@@ -60,6 +57,9 @@ pub enum RunError {
         /// Steps done.
         step: u64,
     },
+    /// A SOI2 run failed (Newton, singular matrix, inconsistent start).
+    #[error(transparent)]
+    Soi2(crate::soi2::Soi2Error),
 }
 
 impl From<RunStop> for RunError {
@@ -92,6 +92,7 @@ pub struct Job {
 #[derive(Debug, Clone)]
 enum JobKind {
     Linear(Box<LinearJob>),
+    Soi2(Box<crate::soi2::run::Soi2Job>),
 }
 
 #[derive(Debug, Clone)]
@@ -107,13 +108,17 @@ struct LinearJob {
 #[derive(Debug, Clone)]
 enum LinearSchemeChoice {
     MoreauJean(MoreauJeanParams),
-    Alpha(AlphaParams),
-    PositionContact(PositionContactParams),
 }
 
 impl Job {
     /// Validates `spec` and builds the job. Every error names the offending field.
     pub fn from_spec(spec: &JobSpec) -> Result<Job, SpecError> {
+        if let Some(job) = crate::soi2::run::job_from_spec(spec)? {
+            return Ok(Job {
+                spec: spec.clone(),
+                kind: JobKind::Soi2(Box::new(job)),
+            });
+        }
         let model_spec = spec.model.as_ref().ok_or_else(|| SpecError::new("model", "missing section"))?;
         let time = spec.time.as_ref().ok_or_else(|| SpecError::new("time", "missing section"))?;
         let model = build_model(model_spec)?;
@@ -121,20 +126,16 @@ impl Job {
         let lcp = lcp_options(spec)?;
         let output = output_options(spec, model.dofs())?;
         let scheme = match &spec.integrator {
-            IntegratorSpec::NsNewmark(_)
-            | IntegratorSpec::NsHht(_)
-            | IntegratorSpec::NsGeneralizedAlpha(_)
-            | IntegratorSpec::NsKhAlpha(_) => {
-                LinearSchemeChoice::Alpha(alpha_params(&spec.integrator)?)
-            }
-            IntegratorSpec::NewmarkPositionContact(p) => {
-                LinearSchemeChoice::PositionContact(position_contact_params(p, false)?)
-            }
-            IntegratorSpec::HhtPositionContact(p) => {
-                LinearSchemeChoice::PositionContact(position_contact_params(p, true)?)
-            }
             IntegratorSpec::MoreauJean(p) => LinearSchemeChoice::MoreauJean(moreau_jean_params(p, false)?),
             IntegratorSpec::MoreauJeanVariant(p) => LinearSchemeChoice::MoreauJean(moreau_jean_params(p, true)?),
+            IntegratorSpec::Soi2GeneralizedAlpha(_)
+            | IntegratorSpec::Soi2Hht(_)
+            | IntegratorSpec::HhtI3(_) => {
+                return Err(crate::soi2::run::mismatch(
+                    model_spec.scene(),
+                    spec.integrator.scheme(),
+                ));
+            }
         };
         Ok(Job { spec: spec.clone(), kind: JobKind::Linear(Box::new(LinearJob { model, scheme, h, steps, lcp, output })) })
     }
@@ -147,6 +148,15 @@ impl Job {
     /// Size of the job.
     pub fn size(&self) -> JobSize {
         match &self.kind {
+            JobKind::Soi2(j) => {
+                let steps = j.steps();
+                let recorded = steps / j.output.every.max(1) + 2;
+                JobSize {
+                    dofs: j.dofs() as u64,
+                    steps,
+                    output_bytes: recorded * (j.columns() as u64 + 2) * 8,
+                }
+            }
             JobKind::Linear(j) => {
                 let recorded = j.steps / j.output.every.max(1) + 2;
                 let columns = 12 + 3 * j.model.contacts.len() + 2 * j.output.probes.len() + 2;
@@ -160,21 +170,28 @@ impl Job {
 pub fn run(job: &Job, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
     match &job.kind {
         JobKind::Linear(j) => run_linear_job(job, j, observer),
+        JobKind::Soi2(j) => run_soi2_job(job, j, observer),
     }
+}
+
+fn run_soi2_job(
+    job: &Job,
+    j: &crate::soi2::run::Soi2Job,
+    observer: &mut dyn Observer,
+) -> Result<RunOutput, RunError> {
+    let mut summary = header(job);
+    summary.extend(j.run(observer)?);
+    Ok(RunOutput {
+        summary,
+        tables: Vec::new(),
+        figures: Vec::new(),
+    })
 }
 
 fn run_linear_job(job: &Job, j: &LinearJob, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
     let mut scheme: Box<dyn LinearScheme> = match j.scheme {
         LinearSchemeChoice::MoreauJean(p) => Box::new(
             MoreauJean::new(&j.model, p, j.h, j.lcp)
-                .map_err(|_| RunError::Step(StepError::NotFinite { step: 0, t: 0.0 }))?,
-        ),
-        LinearSchemeChoice::Alpha(p) => Box::new(
-            NonsmoothAlpha::new(&j.model, p, j.h, j.lcp)
-                .map_err(|_| RunError::Step(StepError::NotFinite { step: 0, t: 0.0 }))?,
-        ),
-        LinearSchemeChoice::PositionContact(p) => Box::new(
-            PositionContact::new(&j.model, p, j.h, j.lcp)
                 .map_err(|_| RunError::Step(StepError::NotFinite { step: 0, t: 0.0 }))?,
         ),
     };
@@ -228,6 +245,9 @@ pub fn build_model(spec: &ModelSpec) -> Result<LinearModel, SpecError> {
         ModelSpec::DepBar(b) => b.resolve(Bar::doyen_ern_piperno(100)).build(),
         ModelSpec::Chain(c) => c.build(),
         ModelSpec::Linear(l) => build_linear(l),
+        ModelSpec::Pendulum(_) | ModelSpec::SliderCrank(_) | ModelSpec::JayNegrutTest(_) => {
+            return Err(crate::soi2::run::mismatch(spec.scene(), "a linear scheme"));
+        }
     };
     result.map_err(|e| SpecError::new(format!("model.{}", e.field()), e.reason()))
 }
@@ -380,184 +400,4 @@ fn moreau_jean_params(p: &MoreauJeanSpec, variant: bool) -> Result<MoreauJeanPar
         (_, g) => g.unwrap_or(1.0),
     };
     Ok(MoreauJeanParams { theta: p.theta, variant, index_set: IndexSetRule { activation: p.activation, gamma } })
-}
-/// The index-set rule of an α-family spec (same fields and checks as `moreau_jean`).
-fn alpha_index_set(
-    activation: Activation,
-    activation_gamma: Option<f64>,
-) -> Result<IndexSetRule, SpecError> {
-    let gamma = match (activation, activation_gamma) {
-        (Activation::GapAndVelocity, Some(_)) => {
-            return Err(SpecError::new(
-                "integrator.activation_gamma",
-                "only used with activation = \"predicted_gap\"",
-            ));
-        }
-        (_, Some(g)) if !g.is_finite() || g <= 0.0 => {
-            return Err(SpecError::new(
-                "integrator.activation_gamma",
-                format!("must be > 0, got {g}"),
-            ));
-        }
-        (_, g) => g.unwrap_or(1.0),
-    };
-    Ok(IndexSetRule { activation, gamma })
-}
-
-/// Maps a parameter error of the α-family to a spec error on `integrator.<field>`.
-fn alpha_check(p: &AlphaParams, allow_unstable: bool) -> Result<(), SpecError> {
-    match p.validate() {
-        Ok(()) => Ok(()),
-        Err(ParamError {
-            stability: true, ..
-        }) if allow_unstable => Ok(()),
-        Err(e) => {
-            let hint = if e.stability {
-                " (set allow_unstable = true to run it anyway)"
-            } else {
-                ""
-            };
-            Err(SpecError::new(
-                format!("integrator.{}", e.field),
-                format!("{}{hint}", e.reason),
-            ))
-        }
-    }
-}
-
-/// Parameters of `ns_generalized_alpha` / `ns_kh_alpha` from ρ∞ (26)–(27) or given directly.
-fn ns_alpha_from_spec(p: &NsAlphaSpec, scheme: AlphaScheme) -> Result<AlphaParams, SpecError> {
-    let direct = [
-        ("alpha_m", p.alpha_m),
-        ("alpha_f", p.alpha_f),
-        ("beta", p.beta),
-        ("gamma", p.gamma),
-    ];
-    if let Some(rho) = p.rho_inf {
-        if let Some((f, _)) = direct.iter().find(|(_, x)| x.is_some()) {
-            return Err(SpecError::new(
-                format!("integrator.{f}"),
-                "give rho_inf or alpha_m/alpha_f/beta/gamma, not both",
-            ));
-        }
-        if !rho.is_finite() || !(0.0..=1.0).contains(&rho) {
-            return Err(SpecError::new(
-                "integrator.rho_inf",
-                format!("must be in [0, 1], got {rho}"),
-            ));
-        }
-        return Ok(AlphaParams::from_rho_inf(scheme, rho));
-    }
-    match (p.alpha_m, p.alpha_f) {
-        (None, None) if p.beta.is_none() && p.gamma.is_none() => {
-            Ok(AlphaParams::from_rho_inf(scheme, 0.8))
-        }
-        (Some(alpha_m), Some(alpha_f)) => {
-            let gamma = p.gamma.unwrap_or(0.5 + alpha_f - alpha_m);
-            let beta = p.beta.unwrap_or(0.25 * (gamma + 0.5) * (gamma + 0.5));
-            Ok(AlphaParams {
-                scheme,
-                alpha_m,
-                alpha_f,
-                beta,
-                gamma,
-                index_set: IndexSetRule::default(),
-            })
-        }
-        (None, _) => Err(SpecError::new(
-            "integrator.alpha_m",
-            "missing: give rho_inf, or alpha_m and alpha_f",
-        )),
-        (_, None) => Err(SpecError::new(
-            "integrator.alpha_f",
-            "missing: give rho_inf, or alpha_m and alpha_f",
-        )),
-    }
-}
-
-/// Validated parameters of an `ns_*` integrator spec.
-fn alpha_params(spec: &IntegratorSpec) -> Result<AlphaParams, SpecError> {
-    let (mut params, activation, activation_gamma, allow_unstable) = match spec {
-        IntegratorSpec::NsNewmark(p) => (
-            AlphaParams::newmark(p.beta, p.gamma),
-            p.activation,
-            p.activation_gamma,
-            p.allow_unstable,
-        ),
-        IntegratorSpec::NsHht(p) => {
-            let gamma = p.gamma.unwrap_or(0.5 + p.alpha);
-            let beta = p.beta.unwrap_or(0.25 * (1.0 + p.alpha) * (1.0 + p.alpha));
-            (
-                AlphaParams::hht_with(p.alpha, beta, gamma),
-                p.activation,
-                p.activation_gamma,
-                p.allow_unstable,
-            )
-        }
-        IntegratorSpec::NsGeneralizedAlpha(p) => (
-            ns_alpha_from_spec(p, AlphaScheme::GeneralizedAlpha)?,
-            p.activation,
-            p.activation_gamma,
-            p.allow_unstable,
-        ),
-        IntegratorSpec::NsKhAlpha(p) => (
-            ns_alpha_from_spec(p, AlphaScheme::KrenkHogsberg)?,
-            p.activation,
-            p.activation_gamma,
-            p.allow_unstable,
-        ),
-        other => unreachable!("alpha_params called for {}", other.scheme()),
-    };
-    params.index_set = alpha_index_set(activation, activation_gamma)?;
-    alpha_check(&params, allow_unstable)?;
-    Ok(params)
-}
-
-/// Validated parameters of `newmark_position_contact` (`hht = false`) or `hht_position_contact`.
-fn position_contact_params(
-    p: &PositionContactSpec,
-    hht: bool,
-) -> Result<PositionContactParams, SpecError> {
-    let params = match (hht, p.alpha) {
-        (false, Some(_)) => {
-            return Err(SpecError::new(
-                "integrator.alpha",
-                "newmark_position_contact has no α (use hht_position_contact)",
-            ));
-        }
-        (false, None) => {
-            PositionContactParams::newmark(p.beta.unwrap_or(0.25), p.gamma.unwrap_or(0.5))
-        }
-        (true, None) => {
-            return Err(SpecError::new(
-                "integrator.alpha",
-                "missing: hht_position_contact needs α",
-            ));
-        }
-        (true, Some(alpha)) => {
-            let d = PositionContactParams::hht(alpha);
-            PositionContactParams {
-                alpha,
-                beta: p.beta.unwrap_or(d.beta),
-                gamma: p.gamma.unwrap_or(d.gamma),
-            }
-        }
-    };
-    match params.validate() {
-        Ok(()) => Ok(params),
-        Err(ParamError {
-            stability: true, ..
-        }) if p.allow_unstable => Ok(params),
-        Err(e) => {
-            let hint = if e.stability {
-                " (set allow_unstable = true to run it anyway)"
-            } else {
-                ""
-            };
-            Err(SpecError::new(
-                format!("integrator.{}", e.field),
-                format!("{}{hint}", e.reason),
-            ))
-        }
-    }
 }

@@ -15,4 +15,5 @@ pub mod lcp;
 pub mod model;
 pub mod observer;
 pub mod scenes;
+pub mod soi2;
 pub mod spec;

@@ -1,0 +1,830 @@
+//! One step of the generalized-α-SOI2 family (Jay & Negrut 2008), solved by Newton's method
+//! with Jacobians from forward-mode automatic differentiation.
+//!
+//! A step maps `(t₀, y₀, z₀, a_α, M_α a_α, λ₀, ψ₀) ↦ (t₁, y₁, z₁, a_{1+α}, M_{1+α} a_{1+α}, λ₁, ψ₁)`
+//! with `t₁ = t₀ + h`, `α := α_m − α_f` (§2), and the mass matrix taken explicitly (§3, §6):
+//! `M_{1+α} := M(t₀ + (1+α)h, y₀ + h(1+α)z₀)`, `M_α := M_{(1+α)−1}` (the previous step's
+//! `M_{1+α}`; on the first step `M(t₀ + αh, y₀ + hαz₀)`). The state carries the product
+//! `M_α a_α`, which is what (14b) adjusts.
+
+use super::{
+    ConstrainedModel, Dims, Dual64, Scalar, Soi2Error, g_ddot, k_dot, mass_matrix, max_norm,
+};
+use nalgebra::{DMatrix, DVector};
+
+/// Coefficients α_m, α_f, β, γ of the generalized-α method (2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Coefficients {
+    /// α_m ≠ 1.
+    pub alpha_m: f64,
+    /// α_f ≠ 1.
+    pub alpha_f: f64,
+    /// β ≠ 0.
+    pub beta: f64,
+    /// γ ≠ 0.
+    pub gamma: f64,
+}
+
+impl Coefficients {
+    /// The usual choice from the spectral radius at infinity ρ∞ ∈ [0, 1] (§1):
+    /// `α_m = (2ρ∞ − 1)/(1 + ρ∞)`, `α_f = ρ∞/(1 + ρ∞)`, `β = (1 − α)²/4`, `γ = ½ − α`,
+    /// `α = α_m − α_f`.
+    pub fn from_rho_inf(rho_inf: f64) -> Self {
+        let alpha_m = (2.0 * rho_inf - 1.0) / (1.0 + rho_inf);
+        let alpha_f = rho_inf / (1.0 + rho_inf);
+        let alpha = alpha_m - alpha_f;
+        Self {
+            alpha_m,
+            alpha_f,
+            beta: (1.0 - alpha).powi(2) / 4.0,
+            gamma: 0.5 - alpha,
+        }
+    }
+
+    /// HHT-α (§1): `α_m = 0`, `α_f = −α`, `β = (1 − α)²/4`, `γ = ½ − α`, α ∈ [−⅓, 0].
+    pub fn hht(alpha: f64) -> Self {
+        Self {
+            alpha_m: 0.0,
+            alpha_f: -alpha,
+            beta: (1.0 - alpha).powi(2) / 4.0,
+            gamma: 0.5 - alpha,
+        }
+    }
+
+    /// α = α_m − α_f (§2): a_{n+α} approximates a(t_n + αh).
+    pub fn alpha(&self) -> f64 {
+        self.alpha_m - self.alpha_f
+    }
+
+    /// r = |α_m/(1 − α_m)| of Theorem 1 (the a, λ, ψ start-up error decays like rⁿ).
+    pub fn r(&self) -> f64 {
+        (self.alpha_m / (1.0 - self.alpha_m)).abs()
+    }
+}
+
+/// Which equations a step solves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Formulation {
+    /// Generalized-α-SOI2 (13a)–(13i), no assumption on f.
+    General,
+    /// (13) with (13d) replaced by its additive-force form
+    /// `(1−α_m)M_{1+α}(ã_{1+α} − a_{1+α}) = (1−α_f)g_yᵀ(t₁,y₁)(λ₁ − λ̃₁) + (1−α_f)k_zᵀ(t₁,y₁,z₁)(ψ₁ − ψ̃₁)`,
+    /// valid when f = f₀ − g_yᵀλ − k_zᵀψ.
+    Additive,
+    /// HHT-SOI2 (17a)–(17f): α_m = 0, holonomic constraints, additive f.
+    HhtSoi2,
+    /// HHT-I3 (Negrut et al. 2007): (2) with α_m = 0 and the position constraints g(t₁, y₁) = 0
+    /// only (index 3); the baseline HHT-SOI2 improves upon.
+    HhtI3,
+}
+
+/// Start value of a_α for the first step (§2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StartValue {
+    /// a_α := a₀, the consistent acceleration at t₀.
+    A0,
+    /// a_α from (8), `M a_α = (1−α) f(t₀,y₀,z₀) + α f(t₁,y₁,z₁)` (Lunk & Simeon), written for
+    /// a configuration-dependent mass as `M_α a_α = (1−α) M(t₀,y₀)a₀ + α M(t₁,y₁)a(t₁)` with the
+    /// consistent accelerations; solved by fixed-point iteration on the first step.
+    LunkSimeon,
+}
+
+/// Newton settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NewtonOptions {
+    /// Converged when `‖Δx‖∞ ≤ tolerance · (1 + ‖x‖∞)`; default 1e-10.
+    pub tolerance: f64,
+    /// Iteration budget per step; default 25.
+    pub max_iterations: usize,
+}
+
+impl Default for NewtonOptions {
+    fn default() -> Self {
+        Self {
+            tolerance: 1e-10,
+            max_iterations: 25,
+        }
+    }
+}
+
+/// A method: formulation, coefficients, Newton settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Method {
+    /// Equations solved.
+    pub formulation: Formulation,
+    /// α_m, α_f, β, γ.
+    pub coefficients: Coefficients,
+    /// Newton settings.
+    pub newton: NewtonOptions,
+}
+
+/// State at t_n of a SOI2 run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Soi2State {
+    /// Steps done.
+    pub step: u64,
+    /// t_n.
+    pub t: f64,
+    /// y_n.
+    pub y: Vec<f64>,
+    /// z_n.
+    pub z: Vec<f64>,
+    /// λ_n.
+    pub lambda: Vec<f64>,
+    /// ψ_n.
+    pub psi: Vec<f64>,
+    /// a_{n+α} (≈ a(t_n + α h_{n−1})), as produced by the last step (not yet adjusted).
+    pub a_alpha: Vec<f64>,
+    /// M_{n+α} a_{n+α}; `None` before the first step (then M(t₀ + αh, y₀ + hαz₀) a_α is used).
+    pub ma_alpha: Option<Vec<f64>>,
+    /// a_{n−1+α} and M_{n−1+α} a_{n−1+α} as used by the last step (after adjustment), and that
+    /// step's size h_{n−1}: what (14a)–(14b) interpolate from.
+    pub previous: Option<(Vec<f64>, Vec<f64>, f64)>,
+}
+
+/// What one step reports besides the new state.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StepInfo {
+    /// Newton iterations.
+    pub iterations: usize,
+    /// Scaled residual max-norm after the last iteration.
+    pub residual: f64,
+}
+
+/// A residual function F(x) written for any scalar, so that its Jacobian comes from AD.
+pub trait Residual {
+    /// Number of unknowns (= of equations).
+    fn len(&self) -> usize;
+    /// F(x).
+    fn eval<T: Scalar>(&self, x: &[T], r: &mut [T]);
+    /// Size of the increments that round-off alone produces (0 when negligible): Newton stops
+    /// when its increments stop shrinking below this floor.
+    fn noise_floor(&self) -> f64 {
+        0.0
+    }
+}
+
+/// Newton failures before they get a step and a time.
+enum NewtonFailure {
+    Singular,
+    Diverged {
+        iterations: usize,
+        residual: f64,
+        increment: f64,
+    },
+}
+
+/// Newton's method on `res` from `x`; the Jacobian of each iterate by forward-mode AD
+/// (one dual evaluation per column).
+fn solve_newton<R: Residual>(
+    res: &R,
+    x: &mut [f64],
+    opts: &NewtonOptions,
+) -> Result<StepInfo, NewtonFailure> {
+    let n = res.len();
+    let mut xd: Vec<Dual64> = x.iter().map(|&v| Dual64::from_re(v)).collect();
+    let mut rd = vec![Dual64::from_re(0.0); n];
+    let mut jac = DMatrix::<f64>::zeros(n, n);
+    let mut r = DVector::<f64>::zeros(n);
+    let mut increment = f64::INFINITY;
+    let mut previous = f64::INFINITY;
+    for it in 1..=opts.max_iterations {
+        for (d, &v) in xd.iter_mut().zip(x.iter()) {
+            *d = Dual64::from_re(v);
+        }
+        for j in 0..n {
+            xd[j].eps = 1.0;
+            res.eval(&xd, &mut rd);
+            for i in 0..n {
+                jac[(i, j)] = rd[i].eps;
+                r[i] = rd[i].re;
+            }
+            xd[j].eps = 0.0;
+        }
+        let rnorm = r.amax();
+        if !rnorm.is_finite() {
+            return Err(NewtonFailure::Diverged {
+                iterations: it - 1,
+                residual: rnorm,
+                increment,
+            });
+        }
+        let Some(dx) = jac.clone().lu().solve(&r) else {
+            return Err(NewtonFailure::Singular);
+        };
+        let xnorm = max_norm(x);
+        increment = dx.amax();
+        for (xi, d) in x.iter_mut().zip(dx.iter()) {
+            *xi -= d;
+        }
+        if !increment.is_finite() {
+            return Err(NewtonFailure::Diverged {
+                iterations: it,
+                residual: rnorm,
+                increment,
+            });
+        }
+        let scale = 1.0 + xnorm.max(max_norm(x));
+        // Converged, or stalled at the round-off floor just above the tolerance (the increment
+        // stopped shrinking: more iterations only stir round-off).
+        let stalled = increment >= 0.5 * previous
+            && increment <= (100.0 * opts.tolerance * scale).max(res.noise_floor());
+        previous = increment;
+        if increment <= opts.tolerance * scale || stalled {
+            let mut rf = vec![0.0; n];
+            res.eval(x, &mut rf);
+            return Ok(StepInfo {
+                iterations: it,
+                residual: max_norm(&rf),
+            });
+        }
+    }
+    let mut rf = vec![0.0; n];
+    res.eval(x, &mut rf);
+    Err(NewtonFailure::Diverged {
+        iterations: opts.max_iterations,
+        residual: max_norm(&rf),
+        increment,
+    })
+}
+
+fn newton_error(f: NewtonFailure, step: u64, t: f64, context: &'static str) -> Soi2Error {
+    match f {
+        NewtonFailure::Singular => Soi2Error::SingularNewtonMatrix { step, t, context },
+        NewtonFailure::Diverged {
+            iterations,
+            residual,
+            increment,
+        } => Soi2Error::NewtonDiverged {
+            step,
+            t,
+            iterations,
+            residual,
+            increment,
+        },
+    }
+}
+
+fn c<T: Scalar>(v: f64) -> T {
+    T::from(v)
+}
+
+/// Consistent-acceleration system at (t, y, z) (§6): unknowns (a, λ, ψ),
+/// `M(t,y)a − f(t,y,z,λ,ψ) = 0`, `g_tt + 2g_ty z + g_yy(z,z) + g_y a = 0`, `k_t + k_y z + k_z a = 0`.
+struct AccelerationSystem<'a, M: ?Sized> {
+    model: &'a M,
+    dims: Dims,
+    t: f64,
+    y: &'a [f64],
+    z: &'a [f64],
+}
+
+impl<M: ConstrainedModel + ?Sized> Residual for AccelerationSystem<'_, M> {
+    fn len(&self) -> usize {
+        self.dims.n + self.dims.holonomic + self.dims.nonholonomic
+    }
+
+    fn eval<T: Scalar>(&self, x: &[T], r: &mut [T]) {
+        let Dims {
+            n,
+            holonomic: mg,
+            nonholonomic: mk,
+        } = self.dims;
+        let (a, rest) = x.split_at(n);
+        let (lambda, psi) = rest.split_at(mg);
+        let t: T = c(self.t);
+        let y: Vec<T> = self.y.iter().map(|&v| c(v)).collect();
+        let z: Vec<T> = self.z.iter().map(|&v| c(v)).collect();
+        let mut m = vec![T::zero(); n * n];
+        self.model.mass(t, &y, &mut m);
+        let mut f = vec![T::zero(); n];
+        self.model.force(t, &y, &z, lambda, psi, &mut f);
+        let (r_dyn, r_rest) = r.split_at_mut(n);
+        for i in 0..n {
+            let mut s = -f[i];
+            for j in 0..n {
+                s += m[i * n + j] * a[j];
+            }
+            r_dyn[i] = s;
+        }
+        let (r_g, r_k) = r_rest.split_at_mut(mg);
+        g_ddot(self.model, t, &y, &z, a, r_g);
+        k_dot(self.model, t, &y, &z, a, &mut r_k[..mk]);
+    }
+}
+
+/// The consistent (a, λ, ψ) at (t, y, z), by Newton from a = 0 and the given λ, ψ guesses.
+#[allow(clippy::too_many_arguments)]
+pub fn consistent_acceleration<M: ConstrainedModel + ?Sized>(
+    model: &M,
+    t: f64,
+    y: &[f64],
+    z: &[f64],
+    lambda_guess: &[f64],
+    psi_guess: &[f64],
+    newton: &NewtonOptions,
+    step: u64,
+) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), Soi2Error> {
+    let dims = model.dims();
+    let sys = AccelerationSystem {
+        model,
+        dims,
+        t,
+        y,
+        z,
+    };
+    let mut x = vec![0.0; dims.n];
+    x.extend_from_slice(lambda_guess);
+    x.extend_from_slice(psi_guess);
+    // The consistent acceleration needs a tight solve whatever the step tolerance.
+    let opts = NewtonOptions {
+        tolerance: newton.tolerance.min(1e-12),
+        max_iterations: newton.max_iterations.max(50),
+    };
+    solve_newton(&sys, &mut x, &opts)
+        .map_err(|e| newton_error(e, step, t, "consistent acceleration (12)"))?;
+    let psi = x.split_off(dims.n + dims.holonomic);
+    let lambda = x.split_off(dims.n);
+    Ok((x, lambda, psi))
+}
+
+/// The equations of one step for the Newton solver.
+struct StepSystem<'a, M: ?Sized> {
+    model: &'a M,
+    dims: Dims,
+    method: &'a Method,
+    t1: f64,
+    h: f64,
+    y0: &'a [f64],
+    z0: &'a [f64],
+    a_alpha: &'a [f64],
+    ma_alpha: &'a [f64],
+    /// f(t₀, y₀, z₀, λ₀, ψ₀).
+    f0: &'a [f64],
+    /// M_{1+α}, row-major.
+    m1: &'a [f64],
+}
+
+impl<M: ConstrainedModel + ?Sized> StepSystem<'_, M> {
+    /// y₁ of (13a)/(17a) for the acceleration `at` (ã_{1+α}, or a_{1+α} + δ̃, or a_{1+α} for I3).
+    fn y1<T: Scalar>(&self, at: &[T]) -> Vec<T> {
+        let Coefficients { beta, .. } = self.method.coefficients;
+        let h = self.h;
+        (0..self.dims.n)
+            .map(|i| {
+                at[i] * (h * h * beta)
+                    + c::<T>(
+                        self.y0[i]
+                            + h * self.z0[i]
+                            + 0.5 * h * h * (1.0 - 2.0 * beta) * self.a_alpha[i],
+                    )
+            })
+            .collect()
+    }
+
+    /// z of (13b)/(13c)/(17b) for the acceleration `a`.
+    fn z1<T: Scalar>(&self, a: &[T]) -> Vec<T> {
+        let Coefficients { gamma, .. } = self.method.coefficients;
+        let h = self.h;
+        (0..self.dims.n)
+            .map(|i| a[i] * (h * gamma) + c::<T>(self.z0[i] + h * (1.0 - gamma) * self.a_alpha[i]))
+            .collect()
+    }
+
+    /// out = s·M_{1+α} a + w·M_α a_α − wf·f − α_f f₀ (rows of (13d), (13e), (17d)).
+    fn dynamics<T: Scalar>(&self, s: f64, a: &[T], wf: f64, f: &[T], out: &mut [T]) {
+        let n = self.dims.n;
+        let Coefficients {
+            alpha_m, alpha_f, ..
+        } = self.method.coefficients;
+        for i in 0..n {
+            let mut v = c::<T>(alpha_m * self.ma_alpha[i] - alpha_f * self.f0[i]) - f[i] * wf;
+            for j in 0..n {
+                v += a[j] * (s * self.m1[i * n + j]);
+            }
+            out[i] = v;
+        }
+    }
+}
+
+impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
+    fn len(&self) -> usize {
+        let Dims {
+            n,
+            holonomic: mg,
+            nonholonomic: mk,
+        } = self.dims;
+        match self.method.formulation {
+            Formulation::General | Formulation::Additive => 2 * n + 2 * mg + 2 * mk,
+            Formulation::HhtSoi2 => 2 * n + 2 * mg,
+            Formulation::HhtI3 => n + mg,
+        }
+    }
+
+    /// Position-level rows g(t₁, y₁)/(βh²) carry round-off ε|y|/(βh²), which becomes
+    /// acceleration noise of that size.
+    fn noise_floor(&self) -> f64 {
+        let beta = self.method.coefficients.beta;
+        100.0 * f64::EPSILON * (1.0 + max_norm(self.y0)) / (beta * self.h * self.h)
+    }
+
+    fn eval<T: Scalar>(&self, x: &[T], r: &mut [T]) {
+        let Dims {
+            n,
+            holonomic: mg,
+            nonholonomic: mk,
+        } = self.dims;
+        let Coefficients {
+            alpha_m,
+            alpha_f,
+            beta,
+            gamma,
+        } = self.method.coefficients;
+        let t1: T = c(self.t1);
+        let h = self.h;
+        let sg = 1.0 / (beta * h * h); // scale of position-level rows
+        let sv = 1.0 / (gamma * h); // scale of velocity-level rows
+        let zero = vec![T::zero(); 0];
+        let mut f = vec![T::zero(); n];
+        match self.method.formulation {
+            Formulation::General | Formulation::Additive => {
+                // x = [ã_{1+α}, a_{1+α}, λ̃₁, λ₁, ψ̃₁, ψ₁]
+                let (at, rest) = x.split_at(n);
+                let (a, rest) = rest.split_at(n);
+                let (lt, rest) = rest.split_at(mg);
+                let (l, rest) = rest.split_at(mg);
+                let (pt, p) = rest.split_at(mk);
+                let y1 = self.y1(at); // (13a)
+                let zt1 = self.z1(at); // (13b)
+                let z1 = self.z1(a); // (13c)
+                let (r_d, rest) = r.split_at_mut(n);
+                let (r_e, rest) = rest.split_at_mut(n);
+                let (r_f, rest) = rest.split_at_mut(mg);
+                let (r_g, rest) = rest.split_at_mut(mg);
+                let (r_h, r_i) = rest.split_at_mut(mk);
+                // (13e)
+                self.model.force(t1, &y1, &z1, l, p, &mut f);
+                self.dynamics(1.0 - alpha_m, a, 1.0 - alpha_f, &f, r_e);
+                if self.method.formulation == Formulation::General {
+                    // (13d): f at (t₁, y₁, z₁, λ̃₁, ψ̃₁).
+                    self.model.force(t1, &y1, &z1, lt, pt, &mut f);
+                    self.dynamics(1.0 - alpha_m, at, 1.0 - alpha_f, &f, r_d);
+                } else {
+                    // Additive (13d): (1−α_m)M_{1+α}(ã − a) − (1−α_f)[g_yᵀ(λ₁ − λ̃₁) + k_zᵀ(ψ₁ − ψ̃₁)].
+                    let mut gy = vec![T::zero(); mg * n];
+                    self.model.g_y(t1, &y1, &mut gy);
+                    let mut kz = vec![T::zero(); mk * n];
+                    self.model.k_z(t1, &y1, &z1, &mut kz);
+                    for i in 0..n {
+                        let mut v = T::zero();
+                        for j in 0..n {
+                            v += (at[j] - a[j]) * ((1.0 - alpha_m) * self.m1[i * n + j]);
+                        }
+                        for q in 0..mg {
+                            v -= gy[q * n + i] * (l[q] - lt[q]) * (1.0 - alpha_f);
+                        }
+                        for q in 0..mk {
+                            v -= kz[q * n + i] * (p[q] - pt[q]) * (1.0 - alpha_f);
+                        }
+                        r_d[i] = v;
+                    }
+                }
+                // (13f), (13g)
+                self.model.g(t1, &y1, r_f);
+                self.model.g_dot(t1, &y1, &z1, r_g);
+                // (13h), (13i)
+                self.model.k(t1, &y1, &zt1, r_h);
+                self.model.k(t1, &y1, &z1, r_i);
+                r_f.iter_mut().for_each(|v| *v *= sg);
+                r_g.iter_mut()
+                    .chain(r_h.iter_mut())
+                    .chain(r_i.iter_mut())
+                    .for_each(|v| *v *= sv);
+            }
+            Formulation::HhtSoi2 => {
+                // x = [δ̃, a_{1+α}, μ̃, λ₁], α = −α_f.
+                let alpha = -alpha_f;
+                let (delta, rest) = x.split_at(n);
+                let (a, rest) = rest.split_at(n);
+                let (mu, l) = rest.split_at(mg);
+                let at: Vec<T> = a.iter().zip(delta).map(|(&u, &d)| u + d).collect();
+                let y1 = self.y1(&at); // (17a)
+                let z1 = self.z1(a); // (17b)
+                let (r_c, rest) = r.split_at_mut(n);
+                let (r_d, rest) = rest.split_at_mut(n);
+                let (r_e, r_f) = rest.split_at_mut(mg);
+                // (17c): M_{1+α} δ̃ − g_yᵀ(t₁, y₁) μ̃
+                let mut gy = vec![T::zero(); mg * n];
+                self.model.g_y(t1, &y1, &mut gy);
+                for i in 0..n {
+                    let mut v = T::zero();
+                    for j in 0..n {
+                        v += delta[j] * self.m1[i * n + j];
+                    }
+                    for q in 0..mg {
+                        v -= gy[q * n + i] * mu[q];
+                    }
+                    r_c[i] = v;
+                }
+                // (17d): M_{1+α} a − (1+α) f(t₁, y₁, z₁, λ₁) + α f₀
+                self.model.force(t1, &y1, &z1, l, &zero, &mut f);
+                self.dynamics(1.0, a, 1.0 + alpha, &f, r_d);
+                // (17e), (17f)
+                self.model.g(t1, &y1, r_e);
+                self.model.g_dot(t1, &y1, &z1, r_f);
+                r_e.iter_mut().for_each(|v| *v *= sg);
+                r_f.iter_mut().for_each(|v| *v *= sv);
+            }
+            Formulation::HhtI3 => {
+                // x = [a_{1+α}, λ₁]
+                let alpha = -alpha_f;
+                let (a, l) = x.split_at(n);
+                let y1 = self.y1(a); // (2a)
+                let z1 = self.z1(a); // (2b)
+                let (r_d, r_e) = r.split_at_mut(n);
+                self.model.force(t1, &y1, &z1, l, &zero, &mut f);
+                self.dynamics(1.0, a, 1.0 + alpha, &f, r_d); // (2c) with α_m = 0
+                self.model.g(t1, &y1, r_e); // index-3 position constraint
+                r_e.iter_mut().for_each(|v| *v *= sg);
+            }
+        }
+    }
+}
+
+/// The result of one step, before it is committed to the state.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepResult {
+    /// y₁.
+    pub y: Vec<f64>,
+    /// z₁.
+    pub z: Vec<f64>,
+    /// a_{1+α}.
+    pub a: Vec<f64>,
+    /// M_{1+α} a_{1+α}.
+    pub ma: Vec<f64>,
+    /// λ₁.
+    pub lambda: Vec<f64>,
+    /// ψ₁.
+    pub psi: Vec<f64>,
+    /// M_α a_α the step used (what (14b) interpolates from at the next step).
+    pub ma_alpha_used: Vec<f64>,
+    /// Newton report.
+    pub info: StepInfo,
+}
+
+/// Applies the step-size adjustments (14a)–(14b) for a new step of size `h` to the state's
+/// a_{n+α} and M_{n+α} a_{n+α}:
+/// `a_{n+α} := a_{n+α} + α(h_n/h_{n−1} − 1)(a_{n+α} − a_{n−1+α})` (14a), and the same for M a (14b).
+/// No-op on the first step or when the size does not change.
+pub fn adjust_for_step(state: &mut Soi2State, alpha: f64, h: f64) {
+    let Some((a_prev, ma_prev, h_prev)) = &state.previous else {
+        return;
+    };
+    let w = alpha * (h / h_prev - 1.0);
+    if w == 0.0 {
+        return;
+    }
+    for (a, ap) in state.a_alpha.iter_mut().zip(a_prev) {
+        *a += w * (*a - ap);
+    }
+    if let Some(ma) = state.ma_alpha.as_mut() {
+        for (v, vp) in ma.iter_mut().zip(ma_prev) {
+            *v += w * (*v - vp);
+        }
+    }
+}
+
+/// Solves one step of size `h` from `state` (already adjusted) without changing it.
+pub fn solve_step<M: ConstrainedModel + ?Sized>(
+    model: &M,
+    method: &Method,
+    state: &Soi2State,
+    h: f64,
+) -> Result<StepResult, Soi2Error> {
+    let dims = model.dims();
+    let n = dims.n;
+    let alpha = method.coefficients.alpha();
+    let t0 = state.t;
+    let t1 = t0 + h;
+    let step = state.step + 1;
+    // M_{1+α} := M(t_{1+α}, y₀ + h(1+α)z₀)
+    let y_pred: Vec<f64> = state
+        .y
+        .iter()
+        .zip(&state.z)
+        .map(|(y, z)| y + h * (1.0 + alpha) * z)
+        .collect();
+    let mut m1 = vec![0.0; n * n];
+    model.mass(t0 + (1.0 + alpha) * h, &y_pred, &mut m1);
+    let ma_alpha = ma_used(model, method, state, h);
+    let mut f0 = vec![0.0; n];
+    model.force(t0, &state.y, &state.z, &state.lambda, &state.psi, &mut f0);
+    let sys = StepSystem {
+        model,
+        dims,
+        method,
+        t1,
+        h,
+        y0: &state.y,
+        z0: &state.z,
+        a_alpha: &state.a_alpha,
+        ma_alpha: &ma_alpha,
+        f0: &f0,
+        m1: &m1,
+    };
+    // Start from the previous values (tilded = untilded, corrections 0).
+    let mut x = Vec::with_capacity(sys.len());
+    match method.formulation {
+        Formulation::General | Formulation::Additive => {
+            x.extend_from_slice(&state.a_alpha);
+            x.extend_from_slice(&state.a_alpha);
+            x.extend_from_slice(&state.lambda);
+            x.extend_from_slice(&state.lambda);
+            x.extend_from_slice(&state.psi);
+            x.extend_from_slice(&state.psi);
+        }
+        Formulation::HhtSoi2 => {
+            x.extend(std::iter::repeat_n(0.0, n));
+            x.extend_from_slice(&state.a_alpha);
+            x.extend(std::iter::repeat_n(0.0, dims.holonomic));
+            x.extend_from_slice(&state.lambda);
+        }
+        Formulation::HhtI3 => {
+            x.extend_from_slice(&state.a_alpha);
+            x.extend_from_slice(&state.lambda);
+        }
+    }
+    let info = solve_newton(&sys, &mut x, &method.newton)
+        .map_err(|e| newton_error(e, step, t1, "step"))?;
+    let (a, lambda, psi, at) = match method.formulation {
+        Formulation::General | Formulation::Additive => {
+            let mg = dims.holonomic;
+            (
+                x[n..2 * n].to_vec(),
+                x[2 * n + mg..2 * n + 2 * mg].to_vec(),
+                x[2 * n + 2 * mg + dims.nonholonomic..].to_vec(),
+                x[..n].to_vec(),
+            )
+        }
+        Formulation::HhtSoi2 => {
+            let a = x[n..2 * n].to_vec();
+            let at = a.iter().zip(&x[..n]).map(|(u, d)| u + d).collect();
+            (a, x[2 * n + dims.holonomic..].to_vec(), Vec::new(), at)
+        }
+        Formulation::HhtI3 => (
+            x[..n].to_vec(),
+            x[n..].to_vec(),
+            Vec::new(),
+            x[..n].to_vec(),
+        ),
+    };
+    let y = sys.y1(&at);
+    let z = sys.z1(&a);
+    let ma = (DMatrix::from_row_slice(n, n, &m1) * DVector::from_column_slice(&a))
+        .as_slice()
+        .to_vec();
+    let psi = if psi.is_empty() {
+        vec![0.0; dims.nonholonomic]
+    } else {
+        psi
+    };
+    if y.iter()
+        .chain(&z)
+        .chain(&a)
+        .chain(&lambda)
+        .chain(&psi)
+        .any(|v| !v.is_finite())
+    {
+        return Err(Soi2Error::NewtonDiverged {
+            step,
+            t: t1,
+            iterations: info.iterations,
+            residual: f64::NAN,
+            increment: f64::NAN,
+        });
+    }
+    Ok(StepResult {
+        y,
+        z,
+        a,
+        ma,
+        lambda,
+        psi,
+        ma_alpha_used: ma_alpha,
+        info,
+    })
+}
+
+/// Commits a step result: the adjusted a_α, M_α a_α become "previous", the new values current.
+pub fn commit(state: &mut Soi2State, result: StepResult, h: f64) {
+    let a_used = std::mem::replace(&mut state.a_alpha, result.a);
+    state.previous = Some((a_used, result.ma_alpha_used, h));
+    state.ma_alpha = Some(result.ma);
+    state.y = result.y;
+    state.z = result.z;
+    state.lambda = result.lambda;
+    state.psi = result.psi;
+    state.t += h;
+    state.step += 1;
+}
+
+/// M_α a_α as the step of size `h` from `state` uses it: carried over, or
+/// M(t₀ + αh, y₀ + hαz₀) a_α on the first step.
+pub fn ma_used<M: ConstrainedModel + ?Sized>(
+    model: &M,
+    method: &Method,
+    state: &Soi2State,
+    h: f64,
+) -> Vec<f64> {
+    match &state.ma_alpha {
+        Some(v) => v.clone(),
+        None => {
+            let alpha = method.coefficients.alpha();
+            let y_a: Vec<f64> = state
+                .y
+                .iter()
+                .zip(&state.z)
+                .map(|(y, z)| y + h * alpha * z)
+                .collect();
+            (mass_matrix(model, state.t + alpha * h, &y_a)
+                * DVector::from_column_slice(&state.a_alpha))
+            .as_slice()
+            .to_vec()
+        }
+    }
+}
+
+/// The initial state: consistent (a₀, λ₀, ψ₀) at t₀, and a_α per `start` for a first step of
+/// size `h0`.
+pub fn initial_state<M: ConstrainedModel + ?Sized>(
+    model: &M,
+    method: &Method,
+    start: StartValue,
+    h0: f64,
+) -> Result<Soi2State, Soi2Error> {
+    let iv = model.initial();
+    let (a0, lambda, psi) = consistent_acceleration(
+        model,
+        iv.t,
+        &iv.y,
+        &iv.z,
+        &iv.lambda,
+        &iv.psi,
+        &method.newton,
+        0,
+    )?;
+    let mut state = Soi2State {
+        step: 0,
+        t: iv.t,
+        y: iv.y,
+        z: iv.z,
+        lambda,
+        psi,
+        a_alpha: a0.clone(),
+        ma_alpha: None,
+        previous: None,
+    };
+    if start == StartValue::LunkSimeon {
+        let alpha = method.coefficients.alpha();
+        let n = state.y.len();
+        let m0a0 = mass_matrix(model, state.t, &state.y) * DVector::from_column_slice(&a0);
+        let y_a: Vec<f64> = state
+            .y
+            .iter()
+            .zip(&state.z)
+            .map(|(y, z)| y + h0 * alpha * z)
+            .collect();
+        let m_alpha = mass_matrix(model, state.t + alpha * h0, &y_a);
+        let lu = m_alpha.clone().lu();
+        for _ in 0..20 {
+            let trial = solve_step(model, method, &state, h0)?;
+            let (a1, _, _) = consistent_acceleration(
+                model,
+                state.t + h0,
+                &trial.y,
+                &trial.z,
+                &trial.lambda,
+                &trial.psi,
+                &method.newton,
+                1,
+            )?;
+            let m1a1 = mass_matrix(model, state.t + h0, &trial.y) * DVector::from_column_slice(&a1);
+            // (8): M_α a_α = (1−α) M₀a₀ + α M₁a₁
+            let rhs = &m0a0 * (1.0 - alpha) + m1a1 * alpha;
+            let Some(a_alpha) = lu.solve(&rhs) else {
+                return Err(Soi2Error::SingularNewtonMatrix {
+                    step: 0,
+                    t: state.t,
+                    context: "mass matrix M_α of (8)",
+                });
+            };
+            let change = (0..n).fold(0.0_f64, |m, i| m.max((a_alpha[i] - state.a_alpha[i]).abs()));
+            let scale = 1.0 + max_norm(a_alpha.as_slice());
+            state.a_alpha = a_alpha.as_slice().to_vec();
+            if change <= method.newton.tolerance * scale {
+                break;
+            }
+        }
+    }
+    Ok(state)
+}

@@ -1,0 +1,915 @@
+//! The SOI2 time loop (step-size patterns, (14) adjustments, energy and constraint streams)
+//! and the job-spec side: integrator parameters, validation, summary.
+
+use super::method::{
+    self, Coefficients, Formulation, Method, NewtonOptions, Soi2State, StartValue,
+};
+use super::models::{JayNegrutTest, Pendulum, SliderCrank};
+use super::{
+    ConstrainedModel, Soi2Error, check_consistency, check_constraint_rank, constraint_residuals,
+    dist2, kinetic_energy,
+};
+use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::spec::{IntegratorSpec, JobSpec, ModelSpec, SpecError, TimeSpec};
+use serde::{Deserialize, Serialize};
+use serde_json::{Map, Value, json};
+use std::ops::ControlFlow;
+
+// ---------------------------------------------------------------------------------------------
+// Integrator specs
+
+fn default_newton_tolerance() -> f64 {
+    1e-10
+}
+fn default_newton_max_iterations() -> usize {
+    25
+}
+fn default_consistency_tolerance() -> f64 {
+    1e-8
+}
+fn default_hht_alpha() -> f64 {
+    -0.2
+}
+
+/// Start value of a_α in specs: `a0` (default) or `lunk_simeon` ((8)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StartSpec {
+    /// a_α := a₀.
+    #[default]
+    A0,
+    /// a_α from (8).
+    LunkSimeon,
+}
+
+impl From<StartSpec> for StartValue {
+    fn from(s: StartSpec) -> Self {
+        match s {
+            StartSpec::A0 => StartValue::A0,
+            StartSpec::LunkSimeon => StartValue::LunkSimeon,
+        }
+    }
+}
+
+/// `scheme = "soi2_generalized_alpha"`: generalized-α-SOI2 (13). Coefficients from `rho_inf`
+/// (default 0.2, the paper's experiments) or given as `alpha_m`, `alpha_f` (and optionally
+/// `beta`, `gamma`, which default to (1 − α)²/4 and ½ − α with α = α_m − α_f).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Soi2GeneralizedAlphaSpec {
+    /// ρ∞ ∈ [0, 1].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rho_inf: Option<f64>,
+    /// α_m ≠ 1 (with r = |α_m/(1−α_m)| ≤ 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha_m: Option<f64>,
+    /// α_f ≠ 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha_f: Option<f64>,
+    /// β ≠ 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beta: Option<f64>,
+    /// γ ≠ 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gamma: Option<f64>,
+    /// Use the additive-force form of (13d): default = when the model's forces are additive;
+    /// `true` is refused for a model whose forces are not.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub additive: Option<bool>,
+    /// Start value of a_α.
+    #[serde(default)]
+    pub start: StartSpec,
+    /// Newton convergence: ‖Δx‖∞ ≤ tol·(1 + ‖x‖∞), default 1e-10.
+    #[serde(default = "default_newton_tolerance")]
+    pub newton_tolerance: f64,
+    /// Newton iterations per step, default 25.
+    #[serde(default = "default_newton_max_iterations")]
+    pub newton_max_iterations: usize,
+    /// Largest constraint residual accepted in the initial values, default 1e-8.
+    #[serde(default = "default_consistency_tolerance")]
+    pub consistency_tolerance: f64,
+}
+
+impl Default for Soi2GeneralizedAlphaSpec {
+    fn default() -> Self {
+        Self {
+            rho_inf: None,
+            alpha_m: None,
+            alpha_f: None,
+            beta: None,
+            gamma: None,
+            additive: None,
+            start: StartSpec::A0,
+            newton_tolerance: default_newton_tolerance(),
+            newton_max_iterations: default_newton_max_iterations(),
+            consistency_tolerance: default_consistency_tolerance(),
+        }
+    }
+}
+
+/// `scheme = "soi2_hht"` (HHT-SOI2 (17)) and `scheme = "hht_i3"` (the index-3 baseline):
+/// HHT-α with α ∈ [−⅓, 0] (default −0.2).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HhtSoi2Spec {
+    /// α ∈ [−⅓, 0].
+    #[serde(default = "default_hht_alpha")]
+    pub alpha: f64,
+    /// Start value of a_α.
+    #[serde(default)]
+    pub start: StartSpec,
+    /// Newton convergence: ‖Δx‖∞ ≤ tol·(1 + ‖x‖∞), default 1e-10.
+    #[serde(default = "default_newton_tolerance")]
+    pub newton_tolerance: f64,
+    /// Newton iterations per step, default 25.
+    #[serde(default = "default_newton_max_iterations")]
+    pub newton_max_iterations: usize,
+    /// Largest constraint residual accepted in the initial values, default 1e-8.
+    #[serde(default = "default_consistency_tolerance")]
+    pub consistency_tolerance: f64,
+}
+
+impl Default for HhtSoi2Spec {
+    fn default() -> Self {
+        Self {
+            alpha: default_hht_alpha(),
+            start: StartSpec::A0,
+            newton_tolerance: default_newton_tolerance(),
+            newton_max_iterations: default_newton_max_iterations(),
+            consistency_tolerance: default_consistency_tolerance(),
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Step sizes
+
+/// Step sizes of a run: `h · pattern[i mod len]` until `t_end` (the last step is shortened to
+/// land on it) or for a number of steps.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Schedule {
+    /// Base step h.
+    pub h: f64,
+    /// Relative sizes, repeated (`[1]` for constant steps, `[1/3, 2/3]` for the paper's).
+    pub pattern: Vec<f64>,
+    /// Where to stop.
+    pub end: End,
+}
+
+/// End of a run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum End {
+    /// At this time.
+    Time(f64),
+    /// After this many steps.
+    Steps(u64),
+}
+
+impl Schedule {
+    /// The step sizes in order.
+    pub fn sizes(&self) -> Vec<f64> {
+        let mut out = Vec::new();
+        let p = &self.pattern;
+        match self.end {
+            End::Steps(n) => out.extend((0..n as usize).map(|i| self.h * p[i % p.len()])),
+            End::Time(t_end) => {
+                let mut t = 0.0;
+                let mut i = 0;
+                while t_end - t > 1e-12 * self.h {
+                    let mut hi = self.h * p[i % p.len()];
+                    // Land exactly on t_end; never leave a sliver step behind.
+                    if t + hi >= t_end - 1e-9 * self.h {
+                        hi = t_end - t;
+                    }
+                    out.push(hi);
+                    t += hi;
+                    i += 1;
+                }
+            }
+        }
+        out
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Run loop
+
+/// Output settings.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Soi2Output {
+    /// Record every k-th step (≥ 1); the last is always recorded.
+    pub every: u64,
+    /// Coordinates j whose y_j, z_j are recorded.
+    pub probes: Vec<usize>,
+}
+
+/// Global errors ‖·‖₂ at the end of a run against the exact solution: y_N, z_N, λ_N, ψ_N at
+/// t_N, and a_{N+α} at t_N + α h_{N−1} (§2, §7).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct GlobalErrors {
+    /// ‖y_N − y(t_N)‖₂.
+    pub y: f64,
+    /// ‖z_N − z(t_N)‖₂.
+    pub z: f64,
+    /// ‖a_{N+α} − a(t_N + α h_{N−1})‖₂.
+    pub a: f64,
+    /// ‖λ_N − λ(t_N)‖₂.
+    pub lambda: f64,
+    /// ‖ψ_N − ψ(t_N)‖₂.
+    pub psi: f64,
+}
+
+/// What a run measured over all its steps.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Soi2Stats {
+    /// Steps done.
+    pub steps: u64,
+    /// Final time.
+    pub t_end: f64,
+    /// Sum of Newton iterations.
+    pub newton_iterations: u64,
+    /// Largest Newton iteration count of a step.
+    pub newton_iterations_max: usize,
+    /// max over steps of ‖g(t_n, y_n)‖∞.
+    pub max_position_residual: f64,
+    /// max over steps of ‖g_t + g_y z_n‖∞.
+    pub max_velocity_residual: f64,
+    /// max over steps of ‖k(t_n, y_n, z_n)‖∞.
+    pub max_nonholonomic_residual: f64,
+    /// Mechanical energy at t₀.
+    pub energy_initial: f64,
+    /// Mechanical energy at the end.
+    pub energy_final: f64,
+    /// Work of the damping forces.
+    pub work_damping_total: f64,
+    /// Global errors, for models with an exact solution.
+    pub errors: Option<GlobalErrors>,
+}
+
+/// Column names of a SOI2 run.
+pub fn columns(dims: super::Dims, probes: &[usize]) -> Columns {
+    let mut names: Vec<String> = [
+        "h",
+        "kinetic",
+        "potential",
+        "energy",
+        "work_damping",
+        "work_damping_total",
+        "position_residual",
+        "velocity_residual",
+        "nonholonomic_residual",
+        "newton_iterations",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    names.extend((0..dims.holonomic).map(|i| format!("lambda_{i}")));
+    names.extend((0..dims.nonholonomic).map(|i| format!("psi_{i}")));
+    for j in probes {
+        names.extend([format!("y_{j}"), format!("z_{j}")]);
+    }
+    Columns::new(names)
+}
+
+/// Runs `model` with `method` over the step sizes `sizes`, adjusting a_α and M_α a_α by
+/// (14a)–(14b) when `adjust`, and reporting to `observer`.
+#[allow(clippy::too_many_arguments)]
+pub fn integrate<M: ConstrainedModel + ?Sized>(
+    model: &M,
+    method: &Method,
+    start: StartValue,
+    sizes: &[f64],
+    adjust: bool,
+    output: &Soi2Output,
+    observer: &mut dyn Observer,
+) -> Result<(Soi2State, Soi2Stats), Soi2Error> {
+    let dims = model.dims();
+    let n = dims.n;
+    let alpha = method.coefficients.alpha();
+    let cols = columns(dims, &output.probes);
+    observer.start(&cols);
+    let every = output.every.max(1);
+    let total = sizes.len() as u64;
+    let mut state =
+        method::initial_state(model, method, start, sizes.first().copied().unwrap_or(1.0))?;
+    let potential = |s: &Soi2State| model.potential(s.t, &s.y);
+    let kinetic = |s: &Soi2State| kinetic_energy(model, s.t, &s.y, &s.z);
+    let (k0, p0) = (kinetic(&state), potential(&state));
+    let mut stats = Soi2Stats {
+        t_end: state.t,
+        energy_initial: k0 + p0,
+        energy_final: k0 + p0,
+        ..Default::default()
+    };
+    let mut row = Vec::with_capacity(cols.len());
+    let mut fd0 = vec![0.0; n];
+    let mut fd1 = vec![0.0; n];
+    model.damping_force(state.t, &state.y, &state.z, &mut fd0);
+    let record = |row: &mut Vec<f64>,
+                  s: &Soi2State,
+                  h: f64,
+                  kin: f64,
+                  pot: f64,
+                  wd: f64,
+                  wdt: f64,
+                  res: [f64; 3],
+                  it: usize| {
+        row.clear();
+        row.extend([
+            h,
+            kin,
+            pot,
+            kin + pot,
+            wd,
+            wdt,
+            res[0],
+            res[1],
+            res[2],
+            it as f64,
+        ]);
+        row.extend_from_slice(&s.lambda);
+        row.extend_from_slice(&s.psi);
+        for &j in &output.probes {
+            row.extend([s.y[j], s.z[j]]);
+        }
+    };
+    let res0 = constraint_residuals(model, state.t, &state.y, &state.z);
+    record(&mut row, &state, 0.0, k0, p0, 0.0, 0.0, res0, 0);
+    if observer
+        .observe(&StepRecord {
+            step: 0,
+            t: state.t,
+            values: &row,
+        })
+        .is_break()
+    {
+        return Err(Soi2Error::Stopped { step: 0 });
+    }
+    for (k, &h) in sizes.iter().enumerate() {
+        let k = k as u64 + 1;
+        if adjust {
+            method::adjust_for_step(&mut state, alpha, h); // (14a)–(14b)
+        }
+        let result = method::solve_step(model, method, &state, h)?;
+        let info = result.info;
+        let y_old = state.y.clone();
+        method::commit(&mut state, result, h);
+        model.damping_force(state.t, &state.y, &state.z, &mut fd1);
+        // Trapezoidal work of the damping forces over the step.
+        let wd: f64 = (0..n)
+            .map(|i| 0.5 * (fd0[i] + fd1[i]) * (state.y[i] - y_old[i]))
+            .sum();
+        std::mem::swap(&mut fd0, &mut fd1);
+        stats.work_damping_total += wd;
+        let res = constraint_residuals(model, state.t, &state.y, &state.z);
+        stats.max_position_residual = stats.max_position_residual.max(res[0]);
+        stats.max_velocity_residual = stats.max_velocity_residual.max(res[1]);
+        stats.max_nonholonomic_residual = stats.max_nonholonomic_residual.max(res[2]);
+        stats.newton_iterations += info.iterations as u64;
+        stats.newton_iterations_max = stats.newton_iterations_max.max(info.iterations);
+        stats.steps = k;
+        stats.t_end = state.t;
+        if k % every == 0 || k == total {
+            let (kin, pot) = (kinetic(&state), potential(&state));
+            stats.energy_final = kin + pot;
+            record(
+                &mut row,
+                &state,
+                h,
+                kin,
+                pot,
+                wd,
+                stats.work_damping_total,
+                res,
+                info.iterations,
+            );
+            if observer
+                .observe(&StepRecord {
+                    step: k,
+                    t: state.t,
+                    values: &row,
+                })
+                .is_break()
+            {
+                return Err(Soi2Error::Stopped { step: k });
+            }
+        }
+        if let ControlFlow::Break(()) = observer.progress(Progress {
+            done: k,
+            total,
+            t: state.t,
+        }) {
+            return Err(Soi2Error::Stopped { step: k });
+        }
+    }
+    let h_last = sizes.last().copied().unwrap_or(0.0);
+    stats.errors = model.exact(state.t).map(|ex| {
+        let a_ex = model
+            .exact(state.t + alpha * h_last)
+            .map(|e| e.a)
+            .unwrap_or(ex.a);
+        GlobalErrors {
+            y: dist2(&state.y, &ex.y),
+            z: dist2(&state.z, &ex.z),
+            a: dist2(&state.a_alpha, &a_ex),
+            lambda: dist2(&state.lambda, &ex.lambda),
+            psi: dist2(&state.psi, &ex.psi),
+        }
+    });
+    Ok((state, stats))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Jobs
+
+/// A nonlinear constrained scene.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Soi2Model {
+    /// (16).
+    Pendulum(Pendulum),
+    /// Slider-crank.
+    SliderCrank(SliderCrank),
+    /// (15).
+    JayNegrutTest(JayNegrutTest),
+}
+
+/// A validated SOI2 job.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Soi2Job {
+    /// The scene.
+    pub model: Soi2Model,
+    /// The method.
+    pub method: Method,
+    /// Start value of a_α.
+    pub start: StartValue,
+    /// Step sizes.
+    pub schedule: Schedule,
+    /// Apply (14a)–(14b).
+    pub adjust: bool,
+    /// What to record.
+    pub output: Soi2Output,
+}
+
+const SOI2_SCHEMES: &str = "soi2_generalized_alpha, soi2_hht or hht_i3";
+const SOI2_SCENES: &str = "pendulum, slider_crank or jay_negrut_test";
+
+fn soi2_model(spec: &ModelSpec) -> Option<Soi2Model> {
+    match spec {
+        ModelSpec::Pendulum(p) => Some(Soi2Model::Pendulum(p.clone())),
+        ModelSpec::SliderCrank(s) => Some(Soi2Model::SliderCrank(s.clone())),
+        ModelSpec::JayNegrutTest(j) => Some(Soi2Model::JayNegrutTest(j.clone())),
+        _ => None,
+    }
+}
+
+fn is_soi2_scheme(spec: &IntegratorSpec) -> bool {
+    matches!(
+        spec,
+        IntegratorSpec::Soi2GeneralizedAlpha(_)
+            | IntegratorSpec::Soi2Hht(_)
+            | IntegratorSpec::HhtI3(_)
+    )
+}
+
+/// The error for a scene and a scheme that do not go together.
+pub fn mismatch(scene: &str, scheme: &str) -> SpecError {
+    if matches!(scene, "pendulum" | "slider_crank" | "jay_negrut_test") {
+        SpecError::new(
+            "integrator.scheme",
+            format!(
+                "scene `{scene}` is a nonlinear constrained model: it needs {SOI2_SCHEMES}, got `{scheme}`"
+            ),
+        )
+    } else {
+        SpecError::new(
+            "integrator.scheme",
+            format!(
+                "scheme `{scheme}` integrates nonlinear constrained models ({SOI2_SCENES}), not scene `{scene}`"
+            ),
+        )
+    }
+}
+
+fn newton_options(tol: f64, max_it: usize) -> Result<NewtonOptions, SpecError> {
+    if !(tol.is_finite() && tol > 0.0) {
+        return Err(SpecError::new(
+            "integrator.newton_tolerance",
+            format!("must be a finite number > 0, got {tol}"),
+        ));
+    }
+    if max_it == 0 {
+        return Err(SpecError::new(
+            "integrator.newton_max_iterations",
+            "must be ≥ 1",
+        ));
+    }
+    Ok(NewtonOptions {
+        tolerance: tol,
+        max_iterations: max_it,
+    })
+}
+
+fn check_tolerance(tol: f64) -> Result<(), SpecError> {
+    if tol.is_finite() && tol > 0.0 {
+        Ok(())
+    } else {
+        Err(SpecError::new(
+            "integrator.consistency_tolerance",
+            format!("must be a finite number > 0, got {tol}"),
+        ))
+    }
+}
+
+/// Checks generalized-α coefficients against Theorem 1's hypotheses; errors name the field.
+pub fn check_coefficients(c: &Coefficients) -> Result<(), SpecError> {
+    let f = |name: &str, v: f64| -> Result<(), SpecError> {
+        if v.is_finite() {
+            Ok(())
+        } else {
+            Err(SpecError::new(
+                format!("integrator.{name}"),
+                format!("must be finite, got {v}"),
+            ))
+        }
+    };
+    f("alpha_m", c.alpha_m)?;
+    f("alpha_f", c.alpha_f)?;
+    f("beta", c.beta)?;
+    f("gamma", c.gamma)?;
+    if c.alpha_m == 1.0 {
+        return Err(SpecError::new(
+            "integrator.alpha_m",
+            "α_m = 1 removes a_{1+α} from (13d)–(13e): the step equations are singular (need α_m ≠ 1)",
+        ));
+    }
+    if c.r() > 1.0 {
+        return Err(SpecError::new(
+            "integrator.alpha_m",
+            format!(
+                "r = |α_m/(1 − α_m)| = {} > 1: the a, λ, ψ errors grow (Theorem 1 needs r < 1)",
+                c.r()
+            ),
+        ));
+    }
+    if c.alpha_f == 1.0 {
+        return Err(SpecError::new(
+            "integrator.alpha_f",
+            "α_f = 1 is excluded by Theorem 1 (need α_f ≠ 1)",
+        ));
+    }
+    if c.beta == 0.0 {
+        return Err(SpecError::new(
+            "integrator.beta",
+            "β = 0 is excluded by Theorem 1 (need β ≠ 0)",
+        ));
+    }
+    if c.gamma == 0.0 {
+        return Err(SpecError::new(
+            "integrator.gamma",
+            "γ = 0 is excluded by Theorem 1 (need γ ≠ 0)",
+        ));
+    }
+    Ok(())
+}
+
+fn generalized_alpha_coefficients(p: &Soi2GeneralizedAlphaSpec) -> Result<Coefficients, SpecError> {
+    let explicit =
+        p.alpha_m.is_some() || p.alpha_f.is_some() || p.beta.is_some() || p.gamma.is_some();
+    let c = match (p.rho_inf, explicit) {
+        (Some(_), true) => {
+            return Err(SpecError::new(
+                "integrator.rho_inf",
+                "give rho_inf or alpha_m/alpha_f/beta/gamma, not both",
+            ));
+        }
+        (rho, false) => {
+            let rho = rho.unwrap_or(0.2);
+            if !(rho.is_finite() && (0.0..=1.0).contains(&rho)) {
+                return Err(SpecError::new(
+                    "integrator.rho_inf",
+                    format!("must be in [0, 1], got {rho}"),
+                ));
+            }
+            Coefficients::from_rho_inf(rho)
+        }
+        (None, true) => {
+            let alpha_m = p.alpha_m.ok_or_else(|| {
+                SpecError::new("integrator.alpha_m", "missing (alpha_f is given)")
+            })?;
+            let alpha_f = p.alpha_f.ok_or_else(|| {
+                SpecError::new("integrator.alpha_f", "missing (alpha_m is given)")
+            })?;
+            let alpha = alpha_m - alpha_f;
+            Coefficients {
+                alpha_m,
+                alpha_f,
+                beta: p.beta.unwrap_or((1.0 - alpha).powi(2) / 4.0),
+                gamma: p.gamma.unwrap_or(0.5 - alpha),
+            }
+        }
+    };
+    check_coefficients(&c)?;
+    Ok(c)
+}
+
+fn schedule(time: &TimeSpec) -> Result<(Schedule, bool), SpecError> {
+    if !(time.h.is_finite() && time.h > 0.0) {
+        return Err(SpecError::new(
+            "time.h",
+            format!("must be a finite number > 0, got {}", time.h),
+        ));
+    }
+    let pattern = time.pattern.clone().unwrap_or_else(|| vec![1.0]);
+    if pattern.is_empty() {
+        return Err(SpecError::new(
+            "time.pattern",
+            "must have at least one relative step size",
+        ));
+    }
+    if let Some(p) = pattern.iter().find(|p| !(p.is_finite() && **p > 0.0)) {
+        return Err(SpecError::new(
+            "time.pattern",
+            format!("relative step sizes must be finite and > 0, got {p}"),
+        ));
+    }
+    let end = match (time.t_end, time.steps) {
+        (Some(_), Some(_)) => {
+            return Err(SpecError::new(
+                "time.steps",
+                "give t_end or steps, not both",
+            ));
+        }
+        (None, None) => return Err(SpecError::new("time.t_end", "missing: give t_end or steps")),
+        (None, Some(n)) => End::Steps(n),
+        (Some(t), None) => {
+            if !(t.is_finite() && t >= 0.0) {
+                return Err(SpecError::new(
+                    "time.t_end",
+                    format!("must be a finite number ≥ 0, got {t}"),
+                ));
+            }
+            End::Time(t)
+        }
+    };
+    Ok((
+        Schedule {
+            h: time.h,
+            pattern,
+            end,
+        },
+        time.adjust.unwrap_or(true),
+    ))
+}
+
+fn check_model<M: ConstrainedModel>(model: &M, tol: f64) -> Result<(), SpecError> {
+    let iv = model.initial();
+    check_constraint_rank(model, iv.t, &iv.y, &iv.z)
+        .map_err(|e| SpecError::new("model", e.to_string()))?;
+    check_consistency(model, tol).map_err(|e| SpecError::new("model", e.to_string()))
+}
+
+/// Builds a SOI2 job when the spec asks for one: `Ok(None)` when neither the scene nor the
+/// scheme is a SOI2 one, an error naming `integrator.scheme` when only one of them is.
+/// Checks the model's parameters, the rank of (g_y; k_z) and the consistency of the initial
+/// values here, once.
+pub fn job_from_spec(spec: &JobSpec) -> Result<Option<Soi2Job>, SpecError> {
+    let model_spec = spec.model.as_ref();
+    let model = model_spec.and_then(soi2_model);
+    let soi2_scheme = is_soi2_scheme(&spec.integrator);
+    let model = match (model, soi2_scheme) {
+        // A missing model is reported by the linear path ("model: missing section").
+        (None, false) | (None, true) if model_spec.is_none() => return Ok(None),
+        (None, false) => return Ok(None),
+        (Some(m), true) => m,
+        (Some(_), false) | (None, true) => {
+            let scene = model_spec.map(|m| m.scene()).unwrap_or("(none)");
+            return Err(mismatch(scene, spec.integrator.scheme()));
+        }
+    };
+    let time = spec
+        .time
+        .as_ref()
+        .ok_or_else(|| SpecError::new("time", "missing section"))?;
+    let (schedule, adjust) = schedule(time)?;
+    let (is_additive, has_nonholonomic, n) = match &model {
+        Soi2Model::Pendulum(p) => {
+            p.validate()?;
+            (p.additive(), false, p.dims().n)
+        }
+        Soi2Model::SliderCrank(s) => {
+            s.validate()?;
+            (s.additive(), false, s.dims().n)
+        }
+        Soi2Model::JayNegrutTest(j) => {
+            j.validate()?;
+            (j.additive(), true, j.dims().n)
+        }
+    };
+    let (method, start, consistency) = match &spec.integrator {
+        IntegratorSpec::Soi2GeneralizedAlpha(p) => {
+            let coefficients = generalized_alpha_coefficients(p)?;
+            let formulation = match p.additive {
+                Some(true) if !is_additive => {
+                    return Err(SpecError::new(
+                        "integrator.additive",
+                        "the model's forces are not of the form f₀ − g_yᵀλ − k_zᵀψ: use the general (13d)",
+                    ));
+                }
+                Some(true) => Formulation::Additive,
+                Some(false) => Formulation::General,
+                None if is_additive => Formulation::Additive,
+                None => Formulation::General,
+            };
+            check_tolerance(p.consistency_tolerance)?;
+            let newton = newton_options(p.newton_tolerance, p.newton_max_iterations)?;
+            (
+                Method {
+                    formulation,
+                    coefficients,
+                    newton,
+                },
+                p.start.into(),
+                p.consistency_tolerance,
+            )
+        }
+        IntegratorSpec::Soi2Hht(p) | IntegratorSpec::HhtI3(p) => {
+            let formulation = if matches!(spec.integrator, IntegratorSpec::Soi2Hht(_)) {
+                Formulation::HhtSoi2
+            } else {
+                Formulation::HhtI3
+            };
+            if !(p.alpha.is_finite() && (-1.0 / 3.0..=0.0).contains(&p.alpha)) {
+                return Err(SpecError::new(
+                    "integrator.alpha",
+                    format!("must be in [−1/3, 0], got {}", p.alpha),
+                ));
+            }
+            if has_nonholonomic {
+                return Err(SpecError::new(
+                    "integrator.scheme",
+                    format!(
+                        "`{}` handles holonomic constraints only; this scene has nonholonomic ones: use soi2_generalized_alpha",
+                        spec.integrator.scheme()
+                    ),
+                ));
+            }
+            if !is_additive {
+                return Err(SpecError::new(
+                    "integrator.scheme",
+                    format!(
+                        "`{}` needs forces f₀ − g_yᵀλ; use soi2_generalized_alpha",
+                        spec.integrator.scheme()
+                    ),
+                ));
+            }
+            check_tolerance(p.consistency_tolerance)?;
+            let newton = newton_options(p.newton_tolerance, p.newton_max_iterations)?;
+            (
+                Method {
+                    formulation,
+                    coefficients: Coefficients::hht(p.alpha),
+                    newton,
+                },
+                p.start.into(),
+                p.consistency_tolerance,
+            )
+        }
+        _ => {
+            return Err(mismatch(
+                model_spec.map(|m| m.scene()).unwrap_or("(none)"),
+                spec.integrator.scheme(),
+            ));
+        }
+    };
+    match &model {
+        Soi2Model::Pendulum(p) => check_model(p, consistency)?,
+        Soi2Model::SliderCrank(s) => check_model(s, consistency)?,
+        Soi2Model::JayNegrutTest(j) => check_model(j, consistency)?,
+    }
+    if spec.output.every == 0 {
+        return Err(SpecError::new("output.every", "must be ≥ 1"));
+    }
+    if let Some(&j) = spec.output.probes.iter().find(|&&j| j >= n) {
+        return Err(SpecError::new(
+            "output.probes",
+            format!("coordinate {j} does not exist (the model has {n})"),
+        ));
+    }
+    let output = Soi2Output {
+        every: spec.output.every,
+        probes: spec.output.probes.clone(),
+    };
+    Ok(Some(Soi2Job {
+        model,
+        method,
+        start,
+        schedule,
+        adjust,
+        output,
+    }))
+}
+
+impl Soi2Job {
+    /// Number of steps.
+    pub fn steps(&self) -> u64 {
+        self.schedule.sizes().len() as u64
+    }
+
+    /// Number of coordinates n.
+    pub fn dofs(&self) -> usize {
+        match &self.model {
+            Soi2Model::Pendulum(p) => p.dims().n,
+            Soi2Model::SliderCrank(s) => s.dims().n,
+            Soi2Model::JayNegrutTest(j) => j.dims().n,
+        }
+    }
+
+    /// Number of recorded columns.
+    pub fn columns(&self) -> usize {
+        let d = match &self.model {
+            Soi2Model::Pendulum(p) => p.dims(),
+            Soi2Model::SliderCrank(s) => s.dims(),
+            Soi2Model::JayNegrutTest(j) => j.dims(),
+        };
+        columns(d, &self.output.probes).len()
+    }
+
+    /// Runs the job; the summary's SOI2 part (the caller adds name, scene, scheme).
+    pub fn run(&self, observer: &mut dyn Observer) -> Result<Map<String, Value>, Soi2Error> {
+        let sizes = self.schedule.sizes();
+        let (state, stats) = match &self.model {
+            Soi2Model::Pendulum(p) => integrate(
+                p,
+                &self.method,
+                self.start,
+                &sizes,
+                self.adjust,
+                &self.output,
+                observer,
+            )?,
+            Soi2Model::SliderCrank(s) => integrate(
+                s,
+                &self.method,
+                self.start,
+                &sizes,
+                self.adjust,
+                &self.output,
+                observer,
+            )?,
+            Soi2Model::JayNegrutTest(j) => integrate(
+                j,
+                &self.method,
+                self.start,
+                &sizes,
+                self.adjust,
+                &self.output,
+                observer,
+            )?,
+        };
+        let c = self.method.coefficients;
+        let mut m = json!({
+            "kind": "time_integration",
+            "dofs": state.y.len(),
+            "holonomic_constraints": state.lambda.len(),
+            "nonholonomic_constraints": state.psi.len(),
+            "h": self.schedule.h,
+            "pattern": self.schedule.pattern,
+            "adjust": self.adjust,
+            "alpha_m": c.alpha_m,
+            "alpha_f": c.alpha_f,
+            "beta": c.beta,
+            "gamma": c.gamma,
+            "formulation": format!("{:?}", self.method.formulation),
+            "steps": stats.steps,
+            "t_end": stats.t_end,
+            "newton_iterations_total": stats.newton_iterations,
+            "newton_iterations_mean": if stats.steps > 0 { stats.newton_iterations as f64 / stats.steps as f64 } else { 0.0 },
+            "newton_iterations_max": stats.newton_iterations_max,
+            "max_position_residual": stats.max_position_residual,
+            "max_velocity_residual": stats.max_velocity_residual,
+            "max_nonholonomic_residual": stats.max_nonholonomic_residual,
+            "energy_initial": stats.energy_initial,
+            "energy_final": stats.energy_final,
+            "work_damping_total": stats.work_damping_total,
+            "y_final": state.y,
+            "z_final": state.z,
+            "lambda_final": state.lambda,
+        })
+        .as_object()
+        .cloned()
+        .unwrap_or_default();
+        if let Some(e) = stats.errors {
+            m.insert("errors".into(), json!(e));
+        }
+        Ok(m)
+    }
+}
+
+impl From<Soi2Error> for crate::job::RunError {
+    fn from(e: Soi2Error) -> Self {
+        match e {
+            Soi2Error::Stopped { step } => crate::job::RunError::Stopped { step },
+            other => crate::job::RunError::Soi2(other),
+        }
+    }
+}
