@@ -4,13 +4,16 @@
 
 use crate::band::SymBand;
 use crate::contact::{Activation, IndexSetRule};
+use crate::integrators::alpha::{AlphaParams, AlphaScheme, NonsmoothAlpha, ParamError};
 use crate::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
+use crate::integrators::position_contact::{PositionContact, PositionContactParams};
 use crate::integrators::{LinearScheme, LinearState, OutputOptions, RunStop, StepError, run_linear};
 use crate::lcp::LcpOptions;
 use crate::model::{Contact, Forcing, HarmonicLoad, LinearModel, ModelError};
 use crate::observer::Observer;
 use crate::scenes::Bar;
 use crate::spec::{IntegratorSpec, JobSpec, LinearSpec, ModelSpec, MoreauJeanSpec, SpecError, TimeSpec};
+use crate::spec::{NsAlphaSpec, PositionContactSpec};
 use serde_json::{Map, Value, json};
 use thiserror::Error;
 
@@ -108,6 +111,8 @@ struct LinearJob {
 #[derive(Debug, Clone)]
 enum LinearSchemeChoice {
     MoreauJean(MoreauJeanParams),
+    Alpha(AlphaParams),
+    PositionContact(PositionContactParams),
 }
 
 impl Job {
@@ -126,6 +131,18 @@ impl Job {
         let lcp = lcp_options(spec)?;
         let output = output_options(spec, model.dofs())?;
         let scheme = match &spec.integrator {
+            IntegratorSpec::NsNewmark(_)
+            | IntegratorSpec::NsHht(_)
+            | IntegratorSpec::NsGeneralizedAlpha(_)
+            | IntegratorSpec::NsKhAlpha(_) => {
+                LinearSchemeChoice::Alpha(alpha_params(&spec.integrator)?)
+            }
+            IntegratorSpec::NewmarkPositionContact(p) => {
+                LinearSchemeChoice::PositionContact(position_contact_params(p, false)?)
+            }
+            IntegratorSpec::HhtPositionContact(p) => {
+                LinearSchemeChoice::PositionContact(position_contact_params(p, true)?)
+            }
             IntegratorSpec::MoreauJean(p) => LinearSchemeChoice::MoreauJean(moreau_jean_params(p, false)?),
             IntegratorSpec::MoreauJeanVariant(p) => LinearSchemeChoice::MoreauJean(moreau_jean_params(p, true)?),
             IntegratorSpec::Soi2GeneralizedAlpha(_)
@@ -192,6 +209,14 @@ fn run_linear_job(job: &Job, j: &LinearJob, observer: &mut dyn Observer) -> Resu
     let mut scheme: Box<dyn LinearScheme> = match j.scheme {
         LinearSchemeChoice::MoreauJean(p) => Box::new(
             MoreauJean::new(&j.model, p, j.h, j.lcp)
+                .map_err(|_| RunError::Step(StepError::NotFinite { step: 0, t: 0.0 }))?,
+        ),
+        LinearSchemeChoice::Alpha(p) => Box::new(
+            NonsmoothAlpha::new(&j.model, p, j.h, j.lcp)
+                .map_err(|_| RunError::Step(StepError::NotFinite { step: 0, t: 0.0 }))?,
+        ),
+        LinearSchemeChoice::PositionContact(p) => Box::new(
+            PositionContact::new(&j.model, p, j.h, j.lcp)
                 .map_err(|_| RunError::Step(StepError::NotFinite { step: 0, t: 0.0 }))?,
         ),
     };
@@ -400,4 +425,184 @@ fn moreau_jean_params(p: &MoreauJeanSpec, variant: bool) -> Result<MoreauJeanPar
         (_, g) => g.unwrap_or(1.0),
     };
     Ok(MoreauJeanParams { theta: p.theta, variant, index_set: IndexSetRule { activation: p.activation, gamma } })
+}
+/// The index-set rule of an α-family spec (same fields and checks as `moreau_jean`).
+fn alpha_index_set(
+    activation: Activation,
+    activation_gamma: Option<f64>,
+) -> Result<IndexSetRule, SpecError> {
+    let gamma = match (activation, activation_gamma) {
+        (Activation::GapAndVelocity, Some(_)) => {
+            return Err(SpecError::new(
+                "integrator.activation_gamma",
+                "only used with activation = \"predicted_gap\"",
+            ));
+        }
+        (_, Some(g)) if !g.is_finite() || g <= 0.0 => {
+            return Err(SpecError::new(
+                "integrator.activation_gamma",
+                format!("must be > 0, got {g}"),
+            ));
+        }
+        (_, g) => g.unwrap_or(1.0),
+    };
+    Ok(IndexSetRule { activation, gamma })
+}
+
+/// Maps a parameter error of the α-family to a spec error on `integrator.<field>`.
+fn alpha_check(p: &AlphaParams, allow_unstable: bool) -> Result<(), SpecError> {
+    match p.validate() {
+        Ok(()) => Ok(()),
+        Err(ParamError {
+            stability: true, ..
+        }) if allow_unstable => Ok(()),
+        Err(e) => {
+            let hint = if e.stability {
+                " (set allow_unstable = true to run it anyway)"
+            } else {
+                ""
+            };
+            Err(SpecError::new(
+                format!("integrator.{}", e.field),
+                format!("{}{hint}", e.reason),
+            ))
+        }
+    }
+}
+
+/// Parameters of `ns_generalized_alpha` / `ns_kh_alpha` from ρ∞ (26)–(27) or given directly.
+fn ns_alpha_from_spec(p: &NsAlphaSpec, scheme: AlphaScheme) -> Result<AlphaParams, SpecError> {
+    let direct = [
+        ("alpha_m", p.alpha_m),
+        ("alpha_f", p.alpha_f),
+        ("beta", p.beta),
+        ("gamma", p.gamma),
+    ];
+    if let Some(rho) = p.rho_inf {
+        if let Some((f, _)) = direct.iter().find(|(_, x)| x.is_some()) {
+            return Err(SpecError::new(
+                format!("integrator.{f}"),
+                "give rho_inf or alpha_m/alpha_f/beta/gamma, not both",
+            ));
+        }
+        if !rho.is_finite() || !(0.0..=1.0).contains(&rho) {
+            return Err(SpecError::new(
+                "integrator.rho_inf",
+                format!("must be in [0, 1], got {rho}"),
+            ));
+        }
+        return Ok(AlphaParams::from_rho_inf(scheme, rho));
+    }
+    match (p.alpha_m, p.alpha_f) {
+        (None, None) if p.beta.is_none() && p.gamma.is_none() => {
+            Ok(AlphaParams::from_rho_inf(scheme, 0.8))
+        }
+        (Some(alpha_m), Some(alpha_f)) => {
+            let gamma = p.gamma.unwrap_or(0.5 + alpha_f - alpha_m);
+            let beta = p.beta.unwrap_or(0.25 * (gamma + 0.5) * (gamma + 0.5));
+            Ok(AlphaParams {
+                scheme,
+                alpha_m,
+                alpha_f,
+                beta,
+                gamma,
+                index_set: IndexSetRule::default(),
+            })
+        }
+        (None, _) => Err(SpecError::new(
+            "integrator.alpha_m",
+            "missing: give rho_inf, or alpha_m and alpha_f",
+        )),
+        (_, None) => Err(SpecError::new(
+            "integrator.alpha_f",
+            "missing: give rho_inf, or alpha_m and alpha_f",
+        )),
+    }
+}
+
+/// Validated parameters of an `ns_*` integrator spec.
+fn alpha_params(spec: &IntegratorSpec) -> Result<AlphaParams, SpecError> {
+    let (mut params, activation, activation_gamma, allow_unstable) = match spec {
+        IntegratorSpec::NsNewmark(p) => (
+            AlphaParams::newmark(p.beta, p.gamma),
+            p.activation,
+            p.activation_gamma,
+            p.allow_unstable,
+        ),
+        IntegratorSpec::NsHht(p) => {
+            let gamma = p.gamma.unwrap_or(0.5 + p.alpha);
+            let beta = p.beta.unwrap_or(0.25 * (1.0 + p.alpha) * (1.0 + p.alpha));
+            (
+                AlphaParams::hht_with(p.alpha, beta, gamma),
+                p.activation,
+                p.activation_gamma,
+                p.allow_unstable,
+            )
+        }
+        IntegratorSpec::NsGeneralizedAlpha(p) => (
+            ns_alpha_from_spec(p, AlphaScheme::GeneralizedAlpha)?,
+            p.activation,
+            p.activation_gamma,
+            p.allow_unstable,
+        ),
+        IntegratorSpec::NsKhAlpha(p) => (
+            ns_alpha_from_spec(p, AlphaScheme::KrenkHogsberg)?,
+            p.activation,
+            p.activation_gamma,
+            p.allow_unstable,
+        ),
+        other => unreachable!("alpha_params called for {}", other.scheme()),
+    };
+    params.index_set = alpha_index_set(activation, activation_gamma)?;
+    alpha_check(&params, allow_unstable)?;
+    Ok(params)
+}
+
+/// Validated parameters of `newmark_position_contact` (`hht = false`) or `hht_position_contact`.
+fn position_contact_params(
+    p: &PositionContactSpec,
+    hht: bool,
+) -> Result<PositionContactParams, SpecError> {
+    let params = match (hht, p.alpha) {
+        (false, Some(_)) => {
+            return Err(SpecError::new(
+                "integrator.alpha",
+                "newmark_position_contact has no α (use hht_position_contact)",
+            ));
+        }
+        (false, None) => {
+            PositionContactParams::newmark(p.beta.unwrap_or(0.25), p.gamma.unwrap_or(0.5))
+        }
+        (true, None) => {
+            return Err(SpecError::new(
+                "integrator.alpha",
+                "missing: hht_position_contact needs α",
+            ));
+        }
+        (true, Some(alpha)) => {
+            let d = PositionContactParams::hht(alpha);
+            PositionContactParams {
+                alpha,
+                beta: p.beta.unwrap_or(d.beta),
+                gamma: p.gamma.unwrap_or(d.gamma),
+            }
+        }
+    };
+    match params.validate() {
+        Ok(()) => Ok(params),
+        Err(ParamError {
+            stability: true, ..
+        }) if p.allow_unstable => Ok(params),
+        Err(e) => {
+            let hint = if e.stability {
+                " (set allow_unstable = true to run it anyway)"
+            } else {
+                ""
+            };
+            Err(SpecError::new(
+                format!("integrator.{}", e.field),
+                format!("{}{hint}", e.reason),
+            ))
+        }
+    }
 }

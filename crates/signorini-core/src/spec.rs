@@ -148,6 +148,18 @@ pub enum IntegratorSpec {
     Soi2Hht(HhtSoi2Spec),
     /// HHT-I3 (index 3, position constraints only): the baseline of HHT-SOI2.
     HhtI3(HhtSoi2Spec),
+    /// Nonsmooth Newmark, Acary 2016 (25) with α_m = α_f = 0.
+    NsNewmark(NsNewmarkSpec),
+    /// Nonsmooth HHT, Acary 2016 (25) with α_m = 0, α_f = α (78).
+    NsHht(NsHhtSpec),
+    /// Nonsmooth generalized-α, Acary 2016 (25)–(27).
+    NsGeneralizedAlpha(NsAlphaSpec),
+    /// Nonsmooth Krenk–Høgsberg generalized-α, Acary 2016 (30).
+    NsKhAlpha(NsAlphaSpec),
+    /// Standard Newmark with contact at position level (the baseline that blows up).
+    NewmarkPositionContact(PositionContactSpec),
+    /// Standard HHT with contact at position level (baseline).
+    HhtPositionContact(PositionContactSpec),
 }
 
 impl Default for IntegratorSpec {
@@ -165,6 +177,12 @@ impl IntegratorSpec {
             IntegratorSpec::Soi2GeneralizedAlpha(_) => "soi2_generalized_alpha",
             IntegratorSpec::Soi2Hht(_) => "soi2_hht",
             IntegratorSpec::HhtI3(_) => "hht_i3",
+            IntegratorSpec::NsNewmark(_) => "ns_newmark",
+            IntegratorSpec::NsHht(_) => "ns_hht",
+            IntegratorSpec::NsGeneralizedAlpha(_) => "ns_generalized_alpha",
+            IntegratorSpec::NsKhAlpha(_) => "ns_kh_alpha",
+            IntegratorSpec::NewmarkPositionContact(_) => "newmark_position_contact",
+            IntegratorSpec::HhtPositionContact(_) => "hht_position_contact",
         }
     }
 }
@@ -280,4 +298,108 @@ impl SpecError {
     pub fn new(field: impl Into<String>, reason: impl Into<String>) -> Self {
         Self { field: field.into(), reason: reason.into() }
     }
+}
+fn quarter() -> f64 {
+    0.25
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
+}
+
+/// Parameters of `ns_newmark` (Acary 2016 (25), α_m = α_f = 0). Dissipative for 2β ≥ γ ≥ ½ (89);
+/// parameters outside are rejected unless `allow_unstable = true`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NsNewmarkSpec {
+    /// β, default ¼ (with γ = ½: the trapezoidal rule, Corollary 1).
+    #[serde(default = "quarter")]
+    pub beta: f64,
+    /// γ, default ½.
+    #[serde(default = "half")]
+    pub gamma: f64,
+    /// Index-set rule, as for `moreau_jean`.
+    #[serde(default)]
+    pub activation: Activation,
+    /// γ of the predicted-gap rule, as for `moreau_jean`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub activation_gamma: Option<f64>,
+    /// Run parameters outside the dissipation conditions anyway (default false).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub allow_unstable: bool,
+}
+
+/// Parameters of `ns_hht` (Acary 2016 (78)): α, and β, γ defaulting to the second-order choice
+/// γ = ½ + α, β = (1 + α)²/4. Dissipative for 2β ≥ γ ≥ ½, 0 ≤ α ≤ γ − ½ ≤ ½ (83).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NsHhtSpec {
+    /// α = α_f (required); the classical range is [0, ⅓].
+    pub alpha: f64,
+    /// β, default (1 + α)²/4.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beta: Option<f64>,
+    /// γ, default ½ + α.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gamma: Option<f64>,
+    /// Index-set rule, as for `moreau_jean`.
+    #[serde(default)]
+    pub activation: Activation,
+    /// γ of the predicted-gap rule, as for `moreau_jean`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub activation_gamma: Option<f64>,
+    /// Run parameters outside (83) anyway (default false).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub allow_unstable: bool,
+}
+
+/// Parameters of `ns_generalized_alpha` and `ns_kh_alpha`: `rho_inf` ∈ [0, 1] (by (26)–(27);
+/// default 0.8 when nothing is given), or `alpha_m`, `alpha_f` with optional `gamma` (default
+/// (26)) and `beta` (default ¼(γ + ½)²), not both.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NsAlphaSpec {
+    /// Spectral radius at infinity ρ∞ ∈ [0, 1].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rho_inf: Option<f64>,
+    /// α_m < 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha_m: Option<f64>,
+    /// α_f ≤ 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha_f: Option<f64>,
+    /// β.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beta: Option<f64>,
+    /// γ.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gamma: Option<f64>,
+    /// Index-set rule, as for `moreau_jean`.
+    #[serde(default)]
+    pub activation: Activation,
+    /// γ of the predicted-gap rule, as for `moreau_jean`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub activation_gamma: Option<f64>,
+    /// Run parameters outside the stability conditions anyway (default false).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub allow_unstable: bool,
+}
+
+/// Parameters of `newmark_position_contact` (β default ¼, γ default ½, no α) and
+/// `hht_position_contact` (α required, β and γ defaulting as for `ns_hht`).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PositionContactSpec {
+    /// HHT α (hht_position_contact only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha: Option<f64>,
+    /// β > 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beta: Option<f64>,
+    /// γ.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gamma: Option<f64>,
+    /// Run parameters outside (89)/(83) anyway (default false).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub allow_unstable: bool,
 }
