@@ -1,0 +1,410 @@
+//! Client commands: `submit`, `status`, `watch`, `result`, `cancel`, `capabilities`.
+//! They talk gRPC to a running `signorini serve`; `watch` subscribes to the job's zenoh keys.
+
+use crate::output::{csv_header, write_atomic, write_summary, write_table};
+use crate::proto::v1 as pb;
+use crate::proto::v1::simulation_client::SimulationClient;
+use crate::server::convert::state_from_proto;
+use crate::spec_file::{self, Format};
+use crate::stream::{self, ZenohOptions};
+use anyhow::{Context, Result, anyhow};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use prost::Message;
+use serde_json::{Value, json};
+use signorini_core::job::Table;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Duration;
+use tonic::transport::Channel;
+
+/// Where the server is.
+#[derive(Debug, Clone, Args)]
+pub struct Connection {
+    /// gRPC address of the server.
+    #[arg(
+        long,
+        env = "SIGNORINI_SERVER",
+        default_value = "http://127.0.0.1:50051",
+        global = true
+    )]
+    pub server: String,
+    /// Bearer token for submit and cancel.
+    #[arg(long, env = "SIGNORINI_TOKEN", hide_env_values = true, global = true)]
+    pub token: Option<String>,
+}
+
+/// `signorini submit`.
+#[derive(Debug, Args)]
+pub struct SubmitArgs {
+    /// Job spec file (TOML, or JSON when it ends in .json).
+    pub spec: PathBuf,
+    /// Choose the job id (1–64 of A-Z a-z 0-9 _ -).
+    #[arg(long)]
+    pub id: Option<String>,
+    #[command(flatten)]
+    pub conn: Connection,
+}
+
+/// `signorini status` / `cancel`.
+#[derive(Debug, Args)]
+pub struct IdArgs {
+    /// Job id.
+    pub id: String,
+    #[command(flatten)]
+    pub conn: Connection,
+}
+
+/// `signorini result`.
+#[derive(Debug, Args)]
+pub struct ResultArgs {
+    /// Job id.
+    pub id: String,
+    /// Write steps.csv, summary.json (and tables) to this directory, as `signorini run` does.
+    #[arg(long, short)]
+    pub out: Option<PathBuf>,
+    #[command(flatten)]
+    pub conn: Connection,
+}
+
+/// `signorini watch`.
+#[derive(Debug, Args)]
+pub struct WatchArgs {
+    /// Job id.
+    pub id: String,
+    /// zenoh endpoint of the server's peer or of a router.
+    #[arg(
+        long,
+        env = "SIGNORINI_ZENOH_CONNECT",
+        default_value = "tcp/127.0.0.1:7447"
+    )]
+    pub zenoh: String,
+    /// One JSON object per frame on stdout instead of a progress bar.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `signorini capabilities`.
+#[derive(Debug, Args)]
+pub struct CapabilitiesArgs {
+    #[command(flatten)]
+    pub conn: Connection,
+}
+
+/// Largest gRPC message accepted (results of long runs are large).
+pub const MAX_MESSAGE: usize = 1 << 30;
+
+fn runtime() -> Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("starting tokio")
+}
+
+async fn client(conn: &Connection) -> Result<SimulationClient<Channel>> {
+    let c = SimulationClient::connect(conn.server.clone())
+        .await
+        .with_context(|| format!("connecting to {}", conn.server))?;
+    Ok(c.max_decoding_message_size(MAX_MESSAGE))
+}
+
+fn with_token<T>(conn: &Connection, msg: T) -> Result<tonic::Request<T>> {
+    let mut req = tonic::Request::new(msg);
+    if let Some(t) = &conn.token {
+        req.metadata_mut().insert(
+            "authorization",
+            format!("Bearer {t}").parse().context("token")?,
+        );
+    }
+    Ok(req)
+}
+
+fn status_error(s: tonic::Status) -> anyhow::Error {
+    anyhow!("{:?}: {}", s.code(), s.message())
+}
+
+/// A status as JSON (the same shape as `GET /v1/jobs/{id}`).
+pub fn status_json(s: &pb::JobStatus) -> Value {
+    let p = s.progress.clone().unwrap_or_default();
+    json!({
+        "id": s.id,
+        "name": s.name,
+        "state": state_from_proto(s.state).map_or("unknown", |st| st.as_str()),
+        "progress": { "step": p.step, "total": p.total, "t": p.t, "fraction": p.fraction },
+        "error": s.error.as_ref().map(|e| json!({ "field": e.field, "reason": e.reason })),
+        "created_ms": s.created_ms,
+        "started_ms": s.started_ms,
+        "finished_ms": s.finished_ms,
+    })
+}
+
+/// `submit`: prints the id.
+pub fn submit(args: SubmitArgs) -> Result<()> {
+    let text = std::fs::read_to_string(&args.spec)
+        .with_context(|| format!("reading {}", args.spec.display()))?;
+    let spec = spec_file::parse(&text, Format::of_path(&args.spec))
+        .map_err(|e| anyhow!("invalid spec {}: {e}", args.spec.display()))?;
+    let json = serde_json::to_string(&spec)?;
+    runtime()?.block_on(async {
+        let mut c = client(&args.conn).await?;
+        let req = pb::SubmitJobRequest {
+            spec: Some(pb::submit_job_request::Spec::Json(json)),
+            id: args.id,
+        };
+        let resp = c
+            .submit_job(with_token(&args.conn, req)?)
+            .await
+            .map_err(status_error)?;
+        println!("{}", resp.into_inner().id);
+        Ok(())
+    })
+}
+
+/// `status`: prints the status as JSON.
+pub fn status(args: IdArgs) -> Result<()> {
+    runtime()?.block_on(async {
+        let mut c = client(&args.conn).await?;
+        let s = c
+            .get_job(pb::GetJobRequest { id: args.id })
+            .await
+            .map_err(status_error)?
+            .into_inner();
+        println!("{}", serde_json::to_string_pretty(&status_json(&s))?);
+        Ok(())
+    })
+}
+
+/// `cancel`: prints the final status.
+pub fn cancel(args: IdArgs) -> Result<()> {
+    runtime()?.block_on(async {
+        let mut c = client(&args.conn).await?;
+        let req = with_token(&args.conn, pb::CancelJobRequest { id: args.id })?;
+        let s = c.cancel_job(req).await.map_err(status_error)?.into_inner();
+        println!("{}", serde_json::to_string_pretty(&status_json(&s))?);
+        Ok(())
+    })
+}
+
+/// `capabilities`: prints every scene, scheme and solver with its parameters as JSON.
+pub fn capabilities(args: CapabilitiesArgs) -> Result<()> {
+    runtime()?.block_on(async {
+        let mut c = client(&args.conn).await?;
+        let caps = c.capabilities(pb::CapabilitiesRequest {}).await.map_err(status_error)?.into_inner();
+        let comp = |c: &pb::Component| {
+            json!({
+                "name": c.name,
+                "description": c.description,
+                "parameters": c.parameters.iter().map(|p| json!({
+                    "name": p.name, "kind": p.kind, "default": p.default_value, "range": p.range, "description": p.description
+                })).collect::<Vec<_>>(),
+            })
+        };
+        let out = json!({
+            "models": caps.models.iter().map(comp).collect::<Vec<_>>(),
+            "integrators": caps.integrators.iter().map(comp).collect::<Vec<_>>(),
+            "contact_solvers": caps.contact_solvers.iter().map(comp).collect::<Vec<_>>(),
+            "sections": caps.sections.iter().map(comp).collect::<Vec<_>>(),
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        Ok(())
+    })
+}
+
+/// `result`: prints summary.json, or writes the run's files to `--out`.
+pub fn result(args: ResultArgs) -> Result<()> {
+    let r = runtime()?.block_on(async {
+        let mut c = client(&args.conn).await?;
+        c.get_result(pb::GetResultRequest {
+            id: args.id.clone(),
+        })
+        .await
+        .map_err(status_error)
+        .map(tonic::Response::into_inner)
+    })?;
+    let summary: serde_json::Map<String, Value> =
+        serde_json::from_str(&r.summary_json).context("summary from the server")?;
+    let Some(dir) = args.out else {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+        return Ok(());
+    };
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    crate::output::clear_results(&dir)?;
+    // steps.csv: the same header and number format as `signorini run` (CsvSteps).
+    let mut csv = csv_header(&r.columns);
+    csv.push('\n');
+    for (i, (step, t)) in r.step.iter().zip(&r.t).enumerate() {
+        let _ = write!(csv, "{step},{t:?}");
+        for s in &r.series {
+            let v = s
+                .values
+                .get(i)
+                .copied()
+                .ok_or_else(|| anyhow!("series {} is short", s.column))?;
+            let _ = write!(csv, ",{v:?}");
+        }
+        csv.push('\n');
+    }
+    write_atomic(&dir.join("steps.csv"), &csv)?;
+    for t in &r.tables {
+        let table = Table {
+            name: t.name.clone(),
+            columns: t.columns.clone(),
+            rows: t.rows.iter().map(|row| row.values.clone()).collect(),
+        };
+        write_table(&dir, &table)?;
+    }
+    write_summary(&dir, &summary)?;
+    println!("results of {} in {}", args.id, dir.display());
+    Ok(())
+}
+
+fn frame_json(kind: &str, f: &pb::StepFrame) -> Value {
+    let n = f.columns.len().max(1);
+    json!({
+        "kind": kind, "id": f.id, "seq": f.seq, "columns": f.columns, "step": f.step, "t": f.t,
+        "rows": f.values.chunks(n).collect::<Vec<_>>(), "last": f.last,
+    })
+}
+
+/// `watch`: follows a job's zenoh keys until it ends.
+pub fn watch(args: WatchArgs) -> Result<()> {
+    crate::worker::check_id(&args.id).map_err(|e| anyhow!("{e}"))?;
+    runtime()?.block_on(async {
+        let session = stream::open_session(&ZenohOptions {
+            listen: Vec::new(),
+            connect: vec![args.zenoh.clone()],
+        })
+        .await?;
+        let outcome = watch_session(&session, &args).await;
+        let _ = session.close().await;
+        outcome
+    })
+}
+
+async fn query_status(session: &zenoh::Session, id: &str) -> Result<Option<pb::JobStatus>> {
+    let replies = session
+        .get(stream::status_key(id))
+        .await
+        .map_err(|e| anyhow!("zenoh get: {e}"))?;
+    while let Ok(reply) = replies.recv_async().await {
+        match reply.result() {
+            Ok(sample) => return Ok(Some(pb::JobStatus::decode(&*sample.payload().to_bytes())?)),
+            Err(e) => {
+                return Err(anyhow!(
+                    "{}",
+                    String::from_utf8_lossy(&e.payload().to_bytes())
+                ));
+            }
+        }
+    }
+    Ok(None)
+}
+
+async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()> {
+    let key = format!("signorini/v1/jobs/{}/*", args.id);
+    let sub = session
+        .declare_subscriber(key)
+        .await
+        .map_err(|e| anyhow!("zenoh subscribe: {e}"))?;
+    let bar = if args.json {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(1)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} steps {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let report = |s: &pb::JobStatus| -> Result<bool> {
+        let st = state_from_proto(s.state);
+        if args.json {
+            println!("{}", json!({ "kind": "status", "status": status_json(s) }));
+        } else if let Some(p) = &s.progress {
+            bar.set_length(p.total.max(1));
+            bar.set_position(p.step);
+        }
+        Ok(st.is_some_and(|x| x.is_terminal()))
+    };
+    // The latest status (the query also makes sure our subscription is known to the server).
+    let mut tries = 0;
+    let current = loop {
+        match query_status(session, &args.id).await {
+            Ok(Some(s)) => break s,
+            Ok(None) if tries < 50 => {
+                tries += 1;
+                tokio::time::sleep(Duration::from_millis(100)).await;
+            }
+            Ok(None) => return Err(anyhow!("no signorini server answered on {}", args.zenoh)),
+            Err(e) => return Err(e),
+        }
+    };
+    if report(&current)? {
+        bar.finish_and_clear();
+        println!("{}", serde_json::to_string_pretty(&status_json(&current))?);
+        return Ok(());
+    }
+    let mut last_status;
+    loop {
+        let sample = match tokio::time::timeout(Duration::from_secs(2), sub.recv_async()).await {
+            Ok(Ok(s)) => s,
+            Ok(Err(e)) => return Err(anyhow!("zenoh: {e}")),
+            Err(_) => {
+                // Quiet for a while: ask (a final status may have been missed).
+                if let Some(s) = query_status(session, &args.id).await? {
+                    if report(&s)? {
+                        last_status = s;
+                        break;
+                    }
+                }
+                continue;
+            }
+        };
+        let key = sample.key_expr().as_str().to_string();
+        let bytes = sample.payload().to_bytes();
+        if key.ends_with("/status") {
+            let s = pb::JobStatus::decode(&*bytes)?;
+            let done = report(&s)?;
+            last_status = s;
+            if done {
+                break;
+            }
+        } else {
+            let f = pb::StepFrame::decode(&*bytes)?;
+            let kind = if key.ends_with("/energy") {
+                "energy"
+            } else {
+                "state"
+            };
+            if args.json {
+                println!("{}", frame_json(kind, &f));
+            } else if kind == "energy" {
+                let n = f.columns.len().max(1);
+                if let (Some(row), Some(step)) = (f.values.chunks(n).last(), f.step.last()) {
+                    bar.set_position(*step);
+                    let terms: Vec<String> = f
+                        .columns
+                        .iter()
+                        .zip(row)
+                        .filter(|(c, _)| {
+                            matches!(
+                                c.as_str(),
+                                "kinetic" | "strain" | "energy" | "balance_residual"
+                            )
+                        })
+                        .map(|(c, v)| format!("{c}={v:.6e}"))
+                        .collect();
+                    bar.set_message(terms.join(" "));
+                }
+            }
+        }
+    }
+    bar.finish_and_clear();
+    if !args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&status_json(&last_status))?
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,20 @@
+//! `signorini serve`: runs the service (see `signorini serve --help`).
+
+use crate::config::{ServeArgs, ServeConfig};
+use anyhow::{Context, Result};
+
+/// Runs the command: a multi-threaded tokio runtime (zenoh needs it) for the listeners; jobs run
+/// on the engine's own threads.
+pub fn run(args: ServeArgs) -> Result<()> {
+    let _ = tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .try_init();
+    let cfg = ServeConfig::resolve(args)?;
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("starting the tokio runtime")?;
+    runtime.block_on(crate::server::serve(cfg))
+}

@@ -1,0 +1,187 @@
+//! `signorini serve` configuration: defaults, then an optional TOML file (`--config`), then
+//! environment variables (`SIGNORINI_*`), then flags — each layer overrides the one before.
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use serde::Deserialize;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+
+/// Flags of `signorini serve` (each also read from the environment variable shown).
+#[derive(Debug, Clone, Default, Args)]
+#[command(after_help = "\
+Configuration layers: built-in defaults < TOML file (--config) < environment < flags.
+The TOML file uses the flag names with underscores, e.g.
+
+  grpc_addr = \"127.0.0.1:50051\"
+  http_addr = \"127.0.0.1:8080\"
+  store = \"signorini.db\"
+  zenoh_listen = [\"tcp/127.0.0.1:7447\"]
+  zenoh_connect = []            # e.g. [\"tcp/zenohd:7447\"] to join a zenoh router
+  workers = 4
+  queue_limit = 256
+  token = \"secret\"              # bearer token required by mutating calls (submit, cancel)
+  max_dofs = 100000
+  max_steps = 100000000
+  max_output_mb = 1024
+
+HTTP: POST /v1/jobs, GET /v1/jobs, GET /v1/jobs/{id}, GET /v1/jobs/{id}/result,
+DELETE /v1/jobs/{id}, GET /v1/capabilities, GET /healthz, GET /metrics, GET /jobs/{id} (live page).
+gRPC: signorini.v1.Simulation and grpc.health.v1.Health.
+zenoh: signorini/v1/jobs/{id}/status, …/state, …/energy (protobuf frames).")]
+pub struct ServeArgs {
+    /// TOML configuration file.
+    #[arg(long, env = "SIGNORINI_CONFIG")]
+    pub config: Option<PathBuf>,
+    /// gRPC listen address [default: 127.0.0.1:50051].
+    #[arg(long, env = "SIGNORINI_GRPC_ADDR")]
+    pub grpc_addr: Option<SocketAddr>,
+    /// HTTP listen address [default: 127.0.0.1:8080].
+    #[arg(long, env = "SIGNORINI_HTTP_ADDR")]
+    pub http_addr: Option<SocketAddr>,
+    /// SQLite store file [default: signorini.db].
+    #[arg(long, env = "SIGNORINI_STORE")]
+    pub store: Option<PathBuf>,
+    /// zenoh endpoint(s) the embedded peer listens on [default: tcp/127.0.0.1:7447].
+    #[arg(long, env = "SIGNORINI_ZENOH_LISTEN", value_delimiter = ',')]
+    pub zenoh_listen: Vec<String>,
+    /// zenoh router or peer endpoint(s) to connect to (none by default).
+    #[arg(long, env = "SIGNORINI_ZENOH_CONNECT", value_delimiter = ',')]
+    pub zenoh_connect: Vec<String>,
+    /// Worker threads [default: number of cores].
+    #[arg(long, env = "SIGNORINI_WORKERS")]
+    pub workers: Option<usize>,
+    /// Most jobs waiting in the queue; more are refused (429 / RESOURCE_EXHAUSTED) [default: 256].
+    #[arg(long, env = "SIGNORINI_QUEUE_LIMIT")]
+    pub queue_limit: Option<usize>,
+    /// Bearer token required by mutating calls (none by default; health and reads stay open).
+    #[arg(long, env = "SIGNORINI_TOKEN", hide_env_values = true)]
+    pub token: Option<String>,
+    /// Largest model accepted, in degrees of freedom [default: 100000].
+    #[arg(long, env = "SIGNORINI_MAX_DOFS")]
+    pub max_dofs: Option<u64>,
+    /// Most time steps per job [default: 100000000].
+    #[arg(long, env = "SIGNORINI_MAX_STEPS")]
+    pub max_steps: Option<u64>,
+    /// Largest estimated recorded output per job, in MiB [default: 1024].
+    #[arg(long, env = "SIGNORINI_MAX_OUTPUT_MB")]
+    pub max_output_mb: Option<u64>,
+}
+
+/// The `--config` file.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileConfig {
+    grpc_addr: Option<SocketAddr>,
+    http_addr: Option<SocketAddr>,
+    store: Option<PathBuf>,
+    zenoh_listen: Option<Vec<String>>,
+    zenoh_connect: Option<Vec<String>>,
+    workers: Option<usize>,
+    queue_limit: Option<usize>,
+    token: Option<String>,
+    max_dofs: Option<u64>,
+    max_steps: Option<u64>,
+    max_output_mb: Option<u64>,
+}
+
+/// Per-job limits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Limits {
+    /// Degrees of freedom.
+    pub max_dofs: u64,
+    /// Time steps (or analysis tasks).
+    pub max_steps: u64,
+    /// Estimated recorded output, bytes.
+    pub max_output_bytes: u64,
+}
+
+/// The resolved configuration.
+#[derive(Debug, Clone)]
+pub struct ServeConfig {
+    /// gRPC address.
+    pub grpc_addr: SocketAddr,
+    /// HTTP address.
+    pub http_addr: SocketAddr,
+    /// Store file.
+    pub store: PathBuf,
+    /// zenoh listen endpoints.
+    pub zenoh_listen: Vec<String>,
+    /// zenoh connect endpoints.
+    pub zenoh_connect: Vec<String>,
+    /// Worker threads.
+    pub workers: usize,
+    /// Queue limit.
+    pub queue_limit: usize,
+    /// Bearer token for mutating calls.
+    pub token: Option<String>,
+    /// Per-job limits.
+    pub limits: Limits,
+}
+
+impl ServeConfig {
+    /// Defaults < file < environment and flags (clap merges those two).
+    pub fn resolve(args: ServeArgs) -> Result<ServeConfig> {
+        let file = match &args.config {
+            Some(p) => {
+                let text = std::fs::read_to_string(p)
+                    .with_context(|| format!("reading {}", p.display()))?;
+                toml::from_str::<FileConfig>(&text)
+                    .with_context(|| format!("parsing {}", p.display()))?
+            }
+            None => FileConfig::default(),
+        };
+        let cores = std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1);
+        let pick = |flag: Vec<String>, file: Option<Vec<String>>, default: Vec<String>| {
+            if !flag.is_empty() {
+                flag
+            } else {
+                file.unwrap_or(default)
+            }
+        };
+        let cfg = ServeConfig {
+            grpc_addr: args
+                .grpc_addr
+                .or(file.grpc_addr)
+                .unwrap_or(SocketAddr::from(([127, 0, 0, 1], 50051))),
+            http_addr: args
+                .http_addr
+                .or(file.http_addr)
+                .unwrap_or(SocketAddr::from(([127, 0, 0, 1], 8080))),
+            store: args
+                .store
+                .or(file.store)
+                .unwrap_or_else(|| PathBuf::from("signorini.db")),
+            zenoh_listen: pick(
+                args.zenoh_listen,
+                file.zenoh_listen,
+                vec!["tcp/127.0.0.1:7447".into()],
+            ),
+            zenoh_connect: pick(args.zenoh_connect, file.zenoh_connect, Vec::new()),
+            workers: args.workers.or(file.workers).unwrap_or(cores),
+            queue_limit: args.queue_limit.or(file.queue_limit).unwrap_or(256),
+            token: args.token.or(file.token).filter(|t| !t.is_empty()),
+            limits: Limits {
+                max_dofs: args.max_dofs.or(file.max_dofs).unwrap_or(100_000),
+                max_steps: args.max_steps.or(file.max_steps).unwrap_or(100_000_000),
+                max_output_bytes: args
+                    .max_output_mb
+                    .or(file.max_output_mb)
+                    .unwrap_or(1024)
+                    .saturating_mul(1 << 20),
+            },
+        };
+        if cfg.workers == 0 {
+            bail!("workers must be at least 1");
+        }
+        if cfg.grpc_addr == cfg.http_addr && cfg.grpc_addr.port() != 0 {
+            bail!(
+                "--grpc-addr and --http-addr must differ ({})",
+                cfg.grpc_addr
+            );
+        }
+        Ok(cfg)
+    }
+}

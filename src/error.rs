@@ -1,0 +1,75 @@
+//! The service's typed errors. Handlers map them to gRPC codes (`server::grpc`) and HTTP
+//! statuses (`server::http`) at the edges; nothing below the edges knows either protocol.
+
+use signorini_core::spec::SpecError;
+use thiserror::Error;
+
+/// Why a service call failed.
+#[derive(Debug, Error)]
+pub enum ApiError {
+    /// The spec (or a request field) is invalid: the field and why.
+    #[error("invalid {}: {}", .0.field, .0.reason)]
+    Invalid(SpecError),
+    /// No job with this id.
+    #[error("no job {id}")]
+    NotFound {
+        /// The id asked for.
+        id: String,
+    },
+    /// A client-chosen id is already taken.
+    #[error("job {id} already exists")]
+    AlreadyExists {
+        /// The id.
+        id: String,
+    },
+    /// The queue holds `limit` jobs already.
+    #[error("queue full ({limit} jobs waiting)")]
+    QueueFull {
+        /// The configured queue limit.
+        limit: usize,
+    },
+    /// The job has no result (yet, or ever).
+    #[error("job {id} is {state}: no result")]
+    NoResult {
+        /// The job.
+        id: String,
+        /// Its state.
+        state: &'static str,
+    },
+    /// Missing or wrong bearer token on a mutating call.
+    #[error("missing or invalid bearer token")]
+    Unauthenticated,
+    /// The server is shutting down.
+    #[error("shutting down")]
+    Unavailable,
+    /// A store or internal failure.
+    #[error("internal error: {0}")]
+    Internal(String),
+}
+
+impl ApiError {
+    /// The `{field, reason}` pair of the error body.
+    pub fn field_reason(&self) -> (String, String) {
+        match self {
+            ApiError::Invalid(e) => (e.field.clone(), e.reason.clone()),
+            ApiError::NotFound { .. }
+            | ApiError::AlreadyExists { .. }
+            | ApiError::NoResult { .. } => ("id".into(), self.to_string()),
+            ApiError::Unauthenticated => ("authorization".into(), self.to_string()),
+            ApiError::QueueFull { .. } => ("queue".into(), self.to_string()),
+            ApiError::Unavailable | ApiError::Internal(_) => (String::new(), self.to_string()),
+        }
+    }
+}
+
+impl From<SpecError> for ApiError {
+    fn from(e: SpecError) -> Self {
+        ApiError::Invalid(e)
+    }
+}
+
+impl From<crate::store::StoreError> for ApiError {
+    fn from(e: crate::store::StoreError) -> Self {
+        ApiError::Internal(e.to_string())
+    }
+}

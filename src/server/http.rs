@@ -1,0 +1,263 @@
+//! HTTP/JSON API (axum). Each handler: validate → convert → dispatch to the [`Engine`] → respond.
+//! Errors are `{"error": {"field", "reason"}}` with a status code per [`ApiError`] kind.
+
+use super::AppState;
+use crate::error::ApiError;
+use crate::proto::v1::{StepFrame, watch_frame};
+use crate::spec_file::{self, Format};
+use crate::store::{JobState, StoredResult};
+use crate::worker::JobView;
+use axum::extract::{Path, Query, State};
+use axum::http::{HeaderMap, StatusCode, header};
+use axum::response::sse::{Event, KeepAlive, Sse};
+use axum::response::{Html, IntoResponse, Response};
+use axum::routing::get;
+use axum::{Json, Router};
+use serde::Deserialize;
+use serde_json::{Map, Value, json};
+use std::convert::Infallible;
+use std::fmt::Write as _;
+use std::time::Duration;
+use tokio_stream::StreamExt;
+use tokio_stream::wrappers::BroadcastStream;
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let code = match &self {
+            ApiError::Invalid(_) => StatusCode::BAD_REQUEST,
+            ApiError::NotFound { .. } => StatusCode::NOT_FOUND,
+            ApiError::AlreadyExists { .. } | ApiError::NoResult { .. } => StatusCode::CONFLICT,
+            ApiError::QueueFull { .. } => StatusCode::TOO_MANY_REQUESTS,
+            ApiError::Unauthenticated => StatusCode::UNAUTHORIZED,
+            ApiError::Unavailable => StatusCode::SERVICE_UNAVAILABLE,
+            ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
+        };
+        if code.is_server_error() {
+            tracing::error!("{self}");
+        }
+        let (field, reason) = self.field_reason();
+        let mut resp = (
+            code,
+            Json(json!({ "error": { "field": field, "reason": reason } })),
+        )
+            .into_response();
+        if code == StatusCode::UNAUTHORIZED {
+            resp.headers_mut().insert(
+                header::WWW_AUTHENTICATE,
+                header::HeaderValue::from_static("Bearer"),
+            );
+        }
+        resp
+    }
+}
+
+/// The routes.
+pub fn router(state: AppState) -> Router {
+    Router::new()
+        .route("/v1/jobs", get(list_jobs).post(submit_job))
+        .route("/v1/jobs/{id}", get(get_job).delete(cancel_job))
+        .route("/v1/jobs/{id}/result", get(get_result))
+        .route("/v1/jobs/{id}/events", get(job_events))
+        .route("/v1/capabilities", get(capabilities))
+        .route("/healthz", get(healthz))
+        .route("/metrics", get(metrics))
+        .route("/jobs/{id}", get(live_page))
+        .with_state(state)
+}
+
+fn authorize(state: &AppState, headers: &HeaderMap) -> Result<(), ApiError> {
+    let given = headers
+        .get(header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok());
+    state.authorize(given)
+}
+
+/// The status body: `{"id", "state", "progress": {"step", "total", "t", "fraction"}, …}`.
+pub fn status_json(v: &JobView) -> Value {
+    json!({
+        "id": v.id,
+        "name": v.name,
+        "state": v.state.as_str(),
+        "progress": { "step": v.done, "total": v.total, "t": v.t, "fraction": v.fraction() },
+        "error": v.error.as_ref().map(|(f, r)| json!({ "field": f, "reason": r })),
+        "created_ms": v.created_ms,
+        "started_ms": v.started_ms,
+        "finished_ms": v.finished_ms,
+    })
+}
+
+#[derive(Debug, Deserialize)]
+struct SubmitQuery {
+    id: Option<String>,
+}
+
+async fn submit_job(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    Query(q): Query<SubmitQuery>,
+    body: String,
+) -> Result<(StatusCode, Json<Value>), ApiError> {
+    authorize(&state, &headers)?;
+    let spec = spec_file::parse(&body, Format::Json)?;
+    let id = state.engine.submit(&spec, q.id)?;
+    Ok((StatusCode::CREATED, Json(json!({ "id": id }))))
+}
+
+async fn list_jobs(State(state): State<AppState>) -> Result<Json<Value>, ApiError> {
+    let jobs = state.engine.list()?;
+    Ok(Json(
+        json!({ "jobs": jobs.iter().map(status_json).collect::<Vec<_>>() }),
+    ))
+}
+
+async fn get_job(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Json<Value>, ApiError> {
+    Ok(Json(status_json(&state.engine.status(&id)?)))
+}
+
+async fn cancel_job(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Json<Value>, ApiError> {
+    authorize(&state, &headers)?;
+    Ok(Json(status_json(&state.cancel_and_wait(&id).await?)))
+}
+
+/// `{"id", "summary", "columns", "steps": {"step": […], "t": […], column: […]}, "tables"}`.
+pub fn result_json(view: &JobView, r: &StoredResult) -> Value {
+    let mut steps = Map::new();
+    steps.insert("step".into(), json!(r.steps));
+    steps.insert("t".into(), json!(r.t));
+    for (c, name) in r.columns.iter().enumerate() {
+        steps.insert(name.clone(), json!(r.column(c)));
+    }
+    let mut columns = vec!["step".to_string(), "t".to_string()];
+    columns.extend(r.columns.iter().cloned());
+    json!({
+        "id": view.id,
+        "state": view.state.as_str(),
+        "summary": r.summary,
+        "columns": columns,
+        "steps": steps,
+        "tables": r.tables.iter().map(|t| json!({ "name": t.name, "columns": t.columns, "rows": t.rows })).collect::<Vec<_>>(),
+    })
+}
+
+async fn get_result(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Json<Value>, ApiError> {
+    let engine = state.engine.clone();
+    let (view, result) = tokio::task::spawn_blocking(move || engine.result(&id))
+        .await
+        .map_err(|e| ApiError::Internal(e.to_string()))??;
+    Ok(Json(result_json(&view, &result)))
+}
+
+async fn capabilities() -> Json<Value> {
+    Json(serde_json::to_value(signorini_core::capabilities::capabilities()).unwrap_or(Value::Null))
+}
+
+async fn healthz() -> Json<Value> {
+    Json(json!({ "status": "ok" }))
+}
+
+async fn metrics(State(state): State<AppState>) -> Result<Response, ApiError> {
+    let counts = state.engine.counts()?;
+    let steps = state.engine.steps_total();
+    let rate = state.steps_rate(steps);
+    let stats = state.engine.stream_stats();
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "# HELP signorini_jobs Jobs by state.\n# TYPE signorini_jobs gauge"
+    );
+    for (st, n) in counts {
+        let _ = writeln!(s, "signorini_jobs{{state=\"{}\"}} {n}", st.as_str());
+    }
+    let _ = writeln!(
+        s,
+        "# HELP signorini_queue_depth Jobs waiting for a worker.\n# TYPE signorini_queue_depth gauge"
+    );
+    let _ = writeln!(s, "signorini_queue_depth {}", state.engine.queue_depth());
+    let _ = writeln!(
+        s,
+        "# HELP signorini_workers Worker threads.\n# TYPE signorini_workers gauge"
+    );
+    let _ = writeln!(s, "signorini_workers {}", state.engine.workers());
+    let _ = writeln!(
+        s,
+        "# HELP signorini_steps_total Time steps computed.\n# TYPE signorini_steps_total counter"
+    );
+    let _ = writeln!(s, "signorini_steps_total {steps}");
+    let _ = writeln!(
+        s,
+        "# HELP signorini_steps_per_second Steps per second since the previous scrape.\n# TYPE signorini_steps_per_second gauge"
+    );
+    let _ = writeln!(s, "signorini_steps_per_second {rate}");
+    let _ = writeln!(
+        s,
+        "# HELP signorini_frames_published_total zenoh frames put.\n# TYPE signorini_frames_published_total counter"
+    );
+    let _ = writeln!(
+        s,
+        "signorini_frames_published_total {}",
+        stats
+            .frames_published
+            .load(std::sync::atomic::Ordering::Relaxed)
+    );
+    let _ = writeln!(
+        s,
+        "# HELP signorini_frames_dropped_total Step frames dropped for a slow link.\n# TYPE signorini_frames_dropped_total counter"
+    );
+    let _ = writeln!(
+        s,
+        "signorini_frames_dropped_total {}",
+        stats
+            .frames_dropped
+            .load(std::sync::atomic::Ordering::Relaxed)
+    );
+    Ok(([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], s).into_response())
+}
+
+fn frame_json(f: &StepFrame) -> Value {
+    let n = f.columns.len().max(1);
+    let rows: Vec<&[f64]> = f.values.chunks(n).collect();
+    json!({ "columns": f.columns, "step": f.step, "t": f.t, "rows": rows, "last": f.last })
+}
+
+/// Server-sent events of a job: `status` and `energy` events as JSON (feeds the live page).
+async fn job_events(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Sse<impl tokio_stream::Stream<Item = Result<Event, Infallible>>>, ApiError> {
+    let current = state.engine.status(&id)?;
+    let rx = state.watch();
+    let first = Event::default()
+        .event("status")
+        .json_data(status_json(&current))
+        .ok();
+    let frames = BroadcastStream::new(rx).filter_map(move |msg| {
+        let frame = msg.ok()?;
+        match frame.frame.as_ref()? {
+            watch_frame::Frame::Status(s) if s.id == id => {
+                let state = super::convert::state_from_proto(s.state).map_or("unknown", JobState::as_str);
+                let p = s.progress.clone().unwrap_or_default();
+                let body = json!({ "id": s.id, "state": state, "progress": { "step": p.step, "total": p.total, "t": p.t, "fraction": p.fraction } });
+                Event::default().event("status").json_data(body).ok()
+            }
+            watch_frame::Frame::Energy(f) if f.id == id => Event::default().event("energy").json_data(frame_json(f)).ok(),
+            _ => None,
+        }
+    });
+    let stream = tokio_stream::iter(first).chain(frames).map(Ok);
+    Ok(Sse::new(stream).keep_alive(KeepAlive::new().interval(Duration::from_secs(10))))
+}
+
+async fn live_page(Path(id): Path<String>) -> Result<Html<String>, ApiError> {
+    crate::worker::check_id(&id)?;
+    Ok(Html(include_str!("live.html").replace("{{JOB_ID}}", &id)))
+}

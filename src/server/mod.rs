@@ -1,0 +1,180 @@
+//! `signorini serve`: the gRPC and HTTP listeners, the embedded zenoh peer, the store and the
+//! worker pool, wired together; graceful shutdown on SIGINT/SIGTERM.
+
+pub mod convert;
+pub mod grpc;
+pub mod http;
+
+use crate::config::ServeConfig;
+use crate::error::ApiError;
+use crate::proto::v1::WatchFrame;
+use crate::proto::v1::simulation_server::SimulationServer;
+use crate::store::Store;
+use crate::stream::{self, Streamer, ZenohOptions};
+use crate::worker::{Engine, JobView};
+use anyhow::{Context, Result};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tokio::sync::broadcast;
+
+/// What every handler shares.
+#[derive(Clone)]
+pub struct AppState {
+    /// The job engine.
+    pub engine: Engine,
+    token: Option<Arc<str>>,
+    frames: broadcast::Sender<Arc<WatchFrame>>,
+    rate: Arc<Mutex<(Instant, u64)>>,
+}
+
+impl AppState {
+    /// Checks an `Authorization` header value against the configured token (always fine when
+    /// no token is configured).
+    pub fn authorize(&self, header: Option<&str>) -> Result<(), ApiError> {
+        let Some(token) = &self.token else {
+            return Ok(());
+        };
+        let given = header
+            .and_then(|h| h.strip_prefix("Bearer "))
+            .map(str::trim);
+        match given {
+            Some(g) if constant_time_eq(g.as_bytes(), token.as_bytes()) => Ok(()),
+            _ => Err(ApiError::Unauthenticated),
+        }
+    }
+
+    /// Every published frame (gRPC `WatchJob`, SSE).
+    pub fn watch(&self) -> broadcast::Receiver<Arc<WatchFrame>> {
+        self.frames.subscribe()
+    }
+
+    /// Cancels a job and waits (up to 5 s) until a running one has stopped.
+    pub async fn cancel_and_wait(&self, id: &str) -> Result<JobView, ApiError> {
+        let ended = self.engine.ended(id);
+        let view = self.engine.cancel(id)?;
+        if view.state.is_terminal() {
+            return Ok(view);
+        }
+        if let Some(mut rx) = ended {
+            let _ = tokio::time::timeout(Duration::from_secs(5), rx.wait_for(|ended| *ended)).await;
+        }
+        self.engine.status(id)
+    }
+
+    /// Steps per second since the previous call.
+    pub fn steps_rate(&self, total: u64) -> f64 {
+        let mut last = self.rate.lock().unwrap_or_else(|p| p.into_inner());
+        let dt = last.0.elapsed().as_secs_f64();
+        let rate = if dt > 0.0 {
+            total.saturating_sub(last.1) as f64 / dt
+        } else {
+            0.0
+        };
+        *last = (Instant::now(), total);
+        rate
+    }
+}
+
+fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        () = ctrl_c => {}
+        () = term => {}
+    }
+}
+
+/// Runs the service until SIGINT/SIGTERM.
+pub async fn serve(cfg: ServeConfig) -> Result<()> {
+    let session = stream::open_session(&ZenohOptions {
+        listen: cfg.zenoh_listen.clone(),
+        connect: cfg.zenoh_connect.clone(),
+    })
+    .await?;
+    let (streamer, sink) = Streamer::start(session.clone());
+    let store = Store::open(&cfg.store)
+        .with_context(|| format!("opening store {}", cfg.store.display()))?;
+    let engine = Engine::start(store, cfg.limits, cfg.queue_limit, cfg.workers, sink)
+        .map_err(anyhow::Error::from)?;
+    {
+        let engine = engine.clone();
+        stream::serve_status_queryable(session.clone(), move |id| {
+            engine.find(id).map(|v| convert::status_to_proto(&v))
+        })
+        .await?;
+    }
+    let state = AppState {
+        engine: engine.clone(),
+        token: cfg.token.as_deref().map(Arc::from),
+        frames: streamer_sender(&streamer),
+        rate: Arc::new(Mutex::new((Instant::now(), 0))),
+    };
+
+    let grpc_listener = tokio::net::TcpListener::bind(cfg.grpc_addr)
+        .await
+        .with_context(|| format!("binding {}", cfg.grpc_addr))?;
+    let http_listener = tokio::net::TcpListener::bind(cfg.http_addr)
+        .await
+        .with_context(|| format!("binding {}", cfg.http_addr))?;
+    let grpc_addr = grpc_listener.local_addr()?;
+    let http_addr = http_listener.local_addr()?;
+
+    let (health, health_service) = tonic_health::server::health_reporter();
+    health
+        .set_serving::<SimulationServer<grpc::SimulationService>>()
+        .await;
+
+    let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
+    let stopped = |mut rx: tokio::sync::watch::Receiver<bool>| async move {
+        let _ = rx.wait_for(|s| *s).await;
+    };
+    let grpc = tonic::transport::Server::builder()
+        .add_service(health_service)
+        .add_service(
+            SimulationServer::new(grpc::SimulationService::new(state.clone()))
+                .max_encoding_message_size(crate::cli::client::MAX_MESSAGE)
+                .max_decoding_message_size(64 << 20),
+        )
+        .serve_with_incoming_shutdown(
+            tokio_stream::wrappers::TcpListenerStream::new(grpc_listener),
+            stopped(stop_rx.clone()),
+        );
+    let http = axum::serve(http_listener, http::router(state.clone()))
+        .with_graceful_shutdown(stopped(stop_rx));
+    let grpc_task = tokio::spawn(grpc);
+    let http_task = tokio::spawn(async move { http.await });
+    tracing::info!(%grpc_addr, %http_addr, store = %cfg.store.display(), workers = cfg.workers, "serving");
+    println!("signorini serving gRPC on {grpc_addr}, HTTP on {http_addr}");
+
+    shutdown_signal().await;
+    tracing::info!("shutting down");
+    let _ = stop_tx.send(true);
+    let _ = tokio::time::timeout(Duration::from_secs(10), grpc_task).await;
+    let _ = tokio::time::timeout(Duration::from_secs(10), http_task).await;
+    let e = engine.clone();
+    tokio::task::spawn_blocking(move || e.shutdown()).await?;
+    drop(state);
+    drop(engine);
+    streamer.close().await;
+    Ok(())
+}
+
+fn streamer_sender(s: &Streamer) -> broadcast::Sender<Arc<WatchFrame>> {
+    s.sender()
+}

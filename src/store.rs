@@ -1,0 +1,508 @@
+//! The result store: one embedded SQLite file (WAL) with every job's spec, status, summary and
+//! recorded series.
+//!
+//! A job's row is written when it is accepted, updated when it starts, and completed in one
+//! transaction with its result, so a crash (SIGKILL) leaves every finished result whole and every
+//! unfinished job marked `queued` or `running`; [`Store::recover`] turns the latter back into
+//! `queued` at start-up. Series are stored as little-endian f64 blobs: what is read back is what
+//! was computed, bit for bit.
+
+use rusqlite::{Connection, OptionalExtension, params};
+use serde_json::{Map, Value};
+use signorini_core::job::Table;
+use std::path::Path;
+use std::sync::Mutex;
+use thiserror::Error;
+
+/// A store failure.
+#[derive(Debug, Error)]
+pub enum StoreError {
+    /// SQLite said no.
+    #[error("store: {0}")]
+    Sql(#[from] rusqlite::Error),
+    /// A stored value does not decode.
+    #[error("store: corrupt {what} of job {id}")]
+    Corrupt {
+        /// Which column.
+        what: &'static str,
+        /// Which job.
+        id: String,
+    },
+}
+
+/// Lifecycle of a job.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum JobState {
+    /// Waiting for a worker.
+    Queued,
+    /// On a worker.
+    Running,
+    /// Finished with a result.
+    Succeeded,
+    /// Stopped by an error (the error names the step or the field).
+    Failed,
+    /// Stopped by a cancel call.
+    Cancelled,
+}
+
+impl JobState {
+    /// Every state, in lifecycle order.
+    pub const ALL: [JobState; 5] = [
+        JobState::Queued,
+        JobState::Running,
+        JobState::Succeeded,
+        JobState::Failed,
+        JobState::Cancelled,
+    ];
+
+    /// The name used in HTTP bodies, the store and metrics.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            JobState::Queued => "queued",
+            JobState::Running => "running",
+            JobState::Succeeded => "succeeded",
+            JobState::Failed => "failed",
+            JobState::Cancelled => "cancelled",
+        }
+    }
+
+    /// Parses [`JobState::as_str`].
+    pub fn parse(s: &str) -> Option<JobState> {
+        JobState::ALL.into_iter().find(|x| x.as_str() == s)
+    }
+
+    /// True when the job will not change any more.
+    pub fn is_terminal(self) -> bool {
+        matches!(
+            self,
+            JobState::Succeeded | JobState::Failed | JobState::Cancelled
+        )
+    }
+}
+
+/// One job's row.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JobRow {
+    /// Id.
+    pub id: String,
+    /// Optional label from the spec.
+    pub name: Option<String>,
+    /// The spec, as JSON (the serde schema).
+    pub spec_json: String,
+    /// State.
+    pub state: JobState,
+    /// Acceptance time (ms since the epoch).
+    pub created_ms: u64,
+    /// Start time of the last attempt (0 if never started).
+    pub started_ms: u64,
+    /// End time (0 while unfinished).
+    pub finished_ms: u64,
+    /// Error field and reason of a failed job.
+    pub error: Option<(String, String)>,
+    /// Steps done when the job ended (or 0).
+    pub done: u64,
+    /// Steps in all.
+    pub total: u64,
+    /// Time reached when the job ended.
+    pub t: f64,
+}
+
+/// A finished job's result.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct StoredResult {
+    /// summary.json.
+    pub summary: Map<String, Value>,
+    /// Columns besides `step` and `t`.
+    pub columns: Vec<String>,
+    /// Step numbers of the records.
+    pub steps: Vec<u64>,
+    /// Times of the records.
+    pub t: Vec<f64>,
+    /// Values, row-major (`values[i * columns.len() + c]`).
+    pub values: Vec<f64>,
+    /// Extra tables (analyses).
+    pub tables: Vec<Table>,
+}
+
+impl StoredResult {
+    /// The values of column `c`.
+    pub fn column(&self, c: usize) -> Vec<f64> {
+        let n = self.columns.len();
+        self.values
+            .iter()
+            .skip(c)
+            .step_by(n.max(1))
+            .copied()
+            .collect()
+    }
+}
+
+/// The SQLite store (one connection behind a mutex: calls are short).
+pub struct Store {
+    conn: Mutex<Connection>,
+}
+
+const SCHEMA: &str = "
+CREATE TABLE IF NOT EXISTS jobs (
+    seq INTEGER PRIMARY KEY AUTOINCREMENT,
+    id TEXT NOT NULL UNIQUE,
+    name TEXT,
+    spec_json TEXT NOT NULL,
+    state TEXT NOT NULL,
+    created_ms INTEGER NOT NULL,
+    started_ms INTEGER NOT NULL DEFAULT 0,
+    finished_ms INTEGER NOT NULL DEFAULT 0,
+    error_field TEXT,
+    error_reason TEXT,
+    done INTEGER NOT NULL DEFAULT 0,
+    total INTEGER NOT NULL DEFAULT 0,
+    t REAL NOT NULL DEFAULT 0
+);
+CREATE TABLE IF NOT EXISTS results (
+    id TEXT PRIMARY KEY REFERENCES jobs(id),
+    summary_json TEXT NOT NULL,
+    columns_json TEXT NOT NULL,
+    steps BLOB NOT NULL,
+    t BLOB NOT NULL,
+    vals BLOB NOT NULL,
+    tables_json TEXT NOT NULL
+);
+";
+
+fn f64s_to_blob(v: &[f64]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+fn u64s_to_blob(v: &[u64]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+fn blob_to_8(b: &[u8]) -> Option<impl Iterator<Item = [u8; 8]> + '_> {
+    if b.len() % 8 != 0 {
+        return None;
+    }
+    Some(b.chunks_exact(8).map(|c| {
+        let mut a = [0u8; 8];
+        a.copy_from_slice(c);
+        a
+    }))
+}
+
+#[derive(serde::Serialize, serde::Deserialize)]
+struct TableJson {
+    name: String,
+    columns: Vec<String>,
+    rows: Vec<Vec<f64>>,
+}
+
+const JOB_COLUMNS: &str = "id, name, spec_json, state, created_ms, started_ms, finished_ms, error_field, error_reason, done, total, t";
+
+fn row_to_job(r: &rusqlite::Row<'_>) -> rusqlite::Result<(JobRow, String)> {
+    let state: String = r.get(3)?;
+    let field: Option<String> = r.get(7)?;
+    let reason: Option<String> = r.get(8)?;
+    Ok((
+        JobRow {
+            id: r.get(0)?,
+            name: r.get(1)?,
+            spec_json: r.get(2)?,
+            state: JobState::Queued,
+            created_ms: r.get::<_, i64>(4)? as u64,
+            started_ms: r.get::<_, i64>(5)? as u64,
+            finished_ms: r.get::<_, i64>(6)? as u64,
+            error: match (field, reason) {
+                (Some(f), Some(r)) => Some((f, r)),
+                _ => None,
+            },
+            done: r.get::<_, i64>(9)? as u64,
+            total: r.get::<_, i64>(10)? as u64,
+            t: r.get(11)?,
+        },
+        state,
+    ))
+}
+
+fn finish_row((mut row, state): (JobRow, String)) -> Result<JobRow, StoreError> {
+    row.state = JobState::parse(&state).ok_or_else(|| StoreError::Corrupt {
+        what: "state",
+        id: row.id.clone(),
+    })?;
+    Ok(row)
+}
+
+impl Store {
+    /// Opens (or creates) the store at `path` in WAL mode. `:memory:` gives a throwaway store.
+    pub fn open(path: &Path) -> Result<Store, StoreError> {
+        let conn = Connection::open(path)?;
+        // WAL + synchronous=NORMAL: a committed transaction survives a process crash.
+        conn.pragma_update(None, "journal_mode", "WAL")?;
+        conn.pragma_update(None, "synchronous", "NORMAL")?;
+        conn.busy_timeout(std::time::Duration::from_secs(5))?;
+        conn.execute_batch(SCHEMA)?;
+        Ok(Store {
+            conn: Mutex::new(conn),
+        })
+    }
+
+    fn conn(&self) -> std::sync::MutexGuard<'_, Connection> {
+        // A panic while holding the lock leaves SQLite consistent (transactions roll back).
+        self.conn.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Records a new queued job. False when the id is taken.
+    pub fn insert(&self, row: &JobRow) -> Result<bool, StoreError> {
+        let n = self.conn().execute(
+            "INSERT OR IGNORE INTO jobs (id, name, spec_json, state, created_ms, total) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+            params![row.id, row.name, row.spec_json, row.state.as_str(), row.created_ms as i64, row.total as i64],
+        )?;
+        Ok(n == 1)
+    }
+
+    /// Marks a job running.
+    pub fn set_running(&self, id: &str, started_ms: u64) -> Result<(), StoreError> {
+        self.conn().execute(
+            "UPDATE jobs SET state = 'running', started_ms = ?2 WHERE id = ?1",
+            params![id, started_ms as i64],
+        )?;
+        Ok(())
+    }
+
+    /// Ends a job: its final state, error, progress and (for a success) its result, in one
+    /// transaction.
+    pub fn finish(&self, row: &JobRow, result: Option<&StoredResult>) -> Result<(), StoreError> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        if let Some(r) = result {
+            let tables: Vec<TableJson> = r
+                .tables
+                .iter()
+                .map(|t| TableJson {
+                    name: t.name.clone(),
+                    columns: t.columns.clone(),
+                    rows: t.rows.clone(),
+                })
+                .collect();
+            tx.execute(
+                "INSERT OR REPLACE INTO results (id, summary_json, columns_json, steps, t, vals, tables_json)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+                params![
+                    row.id,
+                    serde_json::to_string(&r.summary).unwrap_or_else(|_| "{}".into()),
+                    serde_json::to_string(&r.columns).unwrap_or_else(|_| "[]".into()),
+                    u64s_to_blob(&r.steps),
+                    f64s_to_blob(&r.t),
+                    f64s_to_blob(&r.values),
+                    serde_json::to_string(&tables).unwrap_or_else(|_| "[]".into()),
+                ],
+            )?;
+        }
+        let (field, reason) = match &row.error {
+            Some((f, r)) => (Some(f.as_str()), Some(r.as_str())),
+            None => (None, None),
+        };
+        tx.execute(
+            "UPDATE jobs SET state = ?2, finished_ms = ?3, error_field = ?4, error_reason = ?5, done = ?6, total = ?7, t = ?8
+             WHERE id = ?1",
+            params![
+                row.id,
+                row.state.as_str(),
+                row.finished_ms as i64,
+                field,
+                reason,
+                row.done as i64,
+                row.total as i64,
+                row.t
+            ],
+        )?;
+        tx.commit()?;
+        Ok(())
+    }
+
+    /// One job.
+    pub fn get(&self, id: &str) -> Result<Option<JobRow>, StoreError> {
+        let conn = self.conn();
+        let row = conn
+            .query_row(
+                &format!("SELECT {JOB_COLUMNS} FROM jobs WHERE id = ?1"),
+                [id],
+                row_to_job,
+            )
+            .optional()?;
+        row.map(finish_row).transpose()
+    }
+
+    /// Every job, oldest first.
+    pub fn list(&self) -> Result<Vec<JobRow>, StoreError> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(&format!("SELECT {JOB_COLUMNS} FROM jobs ORDER BY seq"))?;
+        let rows = stmt
+            .query_map([], row_to_job)?
+            .collect::<Result<Vec<_>, _>>()?;
+        rows.into_iter().map(finish_row).collect()
+    }
+
+    /// At start-up: every job that was queued or running when the last process stopped, oldest
+    /// first, now marked queued again.
+    pub fn recover(&self) -> Result<Vec<JobRow>, StoreError> {
+        self.conn().execute(
+            "UPDATE jobs SET state = 'queued', started_ms = 0 WHERE state = 'running'",
+            [],
+        )?;
+        Ok(self
+            .list()?
+            .into_iter()
+            .filter(|r| r.state == JobState::Queued)
+            .collect())
+    }
+
+    /// Number of jobs per state.
+    pub fn counts(&self) -> Result<Vec<(JobState, u64)>, StoreError> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare("SELECT state, COUNT(*) FROM jobs GROUP BY state")?;
+        let rows = stmt
+            .query_map([], |r| {
+                Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)? as u64))
+            })?
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(JobState::ALL
+            .into_iter()
+            .map(|s| {
+                (
+                    s,
+                    rows.iter()
+                        .find(|(n, _)| n == s.as_str())
+                        .map_or(0, |(_, c)| *c),
+                )
+            })
+            .collect())
+    }
+
+    /// The result of a succeeded job.
+    pub fn result(&self, id: &str) -> Result<Option<StoredResult>, StoreError> {
+        let conn = self.conn();
+        let raw = conn
+            .query_row(
+                "SELECT summary_json, columns_json, steps, t, vals, tables_json FROM results WHERE id = ?1",
+                [id],
+                |r| {
+                    Ok((
+                        r.get::<_, String>(0)?,
+                        r.get::<_, String>(1)?,
+                        r.get::<_, Vec<u8>>(2)?,
+                        r.get::<_, Vec<u8>>(3)?,
+                        r.get::<_, Vec<u8>>(4)?,
+                        r.get::<_, String>(5)?,
+                    ))
+                },
+            )
+            .optional()?;
+        let Some((summary, columns, steps, t, vals, tables)) = raw else {
+            return Ok(None);
+        };
+        let corrupt = |what| StoreError::Corrupt {
+            what,
+            id: id.to_string(),
+        };
+        let summary: Map<String, Value> =
+            serde_json::from_str(&summary).map_err(|_| corrupt("summary"))?;
+        let columns: Vec<String> =
+            serde_json::from_str(&columns).map_err(|_| corrupt("columns"))?;
+        let tables: Vec<TableJson> =
+            serde_json::from_str(&tables).map_err(|_| corrupt("tables"))?;
+        let steps: Vec<u64> = blob_to_8(&steps)
+            .ok_or_else(|| corrupt("steps"))?
+            .map(u64::from_le_bytes)
+            .collect();
+        let t: Vec<f64> = blob_to_8(&t)
+            .ok_or_else(|| corrupt("t"))?
+            .map(f64::from_le_bytes)
+            .collect();
+        let values: Vec<f64> = blob_to_8(&vals)
+            .ok_or_else(|| corrupt("values"))?
+            .map(f64::from_le_bytes)
+            .collect();
+        if t.len() != steps.len() || values.len() != steps.len() * columns.len() {
+            return Err(corrupt("series"));
+        }
+        Ok(Some(StoredResult {
+            summary,
+            columns,
+            steps,
+            t,
+            values,
+            tables: tables
+                .into_iter()
+                .map(|t| Table {
+                    name: t.name,
+                    columns: t.columns,
+                    rows: t.rows,
+                })
+                .collect(),
+        }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(id: &str) -> JobRow {
+        JobRow {
+            id: id.into(),
+            name: None,
+            spec_json: "{}".into(),
+            state: JobState::Queued,
+            created_ms: 1,
+            started_ms: 0,
+            finished_ms: 0,
+            error: None,
+            done: 0,
+            total: 10,
+            t: 0.0,
+        }
+    }
+
+    #[test]
+    fn result_round_trips_bit_for_bit_and_running_jobs_recover_as_queued() -> Result<(), StoreError>
+    {
+        let dir = tempfile::tempdir().map_err(|_| StoreError::Corrupt {
+            what: "tmp",
+            id: String::new(),
+        })?;
+        let path = dir.path().join("s.db");
+        {
+            let s = Store::open(&path)?;
+            assert!(s.insert(&row("a"))?);
+            assert!(!s.insert(&row("a"))?);
+            assert!(s.insert(&row("b"))?);
+            s.set_running("b", 5)?;
+            let r = StoredResult {
+                columns: vec!["x".into(), "y".into()],
+                steps: vec![0, 1],
+                t: vec![0.0, 0.1],
+                values: vec![1.0 / 3.0, f64::MIN_POSITIVE, -0.0, 1e300],
+                ..Default::default()
+            };
+            let mut done = row("a");
+            done.state = JobState::Succeeded;
+            s.finish(&done, Some(&r))?;
+            let back = s.result("a")?.ok_or(StoreError::Corrupt {
+                what: "missing",
+                id: "a".into(),
+            })?;
+            assert_eq!(
+                back.values.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                r.values.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+            );
+            assert_eq!(back.column(1), vec![f64::MIN_POSITIVE, 1e300]);
+        }
+        let s = Store::open(&path)?;
+        let again = s.recover()?;
+        assert_eq!(
+            again.iter().map(|r| r.id.as_str()).collect::<Vec<_>>(),
+            vec!["b"]
+        );
+        assert_eq!(s.get("a")?.map(|r| r.state), Some(JobState::Succeeded));
+        Ok(())
+    }
+}

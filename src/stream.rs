@@ -1,0 +1,342 @@
+//! Live streams over zenoh: `signorini/v1/jobs/{id}/status`, `…/{id}/state`, `…/{id}/energy`.
+//!
+//! Workers hand frames to one publishing task through a bounded channel: step frames with
+//! `try_send` (a full channel drops the frame and counts it — a slow or absent subscriber never
+//! blocks a job), status messages and each run's last frames with a blocking send. The task
+//! declares one publisher per key and job: `state`/`energy` with congestion control *drop*, `status`
+//! with *block* and a higher priority; the last frame of a run is put with *block* too. Every
+//! message also goes to an in-process broadcast that feeds gRPC `WatchJob`.
+//!
+//! A queryable on `signorini/v1/jobs/*/status` answers the latest status of a job, for late
+//! joiners (`signorini watch`) and as a barrier: once a query from a session is answered, the
+//! subscribers it declared before are known here.
+
+use crate::proto::v1::{JobStatus, StepFrame, WatchFrame, watch_frame};
+use anyhow::{Context, Result, anyhow};
+use prost::Message;
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use tokio::sync::{broadcast, mpsc};
+use zenoh::Session;
+use zenoh::bytes::Encoding;
+use zenoh::pubsub::Publisher;
+use zenoh::qos::{CongestionControl, Priority};
+
+/// Key of a job's status frames.
+pub fn status_key(id: &str) -> String {
+    format!("signorini/v1/jobs/{id}/status")
+}
+
+/// Key of a job's state frames (contact and probe columns).
+pub fn state_key(id: &str) -> String {
+    format!("signorini/v1/jobs/{id}/state")
+}
+
+/// Key of a job's energy frames (energy terms and works).
+pub fn energy_key(id: &str) -> String {
+    format!("signorini/v1/jobs/{id}/energy")
+}
+
+/// Subscriber-side wildcard of every job's status.
+pub const STATUS_WILDCARD: &str = "signorini/v1/jobs/*/status";
+
+/// The job id in a `signorini/v1/jobs/{id}/…` key.
+pub fn id_of_key(key: &str) -> Option<&str> {
+    key.strip_prefix("signorini/v1/jobs/")?.split('/').next()
+}
+
+/// How the zenoh session joins the network.
+#[derive(Debug, Clone, Default)]
+pub struct ZenohOptions {
+    /// Endpoints to listen on (`tcp/127.0.0.1:7447`).
+    pub listen: Vec<String>,
+    /// Endpoints to connect to (routers or peers).
+    pub connect: Vec<String>,
+}
+
+/// Opens a zenoh peer: explicit endpoints, multicast scouting off.
+pub async fn open_session(opts: &ZenohOptions) -> Result<Session> {
+    let mut config = zenoh::Config::default();
+    let set = |config: &mut zenoh::Config, key: &str, value: String| {
+        config
+            .insert_json5(key, &value)
+            .map_err(|e| anyhow!("zenoh config {key}: {e}"))
+    };
+    set(&mut config, "mode", "\"peer\"".into())?;
+    set(&mut config, "scouting/multicast/enabled", "false".into())?;
+    set(
+        &mut config,
+        "listen/endpoints",
+        serde_json::to_string(&opts.listen)?,
+    )?;
+    set(
+        &mut config,
+        "connect/endpoints",
+        serde_json::to_string(&opts.connect)?,
+    )?;
+    zenoh::open(config)
+        .await
+        .map_err(|e| anyhow!("opening zenoh session: {e}"))
+}
+
+/// What workers send to the publishing task.
+#[derive(Debug)]
+pub enum StreamMsg {
+    /// A status frame (block).
+    Status(JobStatus),
+    /// Step frames of one job; `frame.last` marks the run's last ones (block).
+    Steps {
+        /// The job.
+        id: String,
+        /// Energy columns.
+        energy: Option<StepFrame>,
+        /// The other columns.
+        state: Option<StepFrame>,
+    },
+    /// The job is over: undeclare its publishers.
+    Closed(String),
+}
+
+/// Counters of the stream.
+#[derive(Debug, Default)]
+pub struct StreamStats {
+    /// Frames put on zenoh.
+    pub frames_published: AtomicU64,
+    /// Step frames dropped because the channel was full.
+    pub frames_dropped: AtomicU64,
+}
+
+/// The sending side, cloned into workers and handlers.
+#[derive(Clone)]
+pub struct StreamSink {
+    tx: mpsc::Sender<StreamMsg>,
+    stats: Arc<StreamStats>,
+}
+
+impl StreamSink {
+    /// Sends step frames if there is room, else drops them (never blocks).
+    pub fn offer(&self, msg: StreamMsg) {
+        if self.tx.try_send(msg).is_err() {
+            self.stats.frames_dropped.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    /// Sends and waits for room; for std threads only (workers).
+    pub fn send_blocking(&self, msg: StreamMsg) {
+        // Err only when the publishing task is gone (shutdown): nothing left to tell.
+        let _ = self.tx.blocking_send(msg);
+    }
+
+    /// Sends from async code without waiting.
+    pub fn send_detached(&self, msg: StreamMsg) {
+        let tx = self.tx.clone();
+        tokio::spawn(async move {
+            let _ = tx.send(msg).await;
+        });
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> &StreamStats {
+        &self.stats
+    }
+}
+
+/// The publishing side: the zenoh session and the task that owns the publishers.
+pub struct Streamer {
+    session: Session,
+    task: tokio::task::JoinHandle<()>,
+    watch: broadcast::Sender<Arc<WatchFrame>>,
+}
+
+struct JobPublishers {
+    status: Publisher<'static>,
+    state: Publisher<'static>,
+    energy: Publisher<'static>,
+}
+
+/// Frames buffered between the workers and zenoh (each frame carries up to a few hundred steps).
+const CHANNEL_FRAMES: usize = 4096;
+
+impl Streamer {
+    /// Starts the publishing task on `session`.
+    pub fn start(session: Session) -> (Streamer, StreamSink) {
+        let (tx, rx) = mpsc::channel(CHANNEL_FRAMES);
+        let stats = Arc::new(StreamStats::default());
+        let (watch, _) = broadcast::channel(1024);
+        let task = tokio::spawn(publish_loop(
+            session.clone(),
+            rx,
+            watch.clone(),
+            stats.clone(),
+        ));
+        (
+            Streamer {
+                session,
+                task,
+                watch,
+            },
+            StreamSink { tx, stats },
+        )
+    }
+
+    /// The zenoh session (for the status queryable).
+    pub fn session(&self) -> &Session {
+        &self.session
+    }
+
+    /// The broadcast of every frame, as published (for gRPC `WatchJob` and SSE).
+    pub fn sender(&self) -> broadcast::Sender<Arc<WatchFrame>> {
+        self.watch.clone()
+    }
+
+    /// Waits for queued messages to go out (the workers' senders must be gone), then closes the
+    /// session.
+    pub async fn close(self) {
+        let _ = tokio::time::timeout(std::time::Duration::from_secs(5), self.task).await;
+        if let Err(e) = self.session.close().await {
+            tracing::warn!("closing zenoh session: {e}");
+        }
+    }
+}
+
+async fn declare(session: &Session, key: String, block: bool) -> Result<Publisher<'static>> {
+    let (cc, prio) = if block {
+        (CongestionControl::Block, Priority::InteractiveHigh)
+    } else {
+        (CongestionControl::Drop, Priority::Data)
+    };
+    session
+        .declare_publisher(key)
+        .encoding(Encoding::APPLICATION_PROTOBUF)
+        .congestion_control(cc)
+        .priority(prio)
+        .await
+        .map_err(|e| anyhow!("declaring publisher: {e}"))
+}
+
+async fn publishers(session: &Session, id: &str) -> Result<JobPublishers> {
+    Ok(JobPublishers {
+        status: declare(session, status_key(id), true).await?,
+        state: declare(session, state_key(id), false).await?,
+        energy: declare(session, energy_key(id), false).await?,
+    })
+}
+
+async fn publish_loop(
+    session: Session,
+    mut rx: mpsc::Receiver<StreamMsg>,
+    watch: broadcast::Sender<Arc<WatchFrame>>,
+    stats: Arc<StreamStats>,
+) {
+    let mut pubs: HashMap<String, JobPublishers> = HashMap::new();
+    while let Some(msg) = rx.recv().await {
+        if let Err(e) = handle(&session, &mut pubs, msg, &watch, &stats).await {
+            tracing::warn!("zenoh publish: {e:#}");
+        }
+    }
+    for (_, p) in pubs.drain() {
+        let _ = p.status.undeclare().await;
+        let _ = p.state.undeclare().await;
+        let _ = p.energy.undeclare().await;
+    }
+}
+
+async fn handle(
+    session: &Session,
+    pubs: &mut HashMap<String, JobPublishers>,
+    msg: StreamMsg,
+    watch: &broadcast::Sender<Arc<WatchFrame>>,
+    stats: &StreamStats,
+) -> Result<()> {
+    let id = match &msg {
+        StreamMsg::Status(s) => s.id.clone(),
+        StreamMsg::Steps { id, .. } => id.clone(),
+        StreamMsg::Closed(id) => {
+            if let Some(p) = pubs.remove(id) {
+                let _ = p.status.undeclare().await;
+                let _ = p.state.undeclare().await;
+                let _ = p.energy.undeclare().await;
+            }
+            return Ok(());
+        }
+    };
+    if !pubs.contains_key(&id) {
+        let p = publishers(session, &id).await?;
+        pubs.insert(id.clone(), p);
+    }
+    let p = pubs.get(&id).context("publisher just declared")?;
+    match msg {
+        StreamMsg::Status(s) => {
+            p.status
+                .put(s.encode_to_vec())
+                .await
+                .map_err(|e| anyhow!("{e}"))?;
+            stats.frames_published.fetch_add(1, Ordering::Relaxed);
+            let _ = watch.send(Arc::new(WatchFrame {
+                frame: Some(watch_frame::Frame::Status(s)),
+            }));
+        }
+        StreamMsg::Steps { id, energy, state } => {
+            for (frame, publisher, key, is_energy) in [
+                (energy, &p.energy, energy_key(&id), true),
+                (state, &p.state, state_key(&id), false),
+            ] {
+                let Some(frame) = frame else { continue };
+                let bytes = frame.encode_to_vec();
+                if frame.last {
+                    // The run's last frame is never dropped.
+                    session
+                        .put(key, bytes)
+                        .encoding(Encoding::APPLICATION_PROTOBUF)
+                        .congestion_control(CongestionControl::Block)
+                        .await
+                        .map_err(|e| anyhow!("{e}"))?;
+                } else {
+                    publisher.put(bytes).await.map_err(|e| anyhow!("{e}"))?;
+                }
+                stats.frames_published.fetch_add(1, Ordering::Relaxed);
+                if watch.receiver_count() > 0 {
+                    let f = if is_energy {
+                        watch_frame::Frame::Energy(frame)
+                    } else {
+                        watch_frame::Frame::State(frame)
+                    };
+                    let _ = watch.send(Arc::new(WatchFrame { frame: Some(f) }));
+                }
+            }
+        }
+        StreamMsg::Closed(_) => {}
+    }
+    Ok(())
+}
+
+/// Answers `signorini/v1/jobs/{id}/status` queries with `lookup(id)` (an error reply when the
+/// job is unknown), until the session closes.
+pub async fn serve_status_queryable<F>(session: Session, lookup: F) -> Result<()>
+where
+    F: Fn(&str) -> Option<JobStatus> + Send + Sync + 'static,
+{
+    let queryable = session
+        .declare_queryable(STATUS_WILDCARD)
+        .await
+        .map_err(|e| anyhow!("declaring queryable: {e}"))?;
+    tokio::spawn(async move {
+        while let Ok(query) = queryable.recv_async().await {
+            let key = query.key_expr().as_str().to_string();
+            let reply = match id_of_key(&key).and_then(&lookup) {
+                Some(status) => {
+                    query
+                        .reply(key.as_str(), status.encode_to_vec())
+                        .encoding(Encoding::APPLICATION_PROTOBUF)
+                        .await
+                }
+                None => query.reply_err(format!("no job at {key}")).await,
+            };
+            if let Err(e) = reply {
+                tracing::debug!("status query reply: {e}");
+            }
+        }
+    });
+    Ok(())
+}
