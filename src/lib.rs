@@ -2,5 +2,12 @@
 //! The numerics live in `signorini-core`; this crate only moves data in and out.
 
 pub mod cli;
+pub mod config;
+pub mod error;
 pub mod output;
+pub mod proto;
+pub mod server;
 pub mod spec_file;
+pub mod store;
+pub mod stream;
+pub mod worker;

@@ -1,6 +1,8 @@
 //! Command-line interface: argument definitions and dispatch to one module per command.
 
+pub mod client;
 mod run;
+pub mod serve;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -20,11 +22,32 @@ pub struct Cli {
 pub enum Command {
     /// Run a job in this process (no server) and write its results to a directory.
     Run(run::RunArgs),
+    /// Run the service: gRPC + HTTP API, worker pool, zenoh streams, SQLite store.
+    Serve(crate::config::ServeArgs),
+    /// Submit a job spec to a server; prints the job id.
+    Submit(client::SubmitArgs),
+    /// Print a job's status (state, progress) as JSON.
+    Status(client::IdArgs),
+    /// Follow a job live over zenoh: progress bar and energy terms (`--json` for machines).
+    Watch(client::WatchArgs),
+    /// Fetch a finished job's result (summary, or steps.csv + summary.json with --out).
+    Result(client::ResultArgs),
+    /// Cancel a queued or running job.
+    Cancel(client::IdArgs),
+    /// List every scene, scheme and contact solver with parameters, defaults and ranges.
+    Capabilities(client::CapabilitiesArgs),
 }
 
 /// Runs the chosen subcommand.
 pub fn dispatch(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Run(args) => run::run(args),
+        Command::Serve(args) => serve::run(args),
+        Command::Submit(args) => client::submit(args),
+        Command::Status(args) => client::status(args),
+        Command::Watch(args) => client::watch(args),
+        Command::Result(args) => client::result(args),
+        Command::Cancel(args) => client::cancel(args),
+        Command::Capabilities(args) => client::capabilities(args),
     }
 }

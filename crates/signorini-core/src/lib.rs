@@ -7,6 +7,7 @@
 #![warn(missing_docs)]
 
 pub mod band;
+pub mod capabilities;
 pub mod contact;
 pub mod energy;
 pub mod integrators;
