@@ -1,0 +1,171 @@
+//! SOI2 speed: steps/s and Newton iterations per step (pendulum, slider-crank), and error
+//! against CPU time (work–precision) for HHT-SOI2 and generalized-α-SOI2.
+//!
+//! `cargo bench -p signorini-core --bench soi2` (plain main, harness = false). Figures in docs/soi2.md.
+
+use signorini_core::observer::Recorder;
+use signorini_core::soi2::ConstrainedModel;
+use signorini_core::soi2::method::{
+    Coefficients, Formulation, Method, NewtonOptions, Soi2State, StartValue,
+};
+use signorini_core::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
+use signorini_core::soi2::run::{End, Schedule, Soi2Output, Soi2Stats, integrate};
+use std::time::Instant;
+
+fn cpu_seconds() -> f64 {
+    // Process CPU time (the machine is shared): /proc/self/stat utime + stime in clock ticks.
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let after = stat.rsplit_once(')').map(|(_, r)| r).unwrap_or("");
+    let f: Vec<&str> = after.split_whitespace().collect();
+    let ticks = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (ticks(11) + ticks(12)) / 100.0
+}
+
+fn run<M: ConstrainedModel>(
+    model: &M,
+    m: &Method,
+    h: f64,
+    t_end: f64,
+    pattern: &[f64],
+) -> (Soi2State, Soi2Stats, f64, f64) {
+    let sizes = Schedule {
+        h,
+        pattern: pattern.to_vec(),
+        end: End::Time(t_end),
+    }
+    .sizes();
+    let (w0, c0) = (Instant::now(), cpu_seconds());
+    let (s, st) = integrate(
+        model,
+        m,
+        StartValue::A0,
+        &sizes,
+        true,
+        &Soi2Output {
+            every: u64::MAX,
+            probes: vec![],
+        },
+        &mut Recorder::default(),
+    )
+    .expect("run");
+    (s, st, w0.elapsed().as_secs_f64(), cpu_seconds() - c0)
+}
+
+fn main() {
+    let newton = NewtonOptions::default();
+    let ga = |f| Method {
+        formulation: f,
+        coefficients: Coefficients::from_rho_inf(0.2),
+        newton,
+    };
+    let hht = |f| Method {
+        formulation: f,
+        coefficients: Coefficients::hht(-0.2),
+        newton,
+    };
+    println!("## Throughput (constant h, t_end as given)\n");
+    println!("| scene | scheme | h | steps | wall s | steps/s | Newton it/step |");
+    println!("|---|---|---|---|---|---|---|");
+    let p = Pendulum::default();
+    let s = SliderCrank::default();
+    let cases: Vec<(
+        &str,
+        &str,
+        Box<dyn Fn() -> (Soi2State, Soi2Stats, f64, f64)>,
+    )> = vec![
+        (
+            "pendulum",
+            "soi2_generalized_alpha",
+            Box::new(|| run(&p, &ga(Formulation::Additive), 2f64.powi(-12), 2.0, &[1.0])),
+        ),
+        (
+            "pendulum",
+            "soi2_hht",
+            Box::new(|| run(&p, &hht(Formulation::HhtSoi2), 2f64.powi(-12), 2.0, &[1.0])),
+        ),
+        (
+            "pendulum",
+            "hht_i3",
+            Box::new(|| run(&p, &hht(Formulation::HhtI3), 2f64.powi(-12), 2.0, &[1.0])),
+        ),
+        (
+            "slider_crank",
+            "soi2_generalized_alpha",
+            Box::new(|| run(&s, &ga(Formulation::Additive), 2f64.powi(-10), 4.0, &[1.0])),
+        ),
+        (
+            "slider_crank",
+            "soi2_hht",
+            Box::new(|| run(&s, &hht(Formulation::HhtSoi2), 2f64.powi(-10), 4.0, &[1.0])),
+        ),
+        (
+            "slider_crank",
+            "hht_i3",
+            Box::new(|| run(&s, &hht(Formulation::HhtI3), 2f64.powi(-10), 4.0, &[1.0])),
+        ),
+    ];
+    for (scene, scheme, f) in &cases {
+        let (_, st, wall, _) = f();
+        println!(
+            "| {scene} | {scheme} | {:.3e} | {} | {wall:.3} | {:.0} | {:.2} |",
+            if *scene == "pendulum" {
+                2f64.powi(-12)
+            } else {
+                2f64.powi(-10)
+            },
+            st.steps,
+            st.steps as f64 / wall,
+            st.newton_iterations as f64 / st.steps as f64
+        );
+    }
+
+    println!(
+        "\n## Work–precision, pendulum (16), t = 2, error ‖y − y_ref‖₂ (reference: same scheme, h = 2⁻¹⁵)\n"
+    );
+    println!("| scheme | h | wall s | CPU s (10 ms ticks) | error y | error λ |");
+    println!("|---|---|---|---|---|---|");
+    for (name, m) in [
+        ("soi2_hht", hht(Formulation::HhtSoi2)),
+        ("soi2_generalized_alpha", ga(Formulation::Additive)),
+    ] {
+        let (r, _, _, _) = run(&p, &m, 2f64.powi(-15), 2.0, &[1.0]);
+        for k in 6..=12 {
+            let h = 2f64.powi(-k);
+            let (st, _, wall, cpu) = run(&p, &m, h, 2.0, &[1.0]);
+            let d = |a: &[f64], b: &[f64]| {
+                a.iter()
+                    .zip(b)
+                    .map(|(x, y)| (x - y).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            };
+            println!(
+                "| {name} | 2^-{k} | {wall:.4} | {cpu:.2} | {:.3e} | {:.3e} |",
+                d(&st.y, &r.y),
+                d(&st.lambda, &r.lambda)
+            );
+        }
+    }
+
+    println!(
+        "\n## Work–precision, test problem (15), t = 1, exact errors, steps h/3, 2h/3 with (14)\n"
+    );
+    println!("| h | wall s | error y | error z | error a | error λ | error ψ |");
+    println!("|---|---|---|---|---|---|---|");
+    let j = JayNegrutTest::default();
+    for k in 4..=12 {
+        let h = 2f64.powi(-k);
+        let (_, st, wall, _) = run(
+            &j,
+            &ga(Formulation::General),
+            h,
+            1.0,
+            &[1.0 / 3.0, 2.0 / 3.0],
+        );
+        let e = st.errors.expect("exact");
+        println!(
+            "| 2^-{k} | {wall:.4} | {:.3e} | {:.3e} | {:.3e} | {:.3e} | {:.3e} |",
+            e.y, e.z, e.a, e.lambda, e.psi
+        );
+    }
+}

@@ -1,0 +1,218 @@
+//! SOI2 jobs through the job spec: runs, summaries, and one test per bad input.
+
+use signorini_core::job::{Job, RunError, run};
+use signorini_core::observer::Recorder;
+use signorini_core::soi2::Soi2Error;
+use signorini_core::spec::{JobSpec, SpecError};
+
+fn spec(json: &str) -> JobSpec {
+    serde_json::from_str(json).expect("spec parses")
+}
+
+fn build_err(json: &str) -> SpecError {
+    Job::from_spec(&spec(json)).expect_err("must be rejected")
+}
+
+#[test]
+fn jay_negrut_test_job_reports_global_errors() {
+    let s = spec(
+        r#"{"model": {"scene": "jay_negrut_test"},
+            "integrator": {"scheme": "soi2_generalized_alpha", "rho_inf": 0.2},
+            "time": {"h": 0.03125, "t_end": 1.0, "pattern": [0.3333333333333333, 0.6666666666666667], "adjust": true},
+            "output": {"every": 4, "probes": [0, 1]}}"#,
+    );
+    let job = Job::from_spec(&s).expect("valid");
+    assert_eq!(job.size().steps, 64);
+    let mut rec = Recorder::default();
+    let out = run(&job, &mut rec).expect("runs");
+    let e = out.summary["errors"].as_object().expect("errors");
+    // Fig. 1 at h = 2⁻⁵ (measured by tests/soi2_order.rs): all errors ~1e-4 or below.
+    for k in ["y", "z", "a", "lambda", "psi"] {
+        let v = e[k].as_f64().expect("number");
+        assert!(v > 0.0 && v < 2e-3, "{k}: {v}");
+    }
+    assert_eq!(out.summary["scene"], "jay_negrut_test");
+    assert_eq!(out.summary["scheme"], "soi2_generalized_alpha");
+    assert!((out.summary["t_end"].as_f64().expect("t_end") - 1.0).abs() < 1e-14);
+    for c in [
+        "kinetic",
+        "potential",
+        "energy",
+        "work_damping",
+        "position_residual",
+        "velocity_residual",
+        "nonholonomic_residual",
+        "newton_iterations",
+        "lambda_0",
+        "psi_0",
+        "y_0",
+        "z_1",
+    ] {
+        assert!(rec.columns.index(c).is_some(), "column {c}");
+    }
+    assert_eq!(rec.steps.len(), 64 / 4 + 1);
+    let y0 = rec.column("y_0").expect("probe");
+    assert!((y0[y0.len() - 1] - 1f64.exp()).abs() < 2e-3);
+    let k = rec.column("nonholonomic_residual").expect("k");
+    assert!(k.iter().all(|v| *v < 1e-9), "k residual {k:?}");
+}
+
+#[test]
+fn pendulum_and_slider_crank_jobs_run() {
+    for (scene, scheme) in [
+        ("pendulum", "soi2_generalized_alpha"),
+        ("pendulum", "soi2_hht"),
+        ("slider_crank", "soi2_hht"),
+        ("slider_crank", "hht_i3"),
+    ] {
+        let s = spec(&format!(
+            r#"{{"model": {{"scene": "{scene}"}}, "integrator": {{"scheme": "{scheme}"}}, "time": {{"h": 0.001, "t_end": 0.1}}}}"#
+        ));
+        let job = Job::from_spec(&s).expect("valid");
+        let out = run(&job, &mut Recorder::default()).expect("runs");
+        assert_eq!(out.summary["steps"], 100, "{scene}/{scheme}");
+        assert!(out.summary["max_position_residual"].as_f64().expect("res") < 1e-10);
+        assert!(out.summary.get("errors").is_none());
+    }
+}
+
+#[test]
+fn bad_input_singular_constraint_jacobian() {
+    // Rod as long as the crank, crank vertical: the slider sits on the pivot and (g_y) loses rank.
+    let e = build_err(
+        r#"{"model": {"scene": "slider_crank", "crank_length": 0.2, "rod_length": 0.2, "crank_angle": 1.5707963267948966, "crank_speed": 0.0},
+            "integrator": {"scheme": "soi2_hht"}, "time": {"h": 0.001, "t_end": 0.1}}"#,
+    );
+    assert_eq!(e.field, "model");
+    assert!(e.reason.contains("singular constraint Jacobian"), "{e}");
+    assert!(e.reason.contains("rank 6 < 7"), "{e}");
+}
+
+#[test]
+fn bad_input_inconsistent_initial_conditions() {
+    let e = build_err(
+        r#"{"model": {"scene": "jay_negrut_test", "y0": [1.0, 2.0]},
+            "integrator": {"scheme": "soi2_generalized_alpha"}, "time": {"h": 0.01, "t_end": 1.0}}"#,
+    );
+    assert_eq!(e.field, "model");
+    assert!(
+        e.reason
+            .contains("inconsistent initial conditions: position constraint residual 1e0"),
+        "{e}"
+    );
+    // Velocity level: positions on the circle, velocity not tangent.
+    let e = build_err(
+        r#"{"model": {"scene": "pendulum", "z0": [0.0, 1.0, 10.0]},
+            "integrator": {"scheme": "soi2_hht"}, "time": {"h": 0.01, "t_end": 1.0}}"#,
+    );
+    assert!(
+        e.reason
+            .contains("inconsistent initial conditions: velocity"),
+        "{e}"
+    );
+    // Within the tolerance it is accepted.
+    let ok = spec(
+        r#"{"model": {"scene": "jay_negrut_test", "y0": [1.0, 1.000000000001]},
+            "integrator": {"scheme": "soi2_generalized_alpha"}, "time": {"h": 0.01, "t_end": 0.1}}"#,
+    );
+    assert!(Job::from_spec(&ok).is_ok());
+}
+
+#[test]
+fn bad_input_alpha_m_equal_one() {
+    let e = build_err(
+        r#"{"model": {"scene": "pendulum"},
+            "integrator": {"scheme": "soi2_generalized_alpha", "alpha_m": 1.0, "alpha_f": 0.5},
+            "time": {"h": 0.01, "t_end": 1.0}}"#,
+    );
+    assert_eq!(e.field, "integrator.alpha_m");
+    assert!(e.reason.contains("α_m = 1"), "{e}");
+}
+
+#[test]
+fn bad_input_newton_divergence() {
+    // One iteration cannot meet the tolerance: the run fails at step 1 with the residual.
+    let s = spec(
+        r#"{"model": {"scene": "pendulum"},
+            "integrator": {"scheme": "soi2_generalized_alpha", "newton_max_iterations": 1},
+            "time": {"h": 0.01, "t_end": 1.0}}"#,
+    );
+    let job = Job::from_spec(&s).expect("valid");
+    match run(&job, &mut Recorder::default()) {
+        Err(RunError::Soi2(Soi2Error::NewtonDiverged {
+            step,
+            t,
+            iterations,
+            residual,
+            ..
+        })) => {
+            assert_eq!((step, iterations), (1, 1));
+            assert!((t - 0.01).abs() < 1e-15);
+            assert!(residual > 0.0);
+        }
+        other => panic!("expected Newton divergence, got {other:?}"),
+    }
+    // A step far too large for the test problem's exponential nonlinearity.
+    let s = spec(
+        r#"{"model": {"scene": "jay_negrut_test"},
+            "integrator": {"scheme": "soi2_generalized_alpha"},
+            "time": {"h": 8.0, "t_end": 64.0}}"#,
+    );
+    let job = Job::from_spec(&s).expect("valid");
+    let err = run(&job, &mut Recorder::default()).expect_err("diverges");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("Newton did not converge") || msg.contains("singular Newton matrix"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn bad_input_scene_and_scheme_mismatch() {
+    let e = build_err(
+        r#"{"model": {"scene": "bouncing_ball"}, "integrator": {"scheme": "soi2_hht"}, "time": {"h": 0.01, "t_end": 1.0}}"#,
+    );
+    assert_eq!(e.field, "integrator.scheme");
+    assert!(e.reason.contains("bouncing_ball"), "{e}");
+    let e = build_err(
+        r#"{"model": {"scene": "pendulum"}, "integrator": {"scheme": "moreau_jean"}, "time": {"h": 0.01, "t_end": 1.0}}"#,
+    );
+    assert_eq!(e.field, "integrator.scheme");
+    assert!(e.reason.contains("pendulum"), "{e}");
+    // HHT-SOI2 (17) has no nonholonomic constraints and needs additive forces.
+    let e = build_err(
+        r#"{"model": {"scene": "jay_negrut_test"}, "integrator": {"scheme": "soi2_hht"}, "time": {"h": 0.01, "t_end": 1.0}}"#,
+    );
+    assert_eq!(e.field, "integrator.scheme");
+    let e = build_err(
+        r#"{"model": {"scene": "jay_negrut_test"}, "integrator": {"scheme": "soi2_generalized_alpha", "additive": true}, "time": {"h": 0.01, "t_end": 1.0}}"#,
+    );
+    assert_eq!(e.field, "integrator.additive");
+    let e = build_err(
+        r#"{"model": {"scene": "pendulum"}, "integrator": {"scheme": "soi2_hht", "alpha": -0.5}, "time": {"h": 0.01, "t_end": 1.0}}"#,
+    );
+    assert_eq!(e.field, "integrator.alpha");
+    let e = build_err(
+        r#"{"model": {"scene": "pendulum"}, "integrator": {"scheme": "soi2_hht"}, "time": {"h": 0.01, "t_end": 1.0, "pattern": [1.0, -1.0]}}"#,
+    );
+    assert_eq!(e.field, "time.pattern");
+}
+
+#[test]
+fn example_specs_parse_validate_and_run() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
+    for name in ["pendulum_soi2", "slider_crank_hht", "jay_negrut_test"] {
+        let text =
+            std::fs::read_to_string(dir.join(format!("{name}.toml"))).expect("example exists");
+        let s: JobSpec = toml::from_str(&text).expect("example parses");
+        let job = Job::from_spec(&s).expect("example is valid");
+        let out = run(&job, &mut Recorder::default()).expect("example runs");
+        assert!(
+            out.summary["max_position_residual"].as_f64().expect("res") < 1e-9,
+            "{name}"
+        );
+        if name == "jay_negrut_test" {
+            assert!(out.summary["errors"]["y"].as_f64().expect("y") < 1e-3);
+        }
+    }
+}
