@@ -89,23 +89,21 @@ impl Observer for CsvSteps {
     }
 }
 
-/// Names of every file a run may leave in its output directory.
-pub fn result_files(dir: &Path) -> Vec<PathBuf> {
-    let mut v = vec![dir.join("steps.csv"), dir.join("summary.json"), dir.join("steps.csv.partial")];
-    if let Ok(entries) = fs::read_dir(dir) {
-        for e in entries.flatten() {
-            let p = e.path();
-            if matches!(p.extension().and_then(|x| x.to_str()), Some("csv" | "svg")) {
-                v.push(p);
-            }
-        }
-    }
-    v
-}
-
-/// Removes results of an earlier run from `dir`.
+/// Removes the results of an earlier run from `dir`: `steps.csv`, `summary.json` and unfinished
+/// `*.partial` files. Tables and figures are left (they are replaced atomically when a run
+/// writes them); `summary.json`, written last, is what marks a directory as a complete result.
+/// Other files are never touched, so `--out .` is safe.
 pub fn clear_results(dir: &Path) -> Result<()> {
-    for p in result_files(dir) {
+    let mut stale = vec![dir.join("steps.csv"), dir.join("summary.json")];
+    if let Ok(entries) = fs::read_dir(dir) {
+        stale.extend(
+            entries
+                .flatten()
+                .map(|e| e.path())
+                .filter(|p| p.extension().is_some_and(|x| x == "partial")),
+        );
+    }
+    for p in stale {
         match fs::remove_file(&p) {
             Ok(()) => {}
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}

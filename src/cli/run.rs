@@ -62,11 +62,17 @@ impl Observer for CliObserver {
 
 /// Runs the command.
 pub fn run(args: RunArgs) -> Result<()> {
-    let text = std::fs::read_to_string(&args.spec).with_context(|| format!("reading {}", args.spec.display()))?;
+    // DIR holds the results of the last run or nothing: stale results go first, so a refused
+    // spec or a failed run cannot leave files that look valid.
+    if args.out.is_dir() {
+        clear_results(&args.out)?;
+    }
+    let text = std::fs::read_to_string(&args.spec)
+        .with_context(|| format!("reading {}", args.spec.display()))?;
     let job = spec_file::load(&text, Format::of_path(&args.spec))
         .map_err(|e| anyhow!("invalid spec {}: {e}", args.spec.display()))?;
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    clear_results(&args.out)?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
 
     let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(job.size().steps) };
     bar.set_style(

@@ -29,18 +29,60 @@ pub struct IndexSetRule {
 
 impl Default for IndexSetRule {
     fn default() -> Self {
-        Self { activation: Activation::GapAndVelocity, gamma: 1.0 }
+        Self {
+            activation: Activation::GapAndVelocity,
+            gamma: 1.0,
+        }
     }
 }
 
 impl IndexSetRule {
     /// Is contact `c` in the index set 𝓘¹_k of the step from (t, q_k, v_k) with step h?
     pub fn is_active(&self, c: &Contact, q: &[f64], v: &[f64], t: f64, h: f64) -> bool {
+        self.is_active_within(c, q, v, t, h, 0.0)
+    }
+
+    /// [`IndexSetRule::is_active`] with the sign test of (24) read as `U_k ≤ u_roundoff`: during a
+    /// lasting contact with e = 0 the LCP makes U_k zero only up to its round-off, and a sign
+    /// decided by round-off would drop the contact for one step and let the body sink by h·U.
+    /// `u_roundoff` is the round-off level of U_k (zero for a contact that was not in the last
+    /// LCP); it does not enter the predicted-gap rule, which has no sign test.
+    pub fn is_active_within(
+        &self,
+        c: &Contact,
+        q: &[f64],
+        v: &[f64],
+        t: f64,
+        h: f64,
+        u_roundoff: f64,
+    ) -> bool {
         let u = c.local_velocity(v, t);
         match self.activation {
-            Activation::GapAndVelocity => c.project(q) + h * c.project(v) + c.w(t + h) <= 0.0 && u <= 0.0,
+            Activation::GapAndVelocity => {
+                c.project(q) + h * c.project(v) + c.w(t + h) <= 0.0 && u <= u_roundoff
+            }
             Activation::PredictedGap => c.gap(q, t) + self.gamma * h * u <= 0.0,
         }
+    }
+}
+
+/// Round-off level of the local velocities an impulse LCP produced:
+/// `U^α_{k+1} = b_α + (W P)_α` loses `ε (|b_α| + Σ_β |W_αβ P_β|)` to cancellation; this returns
+/// 64 times that for each contact of `active` (written into `out`, zero elsewhere).
+pub fn local_velocity_roundoff(
+    delassus: &Delassus,
+    active: &[usize],
+    b: &[f64],
+    impulse: &[f64],
+    out: &mut [f64],
+) {
+    out.fill(0.0);
+    for (r, &a) in active.iter().enumerate() {
+        let wp: f64 = active
+            .iter()
+            .map(|&c| (delassus.entry(a, c) * impulse[c]).abs())
+            .sum();
+        out[a] = 64.0 * f64::EPSILON * (b[r].abs() + wp);
     }
 }
 
@@ -130,6 +172,10 @@ impl Delassus {
                 }
             }
         }
-        Ok(LcpStats { size: k, iterations: sol.iterations, error: sol.error })
+        Ok(LcpStats {
+            size: k,
+            iterations: sol.iterations,
+            error: sol.error,
+        })
     }
 }

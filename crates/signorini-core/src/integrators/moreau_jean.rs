@@ -23,7 +23,7 @@
 
 use super::{LinearScheme, LinearState, StepError, StepReport};
 use crate::band::{BandCholesky, BandError, SymBand};
-use crate::contact::{Delassus, IndexSetRule};
+use crate::contact::{Delassus, IndexSetRule, local_velocity_roundoff};
 use crate::energy::EnergyTerms;
 use crate::lcp::LcpOptions;
 use crate::model::LinearModel;
@@ -67,6 +67,8 @@ pub struct MoreauJean {
     scratch: Scratch,
     active: Vec<usize>,
     lcp_rhs: Vec<f64>,
+    /// Round-off level of each U_k from the last step's LCP, keyed by step number.
+    u_roundoff: (u64, Vec<f64>),
 }
 
 #[derive(Debug, Clone)]
@@ -126,6 +128,7 @@ impl MoreauJean {
             },
             active: Vec::new(),
             lcp_rhs: Vec::new(),
+            u_roundoff: (u64::MAX, vec![0.0; model.contacts.len()]),
         })
     }
 }
@@ -188,7 +191,16 @@ impl LinearScheme for MoreauJean {
         self.active.clear();
         self.lcp_rhs.clear();
         for (a, c) in model.contacts.iter().enumerate() {
-            if self.params.index_set.is_active(c, &state.q, &state.v, t_k, h) {
+            let u_tol = if self.u_roundoff.0 == state.step {
+                self.u_roundoff.1[a]
+            } else {
+                0.0
+            };
+            if self
+                .params
+                .index_set
+                .is_active_within(c, &state.q, &state.v, t_k, h, u_tol)
+            {
                 self.active.push(a);
                 let u_free = c.project(&state.v) + c.project(&s.dv) + c.w_rate(t_next);
                 let u_k = c.local_velocity(&state.v, t_k);
@@ -197,8 +209,26 @@ impl LinearScheme for MoreauJean {
         }
         report.lcp = self
             .delassus
-            .apply_impulse(&self.active, &self.lcp_rhs, &self.lcp, &mut report.impulse, &mut s.dv)
-            .map_err(|source| StepError::Lcp { step, t: t_next, source })?;
+            .apply_impulse(
+                &self.active,
+                &self.lcp_rhs,
+                &self.lcp,
+                &mut report.impulse,
+                &mut s.dv,
+            )
+            .map_err(|source| StepError::Lcp {
+                step,
+                t: t_next,
+                source,
+            })?;
+        local_velocity_roundoff(
+            &self.delassus,
+            &self.active,
+            &self.lcp_rhs,
+            &report.impulse,
+            &mut self.u_roundoff.1,
+        );
+        self.u_roundoff.0 = step;
 
         // Energy of the state the step starts from (cached from the previous step).
         let (kin_k, strain_k) = match self.last_energy {
@@ -223,7 +253,11 @@ impl LinearScheme for MoreauJean {
         work_ext *= h;
 
         // The other terms of Lemma 1 (33) / Corollary 1 (91).
-        let work_damping = if self.has_damping { -h * model.damping.quad(&s.v_pos, &s.v_theta) } else { 0.0 };
+        let work_damping = if self.has_damping {
+            -h * model.damping.quad(&s.v_pos, &s.v_theta)
+        } else {
+            0.0
+        };
         let work_contact: f64 = self
             .active
             .iter()
@@ -232,7 +266,9 @@ impl LinearScheme for MoreauJean {
         let numerical_dissipation = match (theta == 0.5, variant) {
             (true, _) => 0.0,
             (false, true) => (0.5 - theta) * model.stiffness.quad(&s.dq, &s.dq),
-            (false, false) => (0.5 - theta) * (model.mass.quad(&s.dv, &s.dv) + model.stiffness.quad(&s.dq, &s.dq)),
+            (false, false) => {
+                (0.5 - theta) * (model.mass.quad(&s.dv, &s.dv) + model.stiffness.quad(&s.dq, &s.dq))
+            }
         };
         state.t = t_next;
         state.step = step;
