@@ -12,7 +12,14 @@ fn run_spec(dir: &Path, name: &str, spec: &str) -> (Output, PathBuf) {
     let spec_path = dir.join(name);
     std::fs::write(&spec_path, spec).unwrap();
     let out = dir.join("out");
-    let output = signorini().arg("run").arg(&spec_path).arg("--out").arg(&out).arg("--quiet").output().unwrap();
+    let output = signorini()
+        .arg("run")
+        .arg(&spec_path)
+        .arg("--out")
+        .arg(&out)
+        .arg("--quiet")
+        .output()
+        .unwrap();
     (output, out)
 }
 
@@ -23,14 +30,30 @@ fn assert_refused(spec: &str, field: &str, reason_fragment: &str) {
     let out = dir.path().join("out");
     std::fs::create_dir_all(&out).unwrap();
     std::fs::write(out.join("summary.json"), "{\"stale\": true}").unwrap();
-    let name = if spec.trim_start().starts_with('{') { "spec.json" } else { "spec.toml" };
+    let name = if spec.trim_start().starts_with('{') {
+        "spec.json"
+    } else {
+        "spec.toml"
+    };
     let (output, out) = run_spec(dir.path(), name, spec);
     let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(!output.status.success(), "accepted a bad spec; stderr: {stderr}");
-    assert!(stderr.contains(field), "stderr does not name `{field}`: {stderr}");
-    assert!(stderr.contains(reason_fragment), "stderr does not say `{reason_fragment}`: {stderr}");
+    assert!(
+        !output.status.success(),
+        "accepted a bad spec; stderr: {stderr}"
+    );
+    assert!(
+        stderr.contains(field),
+        "stderr does not name `{field}`: {stderr}"
+    );
+    assert!(
+        stderr.contains(reason_fragment),
+        "stderr does not say `{reason_fragment}`: {stderr}"
+    );
     for f in ["steps.csv", "summary.json", "steps.csv.partial"] {
-        assert!(!out.join(f).exists(), "{f} left behind after a refused spec");
+        assert!(
+            !out.join(f).exists(),
+            "{f} left behind after a refused spec"
+        );
     }
 }
 
@@ -83,19 +106,33 @@ fn infinite_entry() {
 
 #[test]
 fn non_positive_step() {
-    assert_refused("[model]\nscene = \"bouncing_ball\"\n[time]\nh = 0.0\nsteps = 10\n", "time.h", "> 0");
-    assert_refused("[model]\nscene = \"bouncing_ball\"\n[time]\nh = -0.1\nsteps = 10\n", "time.h", "> 0");
+    assert_refused(
+        "[model]\nscene = \"bouncing_ball\"\n[time]\nh = 0.0\nsteps = 10\n",
+        "time.h",
+        "> 0",
+    );
+    assert_refused(
+        "[model]\nscene = \"bouncing_ball\"\n[time]\nh = -0.1\nsteps = 10\n",
+        "time.h",
+        "> 0",
+    );
 }
 
 #[test]
 fn negative_end_time() {
-    assert_refused("[model]\nscene = \"bouncing_ball\"\n[time]\nh = 0.01\nt_end = -1.0\n", "time.t_end", "≥ 0");
+    assert_refused(
+        "[model]\nscene = \"bouncing_ball\"\n[time]\nh = 0.01\nt_end = -1.0\n",
+        "time.t_end",
+        "≥ 0",
+    );
 }
 
 #[test]
 fn theta_outside_unit_interval() {
     assert_refused(
-        &format!("[model]\nscene = \"bouncing_ball\"\n[integrator]\nscheme = \"moreau_jean\"\ntheta = 1.5\n{BALL_TIME}"),
+        &format!(
+            "[model]\nscene = \"bouncing_ball\"\n[integrator]\nscheme = \"moreau_jean\"\ntheta = 1.5\n{BALL_TIME}"
+        ),
         "integrator.theta",
         "[0, 1]",
     );
@@ -117,7 +154,11 @@ fn restitution_outside_unit_interval() {
 
 #[test]
 fn unknown_field() {
-    assert_refused(&format!("[model]\nscene = \"bouncing_ball\"\nmas = 2.0\n{BALL_TIME}"), "model.mas", "unknown field");
+    assert_refused(
+        &format!("[model]\nscene = \"bouncing_ball\"\nmas = 2.0\n{BALL_TIME}"),
+        "model.mas",
+        "unknown field",
+    );
     assert_refused(
         r#"{"model": {"scene": "bouncing_ball"}, "time": {"h": 0.01, "steps": 10, "stpes": 3}}"#,
         "time.stpes",
@@ -127,7 +168,11 @@ fn unknown_field() {
 
 #[test]
 fn unknown_scene() {
-    assert_refused(&format!("[model]\nscene = \"trampoline\"\n{BALL_TIME}"), "model.scene", "unknown variant");
+    assert_refused(
+        &format!("[model]\nscene = \"trampoline\"\n{BALL_TIME}"),
+        "model.scene",
+        "unknown variant",
+    );
 }
 
 #[test]
@@ -144,7 +189,8 @@ fn example_specs_run_and_their_files_agree() {
             .unwrap();
         assert!(status.success(), "{name} failed");
         let summary: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
         for key in [
             "steps",
             "wall_s",
@@ -163,15 +209,29 @@ fn example_specs_run_and_their_files_agree() {
         let header: Vec<&str> = lines.next().unwrap().split(',').collect();
         assert_eq!(&header[..4], &["step", "t", "kinetic", "strain"]);
         assert!(header.contains(&"gap_0") && header.contains(&"u_0") && header.contains(&"p_0"));
-        let residual = header.iter().position(|c| *c == "balance_residual").unwrap();
+        let residual = header
+            .iter()
+            .position(|c| *c == "balance_residual")
+            .unwrap();
         let energy = header.iter().position(|c| *c == "energy").unwrap();
-        let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+        let rows: Vec<Vec<f64>> = lines
+            .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+            .collect();
         // The summary's maximum is the maximum over every step; the recorded rows are a subset.
         let max_row = rows.iter().map(|r| r[residual].abs()).fold(0.0, f64::max);
         let max_summary = summary["max_abs_balance_residual"].as_f64().unwrap();
         assert!(max_row <= max_summary);
-        assert!(max_summary <= 1e-10 * summary["energy_max"].as_f64().unwrap().max(1.0), "{name}: {max_summary:e}");
-        assert_eq!(rows.last().unwrap()[0] as u64, summary["steps"].as_u64().unwrap());
-        assert_eq!(rows.first().unwrap()[energy], summary["energy_initial"].as_f64().unwrap());
+        assert!(
+            max_summary <= 1e-10 * summary["energy_max"].as_f64().unwrap().max(1.0),
+            "{name}: {max_summary:e}"
+        );
+        assert_eq!(
+            rows.last().unwrap()[0] as u64,
+            summary["steps"].as_u64().unwrap()
+        );
+        assert_eq!(
+            rows.first().unwrap()[energy],
+            summary["energy_initial"].as_f64().unwrap()
+        );
     }
 }

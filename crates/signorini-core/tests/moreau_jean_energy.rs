@@ -10,19 +10,34 @@ use signorini_core::observer::Recorder;
 use signorini_core::scenes::{Bar, BouncingBall, Chain, HarmonicSpec, LeftEnd, MassMatrix};
 
 /// Runs `steps` steps and returns the recorder (every step) and the run statistics.
-fn simulate(model: &LinearModel, params: MoreauJeanParams, h: f64, steps: u64) -> (Recorder, LinearRunStats) {
+fn simulate(
+    model: &LinearModel,
+    params: MoreauJeanParams,
+    h: f64,
+    steps: u64,
+) -> (Recorder, LinearRunStats) {
     let mut scheme = MoreauJean::new(model, params, h, LcpOptions::default()).expect("Ŵ is SPD");
     let mut state = LinearState::initial(model);
     let mut rec = Recorder::default();
-    let output = OutputOptions { every: 1, probes: vec![] };
-    let stats = run_linear(model, &mut scheme, &mut state, steps, &output, &mut rec).expect("run completes");
+    let output = OutputOptions {
+        every: 1,
+        probes: vec![],
+    };
+    let stats = run_linear(model, &mut scheme, &mut state, steps, &output, &mut rec)
+        .expect("run completes");
     (rec, stats)
 }
 
 fn scenes(e: f64) -> Vec<(String, LinearModel, f64, u64)> {
     let mut v = vec![(
         "bouncing_ball".to_string(),
-        BouncingBall { restitution: e, q0: 1.0 - 1e-7, ..Default::default() }.build().unwrap(),
+        BouncingBall {
+            restitution: e,
+            q0: 1.0 - 1e-7,
+            ..Default::default()
+        }
+        .build()
+        .unwrap(),
         1e-3,
         4000,
     )];
@@ -38,11 +53,22 @@ fn scenes(e: f64) -> Vec<(String, LinearModel, f64, u64)> {
                 body_force: 0.3,
                 rayleigh_mass: 0.05,
                 rayleigh_stiffness: 1e-3,
-                harmonic_force: Some(HarmonicSpec { amplitude: 0.8, omega: 7.0 }),
-                wall_motion: Some(HarmonicSpec { amplitude: 0.005, omega: 3.0 }),
+                harmonic_force: Some(HarmonicSpec {
+                    amplitude: 0.8,
+                    omega: 7.0,
+                }),
+                wall_motion: Some(HarmonicSpec {
+                    amplitude: 0.005,
+                    omega: 3.0,
+                }),
                 ..Default::default()
             };
-            v.push((format!("bar {mass_matrix:?} {left:?}"), bar.build().unwrap(), 2e-3, 3000));
+            v.push((
+                format!("bar {mass_matrix:?} {left:?}"),
+                bar.build().unwrap(),
+                2e-3,
+                3000,
+            ));
         }
     }
     let chain = Chain {
@@ -66,7 +92,11 @@ fn lemma_1_balance_closes_at_every_step() {
         for (name, model, h, steps) in scenes(e) {
             for theta in [0.5, 0.75, 1.0] {
                 for variant in [false, true] {
-                    let params = MoreauJeanParams { theta, variant, ..Default::default() };
+                    let params = MoreauJeanParams {
+                        theta,
+                        variant,
+                        ..Default::default()
+                    };
                     let (rec, stats) = simulate(&model, params, h, steps);
                     let bound = 1e-10 * stats.energy_max.max(1.0);
                     let residual = rec.column("balance_residual").unwrap();
@@ -75,7 +105,10 @@ fn lemma_1_balance_closes_at_every_step() {
                         worst <= bound,
                         "{name}, e = {e}, θ = {theta}, variant = {variant}: |residual| = {worst:e} > {bound:e}"
                     );
-                    assert!(stats.impacts > 0, "{name}: the scene must impact to test anything");
+                    assert!(
+                        stats.impacts > 0,
+                        "{name}: the scene must impact to test anything"
+                    );
                 }
             }
         }
@@ -86,27 +119,69 @@ fn lemma_1_balance_closes_at_every_step() {
 /// so it must be ≤ 0 and nonzero on a moving system; for θ = ½ it vanishes identically.
 #[test]
 fn numerical_dissipation_has_the_sign_of_half_minus_theta() {
-    let model = Bar { elements: 20, gap: 0.01, initial_velocity: 1.0, ..Default::default() }.build().unwrap();
-    let (rec1, _) = simulate(&model, MoreauJeanParams { theta: 1.0, ..Default::default() }, 1e-3, 500);
+    let model = Bar {
+        elements: 20,
+        gap: 0.01,
+        initial_velocity: 1.0,
+        ..Default::default()
+    }
+    .build()
+    .unwrap();
+    let (rec1, _) = simulate(
+        &model,
+        MoreauJeanParams {
+            theta: 1.0,
+            ..Default::default()
+        },
+        1e-3,
+        500,
+    );
     let d1 = rec1.column("numerical_dissipation").unwrap();
     assert!(d1.iter().all(|&d| d <= 0.0));
     assert!(d1.iter().sum::<f64>() < -1e-6);
     let (rec_half, _) = simulate(&model, MoreauJeanParams::default(), 1e-3, 500);
-    assert!(rec_half.column("numerical_dissipation").unwrap().iter().all(|&d| d == 0.0));
+    assert!(
+        rec_half
+            .column("numerical_dissipation")
+            .unwrap()
+            .iter()
+            .all(|&d| d == 0.0)
+    );
 }
 
 /// Proposition 1 at e = 1, θ = ½, over 10⁶ steps: the ball's energy plus its gravity potential
 /// (E − cumulative work of gravity) stays constant to 1e-9 relative.
 #[test]
 fn elastic_ball_conserves_energy_over_a_million_steps() {
-    let ball = BouncingBall { restitution: 1.0, q0: 1.0 - 1e-7, ..Default::default() };
+    let ball = BouncingBall {
+        restitution: 1.0,
+        q0: 1.0 - 1e-7,
+        ..Default::default()
+    };
     let model = ball.build().unwrap();
-    let mut scheme = MoreauJean::new(&model, MoreauJeanParams::default(), 1e-3, LcpOptions::default()).unwrap();
+    let mut scheme = MoreauJean::new(
+        &model,
+        MoreauJeanParams::default(),
+        1e-3,
+        LcpOptions::default(),
+    )
+    .unwrap();
     let mut state = LinearState::initial(&model);
     // Record sparsely: the statistics cover every step.
-    let output = OutputOptions { every: 1000, probes: vec![0] };
+    let output = OutputOptions {
+        every: 1000,
+        probes: vec![0],
+    };
     let mut rec = Recorder::default();
-    let stats = run_linear(&model, &mut scheme, &mut state, 1_000_000, &output, &mut rec).unwrap();
+    let stats = run_linear(
+        &model,
+        &mut scheme,
+        &mut state,
+        1_000_000,
+        &output,
+        &mut rec,
+    )
+    .unwrap();
     let total0 = model.energy(&model.q0, &model.v0).0 + ball.mass * ball.gravity * ball.q0;
     let energy = rec.column("energy").unwrap();
     let q = rec.column("q_0").unwrap();
@@ -116,7 +191,11 @@ fn elastic_ball_conserves_energy_over_a_million_steps() {
         .map(|(e, q)| ((e + ball.mass * ball.gravity * q) - total0).abs() / total0)
         .fold(0.0f64, f64::max);
     assert!(worst <= 1e-9, "relative drift {worst:e}");
-    assert!(stats.impacts >= 1000, "only {} impacts in 1000 s", stats.impacts);
+    assert!(
+        stats.impacts >= 1000,
+        "only {} impacts in 1000 s",
+        stats.impacts
+    );
     // The discrete work of gravity is exactly −m g Δq (31), so the cumulative column agrees too.
     let drift = (stats.energy_final - stats.energy_initial - stats.work_ext_total).abs() / total0;
     assert!(drift <= 1e-9, "E − W_ext drift {drift:e}");
@@ -131,29 +210,55 @@ fn variant_dissipates_for_any_restitution() {
         for c in &mut model.contacts {
             c.motion = None;
         }
-        let params = MoreauJeanParams { theta: 1.0, variant: true, ..Default::default() };
+        let params = MoreauJeanParams {
+            theta: 1.0,
+            variant: true,
+            ..Default::default()
+        };
         let (rec, _) = simulate(&model, params, h, steps);
         let wc = rec.column("work_contact").unwrap();
         let nd = rec.column("numerical_dissipation").unwrap();
-        assert!(wc.iter().all(|&w| w <= 1e-12), "{name}: positive contact work {:e}", wc.iter().fold(f64::MIN, |a, &b| a.max(b)));
+        assert!(
+            wc.iter().all(|&w| w <= 1e-12),
+            "{name}: positive contact work {:e}",
+            wc.iter().fold(f64::MIN, |a, &b| a.max(b))
+        );
         assert!(nd.iter().all(|&d| d <= 0.0), "{name}");
     }
 }
 
 fn random_model(kind: u8, seed: &[f64], e: f64) -> LinearModel {
     match kind % 3 {
-        0 => BouncingBall { restitution: e, q0: 0.2 + seed[0], v0: -seed[1] * 3.0, ..Default::default() }.build().unwrap(),
+        0 => BouncingBall {
+            restitution: e,
+            q0: 0.2 + seed[0],
+            v0: -seed[1] * 3.0,
+            ..Default::default()
+        }
+        .build()
+        .unwrap(),
         1 => Bar {
             elements: 5 + (seed[2] * 30.0) as usize,
-            mass_matrix: if seed[3] < 0.5 { MassMatrix::Lumped } else { MassMatrix::Consistent },
-            left: if seed[4] < 0.5 { LeftEnd::Fixed } else { LeftEnd::Free },
+            mass_matrix: if seed[3] < 0.5 {
+                MassMatrix::Lumped
+            } else {
+                MassMatrix::Consistent
+            },
+            left: if seed[4] < 0.5 {
+                LeftEnd::Fixed
+            } else {
+                LeftEnd::Free
+            },
             gap: 0.05 * seed[0],
             restitution: e,
             initial_velocity: 0.2 + 2.0 * seed[1],
             body_force: seed[5],
             rayleigh_mass: 0.1 * seed[6],
             rayleigh_stiffness: 1e-3 * seed[7],
-            harmonic_force: Some(HarmonicSpec { amplitude: seed[8], omega: 10.0 * seed[9] }),
+            harmonic_force: Some(HarmonicSpec {
+                amplitude: seed[8],
+                omega: 10.0 * seed[9],
+            }),
             ..Default::default()
         }
         .build()
@@ -161,7 +266,11 @@ fn random_model(kind: u8, seed: &[f64], e: f64) -> LinearModel {
         _ => Chain {
             masses: vec![0.5 + seed[0], 0.5 + seed[1], 0.5 + seed[2]],
             stiffness: 200.0 * seed[3],
-            positions: vec![0.01 + 0.1 * seed[4], 0.02 + 0.1 * seed[5], 0.03 + 0.1 * seed[6]],
+            positions: vec![
+                0.01 + 0.1 * seed[4],
+                0.02 + 0.1 * seed[5],
+                0.03 + 0.1 * seed[6],
+            ],
             velocities: vec![-seed[7] * 2.0, -seed[8], -seed[9] * 3.0],
             restitution: e,
             ..Default::default()

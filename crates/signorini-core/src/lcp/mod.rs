@@ -14,7 +14,7 @@ mod enumeration;
 mod lemke;
 mod pgs;
 
-pub use enumeration::solve_enumeration;
+pub use enumeration::{ENUMERATION_MAX, solve_enumeration};
 pub use lemke::solve_lemke;
 pub use pgs::solve_pgs;
 
@@ -39,14 +39,19 @@ impl Lcp<'_> {
     /// w = M z + q.
     pub fn w(&self, z: &[f64]) -> Vec<f64> {
         let n = self.size();
-        (0..n).map(|i| self.q[i] + (0..n).map(|j| self.m[i * n + j] * z[j]).sum::<f64>()).collect()
+        (0..n)
+            .map(|i| self.q[i] + (0..n).map(|j| self.m[i * n + j] * z[j]).sum::<f64>())
+            .collect()
     }
 
     /// The natural-residual error of `z` (see the module documentation).
     pub fn error(&self, z: &[f64]) -> f64 {
         let w = self.w(z);
         let scale = self.q.iter().fold(1.0f64, |s, a| s.max(a.abs()));
-        z.iter().zip(&w).fold(0.0f64, |e, (&zi, &wi)| e.max(zi.min(wi).abs())) / scale
+        z.iter()
+            .zip(&w)
+            .fold(0.0f64, |e, (&zi, &wi)| e.max(zi.min(wi).abs()))
+            / scale
     }
 }
 
@@ -71,7 +76,9 @@ pub enum LcpError {
         pivots: usize,
     },
     /// The iteration budget ran out before the tolerance was met.
-    #[error("{solver} did not reach tolerance {tolerance:e} in {iterations} iterations (error {error:e})")]
+    #[error(
+        "{solver} did not reach tolerance {tolerance:e} in {iterations} iterations (error {error:e})"
+    )]
     NotConverged {
         /// Solver name.
         solver: &'static str,
@@ -135,7 +142,11 @@ pub struct LcpOptions {
 
 impl Default for LcpOptions {
     fn default() -> Self {
-        Self { kind: LcpSolverKind::Auto, tolerance: 1e-12, max_iterations: 100_000 }
+        Self {
+            kind: LcpSolverKind::Auto,
+            tolerance: 1e-12,
+            max_iterations: 100_000,
+        }
     }
 }
 
@@ -148,7 +159,11 @@ pub const AUTO_LEMKE_MAX: usize = 200;
 pub fn solve(lcp: Lcp<'_>, options: &LcpOptions) -> Result<LcpSolution, LcpError> {
     let n = lcp.size();
     if lcp.q.iter().all(|&qi| qi >= 0.0) {
-        return Ok(LcpSolution { z: vec![0.0; n], iterations: 0, error: 0.0 });
+        return Ok(LcpSolution {
+            z: vec![0.0; n],
+            iterations: 0,
+            error: 0.0,
+        });
     }
     let kind = match options.kind {
         LcpSolverKind::Auto if n <= AUTO_ENUMERATION_MAX => LcpSolverKind::Enumeration,
