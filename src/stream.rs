@@ -1,11 +1,17 @@
 //! Live streams over zenoh: `signorini/v1/jobs/{id}/status`, `…/{id}/state`, `…/{id}/energy`.
 //!
 //! Workers hand frames to one publishing task through a bounded channel: step frames with
-//! `try_send` (a full channel drops the frame and counts it — a slow or absent subscriber never
-//! blocks a job), status messages and each run's last frames with a blocking send. The task
-//! declares one publisher per key and job: `state`/`energy` with congestion control *drop*, `status`
-//! with *block* and a higher priority; the last frame of a run is put with *block* too. Every
-//! message also goes to an in-process broadcast that feeds gRPC `WatchJob`.
+//! `try_send` (a full channel drops the frame and counts it in `signorini_frames_dropped_total`),
+//! status messages and each run's last frames with a blocking send. This channel is where a slow
+//! or absent subscriber is absorbed: a job never waits on zenoh.
+//!
+//! zenoh QoS: the status publisher has a higher priority than the step frames. Step frames are
+//! put with congestion control *block* on the publishing task (not on the job): zenoh's *drop*
+//! policy, measured here, drops whole bursts as soon as its link queue is momentarily full (a
+//! fast job emits dozens of frames per millisecond), so a subscriber on loopback that keeps up
+//! would still lose steps. With *block*, a subscriber that stalls for more than zenoh's
+//! `wait_before_close` (5 s) is disconnected by zenoh, and meanwhile the channel above fills and
+//! drops frames — the job runs on at full speed either way.
 //!
 //! A queryable on `signorini/v1/jobs/*/status` answers the latest status of a job, for late
 //! joiners (`signorini watch`) and as a barrier: once a query from a session is answered, the
@@ -200,16 +206,12 @@ impl Streamer {
     }
 }
 
-async fn declare(session: &Session, key: String, block: bool) -> Result<Publisher<'static>> {
-    let (cc, prio) = if block {
-        (CongestionControl::Block, Priority::InteractiveHigh)
-    } else {
-        (CongestionControl::Drop, Priority::Data)
-    };
+async fn declare(session: &Session, key: String, status: bool) -> Result<Publisher<'static>> {
+    let prio = if status { Priority::InteractiveHigh } else { Priority::Data };
     session
         .declare_publisher(key)
         .encoding(Encoding::APPLICATION_PROTOBUF)
-        .congestion_control(cc)
+        .congestion_control(CongestionControl::Block)
         .priority(prio)
         .await
         .map_err(|e| anyhow!("declaring publisher: {e}"))
@@ -278,23 +280,10 @@ async fn handle(
             }));
         }
         StreamMsg::Steps { id, energy, state } => {
-            for (frame, publisher, key, is_energy) in [
-                (energy, &p.energy, energy_key(&id), true),
-                (state, &p.state, state_key(&id), false),
-            ] {
+            let _ = id;
+            for (frame, publisher, is_energy) in [(energy, &p.energy, true), (state, &p.state, false)] {
                 let Some(frame) = frame else { continue };
-                let bytes = frame.encode_to_vec();
-                if frame.last {
-                    // The run's last frame is never dropped.
-                    session
-                        .put(key, bytes)
-                        .encoding(Encoding::APPLICATION_PROTOBUF)
-                        .congestion_control(CongestionControl::Block)
-                        .await
-                        .map_err(|e| anyhow!("{e}"))?;
-                } else {
-                    publisher.put(bytes).await.map_err(|e| anyhow!("{e}"))?;
-                }
+                publisher.put(frame.encode_to_vec()).await.map_err(|e| anyhow!("{e}"))?;
                 stats.frames_published.fetch_add(1, Ordering::Relaxed);
                 if watch.receiver_count() > 0 {
                     let f = if is_energy {

@@ -522,7 +522,8 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     let clock = Instant::now();
     let outcome = job::run(&live.job, &mut observer);
     let wall = clock.elapsed().as_secs_f64();
-    observer.flush(true);
+    // The last frames go out after the result is stored: whoever saw them can fetch it.
+    let last_frames = observer.last_frames();
     observer.count_steps();
 
     let mut row = live_row(live, JobState::Succeeded);
@@ -563,6 +564,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
         row.error = Some(("store".into(), e.to_string()));
     }
     lock(&inner.live).remove(&live.id);
+    inner.sink.send_blocking(last_frames);
     tracing::info!(id = %live.id, state = row.state.as_str(), wall_s = wall, "finished");
     inner
         .sink
@@ -638,21 +640,26 @@ impl<'a> ServiceObserver<'a> {
         })
     }
 
-    /// Sends the pending steps as one energy and one state frame.
-    fn flush(&mut self, last: bool) {
-        if self.rec_steps.len() == self.batch_from && !last {
+    /// The pending steps as the run's last energy and state frames (to send with a blocking send).
+    fn last_frames(&mut self) -> StreamMsg {
+        StreamMsg::Steps {
+            id: self.live.id.clone(),
+            energy: self.frame(&self.energy_idx, true),
+            state: self.frame(&self.state_idx, true),
+        }
+    }
+
+    /// Offers the pending steps as one energy and one state frame (dropped if the stream lags).
+    fn flush(&mut self) {
+        if self.rec_steps.len() == self.batch_from {
             return;
         }
         let msg = StreamMsg::Steps {
             id: self.live.id.clone(),
-            energy: self.frame(&self.energy_idx, last),
-            state: self.frame(&self.state_idx, last),
+            energy: self.frame(&self.energy_idx, false),
+            state: self.frame(&self.state_idx, false),
         };
-        if last {
-            self.inner.sink.send_blocking(msg);
-        } else {
-            self.inner.sink.offer(msg);
-        }
+        self.inner.sink.offer(msg);
         self.seq += 1;
         self.batch_from = self.rec_steps.len();
         self.batch_stamps.clear();
@@ -692,7 +699,7 @@ impl Observer for ServiceObserver<'_> {
         self.batch_stamps.push(stamp);
         let pending = self.rec_steps.len() - self.batch_from;
         if pending >= FRAME_STEPS || stamp.saturating_sub(self.batch_stamps[0]) >= FRAME_NS {
-            self.flush(false);
+            self.flush();
         }
         ControlFlow::Continue(())
     }

@@ -1,0 +1,267 @@
+//! Shared harness of the service end-to-end tests: a [`TestServer`] that starts the real
+//! `signorini serve` binary on 127.0.0.1 ports chosen free, with a temporary store, and kills it
+//! on drop; a zenoh peer on loopback (multicast scouting off) connected to it; small gRPC and HTTP
+//! clients (hyper-util).
+#![allow(dead_code)]
+
+use http_body_util::{BodyExt, Full};
+use hyper::body::Bytes;
+use hyper_util::client::legacy::Client;
+use hyper_util::rt::TokioExecutor;
+use prost::Message;
+use serde_json::Value;
+use signorini::proto::v1 as pb;
+use signorini::proto::v1::simulation_client::SimulationClient;
+use std::io::{BufRead, BufReader};
+use std::net::{SocketAddr, TcpListener};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::Duration;
+use tonic::transport::Channel;
+
+/// Generous bound for anything a loaded 2-core machine should finish.
+pub const PATIENCE: Duration = Duration::from_secs(180);
+
+/// A port nobody listens on right now.
+pub fn free_port() -> u16 {
+    let l = TcpListener::bind("127.0.0.1:0").expect("binding an ephemeral port");
+    l.local_addr().expect("local addr").port()
+}
+
+/// Options of a test server.
+#[derive(Debug, Clone)]
+pub struct Options {
+    pub workers: usize,
+    pub queue_limit: usize,
+    pub token: Option<String>,
+    pub max_steps: Option<u64>,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self { workers: 2, queue_limit: 64, token: None, max_steps: None }
+    }
+}
+
+/// A running `signorini serve`.
+pub struct TestServer {
+    child: Child,
+    pub grpc_url: String,
+    pub http: SocketAddr,
+    pub zenoh: String,
+    pub store: PathBuf,
+}
+
+impl TestServer {
+    /// Starts the binary on `store` and waits for its "serving" line.
+    pub fn start(store: &Path, opts: &Options) -> TestServer {
+        let grpc = SocketAddr::from(([127, 0, 0, 1], free_port()));
+        let http = SocketAddr::from(([127, 0, 0, 1], free_port()));
+        let zenoh = format!("tcp/127.0.0.1:{}", free_port());
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_signorini"));
+        cmd.arg("serve")
+            .args(["--grpc-addr", &grpc.to_string(), "--http-addr", &http.to_string()])
+            .args(["--store", &store.display().to_string(), "--zenoh-listen", &zenoh])
+            .args(["--workers", &opts.workers.to_string(), "--queue-limit", &opts.queue_limit.to_string()])
+            .env_remove("SIGNORINI_TOKEN")
+            .env_remove("SIGNORINI_CONFIG")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit());
+        if let Some(t) = &opts.token {
+            cmd.args(["--token", t]);
+        }
+        if let Some(s) = opts.max_steps {
+            cmd.args(["--max-steps", &s.to_string()]);
+        }
+        let mut child = cmd.spawn().expect("starting signorini serve");
+        let stdout = child.stdout.take().expect("piped stdout");
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                if line.contains("signorini serving") {
+                    let _ = tx.send(());
+                }
+            }
+        });
+        let server = TestServer { child, grpc_url: format!("http://{grpc}"), http, zenoh, store: store.to_path_buf() };
+        rx.recv_timeout(PATIENCE).expect("server did not report it was serving");
+        server
+    }
+
+    /// SIGKILL, no cleanup (crash test).
+    pub fn kill9(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+
+    /// A gRPC client.
+    pub async fn grpc(&self) -> SimulationClient<Channel> {
+        SimulationClient::connect(self.grpc_url.clone())
+            .await
+            .expect("gRPC connect")
+            .max_decoding_message_size(1 << 30)
+    }
+
+    /// An HTTP call: status and JSON body (Null when the body is not JSON).
+    pub async fn http(&self, method: &str, path: &str, body: Option<&str>, token: Option<&str>) -> (u16, Value) {
+        let (status, bytes) = self.http_raw(method, path, body, token).await;
+        (status, serde_json::from_slice(&bytes).unwrap_or(Value::Null))
+    }
+
+    /// An HTTP call: status and raw body.
+    pub async fn http_raw(&self, method: &str, path: &str, body: Option<&str>, token: Option<&str>) -> (u16, Vec<u8>) {
+        let client: Client<_, Full<Bytes>> = Client::builder(TokioExecutor::new()).build_http();
+        let mut req = hyper::Request::builder()
+            .method(method)
+            .uri(format!("http://{}{path}", self.http))
+            .header("content-type", "application/json");
+        if let Some(t) = token {
+            req = req.header("authorization", format!("Bearer {t}"));
+        }
+        let req = req.body(Full::new(Bytes::from(body.unwrap_or("").to_string()))).expect("request");
+        let resp = client.request(req).await.expect("HTTP request");
+        let status = resp.status().as_u16();
+        let bytes = resp.into_body().collect().await.expect("HTTP body").to_bytes();
+        (status, bytes.to_vec())
+    }
+
+    /// A zenoh peer connected to the server's (loopback, multicast scouting off).
+    pub async fn zenoh_session(&self) -> zenoh::Session {
+        signorini::stream::open_session(&signorini::stream::ZenohOptions {
+            listen: Vec::new(),
+            connect: vec![self.zenoh.clone()],
+        })
+        .await
+        .expect("zenoh session")
+    }
+}
+
+impl Drop for TestServer {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Waits until the server's zenoh peer answers a status query for `id` (an error reply when the
+/// job does not exist yet): from then on, subscribers this session declared earlier are known to
+/// the server, so no frame of the job can be missed.
+pub async fn zenoh_barrier(session: &zenoh::Session, id: &str) {
+    let deadline = tokio::time::Instant::now() + PATIENCE;
+    loop {
+        let replies = session.get(signorini::stream::status_key(id)).await.expect("zenoh get");
+        if replies.recv_async().await.is_ok() {
+            return;
+        }
+        assert!(tokio::time::Instant::now() < deadline, "server's zenoh peer never answered");
+        // No route yet: the peers are still connecting.
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+/// Collected step frames of one key.
+#[derive(Debug, Default)]
+pub struct Collected {
+    pub columns: Vec<String>,
+    pub steps: Vec<u64>,
+    pub t: Vec<f64>,
+    pub rows: Vec<Vec<f64>>,
+    pub frames: usize,
+}
+
+/// Receives frames from `sub` until the one marked `last`.
+pub async fn collect_until_last(sub: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>) -> Collected {
+    let mut c = Collected::default();
+    loop {
+        let sample = tokio::time::timeout(PATIENCE, sub.recv_async())
+            .await
+            .expect("no frame in time")
+            .expect("subscriber closed");
+        let f = pb::StepFrame::decode(&*sample.payload().to_bytes()).expect("a StepFrame");
+        let n = f.columns.len();
+        c.columns = f.columns.clone();
+        c.steps.extend(&f.step);
+        c.t.extend(&f.t);
+        c.rows.extend(f.values.chunks(n).map(<[f64]>::to_vec));
+        c.frames += 1;
+        if f.last {
+            return c;
+        }
+    }
+}
+
+/// Follows gRPC `WatchJob` until the job's terminal status; returns it.
+pub async fn wait_terminal(client: &mut SimulationClient<Channel>, id: &str) -> pb::JobStatus {
+    let fut = async {
+        let mut stream = client
+            .watch_job(pb::WatchJobRequest { id: id.to_string() })
+            .await
+            .expect("WatchJob")
+            .into_inner();
+        while let Some(frame) = stream.message().await.expect("WatchJob stream") {
+            if let Some(pb::watch_frame::Frame::Status(s)) = frame.frame {
+                let st = pb::JobState::try_from(s.state).unwrap_or(pb::JobState::Unspecified);
+                if matches!(st, pb::JobState::Succeeded | pb::JobState::Failed | pb::JobState::Cancelled) {
+                    return s;
+                }
+            }
+        }
+        panic!("WatchJob ended before a terminal status");
+    };
+    tokio::time::timeout(PATIENCE, fut).await.expect("job did not end in time")
+}
+
+/// Follows gRPC `WatchJob` until the job is running and has done at least `steps` steps.
+pub async fn wait_running(client: &mut SimulationClient<Channel>, id: &str, steps: u64) {
+    let fut = async {
+        let mut stream = client
+            .watch_job(pb::WatchJobRequest { id: id.to_string() })
+            .await
+            .expect("WatchJob")
+            .into_inner();
+        while let Some(frame) = stream.message().await.expect("WatchJob stream") {
+            if let Some(pb::watch_frame::Frame::Status(s)) = frame.frame {
+                let running = s.state == pb::JobState::Running as i32;
+                if running && s.progress.as_ref().is_some_and(|p| p.step >= steps) {
+                    return;
+                }
+                assert!(s.state <= pb::JobState::Running as i32, "job ended early: {s:?}");
+            }
+        }
+        panic!("WatchJob ended before the job ran");
+    };
+    tokio::time::timeout(PATIENCE, fut).await.expect("job did not start in time");
+}
+
+/// A bouncing-ball spec in JSON.
+pub fn ball_json(h: f64, steps: u64, every: u64) -> String {
+    format!(r#"{{"name":"ball","model":{{"scene":"bouncing_ball","restitution":0.8}},"time":{{"h":{h:?},"steps":{steps}}},"output":{{"every":{every}}}}}"#)
+}
+
+/// The same as a typed proto spec.
+pub fn ball_typed(h: f64, steps: u64, every: u64) -> pb::JobSpec {
+    pb::JobSpec {
+        name: Some("ball".into()),
+        model: Some(pb::ModelSpec {
+            scene: Some(pb::model_spec::Scene::BouncingBall(pb::BouncingBall {
+                restitution: Some(0.8),
+                ..Default::default()
+            })),
+        }),
+        integrator: None,
+        time: Some(pb::TimeSpec { h: Some(h), steps: Some(steps), ..Default::default() }),
+        contact_solver: None,
+        output: Some(pb::OutputSpec { every: Some(every), probes: vec![] }),
+    }
+}
+
+/// Submits a JSON spec over gRPC.
+pub async fn submit_json(
+    client: &mut SimulationClient<Channel>,
+    spec: String,
+    id: Option<&str>,
+) -> Result<String, tonic::Status> {
+    let req = pb::SubmitJobRequest { spec: Some(pb::submit_job_request::Spec::Json(spec)), id: id.map(str::to_string) };
+    client.submit_job(req).await.map(|r| r.into_inner().id)
+}
