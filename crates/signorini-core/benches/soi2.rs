@@ -12,6 +12,9 @@ use signorini_core::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
 use signorini_core::soi2::run::{End, Schedule, Soi2Output, Soi2Stats, integrate};
 use std::time::Instant;
 
+/// One benchmark case: runs and returns (state, stats, wall s, CPU s).
+type Case<'a> = dyn Fn() -> (Soi2State, Soi2Stats, f64, f64) + 'a;
+
 fn cpu_seconds() -> f64 {
     // Process CPU time (the machine is shared): /proc/self/stat utime + stime in clock ticks.
     let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
@@ -68,11 +71,7 @@ fn main() {
     println!("|---|---|---|---|---|---|---|");
     let p = Pendulum::default();
     let s = SliderCrank::default();
-    let cases: Vec<(
-        &str,
-        &str,
-        Box<dyn Fn() -> (Soi2State, Soi2Stats, f64, f64)>,
-    )> = vec![
+    let cases: Vec<(&str, &str, Box<Case>)> = vec![
         (
             "pendulum",
             "soi2_generalized_alpha",

@@ -154,7 +154,7 @@ pub struct StepInfo {
 /// A residual function F(x) written for any scalar, so that its Jacobian comes from AD.
 pub trait Residual {
     /// Number of unknowns (= of equations).
-    fn len(&self) -> usize;
+    fn size(&self) -> usize;
     /// F(x).
     fn eval<T: Scalar>(&self, x: &[T], r: &mut [T]);
     /// Size of the increments that round-off alone produces (0 when negligible): Newton stops
@@ -181,7 +181,7 @@ fn solve_newton<R: Residual>(
     x: &mut [f64],
     opts: &NewtonOptions,
 ) -> Result<StepInfo, NewtonFailure> {
-    let n = res.len();
+    let n = res.size();
     let mut xd: Vec<Dual64> = x.iter().map(|&v| Dual64::from_re(v)).collect();
     let mut rd = vec![Dual64::from_re(0.0); n];
     let mut jac = DMatrix::<f64>::zeros(n, n);
@@ -280,7 +280,7 @@ struct AccelerationSystem<'a, M: ?Sized> {
 }
 
 impl<M: ConstrainedModel + ?Sized> Residual for AccelerationSystem<'_, M> {
-    fn len(&self) -> usize {
+    fn size(&self) -> usize {
         self.dims.n + self.dims.holonomic + self.dims.nonholonomic
     }
 
@@ -313,6 +313,9 @@ impl<M: ConstrainedModel + ?Sized> Residual for AccelerationSystem<'_, M> {
     }
 }
 
+/// Consistent (a, λ, ψ) at one (t, y, z).
+pub type Consistent = (Vec<f64>, Vec<f64>, Vec<f64>);
+
 /// The consistent (a, λ, ψ) at (t, y, z), by Newton from a = 0 and the given λ, ψ guesses.
 #[allow(clippy::too_many_arguments)]
 pub fn consistent_acceleration<M: ConstrainedModel + ?Sized>(
@@ -324,7 +327,7 @@ pub fn consistent_acceleration<M: ConstrainedModel + ?Sized>(
     psi_guess: &[f64],
     newton: &NewtonOptions,
     step: u64,
-) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), Soi2Error> {
+) -> Result<Consistent, Soi2Error> {
     let dims = model.dims();
     let sys = AccelerationSystem {
         model,
@@ -399,8 +402,8 @@ impl<M: ConstrainedModel + ?Sized> StepSystem<'_, M> {
         } = self.method.coefficients;
         for i in 0..n {
             let mut v = c::<T>(alpha_m * self.ma_alpha[i] - alpha_f * self.f0[i]) - f[i] * wf;
-            for j in 0..n {
-                v += a[j] * (s * self.m1[i * n + j]);
+            for (aj, mij) in a.iter().zip(&self.m1[i * n..(i + 1) * n]) {
+                v += *aj * (s * mij);
             }
             out[i] = v;
         }
@@ -408,7 +411,7 @@ impl<M: ConstrainedModel + ?Sized> StepSystem<'_, M> {
 }
 
 impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
-    fn len(&self) -> usize {
+    fn size(&self) -> usize {
         let Dims {
             n,
             holonomic: mg,
@@ -444,7 +447,7 @@ impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
         let h = self.h;
         let sg = 1.0 / (beta * h * h); // scale of position-level rows
         let sv = 1.0 / (gamma * h); // scale of velocity-level rows
-        let zero = vec![T::zero(); 0];
+        let zero = Vec::<T>::new();
         let mut f = vec![T::zero(); n];
         match self.method.formulation {
             Formulation::General | Formulation::Additive => {
@@ -518,8 +521,8 @@ impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
                 self.model.g_y(t1, &y1, &mut gy);
                 for i in 0..n {
                     let mut v = T::zero();
-                    for j in 0..n {
-                        v += delta[j] * self.m1[i * n + j];
+                    for (dj, mij) in delta.iter().zip(&self.m1[i * n..(i + 1) * n]) {
+                        v += *dj * *mij;
                     }
                     for q in 0..mg {
                         v -= gy[q * n + i] * mu[q];
@@ -633,7 +636,7 @@ pub fn solve_step<M: ConstrainedModel + ?Sized>(
         m1: &m1,
     };
     // Start from the previous values (tilded = untilded, corrections 0).
-    let mut x = Vec::with_capacity(sys.len());
+    let mut x = Vec::with_capacity(sys.size());
     match method.formulation {
         Formulation::General | Formulation::Additive => {
             x.extend_from_slice(&state.a_alpha);

@@ -363,7 +363,7 @@ pub fn check_consistency<M: ConstrainedModel + ?Sized>(
     let iv = model.initial();
     let r = constraint_residuals(model, iv.t, &iv.y, &iv.z);
     for (level, residual) in ["position", "velocity", "nonholonomic"].into_iter().zip(r) {
-        if !(residual <= tolerance) {
+        if residual.is_nan() || residual > tolerance {
             return Err(Soi2Error::InconsistentInitialConditions {
                 level,
                 residual,

@@ -369,7 +369,7 @@ pub fn integrate<M: ConstrainedModel + ?Sized>(
         stats.newton_iterations_max = stats.newton_iterations_max.max(info.iterations);
         stats.steps = k;
         stats.t_end = state.t;
-        if k % every == 0 || k == total {
+        if k.is_multiple_of(every) || k == total {
             let (kin, pot) = (kinetic(&state), potential(&state));
             stats.energy_final = kin + pot;
             record(
