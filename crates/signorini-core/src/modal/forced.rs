@@ -125,7 +125,10 @@ impl ForcedResponseJob {
     /// Validates the spec.
     pub fn from_spec(s: &ForcedResponseSpec) -> Result<Self, SpecError> {
         if s.cells < 2 || s.cells > 100_000 {
-            return Err(SpecError::new("analysis.cells", format!("must be in [2, 10⁵], got {}", s.cells)));
+            return Err(SpecError::new(
+                "analysis.cells",
+                format!("must be in [2, 10⁵], got {}", s.cells),
+            ));
         }
         let mut bar = WaveBar::unit(s.cells, s.gap);
         for (field, x, dst) in [
@@ -137,17 +140,32 @@ impl ForcedResponseJob {
             *dst = super::positive(field, x)?;
         }
         if !s.gap.is_finite() {
-            return Err(SpecError::new("analysis.gap", format!("must be finite, got {}", s.gap)));
+            return Err(SpecError::new(
+                "analysis.gap",
+                format!("must be finite, got {}", s.gap),
+            ));
         }
         if !s.amplitude.is_finite() || s.amplitude == 0.0 {
-            return Err(SpecError::new("analysis.amplitude", format!("must be finite and ≠ 0, got {}", s.amplitude)));
+            return Err(SpecError::new(
+                "analysis.amplitude",
+                format!("must be finite and ≠ 0, got {}", s.amplitude),
+            ));
         }
-        let omegas = s.omegas.clone().unwrap_or_else(|| (0..29).map(|i| 0.8 + 0.05 * i as f64).collect());
+        let omegas = s
+            .omegas
+            .clone()
+            .unwrap_or_else(|| (0..29).map(|i| 0.8 + 0.05 * i as f64).collect());
         if omegas.is_empty() || omegas.iter().any(|w| !(w.is_finite() && *w > 0.0)) {
-            return Err(SpecError::new("analysis.omegas", "must be a non-empty list of finite numbers > 0"));
+            return Err(SpecError::new(
+                "analysis.omegas",
+                "must be a non-empty list of finite numbers > 0",
+            ));
         }
         if s.damping.is_empty() || s.damping.iter().any(|g| !(g.is_finite() && *g >= 0.0)) {
-            return Err(SpecError::new("analysis.damping", "must be a non-empty list of finite numbers ≥ 0"));
+            return Err(SpecError::new(
+                "analysis.damping",
+                "must be a non-empty list of finite numbers ≥ 0",
+            ));
         }
         if s.average_periods == 0 {
             return Err(SpecError::new("analysis.average_periods", "must be ≥ 1"));
@@ -174,9 +192,17 @@ impl ForcedResponseJob {
     pub fn driven_bar(&self, omega_over_omega1: f64, damping: f64) -> WaveBar {
         let mut bar = self.bar.clone();
         let omega1 = std::f64::consts::PI * bar.wave_speed() / (2.0 * bar.length);
-        let h = HarmonicSpec { amplitude: self.amplitude, omega: omega_over_omega1 * omega1 };
+        let h = HarmonicSpec {
+            amplitude: self.amplitude,
+            omega: omega_over_omega1 * omega1,
+        };
         match self.excitation {
-            Excitation::Wall => bar.wall_motion = Some(HarmonicSpec { amplitude: -h.amplitude, omega: h.omega }),
+            Excitation::Wall => {
+                bar.wall_motion = Some(HarmonicSpec {
+                    amplitude: -h.amplitude,
+                    omega: h.omega,
+                })
+            }
             Excitation::Force => bar.harmonic_force = Some(h),
         }
         bar.damping = damping;
@@ -213,7 +239,8 @@ pub fn respond(job: &ForcedResponseJob, omega_over_omega1: f64, damping: f64) ->
         let terms = step(&bar, &mut state);
         // The energy balance of the step (the sums are O(N), as the source step already is).
         let e = state.energy(&bar);
-        worst = worst.max((e - e_prev - terms.work_ext - terms.work_damping - terms.work_contact).abs());
+        worst = worst
+            .max((e - e_prev - terms.work_ext - terms.work_damping - terms.work_contact).abs());
         e_max = e_max.max(e);
         e_prev = e;
         if k >= transient {
@@ -229,8 +256,16 @@ pub fn respond(job: &ForcedResponseJob, omega_over_omega1: f64, damping: f64) ->
 }
 
 /// Runs the sweep: every (γ, ω) task on the worker threads, `forced_response` table, figure.
-pub fn run_forced(job: &ForcedResponseJob, mut summary: Map<String, Value>, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
-    let tasks: Vec<(f64, f64)> = job.damping.iter().flat_map(|&g| job.omegas.iter().map(move |&w| (g, w))).collect();
+pub fn run_forced(
+    job: &ForcedResponseJob,
+    mut summary: Map<String, Value>,
+    observer: &mut dyn Observer,
+) -> Result<RunOutput, RunError> {
+    let tasks: Vec<(f64, f64)> = job
+        .damping
+        .iter()
+        .flat_map(|&g| job.omegas.iter().map(move |&w| (g, w)))
+        .collect();
     let total = tasks.len() as u64;
     let next = AtomicUsize::new(0);
     let stop = AtomicBool::new(false);
@@ -259,10 +294,12 @@ pub fn run_forced(job: &ForcedResponseJob, mut summary: Map<String, Value>, obse
         }
         drop(tx);
         // The calling thread reports progress and honours cancellation.
-        let mut done = 0u64;
-        for () in rx.iter() {
-            done += 1;
-            if let ControlFlow::Break(()) = observer.progress(Progress { done, total, t: 0.0 }) {
+        for (done, ()) in rx.iter().enumerate() {
+            if let ControlFlow::Break(()) = observer.progress(Progress {
+                done: done as u64 + 1,
+                total,
+                t: 0.0,
+            }) {
                 stop.store(true, Ordering::Relaxed);
                 stopped = true;
             }
@@ -270,22 +307,41 @@ pub fn run_forced(job: &ForcedResponseJob, mut summary: Map<String, Value>, obse
     });
     let mut results = results.into_inner().unwrap_or_default();
     if stopped {
-        return Err(RunError::Stopped { step: results.len() as u64 });
+        return Err(RunError::Stopped {
+            step: results.len() as u64,
+        });
     }
-    results.sort_by(|a, b| a.damping.total_cmp(&b.damping).then(a.omega_over_omega1.total_cmp(&b.omega_over_omega1)));
+    results.sort_by(|a, b| {
+        a.damping
+            .total_cmp(&b.damping)
+            .then(a.omega_over_omega1.total_cmp(&b.omega_over_omega1))
+    });
     let e_lin = super::linear_grazing_energy(&job.bar);
     let rows: Vec<Vec<f64>> = results
         .iter()
-        .map(|r| vec![r.damping, r.omega_over_omega1, r.mean_energy, r.mean_energy / e_lin, r.balance_residual])
+        .map(|r| {
+            vec![
+                r.damping,
+                r.omega_over_omega1,
+                r.mean_energy,
+                r.mean_energy / e_lin,
+                r.balance_residual,
+            ]
+        })
         .collect();
     let backbone = if job.backbone {
         let n = job.cells;
-        scan(&job.bar, (2 * n, 4 * n), 1, false, threads, &|| ControlFlow::Continue(())).unwrap_or_default()
+        scan(&job.bar, (2 * n, 4 * n), 1, false, threads, &|| {
+            ControlFlow::Continue(())
+        })
+        .unwrap_or_default()
     } else {
         Vec::new()
     };
     let figure = svg::forced_figure(&results, e_lin, &backbone, job.excitation);
-    let worst = results.iter().fold(0.0f64, |m, r| m.max(r.balance_residual));
+    let worst = results
+        .iter()
+        .fold(0.0f64, |m, r| m.max(r.balance_residual));
     summary.extend(
         json!({
             "kind": "forced_response",
@@ -305,9 +361,15 @@ pub fn run_forced(job: &ForcedResponseJob, mut summary: Map<String, Value>, obse
         summary,
         tables: vec![Table {
             name: "forced_response".into(),
-            columns: ["damping", "omega_over_omega1", "mean_energy", "energy_normalized", "relative_balance_residual"]
-                .map(String::from)
-                .to_vec(),
+            columns: [
+                "damping",
+                "omega_over_omega1",
+                "mean_energy",
+                "energy_normalized",
+                "relative_balance_residual",
+            ]
+            .map(String::from)
+            .to_vec(),
             rows,
         }],
         figures: vec![figure],

@@ -24,13 +24,20 @@ pub struct SignedPermutation {
 /// Number of i ∈ [0, steps) with (k + i) ≡ r (mod n2).
 fn hits(k: usize, steps: usize, r: usize, n2: usize) -> usize {
     let first = (r + n2 - k % n2) % n2;
-    if steps > first { (steps - 1 - first) / n2 + 1 } else { 0 }
+    if steps > first {
+        (steps - 1 - first) / n2 + 1
+    } else {
+        0
+    }
 }
 
 impl SignedPermutation {
     /// The identity on `len` positions.
     pub fn identity(len: usize) -> Self {
-        SignedPermutation { target: (0..len).collect(), sign: vec![1; len] }
+        SignedPermutation {
+            target: (0..len).collect(),
+            sign: vec![1; len],
+        }
     }
 
     /// `A^steps` for a bar of `cells` cells with the given left end and contact-end condition:
@@ -62,16 +69,22 @@ impl SignedPermutation {
     /// `other ∘ self` (apply `self` first).
     pub fn then(&self, other: &SignedPermutation) -> SignedPermutation {
         let target = self.target.iter().map(|&t| other.target[t]).collect();
-        let sign = self.sign.iter().zip(&self.target).map(|(&s, &t)| s * other.sign[t]).collect();
+        let sign = self
+            .sign
+            .iter()
+            .zip(&self.target)
+            .map(|(&s, &t)| s * other.sign[t])
+            .collect();
         SignedPermutation { target, sign }
     }
 
     /// The product of the phases, applied in order (e.g. `[(Free, m), (Contact, p)]` is
     /// `A_c^p A_f^m`, (8); four phases give (18)).
     pub fn product(cells: usize, left: LeftEnd, phases: &[(EndCondition, usize)]) -> Self {
-        phases.iter().fold(SignedPermutation::identity(2 * cells), |acc, &(end, steps)| {
-            acc.then(&SignedPermutation::phase(cells, left, end, steps))
-        })
+        phases.iter().fold(
+            SignedPermutation::identity(2 * cells),
+            |acc, &(end, steps)| acc.then(&SignedPermutation::phase(cells, left, end, steps)),
+        )
     }
 
     /// P x.
@@ -185,5 +198,8 @@ pub fn dense_matrix(bar: &WaveBar, end: EndCondition) -> DMatrix<f64> {
 pub fn dense_kernel_dim(s: &DMatrix<f64>, tol: f64) -> usize {
     let n = s.nrows();
     let m = s - DMatrix::<f64>::identity(n, n);
-    m.singular_values_unordered().iter().filter(|&&x| x < tol).count()
+    m.singular_values_unordered()
+        .iter()
+        .filter(|&&x| x < tol)
+        .count()
 }

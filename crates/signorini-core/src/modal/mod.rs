@@ -106,35 +106,61 @@ pub struct ModalJob {
 }
 
 fn positive(field: &str, x: f64) -> Result<f64, SpecError> {
-    if x.is_finite() && x > 0.0 { Ok(x) } else { Err(SpecError::new(field, format!("must be a finite number > 0, got {x}"))) }
+    if x.is_finite() && x > 0.0 {
+        Ok(x)
+    } else {
+        Err(SpecError::new(
+            field,
+            format!("must be a finite number > 0, got {x}"),
+        ))
+    }
 }
 
 impl ModalJob {
     /// Validates the spec.
     pub fn from_spec(s: &ModalSpec) -> Result<Self, SpecError> {
         if s.cells < 2 || s.cells > 1_000_000 {
-            return Err(SpecError::new("analysis.cells", format!("must be in [2, 10⁶], got {}", s.cells)));
+            return Err(SpecError::new(
+                "analysis.cells",
+                format!("must be in [2, 10⁶], got {}", s.cells),
+            ));
         }
         let gaps = match (&s.gap, &s.gaps) {
-            (Some(_), Some(_)) => return Err(SpecError::new("analysis.gaps", "give gap or gaps, not both")),
+            (Some(_), Some(_)) => {
+                return Err(SpecError::new(
+                    "analysis.gaps",
+                    "give gap or gaps, not both",
+                ));
+            }
             (Some(g), None) => vec![*g],
-            (None, Some(g)) if g.is_empty() => return Err(SpecError::new("analysis.gaps", "must not be empty")),
+            (None, Some(g)) if g.is_empty() => {
+                return Err(SpecError::new("analysis.gaps", "must not be empty"));
+            }
             (None, Some(g)) => g.clone(),
             (None, None) => vec![1e-3, 0.0, -1e-3],
         };
         if let Some(g) = gaps.iter().find(|g| !g.is_finite()) {
-            return Err(SpecError::new("analysis.gap", format!("must be finite, got {g}")));
+            return Err(SpecError::new(
+                "analysis.gap",
+                format!("must be finite, got {g}"),
+            ));
         }
         let max = s.max_period_steps.unwrap_or(4 * s.cells);
         let min = s.min_period_steps.unwrap_or(2).max(2);
         if max < min || max > 100 * s.cells {
             return Err(SpecError::new(
                 "analysis.max_period_steps",
-                format!("must be in [{min}, {}] (min_period_steps … 100·cells), got {max}", 100 * s.cells),
+                format!(
+                    "must be in [{min}, {}] (min_period_steps … 100·cells), got {max}",
+                    100 * s.cells
+                ),
             ));
         }
         if !(s.phases == 1 || s.phases == 2) {
-            return Err(SpecError::new("analysis.phases", format!("must be 1 or 2, got {}", s.phases)));
+            return Err(SpecError::new(
+                "analysis.phases",
+                format!("must be 1 or 2, got {}", s.phases),
+            ));
         }
         let mut bar = WaveBar::unit(s.cells, 0.0);
         bar.length = positive("analysis.length", s.length)?;
@@ -186,7 +212,11 @@ pub struct BackbonePoint {
 /// Energy of the grazing first linear mode (11): `u = A sin(πx/2L) cos ω₁t` with A = |g0|
 /// (10⁻³ L when g0 = 0) has `E S π² A² / (16 L)`.
 pub fn linear_grazing_energy(bar: &WaveBar) -> f64 {
-    let amp = if bar.gap == 0.0 { 1e-3 * bar.length } else { bar.gap.abs() };
+    let amp = if bar.gap == 0.0 {
+        1e-3 * bar.length
+    } else {
+        bar.gap.abs()
+    };
     bar.young * bar.area * std::f64::consts::PI.powi(2) * amp * amp / (16.0 * bar.length)
 }
 
@@ -206,7 +236,11 @@ pub fn examine(bar: &WaveBar, m: usize, p: usize, k: usize) -> Option<BackbonePo
     let n = bar.cells;
     let phases = candidate_phases(m, p, k);
     let perm = SignedPermutation::product(n, bar.left, &phases);
-    let h = if k == 0 { kernel_dim_closed_form(n, m, p) } else { perm.kernel_dim() };
+    let h = if k == 0 {
+        kernel_dim_closed_form(n, m, p)
+    } else {
+        perm.kernel_dim()
+    };
     if h == 0 {
         return None;
     }
@@ -217,7 +251,9 @@ pub fn examine(bar: &WaveBar, m: usize, p: usize, k: usize) -> Option<BackbonePo
     let period = steps as f64 * dt;
     let contact = (if k > 0 { 2 * p } else { p }) as f64 * dt;
     let omega1 = std::f64::consts::PI * bar.wave_speed() / (2.0 * bar.length);
-    let e_norm = orbit.as_ref().map_or(f64::NAN, |o| o.energy / linear_grazing_energy(bar));
+    let e_norm = orbit
+        .as_ref()
+        .map_or(f64::NAN, |o| o.energy / linear_grazing_energy(bar));
     Some(BackbonePoint {
         gap: bar.gap,
         m,
@@ -295,12 +331,22 @@ pub fn scan(
                 })
             })
             .collect();
-        handles.into_iter().flat_map(|h| h.join().unwrap_or_default()).collect()
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap_or_default())
+            .collect()
     });
     if stop.load(Ordering::Relaxed) {
         return Err(done.load(Ordering::Relaxed));
     }
-    all.sort_by_key(|pt| (pt.m + pt.p + pt.k + if pt.k > 0 { pt.p } else { 0 }, pt.m, pt.p, pt.k));
+    all.sort_by_key(|pt| {
+        (
+            pt.m + pt.p + pt.k + if pt.k > 0 { pt.p } else { 0 },
+            pt.m,
+            pt.p,
+            pt.k,
+        )
+    });
     Ok(all)
 }
 
@@ -349,7 +395,9 @@ fn backbone_row(pt: &BackbonePoint) -> Vec<f64> {
 pub fn first_mode_orbit(points: &[BackbonePoint]) -> Option<&BackbonePoint> {
     let mut first: Vec<&BackbonePoint> = points
         .iter()
-        .filter(|p| p.orbit.is_some() && p.k == 0 && p.omega_over_omega1 > 1.0 && p.omega_over_omega1 < 2.0)
+        .filter(|p| {
+            p.orbit.is_some() && p.k == 0 && p.omega_over_omega1 > 1.0 && p.omega_over_omega1 < 2.0
+        })
         .collect();
     first.sort_by(|a, b| a.energy_normalized.total_cmp(&b.energy_normalized));
     first.get(first.len() / 2).copied()
@@ -360,7 +408,11 @@ fn threads() -> usize {
 }
 
 /// Runs a modal analysis job: one scan per gap, `backbone` table, figures, stability.
-pub fn run_modes(job: &ModalJob, mut summary: Map<String, Value>, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
+pub fn run_modes(
+    job: &ModalJob,
+    mut summary: Map<String, Value>,
+    observer: &mut dyn Observer,
+) -> Result<RunOutput, RunError> {
     let total = job.tasks();
     let mut rows = Vec::new();
     let mut all_points = Vec::new();
@@ -376,10 +428,26 @@ pub fn run_modes(job: &ModalJob, mut summary: Map<String, Value>, observer: &mut
             counter.fetch_add(1, Ordering::Relaxed);
             ControlFlow::Continue(())
         };
-        let points = scan(&bar, job.period_steps, job.phases, job.all_candidates, threads(), &on_period)
-            .map_err(|done| RunError::Stopped { step: done_before + done })?;
+        let points = scan(
+            &bar,
+            job.period_steps,
+            job.phases,
+            job.all_candidates,
+            threads(),
+            &on_period,
+        )
+        .map_err(|done| RunError::Stopped {
+            step: done_before + done,
+        })?;
         done_before += counter.load(Ordering::Relaxed);
-        if observer.progress(Progress { done: done_before, total, t: 0.0 }).is_break() {
+        if observer
+            .progress(Progress {
+                done: done_before,
+                total,
+                t: 0.0,
+            })
+            .is_break()
+        {
             return Err(RunError::Stopped { step: done_before });
         }
         let admissible = points.iter().filter(|p| p.orbit.is_some()).count();
@@ -421,7 +489,11 @@ pub fn run_modes(job: &ModalJob, mut summary: Map<String, Value>, observer: &mut
     );
     Ok(RunOutput {
         summary,
-        tables: vec![Table { name: "backbone".into(), columns: BACKBONE_COLUMNS.iter().map(|s| s.to_string()).collect(), rows }],
+        tables: vec![Table {
+            name: "backbone".into(),
+            columns: BACKBONE_COLUMNS.iter().map(|s| s.to_string()).collect(),
+            rows,
+        }],
         figures: std::mem::take(&mut figures),
     })
 }

@@ -56,7 +56,11 @@ impl Orbit {
 
     /// Steps in contact per period.
     pub fn contact_steps(&self) -> usize {
-        self.phases.iter().filter(|p| p.0 == EndCondition::Contact).map(|p| p.1).sum()
+        self.phases
+            .iter()
+            .filter(|p| p.0 == EndCondition::Contact)
+            .map(|p| p.1)
+            .sum()
     }
 }
 
@@ -71,7 +75,13 @@ pub const ADMISSIBILITY_TOLERANCE: f64 = 1e-9;
 /// = −10⁻³ L", which only fixes the arbitrary scale). The orbit is admissible when the
 /// conditions hold and COND1 (u ≤ g0 in the free phases, and a grazing end leaves: a_N ≥ 0),
 /// COND2 (contact force (52) r = S a_N ≤ 0 in the contact phases) and COND3 (ε > −1) hold.
-pub fn admissible_orbit(bar: &WaveBar, phases: &[(EndCondition, usize)], basis: &[Vec<f64>]) -> Option<Orbit> {
+/// A free step from a closed gap needs a strictly tensile (52) r > 0, as in Algorithm 2, so the
+/// split of a period into free and contact steps is the one Algorithm 2 reproduces.
+pub fn admissible_orbit(
+    bar: &WaveBar,
+    phases: &[(EndCondition, usize)],
+    basis: &[Vec<f64>],
+) -> Option<Orbit> {
     if basis.is_empty() || bar.left != LeftEnd::Fixed {
         return None;
     }
@@ -94,14 +104,23 @@ pub fn admissible_orbit(bar: &WaveBar, phases: &[(EndCondition, usize)], basis: 
     }
     let h = basis.len();
     let reference = 1e-3 * bar.length;
-    let mut rows: Vec<Vec<f64>> = closures.iter().map(|&nc| trajs.iter().map(|t| t.u[nc]).collect()).collect();
+    let mut rows: Vec<Vec<f64>> = closures
+        .iter()
+        .map(|&nc| trajs.iter().map(|t| t.u[nc]).collect())
+        .collect();
     let mut rhs: Vec<f64> = vec![g0; closures.len()];
     let free_count: usize = free_ranges.iter().map(|r| r.1 - r.0 + 1).sum();
     if g0 == 0.0 {
         rows.push(
             trajs
                 .iter()
-                .map(|t| free_ranges.iter().flat_map(|&(a, b)| t.u[a..=b].iter()).sum::<f64>() / free_count as f64)
+                .map(|t| {
+                    free_ranges
+                        .iter()
+                        .flat_map(|&(a, b)| t.u[a..=b].iter())
+                        .sum::<f64>()
+                        / free_count as f64
+                })
                 .collect(),
         );
         rhs.push(-reference);
@@ -141,7 +160,8 @@ pub fn admissible_orbit(bar: &WaveBar, phases: &[(EndCondition, usize)], basis: 
             if u[i] > g0 + tol_u {
                 return None;
             }
-            if i < b && u[i] >= g0 - tol_u && a_end[i] < -tol_a {
+            // Algorithm 2 takes a free step from a closed gap only under tension (52): r > 0.
+            if i < b && u[i] >= g0 - tol_u && a_end[i] <= tol_a {
                 return None;
             }
             opens |= u[i] < g0 - tol_u;
@@ -168,8 +188,15 @@ pub fn admissible_orbit(bar: &WaveBar, phases: &[(EndCondition, usize)], basis: 
     if max_abs >= bar.young {
         return None;
     }
-    let energy = bar.area * bar.dx() / (4.0 * bar.density * bar.wave_speed().powi(2)) * ring.iter().map(|x| x * x).sum::<f64>();
-    Some(Orbit { phases: phases.to_vec(), ring, kernel_dim: h, energy, u })
+    let energy = bar.area * bar.dx() / (4.0 * bar.density * bar.wave_speed().powi(2))
+        * ring.iter().map(|x| x * x).sum::<f64>();
+    Some(Orbit {
+        phases: phases.to_vec(),
+        ring,
+        kernel_dim: h,
+        energy,
+        u,
+    })
 }
 
 /// Result of a stability run (§6.5).
@@ -179,7 +206,8 @@ pub struct Stability {
     pub periods: usize,
     /// Relative size of the initial perturbation.
     pub perturbation: f64,
-    /// max_n |u_pert − u_orbit| / max_n |u_orbit| over the last period.
+    /// Orbital distance over the last period: min over phase shifts s of
+    /// max_n |u_pert(n) − u_orbit(n + s)| / max_n |u_orbit(n)|.
     pub relative_deviation: f64,
     /// Same measure for the unperturbed run against the orbit's own first period (drift of the
     /// orbit itself under Algorithm 2).
@@ -195,29 +223,53 @@ pub fn stability(bar: &WaveBar, orbit: &Orbit, periods: usize, perturbation: f64
     let t_steps = orbit.period_steps();
     let start = WaveState::from_ring(orbit.ring.clone(), 0.0, orbit.u[0]);
     let (sigma, v) = start.cells_sigma_v(z);
-    let smax = sigma.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(z * v.iter().fold(0.0f64, |m, x| m.max(x.abs())));
+    let smax = sigma
+        .iter()
+        .fold(0.0f64, |m, x| m.max(x.abs()))
+        .max(z * v.iter().fold(0.0f64, |m, x| m.max(x.abs())));
     let dx = bar.dx();
     let sigma_p: Vec<f64> = sigma
         .iter()
         .enumerate()
-        .map(|(i, s)| s + perturbation * smax * (std::f64::consts::PI * (i as f64 + 0.5) * dx / bar.length).sin())
+        .map(|(i, s)| {
+            s + perturbation
+                * smax
+                * (std::f64::consts::PI * (i as f64 + 0.5) * dx / bar.length).sin()
+        })
         .collect();
     let mut perturbed = WaveState::from_cells(&sigma_p, &v, z, 0.0, 0.0);
     perturbed.u_right = perturbed.u_right_from_strains(bar);
     let mut reference = start.clone();
     let total = periods * t_steps;
-    let mut dev: f64 = 0.0;
     let mut drift: f64 = 0.0;
+    let mut last = Vec::with_capacity(t_steps);
     let scale = orbit.u.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     for k in 0..total {
         step(bar, &mut reference);
         step(bar, &mut perturbed);
         if k + t_steps >= total {
             let phase = (k + 1) % t_steps;
-            dev = dev.max((perturbed.u_right - reference.u_right).abs());
+            last.push(perturbed.u_right);
             drift = drift.max((reference.u_right - orbit.u[phase]).abs());
         }
     }
+    // Orbital distance: the perturbed end displacement over the last period against the orbit's,
+    // at the best phase shift (a perturbed orbit of another energy has another period, so a
+    // pointwise comparison at equal times measures the phase drift, not the distance to the orbit).
+    let first_phase = (total - t_steps + 1) % t_steps;
+    let dev = (0..t_steps)
+        .map(|shift| {
+            last.iter()
+                .enumerate()
+                .map(|(i, u)| (u - orbit.u[(first_phase + i + shift) % t_steps]).abs())
+                .fold(0.0f64, f64::max)
+        })
+        .fold(f64::INFINITY, f64::min);
     let _ = n;
-    Stability { periods, perturbation, relative_deviation: dev / scale, orbit_drift: drift / scale }
+    Stability {
+        periods,
+        perturbation,
+        relative_deviation: dev / scale,
+        orbit_drift: drift / scale,
+    }
 }

@@ -47,12 +47,32 @@ fn frame(s: &mut String, ax: &Axes, xlabel: &str, ylabel: &str, log_y: bool) {
     );
     for i in 0..=5 {
         let x = ax.x.0 + (ax.x.1 - ax.x.0) * i as f64 / 5.0;
-        let _ = write!(s, r#"<text x="{:.1}" y="{}" text-anchor="middle">{:.2}</text>"#, ax.px(x), H - MB + 16.0, x);
+        let _ = write!(
+            s,
+            r#"<text x="{:.1}" y="{}" text-anchor="middle">{:.2}</text>"#,
+            ax.px(x),
+            H - MB + 16.0,
+            x
+        );
         let y = ax.y.0 + (ax.y.1 - ax.y.0) * i as f64 / 5.0;
-        let label = if log_y { format!("1e{y:.1}") } else { format!("{y:.3}") };
-        let _ = write!(s, r#"<text x="{}" y="{:.1}" text-anchor="end">{label}</text>"#, ML - 4.0, ax.py(y) + 4.0);
+        let label = if log_y {
+            format!("1e{y:.1}")
+        } else {
+            format!("{y:.3}")
+        };
+        let _ = write!(
+            s,
+            r#"<text x="{}" y="{:.1}" text-anchor="end">{label}</text>"#,
+            ML - 4.0,
+            ax.py(y) + 4.0
+        );
     }
-    let _ = write!(s, r#"<text x="{}" y="{}" text-anchor="middle">{xlabel}</text>"#, (ML + W - MR) / 2.0, H - 12.0);
+    let _ = write!(
+        s,
+        r#"<text x="{}" y="{}" text-anchor="middle">{xlabel}</text>"#,
+        (ML + W - MR) / 2.0,
+        H - 12.0
+    );
     let _ = write!(
         s,
         r#"<text x="16" y="{}" text-anchor="middle" transform="rotate(-90 16 {})">{ylabel}</text>"#,
@@ -85,14 +105,20 @@ fn gap_color(g: f64) -> &'static str {
 fn draw_backbone_points(s: &mut String, ax: &Axes, points: &[&BackbonePoint]) {
     for pt in points {
         let e = pt.energy_normalized;
-        if !(e > 0.0) {
+        if e.is_nan() || e <= 0.0 {
             continue;
         }
         let (x, y) = (pt.omega_over_omega1, e.log10());
         if x < ax.x.0 || x > ax.x.1 || y < ax.y.0 || y > ax.y.1 {
             continue;
         }
-        let _ = write!(s, r#"<circle cx="{:.1}" cy="{:.1}" r="1.8" fill="{}"/>"#, ax.px(x), ax.py(y), gap_color(pt.gap));
+        let _ = write!(
+            s,
+            r#"<circle cx="{:.1}" cy="{:.1}" r="1.8" fill="{}"/>"#,
+            ax.px(x),
+            ax.py(y),
+            gap_color(pt.gap)
+        );
     }
 }
 
@@ -142,13 +168,28 @@ fn y_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
 
 /// Frequency–energy plot (Figs. 5–6): admissible points of every gap, log₁₀ of the normalised
 /// energy against ω/ω₁, with ω_k, Ω_k and the main-branch asymptotes.
-pub fn backbone_figure(scans: &[(WaveBar, Vec<BackbonePoint>)], x_range: Option<(f64, f64)>) -> Figure {
-    let pts: Vec<&BackbonePoint> = scans.iter().flat_map(|(_, p)| p.iter()).filter(|p| p.orbit.is_some()).collect();
+pub fn backbone_figure(
+    scans: &[(WaveBar, Vec<BackbonePoint>)],
+    x_range: Option<(f64, f64)>,
+) -> Figure {
+    let pts: Vec<&BackbonePoint> = scans
+        .iter()
+        .flat_map(|(_, p)| p.iter())
+        .filter(|p| p.orbit.is_some())
+        .collect();
     let x = x_range.unwrap_or_else(|| {
-        let hi = pts.iter().map(|p| p.omega_over_omega1).fold(2.2f64, f64::max).min(8.5);
+        let hi = pts
+            .iter()
+            .map(|p| p.omega_over_omega1)
+            .fold(2.2f64, f64::max)
+            .min(8.5);
         (0.5, hi + 0.1)
     });
-    let y = y_range(pts.iter().filter(|p| p.energy_normalized > 0.0).map(|p| p.energy_normalized.log10()));
+    let y = y_range(
+        pts.iter()
+            .filter(|p| p.energy_normalized > 0.0)
+            .map(|p| p.energy_normalized.log10()),
+    );
     let ax = Axes { x, y };
     let mut s = String::new();
     header(&mut s, "Nonsmooth modes: frequency–energy backbones");
@@ -156,7 +197,10 @@ pub fn backbone_figure(scans: &[(WaveBar, Vec<BackbonePoint>)], x_range: Option<
     legend_and_lines(&mut s, &ax);
     draw_backbone_points(&mut s, &ax, &pts);
     s.push_str("</svg>");
-    Figure { name: "backbone".into(), svg: s }
+    Figure {
+        name: "backbone".into(),
+        svg: s,
+    }
 }
 
 /// Space–time displacement u(x, t) of an orbit over one period (Figs. 9, 13): a colour map
@@ -179,10 +223,25 @@ pub fn space_time_figure(name: &str, bar: &WaveBar, orbit: &Orbit) -> Figure {
             step += 1;
         }
     }
-    let umax = field.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs())).max(1e-300);
-    let ax = Axes { x: (0.0, bar.length), y: (0.0, t_steps as f64 * bar.dt()) };
+    let umax = field
+        .iter()
+        .flatten()
+        .fold(0.0f64, |m, x| m.max(x.abs()))
+        .max(1e-300);
+    let ax = Axes {
+        x: (0.0, bar.length),
+        y: (0.0, t_steps as f64 * bar.dt()),
+    };
     let mut s = String::new();
-    header(&mut s, &format!("Space–time displacement, {} ({} + {} steps)", name, orbit.phases[0].1, orbit.contact_steps()));
+    header(
+        &mut s,
+        &format!(
+            "Space–time displacement, {} ({} + {} steps)",
+            name,
+            orbit.phases[0].1,
+            orbit.contact_steps()
+        ),
+    );
     let cw = (W - ML - MR) / nx as f64;
     let ch = (H - MT - MB) / field.len().max(1) as f64;
     for (i, row) in field.iter().enumerate() {
@@ -207,30 +266,61 @@ pub fn space_time_figure(name: &str, bar: &WaveBar, orbit: &Orbit) -> Figure {
         }
     }
     frame(&mut s, &ax, "x", "t", false);
-    let _ = write!(s, r#"<text x="{}" y="{}" text-anchor="end">max |u| = {umax:.3e}</text>"#, W - MR, MT - 6.0);
+    let _ = write!(
+        s,
+        r#"<text x="{}" y="{}" text-anchor="end">max |u| = {umax:.3e}</text>"#,
+        W - MR,
+        MT - 6.0
+    );
     s.push_str("</svg>");
-    Figure { name: name.into(), svg: s }
+    Figure {
+        name: name.into(),
+        svg: s,
+    }
 }
 
 /// Forced-response curves (Figs. 23–25): mean energy per damping value against ω/ω₁, over the
 /// backbone points of the same bar.
-pub fn forced_figure(results: &[Response], e_lin: f64, backbone: &[BackbonePoint], excitation: Excitation) -> Figure {
-    let palette = ["#9467bd", "#ff7f0e", "#17becf", "#e377c2", "#7f7f7f", "#bcbd22"];
+pub fn forced_figure(
+    results: &[Response],
+    e_lin: f64,
+    backbone: &[BackbonePoint],
+    excitation: Excitation,
+) -> Figure {
+    let palette = [
+        "#9467bd", "#ff7f0e", "#17becf", "#e377c2", "#7f7f7f", "#bcbd22",
+    ];
     let xs = results.iter().map(|r| r.omega_over_omega1);
-    let (xlo, xhi) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
-    let ax_x = if xlo.is_finite() { (xlo - 0.05, xhi + 0.05) } else { (0.5, 2.5) };
+    let (xlo, xhi) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+        (a.min(x), b.max(x))
+    });
+    let ax_x = if xlo.is_finite() {
+        (xlo - 0.05, xhi + 0.05)
+    } else {
+        (0.5, 2.5)
+    };
     let bb: Vec<&BackbonePoint> = backbone.iter().filter(|p| p.orbit.is_some()).collect();
     let ys = results
         .iter()
         .map(|r| (r.mean_energy / e_lin).log10())
-        .chain(bb.iter().filter(|p| p.omega_over_omega1 >= ax_x.0 && p.omega_over_omega1 <= ax_x.1).map(|p| p.energy_normalized.log10()));
-    let ax = Axes { x: ax_x, y: y_range(ys) };
+        .chain(
+            bb.iter()
+                .filter(|p| p.omega_over_omega1 >= ax_x.0 && p.omega_over_omega1 <= ax_x.1)
+                .map(|p| p.energy_normalized.log10()),
+        );
+    let ax = Axes {
+        x: ax_x,
+        y: y_range(ys),
+    };
     let mut s = String::new();
     let what = match excitation {
         Excitation::Wall => "moving wall",
         Excitation::Force => "distributed force",
     };
-    header(&mut s, &format!("Forced response ({what}) over the backbone"));
+    header(
+        &mut s,
+        &format!("Forced response ({what}) over the backbone"),
+    );
     frame(&mut s, &ax, "ω / ω₁", "mean energy / E_lin (log₁₀)", true);
     legend_and_lines(&mut s, &ax);
     draw_backbone_points(&mut s, &ax, &bb);
@@ -241,9 +331,19 @@ pub fn forced_figure(results: &[Response], e_lin: f64, backbone: &[BackbonePoint
         let pts: Vec<String> = results
             .iter()
             .filter(|r| r.damping == *g && r.mean_energy > 0.0)
-            .map(|r| format!("{:.1},{:.1}", ax.px(r.omega_over_omega1), ax.py((r.mean_energy / e_lin).log10())))
+            .map(|r| {
+                format!(
+                    "{:.1},{:.1}",
+                    ax.px(r.omega_over_omega1),
+                    ax.py((r.mean_energy / e_lin).log10())
+                )
+            })
             .collect();
-        let _ = write!(s, r#"<polyline points="{}" fill="none" stroke="{color}" stroke-width="1.6"/>"#, pts.join(" "));
+        let _ = write!(
+            s,
+            r#"<polyline points="{}" fill="none" stroke="{color}" stroke-width="1.6"/>"#,
+            pts.join(" ")
+        );
         let y = MT + 14.0 + 15.0 * (6 + i) as f64;
         let _ = write!(
             s,
@@ -255,5 +355,8 @@ pub fn forced_figure(results: &[Response], e_lin: f64, backbone: &[BackbonePoint
         );
     }
     s.push_str("</svg>");
-    Figure { name: "forced_response".into(), svg: s }
+    Figure {
+        name: "forced_response".into(),
+        svg: s,
+    }
 }

@@ -120,7 +120,11 @@ impl History<'_> {
         }
         let t = (eta - l) / self.c;
         let alpha = self.alpha(l - self.c * t);
-        if self.in_contact(t) { alpha - 2.0 * self.k * t } else { -alpha }
+        if self.in_contact(t) {
+            alpha - 2.0 * self.k * t
+        } else {
+            -alpha
+        }
     }
 
     /// a(L, t) = α(L − ct) − kt.
@@ -155,7 +159,13 @@ impl ExactSolution {
             }
             let seg_end = next.min(t_end);
             let len = seg_end - t;
-            let h = History { bar: &bar, c, z, k, contacts: &contacts };
+            let h = History {
+                bar: &bar,
+                c,
+                z,
+                k,
+                contacts: &contacts,
+            };
             let s1 = h.a_end(t + len / 3.0);
             let s2 = h.a_end(t + 2.0 * len / 3.0);
             let a1 = (s2 - s1) / (len / 3.0);
@@ -170,7 +180,14 @@ impl ExactSolution {
                     None
                 };
                 let dur = release.unwrap_or(len);
-                pieces.push(Piece { t0: t, t1: t + dur, u0: u, a0, a1, contact: true });
+                pieces.push(Piece {
+                    t0: t,
+                    t1: t + dur,
+                    u0: u,
+                    a0,
+                    a1,
+                    contact: true,
+                });
                 t += dur;
                 if release.is_some() {
                     if let Some(last) = contacts.last_mut() {
@@ -184,7 +201,14 @@ impl ExactSolution {
                 let q = |s: f64| u - (a0 * s + 0.5 * a1 * s * s) / z - bar.gap;
                 let closure = first_root(q, a0, a1, z, u - bar.gap, len, eps);
                 let dur = closure.unwrap_or(len);
-                pieces.push(Piece { t0: t, t1: t + dur, u0: u, a0, a1, contact: false });
+                pieces.push(Piece {
+                    t0: t,
+                    t1: t + dur,
+                    u0: u,
+                    a0,
+                    a1,
+                    contact: false,
+                });
                 u -= (a0 * dur + 0.5 * a1 * dur * dur) / z;
                 t += dur;
                 if closure.is_some() {
@@ -195,7 +219,11 @@ impl ExactSolution {
                 }
             }
         }
-        ExactSolution { bar, pieces, contacts }
+        ExactSolution {
+            bar,
+            pieces,
+            contacts,
+        }
     }
 
     fn piece(&self, t: f64) -> Option<&Piece> {
@@ -235,7 +263,15 @@ impl ExactSolution {
 }
 
 /// First root in (eps, len] of `q(s) = q0 − (a0 s + a1 s²/2)/z` (closure of the gap).
-fn first_root(q: impl Fn(f64) -> f64, a0: f64, a1: f64, z: f64, q0: f64, len: f64, eps: f64) -> Option<f64> {
+fn first_root(
+    q: impl Fn(f64) -> f64,
+    a0: f64,
+    a1: f64,
+    z: f64,
+    q0: f64,
+    len: f64,
+    eps: f64,
+) -> Option<f64> {
     // q(s) = q0 − (a0/z) s − (a1/2z) s²: solve A s² + B s + C = 0.
     let (aa, bb, cc) = (-0.5 * a1 / z, -a0 / z, q0);
     let mut roots = Vec::new();
@@ -259,5 +295,7 @@ fn first_root(q: impl Fn(f64) -> f64, a0: f64, a1: f64, z: f64, q0: f64, len: f6
     }
     roots.sort_by(f64::total_cmp);
     // Accept a root where the gap closes from the open side (q goes from < 0 to ≥ 0).
-    roots.into_iter().find(|&s| s > eps && s <= len && q(0.5 * s) < 0.0)
+    roots
+        .into_iter()
+        .find(|&s| s > eps && s <= len && q(0.5 * s) < 0.0)
 }

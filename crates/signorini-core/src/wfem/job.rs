@@ -35,35 +35,52 @@ impl WaveJob {
     pub fn from_spec(spec: &JobSpec) -> Result<Option<WaveJob>, SpecError> {
         if let Some(analysis) = &spec.analysis {
             return match analysis {
-                AnalysisSpec::NonsmoothModes(m) => Ok(Some(WaveJob::Modes(Box::new(ModalJob::from_spec(m)?)))),
-                AnalysisSpec::ForcedResponse(f) => Ok(Some(WaveJob::Forced(Box::new(ForcedResponseJob::from_spec(f)?)))),
+                AnalysisSpec::NonsmoothModes(m) => {
+                    Ok(Some(WaveJob::Modes(Box::new(ModalJob::from_spec(m)?))))
+                }
+                AnalysisSpec::ForcedResponse(f) => Ok(Some(WaveJob::Forced(Box::new(
+                    ForcedResponseJob::from_spec(f)?,
+                )))),
             };
         }
         if !matches!(spec.integrator, IntegratorSpec::Wfem(_)) {
             return Ok(None);
         }
-        let model = spec.model.as_ref().ok_or_else(|| SpecError::new("model", "missing section"))?;
+        let model = spec
+            .model
+            .as_ref()
+            .ok_or_else(|| SpecError::new("model", "missing section"))?;
         let bar = match model {
             ModelSpec::Bar(b) => b.resolve(Bar::default()),
             ModelSpec::DepBar(b) => b.resolve(Bar::doyen_ern_piperno(100)),
             other => {
                 return Err(SpecError::new(
                     "model.scene",
-                    format!("scheme \"wfem\" runs the scenes \"bar\" and \"dep_bar\", not \"{}\"", other.scene()),
+                    format!(
+                        "scheme \"wfem\" runs the scenes \"bar\" and \"dep_bar\", not \"{}\"",
+                        other.scene()
+                    ),
                 ));
             }
         };
         let bar = WaveBar::from_bar(&bar).map_err(|e| match e {
-            super::WfemError::OutOfRange { field, .. } | super::WfemError::Unsupported { field, .. } => {
+            super::WfemError::OutOfRange { field, .. }
+            | super::WfemError::Unsupported { field, .. } => {
                 SpecError::new(format!("model.{field}"), e.to_string())
             }
         })?;
-        let time = spec.time.as_ref().ok_or_else(|| SpecError::new("time", "missing section"))?;
+        let time = spec
+            .time
+            .as_ref()
+            .ok_or_else(|| SpecError::new("time", "missing section"))?;
         let dt = bar.dt();
         if !(time.h.is_finite() && (time.h - dt).abs() <= 1e-6 * dt) {
             return Err(SpecError::new(
                 "time.h",
-                format!("wave finite elements step by Δt = Δx/c = {dt:e} exactly (cells = elements), got {}", time.h),
+                format!(
+                    "wave finite elements step by Δt = Δx/c = {dt:e} exactly (cells = elements), got {}",
+                    time.h
+                ),
             ));
         }
         let (_, steps) = crate::job::fixed_steps(time)?;
@@ -71,9 +88,16 @@ impl WaveJob {
             return Err(SpecError::new("output.every", "must be ≥ 1"));
         }
         if !spec.output.probes.is_empty() {
-            return Err(SpecError::new("output.probes", "wave finite elements record the contact end; probes are not supported"));
+            return Err(SpecError::new(
+                "output.probes",
+                "wave finite elements record the contact end; probes are not supported",
+            ));
         }
-        Ok(Some(WaveJob::Integrate { bar, steps, every: spec.output.every }))
+        Ok(Some(WaveJob::Integrate {
+            bar,
+            steps,
+            every: spec.output.every,
+        }))
     }
 
     /// (degrees of freedom, steps or tasks) for the service's limits.
@@ -86,13 +110,21 @@ impl WaveJob {
     }
 
     /// Runs the job; `summary` holds the spec's header fields.
-    pub fn run(&self, mut summary: Map<String, Value>, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
+    pub fn run(
+        &self,
+        mut summary: Map<String, Value>,
+        observer: &mut dyn Observer,
+    ) -> Result<RunOutput, RunError> {
         match self {
             WaveJob::Integrate { bar, steps, every } => {
                 let mut state = bar.initial_state();
                 let stats = run_wave(bar, &mut state, *steps, *every, observer)?;
                 summary.extend(stats.summary(bar));
-                Ok(RunOutput { summary, tables: Vec::new(), figures: Vec::new() })
+                Ok(RunOutput {
+                    summary,
+                    tables: Vec::new(),
+                    figures: Vec::new(),
+                })
             }
             WaveJob::Modes(m) => modal::run_modes(m, summary, observer),
             WaveJob::Forced(f) => modal::forced::run_forced(f, summary, observer),
@@ -104,7 +136,11 @@ impl WaveJob {
 /// rate and contact impulse `−S σ* Δt ≥ 0` of the step), then `u_end` (contact-end displacement)
 /// and `contact_force` (`r = S σ*`, (52), ≤ 0).
 pub fn wave_columns() -> Columns {
-    let mut names: Vec<String> = ENERGY_COLUMNS.iter().chain(&CUMULATIVE_COLUMNS).map(|s| s.to_string()).collect();
+    let mut names: Vec<String> = ENERGY_COLUMNS
+        .iter()
+        .chain(&CUMULATIVE_COLUMNS)
+        .map(|s| s.to_string())
+        .collect();
     names.extend(["gap_0", "u_0", "p_0", "u_end", "contact_force"].map(String::from));
     Columns::new(names)
 }
@@ -176,21 +212,35 @@ pub fn run_wave(
     let dt = bar.dt();
     let (kin, strain) = state.energies(bar);
     let mut e_prev = kin + strain;
-    let mut stats = WaveRunStats { energy_initial: e_prev, energy_final: e_prev, ..Default::default() };
+    let mut stats = WaveRunStats {
+        energy_initial: e_prev,
+        energy_final: e_prev,
+        ..Default::default()
+    };
     let mut row = Vec::with_capacity(columns.len());
     let (mut w_ext, mut w_damp, mut w_contact) = (0.0, 0.0, 0.0);
     let mut last = super::StepTerms::default();
     let mut was_contact = false;
     let push_row = |row: &mut Vec<f64>,
-                        kin: f64,
-                        strain: f64,
-                        works: [f64; 3],
-                        residual: f64,
-                        totals: [f64; 3],
-                        state: &WaveState,
-                        terms: &super::StepTerms| {
+                    kin: f64,
+                    strain: f64,
+                    works: [f64; 3],
+                    residual: f64,
+                    totals: [f64; 3],
+                    state: &WaveState,
+                    terms: &super::StepTerms| {
         row.clear();
-        row.extend([kin, strain, kin + strain, works[0], works[1], works[2], 0.0, kin + strain, residual]);
+        row.extend([
+            kin,
+            strain,
+            kin + strain,
+            works[0],
+            works[1],
+            works[2],
+            0.0,
+            kin + strain,
+            residual,
+        ]);
         row.extend(totals);
         let gap = bar.gap + bar.wall(state.step as f64 * dt) - state.u_right;
         row.extend([
@@ -202,7 +252,14 @@ pub fn run_wave(
         ]);
     };
     push_row(&mut row, kin, strain, [0.0; 3], 0.0, [0.0; 3], state, &last);
-    if observer.observe(&StepRecord { step: state.step, t: state.step as f64 * dt, values: &row }).is_break() {
+    if observer
+        .observe(&StepRecord {
+            step: state.step,
+            t: state.step as f64 * dt,
+            values: &row,
+        })
+        .is_break()
+    {
         return Err(RunError::Stopped { step: 0 });
     }
     for k in 1..=steps {
@@ -220,19 +277,47 @@ pub fn run_wave(
             let (kin, strain) = state.energies(bar);
             let e = kin + strain;
             if !e.is_finite() || !state.u_right.is_finite() {
-                return Err(StepError::NotFinite { step: state.step, t: state.step as f64 * dt }.into());
+                return Err(StepError::NotFinite {
+                    step: state.step,
+                    t: state.step as f64 * dt,
+                }
+                .into());
             }
             let residual = (e - e_prev) - (w_ext + w_damp + w_contact);
             stats.max_abs_balance_residual = stats.max_abs_balance_residual.max(residual.abs());
             e_prev = e;
-            let totals = [stats.work_ext_total, stats.work_damping_total, stats.work_contact_total];
-            push_row(&mut row, kin, strain, [w_ext, w_damp, w_contact], residual, totals, state, &last);
+            let totals = [
+                stats.work_ext_total,
+                stats.work_damping_total,
+                stats.work_contact_total,
+            ];
+            push_row(
+                &mut row,
+                kin,
+                strain,
+                [w_ext, w_damp, w_contact],
+                residual,
+                totals,
+                state,
+                &last,
+            );
             (w_ext, w_damp, w_contact) = (0.0, 0.0, 0.0);
-            if observer.observe(&StepRecord { step: state.step, t: state.step as f64 * dt, values: &row }).is_break() {
+            if observer
+                .observe(&StepRecord {
+                    step: state.step,
+                    t: state.step as f64 * dt,
+                    values: &row,
+                })
+                .is_break()
+            {
                 return Err(RunError::Stopped { step: k });
             }
         }
-        if let ControlFlow::Break(()) = observer.progress(Progress { done: k, total: steps, t: state.step as f64 * dt }) {
+        if let ControlFlow::Break(()) = observer.progress(Progress {
+            done: k,
+            total: steps,
+            t: state.step as f64 * dt,
+        }) {
             return Err(RunError::Stopped { step: k });
         }
     }

@@ -152,12 +152,24 @@ impl WaveBar {
     /// Checks every parameter.
     pub fn validate(&self) -> Result<(), WfemError> {
         if self.cells == 0 {
-            return Err(WfemError::OutOfRange { field: "elements", value: 0.0, range: "[1, ∞)" });
+            return Err(WfemError::OutOfRange {
+                field: "elements",
+                value: 0.0,
+                range: "[1, ∞)",
+            });
         }
-        for (field, x) in [("length", self.length), ("young", self.young), ("density", self.density), ("area", self.area)]
-        {
+        for (field, x) in [
+            ("length", self.length),
+            ("young", self.young),
+            ("density", self.density),
+            ("area", self.area),
+        ] {
             if !(x.is_finite() && x > 0.0) {
-                return Err(WfemError::OutOfRange { field, value: x, range: "(0, ∞)" });
+                return Err(WfemError::OutOfRange {
+                    field,
+                    value: x,
+                    range: "(0, ∞)",
+                });
             }
         }
         for (field, x) in [
@@ -167,17 +179,32 @@ impl WaveBar {
             ("body_force", self.body_force),
         ] {
             if !x.is_finite() {
-                return Err(WfemError::OutOfRange { field, value: x, range: "finite values" });
+                return Err(WfemError::OutOfRange {
+                    field,
+                    value: x,
+                    range: "finite values",
+                });
             }
         }
         if !(self.damping.is_finite() && self.damping >= 0.0) {
-            return Err(WfemError::OutOfRange { field: "rayleigh_mass", value: self.damping, range: "[0, ∞)" });
+            return Err(WfemError::OutOfRange {
+                field: "rayleigh_mass",
+                value: self.damping,
+                range: "[0, ∞)",
+            });
         }
-        for (field, h) in [("harmonic_force", self.harmonic_force), ("wall_motion", self.wall_motion)] {
+        for (field, h) in [
+            ("harmonic_force", self.harmonic_force),
+            ("wall_motion", self.wall_motion),
+        ] {
             if let Some(h) = h
                 && !(h.amplitude.is_finite() && h.omega.is_finite())
             {
-                return Err(WfemError::OutOfRange { field, value: h.amplitude * h.omega, range: "finite values" });
+                return Err(WfemError::OutOfRange {
+                    field,
+                    value: h.amplitude * h.omega,
+                    range: "finite values",
+                });
             }
         }
         if self.left == LeftEnd::Fixed && self.initial_displacement != 0.0 {
@@ -211,17 +238,22 @@ impl WaveBar {
 
     /// Wall position w(t) (0 without wall motion).
     pub fn wall(&self, t: f64) -> f64 {
-        self.wall_motion.map_or(0.0, |h| h.amplitude * (h.omega * t).sin())
+        self.wall_motion
+            .map_or(0.0, |h| h.amplitude * (h.omega * t).sin())
     }
 
     fn has_source(&self) -> bool {
-        self.body_force != 0.0 || self.damping != 0.0 || self.harmonic_force.is_some_and(|h| h.amplitude != 0.0)
+        self.body_force != 0.0
+            || self.damping != 0.0
+            || self.harmonic_force.is_some_and(|h| h.amplitude != 0.0)
     }
 
     /// Exact mean over [t0, t1] of the distributed force per unit length.
     fn mean_force(&self, t0: f64, t1: f64) -> f64 {
         let harmonic = match self.harmonic_force {
-            Some(h) if h.omega != 0.0 => h.amplitude * ((h.omega * t0).cos() - (h.omega * t1).cos()) / (h.omega * (t1 - t0)),
+            Some(h) if h.omega != 0.0 => {
+                h.amplitude * ((h.omega * t0).cos() - (h.omega * t1).cos()) / (h.omega * (t1 - t0))
+            }
             _ => 0.0,
         };
         self.body_force + harmonic
@@ -233,10 +265,18 @@ impl WaveBar {
         let n = self.cells;
         let z = self.impedance();
         let prestressed = self.gap < 0.0 && self.left == LeftEnd::Fixed;
-        let sigma = if prestressed { self.young * self.gap / self.length } else { 0.0 };
+        let sigma = if prestressed {
+            self.young * self.gap / self.length
+        } else {
+            0.0
+        };
         let v = self.initial_velocity;
         let u_left = self.initial_displacement;
-        let u_right = if prestressed { self.gap } else { self.initial_displacement };
+        let u_right = if prestressed {
+            self.gap
+        } else {
+            self.initial_displacement
+        };
         WaveState::from_cells(&vec![sigma; n], &vec![v; n], z, u_left, u_right)
     }
 }
@@ -266,12 +306,24 @@ impl WaveState {
             ring[i] = sigma[i] - impedance * v[i];
             ring[2 * n - 1 - i] = sigma[i] + impedance * v[i];
         }
-        WaveState { ring, shift: 0, step: 0, u_left, u_right }
+        WaveState {
+            ring,
+            shift: 0,
+            step: 0,
+            u_left,
+            u_right,
+        }
     }
 
     /// A state from ring values (positions 0..N are a_1…a_N, N..2N are b_N…b_1).
     pub fn from_ring(ring: Vec<f64>, u_left: f64, u_right: f64) -> Self {
-        WaveState { ring, shift: 0, step: 0, u_left, u_right }
+        WaveState {
+            ring,
+            shift: 0,
+            step: 0,
+            u_left,
+            u_right,
+        }
     }
 
     /// Number of cells N.
@@ -321,7 +373,10 @@ impl WaveState {
     /// All stresses and velocities.
     pub fn cells_sigma_v(&self, impedance: f64) -> (Vec<f64>, Vec<f64>) {
         let n = self.cells();
-        ((0..n).map(|i| self.sigma(i)).collect(), (0..n).map(|i| self.velocity(i, impedance)).collect())
+        (
+            (0..n).map(|i| self.sigma(i)).collect(),
+            (0..n).map(|i| self.velocity(i, impedance)).collect(),
+        )
     }
 
     /// Time t_n = n Δt.
@@ -413,7 +468,8 @@ pub fn step(bar: &WaveBar, state: &mut WaveState) -> StepTerms {
     let (w0, w1) = (bar.wall(t0), bar.wall(t1));
     let wdot = (w1 - w0) / dt;
     let gap = bar.gap + w0 - state.u_right;
-    let condition = if gap <= GAP_TOLERANCE * bar.length && state.a(bar.cells - 1) + z * wdot <= 0.0 {
+    let condition = if gap <= GAP_TOLERANCE * bar.length && state.a(bar.cells - 1) + z * wdot <= 0.0
+    {
         EndCondition::Contact
     } else {
         EndCondition::Free
@@ -431,7 +487,12 @@ pub fn step(bar: &WaveBar, state: &mut WaveState) -> StepTerms {
 /// The transport part of a step with a given contact-end condition: the signed permutation
 /// (36)–(39) with ghost cells (37), (50), (51), and the end displacements advanced by the
 /// interface velocities of the Riemann solution (30).
-pub fn transport(bar: &WaveBar, state: &mut WaveState, condition: EndCondition, wall_velocity: f64) -> StepTerms {
+pub fn transport(
+    bar: &WaveBar,
+    state: &mut WaveState,
+    condition: EndCondition,
+    wall_velocity: f64,
+) -> StepTerms {
     let n = bar.cells;
     let n2 = 2 * n;
     let z = bar.impedance();
@@ -440,7 +501,11 @@ pub fn transport(bar: &WaveBar, state: &mut WaveState, condition: EndCondition, 
     let b_1 = state.b(0);
     let (b_n_new, sigma_star, v_star) = match condition {
         // (50): σ_{N+1} = σ_N, v_{N+1} = 2ẇ − v_N  ⇒  b_N ← a_N + 2ρc ẇ, σ* = a_N + ρc ẇ, v* = ẇ.
-        EndCondition::Contact => (a_n + 2.0 * z * wall_velocity, a_n + z * wall_velocity, wall_velocity),
+        EndCondition::Contact => (
+            a_n + 2.0 * z * wall_velocity,
+            a_n + z * wall_velocity,
+            wall_velocity,
+        ),
         // (51): σ_{N+1} = −σ_N, v_{N+1} = v_N  ⇒  b_N ← −a_N, σ* = 0, v* = −a_N/ρc.
         EndCondition::Free => (-a_n, 0.0, -a_n / z),
     };
@@ -449,7 +514,11 @@ pub fn transport(bar: &WaveBar, state: &mut WaveState, condition: EndCondition, 
         LeftEnd::Fixed => (b_1, 0.0),
         LeftEnd::Free => (-b_1, b_1 / z),
     };
-    state.shift = if state.shift + 1 == n2 { 0 } else { state.shift + 1 };
+    state.shift = if state.shift + 1 == n2 {
+        0
+    } else {
+        state.shift + 1
+    };
     let i0 = state.index(0);
     state.ring[i0] = a_1_new;
     let i_n = state.index(n);
@@ -500,7 +569,12 @@ fn source_step(bar: &WaveBar, state: &mut WaveState, t0: f64, t1: f64) -> (f64, 
 /// The paper's form of one unforced step against a fixed wall: (36) for the inner cells, (38)
 /// and (39) for the boundary cells through the ghost cells (37) (left end) and (50)/(51) (contact
 /// end). Used to cross-check the signed permutation; `sigma`, `v` are the cell averages.
-pub fn flux_form_step(bar: &WaveBar, sigma: &[f64], v: &[f64], condition: EndCondition) -> (Vec<f64>, Vec<f64>) {
+pub fn flux_form_step(
+    bar: &WaveBar,
+    sigma: &[f64],
+    v: &[f64],
+    condition: EndCondition,
+) -> (Vec<f64>, Vec<f64>) {
     let n = sigma.len();
     let z = bar.impedance();
     // Ghost cells C_0 and C_{N+1}.
