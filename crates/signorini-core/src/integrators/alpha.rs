@@ -454,6 +454,8 @@ pub(crate) struct AlphaCore {
     cz: f64,
     filters: bool,
     has_damping: bool,
+    /// F has a time-varying part (else the y filter stays exactly zero and is skipped).
+    varying_load: bool,
     pub s_factor: BandCholesky,
     pub m_factor: BandCholesky,
     /// History at t_k and the buffer for t_{k+1}.
@@ -501,6 +503,7 @@ impl AlphaCore {
             cz,
             filters,
             has_damping: !model.damping.is_zero(),
+            varying_load: !model.force.harmonic.is_empty(),
             s_factor,
             m_factor,
             cur: Frame::zeros(n, m),
@@ -559,7 +562,7 @@ impl AlphaCore {
         state: &LinearState,
         frame: &Frame,
     ) -> f64 {
-        let (kin, _) = model.energy(&state.q, &state.v);
+        let kin = 0.5 * model.mass.quad(&state.v, &state.v);
         let strain = 0.5 * dot(&state.q, &frame.kq);
         let h2 = self.h * self.h;
         kin + strain
@@ -661,11 +664,19 @@ impl AlphaCore {
                 nxt.z[i] = (nu * (s.q[i] - state.q[i]) - m * cur.z[i]) / p;
                 nxt.kz[i] = (nu * (nxt.kq[i] - cur.kq[i]) - m * cur.kz[i]) / p;
             }
-            if xy {
+            // x and y start at zero and are driven by Δ(Cv) and ΔF only: without damping or
+            // without a time-varying load they stay exactly zero and are skipped.
+            if xy && self.has_damping {
                 for i in 0..n {
                     nxt.cx[i] = (nu * (nxt.cv[i] - cur.cv[i]) - m * cur.cx[i]) / p;
+                }
+            }
+            if xy && self.varying_load {
+                for i in 0..n {
                     nxt.y[i] = (nu * (nxt.f[i] - cur.f[i]) - m * cur.y[i]) / p;
                 }
+            }
+            if xy {
                 for a in 0..nxt.lambda.len() {
                     nxt.ylam[a] = (nu * (nxt.lambda[a] - cur.lambda[a]) - m * cur.ylam[a]) / p;
                 }
@@ -675,6 +686,7 @@ impl AlphaCore {
         // terms, all in difference form.
         let (g1, g0) = (gamma, 1.0 - gamma);
         let rx = if xy { ratio } else { 0.0 };
+        let ry = if xy && self.varying_load { ratio } else { 0.0 };
         let mut work_ext = 0.0;
         let mut work_damping = 0.0;
         let mut dq_k_dq = 0.0;
@@ -687,8 +699,7 @@ impl AlphaCore {
             let dq = s.q[i] - state.q[i];
             s.tmp[i] = s.v[i] - state.v[i];
             s.tmp2[i] = s.v[i] + state.v[i];
-            let f_g = g1 * nxt.f[i] + g0 * cur.f[i] - rx * (g1 * nxt.y[i] + g0 * cur.y[i]);
-            work_ext += dq * f_g;
+            work_ext += dq * (g1 * nxt.f[i] + g0 * cur.f[i]);
             let dkq = nxt.kq[i] - cur.kq[i];
             dq_k_dq += dq * dkq;
             d_strain += (s.q[i] + state.q[i]) * dkq;
@@ -696,6 +707,11 @@ impl AlphaCore {
             let da = nxt.a[i] - cur.a[i];
             da_m_da += da * dma;
             d_aterm += (nxt.a[i] + cur.a[i]) * dma;
+        }
+        if ry != 0.0 {
+            for i in 0..n {
+                work_ext -= (s.q[i] - state.q[i]) * ry * (g1 * nxt.y[i] + g0 * cur.y[i]);
+            }
         }
         if self.has_damping {
             for i in 0..n {
@@ -741,9 +757,14 @@ impl AlphaCore {
         std::mem::swap(&mut self.cur, &mut self.nxt);
         self.cur_step = Some(state.step);
 
-        let (kin, _) = model.energy(&state.q, &state.v);
+        // H (55) from the pieces at hand (no second pass of K over q).
+        let kin = 0.5 * model.mass.quad(&state.v, &state.v);
         let strain = 0.5 * dot(&state.q, &self.cur.kq);
-        let alg = self.algorithmic_energy_of(model, state, &self.cur);
+        let mut alg =
+            kin + strain + 0.25 * h2 * (2.0 * beta - gamma) * dot(&self.cur.a, &self.cur.ma);
+        if self.filters {
+            alg += self.cz * dot(&self.cur.z, &self.cur.kz);
+        }
         report.energy = EnergyTerms {
             kinetic: kin,
             strain,
