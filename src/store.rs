@@ -178,7 +178,7 @@ fn u64s_to_blob(v: &[u64]) -> Vec<u8> {
 }
 
 fn blob_to_8(b: &[u8]) -> Option<impl Iterator<Item = [u8; 8]> + '_> {
-    if b.len() % 8 != 0 {
+    if !b.len().is_multiple_of(8) {
         return None;
     }
     Some(b.chunks_exact(8).map(|c| {

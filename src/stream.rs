@@ -207,7 +207,11 @@ impl Streamer {
 }
 
 async fn declare(session: &Session, key: String, status: bool) -> Result<Publisher<'static>> {
-    let prio = if status { Priority::InteractiveHigh } else { Priority::Data };
+    let prio = if status {
+        Priority::InteractiveHigh
+    } else {
+        Priority::Data
+    };
     session
         .declare_publisher(key)
         .encoding(Encoding::APPLICATION_PROTOBUF)
@@ -281,9 +285,14 @@ async fn handle(
         }
         StreamMsg::Steps { id, energy, state } => {
             let _ = id;
-            for (frame, publisher, is_energy) in [(energy, &p.energy, true), (state, &p.state, false)] {
+            for (frame, publisher, is_energy) in
+                [(energy, &p.energy, true), (state, &p.state, false)]
+            {
                 let Some(frame) = frame else { continue };
-                publisher.put(frame.encode_to_vec()).await.map_err(|e| anyhow!("{e}"))?;
+                publisher
+                    .put(frame.encode_to_vec())
+                    .await
+                    .map_err(|e| anyhow!("{e}"))?;
                 stats.frames_published.fetch_add(1, Ordering::Relaxed);
                 if watch.receiver_count() > 0 {
                     let f = if is_energy {

@@ -709,7 +709,7 @@ impl Observer for ServiceObserver<'_> {
         self.live.total.store(p.total, Ordering::Relaxed);
         self.live.t_bits.store(p.t.to_bits(), Ordering::Relaxed);
         self.uncounted += 1;
-        if self.uncounted % 16 == 0 && self.last_status.elapsed() >= STATUS_EVERY {
+        if self.uncounted.is_multiple_of(16) && self.last_status.elapsed() >= STATUS_EVERY {
             self.count_steps();
             self.last_status = Instant::now();
             self.inner.sink.offer(status_msg(&self.live.view()));

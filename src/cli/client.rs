@@ -126,7 +126,7 @@ fn status_error(s: tonic::Status) -> anyhow::Error {
 
 /// A status as JSON (the same shape as `GET /v1/jobs/{id}`).
 pub fn status_json(s: &pb::JobStatus) -> Value {
-    let p = s.progress.clone().unwrap_or_default();
+    let p = s.progress.unwrap_or_default();
     json!({
         "id": s.id,
         "name": s.name,
@@ -287,18 +287,16 @@ async fn query_status(session: &zenoh::Session, id: &str) -> Result<Option<pb::J
         .get(stream::status_key(id))
         .await
         .map_err(|e| anyhow!("zenoh get: {e}"))?;
-    while let Ok(reply) = replies.recv_async().await {
-        match reply.result() {
-            Ok(sample) => return Ok(Some(pb::JobStatus::decode(&*sample.payload().to_bytes())?)),
-            Err(e) => {
-                return Err(anyhow!(
-                    "{}",
-                    String::from_utf8_lossy(&e.payload().to_bytes())
-                ));
-            }
-        }
+    let Ok(reply) = replies.recv_async().await else {
+        return Ok(None);
+    };
+    match reply.result() {
+        Ok(sample) => Ok(Some(pb::JobStatus::decode(&*sample.payload().to_bytes())?)),
+        Err(e) => Err(anyhow!(
+            "{}",
+            String::from_utf8_lossy(&e.payload().to_bytes())
+        )),
     }
-    Ok(None)
 }
 
 async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()> {
@@ -351,11 +349,11 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
             Ok(Err(e)) => return Err(anyhow!("zenoh: {e}")),
             Err(_) => {
                 // Quiet for a while: ask (a final status may have been missed).
-                if let Some(s) = query_status(session, &args.id).await? {
-                    if report(&s)? {
-                        last_status = s;
-                        break;
-                    }
+                if let Some(s) = query_status(session, &args.id).await?
+                    && report(&s)?
+                {
+                    last_status = s;
+                    break;
                 }
                 continue;
             }

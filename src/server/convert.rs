@@ -184,10 +184,9 @@ fn dense(p: pb::DenseMatrix) -> Vec<Vec<f64>> {
         .collect()
 }
 
-fn triplets(
-    field: &str,
-    v: Vec<pb::Triplet>,
-) -> Result<Option<Vec<(usize, usize, f64)>>, SpecError> {
+type Triplets = Vec<(usize, usize, f64)>;
+
+fn triplets(field: &str, v: Vec<pb::Triplet>) -> Result<Option<Triplets>, SpecError> {
     if v.is_empty() {
         return Ok(None);
     }

@@ -245,7 +245,7 @@ async fn job_events(
         match frame.frame.as_ref()? {
             watch_frame::Frame::Status(s) if s.id == id => {
                 let state = super::convert::state_from_proto(s.state).map_or("unknown", JobState::as_str);
-                let p = s.progress.clone().unwrap_or_default();
+                let p = s.progress.unwrap_or_default();
                 let body = json!({ "id": s.id, "state": state, "progress": { "step": p.step, "total": p.total, "t": p.t, "fraction": p.fraction } });
                 Event::default().event("status").json_data(body).ok()
             }

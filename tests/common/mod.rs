@@ -40,7 +40,12 @@ pub struct Options {
 
 impl Default for Options {
     fn default() -> Self {
-        Self { workers: 2, queue_limit: 64, token: None, max_steps: None }
+        Self {
+            workers: 2,
+            queue_limit: 64,
+            token: None,
+            max_steps: None,
+        }
     }
 }
 
@@ -61,9 +66,24 @@ impl TestServer {
         let zenoh = format!("tcp/127.0.0.1:{}", free_port());
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_signorini"));
         cmd.arg("serve")
-            .args(["--grpc-addr", &grpc.to_string(), "--http-addr", &http.to_string()])
-            .args(["--store", &store.display().to_string(), "--zenoh-listen", &zenoh])
-            .args(["--workers", &opts.workers.to_string(), "--queue-limit", &opts.queue_limit.to_string()])
+            .args([
+                "--grpc-addr",
+                &grpc.to_string(),
+                "--http-addr",
+                &http.to_string(),
+            ])
+            .args([
+                "--store",
+                &store.display().to_string(),
+                "--zenoh-listen",
+                &zenoh,
+            ])
+            .args([
+                "--workers",
+                &opts.workers.to_string(),
+                "--queue-limit",
+                &opts.queue_limit.to_string(),
+            ])
             .env_remove("SIGNORINI_TOKEN")
             .env_remove("SIGNORINI_CONFIG")
             .stdout(Stdio::piped())
@@ -84,8 +104,15 @@ impl TestServer {
                 }
             }
         });
-        let server = TestServer { child, grpc_url: format!("http://{grpc}"), http, zenoh, store: store.to_path_buf() };
-        rx.recv_timeout(PATIENCE).expect("server did not report it was serving");
+        let server = TestServer {
+            child,
+            grpc_url: format!("http://{grpc}"),
+            http,
+            zenoh,
+            store: store.to_path_buf(),
+        };
+        rx.recv_timeout(PATIENCE)
+            .expect("server did not report it was serving");
         server
     }
 
@@ -104,13 +131,28 @@ impl TestServer {
     }
 
     /// An HTTP call: status and JSON body (Null when the body is not JSON).
-    pub async fn http(&self, method: &str, path: &str, body: Option<&str>, token: Option<&str>) -> (u16, Value) {
+    pub async fn http(
+        &self,
+        method: &str,
+        path: &str,
+        body: Option<&str>,
+        token: Option<&str>,
+    ) -> (u16, Value) {
         let (status, bytes) = self.http_raw(method, path, body, token).await;
-        (status, serde_json::from_slice(&bytes).unwrap_or(Value::Null))
+        (
+            status,
+            serde_json::from_slice(&bytes).unwrap_or(Value::Null),
+        )
     }
 
     /// An HTTP call: status and raw body.
-    pub async fn http_raw(&self, method: &str, path: &str, body: Option<&str>, token: Option<&str>) -> (u16, Vec<u8>) {
+    pub async fn http_raw(
+        &self,
+        method: &str,
+        path: &str,
+        body: Option<&str>,
+        token: Option<&str>,
+    ) -> (u16, Vec<u8>) {
         let client: Client<_, Full<Bytes>> = Client::builder(TokioExecutor::new()).build_http();
         let mut req = hyper::Request::builder()
             .method(method)
@@ -119,10 +161,17 @@ impl TestServer {
         if let Some(t) = token {
             req = req.header("authorization", format!("Bearer {t}"));
         }
-        let req = req.body(Full::new(Bytes::from(body.unwrap_or("").to_string()))).expect("request");
+        let req = req
+            .body(Full::new(Bytes::from(body.unwrap_or("").to_string())))
+            .expect("request");
         let resp = client.request(req).await.expect("HTTP request");
         let status = resp.status().as_u16();
-        let bytes = resp.into_body().collect().await.expect("HTTP body").to_bytes();
+        let bytes = resp
+            .into_body()
+            .collect()
+            .await
+            .expect("HTTP body")
+            .to_bytes();
         (status, bytes.to_vec())
     }
 
@@ -150,11 +199,17 @@ impl Drop for TestServer {
 pub async fn zenoh_barrier(session: &zenoh::Session, id: &str) {
     let deadline = tokio::time::Instant::now() + PATIENCE;
     loop {
-        let replies = session.get(signorini::stream::status_key(id)).await.expect("zenoh get");
+        let replies = session
+            .get(signorini::stream::status_key(id))
+            .await
+            .expect("zenoh get");
         if replies.recv_async().await.is_ok() {
             return;
         }
-        assert!(tokio::time::Instant::now() < deadline, "server's zenoh peer never answered");
+        assert!(
+            tokio::time::Instant::now() < deadline,
+            "server's zenoh peer never answered"
+        );
         // No route yet: the peers are still connecting.
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
@@ -171,7 +226,9 @@ pub struct Collected {
 }
 
 /// Receives frames from `sub` until the one marked `last`.
-pub async fn collect_until_last(sub: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>) -> Collected {
+pub async fn collect_until_last(
+    sub: &zenoh::pubsub::Subscriber<zenoh::handlers::FifoChannelHandler<zenoh::sample::Sample>>,
+) -> Collected {
     let mut c = Collected::default();
     loop {
         let sample = tokio::time::timeout(PATIENCE, sub.recv_async())
@@ -202,14 +259,19 @@ pub async fn wait_terminal(client: &mut SimulationClient<Channel>, id: &str) -> 
         while let Some(frame) = stream.message().await.expect("WatchJob stream") {
             if let Some(pb::watch_frame::Frame::Status(s)) = frame.frame {
                 let st = pb::JobState::try_from(s.state).unwrap_or(pb::JobState::Unspecified);
-                if matches!(st, pb::JobState::Succeeded | pb::JobState::Failed | pb::JobState::Cancelled) {
+                if matches!(
+                    st,
+                    pb::JobState::Succeeded | pb::JobState::Failed | pb::JobState::Cancelled
+                ) {
                     return s;
                 }
             }
         }
         panic!("WatchJob ended before a terminal status");
     };
-    tokio::time::timeout(PATIENCE, fut).await.expect("job did not end in time")
+    tokio::time::timeout(PATIENCE, fut)
+        .await
+        .expect("job did not end in time")
 }
 
 /// Follows gRPC `WatchJob` until the job is running and has done at least `steps` steps.
@@ -226,17 +288,24 @@ pub async fn wait_running(client: &mut SimulationClient<Channel>, id: &str, step
                 if running && s.progress.as_ref().is_some_and(|p| p.step >= steps) {
                     return;
                 }
-                assert!(s.state <= pb::JobState::Running as i32, "job ended early: {s:?}");
+                assert!(
+                    s.state <= pb::JobState::Running as i32,
+                    "job ended early: {s:?}"
+                );
             }
         }
         panic!("WatchJob ended before the job ran");
     };
-    tokio::time::timeout(PATIENCE, fut).await.expect("job did not start in time");
+    tokio::time::timeout(PATIENCE, fut)
+        .await
+        .expect("job did not start in time");
 }
 
 /// A bouncing-ball spec in JSON.
 pub fn ball_json(h: f64, steps: u64, every: u64) -> String {
-    format!(r#"{{"name":"ball","model":{{"scene":"bouncing_ball","restitution":0.8}},"time":{{"h":{h:?},"steps":{steps}}},"output":{{"every":{every}}}}}"#)
+    format!(
+        r#"{{"name":"ball","model":{{"scene":"bouncing_ball","restitution":0.8}},"time":{{"h":{h:?},"steps":{steps}}},"output":{{"every":{every}}}}}"#
+    )
 }
 
 /// The same as a typed proto spec.
@@ -250,9 +319,16 @@ pub fn ball_typed(h: f64, steps: u64, every: u64) -> pb::JobSpec {
             })),
         }),
         integrator: None,
-        time: Some(pb::TimeSpec { h: Some(h), steps: Some(steps), ..Default::default() }),
+        time: Some(pb::TimeSpec {
+            h: Some(h),
+            steps: Some(steps),
+            ..Default::default()
+        }),
         contact_solver: None,
-        output: Some(pb::OutputSpec { every: Some(every), probes: vec![] }),
+        output: Some(pb::OutputSpec {
+            every: Some(every),
+            probes: vec![],
+        }),
     }
 }
 
@@ -262,6 +338,9 @@ pub async fn submit_json(
     spec: String,
     id: Option<&str>,
 ) -> Result<String, tonic::Status> {
-    let req = pb::SubmitJobRequest { spec: Some(pb::submit_job_request::Spec::Json(spec)), id: id.map(str::to_string) };
+    let req = pb::SubmitJobRequest {
+        spec: Some(pb::submit_job_request::Spec::Json(spec)),
+        id: id.map(str::to_string),
+    };
     client.submit_job(req).await.map(|r| r.into_inner().id)
 }
