@@ -1,7 +1,9 @@
 //! Reading job specs from TOML or JSON text, with errors that name the field.
 
+use serde::de::DeserializeOwned;
+use serde_json::{Map, Value};
 use signorini_core::job::Job;
-use signorini_core::spec::{JobSpec, SpecError};
+use signorini_core::spec::{IntegratorSpec, JobSpec, ModelSpec, SpecError};
 use std::path::Path;
 
 /// Spec text formats.
@@ -25,16 +27,65 @@ impl Format {
 
 /// Parses spec text. Errors name the field by its dotted path (`model.mas: unknown field …`).
 pub fn parse(text: &str, format: Format) -> Result<JobSpec, SpecError> {
+    parse_tracked(text, format).map_err(|e| match (e.field.as_str(), tree(text, format)) {
+        ("model", Some(root)) => refine::<ModelSpec>(&root, "model", "scene", e),
+        ("integrator", Some(root)) => refine::<IntegratorSpec>(&root, "integrator", "scheme", e),
+        _ => e,
+    })
+}
+
+fn parse_tracked(text: &str, format: Format) -> Result<JobSpec, SpecError> {
     match format {
         Format::Json => {
             let de = &mut serde_json::Deserializer::from_str(text);
-            serde_path_to_error::deserialize(de).map_err(|e| located(e.path().to_string(), e.inner().to_string()))
+            serde_path_to_error::deserialize(de)
+                .map_err(|e| located(e.path().to_string(), e.inner().to_string()))
         }
         Format::Toml => {
-            let de = toml::Deserializer::parse(text).map_err(|e| SpecError::new("spec", e.message().to_string()))?;
-            serde_path_to_error::deserialize(de).map_err(|e| located(e.path().to_string(), e.inner().message().to_string()))
+            let de = toml::Deserializer::parse(text)
+                .map_err(|e| SpecError::new("spec", e.message().to_string()))?;
+            serde_path_to_error::deserialize(de)
+                .map_err(|e| located(e.path().to_string(), e.inner().message().to_string()))
         }
     }
+}
+
+/// The spec as a JSON tree (TOML converts losslessly for our purposes).
+fn tree(text: &str, format: Format) -> Option<Value> {
+    match format {
+        Format::Json => serde_json::from_str(text).ok(),
+        Format::Toml => toml::from_str(text).ok(),
+    }
+}
+
+/// A tagged section (`[model]` tagged by `scene`, `[integrator]` by `scheme`) is buffered by
+/// serde before its variant is known, so a type error inside it comes back located at the
+/// section only. Find the field: try the section's fields one at a time, each with the tag, and
+/// name the first one that alone reproduces an error other than a missing field.
+fn refine<T: DeserializeOwned>(
+    root: &Value,
+    section: &str,
+    tag: &str,
+    error: SpecError,
+) -> SpecError {
+    let Some(fields) = root.get(section).and_then(Value::as_object) else {
+        return error;
+    };
+    let Some(tag_value) = fields.get(tag) else {
+        return error;
+    };
+    for (key, value) in fields.iter().filter(|(k, _)| k.as_str() != tag) {
+        let probe = Map::from_iter([
+            (tag.to_string(), tag_value.clone()),
+            (key.clone(), value.clone()),
+        ]);
+        if let Err(e) = serde_json::from_value::<T>(Value::Object(probe)) {
+            if !e.to_string().starts_with("missing field") {
+                return SpecError::new(format!("{section}.{key}"), error.reason);
+            }
+        }
+    }
+    error
 }
 
 /// Parses and validates: the one entry point from text to a runnable [`Job`].
@@ -54,14 +105,26 @@ fn located(path: String, message: String) -> SpecError {
         }
     } else if let Some(rest) = message.strip_prefix("unknown field `") {
         let name = rest.split('`').next().unwrap_or_default();
-        if path.is_empty() { name.to_string() } else { format!("{path}.{name}") }
+        if path.is_empty() {
+            name.to_string()
+        } else {
+            format!("{path}.{name}")
+        }
     } else if let Some(rest) = message.strip_prefix("missing field `") {
         let name = rest.split('`').next().unwrap_or_default();
-        if path.is_empty() { name.to_string() } else { format!("{path}.{name}") }
+        if path.is_empty() {
+            name.to_string()
+        } else {
+            format!("{path}.{name}")
+        }
     } else {
         path
     };
-    let field = if field.is_empty() { "spec".to_string() } else { field };
+    let field = if field.is_empty() {
+        "spec".to_string()
+    } else {
+        field
+    };
     SpecError::new(field, message)
 }
 
@@ -71,11 +134,23 @@ mod tests {
 
     #[test]
     fn unknown_field_and_scene_are_named() {
-        let e = parse("[model]\nscene = \"bouncing_ball\"\nmas = 1.0\n[time]\nh = 0.01\nsteps = 1\n", Format::Toml).unwrap_err();
+        let e = parse(
+            "[model]\nscene = \"bouncing_ball\"\nmas = 1.0\n[time]\nh = 0.01\nsteps = 1\n",
+            Format::Toml,
+        )
+        .unwrap_err();
         assert_eq!(e.field, "model.mas", "{e}");
-        let e = parse("[model]\nscene = \"bouncy\"\n[time]\nh = 0.01\nsteps = 1\n", Format::Toml).unwrap_err();
+        let e = parse(
+            "[model]\nscene = \"bouncy\"\n[time]\nh = 0.01\nsteps = 1\n",
+            Format::Toml,
+        )
+        .unwrap_err();
         assert_eq!(e.field, "model.scene", "{e}");
-        let e = parse(r#"{"model": {"scene": "chain", "masses": "x"}, "time": {"h": 1, "steps": 1}}"#, Format::Json).unwrap_err();
+        let e = parse(
+            r#"{"model": {"scene": "chain", "masses": "x"}, "time": {"h": 1, "steps": 1}}"#,
+            Format::Json,
+        )
+        .unwrap_err();
         assert_eq!(e.field, "model.masses", "{e}");
     }
 }

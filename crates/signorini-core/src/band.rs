@@ -65,12 +65,22 @@ impl SymBand {
     /// The n×n zero matrix with half-bandwidth `kd`.
     pub fn zeros(n: usize, kd: usize) -> Self {
         let kd = kd.min(n.saturating_sub(1));
-        Self { n, kd, data: vec![0.0; n * (kd + 1)], row_sums: OnceLock::new() }
+        Self {
+            n,
+            kd,
+            data: vec![0.0; n * (kd + 1)],
+            row_sums: OnceLock::new(),
+        }
     }
 
     /// Diagonal matrix.
     pub fn diagonal(d: &[f64]) -> Self {
-        Self { n: d.len(), kd: 0, data: d.to_vec(), row_sums: OnceLock::new() }
+        Self {
+            n: d.len(),
+            kd: 0,
+            data: d.to_vec(),
+            row_sums: OnceLock::new(),
+        }
     }
 
     /// From dense rows; the bandwidth is found from the non-zeros. Checks shape, finiteness and
@@ -81,7 +91,10 @@ impl SymBand {
         let mut scale = 0.0f64;
         for (i, r) in rows.iter().enumerate() {
             if r.len() != n {
-                return Err(BandError::Shape { n, what: format!("row {i} has {} entries", r.len()) });
+                return Err(BandError::Shape {
+                    n,
+                    what: format!("row {i} has {} entries", r.len()),
+                });
             }
             for (j, &a) in r.iter().enumerate() {
                 if !a.is_finite() {
@@ -118,7 +131,10 @@ impl SymBand {
         let mut upper = std::collections::BTreeMap::<(usize, usize), f64>::new();
         for &(i, j, a) in triplets {
             if i >= n || j >= n {
-                return Err(BandError::Shape { n, what: format!("triplet ({i},{j}) is out of range") });
+                return Err(BandError::Shape {
+                    n,
+                    what: format!("triplet ({i},{j}) is out of range"),
+                });
             }
             if !a.is_finite() {
                 return Err(BandError::NotFinite { i, j });
@@ -129,7 +145,10 @@ impl SymBand {
                 *upper.entry((j, i)).or_default() += a;
             }
         }
-        let scale = lower.values().chain(upper.values()).fold(0.0f64, |s, a| s.max(a.abs()));
+        let scale = lower
+            .values()
+            .chain(upper.values())
+            .fold(0.0f64, |s, a| s.max(a.abs()));
         let mut merged = lower.clone();
         for (&(i, j), &b) in &upper {
             match lower.get(&(i, j)) {
@@ -142,7 +161,12 @@ impl SymBand {
                 }
             }
         }
-        let kd = merged.iter().filter(|(_, a)| **a != 0.0).map(|(&(i, j), _)| i - j).max().unwrap_or(0);
+        let kd = merged
+            .iter()
+            .filter(|(_, a)| **a != 0.0)
+            .map(|(&(i, j), _)| i - j)
+            .max()
+            .unwrap_or(0);
         let mut m = Self::zeros(n, kd);
         for (&(i, j), &a) in &merged {
             if a != 0.0 {
@@ -170,7 +194,11 @@ impl SymBand {
     /// Entry (i, j) (either triangle).
     pub fn get(&self, i: usize, j: usize) -> f64 {
         let (i, j) = if j > i { (j, i) } else { (i, j) };
-        if i - j > self.kd { 0.0 } else { self.data[(i - j) * self.n + i] }
+        if i - j > self.kd {
+            0.0
+        } else {
+            self.data[(i - j) * self.n + i]
+        }
     }
 
     /// Sets entry (i, j) and its mirror. Panics if (i, j) is outside the band (a programming
@@ -191,7 +219,12 @@ impl SymBand {
     /// Σ c_t A_t with the largest bandwidth (e.g. Ŵ = M + θhC + θ²h²K).
     pub fn combine(terms: &[(f64, &SymBand)]) -> SymBand {
         let n = terms.first().map_or(0, |t| t.1.n);
-        let kd = terms.iter().filter(|t| t.0 != 0.0).map(|t| t.1.kd).max().unwrap_or(0);
+        let kd = terms
+            .iter()
+            .filter(|t| t.0 != 0.0)
+            .map(|t| t.1.kd)
+            .max()
+            .unwrap_or(0);
         let mut out = SymBand::zeros(n, kd);
         for &(c, m) in terms {
             if c == 0.0 {

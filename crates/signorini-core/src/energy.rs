@@ -15,7 +15,8 @@ pub const ENERGY_COLUMNS: [&str; 9] = [
 ];
 
 /// Names of the cumulative work columns, in output order (after [`ENERGY_COLUMNS`]).
-pub const CUMULATIVE_COLUMNS: [&str; 3] = ["work_ext_total", "work_damping_total", "work_contact_total"];
+pub const CUMULATIVE_COLUMNS: [&str; 3] =
+    ["work_ext_total", "work_damping_total", "work_contact_total"];
 
 /// Energy terms of one step `[t_k, t_{k+1}]`; the state terms are at t_{k+1}.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

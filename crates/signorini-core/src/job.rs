@@ -7,12 +7,16 @@ use crate::contact::{Activation, IndexSetRule};
 use crate::integrators::alpha::{AlphaParams, AlphaScheme, NonsmoothAlpha, ParamError};
 use crate::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
 use crate::integrators::position_contact::{PositionContact, PositionContactParams};
-use crate::integrators::{LinearScheme, LinearState, OutputOptions, RunStop, StepError, run_linear};
+use crate::integrators::{
+    LinearScheme, LinearState, OutputOptions, RunStop, StepError, run_linear,
+};
 use crate::lcp::LcpOptions;
 use crate::model::{Contact, Forcing, HarmonicLoad, LinearModel, ModelError};
 use crate::observer::Observer;
 use crate::scenes::Bar;
-use crate::spec::{IntegratorSpec, JobSpec, LinearSpec, ModelSpec, MoreauJeanSpec, SpecError, TimeSpec};
+use crate::spec::{
+    IntegratorSpec, JobSpec, LinearSpec, ModelSpec, MoreauJeanSpec, SpecError, TimeSpec,
+};
 use crate::spec::{NsAlphaSpec, PositionContactSpec};
 use serde_json::{Map, Value, json};
 use thiserror::Error;
@@ -96,6 +100,7 @@ pub struct Job {
 enum JobKind {
     Linear(Box<LinearJob>),
     Soi2(Box<crate::soi2::run::Soi2Job>),
+    Wave(Box<crate::wfem::job::WaveJob>),
 }
 
 #[derive(Debug, Clone)]
@@ -118,14 +123,26 @@ enum LinearSchemeChoice {
 impl Job {
     /// Validates `spec` and builds the job. Every error names the offending field.
     pub fn from_spec(spec: &JobSpec) -> Result<Job, SpecError> {
+        if let Some(job) = crate::wfem::job::WaveJob::from_spec(spec)? {
+            return Ok(Job {
+                spec: spec.clone(),
+                kind: JobKind::Wave(Box::new(job)),
+            });
+        }
         if let Some(job) = crate::soi2::run::job_from_spec(spec)? {
             return Ok(Job {
                 spec: spec.clone(),
                 kind: JobKind::Soi2(Box::new(job)),
             });
         }
-        let model_spec = spec.model.as_ref().ok_or_else(|| SpecError::new("model", "missing section"))?;
-        let time = spec.time.as_ref().ok_or_else(|| SpecError::new("time", "missing section"))?;
+        let model_spec = spec
+            .model
+            .as_ref()
+            .ok_or_else(|| SpecError::new("model", "missing section"))?;
+        let time = spec
+            .time
+            .as_ref()
+            .ok_or_else(|| SpecError::new("time", "missing section"))?;
         let model = build_model(model_spec)?;
         let (h, steps) = fixed_steps(time)?;
         let lcp = lcp_options(spec)?;
@@ -143,8 +160,18 @@ impl Job {
             IntegratorSpec::HhtPositionContact(p) => {
                 LinearSchemeChoice::PositionContact(position_contact_params(p, true)?)
             }
-            IntegratorSpec::MoreauJean(p) => LinearSchemeChoice::MoreauJean(moreau_jean_params(p, false)?),
-            IntegratorSpec::MoreauJeanVariant(p) => LinearSchemeChoice::MoreauJean(moreau_jean_params(p, true)?),
+            IntegratorSpec::MoreauJean(p) => {
+                LinearSchemeChoice::MoreauJean(moreau_jean_params(p, false)?)
+            }
+            IntegratorSpec::MoreauJeanVariant(p) => {
+                LinearSchemeChoice::MoreauJean(moreau_jean_params(p, true)?)
+            }
+            IntegratorSpec::Wfem(_) => {
+                return Err(SpecError::new(
+                    "model.scene",
+                    "scheme \"wfem\" runs the scenes \"bar\" and \"dep_bar\"",
+                ));
+            }
             IntegratorSpec::Soi2GeneralizedAlpha(_)
             | IntegratorSpec::Soi2Hht(_)
             | IntegratorSpec::HhtI3(_) => {
@@ -154,7 +181,17 @@ impl Job {
                 ));
             }
         };
-        Ok(Job { spec: spec.clone(), kind: JobKind::Linear(Box::new(LinearJob { model, scheme, h, steps, lcp, output })) })
+        Ok(Job {
+            spec: spec.clone(),
+            kind: JobKind::Linear(Box::new(LinearJob {
+                model,
+                scheme,
+                h,
+                steps,
+                lcp,
+                output,
+            })),
+        })
     }
 
     /// The spec this job was built from.
@@ -165,6 +202,14 @@ impl Job {
     /// Size of the job.
     pub fn size(&self) -> JobSize {
         match &self.kind {
+            JobKind::Wave(j) => {
+                let (dofs, steps) = j.size();
+                JobSize {
+                    dofs,
+                    steps,
+                    output_bytes: (steps + 2) * 24 * 8,
+                }
+            }
             JobKind::Soi2(j) => {
                 let steps = j.steps();
                 let recorded = steps / j.output.every.max(1) + 2;
@@ -177,7 +222,11 @@ impl Job {
             JobKind::Linear(j) => {
                 let recorded = j.steps / j.output.every.max(1) + 2;
                 let columns = 12 + 3 * j.model.contacts.len() + 2 * j.output.probes.len() + 2;
-                JobSize { dofs: j.model.dofs() as u64, steps: j.steps, output_bytes: recorded * columns as u64 * 8 }
+                JobSize {
+                    dofs: j.model.dofs() as u64,
+                    steps: j.steps,
+                    output_bytes: recorded * columns as u64 * 8,
+                }
             }
         }
     }
@@ -188,6 +237,7 @@ pub fn run(job: &Job, observer: &mut dyn Observer) -> Result<RunOutput, RunError
     match &job.kind {
         JobKind::Linear(j) => run_linear_job(job, j, observer),
         JobKind::Soi2(j) => run_soi2_job(job, j, observer),
+        JobKind::Wave(j) => j.run(header(job), observer),
     }
 }
 
@@ -205,7 +255,11 @@ fn run_soi2_job(
     })
 }
 
-fn run_linear_job(job: &Job, j: &LinearJob, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
+fn run_linear_job(
+    job: &Job,
+    j: &LinearJob,
+    observer: &mut dyn Observer,
+) -> Result<RunOutput, RunError> {
     let mut scheme: Box<dyn LinearScheme> = match j.scheme {
         LinearSchemeChoice::MoreauJean(p) => Box::new(
             MoreauJean::new(&j.model, p, j.h, j.lcp)
@@ -221,7 +275,14 @@ fn run_linear_job(job: &Job, j: &LinearJob, observer: &mut dyn Observer) -> Resu
         ),
     };
     let mut state = LinearState::initial(&j.model);
-    let stats = run_linear(&j.model, scheme.as_mut(), &mut state, j.steps, &j.output, observer)?;
+    let stats = run_linear(
+        &j.model,
+        scheme.as_mut(),
+        &mut state,
+        j.steps,
+        &j.output,
+        observer,
+    )?;
     let mut summary = header(job);
     summary.extend(
         json!({
@@ -247,7 +308,11 @@ fn run_linear_job(job: &Job, j: &LinearJob, observer: &mut dyn Observer) -> Resu
         .cloned()
         .unwrap_or_default(),
     );
-    Ok(RunOutput { summary, tables: Vec::new(), figures: Vec::new() })
+    Ok(RunOutput {
+        summary,
+        tables: Vec::new(),
+        figures: Vec::new(),
+    })
 }
 
 fn header(job: &Job) -> Map<String, Value> {
@@ -291,13 +356,23 @@ fn matrix(
             range: "one spelling: give the dense rows or the triplets, not both",
         }),
         (Some(r), None) => {
-            let m = SymBand::from_dense_rows(r).map_err(|source| ModelError::Matrix { field: name.into(), source })?;
+            let m = SymBand::from_dense_rows(r).map_err(|source| ModelError::Matrix {
+                field: name.into(),
+                source,
+            })?;
             if m.n() != n {
-                return Err(ModelError::Dimension { field: name.into(), expected: n, found: m.n() });
+                return Err(ModelError::Dimension {
+                    field: name.into(),
+                    expected: n,
+                    found: m.n(),
+                });
             }
             Ok(m)
         }
-        (None, Some(t)) => SymBand::from_triplets(n, t).map_err(|source| ModelError::Matrix { field: tname, source }),
+        (None, Some(t)) => SymBand::from_triplets(n, t).map_err(|source| ModelError::Matrix {
+            field: tname,
+            source,
+        }),
         (None, None) => Ok(SymBand::zeros(n, 0)),
     }
 }
@@ -308,11 +383,19 @@ fn build_linear(l: &LinearSpec) -> Result<LinearModel, ModelError> {
         (Some(r), _) => r.len(),
         (None, Some(t)) => t.iter().map(|&(i, j, _)| i.max(j) + 1).max().unwrap_or(0),
         (None, None) => {
-            return Err(ModelError::Dimension { field: "mass".into(), expected: 1, found: 0 });
+            return Err(ModelError::Dimension {
+                field: "mass".into(),
+                expected: 1,
+                found: 0,
+            });
         }
     };
     if n == 0 {
-        return Err(ModelError::Dimension { field: "mass".into(), expected: 1, found: 0 });
+        return Err(ModelError::Dimension {
+            field: "mass".into(),
+            expected: 1,
+            found: 0,
+        });
     }
     let mass = matrix("mass", &l.mass, &l.mass_triplets, n)?;
     let stiffness = matrix("stiffness", &l.stiffness, &l.stiffness_triplets, n)?;
@@ -325,7 +408,12 @@ fn build_linear(l: &LinearSpec) -> Result<LinearModel, ModelError> {
     for (a, row) in l.g_matrix.iter().enumerate() {
         crate::model::check_vector(&format!("g_matrix[{a}]"), row, n)?;
         contacts.push(Contact {
-            g: row.iter().enumerate().filter(|(_, c)| **c != 0.0).map(|(i, &c)| (i, c)).collect(),
+            g: row
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| **c != 0.0)
+                .map(|(i, &c)| (i, c))
+                .collect(),
             offset: offsets[a],
             motion: None,
             restitution: l.restitution[a],
@@ -336,7 +424,11 @@ fn build_linear(l: &LinearSpec) -> Result<LinearModel, ModelError> {
         harmonic: l
             .harmonic_force
             .iter()
-            .map(|h| HarmonicLoad { shape: h.shape.clone(), omega: h.omega, phase: h.phase })
+            .map(|h| HarmonicLoad {
+                shape: h.shape.clone(),
+                omega: h.omega,
+                phase: h.phase,
+            })
             .collect(),
     };
     let model = LinearModel::new(
@@ -350,9 +442,20 @@ fn build_linear(l: &LinearSpec) -> Result<LinearModel, ModelError> {
     );
     // Contact rows are validated by LinearModel with `contacts[α]`; the spec calls them g_matrix.
     model.map_err(|e| match e {
-        ModelError::OutOfRange { field, value, range } if field.starts_with("contacts[") => {
-            let field = field.replace("contacts", "g_matrix").replace(".g", "").replace(".restitution", "");
-            ModelError::OutOfRange { field, value, range }
+        ModelError::OutOfRange {
+            field,
+            value,
+            range,
+        } if field.starts_with("contacts[") => {
+            let field = field
+                .replace("contacts", "g_matrix")
+                .replace(".g", "")
+                .replace(".restitution", "");
+            ModelError::OutOfRange {
+                field,
+                value,
+                range,
+            }
         }
         other => other,
     })
@@ -361,26 +464,47 @@ fn build_linear(l: &LinearSpec) -> Result<LinearModel, ModelError> {
 /// Constant step size and number of steps from `[time]`.
 pub fn fixed_steps(time: &TimeSpec) -> Result<(f64, u64), SpecError> {
     if !time.h.is_finite() || time.h <= 0.0 {
-        return Err(SpecError::new("time.h", format!("must be a finite number > 0, got {}", time.h)));
+        return Err(SpecError::new(
+            "time.h",
+            format!("must be a finite number > 0, got {}", time.h),
+        ));
     }
     if time.pattern.is_some() {
-        return Err(SpecError::new("time.pattern", "variable step sizes are supported by the SOI2 schemes only"));
+        return Err(SpecError::new(
+            "time.pattern",
+            "variable step sizes are supported by the SOI2 schemes only",
+        ));
     }
     if time.adjust.is_some() {
-        return Err(SpecError::new("time.adjust", "the adjusting formulas belong to the SOI2 schemes only"));
+        return Err(SpecError::new(
+            "time.adjust",
+            "the adjusting formulas belong to the SOI2 schemes only",
+        ));
     }
     let steps = match (time.t_end, time.steps) {
-        (Some(_), Some(_)) => return Err(SpecError::new("time.steps", "give t_end or steps, not both")),
+        (Some(_), Some(_)) => {
+            return Err(SpecError::new(
+                "time.steps",
+                "give t_end or steps, not both",
+            ));
+        }
         (None, None) => return Err(SpecError::new("time.t_end", "missing: give t_end or steps")),
         (None, Some(n)) => n,
         (Some(t), None) => {
             if !t.is_finite() || t < 0.0 {
-                return Err(SpecError::new("time.t_end", format!("must be a finite number ≥ 0, got {t}")));
+                return Err(SpecError::new(
+                    "time.t_end",
+                    format!("must be a finite number ≥ 0, got {t}"),
+                ));
             }
             // Round to the nearest step when t_end is a multiple of h up to round-off.
             let ratio = t / time.h;
             let nearest = ratio.round();
-            if (ratio - nearest).abs() <= 1e-9 * ratio.max(1.0) { nearest as u64 } else { ratio.ceil() as u64 }
+            if (ratio - nearest).abs() <= 1e-9 * ratio.max(1.0) {
+                nearest as u64
+            } else {
+                ratio.ceil() as u64
+            }
         }
     };
     Ok((time.h, steps))
@@ -389,12 +513,22 @@ pub fn fixed_steps(time: &TimeSpec) -> Result<(f64, u64), SpecError> {
 fn lcp_options(spec: &JobSpec) -> Result<LcpOptions, SpecError> {
     let c = &spec.contact_solver;
     if !c.tolerance.is_finite() || c.tolerance <= 0.0 {
-        return Err(SpecError::new("contact_solver.tolerance", format!("must be > 0, got {}", c.tolerance)));
+        return Err(SpecError::new(
+            "contact_solver.tolerance",
+            format!("must be > 0, got {}", c.tolerance),
+        ));
     }
     if c.max_iterations == 0 {
-        return Err(SpecError::new("contact_solver.max_iterations", "must be ≥ 1"));
+        return Err(SpecError::new(
+            "contact_solver.max_iterations",
+            "must be ≥ 1",
+        ));
     }
-    Ok(LcpOptions { kind: c.kind, tolerance: c.tolerance, max_iterations: c.max_iterations })
+    Ok(LcpOptions {
+        kind: c.kind,
+        tolerance: c.tolerance,
+        max_iterations: c.max_iterations,
+    })
 }
 
 fn output_options(spec: &JobSpec, dofs: usize) -> Result<OutputOptions, SpecError> {
@@ -403,14 +537,23 @@ fn output_options(spec: &JobSpec, dofs: usize) -> Result<OutputOptions, SpecErro
         return Err(SpecError::new("output.every", "must be ≥ 1"));
     }
     if let Some(&j) = o.probes.iter().find(|&&j| j >= dofs) {
-        return Err(SpecError::new("output.probes", format!("dof {j} does not exist (the model has {dofs} dofs)")));
+        return Err(SpecError::new(
+            "output.probes",
+            format!("dof {j} does not exist (the model has {dofs} dofs)"),
+        ));
     }
-    Ok(OutputOptions { every: o.every, probes: o.probes.clone() })
+    Ok(OutputOptions {
+        every: o.every,
+        probes: o.probes.clone(),
+    })
 }
 
 fn moreau_jean_params(p: &MoreauJeanSpec, variant: bool) -> Result<MoreauJeanParams, SpecError> {
     if !p.theta.is_finite() || !(0.0..=1.0).contains(&p.theta) {
-        return Err(SpecError::new("integrator.theta", format!("must be in [0, 1], got {}", p.theta)));
+        return Err(SpecError::new(
+            "integrator.theta",
+            format!("must be in [0, 1], got {}", p.theta),
+        ));
     }
     let gamma = match (p.activation, p.activation_gamma) {
         (Activation::GapAndVelocity, Some(_)) => {
@@ -420,11 +563,21 @@ fn moreau_jean_params(p: &MoreauJeanSpec, variant: bool) -> Result<MoreauJeanPar
             ));
         }
         (_, Some(g)) if !g.is_finite() || g <= 0.0 => {
-            return Err(SpecError::new("integrator.activation_gamma", format!("must be > 0, got {g}")));
+            return Err(SpecError::new(
+                "integrator.activation_gamma",
+                format!("must be > 0, got {g}"),
+            ));
         }
         (_, g) => g.unwrap_or(1.0),
     };
-    Ok(MoreauJeanParams { theta: p.theta, variant, index_set: IndexSetRule { activation: p.activation, gamma } })
+    Ok(MoreauJeanParams {
+        theta: p.theta,
+        variant,
+        index_set: IndexSetRule {
+            activation: p.activation,
+            gamma,
+        },
+    })
 }
 /// The index-set rule of an α-family spec (same fields and checks as `moreau_jean`).
 fn alpha_index_set(

@@ -118,7 +118,9 @@ pub enum ModelError {
         source: BandError,
     },
     /// The mass matrix is not positive definite.
-    #[error("{field}: mass matrix is not symmetric positive definite (pivot {pivot:e} at row {row})")]
+    #[error(
+        "{field}: mass matrix is not symmetric positive definite (pivot {pivot:e} at row {row})"
+    )]
     MassNotPositiveDefinite {
         /// Which matrix.
         field: String,
@@ -191,21 +193,39 @@ impl ModelError {
 /// Checks that `x` has `n` finite entries.
 pub fn check_vector(field: &str, x: &[f64], n: usize) -> Result<(), ModelError> {
     if x.len() != n {
-        return Err(ModelError::Dimension { field: field.into(), expected: n, found: x.len() });
+        return Err(ModelError::Dimension {
+            field: field.into(),
+            expected: n,
+            found: x.len(),
+        });
     }
     if x.iter().any(|a| !a.is_finite()) {
-        return Err(ModelError::NotFinite { field: field.into() });
+        return Err(ModelError::NotFinite {
+            field: field.into(),
+        });
     }
     Ok(())
 }
 
 /// Checks that `x` is finite and in [lo, hi].
-pub fn check_range(field: &str, x: f64, lo: f64, hi: f64, range: &'static str) -> Result<(), ModelError> {
+pub fn check_range(
+    field: &str,
+    x: f64,
+    lo: f64,
+    hi: f64,
+    range: &'static str,
+) -> Result<(), ModelError> {
     if !x.is_finite() {
-        return Err(ModelError::NotFinite { field: field.into() });
+        return Err(ModelError::NotFinite {
+            field: field.into(),
+        });
     }
     if x < lo || x > hi {
-        return Err(ModelError::OutOfRange { field: field.into(), value: x, range });
+        return Err(ModelError::OutOfRange {
+            field: field.into(),
+            value: x,
+            range,
+        });
     }
     Ok(())
 }
@@ -245,26 +265,46 @@ impl LinearModel {
         let n = mass.n();
         for (field, m) in [("damping", &damping), ("stiffness", &stiffness)] {
             if m.n() != n {
-                return Err(ModelError::Dimension { field: field.into(), expected: n, found: m.n() });
+                return Err(ModelError::Dimension {
+                    field: field.into(),
+                    expected: n,
+                    found: m.n(),
+                });
             }
         }
         if let Err(BandError::NotPositiveDefinite { row, pivot }) = mass.cholesky() {
-            return Err(ModelError::MassNotPositiveDefinite { field: "mass".into(), row, pivot });
+            return Err(ModelError::MassNotPositiveDefinite {
+                field: "mass".into(),
+                row,
+                pivot,
+            });
         }
         check_vector("force", &force.constant, n)?;
         for (k, h) in force.harmonic.iter().enumerate() {
             check_vector(&format!("force.harmonic[{k}]"), &h.shape, n)?;
-            check_range(&format!("force.harmonic[{k}].omega"), h.omega, f64::MIN, f64::MAX, "finite values")?;
+            check_range(
+                &format!("force.harmonic[{k}].omega"),
+                h.omega,
+                f64::MIN,
+                f64::MAX,
+                "finite values",
+            )?;
         }
         check_vector("q0", &q0, n)?;
         check_vector("v0", &v0, n)?;
         for (a, c) in contacts.iter().enumerate() {
             for &(i, coef) in &c.g {
                 if i >= n {
-                    return Err(ModelError::NoSuchDof { field: format!("contacts[{a}]"), dof: i, n });
+                    return Err(ModelError::NoSuchDof {
+                        field: format!("contacts[{a}]"),
+                        dof: i,
+                        n,
+                    });
                 }
                 if !coef.is_finite() {
-                    return Err(ModelError::NotFinite { field: format!("contacts[{a}].g") });
+                    return Err(ModelError::NotFinite {
+                        field: format!("contacts[{a}].g"),
+                    });
                 }
             }
             if c.g.iter().all(|&(_, coef)| coef == 0.0) {
@@ -274,10 +314,30 @@ impl LinearModel {
                     range: "non-zero columns of G",
                 });
             }
-            check_range(&format!("contacts[{a}].offset"), c.offset, f64::MIN, f64::MAX, "finite values")?;
-            check_range(&format!("contacts[{a}].restitution"), c.restitution, 0.0, 1.0, "[0, 1]")?;
+            check_range(
+                &format!("contacts[{a}].offset"),
+                c.offset,
+                f64::MIN,
+                f64::MAX,
+                "finite values",
+            )?;
+            check_range(
+                &format!("contacts[{a}].restitution"),
+                c.restitution,
+                0.0,
+                1.0,
+                "[0, 1]",
+            )?;
         }
-        Ok(Self { mass, damping, stiffness, force, contacts, q0, v0 })
+        Ok(Self {
+            mass,
+            damping,
+            stiffness,
+            force,
+            contacts,
+            q0,
+            v0,
+        })
     }
 
     /// Number of dofs n.

@@ -2,7 +2,9 @@
 //! structs are the `[model]` section of the job spec (one domain type, serde at the edges).
 
 use crate::band::SymBand;
-use crate::model::{Contact, Forcing, Harmonic, HarmonicLoad, LinearModel, ModelError, check_range, check_vector};
+use crate::model::{
+    Contact, Forcing, Harmonic, HarmonicLoad, LinearModel, ModelError, check_range, check_vector,
+};
 use serde::{Deserialize, Serialize};
 
 /// A point mass falling under gravity onto the ground q = 0 (1 dof, gap g = q).
@@ -23,7 +25,13 @@ pub struct BouncingBall {
 
 impl Default for BouncingBall {
     fn default() -> Self {
-        Self { mass: 1.0, gravity: 9.81, q0: 1.0, v0: 0.0, restitution: 0.9 }
+        Self {
+            mass: 1.0,
+            gravity: 9.81,
+            q0: 1.0,
+            v0: 0.0,
+            restitution: 0.9,
+        }
     }
 }
 
@@ -32,15 +40,29 @@ impl BouncingBall {
     pub fn build(&self) -> Result<LinearModel, ModelError> {
         check_range("mass", self.mass, f64::MIN_POSITIVE, f64::MAX, "(0, ∞)")?;
         check_range("gravity", self.gravity, 0.0, f64::MAX, "[0, ∞)")?;
-        check_range("q0", self.q0, 0.0, f64::MAX, "[0, ∞) (the ball starts above the ground)")?;
+        check_range(
+            "q0",
+            self.q0,
+            0.0,
+            f64::MAX,
+            "[0, ∞) (the ball starts above the ground)",
+        )?;
         check_range("v0", self.v0, f64::MIN, f64::MAX, "finite values")?;
         check_range("restitution", self.restitution, 0.0, 1.0, "[0, 1]")?;
         LinearModel::new(
             SymBand::diagonal(&[self.mass]),
             SymBand::zeros(1, 0),
             SymBand::zeros(1, 0),
-            Forcing { constant: vec![-self.mass * self.gravity], harmonic: vec![] },
-            vec![Contact { g: vec![(0, 1.0)], offset: 0.0, motion: None, restitution: self.restitution }],
+            Forcing {
+                constant: vec![-self.mass * self.gravity],
+                harmonic: vec![],
+            },
+            vec![Contact {
+                g: vec![(0, 1.0)],
+                offset: 0.0,
+                motion: None,
+                restitution: self.restitution,
+            }],
             vec![self.q0],
             vec![self.v0],
         )
@@ -174,9 +196,18 @@ impl Bar {
     /// the left end is fixed).
     pub fn build(&self) -> Result<LinearModel, ModelError> {
         if self.elements == 0 {
-            return Err(ModelError::OutOfRange { field: "elements".into(), value: 0.0, range: "[1, ∞)" });
+            return Err(ModelError::OutOfRange {
+                field: "elements".into(),
+                value: 0.0,
+                range: "[1, ∞)",
+            });
         }
-        for (f, x) in [("length", self.length), ("young", self.young), ("density", self.density), ("area", self.area)] {
+        for (f, x) in [
+            ("length", self.length),
+            ("young", self.young),
+            ("density", self.density),
+            ("area", self.area),
+        ] {
             check_range(f, x, f64::MIN_POSITIVE, f64::MAX, "(0, ∞)")?;
         }
         for (f, x) in [
@@ -189,11 +220,32 @@ impl Bar {
         }
         check_range("restitution", self.restitution, 0.0, 1.0, "[0, 1]")?;
         check_range("rayleigh_mass", self.rayleigh_mass, 0.0, f64::MAX, "[0, ∞)")?;
-        check_range("rayleigh_stiffness", self.rayleigh_stiffness, 0.0, f64::MAX, "[0, ∞)")?;
-        for (f, h) in [("harmonic_force", self.harmonic_force), ("wall_motion", self.wall_motion)] {
+        check_range(
+            "rayleigh_stiffness",
+            self.rayleigh_stiffness,
+            0.0,
+            f64::MAX,
+            "[0, ∞)",
+        )?;
+        for (f, h) in [
+            ("harmonic_force", self.harmonic_force),
+            ("wall_motion", self.wall_motion),
+        ] {
             if let Some(h) = h {
-                check_range(&format!("{f}.amplitude"), h.amplitude, f64::MIN, f64::MAX, "finite values")?;
-                check_range(&format!("{f}.omega"), h.omega, f64::MIN, f64::MAX, "finite values")?;
+                check_range(
+                    &format!("{f}.amplitude"),
+                    h.amplitude,
+                    f64::MIN,
+                    f64::MAX,
+                    "finite values",
+                )?;
+                check_range(
+                    &format!("{f}.omega"),
+                    h.omega,
+                    f64::MIN,
+                    f64::MAX,
+                    "finite values",
+                )?;
             }
         }
         let ne = self.elements;
@@ -207,7 +259,14 @@ impl Bar {
         let ke = self.young * self.area / he;
         let me = self.density * self.area * he;
         let mut k = SymBand::zeros(n, 1);
-        let mut m = SymBand::zeros(n, if self.mass_matrix == MassMatrix::Consistent { 1 } else { 0 });
+        let mut m = SymBand::zeros(
+            n,
+            if self.mass_matrix == MassMatrix::Consistent {
+                1
+            } else {
+                0
+            },
+        );
         // Nodal weights of a uniform load per unit length: ∫ N_i = h_e/2 per element end.
         let mut load_shape = vec![0.0; n];
         for e in 0..ne {
@@ -251,7 +310,11 @@ impl Bar {
         let contact = Contact {
             g: vec![(self.contact_dof(), -1.0)],
             offset: self.gap,
-            motion: self.wall_motion.map(|h| Harmonic { amplitude: h.amplitude, omega: h.omega, phase: 0.0 }),
+            motion: self.wall_motion.map(|h| Harmonic {
+                amplitude: h.amplitude,
+                omega: h.omega,
+                phase: 0.0,
+            }),
             restitution: self.restitution,
         };
         LinearModel::new(
@@ -304,7 +367,9 @@ impl BarSpec {
             gap: self.gap.unwrap_or(base.gap),
             restitution: self.restitution.unwrap_or(base.restitution),
             initial_velocity: self.initial_velocity.unwrap_or(base.initial_velocity),
-            initial_displacement: self.initial_displacement.unwrap_or(base.initial_displacement),
+            initial_displacement: self
+                .initial_displacement
+                .unwrap_or(base.initial_displacement),
             body_force: self.body_force.unwrap_or(base.body_force),
             rayleigh_mass: self.rayleigh_mass.unwrap_or(base.rayleigh_mass),
             rayleigh_stiffness: self.rayleigh_stiffness.unwrap_or(base.rayleigh_stiffness),
@@ -354,10 +419,20 @@ impl Chain {
     pub fn build(&self) -> Result<LinearModel, ModelError> {
         let n = self.masses.len();
         if n == 0 {
-            return Err(ModelError::Dimension { field: "masses".into(), expected: 1, found: 0 });
+            return Err(ModelError::Dimension {
+                field: "masses".into(),
+                expected: 1,
+                found: 0,
+            });
         }
         for (i, &m) in self.masses.iter().enumerate() {
-            check_range(&format!("masses[{i}]"), m, f64::MIN_POSITIVE, f64::MAX, "(0, ∞)")?;
+            check_range(
+                &format!("masses[{i}]"),
+                m,
+                f64::MIN_POSITIVE,
+                f64::MAX,
+                "(0, ∞)",
+            )?;
         }
         check_range("stiffness", self.stiffness, 0.0, f64::MAX, "[0, ∞)")?;
         check_vector("positions", &self.positions, n)?;
@@ -384,7 +459,10 @@ impl Chain {
             SymBand::diagonal(&self.masses),
             SymBand::zeros(n, 0),
             k,
-            Forcing { constant: force, harmonic: vec![] },
+            Forcing {
+                constant: force,
+                harmonic: vec![],
+            },
             contacts,
             vec![0.0; n],
             self.velocities.clone(),

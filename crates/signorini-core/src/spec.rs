@@ -35,6 +35,9 @@ pub struct JobSpec {
     /// What to record.
     #[serde(default)]
     pub output: OutputSpec,
+    /// A job that is not a time integration (`kind = "nonsmooth_modes"` or `"forced_response"`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub analysis: Option<crate::modal::AnalysisSpec>,
 }
 
 /// `[model]`: the scene and its parameters.
@@ -142,12 +145,6 @@ pub enum IntegratorSpec {
     MoreauJean(MoreauJeanSpec),
     /// Its variant (29): `q_{k+1} = q_k + h v_{k+1/2}`.
     MoreauJeanVariant(MoreauJeanSpec),
-    /// Generalized-α-SOI2, Jay & Negrut 2008 (13).
-    Soi2GeneralizedAlpha(Soi2GeneralizedAlphaSpec),
-    /// HHT-SOI2, Jay & Negrut 2008 (17).
-    Soi2Hht(HhtSoi2Spec),
-    /// HHT-I3 (index 3, position constraints only): the baseline of HHT-SOI2.
-    HhtI3(HhtSoi2Spec),
     /// Nonsmooth Newmark, Acary 2016 (25) with α_m = α_f = 0.
     NsNewmark(NsNewmarkSpec),
     /// Nonsmooth HHT, Acary 2016 (25) with α_m = 0, α_f = α (78).
@@ -160,7 +157,20 @@ pub enum IntegratorSpec {
     NewmarkPositionContact(PositionContactSpec),
     /// Standard HHT with contact at position level (baseline).
     HhtPositionContact(PositionContactSpec),
+    /// Generalized-α-SOI2, Jay & Negrut 2008 (13).
+    Soi2GeneralizedAlpha(Soi2GeneralizedAlphaSpec),
+    /// HHT-SOI2, Jay & Negrut 2008 (17).
+    Soi2Hht(HhtSoi2Spec),
+    /// HHT-I3 (index 3, position constraints only): the baseline of HHT-SOI2.
+    HhtI3(HhtSoi2Spec),
+    /// Wave finite elements, Yoong et al. 2018 Appendices A–B: scenes `bar`/`dep_bar`, cells = elements.
+    Wfem(WfemSpec),
 }
+
+/// Parameters of `wfem` (none: Δt = Δx/c is fixed by the bar, and `time.h` must equal it).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WfemSpec {}
 
 impl Default for IntegratorSpec {
     fn default() -> Self {
@@ -174,15 +184,16 @@ impl IntegratorSpec {
         match self {
             IntegratorSpec::MoreauJean(_) => "moreau_jean",
             IntegratorSpec::MoreauJeanVariant(_) => "moreau_jean_variant",
-            IntegratorSpec::Soi2GeneralizedAlpha(_) => "soi2_generalized_alpha",
-            IntegratorSpec::Soi2Hht(_) => "soi2_hht",
-            IntegratorSpec::HhtI3(_) => "hht_i3",
             IntegratorSpec::NsNewmark(_) => "ns_newmark",
             IntegratorSpec::NsHht(_) => "ns_hht",
             IntegratorSpec::NsGeneralizedAlpha(_) => "ns_generalized_alpha",
             IntegratorSpec::NsKhAlpha(_) => "ns_kh_alpha",
             IntegratorSpec::NewmarkPositionContact(_) => "newmark_position_contact",
             IntegratorSpec::HhtPositionContact(_) => "hht_position_contact",
+            IntegratorSpec::Soi2GeneralizedAlpha(_) => "soi2_generalized_alpha",
+            IntegratorSpec::Soi2Hht(_) => "soi2_hht",
+            IntegratorSpec::HhtI3(_) => "hht_i3",
+            IntegratorSpec::Wfem(_) => "wfem",
         }
     }
 }
@@ -208,7 +219,11 @@ pub struct MoreauJeanSpec {
 
 impl Default for MoreauJeanSpec {
     fn default() -> Self {
-        Self { theta: 0.5, activation: Activation::default(), activation_gamma: None }
+        Self {
+            theta: 0.5,
+            activation: Activation::default(),
+            activation_gamma: None,
+        }
     }
 }
 
@@ -257,7 +272,11 @@ pub struct ContactSolverSpec {
 
 impl Default for ContactSolverSpec {
     fn default() -> Self {
-        Self { kind: LcpSolverKind::Auto, tolerance: default_tolerance(), max_iterations: default_max_iterations() }
+        Self {
+            kind: LcpSolverKind::Auto,
+            tolerance: default_tolerance(),
+            max_iterations: default_max_iterations(),
+        }
     }
 }
 
@@ -279,7 +298,10 @@ pub struct OutputSpec {
 
 impl Default for OutputSpec {
     fn default() -> Self {
-        Self { every: 1, probes: Vec::new() }
+        Self {
+            every: 1,
+            probes: Vec::new(),
+        }
     }
 }
 
@@ -296,7 +318,10 @@ pub struct SpecError {
 impl SpecError {
     /// An error on `field`.
     pub fn new(field: impl Into<String>, reason: impl Into<String>) -> Self {
-        Self { field: field.into(), reason: reason.into() }
+        Self {
+            field: field.into(),
+            reason: reason.into(),
+        }
     }
 }
 fn quarter() -> f64 {

@@ -32,7 +32,12 @@ pub struct LinearState {
 impl LinearState {
     /// The model's initial state at t = 0.
     pub fn initial(model: &LinearModel) -> Self {
-        Self { step: 0, t: 0.0, q: model.q0.clone(), v: model.v0.clone() }
+        Self {
+            step: 0,
+            t: 0.0,
+            q: model.q0.clone(),
+            v: model.v0.clone(),
+        }
     }
 }
 
@@ -54,7 +59,12 @@ pub struct StepReport {
 impl StepReport {
     /// A report sized for `contacts` contacts.
     pub fn with_contacts(contacts: usize) -> Self {
-        Self { gap: vec![0.0; contacts], local_velocity: vec![0.0; contacts], impulse: vec![0.0; contacts], ..Default::default() }
+        Self {
+            gap: vec![0.0; contacts],
+            local_velocity: vec![0.0; contacts],
+            impulse: vec![0.0; contacts],
+            ..Default::default()
+        }
     }
 
     /// Fills gaps and local velocities from the state at t.
@@ -92,7 +102,12 @@ pub enum StepError {
 /// A one-step method for a [`LinearModel`].
 pub trait LinearScheme {
     /// Advances `state` by one step, writing the step's terms into `report`.
-    fn step(&mut self, model: &LinearModel, state: &mut LinearState, report: &mut StepReport) -> Result<(), StepError>;
+    fn step(
+        &mut self,
+        model: &LinearModel,
+        state: &mut LinearState,
+        report: &mut StepReport,
+    ) -> Result<(), StepError>;
 
     /// The scheme's algorithmic energy H at `state` (the mechanical energy for Moreau–Jean).
     fn algorithmic_energy(&self, model: &LinearModel, state: &LinearState) -> f64;
@@ -144,7 +159,11 @@ pub struct LinearRunStats {
 /// Column names of a linear run: energy terms, cumulative works, then `gap_α, u_α, p_α` per
 /// contact, then `q_j, v_j` per probe.
 pub fn linear_columns(contacts: usize, probes: &[usize]) -> Columns {
-    let mut names: Vec<String> = ENERGY_COLUMNS.iter().chain(&CUMULATIVE_COLUMNS).map(|s| s.to_string()).collect();
+    let mut names: Vec<String> = ENERGY_COLUMNS
+        .iter()
+        .chain(&CUMULATIVE_COLUMNS)
+        .map(|s| s.to_string())
+        .collect();
     for a in 0..contacts {
         names.extend([format!("gap_{a}"), format!("u_{a}"), format!("p_{a}")]);
     }
@@ -201,33 +220,50 @@ pub fn run_linear(
     };
     let mut row = Vec::with_capacity(columns.len());
     let mut previous_impulse = vec![0.0; m];
-    let record = |report: &StepReport, stats: &LinearRunStats, state: &LinearState, row: &mut Vec<f64>| {
-        row.clear();
-        row.extend_from_slice(&report.energy.values());
-        row.extend([stats.work_ext_total, stats.work_damping_total, stats.work_contact_total]);
-        for a in 0..m {
-            row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
-        }
-        for &j in &output.probes {
-            row.extend([state.q[j], state.v[j]]);
-        }
-    };
+    let record =
+        |report: &StepReport, stats: &LinearRunStats, state: &LinearState, row: &mut Vec<f64>| {
+            row.clear();
+            row.extend_from_slice(&report.energy.values());
+            row.extend([
+                stats.work_ext_total,
+                stats.work_damping_total,
+                stats.work_contact_total,
+            ]);
+            for a in 0..m {
+                row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
+            }
+            for &j in &output.probes {
+                row.extend([state.q[j], state.v[j]]);
+            }
+        };
     record(&report, &stats, state, &mut row);
-    if observer.observe(&StepRecord { step: state.step, t: state.t, values: &row }).is_break() {
+    if observer
+        .observe(&StepRecord {
+            step: state.step,
+            t: state.t,
+            values: &row,
+        })
+        .is_break()
+    {
         return Err(RunStop::Stopped { step: 0 });
     }
     for k in 1..=steps {
         scheme.step(model, state, &mut report)?;
         let e = &report.energy;
         if !(e.energy().is_finite() && e.algorithmic_energy.is_finite()) {
-            return Err(StepError::NotFinite { step: state.step, t: state.t }.into());
+            return Err(StepError::NotFinite {
+                step: state.step,
+                t: state.t,
+            }
+            .into());
         }
         stats.steps = k;
         stats.t_end = state.t;
         stats.work_ext_total += e.work_ext;
         stats.work_damping_total += e.work_damping;
         stats.work_contact_total += e.work_contact;
-        stats.max_abs_balance_residual = stats.max_abs_balance_residual.max(e.balance_residual.abs());
+        stats.max_abs_balance_residual =
+            stats.max_abs_balance_residual.max(e.balance_residual.abs());
         stats.energy_final = e.energy();
         stats.energy_max = stats.energy_max.max(e.energy());
         stats.algorithmic_energy_max = stats.algorithmic_energy_max.max(e.algorithmic_energy.abs());
@@ -239,11 +275,22 @@ pub fn run_linear(
         }
         if k % every == 0 || k == steps {
             record(&report, &stats, state, &mut row);
-            if observer.observe(&StepRecord { step: state.step, t: state.t, values: &row }).is_break() {
+            if observer
+                .observe(&StepRecord {
+                    step: state.step,
+                    t: state.t,
+                    values: &row,
+                })
+                .is_break()
+            {
                 return Err(RunStop::Stopped { step: k });
             }
         }
-        if let ControlFlow::Break(()) = observer.progress(Progress { done: k, total: steps, t: state.t }) {
+        if let ControlFlow::Break(()) = observer.progress(Progress {
+            done: k,
+            total: steps,
+            t: state.t,
+        }) {
             return Err(RunStop::Stopped { step: k });
         }
     }

@@ -11,7 +11,10 @@ pub const ENUMERATION_MAX: usize = 12;
 pub fn solve_enumeration(lcp: Lcp<'_>, options: &LcpOptions) -> Result<LcpSolution, LcpError> {
     let n = lcp.size();
     if n > ENUMERATION_MAX {
-        return Err(LcpError::TooLarge { size: n, max: ENUMERATION_MAX });
+        return Err(LcpError::TooLarge {
+            size: n,
+            max: ENUMERATION_MAX,
+        });
     }
     let mut sets: Vec<u32> = (0..1u32 << n).collect();
     sets.sort_by_key(|s| s.count_ones());
@@ -33,7 +36,11 @@ pub fn solve_enumeration(lcp: Lcp<'_>, options: &LcpOptions) -> Result<LcpSoluti
         }
         let error = lcp.error(&z);
         if error <= options.tolerance {
-            return Ok(LcpSolution { z, iterations: tried + 1, error });
+            return Ok(LcpSolution {
+                z,
+                iterations: tried + 1,
+                error,
+            });
         }
         if best.as_ref().is_none_or(|(e, _)| error < *e) {
             best = Some((error, z));

@@ -46,7 +46,11 @@ pub fn solve_lemke(lcp: Lcp<'_>, options: &LcpOptions) -> Result<LcpSolution, Lc
             });
         }
         // The complement of the variable that left enters.
-        entering = if leaving < n { leaving + n } else { leaving - n };
+        entering = if leaving < n {
+            leaving + n
+        } else {
+            leaving - n
+        };
         // Ratio test.
         let mut best: Option<(usize, f64)> = None;
         for i in 0..n {
@@ -56,7 +60,8 @@ pub fn solve_lemke(lcp: Lcp<'_>, options: &LcpOptions) -> Result<LcpSolution, Lc
                 let better = match best {
                     None => true,
                     Some((r, b)) => {
-                        ratio < b - eps * scale || (ratio <= b + eps * scale && basis[i] == z0 && basis[r] != z0)
+                        ratio < b - eps * scale
+                            || (ratio <= b + eps * scale && basis[i] == z0 && basis[r] != z0)
                     }
                 };
                 if better {
@@ -72,9 +77,18 @@ pub fn solve_lemke(lcp: Lcp<'_>, options: &LcpOptions) -> Result<LcpSolution, Lc
     let z = extract(&t, &basis, cols, n);
     let error = lcp.error(&z);
     if error > options.tolerance {
-        return Err(LcpError::NotConverged { solver: "lemke", iterations: pivots, error, tolerance: options.tolerance });
+        return Err(LcpError::NotConverged {
+            solver: "lemke",
+            iterations: pivots,
+            error,
+            tolerance: options.tolerance,
+        });
     }
-    Ok(LcpSolution { z, iterations: pivots, error })
+    Ok(LcpSolution {
+        z,
+        iterations: pivots,
+        error,
+    })
 }
 
 fn pivot(t: &mut [f64], cols: usize, n: usize, row: usize, col: usize) {

@@ -22,7 +22,11 @@ pub fn solve_pgs(lcp: Lcp<'_>, options: &LcpOptions) -> Result<LcpSolution, LcpE
         }
         error = lcp.error(&z);
         if error <= options.tolerance {
-            return Ok(LcpSolution { z, iterations: sweep, error });
+            return Ok(LcpSolution {
+                z,
+                iterations: sweep,
+                error,
+            });
         }
     }
     Err(LcpError::NotConverged {

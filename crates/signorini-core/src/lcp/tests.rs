@@ -6,7 +6,9 @@ fn spd(n: usize, entries: &[f64], delta: f64) -> Vec<f64> {
     let mut m = vec![0.0; n * n];
     for i in 0..n {
         for j in 0..n {
-            m[i * n + j] = (0..n).map(|k| entries[k * n + i] * entries[k * n + j]).sum::<f64>();
+            m[i * n + j] = (0..n)
+                .map(|k| entries[k * n + i] * entries[k * n + j])
+                .sum::<f64>();
         }
         m[i * n + i] += delta;
     }
@@ -14,14 +16,28 @@ fn spd(n: usize, entries: &[f64], delta: f64) -> Vec<f64> {
 }
 
 fn all_solvers() -> [LcpSolverKind; 3] {
-    [LcpSolverKind::Lemke, LcpSolverKind::Pgs, LcpSolverKind::Enumeration]
+    [
+        LcpSolverKind::Lemke,
+        LcpSolverKind::Pgs,
+        LcpSolverKind::Enumeration,
+    ]
 }
 
 #[test]
 fn scalar_lcp_has_closed_form() {
     // 0 ≤ 2z − 3 ⊥ z ≥ 0 → z = 1.5.
     for kind in all_solvers() {
-        let s = solve(Lcp { m: &[2.0], q: &[-3.0] }, &LcpOptions { kind, ..Default::default() }).unwrap();
+        let s = solve(
+            Lcp {
+                m: &[2.0],
+                q: &[-3.0],
+            },
+            &LcpOptions {
+                kind,
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert!((s.z[0] - 1.5).abs() < 1e-15, "{kind:?}");
     }
 }
@@ -29,16 +45,41 @@ fn scalar_lcp_has_closed_form() {
 #[test]
 fn lemke_reports_ray_on_infeasible_problem() {
     // w = −z − 1 can never be ≥ 0 with z ≥ 0.
-    let e = solve_lemke(Lcp { m: &[-1.0], q: &[-1.0] }, &LcpOptions::default()).unwrap_err();
+    let e = solve_lemke(
+        Lcp {
+            m: &[-1.0],
+            q: &[-1.0],
+        },
+        &LcpOptions::default(),
+    )
+    .unwrap_err();
     assert!(matches!(e, LcpError::RayTermination { .. }));
 }
 
 #[test]
 fn pgs_reports_budget_exhaustion() {
     let m = [1.0, 0.999, 0.999, 1.0];
-    let opts = LcpOptions { kind: LcpSolverKind::Pgs, tolerance: 1e-15, max_iterations: 3 };
-    let e = solve(Lcp { m: &m, q: &[-1.0, -1.2] }, &opts).unwrap_err();
-    assert!(matches!(e, LcpError::NotConverged { solver: "pgs", iterations: 3, .. }));
+    let opts = LcpOptions {
+        kind: LcpSolverKind::Pgs,
+        tolerance: 1e-15,
+        max_iterations: 3,
+    };
+    let e = solve(
+        Lcp {
+            m: &m,
+            q: &[-1.0, -1.2],
+        },
+        &opts,
+    )
+    .unwrap_err();
+    assert!(matches!(
+        e,
+        LcpError::NotConverged {
+            solver: "pgs",
+            iterations: 3,
+            ..
+        }
+    ));
 }
 
 proptest! {
