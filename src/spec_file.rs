@@ -79,10 +79,10 @@ fn refine<T: DeserializeOwned>(
             (tag.to_string(), tag_value.clone()),
             (key.clone(), value.clone()),
         ]);
-        if let Err(e) = serde_json::from_value::<T>(Value::Object(probe)) {
-            if !e.to_string().starts_with("missing field") {
-                return SpecError::new(format!("{section}.{key}"), error.reason);
-            }
+        if let Err(e) = serde_json::from_value::<T>(Value::Object(probe))
+            && !e.to_string().starts_with("missing field")
+        {
+            return SpecError::new(format!("{section}.{key}"), error.reason);
         }
     }
     error

@@ -51,7 +51,7 @@ impl Observer for CliObserver {
     }
 
     fn progress(&mut self, p: Progress) -> ControlFlow<()> {
-        if p.done % 1024 == 0 && self.last_draw.elapsed() > Duration::from_millis(100) {
+        if p.done.is_multiple_of(1024) && self.last_draw.elapsed() > Duration::from_millis(100) {
             self.bar.set_length(p.total);
             self.bar.set_position(p.done);
             self.last_draw = Instant::now();

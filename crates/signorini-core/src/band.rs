@@ -106,18 +106,18 @@ impl SymBand {
                 scale = scale.max(a.abs());
             }
         }
-        for i in 0..n {
-            for j in 0..i {
-                let (a, b) = (rows[i][j], rows[j][i]);
+        for (i, row) in rows.iter().enumerate() {
+            for (j, &a) in row.iter().enumerate().take(i) {
+                let b = rows[j][i];
                 if (a - b).abs() > 1e-12 * scale {
                     return Err(BandError::NotSymmetric { i, j, a, b });
                 }
             }
         }
         let mut m = Self::zeros(n, kd);
-        for i in 0..n {
-            for j in i.saturating_sub(kd)..=i {
-                m.set(i, j, rows[i][j]);
+        for (i, row) in rows.iter().enumerate() {
+            for (j, &a) in row.iter().enumerate().take(i + 1).skip(i.saturating_sub(kd)) {
+                m.set(i, j, a);
             }
         }
         Ok(m)
