@@ -4,13 +4,12 @@
 
 use signorini_core::integrators::alpha::{AlphaParams, AlphaScheme, NonsmoothAlpha};
 use signorini_core::integrators::position_contact::{PositionContact, PositionContactParams};
-use signorini_core::integrators::{
-    LinearRunStats, LinearScheme, LinearState, OutputOptions, run_linear,
-};
+mod common;
+
+use signorini_core::integrators::{LinearRunStats, LinearScheme};
 use signorini_core::lcp::LcpOptions;
 use signorini_core::model::LinearModel;
 use signorini_core::observer::Recorder;
-use signorini_core::scenes::{Bar, BouncingBall, Chain, HarmonicSpec, LeftEnd, MassMatrix};
 
 /// A scheme of the family or a baseline, by label.
 #[derive(Debug, Clone, Copy)]
@@ -37,16 +36,7 @@ impl Scheme {
 }
 
 fn simulate(model: &LinearModel, scheme: Scheme, h: f64, steps: u64) -> (Recorder, LinearRunStats) {
-    let mut s = scheme.build(model, h);
-    let mut state = LinearState::initial(model);
-    let mut rec = Recorder::default();
-    let output = OutputOptions {
-        every: 1,
-        probes: vec![],
-    };
-    let stats =
-        run_linear(model, s.as_mut(), &mut state, steps, &output, &mut rec).expect("run completes");
-    (rec, stats)
+    common::simulate(model, scheme.build(model, h).as_mut(), steps)
 }
 
 fn family() -> Vec<(String, Scheme)> {
@@ -92,64 +82,6 @@ fn baselines() -> Vec<(String, Scheme)> {
     ]
 }
 
-/// The reference scenes: a ball, bars (damping C ≠ 0, harmonic load, moving wall, both mass
-/// matrices and both left ends) and a chain with several simultaneous contacts.
-fn scenes(e: f64) -> Vec<(String, LinearModel, f64, u64)> {
-    let mut v = vec![(
-        "bouncing_ball".to_string(),
-        BouncingBall {
-            restitution: e,
-            q0: 1.0 - 1e-7,
-            ..Default::default()
-        }
-        .build()
-        .unwrap(),
-        1e-3,
-        3000,
-    )];
-    for mass_matrix in [MassMatrix::Lumped, MassMatrix::Consistent] {
-        for left in [LeftEnd::Fixed, LeftEnd::Free] {
-            let bar = Bar {
-                elements: 40,
-                mass_matrix,
-                left,
-                gap: 0.02,
-                restitution: e,
-                initial_velocity: 0.5,
-                body_force: 0.3,
-                rayleigh_mass: 0.05,
-                rayleigh_stiffness: 1e-3,
-                harmonic_force: Some(HarmonicSpec {
-                    amplitude: 0.8,
-                    omega: 7.0,
-                }),
-                wall_motion: Some(HarmonicSpec {
-                    amplitude: 0.005,
-                    omega: 3.0,
-                }),
-                ..Default::default()
-            };
-            v.push((
-                format!("bar {mass_matrix:?} {left:?}"),
-                bar.build().unwrap(),
-                2e-3,
-                2000,
-            ));
-        }
-    }
-    let chain = Chain {
-        masses: vec![1.0, 2.0, 0.5, 1.5],
-        stiffness: 50.0,
-        positions: vec![0.05, 0.1, 0.12, 0.2],
-        velocities: vec![-1.0, -0.5, -2.0, -1.0],
-        restitution: e,
-        force: Some(vec![-1.0, 0.0, 0.5, -2.0]),
-        ..Default::default()
-    };
-    v.push(("chain".to_string(), chain.build().unwrap(), 1e-3, 2000));
-    v
-}
-
 /// Lemma 2 (58) — with (73), (81), (87) as its special cases — closes to round-off at every
 /// step: |balance_residual| ≤ 1e-10 · max(1, max|H|), for every scheme of the family and both
 /// baselines, e ∈ {0, ½, 1}, two step sizes, every scene.
@@ -157,7 +89,13 @@ fn scenes(e: f64) -> Vec<(String, LinearModel, f64, u64)> {
 fn lemma_2_balance_closes_at_every_step() {
     let all: Vec<_> = family().into_iter().chain(baselines()).collect();
     for e in [0.0, 0.5, 1.0] {
-        for (name, model, h0, steps) in scenes(e) {
+        for common::Scene {
+            name,
+            model,
+            h: h0,
+            steps,
+        } in common::reference_scenes(e)
+        {
             for h in [h0, 2.5 * h0] {
                 for (label, scheme) in &all {
                     let (rec, stats) = simulate(&model, *scheme, h, steps);

@@ -1,6 +1,8 @@
 //! Moreau–Jean energy bookkeeping (Acary 2016, Lemma 1 (33), Proposition 1, Corollary 1 for the
 //! variant (29)): every scene, every θ and restitution the issue names, every step.
 
+mod common;
+
 use proptest::prelude::*;
 use signorini_core::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
 use signorini_core::integrators::{LinearRunStats, LinearState, OutputOptions, run_linear};
@@ -9,7 +11,7 @@ use signorini_core::model::LinearModel;
 use signorini_core::observer::Recorder;
 use signorini_core::scenes::{Bar, BouncingBall, Chain, HarmonicSpec, LeftEnd, MassMatrix};
 
-/// Runs `steps` steps and returns the recorder (every step) and the run statistics.
+/// Runs Moreau–Jean for `steps` steps, recording every one.
 fn simulate(
     model: &LinearModel,
     params: MoreauJeanParams,
@@ -17,71 +19,7 @@ fn simulate(
     steps: u64,
 ) -> (Recorder, LinearRunStats) {
     let mut scheme = MoreauJean::new(model, params, h, LcpOptions::default()).expect("Ŵ is SPD");
-    let mut state = LinearState::initial(model);
-    let mut rec = Recorder::default();
-    let output = OutputOptions {
-        every: 1,
-        probes: vec![],
-    };
-    let stats = run_linear(model, &mut scheme, &mut state, steps, &output, &mut rec)
-        .expect("run completes");
-    (rec, stats)
-}
-
-fn scenes(e: f64) -> Vec<(String, LinearModel, f64, u64)> {
-    let mut v = vec![(
-        "bouncing_ball".to_string(),
-        BouncingBall {
-            restitution: e,
-            q0: 1.0 - 1e-7,
-            ..Default::default()
-        }
-        .build()
-        .unwrap(),
-        1e-3,
-        4000,
-    )];
-    for mass_matrix in [MassMatrix::Lumped, MassMatrix::Consistent] {
-        for left in [LeftEnd::Fixed, LeftEnd::Free] {
-            let bar = Bar {
-                elements: 40,
-                mass_matrix,
-                left,
-                gap: 0.02,
-                restitution: e,
-                initial_velocity: 0.5,
-                body_force: 0.3,
-                rayleigh_mass: 0.05,
-                rayleigh_stiffness: 1e-3,
-                harmonic_force: Some(HarmonicSpec {
-                    amplitude: 0.8,
-                    omega: 7.0,
-                }),
-                wall_motion: Some(HarmonicSpec {
-                    amplitude: 0.005,
-                    omega: 3.0,
-                }),
-                ..Default::default()
-            };
-            v.push((
-                format!("bar {mass_matrix:?} {left:?}"),
-                bar.build().unwrap(),
-                2e-3,
-                3000,
-            ));
-        }
-    }
-    let chain = Chain {
-        masses: vec![1.0, 2.0, 0.5, 1.5],
-        stiffness: 50.0,
-        positions: vec![0.05, 0.1, 0.12, 0.2],
-        velocities: vec![-1.0, -0.5, -2.0, -1.0],
-        restitution: e,
-        force: Some(vec![-1.0, 0.0, 0.5, -2.0]),
-        ..Default::default()
-    };
-    v.push(("chain".to_string(), chain.build().unwrap(), 1e-3, 3000));
-    v
+    common::simulate(model, &mut scheme, steps)
 }
 
 /// Lemma 1 (33) closes to round-off at every step, for θ ∈ {½, ¾, 1}, e ∈ {0, ½, 1}, both
@@ -89,7 +27,13 @@ fn scenes(e: f64) -> Vec<(String, LinearModel, f64, u64)> {
 #[test]
 fn lemma_1_balance_closes_at_every_step() {
     for e in [0.0, 0.5, 1.0] {
-        for (name, model, h, steps) in scenes(e) {
+        for common::Scene {
+            name,
+            model,
+            h,
+            steps,
+        } in common::reference_scenes(e)
+        {
             for theta in [0.5, 0.75, 1.0] {
                 for variant in [false, true] {
                     let params = MoreauJeanParams {
@@ -206,7 +150,13 @@ fn elastic_ball_conserves_energy_over_a_million_steps() {
 /// moving wall does work on the body, which is then not dissipation.)
 #[test]
 fn variant_dissipates_for_any_restitution() {
-    for (name, mut model, h, steps) in scenes(1.0) {
+    for common::Scene {
+        name,
+        mut model,
+        h,
+        steps,
+    } in common::reference_scenes(1.0)
+    {
         for c in &mut model.contacts {
             c.motion = None;
         }
