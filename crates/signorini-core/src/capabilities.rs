@@ -156,6 +156,48 @@ const BAR_ROWS: &[Row] = &[
     ),
 ];
 
+const ALPHA_ROWS: &[Row] = &[
+    (
+        "rho_inf",
+        "float",
+        "[0, 1]",
+        "spectral radius at infinity (sets α_m, α_f, β, γ by (27))",
+    ),
+    (
+        "alpha_m",
+        "float",
+        "α_m ≤ α_f ≤ ½",
+        "α_m (instead of rho_inf)",
+    ),
+    ("alpha_f", "float", "≤ ½", "α_f"),
+    ("beta", "float", "stability conditions", "β"),
+    ("gamma", "float", "stability conditions", "γ"),
+    (
+        "activation",
+        "string",
+        "gap_and_velocity | predicted_gap",
+        "index-set rule",
+    ),
+    (
+        "activation_gamma",
+        "float",
+        "> 0",
+        "γ of the predicted-gap rule",
+    ),
+];
+
+const POSITION_ROWS: &[Row] = &[
+    ("alpha", "float", "[0, 1/3]", "HHT α (0: Newmark)"),
+    ("beta", "float", "stability conditions", "β"),
+    ("gamma", "float", "≥ ½", "γ"),
+    (
+        "allow_unstable",
+        "bool",
+        "",
+        "accept parameters outside the stability conditions",
+    ),
+];
+
 const SOI2_NEWTON_ROWS: [Row; 4] = [
     (
         "start",
@@ -404,6 +446,98 @@ pub fn capabilities() -> Capabilities {
             &MoreauJeanSpec::default(),
             mj_rows,
             "1 (predicted_gap only)",
+        ),
+        component(
+            "ns_newmark",
+            "nonsmooth Newmark, Acary 2016 (25)–(27) with α_m = α_f = 0",
+            &serde_json::json!({}),
+            &[
+                ("beta", "float", "stability: 2β ≥ γ ≥ ½", "Newmark β"),
+                ("gamma", "float", "≥ ½", "Newmark γ"),
+                (
+                    "activation",
+                    "string",
+                    "gap_and_velocity | predicted_gap",
+                    "index-set rule",
+                ),
+                (
+                    "activation_gamma",
+                    "float",
+                    "> 0",
+                    "γ of the predicted-gap rule",
+                ),
+                (
+                    "allow_unstable",
+                    "bool",
+                    "",
+                    "accept parameters outside the stability conditions",
+                ),
+            ],
+            "see spec.rs",
+        ),
+        component(
+            "ns_hht",
+            "nonsmooth HHT, Acary 2016 (α_m = 0, α_f = α)",
+            &serde_json::json!({}),
+            &[
+                ("alpha", "float", "[0, 1/3]", "HHT α"),
+                ("beta", "float", "default (1 + α)²/4", "β"),
+                ("gamma", "float", "default ½ + α", "γ"),
+                (
+                    "activation",
+                    "string",
+                    "gap_and_velocity | predicted_gap",
+                    "index-set rule",
+                ),
+                (
+                    "activation_gamma",
+                    "float",
+                    "> 0",
+                    "γ of the predicted-gap rule",
+                ),
+                (
+                    "allow_unstable",
+                    "bool",
+                    "",
+                    "accept parameters outside the stability conditions",
+                ),
+            ],
+            "see spec.rs",
+        ),
+        component(
+            "ns_generalized_alpha",
+            "nonsmooth generalized-α, Acary 2016 (25)–(27)",
+            &serde_json::json!({}),
+            ALPHA_ROWS,
+            "from rho_inf",
+        ),
+        component(
+            "ns_kh_alpha",
+            "Krenk–Høgsberg generalized-α variant (30), Acary 2016",
+            &serde_json::json!({}),
+            ALPHA_ROWS,
+            "from rho_inf",
+        ),
+        component(
+            "newmark_position_contact",
+            "baseline: smooth Newmark with a position-level contact multiplier",
+            &serde_json::json!({}),
+            POSITION_ROWS,
+            "see spec.rs",
+        ),
+        component(
+            "hht_position_contact",
+            "baseline: smooth HHT with a position-level contact multiplier",
+            &serde_json::json!({}),
+            POSITION_ROWS,
+            "see spec.rs",
+        ),
+        component(
+            "wfem",
+            "wave finite elements (Yoong et al. 2018), Δt = Δx/c, for the bar and dep_bar scenes",
+            &serde_json::json!({}),
+            &[],
+            "",
         ),
         component(
             "soi2_generalized_alpha",
