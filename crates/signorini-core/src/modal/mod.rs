@@ -7,6 +7,7 @@
 //! ω₁ = πc/(2L) (10), energy normalised by the grazing first linear mode (11),
 //! `E_lin = E S π² g0² / (16 L)`.
 
+pub mod fast;
 pub mod forced;
 pub mod kernel;
 pub mod orbit;
@@ -231,12 +232,14 @@ pub fn candidate_phases(m: usize, p: usize, k: usize) -> Vec<(EndCondition, usiz
 }
 
 /// Examines one candidate (m, p[, k]) of a bar with gap g0: kernel from the cycle structure,
-/// admissibility when it is not trivial. `None` when the kernel is trivial.
+/// admissibility when it is not trivial. `None` when the kernel is trivial. This is the
+/// straightforward path (signed permutation, kernel basis and one trajectory per basis vector,
+/// all allocated); the scans use [`fast::examine_one_contact`] for one contact phase.
 pub fn examine(bar: &WaveBar, m: usize, p: usize, k: usize) -> Option<BackbonePoint> {
     let n = bar.cells;
     let phases = candidate_phases(m, p, k);
     let perm = SignedPermutation::product(n, bar.left, &phases);
-    let h = if k == 0 {
+    let h = if k == 0 && bar.left == crate::scenes::LeftEnd::Fixed {
         kernel_dim_closed_form(n, m, p)
     } else {
         perm.kernel_dim()
@@ -246,6 +249,18 @@ pub fn examine(bar: &WaveBar, m: usize, p: usize, k: usize) -> Option<BackbonePo
     }
     let basis = perm.kernel_basis();
     let orbit = admissible_orbit(bar, &phases, &basis);
+    Some(point(bar, m, p, k, h, orbit))
+}
+
+/// The backbone point of candidate (m, p, k) with kernel dimension `h` and its orbit, if any.
+pub(crate) fn point(
+    bar: &WaveBar,
+    m: usize,
+    p: usize,
+    k: usize,
+    h: usize,
+    orbit: Option<Orbit>,
+) -> BackbonePoint {
     let dt = bar.dt();
     let steps = m + p + k + if k > 0 { p } else { 0 };
     let period = steps as f64 * dt;
@@ -254,7 +269,7 @@ pub fn examine(bar: &WaveBar, m: usize, p: usize, k: usize) -> Option<BackbonePo
     let e_norm = orbit
         .as_ref()
         .map_or(f64::NAN, |o| o.energy / linear_grazing_energy(bar));
-    Some(BackbonePoint {
+    BackbonePoint {
         gap: bar.gap,
         m,
         p,
@@ -265,7 +280,7 @@ pub fn examine(bar: &WaveBar, m: usize, p: usize, k: usize) -> Option<BackbonePo
         contact_duration: contact,
         omega_over_omega1: 2.0 * std::f64::consts::PI / period / omega1,
         energy_normalized: e_norm,
-    })
+    }
 }
 
 /// Scans every period T ∈ [t_min, t_max] (in steps) and every split into phases: (m, p) with
@@ -290,6 +305,7 @@ pub fn scan(
             .map(|_| {
                 s.spawn(|| {
                     let mut out = Vec::new();
+                    let mut scratch = fast::Scratch::default();
                     loop {
                         if stop.load(Ordering::Relaxed) {
                             break;
@@ -300,7 +316,8 @@ pub fn scan(
                         }
                         if phases == 1 {
                             for p in 1..t {
-                                if let Some(pt) = examine(bar, t - p, p, 0)
+                                if let Some(pt) =
+                                    fast::examine_one_contact(bar, t - p, p, &mut scratch)
                                     && (all_candidates || pt.orbit.is_some())
                                 {
                                     out.push(pt);
@@ -373,7 +390,8 @@ pub const BACKBONE_COLUMNS: [&str; 12] = [
     "phases",
 ];
 
-fn backbone_row(pt: &BackbonePoint) -> Vec<f64> {
+/// One row of `backbone.csv` ([`BACKBONE_COLUMNS`]).
+pub fn backbone_row(pt: &BackbonePoint) -> Vec<f64> {
     vec![
         pt.gap,
         pt.m as f64,
