@@ -295,6 +295,9 @@ pub fn run_forced(
         drop(tx);
         // The calling thread reports progress and honours cancellation.
         for (done, ()) in rx.iter().enumerate() {
+            if stopped {
+                continue;
+            }
             if let ControlFlow::Break(()) = observer.progress(Progress {
                 done: done as u64 + 1,
                 total,

@@ -439,35 +439,54 @@ pub fn run_modes(
     for &gap in &job.gaps {
         let mut bar = job.bar.clone();
         bar.gap = gap;
-        // Progress comes from the scan threads; the observer is not Sync, so they count and the
-        // calling thread reports between gaps and at the end. Cancellation is checked per gap.
-        let counter = AtomicU64::new(0);
-        let on_period = || {
-            counter.fetch_add(1, Ordering::Relaxed);
-            ControlFlow::Continue(())
+        // Progress per task (one period length of one gap): the scan threads send a message
+        // after each period; the calling thread, which owns the (non-Sync) observer, reports it
+        // and raises `stop` on Break, which the scan threads see after their current period.
+        let stop = AtomicBool::new(false);
+        let (tx, rx) = std::sync::mpsc::channel::<()>();
+        let mut cancelled = false;
+        let scanned = std::thread::scope(|s| {
+            let (stop, bar) = (&stop, &bar);
+            let worker = s.spawn(move || {
+                let on_period = move || {
+                    let _ = tx.send(());
+                    if stop.load(Ordering::Relaxed) {
+                        ControlFlow::Break(())
+                    } else {
+                        ControlFlow::Continue(())
+                    }
+                };
+                scan(
+                    bar,
+                    job.period_steps,
+                    job.phases,
+                    job.all_candidates,
+                    threads(),
+                    &on_period,
+                )
+            });
+            for () in rx.iter() {
+                done_before += 1;
+                if !cancelled
+                    && observer
+                        .progress(Progress {
+                            done: done_before,
+                            total,
+                            t: 0.0,
+                        })
+                        .is_break()
+                {
+                    cancelled = true;
+                    stop.store(true, Ordering::Relaxed);
+                }
+            }
+            worker.join()
+        });
+        let points = match scanned {
+            Err(panic) => std::panic::resume_unwind(panic),
+            Ok(Ok(points)) if !cancelled => points,
+            Ok(_) => return Err(RunError::Stopped { step: done_before }),
         };
-        let points = scan(
-            &bar,
-            job.period_steps,
-            job.phases,
-            job.all_candidates,
-            threads(),
-            &on_period,
-        )
-        .map_err(|done| RunError::Stopped {
-            step: done_before + done,
-        })?;
-        done_before += counter.load(Ordering::Relaxed);
-        if observer
-            .progress(Progress {
-                done: done_before,
-                total,
-                t: 0.0,
-            })
-            .is_break()
-        {
-            return Err(RunError::Stopped { step: done_before });
-        }
         let admissible = points.iter().filter(|p| p.orbit.is_some()).count();
         per_gap.push(json!({"gap": gap, "admissible": admissible, "candidates": points.len()}));
         rows.extend(points.iter().map(backbone_row));

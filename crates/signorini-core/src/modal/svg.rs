@@ -122,21 +122,57 @@ fn draw_backbone_points(s: &mut String, ax: &Axes, points: &[&BackbonePoint]) {
     }
 }
 
+/// Unicode subscript digits of `k`.
+fn sub(k: usize) -> String {
+    k.to_string()
+        .chars()
+        .map(|c| char::from_u32(0x2080 + c.to_digit(10).unwrap_or(0)).unwrap_or(c))
+        .collect()
+}
+
 fn legend_and_lines(s: &mut String, ax: &Axes) {
     // Linear frequencies: ω_k = (2k−1)ω₁ (fixed–free), Ω_k = 2k ω₁ (fixed–fixed), (10).
+    // Each line is labelled just above the plot area: ω_k, Ω_k and the asymptote's value as a
+    // fraction (2k)²/(2k + 1) of ω₁.
+    let label = |s: &mut String, x: f64, dy: f64, color: &str, text: &str| {
+        if x > ax.x.0 && x < ax.x.1 {
+            let _ = write!(
+                s,
+                r#"<text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="10" fill="{color}">{text}</text>"#,
+                ax.px(x),
+                MT - 3.0 - dy
+            );
+        }
+    };
     for k in 1..=8 {
         vline(s, ax, (2 * k - 1) as f64, "#888", "4 3");
         vline(s, ax, (2 * k) as f64, "#bbb", "2 2");
         vline(s, ax, main_asymptote(k), "#8c564b", "6 2 1 2");
+        label(s, (2 * k - 1) as f64, 0.0, "#555", &format!("ω{}", sub(k)));
+        label(s, (2 * k) as f64, 0.0, "#777", &format!("Ω{}", sub(k)));
+        label(
+            s,
+            main_asymptote(k),
+            MT + 6.0 - (H - MB),
+            "#8c564b",
+            &format!("{}/{}", 4 * k * k, 2 * k + 1),
+        );
     }
     let items = [
-        ("#1f77b4", "g0 > 0"),
-        ("#2ca02c", "g0 = 0"),
-        ("#d62728", "g0 < 0"),
-        ("#888", "ω_k (fixed–free)"),
-        ("#bbb", "Ω_k (fixed–fixed)"),
-        ("#8c564b", "asymptotes ω₁(ω_k/ω₁+1)²/(ω_k/ω₁+2)"),
+        ("#1f77b4", "g₀ &gt; 0 (hardening)"),
+        ("#2ca02c", "g₀ = 0"),
+        ("#d62728", "g₀ &lt; 0 (softening)"),
+        ("#888", "ωₖ = (2k−1)ω₁ (fixed–free)"),
+        ("#bbb", "Ωₖ = 2kω₁ (fixed–fixed)"),
+        ("#8c564b", "g₀ = 0 asymptotes ω₁(ωₖ/ω₁+1)²/(ωₖ/ω₁+2)"),
     ];
+    let _ = write!(
+        s,
+        r#"<rect x="{}" y="{}" width="290" height="{}" fill="white" fill-opacity="0.85" stroke="silver"/>"#,
+        ML + 4.0,
+        MT + 2.0,
+        15.0 * items.len() as f64 + 4.0
+    );
     for (i, (c, label)) in items.iter().enumerate() {
         let y = MT + 14.0 + 15.0 * i as f64;
         let _ = write!(
@@ -268,7 +304,7 @@ pub fn space_time_figure(name: &str, bar: &WaveBar, orbit: &Orbit) -> Figure {
     frame(&mut s, &ax, "x", "t", false);
     let _ = write!(
         s,
-        r#"<text x="{}" y="{}" text-anchor="end">max |u| = {umax:.3e}</text>"#,
+        r#"<text x="{}" y="{}" text-anchor="end">blue u max |u| = {umax:.3e}lt; 0, red u max |u| = {umax:.3e}gt; 0, max |u| = {umax:.3e}</text>"#,
         W - MR,
         MT - 6.0
     );
