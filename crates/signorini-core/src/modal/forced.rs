@@ -308,7 +308,10 @@ pub fn run_forced(
             }
         }
     });
-    let mut results = results.into_inner().unwrap_or_default();
+    // A poisoned lock means a task panicked: its panic has already propagated out of the scope.
+    let mut results = results
+        .into_inner()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
     if stopped {
         return Err(RunError::Stopped {
             step: results.len() as u64,
