@@ -338,6 +338,33 @@ impl WaveState {
         if i >= n2 { i - n2 } else { i }
     }
 
+    /// Calls `f(a_i, b_i)` for every cell i = 1…N in order, on contiguous runs of the ring: the
+    /// moving origin splits the a's and the b's into at most two runs each, so the loop runs
+    /// over at most three plain slice pairs (no index arithmetic per cell; vectorisable).
+    fn for_each_cell(&mut self, mut f: impl FnMut(&mut f64, &mut f64)) {
+        let n2 = self.ring.len();
+        let n = n2 / 2;
+        let mut i = 0;
+        while i < n {
+            let ia = self.index(i);
+            let ib = self.index(n2 - 1 - i);
+            // Cells i.. keep contiguous storage until a reaches the end of the buffer or b
+            // (walking down) reaches its start.
+            let run = (n - i).min(n2 - ia).min(ib + 1);
+            let (a_run, b_run) = if ia < ib {
+                let (lo, hi) = self.ring.split_at_mut(ib + 1 - run);
+                (&mut lo[ia..ia + run], &mut hi[..run])
+            } else {
+                let (lo, hi) = self.ring.split_at_mut(ia);
+                (&mut hi[..run], &mut lo[ib + 1 - run..=ib])
+            };
+            for (a, b) in a_run.iter_mut().zip(b_run.iter_mut().rev()) {
+                f(a, b);
+            }
+            i += run;
+        }
+    }
+
     /// Ring value at `position` (a_{k+1} for k < N, b_{2N−k} for k ≥ N, 1-based cells).
     pub fn ring_value(&self, position: usize) -> f64 {
         self.ring[self.index(position)]
@@ -540,7 +567,6 @@ pub fn transport(
 /// with f̄ the exact mean load. Returns (work_ext, work_damping), which add up to the change of
 /// kinetic energy exactly (see [`WaveBar::damping`]).
 fn source_step(bar: &WaveBar, state: &mut WaveState, t0: f64, t1: f64) -> (f64, f64) {
-    let n = bar.cells;
     let dt = t1 - t0;
     let z = bar.impedance();
     let rho_s = bar.density * bar.area;
@@ -549,20 +575,20 @@ fn source_step(bar: &WaveBar, state: &mut WaveState, t0: f64, t1: f64) -> (f64, 
     let keep = (1.0 - half) / (1.0 + half);
     let push = dt * f / rho_s / (1.0 + half);
     let dx = bar.dx();
+    // In characteristic values, with d = b − a = 2 z v: v⁺ = keep·v + push gives
+    // a⁺ = a + (1 − keep)/2 · d − z·push and b⁺ = b − (1 − keep)/2 · d + z·push; the mean
+    // velocity over the step is ((1 + keep)/(2z) · d + push)/2.
+    let (shrink, lift) = (0.5 * (1.0 - keep), z * push);
+    let (c_d, c_0) = (0.25 * (1.0 + keep) / z, 0.5 * push);
     let (mut sum_v, mut sum_v2) = (0.0, 0.0);
-    for i in 0..n {
-        let ia = state.index(i);
-        let ib = state.index(2 * n - 1 - i);
-        let (a, b) = (state.ring[ia], state.ring[ib]);
-        let sigma = 0.5 * (a + b);
-        let v = 0.5 * (b - a) / z;
-        let v_new = keep * v + push;
-        let v_mean = 0.5 * (v + v_new);
+    state.for_each_cell(|a, b| {
+        let d = *b - *a;
+        *a += shrink * d - lift;
+        *b -= shrink * d - lift;
+        let v_mean = c_d * d + c_0;
         sum_v += v_mean;
         sum_v2 += v_mean * v_mean;
-        state.ring[ia] = sigma - z * v_new;
-        state.ring[ib] = sigma + z * v_new;
-    }
+    });
     (dx * dt * f * sum_v, -bar.damping * rho_s * dx * dt * sum_v2)
 }
 
