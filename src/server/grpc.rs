@@ -168,18 +168,28 @@ impl Simulation for SimulationService {
     }
 }
 
-/// Passes frames through up to and including the first terminal status.
+/// Passes frames through up to and including the first terminal status, and ends there. (A
+/// combinator such as `map_while` would only end the stream when the *next* frame of the job
+/// arrives — never, once the job is over.) A forwarding task ends the stream by dropping its sender
+/// right after the terminal status, or stops when the client goes away.
 fn until_terminal(
     frames: impl Stream<Item = pb::WatchFrame> + Send + 'static,
 ) -> impl Stream<Item = pb::WatchFrame> + Send + 'static {
-    let mut ended = false;
-    frames.map_while(move |f| {
-        if ended {
-            return None;
+    let (tx, rx) = tokio::sync::mpsc::channel(64);
+    tokio::spawn(async move {
+        let mut frames = std::pin::pin!(frames);
+        loop {
+            let frame = tokio::select! {
+                f = frames.next() => f,
+                () = tx.closed() => None,
+            };
+            let Some(f) = frame else { return };
+            let ended = matches!(&f.frame, Some(pb::watch_frame::Frame::Status(s))
+                if convert::state_from_proto(s.state).is_some_and(|s| s.is_terminal()));
+            if tx.send(f).await.is_err() || ended {
+                return;
+            }
         }
-        if let Some(pb::watch_frame::Frame::Status(s)) = &f.frame {
-            ended = convert::state_from_proto(s.state).is_some_and(|s| s.is_terminal());
-        }
-        Some(f)
-    })
+    });
+    tokio_stream::wrappers::ReceiverStream::new(rx)
 }

@@ -329,6 +329,7 @@ pub fn ball_typed(h: f64, steps: u64, every: u64) -> pb::JobSpec {
             every: Some(every),
             probes: vec![],
         }),
+        analysis: None,
     }
 }
 
@@ -343,4 +344,99 @@ pub async fn submit_json(
         id: id.map(str::to_string),
     };
     client.submit_job(req).await.map(|r| r.into_inner().id)
+}
+
+/// A long job that keeps the only worker of a `workers: 1` server busy (records little), so the
+/// next job waits in the queue while a watcher subscribes; cancel it to let that job run.
+/// Needs `max_steps` ≥ 5·10⁸.
+pub async fn occupy_the_worker(client: &mut SimulationClient<Channel>, id: &str) {
+    submit_json(client, ball_json(1e-6, 500_000_000, 1_000_000), Some(id))
+        .await
+        .expect("submitting the blocker");
+    wait_running(client, id, 1).await;
+}
+
+/// A child process killed (and reaped) on drop.
+pub struct ChildGuard(pub Child);
+
+impl Drop for ChildGuard {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Lines of a child's stdout, read on a thread; `None` at end of file.
+pub fn stdout_lines(child: &mut Child) -> mpsc::Receiver<Option<String>> {
+    let stdout = child.stdout.take().expect("piped stdout");
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+            if tx.send(Some(line)).is_err() {
+                return;
+            }
+        }
+        let _ = tx.send(None);
+    });
+    rx
+}
+
+/// One server-sent event.
+#[derive(Debug, Clone)]
+pub struct SseEvent {
+    pub event: String,
+    pub data: Value,
+}
+
+/// Reads `GET path` as server-sent events, handing each parsed event to `on_event` until it
+/// returns false.
+pub async fn read_sse(addr: SocketAddr, path: &str, mut on_event: impl FnMut(SseEvent) -> bool) {
+    let client: Client<_, Full<Bytes>> = Client::builder(TokioExecutor::new()).build_http();
+    let req = hyper::Request::builder()
+        .method("GET")
+        .uri(format!("http://{addr}{path}"))
+        .header("accept", "text/event-stream")
+        .body(Full::new(Bytes::new()))
+        .expect("request");
+    let resp = client.request(req).await.expect("SSE request");
+    assert_eq!(resp.status().as_u16(), 200, "SSE status");
+    let ctype = resp
+        .headers()
+        .get("content-type")
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or_default()
+        .to_string();
+    assert!(ctype.starts_with("text/event-stream"), "{ctype}");
+    let mut body = resp.into_body();
+    let mut buf = String::new();
+    loop {
+        let frame = body
+            .frame()
+            .await
+            .expect("SSE stream ended early")
+            .expect("SSE body");
+        let Ok(chunk) = frame.into_data() else {
+            continue;
+        };
+        buf.push_str(std::str::from_utf8(&chunk).expect("UTF-8 events"));
+        while let Some(end) = buf.find("\n\n") {
+            let block: String = buf.drain(..end + 2).collect();
+            let mut event = String::from("message");
+            let mut data = String::new();
+            for line in block.lines() {
+                if let Some(e) = line.strip_prefix("event:") {
+                    event = e.trim().to_string();
+                } else if let Some(d) = line.strip_prefix("data:") {
+                    data.push_str(d.trim_start());
+                }
+            }
+            if data.is_empty() {
+                continue; // keep-alive comment
+            }
+            let data = serde_json::from_str(&data).expect("JSON event data");
+            if !on_event(SseEvent { event, data }) {
+                return;
+            }
+        }
+    }
 }
