@@ -78,6 +78,15 @@ fn mass_not_symmetric() {
 }
 
 #[test]
+fn stiffness_not_semidefinite() {
+    assert_refused(
+        "[model]\nscene = \"linear\"\nmass = [[1.0, 0.0], [0.0, 1.0]]\nstiffness = [[1.0, 2.0], [2.0, 1.0]]\n[time]\nh = 0.01\nsteps = 10\n",
+        "model.stiffness",
+        "not positive semidefinite",
+    );
+}
+
+#[test]
 fn dimension_mismatch() {
     assert_refused(
         "[model]\nscene = \"linear\"\nmass = [[1.0, 0.0], [0.0, 1.0]]\nq0 = [0.0, 0.0, 1.0]\n[time]\nh = 0.01\nsteps = 10\n",

@@ -64,6 +64,10 @@ pub enum RunError {
         /// Steps done.
         step: u64,
     },
+    /// The scheme's iteration matrix could not be factorised (M, C, K passed validation, so this
+    /// only happens when θh or h is extreme enough to lose definiteness to round-off).
+    #[error("iteration matrix of the scheme is not positive definite: {0}")]
+    IterationMatrix(crate::band::BandError),
     /// A SOI2 run failed (Newton, singular matrix, inconsistent start).
     #[error(transparent)]
     Soi2(crate::soi2::Soi2Error),
@@ -261,17 +265,14 @@ fn run_linear_job(
     observer: &mut dyn Observer,
 ) -> Result<RunOutput, RunError> {
     let mut scheme: Box<dyn LinearScheme> = match j.scheme {
-        LinearSchemeChoice::MoreauJean(p) => Box::new(
-            MoreauJean::new(&j.model, p, j.h, j.lcp)
-                .map_err(|_| RunError::Step(StepError::NotFinite { step: 0, t: 0.0 }))?,
-        ),
+        LinearSchemeChoice::MoreauJean(p) => {
+            Box::new(MoreauJean::new(&j.model, p, j.h, j.lcp).map_err(RunError::IterationMatrix)?)
+        }
         LinearSchemeChoice::Alpha(p) => Box::new(
-            NonsmoothAlpha::new(&j.model, p, j.h, j.lcp)
-                .map_err(|_| RunError::Step(StepError::NotFinite { step: 0, t: 0.0 }))?,
+            NonsmoothAlpha::new(&j.model, p, j.h, j.lcp).map_err(RunError::IterationMatrix)?,
         ),
         LinearSchemeChoice::PositionContact(p) => Box::new(
-            PositionContact::new(&j.model, p, j.h, j.lcp)
-                .map_err(|_| RunError::Step(StepError::NotFinite { step: 0, t: 0.0 }))?,
+            PositionContact::new(&j.model, p, j.h, j.lcp).map_err(RunError::IterationMatrix)?,
         ),
     };
     let mut state = LinearState::initial(&j.model);

@@ -129,6 +129,18 @@ pub enum ModelError {
         /// Its pivot.
         pivot: f64,
     },
+    /// A stiffness or damping matrix has a negative eigenvalue.
+    #[error(
+        "{field}: matrix is not positive semidefinite (pivot {pivot:e} at row {row} of the shifted factorisation)"
+    )]
+    NotPositiveSemidefinite {
+        /// Which matrix.
+        field: String,
+        /// Row where the factorisation of A + δI broke down.
+        row: usize,
+        /// Its pivot.
+        pivot: f64,
+    },
     /// Sizes disagree.
     #[error("{field}: expected {expected} entries, got {found}")]
     Dimension {
@@ -173,6 +185,7 @@ impl ModelError {
         match self {
             ModelError::Matrix { field, .. }
             | ModelError::MassNotPositiveDefinite { field, .. }
+            | ModelError::NotPositiveSemidefinite { field, .. }
             | ModelError::Dimension { field, .. }
             | ModelError::NotFinite { field }
             | ModelError::OutOfRange { field, .. }
@@ -230,6 +243,35 @@ pub fn check_range(
     Ok(())
 }
 
+/// Checks that a symmetric matrix is positive semidefinite: A + δI must factorise with
+/// δ = 1e-12 · max|A_ii| (a singular K — a free bar's rigid mode — passes; an indefinite one
+/// does not). The energy identities and the dissipation results all assume K, C ⪰ 0.
+fn check_semidefinite(field: &str, a: &SymBand) -> Result<(), ModelError> {
+    let scale = (0..a.n()).fold(0.0f64, |m, i| m.max(a.get(i, i).abs()));
+    if scale == 0.0 && a.is_zero() {
+        return Ok(());
+    }
+    let delta = 1e-12 * scale.max(f64::MIN_POSITIVE);
+    let mut shifted = a.clone();
+    for i in 0..a.n() {
+        shifted.add(i, i, delta);
+    }
+    match shifted.cholesky() {
+        Ok(_) => Ok(()),
+        Err(BandError::NotPositiveDefinite { row, pivot }) => {
+            Err(ModelError::NotPositiveSemidefinite {
+                field: field.into(),
+                row,
+                pivot,
+            })
+        }
+        Err(source) => Err(ModelError::Matrix {
+            field: field.into(),
+            source,
+        }),
+    }
+}
+
 /// A validated linear model with its initial state.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinearModel {
@@ -279,6 +321,8 @@ impl LinearModel {
                 pivot,
             });
         }
+        check_semidefinite("stiffness", &stiffness)?;
+        check_semidefinite("damping", &damping)?;
         check_vector("force", &force.constant, n)?;
         for (k, h) in force.harmonic.iter().enumerate() {
             check_vector(&format!("force.harmonic[{k}]"), &h.shape, n)?;
