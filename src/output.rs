@@ -35,6 +35,7 @@ pub struct CsvSteps {
     partial: PathBuf,
     out: BufWriter<File>,
     error: Option<std::io::Error>,
+    started: bool,
 }
 
 impl CsvSteps {
@@ -42,8 +43,15 @@ impl CsvSteps {
     pub fn create(dir: &Path) -> Result<Self> {
         let path = dir.join("steps.csv");
         let partial = dir.join("steps.csv.partial");
-        let file = File::create(&partial).with_context(|| format!("creating {}", partial.display()))?;
-        Ok(Self { path, partial, out: BufWriter::with_capacity(1 << 20, file), error: None })
+        let file =
+            File::create(&partial).with_context(|| format!("creating {}", partial.display()))?;
+        Ok(Self {
+            path,
+            partial,
+            out: BufWriter::with_capacity(1 << 20, file),
+            error: None,
+            started: false,
+        })
     }
 
     fn write_row(&mut self, r: &StepRecord<'_>) -> std::io::Result<()> {
@@ -54,10 +62,15 @@ impl CsvSteps {
         writeln!(self.out)
     }
 
-    /// Flushes and renames to `steps.csv`.
+    /// Flushes and renames to `steps.csv`; a run that records no steps (an analysis) leaves
+    /// no steps.csv at all rather than an empty file.
     pub fn finish(mut self) -> Result<()> {
         if let Some(e) = self.error.take() {
             return Err(e).context("writing steps.csv");
+        }
+        if !self.started {
+            self.discard();
+            return Ok(());
         }
         self.out.flush().context("writing steps.csv")?;
         drop(self.out);
@@ -73,6 +86,7 @@ impl CsvSteps {
 
 impl Observer for CsvSteps {
     fn start(&mut self, columns: &Columns) {
+        self.started = true;
         if let Err(e) = writeln!(self.out, "{}", csv_header(columns.names())) {
             self.error = Some(e);
         }
