@@ -9,7 +9,7 @@
 use crate::scenes::{BarSpec, BouncingBall, Chain};
 use crate::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
 use crate::soi2::run::{HhtSoi2Spec, Soi2GeneralizedAlphaSpec};
-use crate::spec::{ContactSolverSpec, LinearSpec, MoreauJeanSpec, OutputSpec};
+use crate::spec::{ContactSolverSpec, LinearSpec, MoreauJeanSpec, NsNewmarkSpec, OutputSpec};
 use serde::Serialize;
 use serde_json::Value;
 
@@ -54,6 +54,15 @@ pub struct Capabilities {
 
 /// (name, kind, range, description)
 type Row = (&'static str, &'static str, &'static str, &'static str);
+
+/// The values serde fills in for a spec section given as `{}` (its documented defaults), or `{}`
+/// when the section has required fields.
+fn serde_defaults<T: Serialize + serde::de::DeserializeOwned>() -> Value {
+    serde_json::from_value::<T>(Value::Object(serde_json::Map::new()))
+        .ok()
+        .and_then(|t| serde_json::to_value(t).ok())
+        .unwrap_or_else(|| Value::Object(serde_json::Map::new()))
+}
 
 fn component<T: Serialize>(
     name: &str,
@@ -450,7 +459,7 @@ pub fn capabilities() -> Capabilities {
         component(
             "ns_newmark",
             "nonsmooth Newmark, Acary 2016 (25)–(27) with α_m = α_f = 0",
-            &serde_json::json!({}),
+            &serde_defaults::<NsNewmarkSpec>(),
             &[
                 ("beta", "float", "stability: 2β ≥ γ ≥ ½", "Newmark β"),
                 ("gamma", "float", "≥ ½", "Newmark γ"),
@@ -473,7 +482,7 @@ pub fn capabilities() -> Capabilities {
                     "accept parameters outside the stability conditions",
                 ),
             ],
-            "see spec.rs",
+            "none",
         ),
         component(
             "ns_hht",
@@ -502,7 +511,7 @@ pub fn capabilities() -> Capabilities {
                     "accept parameters outside the stability conditions",
                 ),
             ],
-            "see spec.rs",
+            "none (alpha required; beta, gamma derived: see range)",
         ),
         component(
             "ns_generalized_alpha",
@@ -523,14 +532,14 @@ pub fn capabilities() -> Capabilities {
             "baseline: smooth Newmark with a position-level contact multiplier",
             &serde_json::json!({}),
             POSITION_ROWS,
-            "see spec.rs",
+            "none (beta ¼, gamma ½ when unset)",
         ),
         component(
             "hht_position_contact",
             "baseline: smooth HHT with a position-level contact multiplier",
             &serde_json::json!({}),
             POSITION_ROWS,
-            "see spec.rs",
+            "none (alpha required; beta, gamma as for ns_hht)",
         ),
         component(
             "wfem",
