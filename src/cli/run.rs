@@ -74,12 +74,22 @@ pub fn run(args: RunArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
 
-    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(job.size().steps) };
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(job.size().steps)
+    };
     bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:40}] {pos}/{len} steps ({per_sec}, eta {eta})")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos}/{len} steps ({per_sec}, eta {eta})",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let mut observer = CliObserver { csv: CsvSteps::create(&args.out)?, bar, last_draw: Instant::now() };
+    let mut observer = CliObserver {
+        csv: CsvSteps::create(&args.out)?,
+        bar,
+        last_draw: Instant::now(),
+    };
     let started = Instant::now();
     let result = job::run(&job, &mut observer);
     let wall = started.elapsed().as_secs_f64();
@@ -101,7 +111,10 @@ pub fn run(args: RunArgs) -> Result<()> {
     let mut summary = output.summary;
     let steps = summary.get("steps").and_then(|s| s.as_f64()).unwrap_or(0.0);
     summary.insert("wall_s".into(), json!(wall));
-    summary.insert("steps_per_s".into(), json!(if wall > 0.0 { steps / wall } else { 0.0 }));
+    summary.insert(
+        "steps_per_s".into(),
+        json!(if wall > 0.0 { steps / wall } else { 0.0 }),
+    );
     write_summary(&args.out, &summary)?;
     if !args.quiet {
         println!("{}", serde_json::to_string_pretty(&summary)?);

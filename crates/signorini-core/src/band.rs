@@ -116,7 +116,12 @@ impl SymBand {
         }
         let mut m = Self::zeros(n, kd);
         for (i, row) in rows.iter().enumerate() {
-            for (j, &a) in row.iter().enumerate().take(i + 1).skip(i.saturating_sub(kd)) {
+            for (j, &a) in row
+                .iter()
+                .enumerate()
+                .take(i + 1)
+                .skip(i.saturating_sub(kd))
+            {
                 m.set(i, j, a);
             }
         }

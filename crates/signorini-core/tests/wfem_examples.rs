@@ -23,7 +23,12 @@ fn examples_validate_and_the_wfem_dep_bar_runs() {
     assert!(out.summary["closures"].as_u64().unwrap() >= 2);
     let e = out.summary["energy_final"].as_f64().unwrap().max(1.0);
     assert!(out.summary["max_abs_balance_residual"].as_f64().unwrap() < 1e-9 * e);
-    assert!(rec.column("contact_force").unwrap().iter().any(|r| *r < 0.0));
+    assert!(
+        rec.column("contact_force")
+            .unwrap()
+            .iter()
+            .any(|r| *r < 0.0)
+    );
 }
 
 #[test]
