@@ -68,19 +68,22 @@ impl IndexSetRule {
 
 /// Round-off level of the local velocities an impulse LCP produced:
 /// `U^α_{k+1} = b_α + (W P)_α` loses `ε (|b_α| + Σ_β |W_αβ P_β|)` to cancellation; this returns
-/// 64 times that for each contact of `active` (written into `out`, zero elsewhere).
+/// 64 times that for each contact of `active` (written into `out`, zero elsewhere). `w` is the
+/// scheme's contact matrix on all m contacts, row-major m×m (the Delassus operator, symmetric
+/// or not).
 pub fn local_velocity_roundoff(
-    delassus: &Delassus,
+    w: &[f64],
     active: &[usize],
     b: &[f64],
     impulse: &[f64],
     out: &mut [f64],
 ) {
+    let m = out.len();
     out.fill(0.0);
     for (r, &a) in active.iter().enumerate() {
         let wp: f64 = active
             .iter()
-            .map(|&c| (delassus.entry(a, c) * impulse[c]).abs())
+            .map(|&c| (w[a * m + c] * impulse[c]).abs())
             .sum();
         out[a] = 64.0 * f64::EPSILON * (b[r].abs() + wp);
     }
@@ -132,6 +135,11 @@ impl Delassus {
     /// Column α of Ŵ⁻¹G.
     pub fn column(&self, alpha: usize) -> &[f64] {
         &self.winv_g[alpha * self.n..(alpha + 1) * self.n]
+    }
+
+    /// W, row-major m×m.
+    pub fn matrix(&self) -> &[f64] {
+        &self.w
     }
 
     /// Entry (α, β) of W.

@@ -68,7 +68,7 @@
 
 use super::{LinearScheme, LinearState, StepError, StepReport};
 use crate::band::{BandCholesky, BandError, SymBand};
-use crate::contact::{IndexSetRule, LcpStats};
+use crate::contact::{IndexSetRule, LcpStats, local_velocity_roundoff};
 use crate::energy::EnergyTerms;
 use crate::lcp::{self, Lcp, LcpOptions};
 use crate::model::LinearModel;
@@ -802,6 +802,9 @@ pub struct NonsmoothAlpha {
     active: Vec<usize>,
     lcp_m: Vec<f64>,
     lcp_rhs: Vec<f64>,
+    /// Round-off level of each U_k from the last step's LCP, keyed by step number (the sign
+    /// test of (24) reads U_k ≤ that level; see [`IndexSetRule::is_active_within`]).
+    u_roundoff: (u64, Vec<f64>),
 }
 
 impl NonsmoothAlpha {
@@ -859,6 +862,7 @@ impl NonsmoothAlpha {
             active: Vec::new(),
             lcp_m: Vec::new(),
             lcp_rhs: Vec::new(),
+            u_roundoff: (u64::MAX, vec![0.0; model.contacts.len()]),
         })
     }
 
@@ -901,10 +905,15 @@ impl LinearScheme for NonsmoothAlpha {
         self.active.clear();
         self.lcp_rhs.clear();
         for (a, c) in model.contacts.iter().enumerate() {
+            let u_tol = if self.u_roundoff.0 == state.step {
+                self.u_roundoff.1[a]
+            } else {
+                0.0
+            };
             if self
                 .params
                 .index_set
-                .is_active(c, &state.q, &state.v, t_k, h)
+                .is_active_within(c, &state.q, &state.v, t_k, h, u_tol)
             {
                 self.active.push(a);
                 let u_free = c.local_velocity(&self.core.s.v, t_next);
@@ -956,6 +965,14 @@ impl LinearScheme for NonsmoothAlpha {
                 }
             }
         }
+        local_velocity_roundoff(
+            &self.w,
+            &self.active,
+            &self.lcp_rhs,
+            &report.impulse,
+            &mut self.u_roundoff.1,
+        );
+        self.u_roundoff.0 = step;
         // work_contact = (Gᵀ v_{k+1/2})ᵀ P_{k+1} (Lemma 2; U_{k+1/2}ᵀP for a fixed obstacle).
         let mut work_contact = 0.0;
         for &a in &self.active {

@@ -222,7 +222,7 @@ impl LinearScheme for MoreauJean {
                 source,
             })?;
         local_velocity_roundoff(
-            &self.delassus,
+            self.delassus.matrix(),
             &self.active,
             &self.lcp_rhs,
             &report.impulse,
