@@ -304,7 +304,7 @@ pub fn space_time_figure(name: &str, bar: &WaveBar, orbit: &Orbit) -> Figure {
     frame(&mut s, &ax, "x", "t", false);
     let _ = write!(
         s,
-        r#"<text x="{}" y="{}" text-anchor="end">blue u max |u| = {umax:.3e}lt; 0, red u max |u| = {umax:.3e}gt; 0, max |u| = {umax:.3e}</text>"#,
+        r#"<text x="{}" y="{}" text-anchor="end">blue: u &lt; 0, red: u &gt; 0, full colour at |u| = {umax:.3e}</text>"#,
         W - MR,
         MT - 6.0
     );
