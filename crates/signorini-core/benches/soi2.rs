@@ -6,14 +6,14 @@
 use signorini_core::observer::Recorder;
 use signorini_core::soi2::ConstrainedModel;
 use signorini_core::soi2::method::{
-    Coefficients, Formulation, Method, NewtonOptions, Soi2State, StartValue,
+    Coefficients, Formulation, Method, NewtonOptions, NewtonStrategy, Soi2State, StartValue,
 };
 use signorini_core::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
-use signorini_core::soi2::run::{End, Schedule, Soi2Output, Soi2Stats, integrate};
+use signorini_core::soi2::run::{End, Schedule, Soi2Output, Soi2Stats, integrate_with};
 use std::time::Instant;
 
 /// One benchmark case: runs and returns (state, stats, wall s, CPU s).
-type Case<'a> = dyn Fn() -> (Soi2State, Soi2Stats, f64, f64) + 'a;
+type Case<'a> = dyn Fn(NewtonStrategy) -> (Soi2State, Soi2Stats, f64, f64) + 'a;
 
 fn cpu_seconds() -> f64 {
     // Process CPU time (the machine is shared): /proc/self/stat utime + stime in clock ticks.
@@ -27,6 +27,7 @@ fn cpu_seconds() -> f64 {
 fn run<M: ConstrainedModel>(
     model: &M,
     m: &Method,
+    newton: NewtonStrategy,
     h: f64,
     t_end: f64,
     pattern: &[f64],
@@ -38,9 +39,10 @@ fn run<M: ConstrainedModel>(
     }
     .sizes();
     let (w0, c0) = (Instant::now(), cpu_seconds());
-    let (s, st) = integrate(
+    let (s, st) = integrate_with(
         model,
         m,
+        newton,
         StartValue::A0,
         &sizes,
         true,
@@ -67,55 +69,117 @@ fn main() {
         newton,
     };
     println!("## Throughput (constant h, t_end as given)\n");
-    println!("| scene | scheme | h | steps | wall s | steps/s | Newton it/step |");
-    println!("|---|---|---|---|---|---|---|");
+    println!(
+        "| scene | scheme | Newton | h | steps | wall s | steps/s | Newton it/step | Jacobians/step |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
     let p = Pendulum::default();
     let s = SliderCrank::default();
     let cases: Vec<(&str, &str, Box<Case>)> = vec![
         (
             "pendulum",
             "soi2_generalized_alpha",
-            Box::new(|| run(&p, &ga(Formulation::Additive), 2f64.powi(-12), 2.0, &[1.0])),
+            Box::new(|nw| {
+                run(
+                    &p,
+                    &ga(Formulation::Additive),
+                    nw,
+                    2f64.powi(-12),
+                    2.0,
+                    &[1.0],
+                )
+            }),
         ),
         (
             "pendulum",
             "soi2_hht",
-            Box::new(|| run(&p, &hht(Formulation::HhtSoi2), 2f64.powi(-12), 2.0, &[1.0])),
+            Box::new(|nw| {
+                run(
+                    &p,
+                    &hht(Formulation::HhtSoi2),
+                    nw,
+                    2f64.powi(-12),
+                    2.0,
+                    &[1.0],
+                )
+            }),
         ),
         (
             "pendulum",
             "hht_i3",
-            Box::new(|| run(&p, &hht(Formulation::HhtI3), 2f64.powi(-12), 2.0, &[1.0])),
+            Box::new(|nw| {
+                run(
+                    &p,
+                    &hht(Formulation::HhtI3),
+                    nw,
+                    2f64.powi(-12),
+                    2.0,
+                    &[1.0],
+                )
+            }),
         ),
         (
             "slider_crank",
             "soi2_generalized_alpha",
-            Box::new(|| run(&s, &ga(Formulation::Additive), 2f64.powi(-10), 4.0, &[1.0])),
+            Box::new(|nw| {
+                run(
+                    &s,
+                    &ga(Formulation::Additive),
+                    nw,
+                    2f64.powi(-10),
+                    4.0,
+                    &[1.0],
+                )
+            }),
         ),
         (
             "slider_crank",
             "soi2_hht",
-            Box::new(|| run(&s, &hht(Formulation::HhtSoi2), 2f64.powi(-10), 4.0, &[1.0])),
+            Box::new(|nw| {
+                run(
+                    &s,
+                    &hht(Formulation::HhtSoi2),
+                    nw,
+                    2f64.powi(-10),
+                    4.0,
+                    &[1.0],
+                )
+            }),
         ),
         (
             "slider_crank",
             "hht_i3",
-            Box::new(|| run(&s, &hht(Formulation::HhtI3), 2f64.powi(-10), 4.0, &[1.0])),
+            Box::new(|nw| {
+                run(
+                    &s,
+                    &hht(Formulation::HhtI3),
+                    nw,
+                    2f64.powi(-10),
+                    4.0,
+                    &[1.0],
+                )
+            }),
         ),
     ];
     for (scene, scheme, f) in &cases {
-        let (_, st, wall, _) = f();
-        println!(
-            "| {scene} | {scheme} | {:.3e} | {} | {wall:.3} | {:.0} | {:.2} |",
-            if *scene == "pendulum" {
-                2f64.powi(-12)
-            } else {
-                2f64.powi(-10)
-            },
-            st.steps,
-            st.steps as f64 / wall,
-            st.newton_iterations as f64 / st.steps as f64
-        );
+        for (nw, name) in [
+            (NewtonStrategy::Full, "full"),
+            (NewtonStrategy::Simplified, "simplified"),
+        ] {
+            let (_, st, wall, _) = f(nw);
+            println!(
+                "| {scene} | {scheme} | {name} | {:.3e} | {} | {wall:.3} | {:.0} | {:.2} | {:.2} |",
+                if *scene == "pendulum" {
+                    2f64.powi(-12)
+                } else {
+                    2f64.powi(-10)
+                },
+                st.steps,
+                st.steps as f64 / wall,
+                st.newton_iterations as f64 / st.steps as f64,
+                st.newton_jacobians as f64 / st.steps as f64
+            );
+        }
     }
 
     println!(
@@ -127,10 +191,17 @@ fn main() {
         ("soi2_hht", hht(Formulation::HhtSoi2)),
         ("soi2_generalized_alpha", ga(Formulation::Additive)),
     ] {
-        let (r, _, _, _) = run(&p, &m, 2f64.powi(-15), 2.0, &[1.0]);
+        let (r, _, _, _) = run(
+            &p,
+            &m,
+            NewtonStrategy::Simplified,
+            2f64.powi(-15),
+            2.0,
+            &[1.0],
+        );
         for k in 6..=12 {
             let h = 2f64.powi(-k);
-            let (st, _, wall, cpu) = run(&p, &m, h, 2.0, &[1.0]);
+            let (st, _, wall, cpu) = run(&p, &m, NewtonStrategy::Simplified, h, 2.0, &[1.0]);
             let d = |a: &[f64], b: &[f64]| {
                 a.iter()
                     .zip(b)
@@ -157,6 +228,7 @@ fn main() {
         let (_, st, wall, _) = run(
             &j,
             &ga(Formulation::General),
+            NewtonStrategy::Simplified,
             h,
             1.0,
             &[1.0 / 3.0, 2.0 / 3.0],

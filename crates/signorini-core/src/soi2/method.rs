@@ -10,7 +10,7 @@
 use super::{
     ConstrainedModel, Dims, Dual64, Scalar, Soi2Error, g_ddot, k_dot, mass_matrix, max_norm,
 };
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Dyn, LU};
 
 /// Coefficients α_m, α_f, β, γ of the generalized-α method (2).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -107,6 +107,43 @@ impl Default for NewtonOptions {
     }
 }
 
+/// How the step Newton iterations get their Jacobian.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum NewtonStrategy {
+    /// Simplified Newton (the default): the Jacobian and its LU factorisation are kept across
+    /// iterations and across steps of the same size while the increments contract by a factor
+    /// ≤ ½ per iteration; they are rebuilt (by AD, at the current iterate) when the contraction
+    /// slows, when h changes, or when the residual or increment is not finite. If the iteration
+    /// budget runs out with a reused Jacobian, the step is redone from its start value by full
+    /// Newton, so failures are those of full Newton. Same convergence test as full Newton.
+    #[default]
+    Simplified,
+    /// Full Newton: a fresh AD Jacobian at every iterate.
+    Full,
+}
+
+/// The Jacobian a run carries from step to step (simplified Newton): its LU factorisation, the
+/// step size and the system size it was built for.
+#[derive(Debug, Clone, Default)]
+pub struct NewtonCache {
+    /// Strategy.
+    pub strategy: NewtonStrategy,
+    lu: Option<(LU<f64, Dyn, Dyn>, f64, usize)>,
+    /// Jacobians built (AD evaluations of the full matrix), for statistics.
+    pub jacobians: u64,
+}
+
+impl NewtonCache {
+    /// An empty cache for `strategy`.
+    pub fn new(strategy: NewtonStrategy) -> Self {
+        Self {
+            strategy,
+            lu: None,
+            jacobians: 0,
+        }
+    }
+}
+
 /// A method: formulation, coefficients, Newton settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Method {
@@ -174,6 +211,31 @@ enum NewtonFailure {
     },
 }
 
+/// Fills `jac` with the AD Jacobian of `res` at `x` and `r` with F(x) (one dual evaluation per
+/// column).
+fn build_jacobian<R: Residual>(
+    res: &R,
+    x: &[f64],
+    xd: &mut [Dual64],
+    rd: &mut [Dual64],
+    jac: &mut DMatrix<f64>,
+    r: &mut DVector<f64>,
+) {
+    let n = x.len();
+    for (d, &v) in xd.iter_mut().zip(x.iter()) {
+        *d = Dual64::from_re(v);
+    }
+    for j in 0..n {
+        xd[j].eps = 1.0;
+        res.eval(xd, rd);
+        for i in 0..n {
+            jac[(i, j)] = rd[i].eps;
+            r[i] = rd[i].re;
+        }
+        xd[j].eps = 0.0;
+    }
+}
+
 /// Newton's method on `res` from `x`; the Jacobian of each iterate by forward-mode AD
 /// (one dual evaluation per column).
 fn solve_newton<R: Residual>(
@@ -181,6 +243,15 @@ fn solve_newton<R: Residual>(
     x: &mut [f64],
     opts: &NewtonOptions,
 ) -> Result<StepInfo, NewtonFailure> {
+    solve_newton_full(res, x, opts).map(|(info, _)| info)
+}
+
+/// Full Newton; also returns the LU factorisation of the last Jacobian (for reuse).
+fn solve_newton_full<R: Residual>(
+    res: &R,
+    x: &mut [f64],
+    opts: &NewtonOptions,
+) -> Result<(StepInfo, LU<f64, Dyn, Dyn>), NewtonFailure> {
     let n = res.size();
     let mut xd: Vec<Dual64> = x.iter().map(|&v| Dual64::from_re(v)).collect();
     let mut rd = vec![Dual64::from_re(0.0); n];
@@ -189,18 +260,7 @@ fn solve_newton<R: Residual>(
     let mut increment = f64::INFINITY;
     let mut previous = f64::INFINITY;
     for it in 1..=opts.max_iterations {
-        for (d, &v) in xd.iter_mut().zip(x.iter()) {
-            *d = Dual64::from_re(v);
-        }
-        for j in 0..n {
-            xd[j].eps = 1.0;
-            res.eval(&xd, &mut rd);
-            for i in 0..n {
-                jac[(i, j)] = rd[i].eps;
-                r[i] = rd[i].re;
-            }
-            xd[j].eps = 0.0;
-        }
+        build_jacobian(res, x, &mut xd, &mut rd, &mut jac, &mut r);
         let rnorm = r.amax();
         if !rnorm.is_finite() {
             return Err(NewtonFailure::Diverged {
@@ -209,9 +269,11 @@ fn solve_newton<R: Residual>(
                 increment,
             });
         }
-        let Some(dx) = jac.clone().lu().solve(&r) else {
+        let lu = jac.clone().lu();
+        let mut dx = r.clone();
+        if !lu.solve_mut(&mut dx) {
             return Err(NewtonFailure::Singular);
-        };
+        }
         let xnorm = max_norm(x);
         increment = dx.amax();
         for (xi, d) in x.iter_mut().zip(dx.iter()) {
@@ -231,20 +293,141 @@ fn solve_newton<R: Residual>(
             && increment <= (100.0 * opts.tolerance * scale).max(res.noise_floor());
         previous = increment;
         if increment <= opts.tolerance * scale || stalled {
-            let mut rf = vec![0.0; n];
-            res.eval(x, &mut rf);
-            return Ok(StepInfo {
-                iterations: it,
-                residual: max_norm(&rf),
-            });
+            res.eval(x, r.as_mut_slice());
+            return Ok((
+                StepInfo {
+                    iterations: it,
+                    residual: r.amax(),
+                },
+                lu,
+            ));
         }
     }
-    let mut rf = vec![0.0; n];
-    res.eval(x, &mut rf);
+    res.eval(x, r.as_mut_slice());
     Err(NewtonFailure::Diverged {
         iterations: opts.max_iterations,
-        residual: max_norm(&rf),
+        residual: r.amax(),
         increment,
+    })
+}
+
+/// Largest contraction ‖Δx_{k+1}‖/‖Δx_k‖ simplified Newton accepts before it rebuilds the
+/// Jacobian.
+const CONTRACTION_LIMIT: f64 = 0.5;
+
+/// Simplified Newton with the Jacobian of `cache` (see [`NewtonStrategy::Simplified`]); `h` keys
+/// the cached Jacobian. Falls back to full Newton from the start value when the budget runs out
+/// with a reused Jacobian.
+fn solve_newton_simplified<R: Residual>(
+    res: &R,
+    x: &mut [f64],
+    opts: &NewtonOptions,
+    cache: &mut NewtonCache,
+    h: f64,
+) -> Result<StepInfo, NewtonFailure> {
+    let n = res.size();
+    if cache
+        .lu
+        .as_ref()
+        .is_some_and(|(_, hc, nc)| *hc != h || *nc != n)
+    {
+        cache.lu = None;
+    }
+    let x_start = x.to_vec();
+    let mut xd: Vec<Dual64> = vec![Dual64::from_re(0.0); n];
+    let mut rd = vec![Dual64::from_re(0.0); n];
+    let mut jac = DMatrix::<f64>::zeros(n, n);
+    let mut r = DVector::<f64>::zeros(n);
+    let mut dx = DVector::<f64>::zeros(n);
+    // The Jacobian in use was built during this step (not carried over from an earlier one).
+    let mut built_here = false;
+    let mut previous = f64::INFINITY;
+    let mut fallback = false;
+    for it in 1..=opts.max_iterations {
+        if cache.lu.is_none() {
+            build_jacobian(res, x, &mut xd, &mut rd, &mut jac, &mut r);
+            cache.jacobians += 1;
+            cache.lu = Some((jac.clone().lu(), h, n));
+            built_here = true;
+            previous = f64::INFINITY;
+        } else {
+            res.eval(x, r.as_mut_slice());
+        }
+        let rnorm = r.amax();
+        if !rnorm.is_finite() {
+            if built_here {
+                return Err(NewtonFailure::Diverged {
+                    iterations: it - 1,
+                    residual: rnorm,
+                    increment: previous,
+                });
+            }
+            fallback = true;
+            break;
+        }
+        let Some((lu, _, _)) = cache.lu.as_ref() else {
+            unreachable!("the Jacobian was just built");
+        };
+        dx.copy_from(&r);
+        if !lu.solve_mut(&mut dx) {
+            cache.lu = None;
+            if built_here {
+                return Err(NewtonFailure::Singular);
+            }
+            fallback = true;
+            break;
+        }
+        let xnorm = max_norm(x);
+        let increment = dx.amax();
+        if !increment.is_finite() {
+            cache.lu = None;
+            if built_here {
+                return Err(NewtonFailure::Diverged {
+                    iterations: it,
+                    residual: rnorm,
+                    increment,
+                });
+            }
+            fallback = true;
+            break;
+        }
+        for (xi, d) in x.iter_mut().zip(dx.iter()) {
+            *xi -= d;
+        }
+        let scale = 1.0 + xnorm.max(max_norm(x));
+        let slow = increment >= CONTRACTION_LIMIT * previous;
+        // Stalled at the round-off floor: only trusted with a Jacobian of this step (with an
+        // older one, slow contraction is the Jacobian's fault).
+        let stalled = built_here
+            && slow
+            && increment <= (100.0 * opts.tolerance * scale).max(res.noise_floor());
+        if increment <= opts.tolerance * scale || stalled {
+            res.eval(x, r.as_mut_slice());
+            return Ok(StepInfo {
+                iterations: it,
+                residual: r.amax(),
+            });
+        }
+        if slow {
+            cache.lu = None; // rebuilt at the next iterate
+        }
+        previous = increment;
+        if it == opts.max_iterations && !built_here {
+            fallback = true;
+        }
+    }
+    if fallback {
+        x.copy_from_slice(&x_start);
+        let (info, lu) = solve_newton_full(res, x, opts)?;
+        cache.jacobians += info.iterations as u64;
+        cache.lu = Some((lu, h, n));
+        return Ok(info);
+    }
+    res.eval(x, r.as_mut_slice());
+    Err(NewtonFailure::Diverged {
+        iterations: opts.max_iterations,
+        residual: r.amax(),
+        increment: previous,
     })
 }
 
@@ -597,12 +780,30 @@ pub fn adjust_for_step(state: &mut Soi2State, alpha: f64, h: f64) {
     }
 }
 
-/// Solves one step of size `h` from `state` (already adjusted) without changing it.
+/// Solves one step of size `h` from `state` (already adjusted) without changing it, by full
+/// Newton.
 pub fn solve_step<M: ConstrainedModel + ?Sized>(
     model: &M,
     method: &Method,
     state: &Soi2State,
     h: f64,
+) -> Result<StepResult, Soi2Error> {
+    solve_step_with(
+        model,
+        method,
+        state,
+        h,
+        &mut NewtonCache::new(NewtonStrategy::Full),
+    )
+}
+
+/// [`solve_step`] with the Newton strategy and the Jacobian carried over in `cache`.
+pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
+    model: &M,
+    method: &Method,
+    state: &Soi2State,
+    h: f64,
+    cache: &mut NewtonCache,
 ) -> Result<StepResult, Soi2Error> {
     let dims = model.dims();
     let n = dims.n;
@@ -657,8 +858,16 @@ pub fn solve_step<M: ConstrainedModel + ?Sized>(
             x.extend_from_slice(&state.lambda);
         }
     }
-    let info = solve_newton(&sys, &mut x, &method.newton)
-        .map_err(|e| newton_error(e, step, t1, "step"))?;
+    let info = match cache.strategy {
+        NewtonStrategy::Full => solve_newton_full(&sys, &mut x, &method.newton).map(|(i, _)| {
+            cache.jacobians += i.iterations as u64;
+            i
+        }),
+        NewtonStrategy::Simplified => {
+            solve_newton_simplified(&sys, &mut x, &method.newton, cache, h)
+        }
+    }
+    .map_err(|e| newton_error(e, step, t1, "step"))?;
     let (a, lambda, psi, at) = match method.formulation {
         Formulation::General | Formulation::Additive => {
             let mg = dims.holonomic;

@@ -2,7 +2,8 @@
 //! and the job-spec side: integrator parameters, validation, summary.
 
 use super::method::{
-    self, Coefficients, Formulation, Method, NewtonOptions, Soi2State, StartValue,
+    self, Coefficients, Formulation, Method, NewtonCache, NewtonOptions, NewtonStrategy, Soi2State,
+    StartValue,
 };
 use super::models::{JayNegrutTest, Pendulum, SliderCrank};
 use super::{
@@ -230,6 +231,8 @@ pub struct Soi2Stats {
     pub newton_iterations: u64,
     /// Largest Newton iteration count of a step.
     pub newton_iterations_max: usize,
+    /// Newton Jacobians built (AD) for the steps; equals `newton_iterations` for full Newton.
+    pub newton_jacobians: u64,
     /// max over steps of ‖g(t_n, y_n)‖∞.
     pub max_position_residual: f64,
     /// max over steps of ‖g_t + g_y z_n‖∞.
@@ -272,7 +275,8 @@ pub fn columns(dims: super::Dims, probes: &[usize]) -> Columns {
 }
 
 /// Runs `model` with `method` over the step sizes `sizes`, adjusting a_α and M_α a_α by
-/// (14a)–(14b) when `adjust`, and reporting to `observer`.
+/// (14a)–(14b) when `adjust`, and reporting to `observer`. Steps are solved by simplified
+/// Newton ([`NewtonStrategy::Simplified`]); [`integrate_with`] chooses.
 #[allow(clippy::too_many_arguments)]
 pub fn integrate<M: ConstrainedModel + ?Sized>(
     model: &M,
@@ -283,6 +287,31 @@ pub fn integrate<M: ConstrainedModel + ?Sized>(
     output: &Soi2Output,
     observer: &mut dyn Observer,
 ) -> Result<(Soi2State, Soi2Stats), Soi2Error> {
+    integrate_with(
+        model,
+        method,
+        NewtonStrategy::default(),
+        start,
+        sizes,
+        adjust,
+        output,
+        observer,
+    )
+}
+
+/// [`integrate`] with the step Newton strategy `newton` (simplified or full).
+#[allow(clippy::too_many_arguments)]
+pub fn integrate_with<M: ConstrainedModel + ?Sized>(
+    model: &M,
+    method: &Method,
+    newton: NewtonStrategy,
+    start: StartValue,
+    sizes: &[f64],
+    adjust: bool,
+    output: &Soi2Output,
+    observer: &mut dyn Observer,
+) -> Result<(Soi2State, Soi2Stats), Soi2Error> {
+    let mut cache = NewtonCache::new(newton);
     let dims = model.dims();
     let n = dims.n;
     let alpha = method.coefficients.alpha();
@@ -350,7 +379,7 @@ pub fn integrate<M: ConstrainedModel + ?Sized>(
         if adjust {
             method::adjust_for_step(&mut state, alpha, h); // (14a)–(14b)
         }
-        let result = method::solve_step(model, method, &state, h)?;
+        let result = method::solve_step_with(model, method, &state, h, &mut cache)?;
         let info = result.info;
         let y_old = state.y.clone();
         method::commit(&mut state, result, h);
@@ -368,6 +397,7 @@ pub fn integrate<M: ConstrainedModel + ?Sized>(
         stats.newton_iterations += info.iterations as u64;
         stats.newton_iterations_max = stats.newton_iterations_max.max(info.iterations);
         stats.steps = k;
+        stats.newton_jacobians = cache.jacobians;
         stats.t_end = state.t;
         if k.is_multiple_of(every) || k == total {
             let (kin, pot) = (kinetic(&state), potential(&state));
