@@ -149,3 +149,93 @@ fn simplified_and_full_newton_give_the_same_trajectory() {
         }
     }
 }
+
+#[test]
+fn slider_crank_closed_form_g_y_and_g_dot_match_ad() {
+    // The slider-crank gives g_y and g_t + g_y z in closed form (so its forces do not nest AD);
+    // the trait's AD defaults must agree, also through a dual number.
+    use signorini_core::soi2::{Dims, Dual64, InitialValues, Scalar};
+    struct AdOnly(SliderCrank);
+    impl ConstrainedModel for AdOnly {
+        fn dims(&self) -> Dims {
+            self.0.dims()
+        }
+        fn mass<T: Scalar>(&self, t: T, y: &[T], m: &mut [T]) {
+            self.0.mass(t, y, m)
+        }
+        fn force<T: Scalar>(&self, t: T, y: &[T], z: &[T], l: &[T], p: &[T], f: &mut [T]) {
+            self.0.force(t, y, z, l, p, f)
+        }
+        fn g<T: Scalar>(&self, t: T, y: &[T], out: &mut [T]) {
+            self.0.g(t, y, out)
+        }
+        fn initial(&self) -> InitialValues {
+            self.0.initial()
+        }
+    }
+    let s = SliderCrank::default();
+    let ad = AdOnly(s.clone());
+    let y = [0.1, -0.3, 2.2, 0.4, 0.05, -0.7, 0.9, 0.02];
+    let z = [0.3, 1.1, -4.0, 0.2, -0.6, 2.5, -1.3, 0.4];
+    let (mut a, mut b) = ([0.0f64; 56], [0.0f64; 56]);
+    s.g_y(0.0, &y, &mut a);
+    ad.g_y(0.0, &y, &mut b);
+    for (u, v) in a.iter().zip(&b) {
+        assert!((u - v).abs() < 1e-14, "g_y: {u} vs {v}");
+    }
+    let (mut a, mut b) = ([0.0f64; 7], [0.0f64; 7]);
+    s.g_dot(0.0, &y, &z, &mut a);
+    ad.g_dot(0.0, &y, &z, &mut b);
+    for (u, v) in a.iter().zip(&b) {
+        assert!((u - v).abs() < 1e-14, "g_dot: {u} vs {v}");
+    }
+    // Along a direction through both angles: derivatives of g_y and of the forces agree.
+    let yd: Vec<Dual64> = y
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| Dual64::new(v, [0.2, 0.0, 1.0, -0.5, 0.0, 0.7, 0.0, 0.3][i]))
+        .collect();
+    let (mut a, mut b) = ([Dual64::from_re(0.0); 56], [Dual64::from_re(0.0); 56]);
+    s.g_y(Dual64::from_re(0.0), &yd, &mut a);
+    ad.g_y(Dual64::from_re(0.0), &yd, &mut b);
+    for (u, v) in a.iter().zip(&b) {
+        assert!(
+            (u.eps - v.eps).abs() < 1e-14,
+            "d g_y: {} vs {}",
+            u.eps,
+            v.eps
+        );
+    }
+    let zd: Vec<Dual64> = z.iter().map(|&v| Dual64::from_re(v)).collect();
+    let l: Vec<Dual64> = (0..7)
+        .map(|q| Dual64::new(q as f64 - 2.5, 0.1 * q as f64))
+        .collect();
+    let (mut a, mut b) = ([Dual64::from_re(0.0); 8], [Dual64::from_re(0.0); 8]);
+    s.force(Dual64::from_re(0.0), &yd, &zd, &l, &[], &mut a);
+    // The default force path: gravity − (AD g_y)ᵀ λ.
+    let mut gy = [Dual64::from_re(0.0); 56];
+    ad.g_y(Dual64::from_re(0.0), &yd, &mut gy);
+    let grav = [
+        0.0,
+        -s.crank_mass * s.gravity,
+        0.0,
+        0.0,
+        -s.rod_mass * s.gravity,
+        0.0,
+        0.0,
+        -s.slider_mass * s.gravity,
+    ];
+    for j in 0..8 {
+        let mut v = Dual64::from_re(grav[j]);
+        for q in 0..7 {
+            v -= gy[q * 8 + j] * l[q];
+        }
+        b[j] = v;
+    }
+    for (u, v) in a.iter().zip(&b) {
+        assert!(
+            (u.re - v.re).abs() < 1e-13 && (u.eps - v.eps).abs() < 1e-13,
+            "force: {u} vs {v}"
+        );
+    }
+}

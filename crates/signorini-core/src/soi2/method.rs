@@ -111,11 +111,13 @@ impl Default for NewtonOptions {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum NewtonStrategy {
     /// Simplified Newton (the default): the Jacobian and its LU factorisation are kept across
-    /// iterations and across steps of the same size while the increments contract by a factor
-    /// ≤ ½ per iteration; they are rebuilt (by AD, at the current iterate) when the contraction
-    /// slows, when h changes, or when the residual or increment is not finite. If the iteration
-    /// budget runs out with a reused Jacobian, the step is redone from its start value by full
-    /// Newton, so failures are those of full Newton. Same convergence test as full Newton.
+    /// iterations and across steps of the same size (one per step size, a few sizes) while the
+    /// increments contract by a factor ≤ ½ per iteration; they are rebuilt (by AD, at the
+    /// current iterate) when the contraction slows, for a new step size, or when the solve is
+    /// singular or not finite with a reused Jacobian. If the iteration budget runs out with a
+    /// reused Jacobian, the step is redone from its start value by full Newton, so failures are
+    /// those of full Newton. Same convergence test as full Newton (the round-off stall exit
+    /// only with a Jacobian built in this step).
     #[default]
     Simplified,
     /// Full Newton: a fresh AD Jacobian at every iterate.
@@ -128,19 +130,41 @@ pub enum NewtonStrategy {
 pub struct NewtonCache {
     /// Strategy.
     pub strategy: NewtonStrategy,
-    lu: Option<(LU<f64, Dyn, Dyn>, f64, usize)>,
+    /// LU factorisations keyed by (h, system size), most recently used last; a few, so that a
+    /// periodic step pattern (h/3, 2h/3) reuses one per size.
+    lu: Vec<(LU<f64, Dyn, Dyn>, f64, usize)>,
     /// Jacobians built (AD evaluations of the full matrix), for statistics.
     pub jacobians: u64,
 }
+
+/// Jacobians kept per run (one per distinct step size, least recently used dropped).
+const CACHED_JACOBIANS: usize = 4;
 
 impl NewtonCache {
     /// An empty cache for `strategy`.
     pub fn new(strategy: NewtonStrategy) -> Self {
         Self {
             strategy,
-            lu: None,
+            lu: Vec::new(),
             jacobians: 0,
         }
+    }
+
+    /// Removes and returns the factorisation kept for (h, n).
+    fn take(&mut self, h: f64, n: usize) -> Option<LU<f64, Dyn, Dyn>> {
+        let i = self
+            .lu
+            .iter()
+            .position(|(_, hc, nc)| *hc == h && *nc == n)?;
+        Some(self.lu.remove(i).0)
+    }
+
+    /// Keeps `lu` for (h, n) as the most recently used.
+    fn put(&mut self, lu: LU<f64, Dyn, Dyn>, h: f64, n: usize) {
+        if self.lu.len() >= CACHED_JACOBIANS {
+            self.lu.remove(0);
+        }
+        self.lu.push((lu, h, n));
     }
 }
 
@@ -326,13 +350,7 @@ fn solve_newton_simplified<R: Residual>(
     h: f64,
 ) -> Result<StepInfo, NewtonFailure> {
     let n = res.size();
-    if cache
-        .lu
-        .as_ref()
-        .is_some_and(|(_, hc, nc)| *hc != h || *nc != n)
-    {
-        cache.lu = None;
-    }
+    let mut current = cache.take(h, n);
     let x_start = x.to_vec();
     let mut xd: Vec<Dual64> = vec![Dual64::from_re(0.0); n];
     let mut rd = vec![Dual64::from_re(0.0); n];
@@ -344,10 +362,10 @@ fn solve_newton_simplified<R: Residual>(
     let mut previous = f64::INFINITY;
     let mut fallback = false;
     for it in 1..=opts.max_iterations {
-        if cache.lu.is_none() {
+        if current.is_none() {
             build_jacobian(res, x, &mut xd, &mut rd, &mut jac, &mut r);
             cache.jacobians += 1;
-            cache.lu = Some((jac.clone().lu(), h, n));
+            current = Some(jac.clone().lu());
             built_here = true;
             previous = f64::INFINITY;
         } else {
@@ -365,12 +383,12 @@ fn solve_newton_simplified<R: Residual>(
             fallback = true;
             break;
         }
-        let Some((lu, _, _)) = cache.lu.as_ref() else {
+        let Some(lu) = current.as_ref() else {
             unreachable!("the Jacobian was just built");
         };
         dx.copy_from(&r);
         if !lu.solve_mut(&mut dx) {
-            cache.lu = None;
+            current = None;
             if built_here {
                 return Err(NewtonFailure::Singular);
             }
@@ -380,7 +398,7 @@ fn solve_newton_simplified<R: Residual>(
         let xnorm = max_norm(x);
         let increment = dx.amax();
         if !increment.is_finite() {
-            cache.lu = None;
+            current = None;
             if built_here {
                 return Err(NewtonFailure::Diverged {
                     iterations: it,
@@ -403,13 +421,16 @@ fn solve_newton_simplified<R: Residual>(
             && increment <= (100.0 * opts.tolerance * scale).max(res.noise_floor());
         if increment <= opts.tolerance * scale || stalled {
             res.eval(x, r.as_mut_slice());
+            if let Some(lu) = current {
+                cache.put(lu, h, n);
+            }
             return Ok(StepInfo {
                 iterations: it,
                 residual: r.amax(),
             });
         }
         if slow {
-            cache.lu = None; // rebuilt at the next iterate
+            current = None; // rebuilt at the next iterate
         }
         previous = increment;
         if it == opts.max_iterations && !built_here {
@@ -420,7 +441,7 @@ fn solve_newton_simplified<R: Residual>(
         x.copy_from_slice(&x_start);
         let (info, lu) = solve_newton_full(res, x, opts)?;
         cache.jacobians += info.iterations as u64;
-        cache.lu = Some((lu, h, n));
+        cache.put(lu, h, n);
         return Ok(info);
     }
     res.eval(x, r.as_mut_slice());

@@ -382,7 +382,7 @@ impl ConstrainedModel for SliderCrank {
         }
     }
 
-    /// Gravity − g_yᵀ λ (g_y by forward-mode AD of [`Self::g`]).
+    /// Gravity − g_yᵀ λ (closed-form g_y).
     fn force<T: Scalar>(&self, t: T, y: &[T], _z: &[T], lambda: &[T], _psi: &[T], f: &mut [T]) {
         f.fill(T::zero());
         f[1] = T::from(-self.crank_mass * self.gravity);
@@ -408,6 +408,49 @@ impl ConstrainedModel for SliderCrank {
         out[4] = y[3] + c2 * hl - y[6];
         out[5] = y[4] + s2 * hl - y[7];
         out[6] = y[7];
+    }
+
+    /// Closed form of the derivative of [`Self::g`], 7×8 row-major.
+    fn g_y<T: Scalar>(&self, _t: T, y: &[T], out: &mut [T]) {
+        let (hr, hl) = (0.5 * self.crank_length, 0.5 * self.rod_length);
+        let (s1, c1) = (y[2].sin() * hr, y[2].cos() * hr);
+        let (s2, c2) = (y[5].sin() * hl, y[5].cos() * hl);
+        out.fill(T::zero());
+        let one = T::one();
+        // Row q, column j at q·8 + j.
+        out[0] = one;
+        out[2] = s1;
+        out[8 + 1] = one;
+        out[8 + 2] = -c1;
+        out[16] = one;
+        out[16 + 2] = -s1;
+        out[16 + 3] = -one;
+        out[16 + 5] = -s2;
+        out[24 + 1] = one;
+        out[24 + 2] = c1;
+        out[24 + 4] = -one;
+        out[24 + 5] = c2;
+        out[32 + 3] = one;
+        out[32 + 5] = -s2;
+        out[32 + 6] = -one;
+        out[40 + 4] = one;
+        out[40 + 5] = c2;
+        out[40 + 7] = -one;
+        out[48 + 7] = one;
+    }
+
+    /// g_y z in closed form (g does not depend on t).
+    fn g_dot<T: Scalar>(&self, _t: T, y: &[T], z: &[T], out: &mut [T]) {
+        let (hr, hl) = (0.5 * self.crank_length, 0.5 * self.rod_length);
+        let (s1, c1) = (y[2].sin() * hr, y[2].cos() * hr);
+        let (s2, c2) = (y[5].sin() * hl, y[5].cos() * hl);
+        out[0] = z[0] + s1 * z[2];
+        out[1] = z[1] - c1 * z[2];
+        out[2] = z[0] - s1 * z[2] - z[3] - s2 * z[5];
+        out[3] = z[1] + c1 * z[2] - z[4] + c2 * z[5];
+        out[4] = z[3] - s2 * z[5] - z[6];
+        out[5] = z[4] + c2 * z[5] - z[7];
+        out[6] = z[7];
     }
 
     fn additive(&self) -> bool {
