@@ -388,7 +388,7 @@ fn solve_newton_simplified<R: Residual>(
         };
         dx.copy_from(&r);
         if !lu.solve_mut(&mut dx) {
-            current = None;
+            // The reused factorisation is dropped (not put back).
             if built_here {
                 return Err(NewtonFailure::Singular);
             }
@@ -398,7 +398,7 @@ fn solve_newton_simplified<R: Residual>(
         let xnorm = max_norm(x);
         let increment = dx.amax();
         if !increment.is_finite() {
-            current = None;
+            // The reused factorisation is dropped (not put back).
             if built_here {
                 return Err(NewtonFailure::Diverged {
                     iterations: it,
