@@ -165,7 +165,31 @@ const BAR_ROWS: &[Row] = &[
     ),
 ];
 
-const ALPHA_ROWS: &[Row] = &[
+/// The index-set parameters every velocity-level scheme of the linear family takes.
+const INDEX_SET_ROWS: [Row; 2] = [
+    (
+        "activation",
+        "string",
+        "gap_and_velocity | predicted_gap",
+        "index-set rule: (24) of Acary 2016, or Siconos' g + γhU ≤ 0",
+    ),
+    (
+        "activation_gamma",
+        "float",
+        "> 0",
+        "γ of the predicted-gap rule",
+    ),
+];
+
+/// The escape hatch of the α-family and the baselines.
+const ALLOW_UNSTABLE_ROW: Row = (
+    "allow_unstable",
+    "bool",
+    "",
+    "accept parameters outside the stability conditions",
+);
+
+const ALPHA_ROWS: [Row; 5] = [
     (
         "rho_inf",
         "float",
@@ -181,30 +205,13 @@ const ALPHA_ROWS: &[Row] = &[
     ("alpha_f", "float", "≤ ½", "α_f"),
     ("beta", "float", "stability conditions", "β"),
     ("gamma", "float", "stability conditions", "γ"),
-    (
-        "activation",
-        "string",
-        "gap_and_velocity | predicted_gap",
-        "index-set rule",
-    ),
-    (
-        "activation_gamma",
-        "float",
-        "> 0",
-        "γ of the predicted-gap rule",
-    ),
 ];
 
 const POSITION_ROWS: &[Row] = &[
     ("alpha", "float", "[0, 1/3]", "HHT α (0: Newmark)"),
     ("beta", "float", "stability conditions", "β"),
     ("gamma", "float", "≥ ½", "γ"),
-    (
-        "allow_unstable",
-        "bool",
-        "",
-        "accept parameters outside the stability conditions",
-    ),
+    ALLOW_UNSTABLE_ROW,
 ];
 
 const SOI2_NEWTON_ROWS: [Row; 4] = [
@@ -391,26 +398,39 @@ pub fn capabilities() -> Capabilities {
             "the paper's values",
         ),
     ];
-    let mj_rows: &[Row] = &[
-        (
+    let with_index_set = |head: &[Row], unstable: bool| -> Vec<Row> {
+        let tail = unstable.then_some(ALLOW_UNSTABLE_ROW);
+        head.iter()
+            .copied()
+            .chain(INDEX_SET_ROWS)
+            .chain(tail)
+            .collect()
+    };
+    let mj_rows = with_index_set(
+        &[(
             "theta",
             "float",
             "[0, 1]",
             "θ of the force average and the position update",
-        ),
-        (
-            "activation",
-            "string",
-            "gap_and_velocity | predicted_gap",
-            "index-set rule: (24) or Siconos' g + γhU ≤ 0",
-        ),
-        (
-            "activation_gamma",
-            "float",
-            "> 0",
-            "γ of the predicted-gap rule",
-        ),
-    ];
+        )],
+        false,
+    );
+    let newmark_rows = with_index_set(
+        &[
+            ("beta", "float", "stability: 2β ≥ γ ≥ ½", "Newmark β"),
+            ("gamma", "float", "≥ ½", "Newmark γ"),
+        ],
+        true,
+    );
+    let hht_alpha_rows = with_index_set(
+        &[
+            ("alpha", "float", "[0, 1/3]", "HHT α"),
+            ("beta", "float", "default (1 + α)²/4", "β"),
+            ("gamma", "float", "default ½ + α", "γ"),
+        ],
+        true,
+    );
+    let alpha_rows = with_index_set(&ALPHA_ROWS, true);
     let soi2_ga_rows: Vec<Row> = [
         (
             "rho_inf",
@@ -446,85 +466,42 @@ pub fn capabilities() -> Capabilities {
             "moreau_jean",
             "Moreau–Jean θ-scheme, Acary 2016 (21)–(24)",
             &MoreauJeanSpec::default(),
-            mj_rows,
+            &mj_rows,
             "1 (predicted_gap only)",
         ),
         component(
             "moreau_jean_variant",
             "Moreau–Jean variant (29): q_{k+1} = q_k + h v_{k+1/2}",
             &MoreauJeanSpec::default(),
-            mj_rows,
+            &mj_rows,
             "1 (predicted_gap only)",
         ),
         component(
             "ns_newmark",
             "nonsmooth Newmark, Acary 2016 (25)–(27) with α_m = α_f = 0",
             &serde_defaults::<NsNewmarkSpec>(),
-            &[
-                ("beta", "float", "stability: 2β ≥ γ ≥ ½", "Newmark β"),
-                ("gamma", "float", "≥ ½", "Newmark γ"),
-                (
-                    "activation",
-                    "string",
-                    "gap_and_velocity | predicted_gap",
-                    "index-set rule",
-                ),
-                (
-                    "activation_gamma",
-                    "float",
-                    "> 0",
-                    "γ of the predicted-gap rule",
-                ),
-                (
-                    "allow_unstable",
-                    "bool",
-                    "",
-                    "accept parameters outside the stability conditions",
-                ),
-            ],
+            &newmark_rows,
             "none",
         ),
         component(
             "ns_hht",
             "nonsmooth HHT, Acary 2016 (α_m = 0, α_f = α)",
             &serde_json::json!({}),
-            &[
-                ("alpha", "float", "[0, 1/3]", "HHT α"),
-                ("beta", "float", "default (1 + α)²/4", "β"),
-                ("gamma", "float", "default ½ + α", "γ"),
-                (
-                    "activation",
-                    "string",
-                    "gap_and_velocity | predicted_gap",
-                    "index-set rule",
-                ),
-                (
-                    "activation_gamma",
-                    "float",
-                    "> 0",
-                    "γ of the predicted-gap rule",
-                ),
-                (
-                    "allow_unstable",
-                    "bool",
-                    "",
-                    "accept parameters outside the stability conditions",
-                ),
-            ],
+            &hht_alpha_rows,
             "none (alpha required; beta, gamma derived: see range)",
         ),
         component(
             "ns_generalized_alpha",
             "nonsmooth generalized-α, Acary 2016 (25)–(27)",
             &serde_json::json!({}),
-            ALPHA_ROWS,
+            &alpha_rows,
             "from rho_inf",
         ),
         component(
             "ns_kh_alpha",
             "Krenk–Høgsberg generalized-α variant (30), Acary 2016",
             &serde_json::json!({}),
-            ALPHA_ROWS,
+            &alpha_rows,
             "from rho_inf",
         ),
         component(
