@@ -5,7 +5,9 @@
 //! status messages and each run's last frames with a blocking send. This channel is where a slow
 //! or absent subscriber is absorbed: a job never waits on zenoh.
 //!
-//! zenoh QoS: the status publisher has a higher priority than the step frames. Step frames are
+//! zenoh QoS: status and step frames of a job share one priority. zenoh keeps messages in order
+//! only within a priority; a higher-priority terminal status overtook the job's last step frames
+//! on the wire and a watcher that stops at the terminal status missed them (seen in CI). Step frames are
 //! put with congestion control *block* on the publishing task (not on the job): zenoh's *drop*
 //! policy, measured here, drops whole bursts as soon as its link queue is momentarily full (a
 //! fast job emits dozens of frames per millisecond), so a subscriber on loopback that keeps up
@@ -206,26 +208,21 @@ impl Streamer {
     }
 }
 
-async fn declare(session: &Session, key: String, status: bool) -> Result<Publisher<'static>> {
-    let prio = if status {
-        Priority::InteractiveHigh
-    } else {
-        Priority::Data
-    };
+async fn declare(session: &Session, key: String) -> Result<Publisher<'static>> {
     session
         .declare_publisher(key)
         .encoding(Encoding::APPLICATION_PROTOBUF)
         .congestion_control(CongestionControl::Block)
-        .priority(prio)
+        .priority(Priority::Data)
         .await
         .map_err(|e| anyhow!("declaring publisher: {e}"))
 }
 
 async fn publishers(session: &Session, id: &str) -> Result<JobPublishers> {
     Ok(JobPublishers {
-        status: declare(session, status_key(id), true).await?,
-        state: declare(session, state_key(id), false).await?,
-        energy: declare(session, energy_key(id), false).await?,
+        status: declare(session, status_key(id)).await?,
+        state: declare(session, state_key(id)).await?,
+        energy: declare(session, energy_key(id)).await?,
     })
 }
 
