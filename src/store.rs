@@ -5,11 +5,12 @@
 //! transaction with its result, so a crash (SIGKILL) leaves every finished result whole and every
 //! unfinished job marked `queued` or `running`; [`Store::recover`] turns the latter back into
 //! `queued` at start-up. Series are stored as little-endian f64 blobs: what is read back is what
-//! was computed, bit for bit.
+//! was computed, bit for bit. Figures (SVG text) are kept as a JSON list in `figures_json`; a
+//! database made before that column existed gets it (empty lists) when it is opened.
 
 use rusqlite::{Connection, OptionalExtension, params};
 use serde_json::{Map, Value};
-use signorini_core::job::Table;
+use signorini_core::job::{Figure, Table};
 use std::path::Path;
 use std::sync::Mutex;
 use thiserror::Error;
@@ -122,9 +123,18 @@ pub struct StoredResult {
     pub values: Vec<f64>,
     /// Extra tables (analyses).
     pub tables: Vec<Table>,
+    /// Figures (SVG text), in the order the job made them.
+    pub figures: Vec<Figure>,
 }
 
 impl StoredResult {
+    /// The figure called `name` (`NAME` or `NAME.svg`), if the job made one.
+    pub fn figure(&self, name: &str) -> Option<&Figure> {
+        let stem = name.strip_suffix(".svg").unwrap_or(name);
+        let by = |n: &str| self.figures.iter().find(|f| f.name == n);
+        by(name).or_else(|| by(stem))
+    }
+
     /// The values of column `c`.
     pub fn column(&self, c: usize) -> Vec<f64> {
         let n = self.columns.len();
@@ -165,9 +175,26 @@ CREATE TABLE IF NOT EXISTS results (
     steps BLOB NOT NULL,
     t BLOB NOT NULL,
     vals BLOB NOT NULL,
-    tables_json TEXT NOT NULL
+    tables_json TEXT NOT NULL,
+    figures_json TEXT NOT NULL DEFAULT '[]'
 );
 ";
+
+/// Brings a database made by an older schema up to [`SCHEMA`]: `results.figures_json` came later.
+fn migrate(conn: &Connection) -> Result<(), StoreError> {
+    let has_figures = conn
+        .prepare("SELECT name FROM pragma_table_info('results')")?
+        .query_map([], |r| r.get::<_, String>(0))?
+        .collect::<Result<Vec<_>, _>>()?
+        .iter()
+        .any(|c| c == "figures_json");
+    if !has_figures {
+        conn.execute_batch(
+            "ALTER TABLE results ADD COLUMN figures_json TEXT NOT NULL DEFAULT '[]'",
+        )?;
+    }
+    Ok(())
+}
 
 fn f64s_to_blob(v: &[f64]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
@@ -193,6 +220,12 @@ struct TableJson {
     name: String,
     columns: Vec<String>,
     rows: Vec<Vec<f64>>,
+}
+
+#[derive(serde::Serialize, serde::Deserialize)]
+struct FigureJson {
+    name: String,
+    svg: String,
 }
 
 const JOB_COLUMNS: &str = "id, name, spec_json, state, created_ms, started_ms, finished_ms, error_field, error_reason, done, total, t";
@@ -239,6 +272,7 @@ impl Store {
         conn.pragma_update(None, "synchronous", "NORMAL")?;
         conn.busy_timeout(std::time::Duration::from_secs(5))?;
         conn.execute_batch(SCHEMA)?;
+        migrate(&conn)?;
         Ok(Store {
             conn: Mutex::new(conn),
         })
@@ -282,9 +316,17 @@ impl Store {
                     rows: t.rows.clone(),
                 })
                 .collect();
+            let figures: Vec<FigureJson> = r
+                .figures
+                .iter()
+                .map(|f| FigureJson {
+                    name: f.name.clone(),
+                    svg: f.svg.clone(),
+                })
+                .collect();
             tx.execute(
-                "INSERT OR REPLACE INTO results (id, summary_json, columns_json, steps, t, vals, tables_json)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+                "INSERT OR REPLACE INTO results (id, summary_json, columns_json, steps, t, vals, tables_json, figures_json)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
                 params![
                     row.id,
                     serde_json::to_string(&r.summary).unwrap_or_else(|_| "{}".into()),
@@ -293,6 +335,7 @@ impl Store {
                     f64s_to_blob(&r.t),
                     f64s_to_blob(&r.values),
                     serde_json::to_string(&tables).unwrap_or_else(|_| "[]".into()),
+                    serde_json::to_string(&figures).unwrap_or_else(|_| "[]".into()),
                 ],
             )?;
         }
@@ -382,7 +425,7 @@ impl Store {
         let conn = self.conn();
         let raw = conn
             .query_row(
-                "SELECT summary_json, columns_json, steps, t, vals, tables_json FROM results WHERE id = ?1",
+                "SELECT summary_json, columns_json, steps, t, vals, tables_json, figures_json FROM results WHERE id = ?1",
                 [id],
                 |r| {
                     Ok((
@@ -392,11 +435,12 @@ impl Store {
                         r.get::<_, Vec<u8>>(3)?,
                         r.get::<_, Vec<u8>>(4)?,
                         r.get::<_, String>(5)?,
+                        r.get::<_, String>(6)?,
                     ))
                 },
             )
             .optional()?;
-        let Some((summary, columns, steps, t, vals, tables)) = raw else {
+        let Some((summary, columns, steps, t, vals, tables, figures)) = raw else {
             return Ok(None);
         };
         let corrupt = |what| StoreError::Corrupt {
@@ -409,6 +453,8 @@ impl Store {
             serde_json::from_str(&columns).map_err(|_| corrupt("columns"))?;
         let tables: Vec<TableJson> =
             serde_json::from_str(&tables).map_err(|_| corrupt("tables"))?;
+        let figures: Vec<FigureJson> =
+            serde_json::from_str(&figures).map_err(|_| corrupt("figures"))?;
         let steps: Vec<u64> = blob_to_8(&steps)
             .ok_or_else(|| corrupt("steps"))?
             .map(u64::from_le_bytes)
@@ -436,6 +482,13 @@ impl Store {
                     name: t.name,
                     columns: t.columns,
                     rows: t.rows,
+                })
+                .collect(),
+            figures: figures
+                .into_iter()
+                .map(|f| Figure {
+                    name: f.name,
+                    svg: f.svg,
                 })
                 .collect(),
         }))
@@ -503,6 +556,155 @@ mod tests {
             vec!["b"]
         );
         assert_eq!(s.get("a")?.map(|r| r.state), Some(JobState::Succeeded));
+        Ok(())
+    }
+
+    fn tmp() -> Result<tempfile::TempDir, StoreError> {
+        tempfile::tempdir().map_err(|_| StoreError::Corrupt {
+            what: "tmp",
+            id: String::new(),
+        })
+    }
+
+    fn missing(id: &str) -> StoreError {
+        StoreError::Corrupt {
+            what: "missing",
+            id: id.into(),
+        }
+    }
+
+    #[test]
+    fn figures_round_trip_and_are_found_with_or_without_svg() -> Result<(), StoreError> {
+        let dir = tmp()?;
+        let s = Store::open(&dir.path().join("s.db"))?;
+        assert!(s.insert(&row("f"))?);
+        let figures = vec![
+            Figure {
+                name: "backbone".into(),
+                svg: "<svg xmlns=\"http://www.w3.org/2000/svg\">ω ≤ \"1\"</svg>\n".into(),
+            },
+            Figure {
+                name: "orbit_gap_0".into(),
+                svg: "<svg/>".into(),
+            },
+        ];
+        let mut done = row("f");
+        done.state = JobState::Succeeded;
+        s.finish(
+            &done,
+            Some(&StoredResult {
+                figures: figures.clone(),
+                ..Default::default()
+            }),
+        )?;
+        let back = s.result("f")?.ok_or_else(|| missing("f"))?;
+        assert_eq!(back.figures, figures);
+        assert_eq!(back.figure("backbone"), Some(&figures[0]));
+        assert_eq!(back.figure("orbit_gap_0.svg"), Some(&figures[1]));
+        assert_eq!(back.figure("../backbone"), None);
+        assert_eq!(back.figure("nope"), None);
+        Ok(())
+    }
+
+    #[test]
+    fn corrupt_figures_are_reported_as_corrupt() -> Result<(), StoreError> {
+        let dir = tmp()?;
+        let s = Store::open(&dir.path().join("s.db"))?;
+        assert!(s.insert(&row("c"))?);
+        let mut done = row("c");
+        done.state = JobState::Succeeded;
+        s.finish(&done, Some(&StoredResult::default()))?;
+        s.conn().execute(
+            "UPDATE results SET figures_json = '{not json' WHERE id = 'c'",
+            [],
+        )?;
+        match s.result("c") {
+            Err(StoreError::Corrupt { what, id }) => {
+                assert_eq!((what, id.as_str()), ("figures", "c"));
+            }
+            other => panic!("expected a corrupt-figures error, got {other:?}"),
+        }
+        Ok(())
+    }
+
+    /// A database written before figures were stored (the exact `results` table of that schema)
+    /// opens, keeps its result, reads back with no figures, and takes figures afterwards.
+    #[test]
+    fn a_database_of_the_schema_without_figures_is_migrated() -> Result<(), StoreError> {
+        let dir = tmp()?;
+        let path = dir.path().join("old.db");
+        {
+            let conn = Connection::open(&path)?;
+            conn.execute_batch(
+                "
+CREATE TABLE IF NOT EXISTS jobs (
+    seq INTEGER PRIMARY KEY AUTOINCREMENT,
+    id TEXT NOT NULL UNIQUE,
+    name TEXT,
+    spec_json TEXT NOT NULL,
+    state TEXT NOT NULL,
+    created_ms INTEGER NOT NULL,
+    started_ms INTEGER NOT NULL DEFAULT 0,
+    finished_ms INTEGER NOT NULL DEFAULT 0,
+    error_field TEXT,
+    error_reason TEXT,
+    done INTEGER NOT NULL DEFAULT 0,
+    total INTEGER NOT NULL DEFAULT 0,
+    t REAL NOT NULL DEFAULT 0
+);
+CREATE TABLE IF NOT EXISTS results (
+    id TEXT PRIMARY KEY REFERENCES jobs(id),
+    summary_json TEXT NOT NULL,
+    columns_json TEXT NOT NULL,
+    steps BLOB NOT NULL,
+    t BLOB NOT NULL,
+    vals BLOB NOT NULL,
+    tables_json TEXT NOT NULL
+);
+INSERT INTO jobs (id, spec_json, state, created_ms, finished_ms, done, total, t)
+    VALUES ('old', '{}', 'succeeded', 1, 2, 1, 1, 0.5);
+",
+            )?;
+            conn.execute(
+                "INSERT INTO results (id, summary_json, columns_json, steps, t, vals, tables_json)
+                 VALUES ('old', '{\"steps\":1}', '[\"x\"]', ?1, ?2, ?3, '[{\"name\":\"backbone\",\"columns\":[\"m\"],\"rows\":[[1.0]]}]')",
+                params![
+                    u64s_to_blob(&[0, 1]),
+                    f64s_to_blob(&[0.0, 0.5]),
+                    f64s_to_blob(&[1.5, 2.5])
+                ],
+            )?;
+        }
+        for _ in 0..2 {
+            // Twice: the second open finds the column already there.
+            let s = Store::open(&path)?;
+            let back = s.result("old")?.ok_or_else(|| missing("old"))?;
+            assert_eq!(back.summary.get("steps"), Some(&serde_json::json!(1)));
+            assert_eq!(back.steps, vec![0, 1]);
+            assert_eq!(back.column(0), vec![1.5, 2.5]);
+            assert_eq!(back.tables.len(), 1);
+            assert!(back.figures.is_empty());
+            assert_eq!(s.get("old")?.map(|r| r.state), Some(JobState::Succeeded));
+        }
+        let s = Store::open(&path)?;
+        assert!(s.insert(&row("new"))?);
+        let mut done = row("new");
+        done.state = JobState::Succeeded;
+        let fig = Figure {
+            name: "energy".into(),
+            svg: "<svg/>".into(),
+        };
+        s.finish(
+            &done,
+            Some(&StoredResult {
+                figures: vec![fig.clone()],
+                ..Default::default()
+            }),
+        )?;
+        assert_eq!(
+            s.result("new")?.ok_or_else(|| missing("new"))?.figures,
+            vec![fig]
+        );
         Ok(())
     }
 }

@@ -544,6 +544,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
                 t: std::mem::take(&mut observer.rec_t),
                 values: std::mem::take(&mut observer.rec_values),
                 tables: output.tables,
+                figures: output.figures,
             });
         }
         Err(RunError::Stopped { .. }) if !live.cancel.load(Ordering::Acquire) => {

@@ -1273,6 +1273,7 @@ pub fn result_to_proto(view: &JobView, r: &StoredResult) -> pb::JobResult {
         t,
         values: _,
         tables,
+        figures,
     } = r;
     pb::JobResult {
         id: view.id.clone(),
@@ -1301,6 +1302,13 @@ pub fn result_to_proto(view: &JobView, r: &StoredResult) -> pb::JobResult {
                         values: row.clone(),
                     })
                     .collect(),
+            })
+            .collect(),
+        figures: figures
+            .iter()
+            .map(|f| pb::Figure {
+                name: f.name.clone(),
+                svg: f.svg.clone(),
             })
             .collect(),
     }
