@@ -36,6 +36,14 @@ pub enum ApiError {
         /// Its state.
         state: &'static str,
     },
+    /// The job succeeded but made no figure of this name.
+    #[error("job {id} has no figure {name:?}")]
+    NoFigure {
+        /// The job.
+        id: String,
+        /// The name asked for.
+        name: String,
+    },
     /// Missing or wrong bearer token on a mutating call.
     #[error("missing or invalid bearer token")]
     Unauthenticated,
@@ -55,6 +63,7 @@ impl ApiError {
             ApiError::NotFound { .. }
             | ApiError::AlreadyExists { .. }
             | ApiError::NoResult { .. } => ("id".into(), self.to_string()),
+            ApiError::NoFigure { .. } => ("figure".into(), self.to_string()),
             ApiError::Unauthenticated => ("authorization".into(), self.to_string()),
             ApiError::QueueFull { .. } => ("queue".into(), self.to_string()),
             ApiError::Unavailable | ApiError::Internal(_) => (String::new(), self.to_string()),

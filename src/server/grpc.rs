@@ -38,7 +38,7 @@ impl SimulationService {
 pub fn to_status(e: ApiError) -> Status {
     let code = match &e {
         ApiError::Invalid(_) => Code::InvalidArgument,
-        ApiError::NotFound { .. } => Code::NotFound,
+        ApiError::NotFound { .. } | ApiError::NoFigure { .. } => Code::NotFound,
         ApiError::AlreadyExists { .. } => Code::AlreadyExists,
         ApiError::QueueFull { .. } => Code::ResourceExhausted,
         ApiError::NoResult { .. } => Code::FailedPrecondition,

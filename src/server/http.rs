@@ -25,7 +25,7 @@ impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         let code = match &self {
             ApiError::Invalid(_) => StatusCode::BAD_REQUEST,
-            ApiError::NotFound { .. } => StatusCode::NOT_FOUND,
+            ApiError::NotFound { .. } | ApiError::NoFigure { .. } => StatusCode::NOT_FOUND,
             ApiError::AlreadyExists { .. } | ApiError::NoResult { .. } => StatusCode::CONFLICT,
             ApiError::QueueFull { .. } => StatusCode::TOO_MANY_REQUESTS,
             ApiError::Unauthenticated => StatusCode::UNAUTHORIZED,
@@ -57,6 +57,7 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/jobs", get(list_jobs).post(submit_job))
         .route("/v1/jobs/{id}", get(get_job).delete(cancel_job))
         .route("/v1/jobs/{id}/result", get(get_result))
+        .route("/v1/jobs/{id}/figures/{name}", get(get_figure))
         .route("/v1/jobs/{id}/events", get(job_events))
         .route("/v1/capabilities", get(capabilities))
         .route("/healthz", get(healthz))
@@ -126,7 +127,8 @@ async fn cancel_job(
     Ok(Json(status_json(&state.cancel_and_wait(&id).await?)))
 }
 
-/// `{"id", "summary", "columns", "steps": {"step": […], "t": […], column: […]}, "tables"}`.
+/// `{"id", "summary", "columns", "steps": {"step": […], "t": […], column: […]}, "tables",
+/// "figures": [name…]}` — figure names only; `GET /v1/jobs/{id}/figures/{name}` serves the SVG.
 pub fn result_json(view: &JobView, r: &StoredResult) -> Value {
     let mut steps = Map::new();
     steps.insert("step".into(), json!(r.steps));
@@ -143,6 +145,7 @@ pub fn result_json(view: &JobView, r: &StoredResult) -> Value {
         "columns": columns,
         "steps": steps,
         "tables": r.tables.iter().map(|t| json!({ "name": t.name, "columns": t.columns, "rows": t.rows })).collect::<Vec<_>>(),
+        "figures": r.figures.iter().map(|f| f.name.as_str()).collect::<Vec<_>>(),
     })
 }
 
@@ -155,6 +158,28 @@ async fn get_result(
         .await
         .map_err(|e| ApiError::Internal(e.to_string()))??;
     Ok(Json(result_json(&view, &result)))
+}
+
+/// One figure of a succeeded job as `image/svg+xml`; `name` may carry the `.svg` suffix. The name
+/// is only compared with the stored names.
+async fn get_figure(
+    State(state): State<AppState>,
+    Path((id, name)): Path<(String, String)>,
+) -> Result<Response, ApiError> {
+    let engine = state.engine.clone();
+    let job = id.clone();
+    let (_, result) = tokio::task::spawn_blocking(move || engine.result(&job))
+        .await
+        .map_err(|e| ApiError::Internal(e.to_string()))??;
+    let figure = result.figure(&name).ok_or_else(|| ApiError::NoFigure {
+        id,
+        name: name.clone(),
+    })?;
+    Ok((
+        [(header::CONTENT_TYPE, "image/svg+xml")],
+        figure.svg.clone(),
+    )
+        .into_response())
 }
 
 async fn capabilities() -> Json<Value> {
