@@ -1,7 +1,7 @@
 //! Client commands: `submit`, `status`, `watch`, `result`, `cancel`, `capabilities`.
 //! They talk gRPC to a running `signorini serve`; `watch` subscribes to the job's zenoh keys.
 
-use crate::output::{csv_header, write_atomic, write_summary, write_table};
+use crate::output::{csv_header, write_atomic, write_figure, write_summary, write_table};
 use crate::proto::v1 as pb;
 use crate::proto::v1::simulation_client::SimulationClient;
 use crate::server::convert::state_from_proto;
@@ -12,7 +12,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use prost::Message;
 use serde_json::{Value, json};
-use signorini_core::job::Table;
+use signorini_core::job::{Figure, Table};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -60,7 +60,8 @@ pub struct IdArgs {
 pub struct ResultArgs {
     /// Job id.
     pub id: String,
-    /// Write steps.csv, summary.json (and tables) to this directory, as `signorini run` does.
+    /// Write steps.csv, summary.json, tables (NAME.csv) and figures (NAME.svg) to this directory, as
+    /// `signorini run` does.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
     #[command(flatten)]
@@ -245,7 +246,10 @@ pub fn result(args: ResultArgs) -> Result<()> {
         }
         csv.push('\n');
     }
-    write_atomic(&dir.join("steps.csv"), &csv)?;
+    // An analysis records no steps: like `run`, it leaves no steps.csv at all.
+    if !(r.columns.is_empty() && r.step.is_empty()) {
+        write_atomic(&dir.join("steps.csv"), &csv)?;
+    }
     for t in &r.tables {
         let table = Table {
             name: t.name.clone(),
@@ -254,9 +258,34 @@ pub fn result(args: ResultArgs) -> Result<()> {
         };
         write_table(&dir, &table)?;
     }
+    // NAME.svg per figure, as `signorini run` writes them. The names come from the server: only
+    // plain file stems are written, so no name can reach outside `dir`.
+    for f in &r.figures {
+        if !is_file_stem(&f.name) {
+            return Err(anyhow!(
+                "figure name {:?} from the server is not a file stem",
+                f.name
+            ));
+        }
+        write_figure(
+            &dir,
+            &Figure {
+                name: f.name.clone(),
+                svg: f.svg.clone(),
+            },
+        )?;
+    }
     write_summary(&dir, &summary)?;
     println!("results of {} in {}", args.id, dir.display());
     Ok(())
+}
+
+/// A name the core gives a table or figure: `[A-Za-z0-9_-]+`, so `NAME.svg` stays in its directory.
+fn is_file_stem(name: &str) -> bool {
+    !name.is_empty()
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
 }
 
 fn frame_json(kind: &str, f: &pb::StepFrame) -> Value {
