@@ -1,11 +1,19 @@
 //! (1) and (2): a job submitted over gRPC (typed spec) and over HTTP (JSON) streams every step on
 //! `signorini/v1/jobs/{id}/energy` to a separate zenoh session, and the streamed values equal the
-//! stored result (GetResult / GET …/result) bit for bit.
+//! stored result (GetResult / GET …/result) bit for bit. A modal analysis's stored figures (gRPC
+//! GetResult, HTTP `…/figures/{name}`, `signorini result --out`) equal the files `signorini run`
+//! writes for the same spec, byte for byte.
 
 mod common;
 
-use common::{Options, TestServer, ball_json, ball_typed, collect_until_last, zenoh_barrier};
+use common::{
+    Options, TestServer, ball_json, ball_typed, collect_until_last, submit_json, wait_terminal,
+    zenoh_barrier,
+};
 use signorini::proto::v1 as pb;
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::Command;
 
 const STEPS: u64 = 3000;
 
@@ -160,4 +168,182 @@ async fn http_job_streams_every_step_over_zenoh_bit_for_bit() {
     assert!(String::from_utf8_lossy(&page).contains("EventSource"));
     drop(sub);
     session.close().await.expect("close zenoh");
+}
+
+/// A nonsmooth modal analysis small enough for a debug build (≈ 20 ms): a backbone figure and one
+/// orbit figure per gap.
+const MODES_JSON: &str = r#"{"name":"modes","analysis":{"kind":"nonsmooth_modes","cells":10,"gaps":[1e-3,0.0,-1e-3],"max_period_steps":40,"phases":1,"stability_periods":10}}"#;
+
+/// Every file of `dir` but `summary.json` (whose `wall_s` differs run to run), by name.
+fn files_but_summary(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    let mut files = BTreeMap::new();
+    for e in std::fs::read_dir(dir).expect("reading an output dir") {
+        let path = e.expect("dir entry").path();
+        let name = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .expect("UTF-8 file name")
+            .to_string();
+        if name != "summary.json" {
+            files.insert(name, std::fs::read(&path).expect("reading an output file"));
+        }
+    }
+    assert!(dir.join("summary.json").is_file(), "{}", dir.display());
+    files
+}
+
+fn svgs(files: &BTreeMap<String, Vec<u8>>) -> BTreeMap<String, Vec<u8>> {
+    files
+        .iter()
+        .filter_map(|(n, b)| Some((n.strip_suffix(".svg")?.to_string(), b.clone())))
+        .collect()
+}
+
+fn signorini(args: &[&str]) {
+    let out = Command::new(env!("CARGO_BIN_EXE_signorini"))
+        .args(args)
+        .env_remove("SIGNORINI_SERVER")
+        .env_remove("SIGNORINI_TOKEN")
+        .env_remove("SIGNORINI_CONFIG")
+        .output()
+        .expect("running signorini");
+    assert!(
+        out.status.success(),
+        "signorini {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn modal_figures_over_grpc_http_and_result_out_equal_what_run_writes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let spec = dir.path().join("modes.json");
+    std::fs::write(&spec, MODES_JSON).expect("writing the spec");
+    let run_dir = dir.path().join("run");
+    let spec_arg = spec.display().to_string();
+    let run_arg = run_dir.display().to_string();
+    signorini(&["run", &spec_arg, "--out", &run_arg, "--quiet"]);
+    let ran = files_but_summary(&run_dir);
+    let ran_svgs = svgs(&ran);
+    assert!(
+        ran_svgs.contains_key("backbone") && ran_svgs.len() >= 2,
+        "run wrote {:?}",
+        ran.keys()
+    );
+
+    let server = TestServer::start(&dir.path().join("store.db"), &Options::default());
+    let mut client = server.grpc().await;
+    let id = "modes-1";
+    submit_json(&mut client, MODES_JSON.to_string(), Some(id))
+        .await
+        .expect("SubmitJob");
+    let fin = wait_terminal(&mut client, id).await;
+    assert_eq!(fin.state, pb::JobState::Succeeded as i32, "{fin:?}");
+
+    // (a) gRPC GetResult: the same figures, the same text.
+    let result = client
+        .get_result(pb::GetResultRequest { id: id.into() })
+        .await
+        .expect("GetResult")
+        .into_inner();
+    let grpc_svgs: BTreeMap<String, Vec<u8>> = result
+        .figures
+        .iter()
+        .map(|f| (f.name.clone(), f.svg.clone().into_bytes()))
+        .collect();
+    assert_eq!(grpc_svgs.len(), result.figures.len(), "figure names repeat");
+    assert_eq!(
+        grpc_svgs.keys().collect::<Vec<_>>(),
+        ran_svgs.keys().collect::<Vec<_>>()
+    );
+    assert!(
+        grpc_svgs == ran_svgs,
+        "gRPC SVG text differs from run's files"
+    );
+
+    // (b) HTTP: names in the result JSON, each SVG under …/figures/{name}, with or without .svg.
+    let (code, body) = server
+        .http("GET", &format!("/v1/jobs/{id}/result"), None, None)
+        .await;
+    assert_eq!(code, 200, "{body}");
+    let mut names: Vec<String> =
+        serde_json::from_value(body["figures"].clone()).expect("figures: a list of names");
+    names.sort();
+    assert_eq!(names, ran_svgs.keys().cloned().collect::<Vec<_>>());
+    for (name, svg) in &ran_svgs {
+        for path in [
+            format!("/v1/jobs/{id}/figures/{name}"),
+            format!("/v1/jobs/{id}/figures/{name}.svg"),
+        ] {
+            let (code, ctype, bytes) = server.http_get_typed(&path).await;
+            assert_eq!(code, 200, "{path}: {}", String::from_utf8_lossy(&bytes));
+            assert_eq!(ctype, "image/svg+xml", "{path}");
+            assert!(&bytes == svg, "{path}: SVG differs from run's file");
+        }
+    }
+    for (path, want, field) in [
+        (
+            format!("/v1/jobs/{id}/figures/no_such_figure"),
+            404,
+            "figure",
+        ),
+        (
+            format!("/v1/jobs/{id}/figures/..%2Fsummary.json"),
+            404,
+            "figure",
+        ),
+        (format!("/v1/jobs/{id}/figures/backbone.csv"), 404, "figure"),
+        (
+            "/v1/jobs/no-such-job/figures/backbone".to_string(),
+            404,
+            "id",
+        ),
+    ] {
+        let (code, body) = server.http("GET", &path, None, None).await;
+        assert_eq!(code, want, "{path}: {body}");
+        assert_eq!(body["error"]["field"], field, "{path}: {body}");
+        assert!(body["error"]["reason"].is_string(), "{path}: {body}");
+    }
+    // A job without a result yet: the same 409 as …/result.
+    let long = submit_json(
+        &mut client,
+        ball_json(1e-5, 4_000_000, 1000),
+        Some("long-1"),
+    )
+    .await
+    .expect("submitting a long job");
+    let (code, body) = server
+        .http(
+            "GET",
+            &format!("/v1/jobs/{long}/figures/backbone"),
+            None,
+            None,
+        )
+        .await;
+    assert_eq!(code, 409, "{body}");
+    assert_eq!(body["error"]["field"], "id", "{body}");
+    client
+        .cancel_job(pb::CancelJobRequest { id: long })
+        .await
+        .expect("CancelJob");
+
+    // (c) `signorini result ID --out DIR2` writes the files `run` wrote.
+    let fetched_dir = dir.path().join("fetched");
+    let fetched_arg = fetched_dir.display().to_string();
+    signorini(&[
+        "result",
+        id,
+        "--out",
+        &fetched_arg,
+        "--server",
+        &server.grpc_url,
+    ]);
+    let fetched = files_but_summary(&fetched_dir);
+    assert_eq!(
+        fetched.keys().collect::<Vec<_>>(),
+        ran.keys().collect::<Vec<_>>()
+    );
+    for (name, bytes) in &ran {
+        assert!(&fetched[name] == bytes, "{name} differs from run's");
+    }
 }

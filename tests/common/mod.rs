@@ -175,6 +175,31 @@ impl TestServer {
         (status, bytes.to_vec())
     }
 
+    /// `GET path`: status, `content-type` and raw body.
+    pub async fn http_get_typed(&self, path: &str) -> (u16, String, Vec<u8>) {
+        let client: Client<_, Full<Bytes>> = Client::builder(TokioExecutor::new()).build_http();
+        let req = hyper::Request::builder()
+            .method("GET")
+            .uri(format!("http://{}{path}", self.http))
+            .body(Full::new(Bytes::new()))
+            .expect("request");
+        let resp = client.request(req).await.expect("HTTP request");
+        let status = resp.status().as_u16();
+        let ctype = resp
+            .headers()
+            .get("content-type")
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or_default()
+            .to_string();
+        let bytes = resp
+            .into_body()
+            .collect()
+            .await
+            .expect("HTTP body")
+            .to_bytes();
+        (status, ctype, bytes.to_vec())
+    }
+
     /// A zenoh peer connected to the server's (loopback, multicast scouting off).
     pub async fn zenoh_session(&self) -> zenoh::Session {
         signorini::stream::open_session(&signorini::stream::ZenohOptions {
