@@ -18,6 +18,7 @@ use crate::spec::{
     IntegratorSpec, JobSpec, LinearSpec, ModelSpec, MoreauJeanSpec, SpecError, TimeSpec,
 };
 use crate::spec::{NsAlphaSpec, PositionContactSpec};
+use crate::trace::EnergyTrace;
 use serde_json::{Map, Value, json};
 use thiserror::Error;
 
@@ -236,13 +237,17 @@ impl Job {
     }
 }
 
-/// Runs a validated job to the end (or until the observer stops it).
+/// Runs a validated job to the end (or until the observer stops it). A run that records steps
+/// also returns the figures `energy` and `residuals` of its records ([`EnergyTrace`]).
 pub fn run(job: &Job, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
-    match &job.kind {
-        JobKind::Linear(j) => run_linear_job(job, j, observer),
-        JobKind::Soi2(j) => run_soi2_job(job, j, observer),
-        JobKind::Wave(j) => j.run(header(job), observer),
-    }
+    let mut trace = EnergyTrace::new(observer);
+    let mut output = match &job.kind {
+        JobKind::Linear(j) => run_linear_job(job, j, &mut trace),
+        JobKind::Soi2(j) => run_soi2_job(job, j, &mut trace),
+        JobKind::Wave(j) => j.run(header(job), &mut trace),
+    }?;
+    output.figures.extend(trace.figures());
+    Ok(output)
 }
 
 fn run_soi2_job(

@@ -1,6 +1,7 @@
 //! Forced response (§7) and the modal/forced jobs through `signorini_core::job::run`: resonance
 //! peaks, energy balance with forcing and damping, the pinned `backbone` columns, well-formed SVG
-//! figures, progress per task and cancellation.
+//! figures, progress per task and cancellation; and the energy figures every time-integration
+//! job returns.
 
 use signorini_core::job::{Job, RunError, run};
 use signorini_core::modal::forced::{ForcedResponseJob, ForcedResponseSpec, respond};
@@ -310,4 +311,69 @@ fn forced_response_job_runs_every_task_and_stops_on_break() {
     // ends with Stopped and the observer is not called after its Break.
     assert!(matches!(run(&job(spec), &mut obs), Err(RunError::Stopped { step }) if step <= 8));
     assert_eq!(obs.calls.len(), 2);
+}
+
+/// Every time-integration job (linear schemes, SOI2, WFEM) returns `energy.svg` and
+/// `residuals.svg`, well-formed, with one curve and one legend entry per plotted column it has;
+/// an analysis returns neither.
+#[test]
+fn time_integration_jobs_return_energy_and_residual_figures() {
+    struct Nothing;
+    impl Observer for Nothing {
+        fn observe(&mut self, _: &StepRecord<'_>) -> ControlFlow<()> {
+            ControlFlow::Continue(())
+        }
+    }
+    let cases = [
+        (
+            include_str!("../../../examples/bouncing_ball.toml"),
+            &[
+                "energy",
+                "kinetic",
+                "strain",
+                "Σ work_ext",
+                "Σ work_contact",
+            ][..],
+            &["balance_residual"][..],
+        ),
+        (
+            include_str!("../../../examples/bar_ns_generalized_alpha.toml"),
+            &["algorithmic energy H", "Σ work_damping"][..],
+            &["balance_residual"][..],
+        ),
+        (
+            include_str!("../../../examples/slider_crank_hht.toml"),
+            &["potential", "Σ work_damping"][..],
+            &["position constraint g", "velocity constraint"][..],
+        ),
+        (
+            include_str!("../../../examples/wfem_dep_bar.toml"),
+            &["energy", "Σ work_ext"][..],
+            &["balance_residual"][..],
+        ),
+    ];
+    for (spec, energy_labels, residual_labels) in cases {
+        let out = run(&job(spec), &mut Nothing).expect("run");
+        let names: Vec<&str> = out.figures.iter().map(|f| f.name.as_str()).collect();
+        assert_eq!(names, ["energy", "residuals"], "{spec}");
+        for (f, labels) in out.figures.iter().zip([energy_labels, residual_labels]) {
+            let el = xml_elements(&f.svg);
+            let curves = el.iter().filter(|e| *e == "polyline").count();
+            assert!(curves >= labels.len(), "{}: {curves} curves", f.name);
+            for label in labels {
+                assert!(
+                    f.svg.contains(&format!(">{label}</text>")),
+                    "{}: {label}",
+                    f.name
+                );
+            }
+        }
+    }
+    let spec = include_str!("../../../examples/nonsmooth_modes.toml");
+    let out = run(&job(spec), &mut Nothing).expect("run");
+    assert!(
+        out.figures
+            .iter()
+            .all(|f| f.name != "energy" && f.name != "residuals")
+    );
 }

@@ -6,91 +6,9 @@ use super::forced::{Excitation, Response};
 use super::orbit::Orbit;
 use super::{BackbonePoint, main_asymptote};
 use crate::job::Figure;
+use crate::plot::{Axes, H, MB, ML, MR, MT, W, frame, header, polyline, vline, y_range};
 use crate::wfem::{WaveBar, WaveState, transport};
 use std::fmt::Write;
-
-const W: f64 = 720.0;
-const H: f64 = 480.0;
-const ML: f64 = 70.0;
-const MR: f64 = 20.0;
-const MT: f64 = 40.0;
-const MB: f64 = 50.0;
-
-struct Axes {
-    x: (f64, f64),
-    y: (f64, f64),
-}
-
-impl Axes {
-    fn px(&self, x: f64) -> f64 {
-        ML + (x - self.x.0) / (self.x.1 - self.x.0) * (W - ML - MR)
-    }
-    fn py(&self, y: f64) -> f64 {
-        H - MB - (y - self.y.0) / (self.y.1 - self.y.0) * (H - MT - MB)
-    }
-}
-
-fn header(s: &mut String, title: &str) {
-    let _ = write!(
-        s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" font-family="sans-serif" font-size="12"><rect width="100%" height="100%" fill="white"/><text x="{}" y="22" text-anchor="middle" font-size="15">{title}</text>"#,
-        W / 2.0
-    );
-}
-
-fn frame(s: &mut String, ax: &Axes, xlabel: &str, ylabel: &str, log_y: bool) {
-    let _ = write!(
-        s,
-        r#"<rect x="{ML}" y="{MT}" width="{}" height="{}" fill="none" stroke="black"/>"#,
-        W - ML - MR,
-        H - MT - MB
-    );
-    for i in 0..=5 {
-        let x = ax.x.0 + (ax.x.1 - ax.x.0) * i as f64 / 5.0;
-        let _ = write!(
-            s,
-            r#"<text x="{:.1}" y="{}" text-anchor="middle">{:.2}</text>"#,
-            ax.px(x),
-            H - MB + 16.0,
-            x
-        );
-        let y = ax.y.0 + (ax.y.1 - ax.y.0) * i as f64 / 5.0;
-        let label = if log_y {
-            format!("1e{y:.1}")
-        } else {
-            format!("{y:.3}")
-        };
-        let _ = write!(
-            s,
-            r#"<text x="{}" y="{:.1}" text-anchor="end">{label}</text>"#,
-            ML - 4.0,
-            ax.py(y) + 4.0
-        );
-    }
-    let _ = write!(
-        s,
-        r#"<text x="{}" y="{}" text-anchor="middle">{xlabel}</text>"#,
-        (ML + W - MR) / 2.0,
-        H - 12.0
-    );
-    let _ = write!(
-        s,
-        r#"<text x="16" y="{}" text-anchor="middle" transform="rotate(-90 16 {})">{ylabel}</text>"#,
-        (MT + H - MB) / 2.0,
-        (MT + H - MB) / 2.0
-    );
-}
-
-fn vline(s: &mut String, ax: &Axes, x: f64, color: &str, dash: &str) {
-    if x > ax.x.0 && x < ax.x.1 {
-        let _ = write!(
-            s,
-            r#"<line x1="{0:.1}" x2="{0:.1}" y1="{MT}" y2="{1}" stroke="{color}" stroke-dasharray="{dash}"/>"#,
-            ax.px(x),
-            H - MB
-        );
-    }
-}
 
 fn gap_color(g: f64) -> &'static str {
     if g > 0.0 {
@@ -183,22 +101,6 @@ fn legend_and_lines(s: &mut String, ax: &Axes) {
             ML + 22.0,
             y
         );
-    }
-}
-
-fn y_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for v in values.filter(|v| v.is_finite()) {
-        lo = lo.min(v);
-        hi = hi.max(v);
-    }
-    if !lo.is_finite() {
-        return (-1.0, 1.0);
-    }
-    if hi - lo < 1e-3 {
-        (lo - 0.5, hi + 0.5)
-    } else {
-        (lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo))
     }
 }
 
@@ -364,21 +266,15 @@ pub fn forced_figure(
     dampings.dedup();
     for (i, g) in dampings.iter().enumerate() {
         let color = palette[i % palette.len()];
-        let pts: Vec<String> = results
-            .iter()
-            .filter(|r| r.damping == *g && r.mean_energy > 0.0)
-            .map(|r| {
-                format!(
-                    "{:.1},{:.1}",
-                    ax.px(r.omega_over_omega1),
-                    ax.py((r.mean_energy / e_lin).log10())
-                )
-            })
-            .collect();
-        let _ = write!(
-            s,
-            r#"<polyline points="{}" fill="none" stroke="{color}" stroke-width="1.6"/>"#,
-            pts.join(" ")
+        polyline(
+            &mut s,
+            &ax,
+            results
+                .iter()
+                .filter(|r| r.damping == *g && r.mean_energy > 0.0)
+                .map(|r| (r.omega_over_omega1, (r.mean_energy / e_lin).log10())),
+            color,
+            "",
         );
         let y = MT + 14.0 + 15.0 * (6 + i) as f64;
         let _ = write!(

@@ -1,0 +1,421 @@
+//! A run's energy terms as pictures. [`EnergyTrace`] passes every record on to the caller's
+//! observer and keeps a bounded envelope of the columns worth looking at; at the end it draws
+//! `energy.svg` (the energies and the cumulative works against t, DESIGN §5) and
+//! `residuals.svg` (log₁₀ of the balance residual and of the constraint residuals: the checks
+//! that must sit at round-off).
+//!
+//! The envelope keeps, for each bucket of consecutive records, the smallest and the largest
+//! value with their times. When [`MAX_BUCKETS`] are full, neighbours merge pairwise and the
+//! bucket width doubles: memory and figure size stay bounded for any number of steps, and a
+//! one-step spike (an impact, a residual jump) is never decimated away.
+
+use crate::job::Figure;
+use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::plot::{Axes, frame, header, legend, linear_range, polyline, with_legend_room, y_range};
+use std::ops::ControlFlow;
+
+/// Buckets kept per column before neighbours merge (so between half this and this many).
+pub const MAX_BUCKETS: usize = 400;
+
+/// A column worth plotting: name, legend label, colour, dash pattern.
+struct Pick {
+    column: &'static str,
+    label: &'static str,
+    color: &'static str,
+    dash: &'static str,
+}
+
+const fn pick(
+    column: &'static str,
+    label: &'static str,
+    color: &'static str,
+    dash: &'static str,
+) -> Pick {
+    Pick {
+        column,
+        label,
+        color,
+        dash,
+    }
+}
+
+/// `energy.svg`: the energies of the run and the works done on it so far.
+const ENERGIES: [Pick; 8] = [
+    pick("energy", "energy", "black", ""),
+    pick(
+        "algorithmic_energy",
+        "algorithmic energy H",
+        "#7f7f7f",
+        "6 3",
+    ),
+    pick("kinetic", "kinetic", "#1f77b4", ""),
+    pick("strain", "strain", "#ff7f0e", ""),
+    pick("potential", "potential", "#ff7f0e", ""),
+    pick("work_ext_total", "Σ work_ext", "#2ca02c", "4 2"),
+    pick("work_damping_total", "Σ work_damping", "#d62728", "4 2"),
+    pick("work_contact_total", "Σ work_contact", "#9467bd", "4 2"),
+];
+
+/// `residuals.svg`: what must stay at round-off (or at the Newton tolerance).
+const RESIDUALS: [Pick; 4] = [
+    pick("balance_residual", "balance_residual", "black", ""),
+    pick("position_residual", "position constraint g", "#1f77b4", ""),
+    pick("velocity_residual", "velocity constraint", "#ff7f0e", ""),
+    pick(
+        "nonholonomic_residual",
+        "nonholonomic constraint",
+        "#2ca02c",
+        "",
+    ),
+];
+
+/// Smallest and largest value of a bucket, each with its time (NaN until a finite value).
+#[derive(Debug, Clone, Copy)]
+struct Extremes {
+    lo: (f64, f64),
+    hi: (f64, f64),
+}
+
+impl Extremes {
+    fn of(t: f64, v: f64) -> Self {
+        let v = if v.is_finite() { v } else { f64::NAN };
+        Self {
+            lo: (t, v),
+            hi: (t, v),
+        }
+    }
+
+    fn add(&mut self, t: f64, v: f64) {
+        self.merge(&Self::of(t, v));
+    }
+
+    /// Keeps the extremes of both (the earlier one on ties).
+    fn merge(&mut self, o: &Self) {
+        if o.lo.1 < self.lo.1 || self.lo.1.is_nan() {
+            self.lo = o.lo;
+        }
+        if o.hi.1 > self.hi.1 || self.hi.1.is_nan() {
+            self.hi = o.hi;
+        }
+    }
+
+    /// The bucket's two points in time order (one when they coincide).
+    fn points(&self) -> impl Iterator<Item = (f64, f64)> {
+        let (a, b) = if self.lo.0 <= self.hi.0 {
+            (self.lo, self.hi)
+        } else {
+            (self.hi, self.lo)
+        };
+        std::iter::once(a).chain((a != b).then_some(b))
+    }
+}
+
+/// One plotted column: where it is in the records, how it is drawn, its buckets.
+struct Envelope {
+    index: usize,
+    pick: &'static Pick,
+    log: bool,
+    buckets: Vec<Extremes>,
+}
+
+/// An [`Observer`] that forwards everything to `inner` and keeps the envelope of the energy and
+/// residual columns of the run (those of [`ENERGIES`] and [`RESIDUALS`] it has).
+pub struct EnergyTrace<'a> {
+    inner: &'a mut dyn Observer,
+    envelopes: Vec<Envelope>,
+    /// Records per bucket.
+    width: u64,
+    /// Records in the last bucket.
+    filled: u64,
+    t_range: (f64, f64),
+}
+
+impl<'a> EnergyTrace<'a> {
+    /// Wraps `inner`.
+    pub fn new(inner: &'a mut dyn Observer) -> Self {
+        Self {
+            inner,
+            envelopes: Vec::new(),
+            width: 1,
+            filled: 0,
+            t_range: (f64::INFINITY, f64::NEG_INFINITY),
+        }
+    }
+
+    fn record(&mut self, t: f64, values: &[f64]) {
+        if self.envelopes.is_empty() {
+            return;
+        }
+        self.t_range = (self.t_range.0.min(t), self.t_range.1.max(t));
+        let value = |e: &Envelope| {
+            let v = values.get(e.index).copied().unwrap_or(f64::NAN);
+            if e.log { v.abs().log10() } else { v }
+        };
+        if self.filled < self.width && self.filled > 0 {
+            for e in &mut self.envelopes {
+                let v = value(e);
+                if let Some(b) = e.buckets.last_mut() {
+                    b.add(t, v);
+                }
+            }
+            self.filled += 1;
+            return;
+        }
+        if self.envelopes[0].buckets.len() == MAX_BUCKETS {
+            for e in &mut self.envelopes {
+                e.buckets = e
+                    .buckets
+                    .chunks(2)
+                    .map(|pair| {
+                        let mut m = pair[0];
+                        if let Some(b) = pair.get(1) {
+                            m.merge(b);
+                        }
+                        m
+                    })
+                    .collect();
+            }
+            self.width *= 2;
+        }
+        for e in &mut self.envelopes {
+            let v = value(e);
+            e.buckets.push(Extremes::of(t, v));
+        }
+        self.filled = 1;
+    }
+
+    /// `energy.svg` and `residuals.svg`, for the columns the run had (none for a run that
+    /// recorded no step, e.g. an analysis).
+    pub fn figures(&self) -> Vec<Figure> {
+        let mut out = Vec::new();
+        if self.t_range.0 > self.t_range.1 {
+            return out;
+        }
+        for log in [false, true] {
+            let curves: Vec<&Envelope> = self.envelopes.iter().filter(|e| e.log == log).collect();
+            if !curves.is_empty() {
+                out.push(self.figure(&curves, log));
+            }
+        }
+        out
+    }
+
+    fn figure(&self, curves: &[&Envelope], log: bool) -> Figure {
+        let values = || {
+            curves
+                .iter()
+                .flat_map(|e| e.buckets.iter().flat_map(|b| [b.lo.1, b.hi.1]))
+        };
+        let y = if log {
+            y_range(values())
+        } else {
+            linear_range(values())
+        };
+        let x = if self.t_range.1 > self.t_range.0 {
+            self.t_range
+        } else {
+            (self.t_range.0 - 0.5, self.t_range.0 + 0.5)
+        };
+        let ax = Axes {
+            x,
+            y: with_legend_room(y, curves.len()),
+        };
+        let mut s = String::new();
+        let (name, title, ylabel) = if log {
+            (
+                "residuals",
+                "Checks: log₁₀ |residual| per recorded step (exact zeros not drawn)",
+                "log₁₀ |residual|",
+            )
+        } else {
+            (
+                "energy",
+                "Energies and cumulative works (min/max envelope of the records)",
+                "energy, work",
+            )
+        };
+        header(&mut s, title);
+        frame(&mut s, &ax, "t", ylabel, log);
+        for e in curves {
+            polyline(
+                &mut s,
+                &ax,
+                e.buckets.iter().flat_map(Extremes::points),
+                e.pick.color,
+                e.pick.dash,
+            );
+        }
+        let items: Vec<(&str, &str, String)> = curves
+            .iter()
+            .map(|e| {
+                let drawn = e.buckets.iter().any(|b| b.hi.1.is_finite());
+                let label = if drawn {
+                    e.pick.label.to_string()
+                } else if log {
+                    format!("{}: exactly 0 at every step", e.pick.label)
+                } else {
+                    format!("{}: not finite", e.pick.label)
+                };
+                (e.pick.color, e.pick.dash, label)
+            })
+            .collect();
+        legend(&mut s, &items, 190.0);
+        s.push_str("</svg>");
+        Figure {
+            name: name.into(),
+            svg: s,
+        }
+    }
+}
+
+impl Observer for EnergyTrace<'_> {
+    fn start(&mut self, columns: &Columns) {
+        let picks = ENERGIES
+            .iter()
+            .map(|p| (p, false))
+            .chain(RESIDUALS.iter().map(|p| (p, true)));
+        self.envelopes = picks
+            .filter_map(|(pick, log)| {
+                Some(Envelope {
+                    index: columns.index(pick.column)?,
+                    pick,
+                    log,
+                    buckets: Vec::new(),
+                })
+            })
+            .collect();
+        self.inner.start(columns);
+    }
+
+    fn observe(&mut self, record: &StepRecord<'_>) -> ControlFlow<()> {
+        self.record(record.t, record.values);
+        self.inner.observe(record)
+    }
+
+    fn progress(&mut self, progress: Progress) -> ControlFlow<()> {
+        self.inner.progress(progress)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::observer::Recorder;
+
+    /// Feeds `rows` through a trace over `inner`: its figures and the buckets it kept.
+    fn feed(
+        inner: &mut Recorder,
+        names: &[&str],
+        rows: &[(f64, Vec<f64>)],
+    ) -> (Vec<Figure>, Vec<Vec<Extremes>>) {
+        let mut trace = EnergyTrace::new(inner);
+        trace.start(&Columns::new(names.iter().map(|s| s.to_string()).collect()));
+        let mut buckets = Vec::new();
+        for (k, (t, values)) in rows.iter().enumerate() {
+            let r = StepRecord {
+                step: k as u64,
+                t: *t,
+                values,
+            };
+            assert!(trace.observe(&r).is_continue());
+            buckets.push(trace.envelopes.iter().map(|e| e.buckets.len()).max());
+        }
+        let bound = buckets.iter().flatten().max().copied().unwrap_or(0);
+        assert!(bound <= MAX_BUCKETS, "{bound} buckets");
+        let kept = trace.envelopes.iter().map(|e| e.buckets.clone()).collect();
+        (trace.figures(), kept)
+    }
+
+    /// A long run: the buckets stay bounded, a one-record spike and the global extremes survive
+    /// with their times, and the inner observer sees every record unchanged.
+    #[test]
+    fn envelope_is_bounded_and_keeps_every_extreme_with_its_time() {
+        let n = 100_003;
+        let rows: Vec<(f64, Vec<f64>)> = (0..n)
+            .map(|k| {
+                let t = k as f64 * 1e-3;
+                let spike = if k == 77_777 { 5.0 } else { 0.0 };
+                let residual = if k % 1000 == 0 { 0.0 } else { 1e-16 * k as f64 };
+                (t, vec![t.sin() + spike, residual, 42.0])
+            })
+            .collect();
+        let mut inner = Recorder::default();
+        let (figures, kept) = feed(&mut inner, &["energy", "balance_residual", "other"], &rows);
+        assert_eq!(inner.rows.len(), n, "every record forwarded");
+        assert!(inner.rows.iter().zip(&rows).all(|(a, b)| a == &b.1));
+        assert_eq!(inner.columns.names()[2], "other");
+
+        assert_eq!(kept.len(), 2, "only the plotted columns");
+        assert!(kept[0].len() >= MAX_BUCKETS / 2);
+        let energy_max = kept[0]
+            .iter()
+            .map(|b| b.hi)
+            .fold((f64::NAN, f64::MIN), |a, b| if b.1 > a.1 { b } else { a });
+        assert_eq!(energy_max, (rows[77_777].0, rows[77_777].1[0]), "the spike");
+        let energy_min = kept[0]
+            .iter()
+            .map(|b| b.lo)
+            .fold((f64::NAN, f64::MAX), |a, b| if b.1 < a.1 { b } else { a });
+        let true_min = rows
+            .iter()
+            .map(|(t, v)| (*t, v[0]))
+            .fold((f64::NAN, f64::MAX), |a, b| if b.1 < a.1 { b } else { a });
+        assert_eq!(energy_min, true_min);
+        // Residuals are kept as log₁₀|r|; exact zeros (−∞) are not finite and never kept.
+        let residual_max = kept[1].iter().map(|b| b.hi.1).fold(f64::MIN, f64::max);
+        assert_eq!(residual_max, (1e-16 * (n - 1) as f64).log10());
+        assert!(kept[1].iter().all(|b| b.lo.1.is_finite()));
+        // Time order inside and across buckets: the curve never goes back in t.
+        let ts: Vec<f64> = kept[0]
+            .iter()
+            .flat_map(Extremes::points)
+            .map(|p| p.0)
+            .collect();
+        assert!(ts.windows(2).all(|w| w[0] < w[1]));
+        assert_eq!(
+            figures.iter().map(|f| f.name.as_str()).collect::<Vec<_>>(),
+            ["energy", "residuals"]
+        );
+    }
+
+    /// Fewer records than buckets: each record is its own bucket, drawn exactly.
+    #[test]
+    fn short_runs_keep_every_record() {
+        let rows: Vec<(f64, Vec<f64>)> = (0..50)
+            .map(|k| (k as f64, vec![(k * k) as f64, k as f64]))
+            .collect();
+        let mut inner = Recorder::default();
+        let (_, kept) = feed(&mut inner, &["kinetic", "work_ext_total"], &rows);
+        for (c, buckets) in kept.iter().enumerate() {
+            let pts: Vec<(f64, f64)> = buckets.iter().flat_map(Extremes::points).collect();
+            let exact: Vec<(f64, f64)> = rows.iter().map(|(t, v)| (*t, v[c])).collect();
+            assert_eq!(pts, exact);
+        }
+    }
+
+    /// A run without plotted columns, or without records, draws nothing; a Break from the
+    /// inner observer reaches the integrator.
+    #[test]
+    fn nothing_to_draw_and_break_passes_through() {
+        let mut inner = Recorder::default();
+        assert!(feed(&mut inner, &["q_0"], &[(0.0, vec![1.0])]).0.is_empty());
+        let mut inner = Recorder::default();
+        assert!(feed(&mut inner, &["energy"], &[]).0.is_empty());
+
+        struct Stop;
+        impl Observer for Stop {
+            fn observe(&mut self, _: &StepRecord<'_>) -> ControlFlow<()> {
+                ControlFlow::Break(())
+            }
+        }
+        let mut stop = Stop;
+        let mut trace = EnergyTrace::new(&mut stop);
+        trace.start(&Columns::new(vec!["energy".into()]));
+        let r = StepRecord {
+            step: 0,
+            t: 0.0,
+            values: &[1.0],
+        };
+        assert!(trace.observe(&r).is_break());
+    }
+}
