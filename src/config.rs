@@ -26,7 +26,8 @@ The TOML file uses the flag names with underscores, e.g.
   max_output_mb = 1024
 
 HTTP: POST /v1/jobs, GET /v1/jobs, GET /v1/jobs/{id}, GET /v1/jobs/{id}/result,
-DELETE /v1/jobs/{id}, GET /v1/capabilities, GET /healthz, GET /metrics, GET /jobs/{id} (live page).
+GET /v1/jobs/{id}/figures, GET /v1/jobs/{id}/figures/{name} (SVG), DELETE /v1/jobs/{id},
+GET /v1/capabilities, GET /healthz, GET /metrics, GET /jobs/{id} (live page).
 gRPC: signorini.v1.Simulation and grpc.health.v1.Health.
 zenoh: signorini/v1/jobs/{id}/status, …/state, …/energy (protobuf frames).")]
 pub struct ServeArgs {

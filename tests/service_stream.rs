@@ -270,6 +270,14 @@ async fn modal_figures_over_grpc_http_and_result_out_equal_what_run_writes() {
         serde_json::from_value(body["figures"].clone()).expect("figures: a list of names");
     names.sort();
     assert_eq!(names, ran_svgs.keys().cloned().collect::<Vec<_>>());
+    let (code, listed) = server
+        .http("GET", &format!("/v1/jobs/{id}/figures"), None, None)
+        .await;
+    assert_eq!(code, 200, "{listed}");
+    assert_eq!(
+        listed["figures"], body["figures"],
+        "…/figures lists the result's figures"
+    );
     for (name, svg) in &ran_svgs {
         for path in [
             format!("/v1/jobs/{id}/figures/{name}"),

@@ -57,6 +57,7 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/jobs", get(list_jobs).post(submit_job))
         .route("/v1/jobs/{id}", get(get_job).delete(cancel_job))
         .route("/v1/jobs/{id}/result", get(get_result))
+        .route("/v1/jobs/{id}/figures", get(list_figures))
         .route("/v1/jobs/{id}/figures/{name}", get(get_figure))
         .route("/v1/jobs/{id}/events", get(job_events))
         .route("/v1/capabilities", get(capabilities))
@@ -158,6 +159,21 @@ async fn get_result(
         .await
         .map_err(|e| ApiError::Internal(e.to_string()))??;
     Ok(Json(result_json(&view, &result)))
+}
+
+/// `{"id", "figures": [name…]}`: the figures of a succeeded job, without its step series.
+async fn list_figures(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Json<Value>, ApiError> {
+    let engine = state.engine.clone();
+    let (view, result) = tokio::task::spawn_blocking(move || engine.result(&id))
+        .await
+        .map_err(|e| ApiError::Internal(e.to_string()))??;
+    Ok(Json(json!({
+        "id": view.id,
+        "figures": result.figures.iter().map(|f| f.name.as_str()).collect::<Vec<_>>(),
+    })))
 }
 
 /// One figure of a succeeded job as `image/svg+xml`; `name` may carry the `.svg` suffix. The name
