@@ -150,14 +150,19 @@ pub fn result_json(view: &JobView, r: &StoredResult) -> Value {
     })
 }
 
+/// A finished job's stored result, read off the async executor.
+async fn load_result(state: &AppState, id: String) -> Result<(JobView, StoredResult), ApiError> {
+    let engine = state.engine.clone();
+    tokio::task::spawn_blocking(move || engine.result(&id))
+        .await
+        .map_err(|e| ApiError::Internal(e.to_string()))?
+}
+
 async fn get_result(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Json<Value>, ApiError> {
-    let engine = state.engine.clone();
-    let (view, result) = tokio::task::spawn_blocking(move || engine.result(&id))
-        .await
-        .map_err(|e| ApiError::Internal(e.to_string()))??;
+    let (view, result) = load_result(&state, id).await?;
     Ok(Json(result_json(&view, &result)))
 }
 
@@ -166,10 +171,7 @@ async fn list_figures(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Json<Value>, ApiError> {
-    let engine = state.engine.clone();
-    let (view, result) = tokio::task::spawn_blocking(move || engine.result(&id))
-        .await
-        .map_err(|e| ApiError::Internal(e.to_string()))??;
+    let (view, result) = load_result(&state, id).await?;
     Ok(Json(json!({
         "id": view.id,
         "figures": result.figures.iter().map(|f| f.name.as_str()).collect::<Vec<_>>(),
@@ -182,11 +184,7 @@ async fn get_figure(
     State(state): State<AppState>,
     Path((id, name)): Path<(String, String)>,
 ) -> Result<Response, ApiError> {
-    let engine = state.engine.clone();
-    let job = id.clone();
-    let (_, result) = tokio::task::spawn_blocking(move || engine.result(&job))
-        .await
-        .map_err(|e| ApiError::Internal(e.to_string()))??;
+    let (_, result) = load_result(&state, id.clone()).await?;
     let figure = result.figure(&name).ok_or_else(|| ApiError::NoFigure {
         id,
         name: name.clone(),

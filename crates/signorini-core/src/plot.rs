@@ -204,35 +204,30 @@ pub(crate) fn with_legend_room(y: (f64, f64), items: usize) -> (f64, f64) {
     (y.0, y.1 + (y.1 - y.0) * f / (1.0 - f))
 }
 
+/// The smallest and largest finite values, if any.
+fn finite_bounds(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+    values.filter(|v| v.is_finite()).fold(None, |b, v| match b {
+        None => Some((v, v)),
+        Some((lo, hi)) => Some((f64::min(lo, v), f64::max(hi, v))),
+    })
+}
+
 /// A y range for log₁₀ data: every finite value with a 5 % margin, or half a decade either side
 /// when they span less than a thousandth of one.
 pub(crate) fn y_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for v in values.filter(|v| v.is_finite()) {
-        lo = lo.min(v);
-        hi = hi.max(v);
-    }
-    if !lo.is_finite() {
-        return (-1.0, 1.0);
-    }
-    if hi - lo < 1e-3 {
-        (lo - 0.5, hi + 0.5)
-    } else {
-        (lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo))
+    match finite_bounds(values) {
+        None => (-1.0, 1.0),
+        Some((lo, hi)) if hi - lo < 1e-3 => (lo - 0.5, hi + 0.5),
+        Some((lo, hi)) => (lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo)),
     }
 }
 
 /// A y range for linear data: every finite value with a 5 % margin, or half their magnitude
 /// either side when they are equal to nine digits (a unit range around zero).
 pub(crate) fn linear_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for v in values.filter(|v| v.is_finite()) {
-        lo = lo.min(v);
-        hi = hi.max(v);
-    }
-    if !lo.is_finite() {
+    let Some((lo, hi)) = finite_bounds(values) else {
         return (-1.0, 1.0);
-    }
+    };
     let scale = lo.abs().max(hi.abs());
     if hi - lo > 1e-9 * scale {
         (lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo))
