@@ -137,6 +137,20 @@ fn negative_end_time() {
 }
 
 #[test]
+fn more_steps_than_exact_step_times() {
+    assert_refused(
+        "[model]\nscene = \"bouncing_ball\"\n[time]\nh = 1e-3\nt_end = 1e300\n",
+        "time.t_end",
+        "more than 2⁵³",
+    );
+    assert_refused(
+        "[model]\nscene = \"bouncing_ball\"\n[time]\nh = 1e-3\nsteps = 9007199254740993\n",
+        "time.steps",
+        "more than 2⁵³",
+    );
+}
+
+#[test]
 fn theta_outside_unit_interval() {
     assert_refused(
         &format!(

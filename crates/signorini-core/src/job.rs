@@ -212,7 +212,7 @@ impl Job {
                 JobSize {
                     dofs,
                     steps,
-                    output_bytes: (steps + 2) * 24 * 8,
+                    output_bytes: steps.saturating_add(2).saturating_mul(24 * 8),
                 }
             }
             JobKind::Soi2(j) => {
@@ -221,7 +221,7 @@ impl Job {
                 JobSize {
                     dofs: j.dofs() as u64,
                     steps,
-                    output_bytes: recorded * (j.columns() as u64 + 2) * 8,
+                    output_bytes: recorded.saturating_mul((j.columns() as u64 + 2) * 8),
                 }
             }
             JobKind::Linear(j) => {
@@ -230,7 +230,7 @@ impl Job {
                 JobSize {
                     dofs: j.model.dofs() as u64,
                     steps: j.steps,
-                    output_bytes: recorded * columns as u64 * 8,
+                    output_bytes: recorded.saturating_mul(columns as u64 * 8),
                 }
             }
         }
@@ -495,6 +495,12 @@ pub fn fixed_steps(time: &TimeSpec) -> Result<(f64, u64), SpecError> {
             ));
         }
         (None, None) => return Err(SpecError::new("time.t_end", "missing: give t_end or steps")),
+        (None, Some(n)) if n > MAX_STEPS => {
+            return Err(SpecError::new(
+                "time.steps",
+                format!("{n} steps: more than 2⁵³, where the step times k·h stop being exact"),
+            ));
+        }
         (None, Some(n)) => n,
         (Some(t), None) => {
             if !t.is_finite() || t < 0.0 {
@@ -505,6 +511,14 @@ pub fn fixed_steps(time: &TimeSpec) -> Result<(f64, u64), SpecError> {
             }
             // Round to the nearest step when t_end is a multiple of h up to round-off.
             let ratio = t / time.h;
+            if ratio > MAX_STEPS as f64 {
+                return Err(SpecError::new(
+                    "time.t_end",
+                    format!(
+                        "t_end / h = {ratio:.3e} steps: more than 2⁵³, where the step times k·h stop being exact"
+                    ),
+                ));
+            }
             let nearest = ratio.round();
             if (ratio - nearest).abs() <= 1e-9 * ratio.max(1.0) {
                 nearest as u64
@@ -515,6 +529,10 @@ pub fn fixed_steps(time: &TimeSpec) -> Result<(f64, u64), SpecError> {
     };
     Ok((time.h, steps))
 }
+
+/// Most steps a job may ask for: 2⁵³, beyond which k·h is no longer exact in f64 (the service
+/// has its own, much lower, configurable limit).
+pub const MAX_STEPS: u64 = 1 << 53;
 
 fn lcp_options(spec: &JobSpec) -> Result<LcpOptions, SpecError> {
     let c = &spec.contact_solver;
