@@ -77,8 +77,8 @@ fn every_example_round_trips_through_the_typed_proto() {
 const EXTRA: &[&str] = &[
     r#"{"model":{"scene":"bouncing_ball","mass":2.0,"gravity":3.0,"q0":4.0,"v0":-5.0,"restitution":0.6},"time":{"h":0.01,"steps":10}}"#,
     r#"{"model":{"scene":"chain","masses":[1.0,2.0],"stiffness":7.0,"positions":[0.3,0.4],"velocities":[-0.1,-0.2],"wall":0.05,"restitution":0.3,"force":[0.5,0.6]},"time":{"h":0.01,"steps":10}}"#,
-    r#"{"model":{"scene":"pendulum","mass":1.5,"length":2.5,"stiffness":10.0,"damping":0.5,"gravity":9.0,"theta0":4.0,"omega0":1.0},"integrator":{"scheme":"soi2_hht","alpha":-0.3,"start":"lunk_simeon","newton_tolerance":1e-8,"newton_max_iterations":7,"consistency_tolerance":1e-5},"time":{"h":0.001,"steps":5}}"#,
-    r#"{"model":{"scene":"slider_crank","crank_length":0.3,"crank_mass":2.0,"rod_length":0.8,"rod_mass":2.5,"slider_mass":3.0,"gravity":1.0,"crank_angle":0.5,"crank_speed":2.0},"integrator":{"scheme":"soi2_generalized_alpha","rho_inf":0.5,"additive":true,"newton_tolerance":1e-8,"newton_max_iterations":7},"time":{"h":0.001,"steps":5}}"#,
+    r#"{"model":{"scene":"pendulum","mass":1.5,"length":2.5,"stiffness":10.0,"damping":0.5,"gravity":9.0,"theta0":4.0,"omega0":1.0},"integrator":{"scheme":"soi2_hht","alpha":-0.3,"start":"lunk_simeon","newton_tolerance":1e-8,"newton_max_iterations":7,"newton":"full","consistency_tolerance":1e-5},"time":{"h":0.001,"steps":5}}"#,
+    r#"{"model":{"scene":"slider_crank","crank_length":0.3,"crank_mass":2.0,"rod_length":0.8,"rod_mass":2.5,"slider_mass":3.0,"gravity":1.0,"crank_angle":0.5,"crank_speed":2.0},"integrator":{"scheme":"soi2_generalized_alpha","rho_inf":0.5,"additive":true,"newton_tolerance":1e-8,"newton_max_iterations":7,"newton":"full"},"time":{"h":0.001,"steps":5}}"#,
     r#"{"analysis":{"kind":"nonsmooth_modes","cells":12,"gaps":[0.002,-0.002],"max_period_steps":30,"min_period_steps":3,"phases":1,"length":1.5,"young":2.5,"density":3.5,"area":4.5,"stability_periods":7,"all_candidates":true}}"#,
     r#"{"analysis":{"kind":"forced_response","cells":11,"length":1.5,"young":2.5,"density":3.5,"area":4.5,"gap":0.002,"excitation":"force","amplitude":0.003,"omegas":[1.1,1.2],"damping":[0.3],"transient_periods":9,"average_periods":8,"backbone":false}}"#,
     r#"{"model":{"scene":"chain"},"integrator":{"scheme":"ns_hht","alpha":0.1,"beta":0.4,"gamma":0.65,"activation":"predicted_gap","activation_gamma":0.5,"allow_unstable":true},"time":{"h":0.01,"steps":5}}"#,
@@ -88,7 +88,7 @@ const EXTRA: &[&str] = &[
     r#"{"model":{"scene":"chain","force":[1.0,0.0,-1.0]},"integrator":{"scheme":"ns_newmark","beta":0.3,"gamma":0.55,"allow_unstable":true},"time":{"h":0.01,"t_end":0.1},"contact_solver":{"kind":"enum"}}"#,
     r#"{"model":{"scene":"bar","elements":10,"mass_matrix":"consistent","left":"free","wall_motion":{"amplitude":0.1,"omega":2.0},"initial_displacement":0.01,"body_force":1.0,"rayleigh_mass":0.1},"integrator":{"scheme":"ns_kh_alpha","alpha_m":0.1,"alpha_f":0.2,"beta":0.3,"gamma":0.6,"activation":"gap_and_velocity"},"time":{"h":0.01,"steps":5},"output":{"every":2,"probes":[0,9]}}"#,
     r#"{"model":{"scene":"chain"},"integrator":{"scheme":"hht_position_contact","alpha":0.1,"beta":0.3,"gamma":0.6},"time":{"h":0.01,"steps":5}}"#,
-    r#"{"model":{"scene":"slider_crank","crank_speed":3.0},"integrator":{"scheme":"hht_i3","alpha":-0.1,"start":"lunk_simeon","newton_tolerance":1e-9,"newton_max_iterations":30,"consistency_tolerance":1e-7},"time":{"h":0.001,"steps":5}}"#,
+    r#"{"model":{"scene":"slider_crank","crank_speed":3.0},"integrator":{"scheme":"hht_i3","alpha":-0.1,"start":"lunk_simeon","newton_tolerance":1e-9,"newton_max_iterations":30,"newton":"full","consistency_tolerance":1e-7},"time":{"h":0.001,"steps":5}}"#,
     r#"{"model":{"scene":"pendulum","y0":[0.0,-2.0,4.71238898038469],"z0":[20.0,0.0,10.0]},"integrator":{"scheme":"soi2_generalized_alpha","alpha_m":0.1,"alpha_f":0.2,"beta":0.3,"gamma":0.6,"additive":false,"start":"lunk_simeon","consistency_tolerance":1e-6},"time":{"h":0.001,"steps":5}}"#,
     r#"{"model":{"scene":"jay_negrut_test","y0":[1.0,1.0],"z0":[1.0,-2.0]},"integrator":{"scheme":"soi2_hht"},"time":{"h":0.01,"t_end":0.1,"pattern":[1.0,2.0],"adjust":false}}"#,
     r#"{"name":"modes","analysis":{"kind":"nonsmooth_modes","cells":20,"gap":0.001,"min_period_steps":4,"max_period_steps":40,"phases":2,"length":2.0,"young":3.0,"density":4.0,"area":5.0,"all_candidates":true}}"#,
@@ -119,4 +119,54 @@ fn typed_spec_errors_name_the_field() {
         ..pb::JobSpec::default()
     };
     assert_eq!(job_spec(typed).expect_err("kind").field, "analysis.kind");
+    // An enum value this build does not know (a newer client): named like the JSON path does.
+    let typed = pb::JobSpec {
+        integrator: Some(pb::IntegratorSpec {
+            scheme: Some(pb::integrator_spec::Scheme::Soi2Hht(pb::HhtSoi2 {
+                newton: 7,
+                ..pb::HhtSoi2::default()
+            })),
+        }),
+        ..pb::JobSpec::default()
+    };
+    assert_eq!(
+        job_spec(typed).expect_err("newton").field,
+        "integrator.newton"
+    );
+}
+
+#[test]
+fn newton_strategy_round_trips_and_defaults() {
+    // Unset in the typed spec (0, UNSPECIFIED) is the core default, simplified; "full" survives.
+    let typed = pb::JobSpec {
+        integrator: Some(pb::IntegratorSpec {
+            scheme: Some(pb::integrator_spec::Scheme::Soi2GeneralizedAlpha(
+                pb::Soi2GeneralizedAlpha::default(),
+            )),
+        }),
+        ..pb::JobSpec::default()
+    };
+    let core = job_spec(typed).expect("converts");
+    match &core.integrator {
+        signorini_core::spec::IntegratorSpec::Soi2GeneralizedAlpha(g) => {
+            assert_eq!(g.newton, signorini_core::soi2::run::NewtonSpec::Simplified);
+        }
+        other => panic!("{other:?}"),
+    }
+    for scheme in ["soi2_generalized_alpha", "soi2_hht", "hht_i3"] {
+        let text = format!(
+            r#"{{"model":{{"scene":"pendulum"}},"integrator":{{"scheme":"{scheme}","newton":"full"}},"time":{{"h":0.001,"steps":5}}}}"#
+        );
+        let spec = parse(&text, Format::Json).unwrap_or_else(|e| panic!("{text}: {e}"));
+        let typed = job_spec_to_proto(&spec);
+        let newton = match typed.integrator.as_ref().and_then(|i| i.scheme.as_ref()) {
+            Some(pb::integrator_spec::Scheme::Soi2GeneralizedAlpha(g)) => g.newton,
+            Some(
+                pb::integrator_spec::Scheme::Soi2Hht(h) | pb::integrator_spec::Scheme::HhtI3(h),
+            ) => h.newton,
+            other => panic!("{scheme}: {other:?}"),
+        };
+        assert_eq!(newton, pb::Soi2Newton::Full as i32, "{scheme}");
+        assert_eq!(round_trip(&spec), spec, "{scheme}");
+    }
 }

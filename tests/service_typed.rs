@@ -1,7 +1,7 @@
 //! Typed specs of the arms added to the proto run over gRPC: a nonsmooth generalized-α job (chain)
-//! and a generalized-α-SOI2 job (the Jay–Negrut test problem, with its exact solution). Each is
-//! also submitted in the JSON spelling; both runs must give bit-identical results, so the typed
-//! message reaches the same `JobSpec` as serde does.
+//! and a generalized-α-SOI2 job (the Jay–Negrut test problem, with its exact solution, full
+//! Newton). Each is also submitted in the JSON spelling; both runs must give bit-identical
+//! results, so the typed message reaches the same `JobSpec` as serde does.
 
 mod common;
 
@@ -116,6 +116,7 @@ async fn typed_alpha_family_and_soi2_specs_run_over_grpc() {
         Scheme::Soi2GeneralizedAlpha(pb::Soi2GeneralizedAlpha {
             rho_inf: Some(0.2),
             start: pb::Soi2Start::A0 as i32,
+            newton: pb::Soi2Newton::Full as i32,
             ..Default::default()
         }),
         pb::TimeSpec {
@@ -128,6 +129,12 @@ async fn typed_alpha_family_and_soi2_specs_run_over_grpc() {
     );
     let (summary, typed) = run_typed(&mut client, "typed-soi2", soi2).await;
     assert_eq!(summary["scheme"], "soi2_generalized_alpha", "{summary}");
+    // Full Newton reached the job: one Jacobian per Newton iteration.
+    assert_eq!(summary["newton"], "full", "{summary}");
+    assert_eq!(
+        summary["newton_jacobians_total"], summary["newton_iterations_total"],
+        "{summary}"
+    );
     // The exact solution is known: the global errors at t_end are small (second order, h = 2⁻⁶).
     for var in ["y", "z", "a", "lambda", "psi"] {
         let e = summary["errors"][var]
@@ -137,7 +144,7 @@ async fn typed_alpha_family_and_soi2_specs_run_over_grpc() {
     }
     let json = format!(
         r#"{{"name":"typed","model":{{"scene":"jay_negrut_test"}},
-        "integrator":{{"scheme":"soi2_generalized_alpha","rho_inf":0.2,"start":"a0"}},
+        "integrator":{{"scheme":"soi2_generalized_alpha","rho_inf":0.2,"start":"a0","newton":"full"}},
         "time":{{"h":0.015625,"t_end":1.0,"pattern":[{:?},{:?}],"adjust":true}},
         "output":{{"every":1,"probes":[0,1]}}}}"#,
         1.0f64 / 3.0,
@@ -149,4 +156,5 @@ async fn typed_alpha_family_and_soi2_specs_run_over_grpc() {
     let (json_summary, from_json) = finish(&mut client, "json-soi2").await;
     assert_same_run(&typed, &from_json);
     assert_eq!(json_summary["errors"], summary["errors"]);
+    assert_eq!(json_summary["newton"], "full", "{json_summary}");
 }

@@ -20,7 +20,7 @@ use signorini_core::modal::forced::Excitation;
 use signorini_core::modal::{AnalysisSpec, ForcedResponseSpec, ModalSpec};
 use signorini_core::scenes::{BarSpec, BouncingBall, Chain, HarmonicSpec, LeftEnd, MassMatrix};
 use signorini_core::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
-use signorini_core::soi2::run::{HhtSoi2Spec, Soi2GeneralizedAlphaSpec, StartSpec};
+use signorini_core::soi2::run::{HhtSoi2Spec, NewtonSpec, Soi2GeneralizedAlphaSpec, StartSpec};
 use signorini_core::spec::{
     ContactSolverSpec, HarmonicForceSpec, IntegratorSpec, JobSpec, LinearSpec, ModelSpec,
     MoreauJeanSpec, NsAlphaSpec, NsHhtSpec, NsNewmarkSpec, OutputSpec, PositionContactSpec,
@@ -393,6 +393,18 @@ fn soi2_start(p: i32) -> Result<StartSpec, SpecError> {
     }
 }
 
+fn soi2_newton(p: i32) -> Result<NewtonSpec, SpecError> {
+    match pb::Soi2Newton::try_from(p) {
+        Ok(pb::Soi2Newton::Unspecified) => Ok(NewtonSpec::default()),
+        Ok(pb::Soi2Newton::Simplified) => Ok(NewtonSpec::Simplified),
+        Ok(pb::Soi2Newton::Full) => Ok(NewtonSpec::Full),
+        Err(_) => Err(SpecError::new(
+            "integrator.newton",
+            format!("unknown value {p}"),
+        )),
+    }
+}
+
 fn soi2_generalized_alpha(
     p: pb::Soi2GeneralizedAlpha,
 ) -> Result<Soi2GeneralizedAlphaSpec, SpecError> {
@@ -407,6 +419,7 @@ fn soi2_generalized_alpha(
         newton_tolerance,
         newton_max_iterations,
         consistency_tolerance,
+        newton,
     } = p;
     let d = Soi2GeneralizedAlphaSpec::default();
     Ok(Soi2GeneralizedAlphaSpec {
@@ -422,6 +435,7 @@ fn soi2_generalized_alpha(
             .map(|n| usize_of("integrator.newton_max_iterations", n))
             .transpose()?
             .unwrap_or(d.newton_max_iterations),
+        newton: soi2_newton(newton)?,
         consistency_tolerance: consistency_tolerance.unwrap_or(d.consistency_tolerance),
     })
 }
@@ -433,6 +447,7 @@ fn hht_soi2(p: pb::HhtSoi2) -> Result<HhtSoi2Spec, SpecError> {
         newton_tolerance,
         newton_max_iterations,
         consistency_tolerance,
+        newton,
     } = p;
     let d = HhtSoi2Spec::default();
     Ok(HhtSoi2Spec {
@@ -443,6 +458,7 @@ fn hht_soi2(p: pb::HhtSoi2) -> Result<HhtSoi2Spec, SpecError> {
             .map(|n| usize_of("integrator.newton_max_iterations", n))
             .transpose()?
             .unwrap_or(d.newton_max_iterations),
+        newton: soi2_newton(newton)?,
         consistency_tolerance: consistency_tolerance.unwrap_or(d.consistency_tolerance),
     })
 }
@@ -947,6 +963,14 @@ fn start_to_proto(s: StartSpec) -> i32 {
     s as i32
 }
 
+fn newton_to_proto(n: NewtonSpec) -> i32 {
+    let n = match n {
+        NewtonSpec::Simplified => pb::Soi2Newton::Simplified,
+        NewtonSpec::Full => pb::Soi2Newton::Full,
+    };
+    n as i32
+}
+
 fn integrator_to_proto(i: &IntegratorSpec) -> pb::IntegratorSpec {
     use pb::integrator_spec::Scheme;
     let mj = |m: &MoreauJeanSpec| {
@@ -1003,6 +1027,7 @@ fn integrator_to_proto(i: &IntegratorSpec) -> pb::IntegratorSpec {
             start,
             newton_tolerance,
             newton_max_iterations,
+            newton,
             consistency_tolerance,
         } = h;
         pb::HhtSoi2 {
@@ -1011,6 +1036,7 @@ fn integrator_to_proto(i: &IntegratorSpec) -> pb::IntegratorSpec {
             newton_tolerance: Some(*newton_tolerance),
             newton_max_iterations: Some(u64_of(*newton_max_iterations)),
             consistency_tolerance: Some(*consistency_tolerance),
+            newton: newton_to_proto(*newton),
         }
     };
     let scheme = match i {
@@ -1065,6 +1091,7 @@ fn integrator_to_proto(i: &IntegratorSpec) -> pb::IntegratorSpec {
                 start,
                 newton_tolerance,
                 newton_max_iterations,
+                newton,
                 consistency_tolerance,
             } = g;
             Scheme::Soi2GeneralizedAlpha(pb::Soi2GeneralizedAlpha {
@@ -1078,6 +1105,7 @@ fn integrator_to_proto(i: &IntegratorSpec) -> pb::IntegratorSpec {
                 newton_tolerance: Some(*newton_tolerance),
                 newton_max_iterations: Some(u64_of(*newton_max_iterations)),
                 consistency_tolerance: Some(*consistency_tolerance),
+                newton: newton_to_proto(*newton),
             })
         }
         IntegratorSpec::Soi2Hht(h) => Scheme::Soi2Hht(hht_soi2(h)),

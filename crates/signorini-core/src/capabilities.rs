@@ -214,7 +214,7 @@ const POSITION_ROWS: &[Row] = &[
     ALLOW_UNSTABLE_ROW,
 ];
 
-const SOI2_NEWTON_ROWS: [Row; 4] = [
+const SOI2_NEWTON_ROWS: [Row; 5] = [
     (
         "start",
         "string",
@@ -232,6 +232,12 @@ const SOI2_NEWTON_ROWS: [Row; 4] = [
         "integer",
         "≥ 1",
         "Newton iterations per step",
+    ),
+    (
+        "newton",
+        "string",
+        "simplified | full",
+        "step Newton: Jacobian kept across iterations and steps while the increments contract, or rebuilt at every iterate",
     ),
     (
         "consistency_tolerance",
@@ -691,6 +697,46 @@ mod tests {
                     "scheme {s} missing from capabilities"
                 );
             }
+        }
+        // Every field a SOI2 scheme's spec serialises (all of them have defaults) is listed.
+        for (name, spec) in [
+            (
+                "soi2_generalized_alpha",
+                serde_json::to_value(crate::soi2::run::Soi2GeneralizedAlphaSpec::default()),
+            ),
+            (
+                "soi2_hht",
+                serde_json::to_value(crate::soi2::run::HhtSoi2Spec::default()),
+            ),
+            (
+                "hht_i3",
+                serde_json::to_value(crate::soi2::run::HhtSoi2Spec::default()),
+            ),
+        ] {
+            let c = caps
+                .integrators
+                .iter()
+                .find(|c| c.name == name)
+                .expect("described");
+            let fields = spec.expect("serialises");
+            for field in fields.as_object().expect("an object").keys() {
+                assert!(
+                    c.parameters.iter().any(|p| &p.name == field),
+                    "{name}.{field} missing from capabilities"
+                );
+            }
+        }
+        let newton = caps
+            .integrators
+            .iter()
+            .filter(|c| ["soi2_generalized_alpha", "soi2_hht", "hht_i3"].contains(&c.name.as_str()))
+            .map(|c| c.parameters.iter().find(|p| p.name == "newton"))
+            .collect::<Vec<_>>();
+        assert_eq!(newton.len(), 3);
+        for p in newton {
+            let p = p.expect("newton listed");
+            assert_eq!(p.default, "\"simplified\"");
+            assert_eq!(p.range, "simplified | full");
         }
         for c in caps.models.iter().chain(&caps.integrators) {
             for p in &c.parameters {
