@@ -28,8 +28,10 @@ impl Format {
 /// Parses spec text. Errors name the field by its dotted path (`model.mas: unknown field …`).
 pub fn parse(text: &str, format: Format) -> Result<JobSpec, SpecError> {
     parse_tracked(text, format).map_err(|e| match (e.field.as_str(), tree(text, format)) {
-        ("model", Some(root)) => refine::<ModelSpec>(&root, "model", "scene", e),
-        ("integrator", Some(root)) => refine::<IntegratorSpec>(&root, "integrator", "scheme", e),
+        ("model" | "model.scene", Some(root)) => refine::<ModelSpec>(&root, "model", "scene", e),
+        ("integrator" | "integrator.scheme", Some(root)) => {
+            refine::<IntegratorSpec>(&root, "integrator", "scheme", e)
+        }
         _ => e,
     })
 }
@@ -60,8 +62,10 @@ fn tree(text: &str, format: Format) -> Option<Value> {
 
 /// A tagged section (`[model]` tagged by `scene`, `[integrator]` by `scheme`) is buffered by
 /// serde before its variant is known, so a type error inside it comes back located at the
-/// section only. Find the field: try the section's fields one at a time, each with the tag, and
-/// name the first one that alone reproduces an error other than a missing field.
+/// section only, and an unknown value of an enumerated field (`start = "x"`, `newton = "x"`)
+/// reads like an unknown tag ("unknown variant"). Find the field: when the tag alone is
+/// accepted (or only misses required fields), try the section's fields one at a time, each with
+/// the tag, and name the first one that alone reproduces an error other than a missing field.
 fn refine<T: DeserializeOwned>(
     root: &Value,
     section: &str,
@@ -74,6 +78,13 @@ fn refine<T: DeserializeOwned>(
     let Some(tag_value) = fields.get(tag) else {
         return error;
     };
+    let tag_only = Map::from_iter([(tag.to_string(), tag_value.clone())]);
+    if let Err(e) = serde_json::from_value::<T>(Value::Object(tag_only))
+        && !e.to_string().starts_with("missing field")
+    {
+        // The tag itself is at fault (an unknown scene or scheme).
+        return error;
+    }
     for (key, value) in fields.iter().filter(|(k, _)| k.as_str() != tag) {
         let probe = Map::from_iter([
             (tag.to_string(), tag_value.clone()),
@@ -152,5 +163,43 @@ mod tests {
         )
         .unwrap_err();
         assert_eq!(e.field, "model.masses", "{e}");
+    }
+
+    #[test]
+    fn unknown_value_of_an_enumerated_field_is_named() {
+        // serde says "unknown variant" for these as for an unknown scheme: the field, not
+        // `integrator.scheme`, must be named, in TOML (CLI) and JSON (HTTP).
+        for (field, value) in [("newton", "sometimes"), ("start", "a1")] {
+            let toml = format!(
+                "[model]\nscene = \"pendulum\"\n[integrator]\nscheme = \"soi2_hht\"\n{field} = \"{value}\"\n[time]\nh = 0.01\nt_end = 0.1\n"
+            );
+            let e = parse(&toml, Format::Toml).unwrap_err();
+            assert_eq!(e.field, format!("integrator.{field}"), "{e}");
+            assert!(e.reason.contains("unknown variant"), "{e}");
+            let json = format!(
+                r#"{{"model": {{"scene": "slider_crank"}}, "integrator": {{"scheme": "soi2_generalized_alpha", "{field}": "{value}"}}, "time": {{"h": 0.01, "t_end": 0.1}}}}"#
+            );
+            let e = parse(&json, Format::Json).unwrap_err();
+            assert_eq!(e.field, format!("integrator.{field}"), "{e}");
+        }
+        let e = parse(
+            "[model]\nscene = \"bar\"\nmass_matrix = \"diagonal\"\n[time]\nh = 0.01\nsteps = 1\n",
+            Format::Toml,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "model.mass_matrix", "{e}");
+        // An unknown scheme is still the scheme's fault, also with a required field missing.
+        let e = parse(
+            r#"{"model": {"scene": "chain"}, "integrator": {"scheme": "ns_hhht", "beta": 0.3}, "time": {"h": 0.01, "steps": 1}}"#,
+            Format::Json,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "integrator.scheme", "{e}");
+        let e = parse(
+            "[model]\nscene = \"chain\"\n[integrator]\nscheme = \"ns_hht\"\nactivation = \"x\"\n[time]\nh = 0.01\nsteps = 1\n",
+            Format::Toml,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "integrator.activation", "{e}");
     }
 }
