@@ -148,6 +148,11 @@ fn more_steps_than_exact_step_times() {
         "time.steps",
         "more than 2⁵³",
     );
+    assert_refused(
+        "[model]\nscene = \"pendulum\"\n[integrator]\nscheme = \"soi2_hht\"\n[time]\nh = 1e-9\nt_end = 1e300\n",
+        "time.t_end",
+        "more than 2⁵³",
+    );
 }
 
 #[test]

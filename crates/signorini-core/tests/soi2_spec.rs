@@ -307,3 +307,48 @@ fn bad_input_unknown_newton_strategy() {
         "{msg}"
     );
 }
+
+/// A schedule is generated step by step and counted without being stored: a job of 10¹² steps
+/// is sized at once (it used to build the list of every step size, and aborted out of memory),
+/// and more than 2⁵³ steps are refused naming the field.
+#[test]
+fn long_schedules_are_counted_without_being_stored() {
+    use signorini_core::soi2::run::{End, Schedule, StepSizes};
+    // Exact count below 10⁷ steps, for patterns that end on a partial period and a sliver.
+    for (pattern, t_end) in [
+        (vec![1.0], 1.0),
+        (vec![1.0 / 3.0, 2.0 / 3.0], 1.0),
+        (vec![1.0 / 3.0, 2.0 / 3.0], 0.7 + 1e-13),
+        (vec![0.25, 0.5, 1.0], 3.3),
+    ] {
+        let s = Schedule {
+            h: 2f64.powi(-7),
+            pattern,
+            end: End::Time(t_end),
+        };
+        let sizes = s.sizes();
+        assert_eq!(s.count(), sizes.len() as u64, "{s:?}");
+        assert_eq!(s.iter().collect::<Vec<_>>(), sizes);
+        assert_eq!(sizes.iter().sum::<f64>(), t_end, "lands on t_end: {s:?}");
+        assert!((s.estimated_steps() - sizes.len() as f64).abs() <= s.pattern.len() as f64);
+    }
+    let steps = Schedule {
+        h: 0.1,
+        pattern: vec![1.0, 2.0],
+        end: End::Steps(5),
+    };
+    assert_eq!(steps.sizes(), [0.1, 0.2, 0.1, 0.2, 0.1]);
+    assert_eq!(steps.count(), 5);
+
+    let job = |t_end: &str| {
+        format!(
+            r#"{{"model": {{"scene": "pendulum"}}, "integrator": {{"scheme": "soi2_hht"}}, "time": {{"h": 1e-9, "t_end": {t_end}, "pattern": [0.5, 1.5]}}}}"#
+        )
+    };
+    let big = Job::from_spec(&spec(&job("1e3"))).expect("valid");
+    let n = big.size().steps;
+    assert!((n as f64 - 1e12).abs() <= 2.0, "{n}");
+    let e = build_err(&job("1e300"));
+    assert_eq!(e.field, "time.t_end");
+    assert!(e.reason.contains("more than 2⁵³"), "{e}");
+}

@@ -218,28 +218,94 @@ pub enum End {
 }
 
 impl Schedule {
-    /// The step sizes in order.
-    pub fn sizes(&self) -> Vec<f64> {
-        let mut out = Vec::new();
+    /// The step sizes in order, generated one by one (a run never holds them all).
+    pub fn iter(&self) -> impl Iterator<Item = f64> + '_ {
         let p = &self.pattern;
-        match self.end {
-            End::Steps(n) => out.extend((0..n as usize).map(|i| self.h * p[i % p.len()])),
-            End::Time(t_end) => {
-                let mut t = 0.0;
-                let mut i = 0;
-                while t_end - t > 1e-12 * self.h {
-                    let mut hi = self.h * p[i % p.len()];
+        let mut t = 0.0;
+        let mut i = 0usize;
+        std::iter::from_fn(move || {
+            let hi = match self.end {
+                End::Steps(n) if (i as u64) < n => self.h * p[i % p.len()],
+                End::Steps(_) => return None,
+                End::Time(t_end) => {
+                    if t_end - t <= 1e-12 * self.h {
+                        return None;
+                    }
+                    let hi = self.h * p[i % p.len()];
                     // Land exactly on t_end; never leave a sliver step behind.
                     if t + hi >= t_end - 1e-9 * self.h {
-                        hi = t_end - t;
+                        t_end - t
+                    } else {
+                        hi
                     }
-                    out.push(hi);
-                    t += hi;
-                    i += 1;
                 }
+            };
+            t += hi;
+            i += 1;
+            Some(hi)
+        })
+    }
+
+    /// The step sizes in order, as a list.
+    pub fn sizes(&self) -> Vec<f64> {
+        self.iter().collect()
+    }
+
+    /// t_end / (h · mean relative step): the number of steps up to the last partial pattern
+    /// period, in O(1) (no step is generated).
+    pub fn estimated_steps(&self) -> f64 {
+        match self.end {
+            End::Steps(n) => n as f64,
+            End::Time(t_end) => {
+                let mean = self.pattern.iter().sum::<f64>() / self.pattern.len() as f64;
+                t_end / (self.h * mean)
             }
         }
-        out
+    }
+}
+
+/// Schedules of at most this many (estimated) steps are counted exactly by [`StepSizes::count`].
+const COUNTED_STEPS: f64 = 1e7;
+
+/// Where a run's step sizes come from: a list, or a [`Schedule`] that generates them lazily.
+pub trait StepSizes {
+    /// Number of steps, for progress reports and job limits: exact for a list and for a
+    /// schedule of up to 10⁷ steps; beyond, [`Schedule::estimated_steps`] rounded up (within
+    /// one pattern period of the count).
+    fn count(&self) -> u64;
+    /// The sizes in order.
+    fn steps(&self) -> impl Iterator<Item = f64> + '_;
+}
+
+impl StepSizes for [f64] {
+    fn count(&self) -> u64 {
+        self.len() as u64
+    }
+    fn steps(&self) -> impl Iterator<Item = f64> + '_ {
+        self.iter().copied()
+    }
+}
+
+impl StepSizes for Vec<f64> {
+    fn count(&self) -> u64 {
+        self.len() as u64
+    }
+    fn steps(&self) -> impl Iterator<Item = f64> + '_ {
+        self.iter().copied()
+    }
+}
+
+impl StepSizes for Schedule {
+    fn count(&self) -> u64 {
+        let estimate = self.estimated_steps();
+        match self.end {
+            End::Steps(n) => n,
+            End::Time(_) if estimate <= COUNTED_STEPS => self.iter().count() as u64,
+            End::Time(_) => estimate.ceil() as u64,
+        }
+    }
+    fn steps(&self) -> impl Iterator<Item = f64> + '_ {
+        self.iter()
     }
 }
 
@@ -329,11 +395,11 @@ pub fn columns(dims: super::Dims, probes: &[usize]) -> Columns {
 /// (14a)–(14b) when `adjust`, and reporting to `observer`. Steps are solved by simplified
 /// Newton ([`NewtonStrategy::Simplified`]); [`integrate_with`] chooses.
 #[allow(clippy::too_many_arguments)]
-pub fn integrate<M: ConstrainedModel + ?Sized>(
+pub fn integrate<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized>(
     model: &M,
     method: &Method,
     start: StartValue,
-    sizes: &[f64],
+    sizes: &S,
     adjust: bool,
     output: &Soi2Output,
     observer: &mut dyn Observer,
@@ -352,12 +418,12 @@ pub fn integrate<M: ConstrainedModel + ?Sized>(
 
 /// [`integrate`] with the step Newton strategy `newton` (simplified or full).
 #[allow(clippy::too_many_arguments)]
-pub fn integrate_with<M: ConstrainedModel + ?Sized>(
+pub fn integrate_with<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized>(
     model: &M,
     method: &Method,
     newton: NewtonStrategy,
     start: StartValue,
-    sizes: &[f64],
+    sizes: &S,
     adjust: bool,
     output: &Soi2Output,
     observer: &mut dyn Observer,
@@ -369,9 +435,9 @@ pub fn integrate_with<M: ConstrainedModel + ?Sized>(
     let cols = columns(dims, &output.probes);
     observer.start(&cols);
     let every = output.every.max(1);
-    let total = sizes.len() as u64;
+    let total = sizes.count();
     let mut state =
-        method::initial_state(model, method, start, sizes.first().copied().unwrap_or(1.0))?;
+        method::initial_state(model, method, start, sizes.steps().next().unwrap_or(1.0))?;
     let potential = |s: &Soi2State| model.potential(s.t, &s.y);
     let kinetic = |s: &Soi2State| kinetic_energy(model, s.t, &s.y, &s.z);
     let (k0, p0) = (kinetic(&state), potential(&state));
@@ -425,8 +491,12 @@ pub fn integrate_with<M: ConstrainedModel + ?Sized>(
     {
         return Err(Soi2Error::Stopped { step: 0 });
     }
-    for (k, &h) in sizes.iter().enumerate() {
-        let k = k as u64 + 1;
+    let mut steps = sizes.steps().peekable();
+    let mut k = 0u64;
+    let mut h_last = 0.0;
+    while let Some(h) = steps.next() {
+        k += 1;
+        h_last = h;
         if adjust {
             method::adjust_for_step(&mut state, alpha, h); // (14a)–(14b)
         }
@@ -450,7 +520,7 @@ pub fn integrate_with<M: ConstrainedModel + ?Sized>(
         stats.steps = k;
         stats.newton_jacobians = cache.jacobians;
         stats.t_end = state.t;
-        if k.is_multiple_of(every) || k == total {
+        if k.is_multiple_of(every) || steps.peek().is_none() {
             let (kin, pot) = (kinetic(&state), potential(&state));
             stats.energy_final = kin + pot;
             record(
@@ -483,7 +553,6 @@ pub fn integrate_with<M: ConstrainedModel + ?Sized>(
             return Err(Soi2Error::Stopped { step: k });
         }
     }
-    let h_last = sizes.last().copied().unwrap_or(0.0);
     stats.errors = model.exact(state.t).map(|ex| {
         let a_ex = model
             .exact(state.t + alpha * h_last)
@@ -734,14 +803,24 @@ fn schedule(time: &TimeSpec) -> Result<(Schedule, bool), SpecError> {
             End::Time(t)
         }
     };
-    Ok((
-        Schedule {
-            h: time.h,
-            pattern,
-            end,
-        },
-        time.adjust.unwrap_or(true),
-    ))
+    let schedule = Schedule {
+        h: time.h,
+        pattern,
+        end,
+    };
+    // Checked before anything counts or generates the steps.
+    let estimate = schedule.estimated_steps();
+    if estimate > crate::job::MAX_STEPS as f64 {
+        let field = match end {
+            End::Steps(_) => "time.steps",
+            End::Time(_) => "time.t_end",
+        };
+        return Err(SpecError::new(
+            field,
+            format!("{estimate:.3e} steps: more than 2⁵³, where the step times stop being exact"),
+        ));
+    }
+    Ok((schedule, time.adjust.unwrap_or(true)))
 }
 
 fn check_model<M: ConstrainedModel>(model: &M, tol: f64) -> Result<(), SpecError> {
@@ -896,9 +975,9 @@ pub fn job_from_spec(spec: &JobSpec) -> Result<Option<Soi2Job>, SpecError> {
 }
 
 impl Soi2Job {
-    /// Number of steps.
+    /// Number of steps ([`StepSizes::count`]: exact up to 10⁷).
     pub fn steps(&self) -> u64 {
-        self.schedule.sizes().len() as u64
+        self.schedule.count()
     }
 
     /// Number of coordinates n.
@@ -922,14 +1001,14 @@ impl Soi2Job {
 
     /// Runs the job; the summary's SOI2 part (the caller adds name, scene, scheme).
     pub fn run(&self, observer: &mut dyn Observer) -> Result<Map<String, Value>, Soi2Error> {
-        let sizes = self.schedule.sizes();
+        let sizes = &self.schedule;
         let (state, stats) = match &self.model {
             Soi2Model::Pendulum(p) => integrate_with(
                 p,
                 &self.method,
                 self.newton,
                 self.start,
-                &sizes,
+                sizes,
                 self.adjust,
                 &self.output,
                 observer,
@@ -939,7 +1018,7 @@ impl Soi2Job {
                 &self.method,
                 self.newton,
                 self.start,
-                &sizes,
+                sizes,
                 self.adjust,
                 &self.output,
                 observer,
@@ -949,7 +1028,7 @@ impl Soi2Job {
                 &self.method,
                 self.newton,
                 self.start,
-                &sizes,
+                sizes,
                 self.adjust,
                 &self.output,
                 observer,
