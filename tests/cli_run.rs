@@ -155,6 +155,26 @@ fn more_steps_than_exact_step_times() {
     );
 }
 
+/// Sizes are checked before anything is allocated: these specs of a few bytes asked for 80 GB
+/// (a triplet far off the diagonal) or 16 GB (10⁹ elements) and the process aborted.
+#[test]
+fn models_too_large_to_store() {
+    assert_refused(
+        "[model]\nscene = \"linear\"\nmass_triplets = [[0, 0, 1.0], [99999, 99999, 1.0], [0, 99999, 0.1]]\n[time]\nh = 1e-3\nsteps = 1\n",
+        "model.mass_triplets",
+        "stored entries",
+    );
+    for scheme in ["moreau_jean", "wfem"] {
+        assert_refused(
+            &format!(
+                "[model]\nscene = \"bar\"\nelements = 1000000000\n[integrator]\nscheme = \"{scheme}\"\n[time]\nh = 1e-3\nsteps = 1\n"
+            ),
+            "model.elements",
+            "[1, 10⁷]",
+        );
+    }
+}
+
 #[test]
 fn theta_outside_unit_interval() {
     assert_refused(

@@ -59,7 +59,24 @@ pub enum BandError {
         /// What was wrong.
         what: String,
     },
+    /// Order and bandwidth need more stored entries than [`MAX_STORED_ENTRIES`].
+    #[error(
+        "order {n} with half-bandwidth {kd} needs {entries:.2e} stored entries, more than the {max:.2e} allowed (1 GiB)",
+        entries = (*n as f64) * (*kd as f64 + 1.0),
+        max = MAX_STORED_ENTRIES as f64
+    )]
+    TooLarge {
+        /// Order.
+        n: usize,
+        /// Half-bandwidth.
+        kd: usize,
+    },
 }
+
+/// Most entries a matrix given as triplets may need in band storage, n · (kd + 1): 2²⁷ (1 GiB of
+/// f64). Checked before anything is allocated: a three-triplet spec naming row 10⁵ and column 0
+/// would otherwise ask for 80 GB.
+pub const MAX_STORED_ENTRIES: usize = 1 << 27;
 
 impl SymBand {
     /// The n×n zero matrix with half-bandwidth `kd`.
@@ -172,6 +189,9 @@ impl SymBand {
             .map(|(&(i, j), _)| i - j)
             .max()
             .unwrap_or(0);
+        if n.saturating_mul(kd + 1) > MAX_STORED_ENTRIES {
+            return Err(BandError::TooLarge { n, kd });
+        }
         let mut m = Self::zeros(n, kd);
         for (&(i, j), &a) in &merged {
             if a != 0.0 {

@@ -95,7 +95,7 @@ const BAR_ROWS: &[Row] = &[
     (
         "elements",
         "integer",
-        "≥ 1",
+        "1 … 10⁷",
         "number of linear finite elements",
     ),
     ("length", "float", "> 0", "bar length L"),

@@ -101,6 +101,10 @@ pub struct HarmonicSpec {
     pub omega: f64,
 }
 
+/// Most elements of a bar (finite or wave elements): 10⁷, a few hundred MB of state; checked
+/// before anything is allocated.
+pub const MAX_ELEMENTS: usize = 10_000_000;
+
 /// An elastic bar of linear finite elements along x ∈ [0, L], its right end facing a rigid
 /// obstacle at distance `gap`: `g = gap + wall(t) − u_N ≥ 0`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -195,11 +199,11 @@ impl Bar {
     /// Builds the model. Dofs are nodal displacements from left to right (without node 0 when
     /// the left end is fixed).
     pub fn build(&self) -> Result<LinearModel, ModelError> {
-        if self.elements == 0 {
+        if !(1..=MAX_ELEMENTS).contains(&self.elements) {
             return Err(ModelError::OutOfRange {
                 field: "elements".into(),
-                value: 0.0,
-                range: "[1, ∞)",
+                value: self.elements as f64,
+                range: "[1, 10⁷]",
             });
         }
         for (f, x) in [

@@ -151,11 +151,11 @@ impl WaveBar {
 
     /// Checks every parameter.
     pub fn validate(&self) -> Result<(), WfemError> {
-        if self.cells == 0 {
+        if !(1..=crate::scenes::MAX_ELEMENTS).contains(&self.cells) {
             return Err(WfemError::OutOfRange {
                 field: "elements",
-                value: 0.0,
-                range: "[1, ∞)",
+                value: self.cells as f64,
+                range: "[1, 10⁷]",
             });
         }
         for (field, x) in [
