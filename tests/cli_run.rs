@@ -155,14 +155,31 @@ fn more_steps_than_exact_step_times() {
     );
 }
 
-/// Sizes are checked before anything is allocated: these specs of a few bytes asked for 80 GB
-/// (a triplet far off the diagonal) or 16 GB (10⁹ elements) and the process aborted.
+/// Sizes are checked before anything is allocated: these specs asked for 80 GB (a triplet far
+/// off the diagonal), 1.2 GB (a chain of 12 000 masses; 29 GB at 60 000) or 16 GB (10⁹
+/// elements), and the process aborted.
 #[test]
 fn models_too_large_to_store() {
     assert_refused(
         "[model]\nscene = \"linear\"\nmass_triplets = [[0, 0, 1.0], [99999, 99999, 1.0], [0, 99999, 0.1]]\n[time]\nh = 1e-3\nsteps = 1\n",
         "model.mass_triplets",
         "stored entries",
+    );
+    // One contact per mass: 12 000 contacts need a dense 12 000 × 12 000 Delassus operator.
+    let n = 12_000;
+    let list = |x: &str| vec![x; n].join(", ");
+    let positions: Vec<String> = (0..n)
+        .map(|i| format!("{}", 0.1 + 0.01 * i as f64))
+        .collect();
+    assert_refused(
+        &format!(
+            "[model]\nscene = \"chain\"\nmasses = [{}]\npositions = [{}]\nvelocities = [{}]\n[time]\nh = 1e-3\nsteps = 1\n",
+            list("1.0"),
+            positions.join(", "),
+            list("0.0")
+        ),
+        "model.contacts",
+        "12000 contacts",
     );
     for scheme in ["moreau_jean", "wfem"] {
         assert_refused(

@@ -167,6 +167,21 @@ pub enum ModelError {
         /// The valid range, as text.
         range: &'static str,
     },
+    /// Too many contacts for the dense contact operators `Ŵ⁻¹G` (n × m) and `W = GᵀŴ⁻¹G`
+    /// (m × m) each scheme precomputes.
+    #[error(
+        "{field}: {contacts} contacts on {dofs} dofs need {entries:.2e} stored entries for the dense operators Ŵ⁻¹G and W = GᵀŴ⁻¹G, more than the {max:.2e} allowed (1 GiB each)",
+        entries = (*contacts as f64) * (*contacts.max(dofs) as f64),
+        max = crate::band::MAX_STORED_ENTRIES as f64
+    )]
+    TooManyContacts {
+        /// Which input.
+        field: String,
+        /// m.
+        contacts: usize,
+        /// n.
+        dofs: usize,
+    },
     /// A contact refers to a dof that does not exist.
     #[error("{field}: dof {dof} does not exist (the model has {n} dofs)")]
     NoSuchDof {
@@ -189,6 +204,7 @@ impl ModelError {
             | ModelError::Dimension { field, .. }
             | ModelError::NotFinite { field }
             | ModelError::OutOfRange { field, .. }
+            | ModelError::TooManyContacts { field, .. }
             | ModelError::NoSuchDof { field, .. } => field,
         }
     }
@@ -305,6 +321,14 @@ impl LinearModel {
         v0: Vec<f64>,
     ) -> Result<Self, ModelError> {
         let n = mass.n();
+        let m = contacts.len();
+        if m.saturating_mul(m.max(n)) > crate::band::MAX_STORED_ENTRIES {
+            return Err(ModelError::TooManyContacts {
+                field: "contacts".into(),
+                contacts: m,
+                dofs: n,
+            });
+        }
         for (field, m) in [("damping", &damping), ("stiffness", &stiffness)] {
             if m.n() != n {
                 return Err(ModelError::Dimension {
