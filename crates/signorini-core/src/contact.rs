@@ -66,26 +66,80 @@ impl IndexSetRule {
     }
 }
 
-/// Round-off level of the local velocities an impulse LCP produced:
-/// `U^α_{k+1} = b_α + (W P)_α` loses `ε (|b_α| + Σ_β |W_αβ P_β|)` to cancellation; this returns
-/// 64 times that for each contact of `active` (written into `out`, zero elsewhere). `w` is the
-/// scheme's contact matrix on all m contacts, row-major m×m (the Delassus operator, symmetric
-/// or not).
-pub fn local_velocity_roundoff(
-    w: &[f64],
-    active: &[usize],
-    b: &[f64],
-    impulse: &[f64],
-    out: &mut [f64],
-) {
-    let m = out.len();
-    out.fill(0.0);
-    for (r, &a) in active.iter().enumerate() {
-        let wp: f64 = active
-            .iter()
-            .map(|&c| (w[a * m + c] * impulse[c]).abs())
-            .sum();
-        out[a] = 64.0 * f64::EPSILON * (b[r].abs() + wp);
+/// The index set of a step and the right-hand side of its impulse LCP, `U_free + e ∘ U_k` on
+/// the active contacts ((21c)–(21d), (25c)–(25d)), together with the round-off level of the
+/// local velocities the previous step's LCP produced, which the sign test of (24) reads
+/// ([`IndexSetRule::is_active_within`]). One per scheme; reused from step to step.
+#[derive(Debug, Clone)]
+pub struct IndexSet {
+    /// Contacts of 𝓘¹_k, in increasing order.
+    pub active: Vec<usize>,
+    /// `U_free^α + e_α U_k^α` for each active contact, in the order of `active`.
+    pub rhs: Vec<f64>,
+    /// Step whose end state `roundoff` belongs to (`u64::MAX`: none yet).
+    roundoff_step: u64,
+    /// Round-off level of U^α at the end of that step, per contact (zero when inactive).
+    roundoff: Vec<f64>,
+}
+
+impl IndexSet {
+    /// An empty index set for `contacts` contacts.
+    pub fn new(contacts: usize) -> Self {
+        Self {
+            active: Vec::new(),
+            rhs: Vec::new(),
+            roundoff_step: u64::MAX,
+            roundoff: vec![0.0; contacts],
+        }
+    }
+
+    /// The index set of the step from step `k` (state `q`, `v` at time `t`, step `h`) by
+    /// `rule`, with `u_free(α, c)` the free local velocity U_free^α at the end of the step.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    pub fn assemble(
+        &mut self,
+        rule: &IndexSetRule,
+        contacts: &[Contact],
+        k: u64,
+        q: &[f64],
+        v: &[f64],
+        t: f64,
+        h: f64,
+        mut u_free: impl FnMut(&Contact) -> f64,
+    ) {
+        self.active.clear();
+        self.rhs.clear();
+        for (a, c) in contacts.iter().enumerate() {
+            let u_tol = if self.roundoff_step == k {
+                self.roundoff[a]
+            } else {
+                0.0
+            };
+            if rule.is_active_within(c, q, v, t, h, u_tol) {
+                self.active.push(a);
+                let u_k = c.local_velocity(v, t);
+                self.rhs.push(u_free(c) + c.restitution * u_k);
+            }
+        }
+    }
+
+    /// Records the round-off level of the local velocities the LCP of step `step` produced:
+    /// `U^α_{k+1} = b_α + (W P)_α` loses `ε (|b_α| + Σ_β |W_αβ P_β|)` to cancellation; 64 times
+    /// that is kept for each active contact, zero elsewhere. `w` is the scheme's contact matrix
+    /// on all m contacts, row-major m×m (the Delassus operator, symmetric or not).
+    pub fn record_roundoff(&mut self, w: &[f64], impulse: &[f64], step: u64) {
+        let m = self.roundoff.len();
+        self.roundoff.fill(0.0);
+        for (r, &a) in self.active.iter().enumerate() {
+            let wp: f64 = self
+                .active
+                .iter()
+                .map(|&c| (w[a * m + c] * impulse[c]).abs())
+                .sum();
+            self.roundoff[a] = 64.0 * f64::EPSILON * (self.rhs[r].abs() + wp);
+        }
+        self.roundoff_step = step;
     }
 }
 

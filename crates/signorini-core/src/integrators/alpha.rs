@@ -68,7 +68,7 @@
 
 use super::{LinearScheme, LinearState, StepError, StepReport};
 use crate::band::{BandCholesky, BandError, SymBand};
-use crate::contact::{IndexSetRule, LcpStats, local_velocity_roundoff};
+use crate::contact::{IndexSet, IndexSetRule, LcpStats};
 use crate::energy::EnergyTerms;
 use crate::lcp::{self, Lcp, LcpOptions};
 use crate::model::LinearModel;
@@ -799,12 +799,8 @@ pub struct NonsmoothAlpha {
     q_cols: Vec<f64>,
     /// Delassus operator `W = Gᵀ Ŵ G`, row-major m×m (not symmetric in general).
     w: Vec<f64>,
-    active: Vec<usize>,
+    index_set: IndexSet,
     lcp_m: Vec<f64>,
-    lcp_rhs: Vec<f64>,
-    /// Round-off level of each U_k from the last step's LCP, keyed by step number (the sign
-    /// test of (24) reads U_k ≤ that level; see [`IndexSetRule::is_active_within`]).
-    u_roundoff: (u64, Vec<f64>),
 }
 
 impl NonsmoothAlpha {
@@ -859,10 +855,8 @@ impl NonsmoothAlpha {
             v_cols,
             q_cols,
             w,
-            active: Vec::new(),
+            index_set: IndexSet::new(model.contacts.len()),
             lcp_m: Vec::new(),
-            lcp_rhs: Vec::new(),
-            u_roundoff: (u64::MAX, vec![0.0; model.contacts.len()]),
         })
     }
 
@@ -902,38 +896,30 @@ impl LinearScheme for NonsmoothAlpha {
         let m = model.contacts.len();
 
         // Index set (24) and the LCP on the combined system (25c)–(25d).
-        self.active.clear();
-        self.lcp_rhs.clear();
-        for (a, c) in model.contacts.iter().enumerate() {
-            let u_tol = if self.u_roundoff.0 == state.step {
-                self.u_roundoff.1[a]
-            } else {
-                0.0
-            };
-            if self
-                .params
-                .index_set
-                .is_active_within(c, &state.q, &state.v, t_k, h, u_tol)
-            {
-                self.active.push(a);
-                let u_free = c.local_velocity(&self.core.s.v, t_next);
-                let u_k = c.local_velocity(&state.v, t_k);
-                self.lcp_rhs.push(u_free + c.restitution * u_k);
-            }
-        }
+        let v_free = &self.core.s.v;
+        self.index_set.assemble(
+            &self.params.index_set,
+            &model.contacts,
+            state.step,
+            &state.q,
+            &state.v,
+            t_k,
+            h,
+            |c| c.local_velocity(v_free, t_next),
+        );
         report.impulse.fill(0.0);
         report.lcp = LcpStats::default();
-        if !self.active.is_empty() {
+        if !self.index_set.active.is_empty() {
             self.lcp_m.clear();
-            for &a in &self.active {
-                for &b in &self.active {
+            for &a in &self.index_set.active {
+                for &b in &self.index_set.active {
                     self.lcp_m.push(self.w[a * m + b]);
                 }
             }
             let sol = lcp::solve(
                 Lcp {
                     m: &self.lcp_m,
-                    q: &self.lcp_rhs,
+                    q: &self.index_set.rhs,
                 },
                 &self.lcp,
             )
@@ -943,12 +929,12 @@ impl LinearScheme for NonsmoothAlpha {
                 source,
             })?;
             report.lcp = LcpStats {
-                size: self.active.len(),
+                size: self.index_set.active.len(),
                 iterations: sol.iterations,
                 error: sol.error,
             };
             let s = &mut self.core.s;
-            for (r, &a) in self.active.iter().enumerate() {
+            for (r, &a) in self.index_set.active.iter().enumerate() {
                 let p = sol.z[r];
                 report.impulse[a] = p;
                 if p != 0.0 {
@@ -965,17 +951,11 @@ impl LinearScheme for NonsmoothAlpha {
                 }
             }
         }
-        local_velocity_roundoff(
-            &self.w,
-            &self.active,
-            &self.lcp_rhs,
-            &report.impulse,
-            &mut self.u_roundoff.1,
-        );
-        self.u_roundoff.0 = step;
+        self.index_set
+            .record_roundoff(&self.w, &report.impulse, step);
         // work_contact = (Gᵀ v_{k+1/2})ᵀ P_{k+1} (Lemma 2; U_{k+1/2}ᵀP for a fixed obstacle).
         let mut work_contact = 0.0;
-        for &a in &self.active {
+        for &a in &self.index_set.active {
             let p = report.impulse[a];
             if p != 0.0 {
                 let c = &model.contacts[a];

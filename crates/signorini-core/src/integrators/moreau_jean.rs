@@ -23,7 +23,7 @@
 
 use super::{LinearScheme, LinearState, StepError, StepReport};
 use crate::band::{BandCholesky, BandError, SymBand};
-use crate::contact::{Delassus, IndexSetRule, local_velocity_roundoff};
+use crate::contact::{Delassus, IndexSet, IndexSetRule};
 use crate::energy::EnergyTerms;
 use crate::lcp::LcpOptions;
 use crate::model::LinearModel;
@@ -65,10 +65,7 @@ pub struct MoreauJean {
     f_next: Vec<f64>,
     f_next_t: f64,
     scratch: Scratch,
-    active: Vec<usize>,
-    lcp_rhs: Vec<f64>,
-    /// Round-off level of each U_k from the last step's LCP, keyed by step number.
-    u_roundoff: (u64, Vec<f64>),
+    index_set: IndexSet,
 }
 
 #[derive(Debug, Clone)]
@@ -126,9 +123,7 @@ impl MoreauJean {
                 dv: z.clone(),
                 dq: z,
             },
-            active: Vec::new(),
-            lcp_rhs: Vec::new(),
-            u_roundoff: (u64::MAX, vec![0.0; model.contacts.len()]),
+            index_set: IndexSet::new(model.contacts.len()),
         })
     }
 }
@@ -188,30 +183,22 @@ impl LinearScheme for MoreauJean {
 
         // Index set (24) (or the predicted-gap rule) and the impulse LCP (21c)–(21d):
         // U_free = Gᵀ(v_k + Δv_free) + ẇ(t_{k+1}); the impulse adds Ŵ⁻¹ G P to Δv.
-        self.active.clear();
-        self.lcp_rhs.clear();
-        for (a, c) in model.contacts.iter().enumerate() {
-            let u_tol = if self.u_roundoff.0 == state.step {
-                self.u_roundoff.1[a]
-            } else {
-                0.0
-            };
-            if self
-                .params
-                .index_set
-                .is_active_within(c, &state.q, &state.v, t_k, h, u_tol)
-            {
-                self.active.push(a);
-                let u_free = c.project(&state.v) + c.project(&s.dv) + c.w_rate(t_next);
-                let u_k = c.local_velocity(&state.v, t_k);
-                self.lcp_rhs.push(u_free + c.restitution * u_k);
-            }
-        }
+        let dv = &s.dv;
+        self.index_set.assemble(
+            &self.params.index_set,
+            &model.contacts,
+            state.step,
+            &state.q,
+            &state.v,
+            t_k,
+            h,
+            |c| c.project(&state.v) + c.project(dv) + c.w_rate(t_next),
+        );
         report.lcp = self
             .delassus
             .apply_impulse(
-                &self.active,
-                &self.lcp_rhs,
+                &self.index_set.active,
+                &self.index_set.rhs,
                 &self.lcp,
                 &mut report.impulse,
                 &mut s.dv,
@@ -221,14 +208,8 @@ impl LinearScheme for MoreauJean {
                 t: t_next,
                 source,
             })?;
-        local_velocity_roundoff(
-            self.delassus.matrix(),
-            &self.active,
-            &self.lcp_rhs,
-            &report.impulse,
-            &mut self.u_roundoff.1,
-        );
-        self.u_roundoff.0 = step;
+        self.index_set
+            .record_roundoff(self.delassus.matrix(), &report.impulse, step);
 
         // Energy of the state the step starts from (cached from the previous step).
         let (kin_k, strain_k) = match self.last_energy {
@@ -259,6 +240,7 @@ impl LinearScheme for MoreauJean {
             0.0
         };
         let work_contact: f64 = self
+            .index_set
             .active
             .iter()
             .map(|&a| report.impulse[a] * model.contacts[a].project(&s.v_pos))
