@@ -1,9 +1,12 @@
 //! Live streams over zenoh: `signorini/v1/jobs/{id}/status`, `…/{id}/state`, `…/{id}/energy`.
 //!
-//! Workers hand frames to one publishing task through a bounded channel: step frames with
-//! `try_send` (a full channel drops the frame and counts it in `signorini_frames_dropped_total`),
-//! status messages and each run's last frames with a blocking send. This channel is where a slow
-//! or absent subscriber is absorbed: a job never waits on zenoh.
+//! Workers hand frames to one publishing task through one FIFO channel, so a job's messages go
+//! out in the order they were made. Step frames and progress statuses are *offered*: when
+//! [`QUEUED_FRAMES`] offered messages are already waiting, the new one is dropped and counted in
+//! `signorini_frames_dropped_total`. Control messages (a job's first and final status, its last
+//! frames, the end of its publishers) are always queued; they are a handful per job. Nothing a
+//! worker or a handler sends ever waits: this queue is where a slow or absent subscriber is
+//! absorbed, and a job never waits on zenoh.
 //!
 //! zenoh QoS: status and step frames of a job share one priority. zenoh keeps messages in order
 //! only within a priority; a higher-priority terminal status overtook the job's last step frames
@@ -24,7 +27,7 @@ use anyhow::{Context, Result, anyhow};
 use prost::Message;
 use std::collections::HashMap;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use tokio::sync::{broadcast, mpsc};
 use zenoh::Session;
 use zenoh::bytes::Encoding;
@@ -91,9 +94,9 @@ pub async fn open_session(opts: &ZenohOptions) -> Result<Session> {
 /// What workers send to the publishing task.
 #[derive(Debug)]
 pub enum StreamMsg {
-    /// A status frame (block).
+    /// A status frame.
     Status(JobStatus),
-    /// Step frames of one job; `frame.last` marks the run's last ones (block).
+    /// Step frames of one job; `frame.last` marks the run's last ones.
     Steps {
         /// The job.
         id: String,
@@ -104,6 +107,12 @@ pub enum StreamMsg {
     },
     /// The job is over: undeclare its publishers.
     Closed(String),
+}
+
+/// A message in the channel, and whether it counts against [`QUEUED_FRAMES`].
+struct Queued {
+    msg: StreamMsg,
+    offered: bool,
 }
 
 /// Counters of the stream.
@@ -118,29 +127,43 @@ pub struct StreamStats {
 /// The sending side, cloned into workers and handlers.
 #[derive(Clone)]
 pub struct StreamSink {
-    tx: mpsc::Sender<StreamMsg>,
+    tx: mpsc::UnboundedSender<Queued>,
+    /// Offered messages in the channel.
+    offered: Arc<AtomicUsize>,
     stats: Arc<StreamStats>,
 }
 
 impl StreamSink {
-    /// Sends step frames if there is room, else drops them (never blocks).
+    /// A sink and the receiving end of its channel.
+    fn channel() -> (StreamSink, mpsc::UnboundedReceiver<Queued>) {
+        let (tx, rx) = mpsc::unbounded_channel();
+        let sink = StreamSink {
+            tx,
+            offered: Arc::new(AtomicUsize::new(0)),
+            stats: Arc::new(StreamStats::default()),
+        };
+        (sink, rx)
+    }
+
+    /// Queues a step frame or a progress status if fewer than [`QUEUED_FRAMES`] offered
+    /// messages are waiting, else drops it (counted).
     pub fn offer(&self, msg: StreamMsg) {
-        if self.tx.try_send(msg).is_err() {
+        if self.offered.fetch_add(1, Ordering::AcqRel) >= QUEUED_FRAMES {
+            self.offered.fetch_sub(1, Ordering::AcqRel);
             self.stats.frames_dropped.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        if self.tx.send(Queued { msg, offered: true }).is_err() {
+            self.offered.fetch_sub(1, Ordering::AcqRel);
         }
     }
 
-    /// Sends and waits for room; for std threads only (workers).
-    pub fn send_blocking(&self, msg: StreamMsg) {
+    /// Queues a control message (never dropped, never waits).
+    pub fn send(&self, msg: StreamMsg) {
         // Err only when the publishing task is gone (shutdown): nothing left to tell.
-        let _ = self.tx.blocking_send(msg);
-    }
-
-    /// Sends from async code without waiting.
-    pub fn send_detached(&self, msg: StreamMsg) {
-        let tx = self.tx.clone();
-        tokio::spawn(async move {
-            let _ = tx.send(msg).await;
+        let _ = self.tx.send(Queued {
+            msg,
+            offered: false,
         });
     }
 
@@ -163,18 +186,20 @@ struct JobPublishers {
     energy: Publisher<'static>,
 }
 
-/// Frames buffered between the workers and zenoh (each frame carries up to a few hundred steps).
-const CHANNEL_FRAMES: usize = 4096;
+/// Offered messages (step frames, progress statuses) waiting between the workers and zenoh at
+/// most; each step frame carries up to a few hundred steps.
+pub const QUEUED_FRAMES: usize = 4096;
 
 impl Streamer {
     /// Starts the publishing task on `session`.
     pub fn start(session: Session) -> (Streamer, StreamSink) {
-        let (tx, rx) = mpsc::channel(CHANNEL_FRAMES);
-        let stats = Arc::new(StreamStats::default());
+        let (sink, rx) = StreamSink::channel();
+        let (offered, stats) = (sink.offered.clone(), sink.stats.clone());
         let (watch, _) = broadcast::channel(1024);
         let task = tokio::spawn(publish_loop(
             session.clone(),
             rx,
+            offered.clone(),
             watch.clone(),
             stats.clone(),
         ));
@@ -184,7 +209,7 @@ impl Streamer {
                 task,
                 watch,
             },
-            StreamSink { tx, stats },
+            sink,
         )
     }
 
@@ -228,12 +253,16 @@ async fn publishers(session: &Session, id: &str) -> Result<JobPublishers> {
 
 async fn publish_loop(
     session: Session,
-    mut rx: mpsc::Receiver<StreamMsg>,
+    mut rx: mpsc::UnboundedReceiver<Queued>,
+    offered: Arc<AtomicUsize>,
     watch: broadcast::Sender<Arc<WatchFrame>>,
     stats: Arc<StreamStats>,
 ) {
     let mut pubs: HashMap<String, JobPublishers> = HashMap::new();
-    while let Some(msg) = rx.recv().await {
+    while let Some(Queued { msg, offered: o }) = rx.recv().await {
+        if o {
+            offered.fetch_sub(1, Ordering::AcqRel);
+        }
         if let Err(e) = handle(&session, &mut pubs, msg, &watch, &stats).await {
             tracing::warn!("zenoh publish: {e:#}");
         }
@@ -334,4 +363,40 @@ where
         }
     });
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn status(id: &str) -> StreamMsg {
+        StreamMsg::Status(JobStatus {
+            id: id.into(),
+            ..Default::default()
+        })
+    }
+
+    /// With nobody reading (a publisher stuck on a stalled subscriber), offered messages stop
+    /// at [`QUEUED_FRAMES`] and the rest are dropped and counted, while control messages are
+    /// still queued at once and in order: nothing a worker sends waits.
+    #[test]
+    fn a_stuck_publisher_drops_offered_frames_and_never_blocks_control_messages() {
+        let (sink, mut rx) = StreamSink::channel();
+        for _ in 0..QUEUED_FRAMES + 904 {
+            sink.offer(status("frame"));
+        }
+        assert_eq!(sink.offered.load(Ordering::Acquire), QUEUED_FRAMES);
+        assert_eq!(sink.stats().frames_dropped.load(Ordering::Relaxed), 904);
+        sink.send(status("final"));
+        sink.send(StreamMsg::Closed("final".into()));
+        let mut got = Vec::new();
+        while let Ok(q) = rx.try_recv() {
+            got.push(q);
+        }
+        assert_eq!(got.len(), QUEUED_FRAMES + 2);
+        assert!(got[..QUEUED_FRAMES].iter().all(|q| q.offered));
+        assert!(matches!(&got[QUEUED_FRAMES].msg, StreamMsg::Status(s) if s.id == "final"));
+        assert!(matches!(&got[QUEUED_FRAMES + 1].msg, StreamMsg::Closed(id) if id == "final"));
+        assert!(!got[QUEUED_FRAMES].offered && !got[QUEUED_FRAMES + 1].offered);
+    }
 }

@@ -325,7 +325,7 @@ impl Engine {
         self.inner.wake.notify_one();
         self.inner
             .sink
-            .send_detached(StreamMsg::Status(crate::server::convert::status_to_proto(
+            .send(StreamMsg::Status(crate::server::convert::status_to_proto(
                 &live.view(),
             )));
         Ok(id)
@@ -380,12 +380,12 @@ impl Engine {
             self.inner.store.finish(&row, None)?;
             lock(&self.inner.live).remove(id);
             let view = JobView::from_row(&row);
-            self.inner.sink.send_detached(StreamMsg::Status(
-                crate::server::convert::status_to_proto(&view),
-            ));
             self.inner
                 .sink
-                .send_detached(StreamMsg::Closed(id.to_string()));
+                .send(StreamMsg::Status(crate::server::convert::status_to_proto(
+                    &view,
+                )));
+            self.inner.sink.send(StreamMsg::Closed(id.to_string()));
             live.ended.send_replace(true);
             return Ok(view);
         }
@@ -515,7 +515,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     if let Err(e) = inner.store.set_running(&live.id, started) {
         tracing::error!(id = %live.id, "store: {e}");
     }
-    inner.sink.send_blocking(status_msg(&live.view()));
+    inner.sink.send(status_msg(&live.view()));
     tracing::info!(id = %live.id, "running");
 
     let mut observer = ServiceObserver::new(inner, live);
@@ -565,12 +565,10 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
         row.error = Some(("store".into(), e.to_string()));
     }
     lock(&inner.live).remove(&live.id);
-    inner.sink.send_blocking(last_frames);
+    inner.sink.send(last_frames);
     tracing::info!(id = %live.id, state = row.state.as_str(), wall_s = wall, "finished");
-    inner
-        .sink
-        .send_blocking(status_msg(&JobView::from_row(&row)));
-    inner.sink.send_blocking(StreamMsg::Closed(live.id.clone()));
+    inner.sink.send(status_msg(&JobView::from_row(&row)));
+    inner.sink.send(StreamMsg::Closed(live.id.clone()));
     live.ended.send_replace(true);
 }
 
