@@ -61,17 +61,13 @@ pub struct TestServer {
 impl TestServer {
     /// Starts the binary on `store` and waits for its "serving" line.
     pub fn start(store: &Path, opts: &Options) -> TestServer {
-        let grpc = SocketAddr::from(([127, 0, 0, 1], free_port()));
-        let http = SocketAddr::from(([127, 0, 0, 1], free_port()));
+        // gRPC and HTTP bind port 0 and the server reports the ports it got: two ports picked
+        // here could come out equal (seen: "--grpc-addr and --http-addr must differ"). zenoh
+        // has no such report, so its port is picked here; the server binds it first.
         let zenoh = format!("tcp/127.0.0.1:{}", free_port());
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_signorini"));
         cmd.arg("serve")
-            .args([
-                "--grpc-addr",
-                &grpc.to_string(),
-                "--http-addr",
-                &http.to_string(),
-            ])
+            .args(["--grpc-addr", "127.0.0.1:0", "--http-addr", "127.0.0.1:0"])
             .args([
                 "--store",
                 &store.display().to_string(),
@@ -99,21 +95,29 @@ impl TestServer {
         let (tx, rx) = mpsc::channel();
         std::thread::spawn(move || {
             for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-                if line.contains("signorini serving") {
-                    let _ = tx.send(());
+                // "signorini serving gRPC on ADDR, HTTP on ADDR"
+                if let Some(rest) = line.strip_prefix("signorini serving gRPC on ")
+                    && let Some((grpc, http)) = rest.split_once(", HTTP on ")
+                {
+                    let _ = tx.send((grpc.parse::<SocketAddr>(), http.parse::<SocketAddr>()));
                 }
             }
         });
-        let server = TestServer {
+        let (grpc, http) = match rx.recv_timeout(PATIENCE) {
+            Ok((Ok(g), Ok(h))) => (g, h),
+            other => {
+                let _ = child.kill();
+                let _ = child.wait();
+                panic!("server did not report where it serves: {other:?}");
+            }
+        };
+        TestServer {
             child,
             grpc_url: format!("http://{grpc}"),
             http,
             zenoh,
             store: store.to_path_buf(),
-        };
-        rx.recv_timeout(PATIENCE)
-            .expect("server did not report it was serving");
-        server
+        }
     }
 
     /// SIGKILL, no cleanup (crash test).
