@@ -44,6 +44,22 @@ pub enum ApiError {
         /// The name asked for.
         name: String,
     },
+    /// The request body could not be read: too large, or not UTF-8.
+    #[error("request body: {reason}")]
+    Body {
+        /// Why.
+        reason: String,
+        /// True when it exceeded the size limit.
+        too_large: bool,
+    },
+    /// No such route.
+    #[error("no route {method} {path}")]
+    NoRoute {
+        /// HTTP method.
+        method: String,
+        /// Path asked for.
+        path: String,
+    },
     /// Missing or wrong bearer token on a mutating call.
     #[error("missing or invalid bearer token")]
     Unauthenticated,
@@ -64,6 +80,8 @@ impl ApiError {
             | ApiError::AlreadyExists { .. }
             | ApiError::NoResult { .. } => ("id".into(), self.to_string()),
             ApiError::NoFigure { .. } => ("figure".into(), self.to_string()),
+            ApiError::Body { .. } => ("body".into(), self.to_string()),
+            ApiError::NoRoute { .. } => ("path".into(), self.to_string()),
             ApiError::Unauthenticated => ("authorization".into(), self.to_string()),
             ApiError::QueueFull { .. } => ("queue".into(), self.to_string()),
             ApiError::Unavailable | ApiError::Internal(_) => (String::new(), self.to_string()),

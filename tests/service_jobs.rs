@@ -221,6 +221,21 @@ async fn invalid_specs_name_the_field_and_the_server_keeps_serving() {
     );
     let (code, _) = server.http("GET", "/v1/jobs/nope", None, None).await;
     assert_eq!(code, 404);
+    // Every HTTP error has the JSON shape: an unknown route, and a body over the 64 MiB limit
+    // (axum answered both in plain text, or with no body at all).
+    let (code, body) = server.http("GET", "/v1/nope", None, None).await;
+    assert_eq!(
+        (code, body["error"]["field"].as_str()),
+        (404, Some("path")),
+        "{body}"
+    );
+    let huge = format!("{{\"name\": \"{}\"}}", "x".repeat(64 << 20));
+    let (code, body) = server.http("POST", "/v1/jobs", Some(&huge), None).await;
+    assert_eq!(
+        (code, body["error"]["field"].as_str()),
+        (413, Some("body")),
+        "{body}"
+    );
 
     // Still serving, and nothing invalid was stored.
     let id = submit_json(&mut client, ball_json(1e-3, 100, 1), None)

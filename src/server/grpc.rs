@@ -38,7 +38,13 @@ impl SimulationService {
 pub fn to_status(e: ApiError) -> Status {
     let code = match &e {
         ApiError::Invalid(_) => Code::InvalidArgument,
-        ApiError::NotFound { .. } | ApiError::NoFigure { .. } => Code::NotFound,
+        ApiError::NotFound { .. } | ApiError::NoFigure { .. } | ApiError::NoRoute { .. } => {
+            Code::NotFound
+        }
+        ApiError::Body {
+            too_large: true, ..
+        } => Code::ResourceExhausted,
+        ApiError::Body { .. } => Code::InvalidArgument,
         ApiError::AlreadyExists { .. } => Code::AlreadyExists,
         ApiError::QueueFull { .. } => Code::ResourceExhausted,
         ApiError::NoResult { .. } => Code::FailedPrecondition,

@@ -7,8 +7,9 @@ use crate::proto::v1::{StepFrame, watch_frame};
 use crate::spec_file::{self, Format};
 use crate::store::{JobState, StoredResult};
 use crate::worker::JobView;
-use axum::extract::{Path, Query, State};
-use axum::http::{HeaderMap, StatusCode, header};
+use axum::extract::rejection::StringRejection;
+use axum::extract::{DefaultBodyLimit, Path, Query, State};
+use axum::http::{HeaderMap, Method, StatusCode, Uri, header};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{Html, IntoResponse, Response};
 use axum::routing::get;
@@ -25,7 +26,13 @@ impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         let code = match &self {
             ApiError::Invalid(_) => StatusCode::BAD_REQUEST,
-            ApiError::NotFound { .. } | ApiError::NoFigure { .. } => StatusCode::NOT_FOUND,
+            ApiError::NotFound { .. } | ApiError::NoFigure { .. } | ApiError::NoRoute { .. } => {
+                StatusCode::NOT_FOUND
+            }
+            ApiError::Body {
+                too_large: true, ..
+            } => StatusCode::PAYLOAD_TOO_LARGE,
+            ApiError::Body { .. } => StatusCode::BAD_REQUEST,
             ApiError::AlreadyExists { .. } | ApiError::NoResult { .. } => StatusCode::CONFLICT,
             ApiError::QueueFull { .. } => StatusCode::TOO_MANY_REQUESTS,
             ApiError::Unauthenticated => StatusCode::UNAUTHORIZED,
@@ -64,6 +71,8 @@ pub fn router(state: AppState) -> Router {
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
         .route("/jobs/{id}", get(live_page))
+        .fallback(no_route)
+        .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
         .with_state(state)
 }
 
@@ -93,13 +102,38 @@ struct SubmitQuery {
     id: Option<String>,
 }
 
+/// Largest request body: 64 MiB, as for gRPC messages (a spec with dense matrices of a few
+/// hundred dofs is a few MB).
+pub const MAX_BODY_BYTES: usize = 64 << 20;
+
+impl From<StringRejection> for ApiError {
+    fn from(r: StringRejection) -> Self {
+        ApiError::Body {
+            too_large: r.status() == StatusCode::PAYLOAD_TOO_LARGE,
+            reason: if r.status() == StatusCode::PAYLOAD_TOO_LARGE {
+                format!("larger than {} MiB", MAX_BODY_BYTES >> 20)
+            } else {
+                r.body_text()
+            },
+        }
+    }
+}
+
+async fn no_route(method: Method, uri: Uri) -> ApiError {
+    ApiError::NoRoute {
+        method: method.to_string(),
+        path: uri.path().to_string(),
+    }
+}
+
 async fn submit_job(
     State(state): State<AppState>,
     headers: HeaderMap,
     Query(q): Query<SubmitQuery>,
-    body: String,
+    body: Result<String, StringRejection>,
 ) -> Result<(StatusCode, Json<Value>), ApiError> {
     authorize(&state, &headers)?;
+    let body = body?;
     let spec = spec_file::parse(&body, Format::Json)?;
     let id = state.engine.submit(&spec, q.id)?;
     Ok((StatusCode::CREATED, Json(json!({ "id": id }))))
