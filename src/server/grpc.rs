@@ -78,16 +78,24 @@ impl Simulation for SimulationService {
     ) -> Result<Response<pb::SubmitJobResponse>, Status> {
         self.authorize(&req)?;
         let pb::SubmitJobRequest { spec, id } = req.into_inner();
-        let spec = match spec {
-            Some(pb::submit_job_request::Spec::Typed(s)) => convert::job_spec(s),
-            Some(pb::submit_job_request::Spec::Json(text)) => spec_file::parse(&text, Format::Json),
-            None => Err(signorini_core::spec::SpecError::new(
-                "spec",
-                "missing: give `typed` or `json`",
-            )),
-        }
-        .map_err(|e| to_status(e.into()))?;
-        let id = self.state.engine.submit(&spec, id).map_err(to_status)?;
+        // Parsing and validation (a factorisation of M and K) run off the async executor.
+        let engine = self.state.engine.clone();
+        let id = tokio::task::spawn_blocking(move || {
+            let spec = match spec {
+                Some(pb::submit_job_request::Spec::Typed(s)) => convert::job_spec(s),
+                Some(pb::submit_job_request::Spec::Json(text)) => {
+                    spec_file::parse(&text, Format::Json)
+                }
+                None => Err(signorini_core::spec::SpecError::new(
+                    "spec",
+                    "missing: give `typed` or `json`",
+                )),
+            }?;
+            engine.submit(&spec, id)
+        })
+        .await
+        .map_err(|e| Status::internal(e.to_string()))?
+        .map_err(to_status)?;
         Ok(Response::new(pb::SubmitJobResponse { id }))
     }
 

@@ -134,8 +134,14 @@ async fn submit_job(
 ) -> Result<(StatusCode, Json<Value>), ApiError> {
     authorize(&state, &headers)?;
     let body = body?;
-    let spec = spec_file::parse(&body, Format::Json)?;
-    let id = state.engine.submit(&spec, q.id)?;
+    // Parsing and validation (a factorisation of M and K) run off the async executor.
+    let engine = state.engine.clone();
+    let id = tokio::task::spawn_blocking(move || {
+        let spec = spec_file::parse(&body, Format::Json)?;
+        engine.submit(&spec, q.id)
+    })
+    .await
+    .map_err(|e| ApiError::Internal(e.to_string()))??;
     Ok((StatusCode::CREATED, Json(json!({ "id": id }))))
 }
 
