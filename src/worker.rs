@@ -498,6 +498,15 @@ fn next_job(inner: &Inner) -> Option<Arc<LiveJob>> {
     }
 }
 
+/// The text of a panic payload (`panic!` with a message gives a `&str` or a `String`).
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a panic without a message".into())
+}
+
 fn worker_loop(inner: &Inner) {
     while let Some(live) = next_job(inner) {
         run_one(inner, &live);
@@ -520,7 +529,11 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
 
     let mut observer = ServiceObserver::new(inner, live);
     let clock = Instant::now();
-    let outcome = job::run(&live.job, &mut observer);
+    // A panic in the numerics (a bug) fails this job and keeps the worker and the server alive.
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        job::run(&live.job, &mut observer)
+    }))
+    .map_err(|panic| panic_message(panic.as_ref()));
     let wall = clock.elapsed().as_secs_f64();
     // The last frames go out after the result is stored: whoever saw them can fetch it.
     let last_frames = observer.last_frames();
@@ -529,7 +542,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     let mut row = live_row(live, JobState::Succeeded);
     let mut result = None;
     match outcome {
-        Ok(output) => {
+        Ok(Ok(output)) => {
             let mut summary = output.summary;
             let steps = summary.get("steps").and_then(|s| s.as_f64()).unwrap_or(0.0);
             summary.insert("wall_s".into(), json!(wall));
@@ -547,15 +560,23 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
                 figures: output.figures,
             });
         }
-        Err(RunError::Stopped { .. }) if !live.cancel.load(Ordering::Acquire) => {
+        Ok(Err(RunError::Stopped { .. })) if !live.cancel.load(Ordering::Acquire) => {
             // Server shutdown: leave the job `running` in the store; the next start re-runs it.
             tracing::info!(id = %live.id, "interrupted by shutdown");
             return;
         }
-        Err(RunError::Stopped { .. }) => row.state = JobState::Cancelled,
-        Err(e) => {
+        Ok(Err(RunError::Stopped { .. })) => row.state = JobState::Cancelled,
+        Ok(Err(e)) => {
             row.state = JobState::Failed;
             row.error = Some(("run".into(), e.to_string()));
+        }
+        Err(panic) => {
+            tracing::error!(id = %live.id, "the run panicked: {panic}");
+            row.state = JobState::Failed;
+            row.error = Some((
+                "run".into(),
+                format!("internal error (a bug: please report it with the spec): {panic}"),
+            ));
         }
     }
     row.finished_ms = now_ms();
