@@ -1,6 +1,8 @@
-//! Hand-written SVG primitives shared by every figure a job returns (no fonts, no files): a
-//! 720 × 480 canvas, one plot area with ticks and labels, curves, reference lines and a legend.
+//! Hand-written SVG figures (no fonts, no files): a 720 × 480 canvas, one plot area with round
+//! ticks and labels, curves, reference lines and a legend. [`line_chart`] draws curves against
+//! t; the primitives serve the modal-analysis figures too.
 
+use crate::job::Figure;
 use std::fmt::Write;
 
 /// Canvas width (px).
@@ -235,5 +237,67 @@ pub(crate) fn linear_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
         (lo - 0.5 * scale, hi + 0.5 * scale)
     } else {
         (-1.0, 1.0)
+    }
+}
+
+/// A curve of a [`line_chart`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Curve {
+    /// Legend label (plain text; `<`, `>`, `&` are escaped).
+    pub label: String,
+    /// SVG colour.
+    pub color: &'static str,
+    /// SVG dash pattern (empty: solid).
+    pub dash: &'static str,
+    /// Points (t, y) in order; a point that is not finite breaks the curve.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// Escapes text for SVG.
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// Curves against t in one plot, with a legend; `log_y` when the values are log₁₀ of something.
+pub fn line_chart(name: &str, title: &str, ylabel: &str, log_y: bool, curves: &[Curve]) -> Figure {
+    let ys = || curves.iter().flat_map(|c| c.points.iter().map(|p| p.1));
+    let y = if log_y {
+        y_range(ys())
+    } else {
+        linear_range(ys())
+    };
+    let x = match finite_bounds(curves.iter().flat_map(|c| c.points.iter().map(|p| p.0))) {
+        Some((lo, hi)) if hi > lo => (lo, hi),
+        Some((lo, _)) => (lo - 0.5, lo + 0.5),
+        None => (0.0, 1.0),
+    };
+    let ax = Axes {
+        x,
+        y: with_legend_room(y, curves.len()),
+    };
+    let mut s = String::new();
+    header(&mut s, &escape(title));
+    frame(&mut s, &ax, "t", &escape(ylabel), log_y);
+    for c in curves {
+        polyline(&mut s, &ax, c.points.iter().copied(), c.color, c.dash);
+    }
+    let items: Vec<(&str, &str, String)> = curves
+        .iter()
+        .map(|c| (c.color, c.dash, escape(&c.label)))
+        .collect();
+    let width = 40.0
+        + 7.0
+            * curves
+                .iter()
+                .map(|c| c.label.chars().count())
+                .max()
+                .unwrap_or(10) as f64;
+    legend(&mut s, &items, width.clamp(120.0, W - ML - MR - 8.0));
+    s.push_str("</svg>");
+    Figure {
+        name: name.into(),
+        svg: s,
     }
 }

@@ -1,20 +1,20 @@
 //! A run's energy terms as pictures. [`EnergyTrace`] passes every record on to the caller's
-//! observer and keeps a bounded envelope of the columns worth looking at; at the end it draws
-//! `energy.svg` (the energies and the cumulative works against t, DESIGN §5) and
+//! observer and keeps a bounded [`Envelope`] of each column worth looking at; at the end it
+//! draws `energy.svg` (the energies and the cumulative works against t, DESIGN §5) and
 //! `residuals.svg` (log₁₀ of the balance residual and of the constraint residuals: the checks
 //! that must sit at round-off).
 //!
-//! The envelope keeps, for each bucket of consecutive records, the smallest and the largest
-//! value with their times. When [`MAX_BUCKETS`] are full, neighbours merge pairwise and the
-//! bucket width doubles: memory and figure size stay bounded for any number of steps, and a
-//! one-step spike (an impact, a residual jump) is never decimated away.
+//! An envelope keeps, for each bucket of consecutive values, the smallest and the largest with
+//! their times. When [`MAX_BUCKETS`] are full, neighbours merge pairwise and the bucket width
+//! doubles: memory and figure size stay bounded for any number of steps, and a one-step spike
+//! (an impact, a residual jump) is never decimated away.
 
 use crate::job::Figure;
 use crate::observer::{Columns, Observer, Progress, StepRecord};
-use crate::plot::{Axes, frame, header, legend, linear_range, polyline, with_legend_room, y_range};
+use crate::plot::{Curve, line_chart};
 use std::ops::ControlFlow;
 
-/// Buckets kept per column before neighbours merge (so between half this and this many).
+/// Buckets kept per envelope before neighbours merge (so between half this and this many).
 pub const MAX_BUCKETS: usize = 400;
 
 /// A column worth plotting: name, legend label, colour, dash pattern.
@@ -70,7 +70,7 @@ const RESIDUALS: [Pick; 4] = [
 ];
 
 /// Smallest and largest value of a bucket, each with its time (NaN until a finite value).
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct Extremes {
     lo: (f64, f64),
     hi: (f64, f64),
@@ -83,10 +83,6 @@ impl Extremes {
             lo: (t, v),
             hi: (t, v),
         }
-    }
-
-    fn add(&mut self, t: f64, v: f64) {
-        self.merge(&Self::of(t, v));
     }
 
     /// Keeps the extremes of both (the earlier one on ties).
@@ -110,24 +106,92 @@ impl Extremes {
     }
 }
 
-/// One plotted column: where it is in the records, how it is drawn, its buckets.
-struct Envelope {
-    index: usize,
-    pick: &'static Pick,
+/// The min/max envelope of a series (t, v) in at most [`MAX_BUCKETS`] buckets; with `log`, of
+/// log₁₀|v| (exact zeros, whose logarithm is not finite, are left out).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Envelope {
     log: bool,
     buckets: Vec<Extremes>,
+    /// Values per bucket.
+    width: u64,
+    /// Values in the last bucket.
+    filled: u64,
+}
+
+impl Envelope {
+    /// An empty envelope, of v or (with `log`) of log₁₀|v|.
+    pub fn new(log: bool) -> Self {
+        Self {
+            log,
+            buckets: Vec::new(),
+            width: 1,
+            filled: 0,
+        }
+    }
+
+    /// Adds the value `v` at time `t` (times in increasing order).
+    pub fn push(&mut self, t: f64, v: f64) {
+        let v = if self.log { v.abs().log10() } else { v };
+        if self.filled > 0 && self.filled < self.width {
+            if let Some(b) = self.buckets.last_mut() {
+                b.merge(&Extremes::of(t, v));
+            }
+            self.filled += 1;
+            return;
+        }
+        if self.buckets.len() == MAX_BUCKETS {
+            self.buckets = self
+                .buckets
+                .chunks(2)
+                .map(|pair| {
+                    let mut m = pair[0];
+                    if let Some(b) = pair.get(1) {
+                        m.merge(b);
+                    }
+                    m
+                })
+                .collect();
+            self.width *= 2;
+        }
+        self.buckets.push(Extremes::of(t, v));
+        self.filled = 1;
+    }
+
+    /// The envelope as a curve: two points per bucket (its extremes, in time order), NaN where
+    /// a bucket had no finite value.
+    pub fn points(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
+        self.buckets.iter().flat_map(Extremes::points)
+    }
+
+    /// True when some value was finite (for a log envelope: not zero).
+    pub fn has_values(&self) -> bool {
+        self.buckets.iter().any(|b| b.hi.1.is_finite())
+    }
+
+    /// Number of buckets.
+    pub fn buckets(&self) -> usize {
+        self.buckets.len()
+    }
+
+    /// Whether values are kept as log₁₀|v|.
+    pub fn is_log(&self) -> bool {
+        self.log
+    }
+}
+
+/// One plotted column of a run: where it is in the records, how it is drawn, its envelope.
+struct Traced {
+    index: usize,
+    pick: &'static Pick,
+    envelope: Envelope,
 }
 
 /// An [`Observer`] that forwards everything to `inner` and keeps the envelope of the energy and
 /// residual columns of the run (those of [`ENERGIES`] and [`RESIDUALS`] it has).
 pub struct EnergyTrace<'a> {
     inner: &'a mut dyn Observer,
-    envelopes: Vec<Envelope>,
-    /// Records per bucket.
-    width: u64,
-    /// Records in the last bucket.
-    filled: u64,
-    t_range: (f64, f64),
+    traced: Vec<Traced>,
+    records: u64,
 }
 
 impl<'a> EnergyTrace<'a> {
@@ -135,136 +199,63 @@ impl<'a> EnergyTrace<'a> {
     pub fn new(inner: &'a mut dyn Observer) -> Self {
         Self {
             inner,
-            envelopes: Vec::new(),
-            width: 1,
-            filled: 0,
-            t_range: (f64::INFINITY, f64::NEG_INFINITY),
+            traced: Vec::new(),
+            records: 0,
         }
-    }
-
-    fn record(&mut self, t: f64, values: &[f64]) {
-        if self.envelopes.is_empty() {
-            return;
-        }
-        self.t_range = (self.t_range.0.min(t), self.t_range.1.max(t));
-        let value = |e: &Envelope| {
-            let v = values.get(e.index).copied().unwrap_or(f64::NAN);
-            if e.log { v.abs().log10() } else { v }
-        };
-        if self.filled < self.width && self.filled > 0 {
-            for e in &mut self.envelopes {
-                let v = value(e);
-                if let Some(b) = e.buckets.last_mut() {
-                    b.add(t, v);
-                }
-            }
-            self.filled += 1;
-            return;
-        }
-        if self.envelopes[0].buckets.len() == MAX_BUCKETS {
-            for e in &mut self.envelopes {
-                e.buckets = e
-                    .buckets
-                    .chunks(2)
-                    .map(|pair| {
-                        let mut m = pair[0];
-                        if let Some(b) = pair.get(1) {
-                            m.merge(b);
-                        }
-                        m
-                    })
-                    .collect();
-            }
-            self.width *= 2;
-        }
-        for e in &mut self.envelopes {
-            let v = value(e);
-            e.buckets.push(Extremes::of(t, v));
-        }
-        self.filled = 1;
     }
 
     /// `energy.svg` and `residuals.svg`, for the columns the run had (none for a run that
     /// recorded no step, e.g. an analysis).
     pub fn figures(&self) -> Vec<Figure> {
         let mut out = Vec::new();
-        if self.t_range.0 > self.t_range.1 {
+        if self.records == 0 {
             return out;
         }
         for log in [false, true] {
-            let curves: Vec<&Envelope> = self.envelopes.iter().filter(|e| e.log == log).collect();
-            if !curves.is_empty() {
-                out.push(self.figure(&curves, log));
+            let curves: Vec<Curve> = self
+                .traced
+                .iter()
+                .filter(|c| c.envelope.is_log() == log)
+                .map(|c| Curve {
+                    label: legend_label(c, log),
+                    color: c.pick.color,
+                    dash: c.pick.dash,
+                    points: c.envelope.points().collect(),
+                })
+                .collect();
+            if curves.is_empty() {
+                continue;
             }
+            out.push(if log {
+                line_chart(
+                    "residuals",
+                    "Checks: log₁₀ |residual| per recorded step (exact zeros not drawn)",
+                    "log₁₀ |residual|",
+                    true,
+                    &curves,
+                )
+            } else {
+                line_chart(
+                    "energy",
+                    "Energies and cumulative works (min/max envelope of the records)",
+                    "energy, work",
+                    false,
+                    &curves,
+                )
+            });
         }
         out
     }
+}
 
-    fn figure(&self, curves: &[&Envelope], log: bool) -> Figure {
-        let values = || {
-            curves
-                .iter()
-                .flat_map(|e| e.buckets.iter().flat_map(|b| [b.lo.1, b.hi.1]))
-        };
-        let y = if log {
-            y_range(values())
-        } else {
-            linear_range(values())
-        };
-        let x = if self.t_range.1 > self.t_range.0 {
-            self.t_range
-        } else {
-            (self.t_range.0 - 0.5, self.t_range.0 + 0.5)
-        };
-        let ax = Axes {
-            x,
-            y: with_legend_room(y, curves.len()),
-        };
-        let mut s = String::new();
-        let (name, title, ylabel) = if log {
-            (
-                "residuals",
-                "Checks: log₁₀ |residual| per recorded step (exact zeros not drawn)",
-                "log₁₀ |residual|",
-            )
-        } else {
-            (
-                "energy",
-                "Energies and cumulative works (min/max envelope of the records)",
-                "energy, work",
-            )
-        };
-        header(&mut s, title);
-        frame(&mut s, &ax, "t", ylabel, log);
-        for e in curves {
-            polyline(
-                &mut s,
-                &ax,
-                e.buckets.iter().flat_map(Extremes::points),
-                e.pick.color,
-                e.pick.dash,
-            );
-        }
-        let items: Vec<(&str, &str, String)> = curves
-            .iter()
-            .map(|e| {
-                let drawn = e.buckets.iter().any(|b| b.hi.1.is_finite());
-                let label = if drawn {
-                    e.pick.label.to_string()
-                } else if log {
-                    format!("{}: exactly 0 at every step", e.pick.label)
-                } else {
-                    format!("{}: not finite", e.pick.label)
-                };
-                (e.pick.color, e.pick.dash, label)
-            })
-            .collect();
-        legend(&mut s, &items, 190.0);
-        s.push_str("</svg>");
-        Figure {
-            name: name.into(),
-            svg: s,
-        }
+/// The legend label of a traced column, saying so when nothing could be drawn.
+fn legend_label(c: &Traced, log: bool) -> String {
+    if c.envelope.has_values() {
+        c.pick.label.to_string()
+    } else if log {
+        format!("{}: exactly 0 at every step", c.pick.label)
+    } else {
+        format!("{}: not finite", c.pick.label)
     }
 }
 
@@ -274,13 +265,12 @@ impl Observer for EnergyTrace<'_> {
             .iter()
             .map(|p| (p, false))
             .chain(RESIDUALS.iter().map(|p| (p, true)));
-        self.envelopes = picks
+        self.traced = picks
             .filter_map(|(pick, log)| {
-                Some(Envelope {
+                Some(Traced {
                     index: columns.index(pick.column)?,
                     pick,
-                    log,
-                    buckets: Vec::new(),
+                    envelope: Envelope::new(log),
                 })
             })
             .collect();
@@ -288,7 +278,13 @@ impl Observer for EnergyTrace<'_> {
     }
 
     fn observe(&mut self, record: &StepRecord<'_>) -> ControlFlow<()> {
-        self.record(record.t, record.values);
+        if !self.traced.is_empty() {
+            self.records += 1;
+            for c in &mut self.traced {
+                let v = record.values.get(c.index).copied().unwrap_or(f64::NAN);
+                c.envelope.push(record.t, v);
+            }
+        }
         self.inner.observe(record)
     }
 
@@ -318,11 +314,15 @@ mod tests {
                 values,
             };
             assert!(trace.observe(&r).is_continue());
-            buckets.push(trace.envelopes.iter().map(|e| e.buckets.len()).max());
+            buckets.push(trace.traced.iter().map(|c| c.envelope.buckets()).max());
         }
         let bound = buckets.iter().flatten().max().copied().unwrap_or(0);
         assert!(bound <= MAX_BUCKETS, "{bound} buckets");
-        let kept = trace.envelopes.iter().map(|e| e.buckets.clone()).collect();
+        let kept = trace
+            .traced
+            .iter()
+            .map(|c| c.envelope.buckets.clone())
+            .collect();
         (trace.figures(), kept)
     }
 
