@@ -300,3 +300,104 @@ fn example_specs_run_and_their_files_agree() {
         );
     }
 }
+
+/// `signorini compare`: two runs of the ball (Moreau–Jean, nonsmooth Newmark) give one figure
+/// per column with a curve and a legend entry per run, and a table whose values are the runs'
+/// summary.json values; a directory without steps and an unknown column are refused by name.
+#[test]
+fn compare_draws_one_curve_per_run_and_tabulates_the_summaries() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut outs = Vec::new();
+    for (name, integrator) in [
+        ("mj", "scheme = \"moreau_jean\"\ntheta = 0.5"),
+        ("nm", "scheme = \"ns_newmark\"\nbeta = 0.25\ngamma = 0.5"),
+    ] {
+        let spec = format!(
+            "[model]\nscene = \"bouncing_ball\"\nrestitution = 0.8\n[integrator]\n{integrator}\n[time]\nh = 0.01\nt_end = 3.0\n"
+        );
+        let spec_path = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&spec_path, spec).unwrap();
+        let out = dir.path().join(name);
+        let status = signorini()
+            .args(["run", "--quiet", "--out"])
+            .arg(&out)
+            .arg(&spec_path)
+            .status()
+            .unwrap();
+        assert!(status.success());
+        outs.push(out);
+    }
+    let cmp = dir.path().join("cmp");
+    let output = signorini()
+        .arg("compare")
+        .args(&outs)
+        .args([
+            "--column",
+            "energy",
+            "--column",
+            "balance_residual",
+            "--out",
+        ])
+        .arg(&cmp)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let labels = ["mj: moreau_jean, h = 0.01", "nm: ns_newmark, h = 0.01"];
+    for column in ["energy", "balance_residual"] {
+        let svg = std::fs::read_to_string(cmp.join(format!("compare_{column}.svg"))).unwrap();
+        // One colour of curve per run (a residual curve breaks where the value is exactly 0).
+        let strokes: std::collections::BTreeSet<&str> = svg
+            .split("<polyline")
+            .skip(1)
+            .filter_map(|p| p.split("stroke=\"").nth(1)?.split('"').next())
+            .collect();
+        assert_eq!(strokes.len(), 2, "{column}: {strokes:?}");
+        for l in labels {
+            assert!(
+                svg.contains(&format!(">{l}</text>")),
+                "{column}: legend {l}"
+            );
+        }
+    }
+    let csv = std::fs::read_to_string(cmp.join("compare.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(header[0], "run");
+    for ((line, out), label) in lines.zip(&outs).zip(labels) {
+        assert!(line.starts_with(&format!("\"{label}\",")), "{line}");
+        assert!(stdout.contains(label));
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        let cells: Vec<&str> = line.rsplitn(header.len(), ',').collect();
+        // rsplitn yields the numbers from the right, then the quoted label (it has commas).
+        for (cell, field) in cells.iter().rev().skip(1).zip(&header[1..]) {
+            let want = summary[*field].as_f64().unwrap();
+            assert_eq!(cell.parse::<f64>().unwrap(), want, "{label}: {field}");
+        }
+    }
+
+    // An analysis records no steps; a column must exist in every run.
+    let analysis = dir.path().join("modes");
+    std::fs::create_dir_all(&analysis).unwrap();
+    std::fs::write(analysis.join("summary.json"), "{}").unwrap();
+    let refused = |args: &[&std::path::Path], column: &str, says: &str| {
+        let output = signorini()
+            .arg("compare")
+            .args(args)
+            .args(["--column", column, "--out"])
+            .arg(&cmp)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success());
+        assert!(stderr.contains(says), "{stderr}");
+    };
+    refused(&[&outs[0], &analysis], "energy", "no step table");
+    refused(&[&outs[0], &outs[1]], "kinetc", "no column \"kinetc\"");
+}

@@ -1,6 +1,7 @@
 //! Command-line interface: argument definitions and dispatch to one module per command.
 
 pub mod client;
+mod compare;
 mod run;
 pub mod serve;
 
@@ -36,6 +37,8 @@ pub enum Command {
     Cancel(client::IdArgs),
     /// List every scene, scheme and contact solver with parameters, defaults and ranges.
     Capabilities(client::CapabilitiesArgs),
+    /// Compare finished runs (result directories): a figure per column, a table of summaries.
+    Compare(compare::CompareArgs),
 }
 
 /// Runs the chosen subcommand.
@@ -49,5 +52,6 @@ pub fn dispatch(cli: Cli) -> Result<()> {
         Command::Result(args) => client::result(args),
         Command::Cancel(args) => client::cancel(args),
         Command::Capabilities(args) => client::capabilities(args),
+        Command::Compare(args) => compare::compare(args),
     }
 }

@@ -1,0 +1,203 @@
+//! `signorini compare DIR...`: several runs' results side by side — one figure per chosen
+//! column with a curve per run, and a table of what each run's summary.json says about speed,
+//! energy and round-off (also written as `compare.csv`).
+
+use crate::output::{fmt_value, write_atomic, write_figure};
+use anyhow::{Context, Result, anyhow, bail};
+use clap::Args;
+use serde_json::{Map, Value};
+use signorini_core::plot::{Curve, line_chart};
+use signorini_core::trace::Envelope;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+
+/// `signorini compare`.
+#[derive(Debug, Args)]
+#[command(after_help = "Example:
+  signorini run examples/bar.toml --out out/mj
+  signorini run examples/bar_ns_generalized_alpha.toml --out out/ga
+  signorini compare out/mj out/ga --column energy --column balance_residual
+
+Writes OUT/compare_COLUMN.svg per column (columns whose name ends in `residual` are drawn as
+log10 |value|) and OUT/compare.csv, and prints the table.")]
+pub struct CompareArgs {
+    /// Result directories written by `signorini run` or `signorini result --out`.
+    #[arg(required = true, num_args = 2..)]
+    pub dirs: Vec<PathBuf>,
+    /// A steps.csv column to draw (repeat for several).
+    #[arg(long = "column", short, default_values = ["energy", "balance_residual"])]
+    pub columns: Vec<String>,
+    /// Directory for the figures and compare.csv.
+    #[arg(long, short, default_value = "compare")]
+    pub out: PathBuf,
+}
+
+/// Summary fields of the table, in order (absent ones are left empty).
+const TABLE: [&str; 9] = [
+    "steps",
+    "h",
+    "wall_s",
+    "steps_per_s",
+    "energy_initial",
+    "energy_final",
+    "energy_max",
+    "max_abs_balance_residual",
+    "impacts",
+];
+
+const COLORS: [&str; 8] = [
+    "black", "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2",
+];
+
+/// One run: its label, summary and the envelope of each chosen column.
+struct Run {
+    label: String,
+    summary: Map<String, Value>,
+    envelopes: Vec<Envelope>,
+}
+
+/// A label: the directory's name, then the scheme and h from the summary.
+fn label(dir: &Path, summary: &Map<String, Value>) -> String {
+    let name = dir
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| dir.display().to_string());
+    let scheme = summary.get("scheme").and_then(Value::as_str);
+    let h = summary.get("h").and_then(Value::as_f64);
+    match (scheme, h) {
+        (Some(s), Some(h)) => format!("{name}: {s}, h = {h}"),
+        (Some(s), None) => format!("{name}: {s}"),
+        _ => name,
+    }
+}
+
+fn read_run(dir: &Path, columns: &[String]) -> Result<Run> {
+    let path = dir.join("summary.json");
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("{}: not a finished result", path.display()))?;
+    let summary: Map<String, Value> =
+        serde_json::from_str(&text).with_context(|| format!("reading {}", path.display()))?;
+    let path = dir.join("steps.csv");
+    let file = std::fs::File::open(&path).with_context(|| {
+        format!(
+            "{}: no step table (an analysis records no steps)",
+            path.display()
+        )
+    })?;
+    let mut lines = BufReader::new(file).lines();
+    let header = lines
+        .next()
+        .transpose()?
+        .ok_or_else(|| anyhow!("{}: empty", path.display()))?;
+    let names: Vec<&str> = header.split(',').collect();
+    let t_at = names
+        .iter()
+        .position(|n| *n == "t")
+        .ok_or_else(|| anyhow!("{}: no column t", path.display()))?;
+    let at: Vec<usize> = columns
+        .iter()
+        .map(|c| {
+            names.iter().position(|n| n == c).ok_or_else(|| {
+                anyhow!(
+                    "{}: no column {c:?} (it has {})",
+                    path.display(),
+                    names[2.min(names.len())..].join(", ")
+                )
+            })
+        })
+        .collect::<Result<_>>()?;
+    let mut envelopes: Vec<Envelope> = columns
+        .iter()
+        .map(|c| Envelope::new(c.ends_with("residual")))
+        .collect();
+    for (row, line) in lines.enumerate() {
+        let line = line?;
+        let cells: Vec<&str> = line.split(',').collect();
+        let value = |i: usize| -> Result<f64> {
+            cells
+                .get(i)
+                .and_then(|c| c.parse::<f64>().ok())
+                .ok_or_else(|| anyhow!("{}: row {}: bad value", path.display(), row + 2))
+        };
+        let t = value(t_at)?;
+        for (e, &i) in envelopes.iter_mut().zip(&at) {
+            e.push(t, value(i)?);
+        }
+    }
+    Ok(Run {
+        label: label(dir, &summary),
+        summary,
+        envelopes,
+    })
+}
+
+/// Runs the command.
+pub fn compare(args: CompareArgs) -> Result<()> {
+    let runs: Vec<Run> = args
+        .dirs
+        .iter()
+        .map(|d| read_run(d, &args.columns))
+        .collect::<Result<_>>()?;
+    if runs.len() > COLORS.len() {
+        bail!("at most {} runs per comparison", COLORS.len());
+    }
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    for (k, column) in args.columns.iter().enumerate() {
+        let log = column.ends_with("residual");
+        let curves: Vec<Curve> = runs
+            .iter()
+            .zip(COLORS)
+            .map(|(r, color)| Curve {
+                label: r.label.clone(),
+                color,
+                dash: "",
+                points: r.envelopes[k].points().collect(),
+            })
+            .collect();
+        let (title, ylabel) = if log {
+            (format!("log₁₀ |{column}|"), format!("log₁₀ |{column}|"))
+        } else {
+            (column.clone(), column.clone())
+        };
+        let figure = line_chart(&format!("compare_{column}"), &title, &ylabel, log, &curves);
+        write_figure(&args.out, &figure)?;
+    }
+    let mut csv = String::from("run");
+    for f in TABLE {
+        csv.push(',');
+        csv.push_str(f);
+    }
+    csv.push('\n');
+    let wide = runs
+        .iter()
+        .map(|r| r.label.chars().count())
+        .max()
+        .unwrap_or(3);
+    let mut table = format!("{:<wide$}", "run");
+    for f in TABLE {
+        table.push_str(&format!(" {f:>w$}", w = f.len().max(12)));
+    }
+    table.push('\n');
+    for r in &runs {
+        csv.push_str(&format!("\"{}\"", r.label.replace('"', "'")));
+        table.push_str(&format!("{:<wide$}", r.label));
+        for f in TABLE {
+            let v = r.summary.get(f).and_then(Value::as_f64);
+            csv.push(',');
+            csv.push_str(&v.map(fmt_value).unwrap_or_default());
+            let cell = match v {
+                Some(x) if x.fract() == 0.0 && x.abs() < 1e15 => format!("{x:.0}"),
+                Some(x) => format!("{x:.4e}"),
+                None => String::new(),
+            };
+            table.push_str(&format!(" {cell:>w$}", w = f.len().max(12)));
+        }
+        csv.push('\n');
+        table.push('\n');
+    }
+    write_atomic(&args.out.join("compare.csv"), &csv)?;
+    print!("{table}");
+    println!("figures and compare.csv in {}", args.out.display());
+    Ok(())
+}
