@@ -1,4 +1,4 @@
-//! HTTP/JSON API (axum). Each handler: validate → convert → dispatch to the [`Engine`] → respond.
+//! HTTP/JSON API (axum). Each handler: validate → convert → dispatch to the [`crate::worker::Engine`] → respond.
 //! Errors are `{"error": {"field", "reason"}}` with a status code per [`ApiError`] kind.
 
 use super::AppState;

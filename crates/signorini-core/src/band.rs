@@ -8,7 +8,7 @@ use std::sync::OnceLock;
 use thiserror::Error;
 
 /// Symmetric matrix stored by its lower band, one diagonal after the other: diagonal k
-/// (k = 0 ..= kd) holds A[i][i−k] at position i (positions i < k unused). Products and quadratic
+/// (k = 0 ..= kd) holds `A[i][i−k]` at position i (positions i < k unused). Products and quadratic
 /// forms then run along contiguous diagonals, which the compiler vectorises.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SymBand {

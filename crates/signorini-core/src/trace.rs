@@ -187,7 +187,7 @@ struct Traced {
 }
 
 /// An [`Observer`] that forwards everything to `inner` and keeps the envelope of the energy and
-/// residual columns of the run (those of [`ENERGIES`] and [`RESIDUALS`] it has).
+/// residual columns of the run (energies and cumulative works; balance and constraint residuals).
 pub struct EnergyTrace<'a> {
     inner: &'a mut dyn Observer,
     traced: Vec<Traced>,
