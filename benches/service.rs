@@ -99,7 +99,10 @@ fn main() {
                 }
             }
             let r = client
-                .get_result(pb::GetResultRequest { id: id.into() })
+                .get_result(pb::GetResultRequest {
+                    id: id.into(),
+                    ..Default::default()
+                })
                 .await
                 .expect("result")
                 .into_inner();

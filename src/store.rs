@@ -11,6 +11,7 @@
 use rusqlite::{Connection, OptionalExtension, params};
 use serde_json::{Map, Value};
 use signorini_core::job::{Figure, Table};
+use signorini_core::spec::SpecError;
 use std::path::Path;
 use std::sync::Mutex;
 use thiserror::Error;
@@ -133,6 +134,45 @@ impl StoredResult {
         let stem = name.strip_suffix(".svg").unwrap_or(name);
         let by = |n: &str| self.figures.iter().find(|f| f.name == n);
         by(name).or_else(|| by(stem))
+    }
+
+    /// The series cut down to `columns` (all when empty, in the stored order otherwise as
+    /// asked) and to every `every`-th record plus the last (all when `every` ≤ 1). Values are
+    /// copied, never recomputed: what is left is bit-identical to the stored result.
+    pub fn select(mut self, columns: &[String], every: u64) -> Result<Self, SpecError> {
+        let at: Vec<usize> = if columns.is_empty() {
+            (0..self.columns.len()).collect()
+        } else {
+            columns
+                .iter()
+                .map(|name| {
+                    self.columns.iter().position(|c| c == name).ok_or_else(|| {
+                        SpecError::new(
+                            "columns",
+                            format!(
+                                "no column {name:?} (the result has {})",
+                                self.columns.join(", ")
+                            ),
+                        )
+                    })
+                })
+                .collect::<Result<_, _>>()?
+        };
+        let n = self.columns.len();
+        let rows = self.steps.len();
+        let every = every.max(1) as usize;
+        let keep: Vec<usize> = (0..rows)
+            .filter(|&i| i % every == 0 || i + 1 == rows)
+            .collect();
+        let mut values = Vec::with_capacity(keep.len() * at.len());
+        for &i in &keep {
+            values.extend(at.iter().map(|&c| self.values[i * n + c]));
+        }
+        self.columns = at.iter().map(|&c| self.columns[c].clone()).collect();
+        self.steps = keep.iter().map(|&i| self.steps[i]).collect();
+        self.t = keep.iter().map(|&i| self.t[i]).collect();
+        self.values = values;
+        Ok(self)
     }
 
     /// The values of column `c`.

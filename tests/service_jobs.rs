@@ -119,6 +119,7 @@ async fn full_queue_is_refused_and_cancel_stops_a_long_job_quickly() {
     let err = client
         .get_result(pb::GetResultRequest {
             id: "long-b".into(),
+            ..Default::default()
         })
         .await
         .expect_err("no result");

@@ -24,7 +24,10 @@ async fn kill9_mid_job_then_restart_keeps_results_and_reruns_the_job() {
         pb::JobState::Succeeded as i32
     );
     let before = client
-        .get_result(pb::GetResultRequest { id: done.clone() })
+        .get_result(pb::GetResultRequest {
+            id: done.clone(),
+            ..Default::default()
+        })
         .await
         .expect("result")
         .into_inner();
@@ -44,7 +47,10 @@ async fn kill9_mid_job_then_restart_keeps_results_and_reruns_the_job() {
     let second = TestServer::start(&store, &opts);
     let mut client = second.grpc().await;
     let after = client
-        .get_result(pb::GetResultRequest { id: done.clone() })
+        .get_result(pb::GetResultRequest {
+            id: done.clone(),
+            ..Default::default()
+        })
         .await
         .expect("result after")
         .into_inner();
@@ -64,6 +70,7 @@ async fn kill9_mid_job_then_restart_keeps_results_and_reruns_the_job() {
     let r = client
         .get_result(pb::GetResultRequest {
             id: running.clone(),
+            ..Default::default()
         })
         .await
         .expect("rerun result")

@@ -66,7 +66,10 @@ async fn grpc_job_streams_every_step_over_zenoh_bit_for_bit() {
     );
 
     let result = client
-        .get_result(pb::GetResultRequest { id: id.into() })
+        .get_result(pb::GetResultRequest {
+            id: id.into(),
+            ..Default::default()
+        })
         .await
         .expect("GetResult")
         .into_inner();
@@ -145,6 +148,57 @@ async fn http_job_streams_every_step_over_zenoh_bit_for_bit() {
     }
     assert_eq!(result["summary"]["steps"], STEPS);
     assert_eq!(result["columns"][0], "step");
+
+    // A cut of the result: two columns, every 7th row and the last, the same bits.
+    let (code, cut) = server
+        .http(
+            "GET",
+            &format!("/v1/jobs/{id}/result?columns=energy,kinetic&every=7"),
+            None,
+            None,
+        )
+        .await;
+    assert_eq!(code, 200, "{cut}");
+    assert_eq!(
+        cut["columns"],
+        serde_json::json!(["step", "t", "energy", "kinetic"])
+    );
+    let rows: Vec<usize> = (0..=STEPS as usize)
+        .filter(|i| i % 7 == 0 || *i == STEPS as usize)
+        .collect();
+    let cut_steps: Vec<u64> = serde_json::from_value(cut["steps"]["step"].clone()).expect("step");
+    assert_eq!(cut_steps, rows.iter().map(|&i| step[i]).collect::<Vec<_>>());
+    for name in ["energy", "kinetic"] {
+        let full: Vec<f64> = serde_json::from_value(steps[name].clone()).expect("full");
+        let part: Vec<f64> = serde_json::from_value(cut["steps"][name].clone()).expect("cut");
+        let want: Vec<f64> = rows.iter().map(|&i| full[i]).collect();
+        assert_eq!(bits(&part), bits(&want), "cut column {name}");
+    }
+    assert!(cut["steps"].get("strain").is_none());
+    let (code, body) = server
+        .http(
+            "GET",
+            &format!("/v1/jobs/{id}/result?columns=energy,nope"),
+            None,
+            None,
+        )
+        .await;
+    assert_eq!(
+        (code, body["error"]["field"].as_str()),
+        (400, Some("columns")),
+        "{body}"
+    );
+    let grpc_cut = client
+        .get_result(pb::GetResultRequest {
+            id: id.into(),
+            columns: vec!["energy".into()],
+            every: 1000,
+        })
+        .await
+        .expect("GetResult with a cut")
+        .into_inner();
+    assert_eq!(grpc_cut.step, [0, 1000, 2000, 3000]);
+    assert_eq!(grpc_cut.columns, ["energy"]);
 
     let (code, body) = server.http_raw("GET", "/metrics", None, None).await;
     let text = String::from_utf8_lossy(&body);
@@ -242,7 +296,10 @@ async fn modal_figures_over_grpc_http_and_result_out_equal_what_run_writes() {
 
     // (a) gRPC GetResult: the same figures, the same text.
     let result = client
-        .get_result(pb::GetResultRequest { id: id.into() })
+        .get_result(pb::GetResultRequest {
+            id: id.into(),
+            ..Default::default()
+        })
         .await
         .expect("GetResult")
         .into_inner();

@@ -55,7 +55,10 @@ async fn finish(client: &mut SimulationClient<Channel>, id: &str) -> (Value, pb:
     let fin = wait_terminal(client, id).await;
     assert_eq!(fin.state, pb::JobState::Succeeded as i32, "{id}: {fin:?}");
     let r = client
-        .get_result(pb::GetResultRequest { id: id.into() })
+        .get_result(pb::GetResultRequest {
+            id: id.into(),
+            ..Default::default()
+        })
         .await
         .expect("GetResult")
         .into_inner();

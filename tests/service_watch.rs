@@ -88,7 +88,10 @@ async fn get_result(server: &TestServer, id: &str) -> pb::JobResult {
     server
         .grpc()
         .await
-        .get_result(pb::GetResultRequest { id: id.into() })
+        .get_result(pb::GetResultRequest {
+            id: id.into(),
+            ..Default::default()
+        })
         .await
         .expect("GetResult")
         .into_inner()

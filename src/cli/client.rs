@@ -64,6 +64,12 @@ pub struct ResultArgs {
     /// `signorini run` does.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
+    /// Only this column of the step series (repeat for several; all by default).
+    #[arg(long = "column", short)]
+    pub columns: Vec<String>,
+    /// Only every N-th recorded row, and the last (all by default).
+    #[arg(long, default_value_t = 1)]
+    pub every: u64,
     #[command(flatten)]
     pub conn: Connection,
 }
@@ -218,6 +224,8 @@ pub fn result(args: ResultArgs) -> Result<()> {
         let mut c = client(&args.conn).await?;
         c.get_result(pb::GetResultRequest {
             id: args.id.clone(),
+            columns: args.columns.clone(),
+            every: args.every,
         })
         .await
         .map_err(status_error)

@@ -162,12 +162,15 @@ impl Simulation for SimulationService {
         &self,
         req: Request<pb::GetResultRequest>,
     ) -> Result<Response<pb::JobResult>, Status> {
-        let pb::GetResultRequest { id } = req.into_inner();
+        let pb::GetResultRequest { id, columns, every } = req.into_inner();
         let engine = self.state.engine.clone();
-        let (view, result) = tokio::task::spawn_blocking(move || engine.result(&id))
-            .await
-            .map_err(|e| Status::internal(e.to_string()))?
-            .map_err(to_status)?;
+        let (view, result) = tokio::task::spawn_blocking(move || {
+            let (view, result) = engine.result(&id)?;
+            Ok::<_, ApiError>((view, result.select(&columns, every)?))
+        })
+        .await
+        .map_err(|e| Status::internal(e.to_string()))?
+        .map_err(to_status)?;
         Ok(Response::new(convert::result_to_proto(&view, &result)))
     }
 

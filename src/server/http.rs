@@ -198,11 +198,31 @@ async fn load_result(state: &AppState, id: String) -> Result<(JobView, StoredRes
         .map_err(|e| ApiError::Internal(e.to_string()))?
 }
 
+/// `?columns=a,b&every=N` of `GET /v1/jobs/{id}/result`.
+#[derive(Debug, Deserialize)]
+struct ResultQuery {
+    /// Comma-separated column names (all when absent).
+    #[serde(default)]
+    columns: Option<String>,
+    /// Every N-th recorded row, and the last.
+    #[serde(default)]
+    every: Option<u64>,
+}
+
 async fn get_result(
     State(state): State<AppState>,
     Path(id): Path<String>,
+    Query(q): Query<ResultQuery>,
 ) -> Result<Json<Value>, ApiError> {
     let (view, result) = load_result(&state, id).await?;
+    let columns: Vec<String> = q
+        .columns
+        .iter()
+        .flat_map(|c| c.split(','))
+        .filter(|c| !c.is_empty())
+        .map(str::to_string)
+        .collect();
+    let result = result.select(&columns, q.every.unwrap_or(1))?;
     Ok(Json(result_json(&view, &result)))
 }
 
