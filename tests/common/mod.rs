@@ -418,7 +418,7 @@ pub struct SseEvent {
 }
 
 /// Reads `GET path` as server-sent events, handing each parsed event to `on_event` until it
-/// returns false.
+/// returns false; then the stream must end (the server closes it after a final status).
 pub async fn read_sse(addr: SocketAddr, path: &str, mut on_event: impl FnMut(SseEvent) -> bool) {
     let client: Client<_, Full<Bytes>> = Client::builder(TokioExecutor::new()).build_http();
     let req = hyper::Request::builder()
@@ -464,7 +464,25 @@ pub async fn read_sse(addr: SocketAddr, path: &str, mut on_event: impl FnMut(Sse
             }
             let data = serde_json::from_str(&data).expect("JSON event data");
             if !on_event(SseEvent { event, data }) {
-                return;
+                // The server ends the stream after a job's final status: nothing but the end
+                // (or a keep-alive comment) may follow.
+                loop {
+                    let next = tokio::time::timeout(PATIENCE, body.frame())
+                        .await
+                        .expect("the SSE stream did not end after the final status");
+                    match next {
+                        None => return,
+                        Some(frame) => {
+                            let frame = frame.expect("SSE body");
+                            let text = frame.into_data().unwrap_or_default();
+                            let text = String::from_utf8_lossy(&text);
+                            assert!(
+                                text.lines().all(|l| l.is_empty() || l.starts_with(':')),
+                                "an event after the final status: {text}"
+                            );
+                        }
+                    }
+                }
             }
         }
     }
