@@ -9,7 +9,6 @@ use crate::proto::v1 as pb;
 use crate::proto::v1::simulation_server::Simulation;
 use crate::spec_file::{self, Format};
 use std::pin::Pin;
-use tokio_stream::wrappers::BroadcastStream;
 use tokio_stream::{Stream, StreamExt};
 use tonic::{Code, Request, Response, Status};
 
@@ -136,26 +135,16 @@ impl Simulation for SimulationService {
         req: Request<pb::WatchJobRequest>,
     ) -> Result<Response<Self::WatchJobStream>, Status> {
         let pb::WatchJobRequest { id } = req.into_inner();
-        // Subscribe before reading the status, so no frame falls between the two.
-        let rx = self.state.watch();
-        let current = convert::status_to_proto(&self.state.engine.status(&id).map_err(to_status)?);
-        let done = convert::state_from_proto(current.state).is_some_and(|s| s.is_terminal());
+        let (current, frames) = self.state.follow(&id).map_err(to_status)?;
         let first = tokio_stream::iter([Ok(pb::WatchFrame {
-            frame: Some(pb::watch_frame::Frame::Status(current)),
+            frame: Some(pb::watch_frame::Frame::Status(convert::status_to_proto(
+                &current,
+            ))),
         })]);
-        if done {
-            return Ok(Response::new(Box::pin(first)));
+        match frames {
+            None => Ok(Response::new(Box::pin(first))),
+            Some(frames) => Ok(Response::new(Box::pin(first.chain(frames.map(Ok))))),
         }
-        let frames = BroadcastStream::new(rx).filter_map(move |msg| {
-            let frame = msg.ok()?;
-            let of_job = match frame.frame.as_ref()? {
-                pb::watch_frame::Frame::Status(s) => s.id == id,
-                pb::watch_frame::Frame::Energy(f) | pb::watch_frame::Frame::State(f) => f.id == id,
-            };
-            of_job.then(|| pb::WatchFrame::clone(&frame))
-        });
-        let frames = until_terminal(frames);
-        Ok(Response::new(Box::pin(first.chain(frames.map(Ok)))))
     }
 
     async fn get_result(
@@ -183,30 +172,4 @@ impl Simulation for SimulationService {
             &signorini_core::capabilities::capabilities(),
         )))
     }
-}
-
-/// Passes frames through up to and including the first terminal status, and ends there. (A
-/// combinator such as `map_while` would only end the stream when the *next* frame of the job
-/// arrives — never, once the job is over.) A forwarding task ends the stream by dropping its sender
-/// right after the terminal status, or stops when the client goes away.
-fn until_terminal(
-    frames: impl Stream<Item = pb::WatchFrame> + Send + 'static,
-) -> impl Stream<Item = pb::WatchFrame> + Send + 'static {
-    let (tx, rx) = tokio::sync::mpsc::channel(64);
-    tokio::spawn(async move {
-        let mut frames = std::pin::pin!(frames);
-        loop {
-            let frame = tokio::select! {
-                f = frames.next() => f,
-                () = tx.closed() => None,
-            };
-            let Some(f) = frame else { return };
-            let ended = matches!(&f.frame, Some(pb::watch_frame::Frame::Status(s))
-                if convert::state_from_proto(s.state).is_some_and(|s| s.is_terminal()));
-            if tx.send(f).await.is_err() || ended {
-                return;
-            }
-        }
-    });
-    tokio_stream::wrappers::ReceiverStream::new(rx)
 }

@@ -19,7 +19,6 @@ use serde_json::{Map, Value, json};
 use std::convert::Infallible;
 use std::fmt::Write as _;
 use std::time::Duration;
-use tokio::sync::broadcast;
 use tokio_stream::StreamExt;
 
 impl IntoResponse for ApiError {
@@ -328,62 +327,31 @@ fn frame_json(f: &StepFrame) -> Value {
     json!({ "columns": f.columns, "step": f.step, "t": f.t, "rows": rows, "last": f.last })
 }
 
-/// Server-sent events of a job: `status` and `energy` events as JSON (feeds the live page).
 /// Server-sent events of one job: its current status, then its status and energy frames as
 /// they are published; the stream ends after the job's final status.
 async fn job_events(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Sse<impl tokio_stream::Stream<Item = Result<Event, Infallible>>>, ApiError> {
-    // Subscribe before reading the status, so that a final status published in between is
-    // not lost.
-    let mut frames = state.watch();
-    let current = state.engine.status(&id)?;
-    let (tx, events) = tokio::sync::mpsc::channel::<Event>(256);
+    let (current, frames) = state.follow(&id)?;
     let first = Event::default()
         .event("status")
         .json_data(status_json(&current))
         .map_err(|e| ApiError::Internal(e.to_string()))?;
-    tokio::spawn(async move {
-        if tx.send(first).await.is_err() || current.state.is_terminal() {
-            return;
-        }
-        loop {
-            let frame = match frames.recv().await {
-                Ok(f) => f,
-                Err(broadcast::error::RecvError::Lagged(_)) => continue,
-                Err(broadcast::error::RecvError::Closed) => return,
-            };
-            let (event, last) = match frame.frame.as_ref() {
-                Some(watch_frame::Frame::Status(s)) if s.id == id => {
-                    let state = super::convert::state_from_proto(s.state);
-                    let p = s.progress.unwrap_or_default();
-                    let body = json!({ "id": s.id, "state": state.map_or("unknown", JobState::as_str), "progress": { "step": p.step, "total": p.total, "t": p.t, "fraction": p.fraction } });
-                    (
-                        Event::default().event("status").json_data(body).ok(),
-                        state.is_some_and(|s| s.is_terminal()),
-                    )
-                }
-                Some(watch_frame::Frame::Energy(f)) if f.id == id => (
-                    Event::default()
-                        .event("energy")
-                        .json_data(frame_json(f))
-                        .ok(),
-                    false,
-                ),
-                _ => continue,
-            };
-            if let Some(event) = event
-                && tx.send(event).await.is_err()
-            {
-                return;
+    let rest: std::pin::Pin<Box<dyn tokio_stream::Stream<Item = Event> + Send>> = match frames {
+        None => Box::pin(tokio_stream::empty()),
+        Some(frames) => Box::pin(frames.filter_map(|frame| match frame.frame? {
+            watch_frame::Frame::Status(s) => {
+                let state = super::convert::state_from_proto(s.state).map_or("unknown", JobState::as_str);
+                let p = s.progress.unwrap_or_default();
+                let body = json!({ "id": s.id, "state": state, "progress": { "step": p.step, "total": p.total, "t": p.t, "fraction": p.fraction } });
+                Event::default().event("status").json_data(body).ok()
             }
-            if last {
-                return;
-            }
-        }
-    });
-    let stream = tokio_stream::wrappers::ReceiverStream::new(events).map(Ok);
+            watch_frame::Frame::Energy(f) => Event::default().event("energy").json_data(frame_json(&f)).ok(),
+            watch_frame::Frame::State(_) => None,
+        })),
+    };
+    let stream = tokio_stream::iter([first]).chain(rest).map(Ok);
     Ok(Sse::new(stream).keep_alive(KeepAlive::new().interval(Duration::from_secs(10))))
 }
 

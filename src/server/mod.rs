@@ -7,8 +7,8 @@ pub mod http;
 
 use crate::config::ServeConfig;
 use crate::error::ApiError;
-use crate::proto::v1::WatchFrame;
 use crate::proto::v1::simulation_server::SimulationServer;
+use crate::proto::v1::{WatchFrame, watch_frame};
 use crate::store::Store;
 use crate::stream::{self, Streamer, ZenohOptions};
 use crate::worker::{Engine, JobView};
@@ -16,6 +16,8 @@ use anyhow::{Context, Result};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::sync::broadcast;
+use tokio_stream::wrappers::BroadcastStream;
+use tokio_stream::{Stream, StreamExt};
 
 /// What every handler shares.
 #[derive(Clone)]
@@ -43,9 +45,39 @@ impl AppState {
         }
     }
 
-    /// Every published frame (gRPC `WatchJob`, SSE).
+    /// Every published frame.
     pub fn watch(&self) -> broadcast::Receiver<Arc<WatchFrame>> {
         self.frames.subscribe()
+    }
+
+    /// A job's current status and, unless it is already over, the frames published for it up
+    /// to and including its final status (gRPC `WatchJob`, SSE). The subscription is taken
+    /// before the status is read, so no frame falls between the two.
+    pub fn follow(
+        &self,
+        id: &str,
+    ) -> Result<
+        (
+            JobView,
+            Option<impl Stream<Item = WatchFrame> + Send + 'static>,
+        ),
+        ApiError,
+    > {
+        let rx = self.watch();
+        let current = self.engine.status(id)?;
+        if current.state.is_terminal() {
+            return Ok((current, None));
+        }
+        let id = id.to_string();
+        let frames = BroadcastStream::new(rx).filter_map(move |msg| {
+            let frame = msg.ok()?;
+            let of_job = match frame.frame.as_ref()? {
+                watch_frame::Frame::Status(s) => s.id == id,
+                watch_frame::Frame::Energy(f) | watch_frame::Frame::State(f) => f.id == id,
+            };
+            of_job.then(|| WatchFrame::clone(&frame))
+        });
+        Ok((current, Some(until_terminal(frames))))
     }
 
     /// Cancels a job and waits (up to 5 s) until a running one has stopped.
@@ -177,4 +209,30 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
 
 fn streamer_sender(s: &Streamer) -> broadcast::Sender<Arc<WatchFrame>> {
     s.sender()
+}
+
+/// Passes frames through up to and including the first terminal status, and ends there. (A
+/// combinator such as `map_while` would only end the stream when the *next* frame of the job
+/// arrives — never, once the job is over.) A forwarding task ends the stream by dropping its sender
+/// right after the terminal status, or stops when the client goes away.
+fn until_terminal(
+    frames: impl Stream<Item = WatchFrame> + Send + 'static,
+) -> impl Stream<Item = WatchFrame> + Send + 'static {
+    let (tx, rx) = tokio::sync::mpsc::channel(64);
+    tokio::spawn(async move {
+        let mut frames = std::pin::pin!(frames);
+        loop {
+            let frame = tokio::select! {
+                f = frames.next() => f,
+                () = tx.closed() => None,
+            };
+            let Some(f) = frame else { return };
+            let ended = matches!(&f.frame, Some(watch_frame::Frame::Status(s))
+                if convert::state_from_proto(s.state).is_some_and(|s| s.is_terminal()));
+            if tx.send(f).await.is_err() || ended {
+                return;
+            }
+        }
+    });
+    tokio_stream::wrappers::ReceiverStream::new(rx)
 }
