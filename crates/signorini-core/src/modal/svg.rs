@@ -6,7 +6,9 @@ use super::forced::{Excitation, Response};
 use super::orbit::Orbit;
 use super::{BackbonePoint, main_asymptote};
 use crate::job::Figure;
-use crate::plot::{Axes, H, MB, ML, MR, MT, W, frame, header, polyline, vline, y_range};
+use crate::plot::{
+    Axes, H, MB, ML, MR, MT, W, frame, header, polyline, vline, with_legend_room, y_range,
+};
 use crate::wfem::{WaveBar, WaveState, transport};
 use std::fmt::Write;
 
@@ -128,7 +130,11 @@ pub fn backbone_figure(
             .filter(|p| p.energy_normalized > 0.0)
             .map(|p| p.energy_normalized.log10()),
     );
-    let ax = Axes { x, y };
+    // Room above the points for the six-line legend.
+    let ax = Axes {
+        x,
+        y: with_legend_room(y, 6),
+    };
     let mut s = String::new();
     header(&mut s, "Nonsmooth modes: frequency–energy backbones");
     frame(&mut s, &ax, "ω / ω₁", "energy / E_lin (log₁₀)", true);
@@ -246,9 +252,12 @@ pub fn forced_figure(
                 .filter(|p| p.omega_over_omega1 >= ax_x.0 && p.omega_over_omega1 <= ax_x.1)
                 .map(|p| p.energy_normalized.log10()),
         );
+    let mut dampings: Vec<f64> = results.iter().map(|r| r.damping).collect();
+    dampings.dedup();
+    // Room above the curves for the legend: six lines and one per damping value.
     let ax = Axes {
         x: ax_x,
-        y: y_range(ys),
+        y: with_legend_room(y_range(ys), 6 + dampings.len()),
     };
     let mut s = String::new();
     let what = match excitation {
@@ -262,8 +271,6 @@ pub fn forced_figure(
     frame(&mut s, &ax, "ω / ω₁", "mean energy / E_lin (log₁₀)", true);
     legend_and_lines(&mut s, &ax);
     draw_backbone_points(&mut s, &ax, &bb);
-    let mut dampings: Vec<f64> = results.iter().map(|r| r.damping).collect();
-    dampings.dedup();
     for (i, g) in dampings.iter().enumerate() {
         let color = palette[i % palette.len()];
         polyline(
