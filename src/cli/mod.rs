@@ -31,7 +31,7 @@ pub enum Command {
     Status(client::IdArgs),
     /// Follow a job live over zenoh: progress bar and energy terms (`--json` for machines).
     Watch(client::WatchArgs),
-    /// Fetch a finished job's result (summary, or steps.csv + summary.json with --out).
+    /// Fetch a finished job's result (its summary, or with --out the files `run` writes).
     Result(client::ResultArgs),
     /// Cancel a queued or running job.
     Cancel(client::IdArgs),
