@@ -60,10 +60,22 @@ pub struct TestServer {
 
 impl TestServer {
     /// Starts the binary on `store` and waits for its "serving" line.
+    ///
+    /// gRPC and HTTP bind port 0 and the server reports the ports it got (two ports picked here
+    /// once came out equal). zenoh has no such report, so its port is picked here and can, rarely,
+    /// be taken by another test's server before this one binds it: a server that exits before
+    /// serving is started again on a new port (at most five times).
     pub fn start(store: &Path, opts: &Options) -> TestServer {
-        // gRPC and HTTP bind port 0 and the server reports the ports it got: two ports picked
-        // here could come out equal (seen: "--grpc-addr and --http-addr must differ"). zenoh
-        // has no such report, so its port is picked here; the server binds it first.
+        for _ in 0..5 {
+            if let Some(server) = Self::try_start(store, opts) {
+                return server;
+            }
+        }
+        panic!("signorini serve exited before serving, five times");
+    }
+
+    /// One attempt: `None` when the server exited before reporting where it serves.
+    fn try_start(store: &Path, opts: &Options) -> Option<TestServer> {
         let zenoh = format!("tcp/127.0.0.1:{}", free_port());
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_signorini"));
         cmd.arg("serve")
@@ -105,19 +117,23 @@ impl TestServer {
         });
         let (grpc, http) = match rx.recv_timeout(PATIENCE) {
             Ok((Ok(g), Ok(h))) => (g, h),
+            Err(mpsc::RecvTimeoutError::Disconnected) => {
+                let _ = child.wait();
+                return None;
+            }
             other => {
                 let _ = child.kill();
                 let _ = child.wait();
                 panic!("server did not report where it serves: {other:?}");
             }
         };
-        TestServer {
+        Some(TestServer {
             child,
             grpc_url: format!("http://{grpc}"),
             http,
             zenoh,
             store: store.to_path_buf(),
-        }
+        })
     }
 
     /// SIGKILL, no cleanup (crash test).
