@@ -10,13 +10,14 @@
 //!
 //! zenoh QoS: status and step frames of a job share one priority. zenoh keeps messages in order
 //! only within a priority; a higher-priority terminal status overtook the job's last step frames
-//! on the wire and a watcher that stops at the terminal status missed them (seen in CI). Step frames are
-//! put with congestion control *block* on the publishing task (not on the job): zenoh's *drop*
-//! policy, measured here, drops whole bursts as soon as its link queue is momentarily full (a
-//! fast job emits dozens of frames per millisecond), so a subscriber on loopback that keeps up
-//! would still lose steps. With *block*, a subscriber that stalls for more than zenoh's
-//! `wait_before_close` (5 s) is disconnected by zenoh, and meanwhile the channel above fills and
-//! drops frames — the job runs on at full speed either way.
+//! on the wire and a watcher that stops at the terminal status missed them (seen in CI).
+//!
+//! Step frames are put with congestion control *block* on the publishing task (not on the
+//! job): zenoh's *drop* policy, measured here, drops whole bursts as soon as its link queue is
+//! momentarily full (a fast job emits dozens of frames per millisecond), so a subscriber on
+//! loopback that keeps up would still lose steps. With *block*, a subscriber that stalls for more
+//! than zenoh's `wait_before_close` (5 s) is disconnected by zenoh, and meanwhile the queue above
+//! fills and drops offered frames — the job runs on at full speed either way.
 //!
 //! A queryable on `signorini/v1/jobs/*/status` answers the latest status of a job, for late
 //! joiners (`signorini watch`) and as a barrier: once a query from a session is answered, the
