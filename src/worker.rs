@@ -320,14 +320,16 @@ impl Engine {
                 return Err(ApiError::AlreadyExists { id });
             }
             lock(&self.inner.live).insert(id.clone(), live.clone());
+            // Queued before a worker can take the job (it takes jobs under this lock), so the
+            // `queued` status cannot go out after `running`.
+            self.inner
+                .sink
+                .send(StreamMsg::Status(crate::server::convert::status_to_proto(
+                    &live.view(),
+                )));
             queue.push_back(live.clone());
         }
         self.inner.wake.notify_one();
-        self.inner
-            .sink
-            .send(StreamMsg::Status(crate::server::convert::status_to_proto(
-                &live.view(),
-            )));
         Ok(id)
     }
 
