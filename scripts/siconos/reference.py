@@ -15,7 +15,7 @@ For each scene it writes, into crates/signorini-core/tests/fixtures/siconos/,
 * `<name>.json` — the exact parameters: a Signorini job spec (`spec`, which
   `tests/siconos_crosscheck.rs` runs as is) and how the Siconos model was built (`siconos`).
 
-Scenes (DESIGN.md §8 item 4; offsets keep a contact from closing exactly on a step):
+Scenes (offsets keep a contact from closing exactly on a step):
 
 * `ball_e09_theta05` — m = 1, g = 9.81, q0 = 1 − 3.7e-4, e = 0.9, θ = ½, γ = 1, h = 0.005
 * `ball_e05_theta1`  — same ball, e = 0.5, θ = 1, γ = 0.5 (passed explicitly), h = 0.005

@@ -1,6 +1,6 @@
 //! Per-step cost of the nonsmooth α-family and the position-contact baselines next to
 //! Moreau–Jean (θ = ½) on the `bar` scene, N = 1 000 elements, lumped mass, fixed left end, one
-//! contact at the right end, energy bookkeeping on (every term of DESIGN.md §5 at every step).
+//! contact at the right end, energy bookkeeping on (every energy column of `signorini_core::energy` at every step).
 //!
 //! ```text
 //! cargo bench -p signorini-core --bench alpha            # add -- --quick for a short run

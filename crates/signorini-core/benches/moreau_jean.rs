@@ -1,5 +1,5 @@
 //! Per-step cost of Moreau–Jean (θ = ½) on the `bar` scene: lumped mass, fixed left end, one
-//! contact at the right end, energy bookkeeping on (every term of DESIGN.md §5 at every step).
+//! contact at the right end, energy bookkeeping on (every energy column of `signorini_core::energy` at every step).
 //!
 //! ```text
 //! cargo bench -p signorini-core --bench moreau_jean

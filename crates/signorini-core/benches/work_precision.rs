@@ -1,4 +1,4 @@
-//! Work–precision diagrams (DESIGN.md §9): error against CPU time, per integrator, on two scenes
+//! Work–precision diagrams: error against CPU time, per integrator, on two scenes
 //! with an exact solution. Plain `fn main` (`harness = false`):
 //!
 //! ```text

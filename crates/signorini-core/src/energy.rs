@@ -1,4 +1,4 @@
-//! The energy terms every step of a linear scheme reports (DESIGN.md §5). Their names are the
+//! The energy terms every step of a linear scheme reports (Acary 2016, Lemma 1 and Lemmas 2–3). Their names are the
 //! column names of every output.
 
 /// Names of the per-step energy columns, in output order.

@@ -1,4 +1,4 @@
-//! Hard cases of DESIGN.md §8.5 for the nonsmooth α-family: e = 1 over 10⁶ steps, and the
+//! Hard cases for the nonsmooth α-family: e = 1 over 10⁶ steps, and the
 //! accumulation of impacts (Zeno) until rest.
 
 use signorini_core::contact::{Activation, IndexSetRule};

@@ -1,4 +1,4 @@
-//! Moreau–Jean against exact solutions (DESIGN.md §8.3).
+//! Moreau–Jean against exact solutions.
 
 use signorini_core::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
 use signorini_core::integrators::{LinearState, OutputOptions, run_linear};

@@ -1,5 +1,5 @@
 //! Cross-check of our Moreau–Jean θ-scheme against Siconos, the field's reference code
-//! (DESIGN.md §8 item 4; the whole story is in `docs/siconos.md`).
+//! (the whole story is in `docs/siconos.md`).
 //!
 //! The fixtures in `tests/fixtures/siconos/` were written by `scripts/siconos/reference.py`
 //! with Siconos (`python3-siconos` 4.4.0+dfsg-2, Python module version 4.5.0):
