@@ -1,6 +1,7 @@
 //! The smooth baselines kept on purpose, to show the energy blow-up that Acary 2016 (§1) reports
 //! and the nonsmooth schemes avoid: standard Newmark and HHT with the contact enforced at
-//! position level, as a general finite-element code does it — a Lagrange multiplier λ_{k+1} (a force, not an impulse) on `g(q_{k+1}, t_{k+1}) ≥ 0`, no impact law.
+//! position level, as a general finite-element code does it — a Lagrange multiplier λ_{k+1}
+//! (a force, not an impulse) on `g(q_{k+1}, t_{k+1}) ≥ 0`, no impact law.
 //!
 //! One step (HHT form (78) with the contact force treated as a load; Newmark is α = 0):
 //!
