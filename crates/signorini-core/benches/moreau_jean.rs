@@ -8,6 +8,9 @@
 //! Prints one JSON line per N with steps/s and ns per dof and step. The scene matches
 //! `scripts/siconos/bench.py`, so the two are directly comparable.
 
+// Only the core library must stay pure (clippy.toml): a benchmark times itself and prints.
+#![allow(clippy::disallowed_macros, clippy::disallowed_methods)]
+
 use signorini_core::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
 use signorini_core::integrators::{LinearState, OutputOptions, run_linear};
 use signorini_core::lcp::LcpOptions;
