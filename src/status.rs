@@ -1,6 +1,6 @@
 //! A job's status, the one domain shape of it: [`JobState`] and [`JobView`]. Each wire encodes
 //! it once: protobuf `JobStatus` (gRPC and zenoh, [`crate::proto::encode`]), JSON
-//! ([`crate::server::http::StatusJson`], every HTTP route and the CLI) and the store's SQL row.
+//! ([`crate::server::json::StatusJson`], every HTTP route and the CLI) and the store's SQL row.
 
 use signorini_core::observer::Progress;
 

@@ -31,7 +31,7 @@ use tokio::sync::watch;
 pub use ids::check_id;
 
 /// A queued or running job.
-pub(crate) struct LiveJob {
+struct LiveJob {
     id: String,
     name: Option<String>,
     job: Job,
@@ -83,7 +83,7 @@ pub struct Counters {
 }
 
 /// What the engine's handle and its worker threads share.
-pub(crate) struct Inner {
+struct Inner {
     store: Store,
     limits: Limits,
     queue_limit: usize,
