@@ -256,60 +256,73 @@ async fn healthz() -> Json<Value> {
     Json(json!({ "status": "ok" }))
 }
 
+/// Appends one Prometheus metric: its help and type lines, then `NAME{labels} value` per sample.
+fn metric(s: &mut String, name: &str, kind: &str, help: &str, samples: &[(String, String)]) {
+    let _ = writeln!(s, "# HELP {name} {help}\n# TYPE {name} {kind}");
+    for (labels, value) in samples {
+        let _ = writeln!(s, "{name}{labels} {value}");
+    }
+}
+
 async fn metrics(State(state): State<AppState>) -> Result<Response, ApiError> {
     let counts = state.engine.counts()?;
     let steps = state.engine.steps_total();
     let rate = state.steps_rate(steps);
     let stats = state.engine.stream_stats();
+    let one = |value: String| [(String::new(), value)];
+    let load = |c: &std::sync::atomic::AtomicU64| {
+        one(c.load(std::sync::atomic::Ordering::Relaxed).to_string())
+    };
+    let jobs: Vec<(String, String)> = counts
+        .into_iter()
+        .map(|(st, n)| (format!("{{state=\"{}\"}}", st.as_str()), n.to_string()))
+        .collect();
     let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "# HELP signorini_jobs Jobs by state.\n# TYPE signorini_jobs gauge"
+    metric(&mut s, "signorini_jobs", "gauge", "Jobs by state.", &jobs);
+    let depth = state.engine.queue_depth().to_string();
+    let help = "Jobs waiting for a worker.";
+    metric(&mut s, "signorini_queue_depth", "gauge", help, &one(depth));
+    let workers = state.engine.workers().to_string();
+    metric(
+        &mut s,
+        "signorini_workers",
+        "gauge",
+        "Worker threads.",
+        &one(workers),
     );
-    for (st, n) in counts {
-        let _ = writeln!(s, "signorini_jobs{{state=\"{}\"}} {n}", st.as_str());
-    }
-    let _ = writeln!(
-        s,
-        "# HELP signorini_queue_depth Jobs waiting for a worker.\n# TYPE signorini_queue_depth gauge"
+    let help = "Time steps computed.";
+    metric(
+        &mut s,
+        "signorini_steps_total",
+        "counter",
+        help,
+        &one(steps.to_string()),
     );
-    let _ = writeln!(s, "signorini_queue_depth {}", state.engine.queue_depth());
-    let _ = writeln!(
-        s,
-        "# HELP signorini_workers Worker threads.\n# TYPE signorini_workers gauge"
+    let help = "Steps per second since the previous scrape.";
+    metric(
+        &mut s,
+        "signorini_steps_per_second",
+        "gauge",
+        help,
+        &one(rate.to_string()),
     );
-    let _ = writeln!(s, "signorini_workers {}", state.engine.workers());
-    let _ = writeln!(
-        s,
-        "# HELP signorini_steps_total Time steps computed.\n# TYPE signorini_steps_total counter"
+    let help = "zenoh frames put.";
+    let published = load(&stats.frames_published);
+    metric(
+        &mut s,
+        "signorini_frames_published_total",
+        "counter",
+        help,
+        &published,
     );
-    let _ = writeln!(s, "signorini_steps_total {steps}");
-    let _ = writeln!(
-        s,
-        "# HELP signorini_steps_per_second Steps per second since the previous scrape.\n# TYPE signorini_steps_per_second gauge"
-    );
-    let _ = writeln!(s, "signorini_steps_per_second {rate}");
-    let _ = writeln!(
-        s,
-        "# HELP signorini_frames_published_total zenoh frames put.\n# TYPE signorini_frames_published_total counter"
-    );
-    let _ = writeln!(
-        s,
-        "signorini_frames_published_total {}",
-        stats
-            .frames_published
-            .load(std::sync::atomic::Ordering::Relaxed)
-    );
-    let _ = writeln!(
-        s,
-        "# HELP signorini_frames_dropped_total Step frames dropped for a slow link.\n# TYPE signorini_frames_dropped_total counter"
-    );
-    let _ = writeln!(
-        s,
-        "signorini_frames_dropped_total {}",
-        stats
-            .frames_dropped
-            .load(std::sync::atomic::Ordering::Relaxed)
+    let help = "Step frames dropped for a slow link.";
+    let dropped = load(&stats.frames_dropped);
+    metric(
+        &mut s,
+        "signorini_frames_dropped_total",
+        "counter",
+        help,
+        &dropped,
     );
     Ok(([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], s).into_response())
 }
