@@ -256,74 +256,69 @@ async fn healthz() -> Json<Value> {
     Json(json!({ "status": "ok" }))
 }
 
-/// Appends one Prometheus metric: its help and type lines, then `NAME{labels} value` per sample.
-fn metric(s: &mut String, name: &str, kind: &str, help: &str, samples: &[(String, String)]) {
-    let _ = writeln!(s, "# HELP {name} {help}\n# TYPE {name} {kind}");
-    for (labels, value) in samples {
-        let _ = writeln!(s, "{name}{labels} {value}");
-    }
-}
+/// Samples of a metric: `({labels}, value)`.
+type Samples = Vec<(String, String)>;
 
+/// Prometheus text: per metric its help and type lines, then `NAME{labels} value` per sample.
 async fn metrics(State(state): State<AppState>) -> Result<Response, ApiError> {
     let counts = state.engine.counts()?;
     let steps = state.engine.steps_total();
     let rate = state.steps_rate(steps);
     let stats = state.engine.stream_stats();
-    let one = |value: String| [(String::new(), value)];
+    let one = |value: String| -> Samples { vec![(String::new(), value)] };
     let load = |c: &std::sync::atomic::AtomicU64| {
         one(c.load(std::sync::atomic::Ordering::Relaxed).to_string())
     };
-    let jobs: Vec<(String, String)> = counts
+    let jobs: Samples = counts
         .into_iter()
         .map(|(st, n)| (format!("{{state=\"{}\"}}", st.as_str()), n.to_string()))
         .collect();
+    let metrics = [
+        ("signorini_jobs", "gauge", "Jobs by state.", jobs),
+        (
+            "signorini_queue_depth",
+            "gauge",
+            "Jobs waiting for a worker.",
+            one(state.engine.queue_depth().to_string()),
+        ),
+        (
+            "signorini_workers",
+            "gauge",
+            "Worker threads.",
+            one(state.engine.workers().to_string()),
+        ),
+        (
+            "signorini_steps_total",
+            "counter",
+            "Time steps computed.",
+            one(steps.to_string()),
+        ),
+        (
+            "signorini_steps_per_second",
+            "gauge",
+            "Steps per second since the previous scrape.",
+            one(rate.to_string()),
+        ),
+        (
+            "signorini_frames_published_total",
+            "counter",
+            "zenoh frames put.",
+            load(&stats.frames_published),
+        ),
+        (
+            "signorini_frames_dropped_total",
+            "counter",
+            "Step frames dropped for a slow link.",
+            load(&stats.frames_dropped),
+        ),
+    ];
     let mut s = String::new();
-    metric(&mut s, "signorini_jobs", "gauge", "Jobs by state.", &jobs);
-    let depth = state.engine.queue_depth().to_string();
-    let help = "Jobs waiting for a worker.";
-    metric(&mut s, "signorini_queue_depth", "gauge", help, &one(depth));
-    let workers = state.engine.workers().to_string();
-    metric(
-        &mut s,
-        "signorini_workers",
-        "gauge",
-        "Worker threads.",
-        &one(workers),
-    );
-    let help = "Time steps computed.";
-    metric(
-        &mut s,
-        "signorini_steps_total",
-        "counter",
-        help,
-        &one(steps.to_string()),
-    );
-    let help = "Steps per second since the previous scrape.";
-    metric(
-        &mut s,
-        "signorini_steps_per_second",
-        "gauge",
-        help,
-        &one(rate.to_string()),
-    );
-    let help = "zenoh frames put.";
-    let published = load(&stats.frames_published);
-    metric(
-        &mut s,
-        "signorini_frames_published_total",
-        "counter",
-        help,
-        &published,
-    );
-    let help = "Step frames dropped for a slow link.";
-    let dropped = load(&stats.frames_dropped);
-    metric(
-        &mut s,
-        "signorini_frames_dropped_total",
-        "counter",
-        help,
-        &dropped,
-    );
+    for (name, kind, help, samples) in metrics {
+        let _ = writeln!(s, "# HELP {name} {help}\n# TYPE {name} {kind}");
+        for (labels, value) in samples {
+            let _ = writeln!(s, "{name}{labels} {value}");
+        }
+    }
     Ok(([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], s).into_response())
 }
 
