@@ -7,8 +7,7 @@
 //! earlier run in the same directory are removed first: a failed run never leaves files that
 //! look like valid results.
 
-use anyhow::anyhow;
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, anyhow};
 use serde_json::{Map, Value, json};
 use signorini_core::job::{Figure, RunOutput, Table};
 use signorini_core::observer::{Columns, Observer, StepRecord};
