@@ -34,34 +34,23 @@ struct ErrorJson<'a> {
 
 impl<'a> From<&'a JobView> for StatusJson<'a> {
     fn from(v: &'a JobView) -> Self {
-        let JobView {
-            id,
-            name,
-            state,
-            done,
-            total,
-            t,
-            error,
-            created_ms,
-            started_ms,
-            finished_ms,
-        } = v;
         StatusJson {
-            id,
-            name: name.as_deref(),
-            state: state.as_str(),
+            id: &v.id,
+            name: v.name.as_deref(),
+            state: v.state.as_str(),
             progress: ProgressJson {
-                step: *done,
-                total: *total,
-                t: *t,
+                step: v.done,
+                total: v.total,
+                t: v.t,
                 fraction: v.fraction(),
             },
-            error: error
+            error: v
+                .error
                 .as_ref()
                 .map(|(field, reason)| ErrorJson { field, reason }),
-            created_ms: *created_ms,
-            started_ms: *started_ms,
-            finished_ms: *finished_ms,
+            created_ms: v.created_ms,
+            started_ms: v.started_ms,
+            finished_ms: v.finished_ms,
         }
     }
 }
