@@ -3,11 +3,12 @@
 
 pub mod cli;
 pub mod config;
+pub mod engine;
 pub mod error;
 pub mod output;
 pub mod proto;
 pub mod server;
 pub mod spec_file;
+pub mod status;
 pub mod store;
 pub mod stream;
-pub mod worker;

@@ -1,18 +1,55 @@
-//! Writing a run's results to a directory: `steps.csv` (header `step,t,` then the run's columns),
-//! `summary.json`, one `NAME.csv` per extra table and one `NAME.svg` per figure.
+//! A finished run's results and their files: [`finish_run`] attaches the wall time to a run's
+//! output (for `signorini run` and the service alike), and the writers here make `steps.csv`
+//! (header `step,t,` then the run's columns), `summary.json`, one `NAME.csv` per extra table and
+//! one `NAME.svg` per figure, for `signorini run` and `signorini result --out` alike.
 //!
 //! Files are written under a temporary name and renamed when complete, and stale results of an
 //! earlier run in the same directory are removed first: a failed run never leaves files that
 //! look like valid results.
 
-use anyhow::{Context, Result};
-use serde_json::{Map, Value};
-use signorini_core::job::{Figure, Table};
+use anyhow::{Context, Result, anyhow};
+use serde_json::{Map, Value, json};
+use signorini_core::job::{Figure, RunOutput, Table};
 use signorini_core::observer::{Columns, Observer, StepRecord};
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// A finished run's results besides its step series: what `summary.json`, the tables and the
+/// figures hold.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FinishedRun {
+    /// `summary.json`, with `wall_s` and `steps_per_s`.
+    pub summary: Map<String, Value>,
+    /// Extra tables (`NAME.csv`).
+    pub tables: Vec<Table>,
+    /// Figures (`NAME.svg`).
+    pub figures: Vec<Figure>,
+}
+
+/// A run's output with its wall time attached: `wall_s` and `steps_per_s` (0 for a run that took
+/// no measurable time) go into the summary, after the run's own entries.
+pub fn finish_run(output: RunOutput, wall: Duration) -> FinishedRun {
+    let RunOutput {
+        mut summary,
+        tables,
+        figures,
+    } = output;
+    let wall = wall.as_secs_f64();
+    let steps = summary.get("steps").and_then(|s| s.as_f64()).unwrap_or(0.0);
+    summary.insert("wall_s".into(), json!(wall));
+    summary.insert(
+        "steps_per_s".into(),
+        json!(if wall > 0.0 { steps / wall } else { 0.0 }),
+    );
+    FinishedRun {
+        summary,
+        tables,
+        figures,
+    }
+}
 
 /// Formats one value as CSV: shortest text that reads back to the same f64.
 pub fn fmt_value(x: f64) -> String {
@@ -20,7 +57,7 @@ pub fn fmt_value(x: f64) -> String {
 }
 
 /// The CSV header of a step table.
-pub fn csv_header(columns: &[String]) -> String {
+fn csv_header(columns: &[String]) -> String {
     let mut s = String::from("step,t");
     for c in columns {
         s.push(',');
@@ -134,8 +171,38 @@ pub fn write_atomic(path: &Path, text: &str) -> Result<()> {
     fs::rename(&tmp, path).with_context(|| format!("renaming {}", path.display()))
 }
 
+/// Writes a finished run's tables (`NAME.csv`), figures (`NAME.svg`) and, last, `summary.json`
+/// to `dir` (the step series is written by [`CsvSteps`] or [`write_steps`]). Names that are not
+/// plain file stems are refused, so no name (they may come from a server) reaches outside `dir`.
+pub fn write_run_files(dir: &Path, run: &FinishedRun) -> Result<()> {
+    for t in &run.tables {
+        check_stem("table", &t.name)?;
+        write_table(dir, t)?;
+    }
+    for f in &run.figures {
+        check_stem("figure", &f.name)?;
+        write_figure(dir, f)?;
+    }
+    // Written last: its presence marks a complete result.
+    let text = serde_json::to_string_pretty(&run.summary)?;
+    write_atomic(&dir.join("summary.json"), &(text + "\n"))
+}
+
+/// Refuses a table or figure name that is not made of `[A-Za-z0-9_-]` (the names the core gives),
+/// so `NAME.csv` and `NAME.svg` stay in their directory.
+fn check_stem(what: &str, name: &str) -> Result<()> {
+    let stem = !name.is_empty()
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-');
+    if !stem {
+        return Err(anyhow!("{what} name {name:?} is not a file stem"));
+    }
+    Ok(())
+}
+
 /// Writes a table as CSV.
-pub fn write_table(dir: &Path, table: &Table) -> Result<()> {
+fn write_table(dir: &Path, table: &Table) -> Result<()> {
     let mut s = table.columns.join(",");
     s.push('\n');
     for row in &table.rows {
@@ -151,8 +218,38 @@ pub fn write_figure(dir: &Path, figure: &Figure) -> Result<()> {
     write_atomic(&dir.join(format!("{}.svg", figure.name)), &figure.svg)
 }
 
-/// Writes `summary.json` (pretty-printed). Written last: its presence marks a complete result.
-pub fn write_summary(dir: &Path, summary: &Map<String, Value>) -> Result<()> {
-    let text = serde_json::to_string_pretty(summary)?;
-    write_atomic(&dir.join("summary.json"), &(text + "\n"))
+/// Writes a recorded series as `steps.csv` through [`CsvSteps`] (the same bytes `signorini run`
+/// writes as the run goes): `values` row-major, one row of `columns.len()` values per step. A
+/// series with no column and no step (an analysis) leaves no steps.csv.
+pub fn write_steps(
+    dir: &Path,
+    columns: &[String],
+    steps: &[u64],
+    t: &[f64],
+    values: &[f64],
+) -> Result<()> {
+    let n = columns.len();
+    if t.len() != steps.len() || values.len() != steps.len() * n {
+        return Err(anyhow!(
+            "a series of {} steps with {} times and {} values for {n} columns",
+            steps.len(),
+            t.len(),
+            values.len()
+        ));
+    }
+    let mut csv = CsvSteps::create(dir)?;
+    if !(columns.is_empty() && steps.is_empty()) {
+        csv.start(&Columns::new(columns.to_vec()));
+        for (i, (&step, &t)) in steps.iter().zip(t).enumerate() {
+            let record = StepRecord {
+                step,
+                t,
+                values: &values[i * n..(i + 1) * n],
+            };
+            if csv.observe(&record).is_break() {
+                break;
+            }
+        }
+    }
+    csv.finish()
 }

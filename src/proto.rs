@@ -1,7 +1,11 @@
-//! Generated protobuf messages and the gRPC service of `proto/signorini/v1` (built into OUT_DIR).
-#![allow(missing_docs, clippy::all, clippy::pedantic)]
+//! Protobuf: the generated messages and gRPC service of `proto/signorini/v1` (built into
+//! OUT_DIR), and [`encode`], the one protobuf encoding of the engine's domain types that gRPC and
+//! zenoh share.
+
+pub mod encode;
 
 /// `signorini.v1`.
+#[allow(missing_docs, clippy::all, clippy::pedantic)]
 pub mod v1 {
     tonic::include_proto!("signorini.v1");
 }

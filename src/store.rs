@@ -8,6 +8,7 @@
 //! was computed, bit for bit. Figures (SVG text) are kept as a JSON list in `figures_json`; a
 //! database made before that column existed gets it (empty lists) when it is opened.
 
+use crate::status::{JobState, JobView};
 use rusqlite::{Connection, OptionalExtension, params};
 use serde_json::{Map, Value};
 use signorini_core::job::{Figure, Table};
@@ -30,83 +31,6 @@ pub enum StoreError {
         /// Which job.
         id: String,
     },
-}
-
-/// Lifecycle of a job.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum JobState {
-    /// Waiting for a worker.
-    Queued,
-    /// On a worker.
-    Running,
-    /// Finished with a result.
-    Succeeded,
-    /// Stopped by an error (the error names the step or the field).
-    Failed,
-    /// Stopped by a cancel call.
-    Cancelled,
-}
-
-impl JobState {
-    /// Every state, in lifecycle order.
-    pub const ALL: [JobState; 5] = [
-        JobState::Queued,
-        JobState::Running,
-        JobState::Succeeded,
-        JobState::Failed,
-        JobState::Cancelled,
-    ];
-
-    /// The name used in HTTP bodies, the store and metrics.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            JobState::Queued => "queued",
-            JobState::Running => "running",
-            JobState::Succeeded => "succeeded",
-            JobState::Failed => "failed",
-            JobState::Cancelled => "cancelled",
-        }
-    }
-
-    /// Parses [`JobState::as_str`].
-    pub fn parse(s: &str) -> Option<JobState> {
-        JobState::ALL.into_iter().find(|x| x.as_str() == s)
-    }
-
-    /// True when the job will not change any more.
-    pub fn is_terminal(self) -> bool {
-        matches!(
-            self,
-            JobState::Succeeded | JobState::Failed | JobState::Cancelled
-        )
-    }
-}
-
-/// One job's row.
-#[derive(Debug, Clone, PartialEq)]
-pub struct JobRow {
-    /// Id.
-    pub id: String,
-    /// Optional label from the spec.
-    pub name: Option<String>,
-    /// The spec, as JSON (the serde schema).
-    pub spec_json: String,
-    /// State.
-    pub state: JobState,
-    /// Acceptance time (ms since the epoch).
-    pub created_ms: u64,
-    /// Start time of the last attempt (0 if never started).
-    pub started_ms: u64,
-    /// End time (0 while unfinished).
-    pub finished_ms: u64,
-    /// Error field and reason of a failed job.
-    pub error: Option<(String, String)>,
-    /// Steps done when the job ended (or 0).
-    pub done: u64,
-    /// Steps in all.
-    pub total: u64,
-    /// Time reached when the job ended.
-    pub t: f64,
 }
 
 /// A finished job's result.
@@ -270,37 +194,42 @@ struct FigureJson {
 
 const JOB_COLUMNS: &str = "id, name, spec_json, state, created_ms, started_ms, finished_ms, error_field, error_reason, done, total, t";
 
-fn row_to_job(r: &rusqlite::Row<'_>) -> rusqlite::Result<(JobRow, String)> {
+/// A job's status and its spec (JSON) from a `SELECT {JOB_COLUMNS}` row.
+fn row_to_job(r: &rusqlite::Row<'_>) -> rusqlite::Result<((JobView, String), String)> {
     let state: String = r.get(3)?;
     let field: Option<String> = r.get(7)?;
     let reason: Option<String> = r.get(8)?;
     Ok((
-        JobRow {
-            id: r.get(0)?,
-            name: r.get(1)?,
-            spec_json: r.get(2)?,
-            state: JobState::Queued,
-            created_ms: r.get::<_, i64>(4)? as u64,
-            started_ms: r.get::<_, i64>(5)? as u64,
-            finished_ms: r.get::<_, i64>(6)? as u64,
-            error: match (field, reason) {
-                (Some(f), Some(r)) => Some((f, r)),
-                _ => None,
+        (
+            JobView {
+                id: r.get(0)?,
+                name: r.get(1)?,
+                state: JobState::Queued,
+                created_ms: r.get::<_, i64>(4)? as u64,
+                started_ms: r.get::<_, i64>(5)? as u64,
+                finished_ms: r.get::<_, i64>(6)? as u64,
+                error: match (field, reason) {
+                    (Some(f), Some(r)) => Some((f, r)),
+                    _ => None,
+                },
+                done: r.get::<_, i64>(9)? as u64,
+                total: r.get::<_, i64>(10)? as u64,
+                t: r.get(11)?,
             },
-            done: r.get::<_, i64>(9)? as u64,
-            total: r.get::<_, i64>(10)? as u64,
-            t: r.get(11)?,
-        },
+            r.get(2)?,
+        ),
         state,
     ))
 }
 
-fn finish_row((mut row, state): (JobRow, String)) -> Result<JobRow, StoreError> {
-    row.state = JobState::parse(&state).ok_or_else(|| StoreError::Corrupt {
+fn finish_row(
+    ((mut view, spec_json), state): ((JobView, String), String),
+) -> Result<(JobView, String), StoreError> {
+    view.state = JobState::parse(&state).ok_or_else(|| StoreError::Corrupt {
         what: "state",
-        id: row.id.clone(),
+        id: view.id.clone(),
     })?;
-    Ok(row)
+    Ok((view, spec_json))
 }
 
 impl Store {
@@ -323,11 +252,11 @@ impl Store {
         self.conn.lock().unwrap_or_else(|p| p.into_inner())
     }
 
-    /// Records a new queued job. False when the id is taken.
-    pub fn insert(&self, row: &JobRow) -> Result<bool, StoreError> {
+    /// Records a new queued job with its spec (JSON). False when the id is taken.
+    pub fn insert(&self, row: &JobView, spec_json: &str) -> Result<bool, StoreError> {
         let n = self.conn().execute(
             "INSERT OR IGNORE INTO jobs (id, name, spec_json, state, created_ms, total) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-            params![row.id, row.name, row.spec_json, row.state.as_str(), row.created_ms as i64, row.total as i64],
+            params![row.id, row.name, spec_json, row.state.as_str(), row.created_ms as i64, row.total as i64],
         )?;
         Ok(n == 1)
     }
@@ -343,7 +272,7 @@ impl Store {
 
     /// Ends a job: its final state, error, progress and (for a success) its result, in one
     /// transaction.
-    pub fn finish(&self, row: &JobRow, result: Option<&StoredResult>) -> Result<(), StoreError> {
+    pub fn finish(&self, row: &JobView, result: Option<&StoredResult>) -> Result<(), StoreError> {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
         if let Some(r) = result {
@@ -401,8 +330,8 @@ impl Store {
         Ok(())
     }
 
-    /// One job.
-    pub fn get(&self, id: &str) -> Result<Option<JobRow>, StoreError> {
+    /// One job's status.
+    pub fn get(&self, id: &str) -> Result<Option<JobView>, StoreError> {
         let conn = self.conn();
         let row = conn
             .query_row(
@@ -411,11 +340,20 @@ impl Store {
                 row_to_job,
             )
             .optional()?;
-        row.map(finish_row).transpose()
+        Ok(row.map(finish_row).transpose()?.map(|(view, _)| view))
     }
 
-    /// Every job, oldest first.
-    pub fn list(&self) -> Result<Vec<JobRow>, StoreError> {
+    /// Every job's status, oldest first.
+    pub fn list(&self) -> Result<Vec<JobView>, StoreError> {
+        Ok(self
+            .list_with_specs()?
+            .into_iter()
+            .map(|(view, _)| view)
+            .collect())
+    }
+
+    /// Every job's status and spec (JSON), oldest first.
+    fn list_with_specs(&self) -> Result<Vec<(JobView, String)>, StoreError> {
         let conn = self.conn();
         let mut stmt = conn.prepare(&format!("SELECT {JOB_COLUMNS} FROM jobs ORDER BY seq"))?;
         let rows = stmt
@@ -425,16 +363,16 @@ impl Store {
     }
 
     /// At start-up: every job that was queued or running when the last process stopped, oldest
-    /// first, now marked queued again.
-    pub fn recover(&self) -> Result<Vec<JobRow>, StoreError> {
+    /// first, now marked queued again, with its spec (JSON).
+    pub fn recover(&self) -> Result<Vec<(JobView, String)>, StoreError> {
         self.conn().execute(
             "UPDATE jobs SET state = 'queued', started_ms = 0 WHERE state = 'running'",
             [],
         )?;
         Ok(self
-            .list()?
+            .list_with_specs()?
             .into_iter()
-            .filter(|r| r.state == JobState::Queued)
+            .filter(|(r, _)| r.state == JobState::Queued)
             .collect())
     }
 
@@ -539,11 +477,10 @@ impl Store {
 mod tests {
     use super::*;
 
-    fn row(id: &str) -> JobRow {
-        JobRow {
+    fn row(id: &str) -> JobView {
+        JobView {
             id: id.into(),
             name: None,
-            spec_json: "{}".into(),
             state: JobState::Queued,
             created_ms: 1,
             started_ms: 0,
@@ -565,9 +502,9 @@ mod tests {
         let path = dir.path().join("s.db");
         {
             let s = Store::open(&path)?;
-            assert!(s.insert(&row("a"))?);
-            assert!(!s.insert(&row("a"))?);
-            assert!(s.insert(&row("b"))?);
+            assert!(s.insert(&row("a"), "{}")?);
+            assert!(!s.insert(&row("a"), "{}")?);
+            assert!(s.insert(&row("b"), "{}")?);
             s.set_running("b", 5)?;
             let r = StoredResult {
                 columns: vec!["x".into(), "y".into()],
@@ -592,7 +529,7 @@ mod tests {
         let s = Store::open(&path)?;
         let again = s.recover()?;
         assert_eq!(
-            again.iter().map(|r| r.id.as_str()).collect::<Vec<_>>(),
+            again.iter().map(|(r, _)| r.id.as_str()).collect::<Vec<_>>(),
             vec!["b"]
         );
         assert_eq!(s.get("a")?.map(|r| r.state), Some(JobState::Succeeded));
@@ -617,7 +554,7 @@ mod tests {
     fn figures_round_trip_and_are_found_with_or_without_svg() -> Result<(), StoreError> {
         let dir = tmp()?;
         let s = Store::open(&dir.path().join("s.db"))?;
-        assert!(s.insert(&row("f"))?);
+        assert!(s.insert(&row("f"), "{}")?);
         let figures = vec![
             Figure {
                 name: "backbone".into(),
@@ -650,7 +587,7 @@ mod tests {
     fn corrupt_figures_are_reported_as_corrupt() -> Result<(), StoreError> {
         let dir = tmp()?;
         let s = Store::open(&dir.path().join("s.db"))?;
-        assert!(s.insert(&row("c"))?);
+        assert!(s.insert(&row("c"), "{}")?);
         let mut done = row("c");
         done.state = JobState::Succeeded;
         s.finish(&done, Some(&StoredResult::default()))?;
@@ -727,7 +664,7 @@ INSERT INTO jobs (id, spec_json, state, created_ms, finished_ms, done, total, t)
             assert_eq!(s.get("old")?.map(|r| r.state), Some(JobState::Succeeded));
         }
         let s = Store::open(&path)?;
-        assert!(s.insert(&row("new"))?);
+        assert!(s.insert(&row("new"), "{}")?);
         let mut done = row("new");
         done.state = JobState::Succeeded;
         let fig = Figure {

@@ -1,12 +1,11 @@
 //! Live streams over zenoh: `signorini/v1/jobs/{id}/status`, `…/{id}/state`, `…/{id}/energy`.
 //!
-//! Workers hand frames to one publishing task through one FIFO channel, so a job's messages go
-//! out in the order they were made. Step frames and progress statuses are *offered*: when
-//! [`QUEUED_FRAMES`] offered messages are already waiting, the new one is dropped and counted in
-//! `signorini_frames_dropped_total`. Control messages (a job's first and final status, its last
-//! frames, the end of its publishers) are always queued; they are a handful per job. Nothing a
-//! worker or a handler sends ever waits: this queue is where a slow or absent subscriber is
-//! absorbed, and a job never waits on zenoh.
+//! The engine hands its [`JobEvent`]s to one publishing task through one FIFO channel
+//! ([`crate::engine::events`]: step batches and progress statuses are offered and dropped when
+//! the channel is full, control events never), so a job's messages go out in the order they were
+//! made and a job never waits on zenoh. The task encodes each event as protobuf
+//! ([`crate::proto::encode`]) and puts it, then forwards the event, as published, to gRPC
+//! `WatchJob` and SSE, which encode it for their clients.
 //!
 //! zenoh QoS: status and step frames of a job share one priority. zenoh keeps messages in order
 //! only within a priority; a higher-priority terminal status overtook the job's last step frames
@@ -23,13 +22,15 @@
 //! joiners (`signorini watch`) and as a barrier: once a query from a session is answered, the
 //! subscribers it declared before are known here.
 
-use crate::proto::v1::{JobStatus, StepFrame, WatchFrame, watch_frame};
+use crate::engine::events::{self, EventQueue, EventSink, JobEvent, StreamStats};
+use crate::proto::encode::{status_to_proto, step_frames};
+use crate::status::JobView;
 use anyhow::{Context, Result, anyhow};
 use prost::Message;
 use std::collections::HashMap;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use tokio::sync::{broadcast, mpsc};
+use std::sync::atomic::Ordering;
+use tokio::sync::broadcast;
 use zenoh::Session;
 use zenoh::bytes::Encoding;
 use zenoh::pubsub::Publisher;
@@ -92,93 +93,11 @@ pub async fn open_session(opts: &ZenohOptions) -> Result<Session> {
         .map_err(|e| anyhow!("opening zenoh session: {e}"))
 }
 
-/// What workers send to the publishing task.
-#[derive(Debug)]
-pub enum StreamMsg {
-    /// A status frame.
-    Status(JobStatus),
-    /// Step frames of one job; `frame.last` marks the run's last ones.
-    Steps {
-        /// The job.
-        id: String,
-        /// Energy columns.
-        energy: Option<StepFrame>,
-        /// The other columns.
-        state: Option<StepFrame>,
-    },
-    /// The job is over: undeclare its publishers.
-    Closed(String),
-}
-
-/// A message in the channel, and whether it counts against [`QUEUED_FRAMES`].
-struct Queued {
-    msg: StreamMsg,
-    offered: bool,
-}
-
-/// Counters of the stream.
-#[derive(Debug, Default)]
-pub struct StreamStats {
-    /// Frames put on zenoh.
-    pub frames_published: AtomicU64,
-    /// Step frames dropped because the channel was full.
-    pub frames_dropped: AtomicU64,
-}
-
-/// The sending side, cloned into workers and handlers.
-#[derive(Clone)]
-pub struct StreamSink {
-    tx: mpsc::UnboundedSender<Queued>,
-    /// Offered messages in the channel.
-    offered: Arc<AtomicUsize>,
-    stats: Arc<StreamStats>,
-}
-
-impl StreamSink {
-    /// A sink and the receiving end of its channel.
-    fn channel() -> (StreamSink, mpsc::UnboundedReceiver<Queued>) {
-        let (tx, rx) = mpsc::unbounded_channel();
-        let sink = StreamSink {
-            tx,
-            offered: Arc::new(AtomicUsize::new(0)),
-            stats: Arc::new(StreamStats::default()),
-        };
-        (sink, rx)
-    }
-
-    /// Queues a step frame or a progress status if fewer than [`QUEUED_FRAMES`] offered
-    /// messages are waiting, else drops it (counted).
-    pub fn offer(&self, msg: StreamMsg) {
-        if self.offered.fetch_add(1, Ordering::AcqRel) >= QUEUED_FRAMES {
-            self.offered.fetch_sub(1, Ordering::AcqRel);
-            self.stats.frames_dropped.fetch_add(1, Ordering::Relaxed);
-            return;
-        }
-        if self.tx.send(Queued { msg, offered: true }).is_err() {
-            self.offered.fetch_sub(1, Ordering::AcqRel);
-        }
-    }
-
-    /// Queues a control message (never dropped, never waits).
-    pub fn send(&self, msg: StreamMsg) {
-        // Err only when the publishing task is gone (shutdown): nothing left to tell.
-        let _ = self.tx.send(Queued {
-            msg,
-            offered: false,
-        });
-    }
-
-    /// Counters.
-    pub fn stats(&self) -> &StreamStats {
-        &self.stats
-    }
-}
-
 /// The publishing side: the zenoh session and the task that owns the publishers.
 pub struct Streamer {
     session: Session,
     task: tokio::task::JoinHandle<()>,
-    watch: broadcast::Sender<Arc<WatchFrame>>,
+    watch: broadcast::Sender<Arc<JobEvent>>,
 }
 
 struct JobPublishers {
@@ -187,23 +106,12 @@ struct JobPublishers {
     energy: Publisher<'static>,
 }
 
-/// Offered messages (step frames, progress statuses) waiting between the workers and zenoh at
-/// most; each step frame carries up to a few hundred steps.
-pub const QUEUED_FRAMES: usize = 4096;
-
 impl Streamer {
-    /// Starts the publishing task on `session`.
-    pub fn start(session: Session) -> (Streamer, StreamSink) {
-        let (sink, rx) = StreamSink::channel();
-        let (offered, stats) = (sink.offered.clone(), sink.stats.clone());
+    /// Starts the publishing task on `session`; the engine sends its events to the sink.
+    pub fn start(session: Session) -> (Streamer, EventSink) {
+        let (sink, queue) = events::channel();
         let (watch, _) = broadcast::channel(1024);
-        let task = tokio::spawn(publish_loop(
-            session.clone(),
-            rx,
-            offered.clone(),
-            watch.clone(),
-            stats.clone(),
-        ));
+        let task = tokio::spawn(publish_loop(session.clone(), queue, watch.clone()));
         (
             Streamer {
                 session,
@@ -219,8 +127,9 @@ impl Streamer {
         &self.session
     }
 
-    /// The broadcast of every frame, as published (for gRPC `WatchJob` and SSE).
-    pub fn sender(&self) -> broadcast::Sender<Arc<WatchFrame>> {
+    /// The broadcast of every status and step event, as published (for gRPC `WatchJob` and
+    /// SSE).
+    pub fn sender(&self) -> broadcast::Sender<Arc<JobEvent>> {
         self.watch.clone()
     }
 
@@ -254,85 +163,72 @@ async fn publishers(session: &Session, id: &str) -> Result<JobPublishers> {
 
 async fn publish_loop(
     session: Session,
-    mut rx: mpsc::UnboundedReceiver<Queued>,
-    offered: Arc<AtomicUsize>,
-    watch: broadcast::Sender<Arc<WatchFrame>>,
-    stats: Arc<StreamStats>,
+    mut queue: EventQueue,
+    watch: broadcast::Sender<Arc<JobEvent>>,
 ) {
+    let stats = queue.stats();
     let mut pubs: HashMap<String, JobPublishers> = HashMap::new();
-    while let Some(Queued { msg, offered: o }) = rx.recv().await {
-        if o {
-            offered.fetch_sub(1, Ordering::AcqRel);
-        }
-        if let Err(e) = handle(&session, &mut pubs, msg, &watch, &stats).await {
+    while let Some(event) = queue.recv().await {
+        if let Err(e) = handle(&session, &mut pubs, event, &watch, &stats).await {
             tracing::warn!("zenoh publish: {e:#}");
         }
     }
     for (_, p) in pubs.drain() {
-        let _ = p.status.undeclare().await;
-        let _ = p.state.undeclare().await;
-        let _ = p.energy.undeclare().await;
+        p.undeclare().await;
     }
 }
 
+impl JobPublishers {
+    async fn undeclare(self) {
+        let _ = self.status.undeclare().await;
+        let _ = self.state.undeclare().await;
+        let _ = self.energy.undeclare().await;
+    }
+}
+
+/// Puts one event on the job's keys and forwards it to the watchers.
 async fn handle(
     session: &Session,
     pubs: &mut HashMap<String, JobPublishers>,
-    msg: StreamMsg,
-    watch: &broadcast::Sender<Arc<WatchFrame>>,
+    event: JobEvent,
+    watch: &broadcast::Sender<Arc<JobEvent>>,
     stats: &StreamStats,
 ) -> Result<()> {
-    let id = match &msg {
-        StreamMsg::Status(s) => s.id.clone(),
-        StreamMsg::Steps { id, .. } => id.clone(),
-        StreamMsg::Closed(id) => {
-            if let Some(p) = pubs.remove(id) {
-                let _ = p.status.undeclare().await;
-                let _ = p.state.undeclare().await;
-                let _ = p.energy.undeclare().await;
-            }
-            return Ok(());
+    if let JobEvent::Closed(id) = &event {
+        if let Some(p) = pubs.remove(id) {
+            p.undeclare().await;
         }
-    };
+        return Ok(());
+    }
+    let id = event.job_id().to_string();
     if !pubs.contains_key(&id) {
         let p = publishers(session, &id).await?;
         pubs.insert(id.clone(), p);
     }
     let p = pubs.get(&id).context("publisher just declared")?;
-    match msg {
-        StreamMsg::Status(s) => {
-            p.status
-                .put(s.encode_to_vec())
-                .await
-                .map_err(|e| anyhow!("{e}"))?;
-            stats.frames_published.fetch_add(1, Ordering::Relaxed);
-            let _ = watch.send(Arc::new(WatchFrame {
-                frame: Some(watch_frame::Frame::Status(s)),
-            }));
-        }
-        StreamMsg::Steps { id, energy, state } => {
-            let _ = id;
-            for (frame, publisher, is_energy) in
-                [(energy, &p.energy, true), (state, &p.state, false)]
-            {
-                let Some(frame) = frame else { continue };
-                publisher
-                    .put(frame.encode_to_vec())
-                    .await
-                    .map_err(|e| anyhow!("{e}"))?;
-                stats.frames_published.fetch_add(1, Ordering::Relaxed);
-                if watch.receiver_count() > 0 {
-                    let f = if is_energy {
-                        watch_frame::Frame::Energy(frame)
-                    } else {
-                        watch_frame::Frame::State(frame)
-                    };
-                    let _ = watch.send(Arc::new(WatchFrame { frame: Some(f) }));
+    match &event {
+        JobEvent::Status(v) => put(&p.status, status_to_proto(v).encode_to_vec(), stats).await?,
+        JobEvent::Steps(batch) => {
+            let (energy, state) = step_frames(batch);
+            for (frame, publisher) in [(energy, &p.energy), (state, &p.state)] {
+                if let Some(frame) = frame {
+                    put(publisher, frame.encode_to_vec(), stats).await?;
                 }
             }
+            if watch.receiver_count() == 0 {
+                return Ok(());
+            }
         }
-        StreamMsg::Closed(_) => {}
+        JobEvent::Closed(_) => return Ok(()),
     }
+    let _ = watch.send(Arc::new(event));
+    Ok(())
+}
+
+/// Puts one encoded frame.
+async fn put(publisher: &Publisher<'static>, bytes: Vec<u8>, stats: &StreamStats) -> Result<()> {
+    publisher.put(bytes).await.map_err(|e| anyhow!("{e}"))?;
+    stats.frames_published.fetch_add(1, Ordering::Relaxed);
     Ok(())
 }
 
@@ -340,7 +236,7 @@ async fn handle(
 /// job is unknown), until the session closes.
 pub async fn serve_status_queryable<F>(session: Session, lookup: F) -> Result<()>
 where
-    F: Fn(&str) -> Option<JobStatus> + Send + Sync + 'static,
+    F: Fn(&str) -> Option<JobView> + Send + Sync + 'static,
 {
     let queryable = session
         .declare_queryable(STATUS_WILDCARD)
@@ -352,7 +248,7 @@ where
             let reply = match id_of_key(&key).and_then(&lookup) {
                 Some(status) => {
                     query
-                        .reply(key.as_str(), status.encode_to_vec())
+                        .reply(key.as_str(), status_to_proto(&status).encode_to_vec())
                         .encoding(Encoding::APPLICATION_PROTOBUF)
                         .await
                 }
@@ -364,40 +260,4 @@ where
         }
     });
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn status(id: &str) -> StreamMsg {
-        StreamMsg::Status(JobStatus {
-            id: id.into(),
-            ..Default::default()
-        })
-    }
-
-    /// With nobody reading (a publisher stuck on a stalled subscriber), offered messages stop
-    /// at [`QUEUED_FRAMES`] and the rest are dropped and counted, while control messages are
-    /// still queued at once and in order: nothing a worker sends waits.
-    #[test]
-    fn a_stuck_publisher_drops_offered_frames_and_never_blocks_control_messages() {
-        let (sink, mut rx) = StreamSink::channel();
-        for _ in 0..QUEUED_FRAMES + 904 {
-            sink.offer(status("frame"));
-        }
-        assert_eq!(sink.offered.load(Ordering::Acquire), QUEUED_FRAMES);
-        assert_eq!(sink.stats().frames_dropped.load(Ordering::Relaxed), 904);
-        sink.send(status("final"));
-        sink.send(StreamMsg::Closed("final".into()));
-        let mut got = Vec::new();
-        while let Ok(q) = rx.try_recv() {
-            got.push(q);
-        }
-        assert_eq!(got.len(), QUEUED_FRAMES + 2);
-        assert!(got[..QUEUED_FRAMES].iter().all(|q| q.offered));
-        assert!(matches!(&got[QUEUED_FRAMES].msg, StreamMsg::Status(s) if s.id == "final"));
-        assert!(matches!(&got[QUEUED_FRAMES + 1].msg, StreamMsg::Closed(id) if id == "final"));
-        assert!(!got[QUEUED_FRAMES].offered && !got[QUEUED_FRAMES + 1].offered);
-    }
 }

@@ -336,6 +336,40 @@ async fn live_page_events_carry_energy_while_the_job_runs() {
         (last.event.as_str(), &last.data["state"]),
         ("status", &Value::from("succeeded"))
     );
+    // Every status event has the shape of `GET /v1/jobs/{id}` (error, name and timestamps
+    // included), and the final one says what GET says once the job is over.
+    for e in events
+        .iter()
+        .chain([&first])
+        .filter(|e| e.event == "status")
+    {
+        for key in [
+            "id",
+            "name",
+            "state",
+            "progress",
+            "error",
+            "created_ms",
+            "started_ms",
+            "finished_ms",
+        ] {
+            assert!(
+                e.data.get(key).is_some(),
+                "status event lacks {key}: {:?}",
+                e.data
+            );
+        }
+    }
+    assert!(
+        last.data["finished_ms"].as_u64().is_some_and(|ms| ms > 0),
+        "{:?}",
+        last.data
+    );
+    let (code, got) = server
+        .http("GET", &format!("/v1/jobs/{id}"), None, None)
+        .await;
+    assert_eq!(code, 200);
+    assert_eq!(last.data, got);
     let energy_events: Vec<&SseEvent> = events.iter().filter(|e| e.event == "energy").collect();
     assert!(
         !energy_events.is_empty(),

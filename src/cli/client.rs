@@ -1,19 +1,19 @@
 //! Client commands: `submit`, `status`, `watch`, `result`, `cancel`, `capabilities`.
 //! They talk gRPC to a running `signorini serve`; `watch` subscribes to the job's zenoh keys.
 
-use crate::output::{csv_header, write_atomic, write_figure, write_summary, write_table};
+use crate::output::{FinishedRun, clear_results, write_run_files, write_steps};
+use crate::proto::encode::{result_from_proto, status_from_proto};
 use crate::proto::v1 as pb;
 use crate::proto::v1::simulation_client::SimulationClient;
-use crate::server::convert::state_from_proto;
+use crate::server::json::{FrameJson, StatusJson};
 use crate::spec_file::{self, Format};
+use crate::status::JobView;
 use crate::stream::{self, ZenohOptions};
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use prost::Message;
-use serde_json::{Value, json};
-use signorini_core::job::{Figure, Table};
-use std::fmt::Write as _;
+use serde_json::json;
 use std::path::PathBuf;
 use std::time::Duration;
 use tonic::transport::Channel;
@@ -131,19 +131,14 @@ fn status_error(s: tonic::Status) -> anyhow::Error {
     anyhow!("{:?}: {}", s.code(), s.message())
 }
 
-/// A status as JSON (the same shape as `GET /v1/jobs/{id}`).
-pub fn status_json(s: &pb::JobStatus) -> Value {
-    let p = s.progress.unwrap_or_default();
-    json!({
-        "id": s.id,
-        "name": s.name,
-        "state": state_from_proto(s.state).map_or("unknown", |st| st.as_str()),
-        "progress": { "step": p.step, "total": p.total, "t": p.t, "fraction": p.fraction },
-        "error": s.error.as_ref().map(|e| json!({ "field": e.field, "reason": e.reason })),
-        "created_ms": s.created_ms,
-        "started_ms": s.started_ms,
-        "finished_ms": s.finished_ms,
-    })
+/// Prints a status as pretty JSON (the shape of `GET /v1/jobs/{id}`).
+fn print_status(s: pb::JobStatus) -> Result<()> {
+    let view = status_from_proto(s)?;
+    println!(
+        "{}",
+        serde_json::to_string_pretty(&StatusJson::from(&view))?
+    );
+    Ok(())
 }
 
 /// `submit`: prints the id.
@@ -177,8 +172,7 @@ pub fn status(args: IdArgs) -> Result<()> {
             .await
             .map_err(status_error)?
             .into_inner();
-        println!("{}", serde_json::to_string_pretty(&status_json(&s))?);
-        Ok(())
+        print_status(s)
     })
 }
 
@@ -188,8 +182,7 @@ pub fn cancel(args: IdArgs) -> Result<()> {
         let mut c = client(&args.conn).await?;
         let req = with_token(&args.conn, pb::CancelJobRequest { id: args.id })?;
         let s = c.cancel_job(req).await.map_err(status_error)?.into_inner();
-        println!("{}", serde_json::to_string_pretty(&status_json(&s))?);
-        Ok(())
+        print_status(s)
     })
 }
 
@@ -231,82 +224,30 @@ pub fn result(args: ResultArgs) -> Result<()> {
         .map_err(status_error)
         .map(tonic::Response::into_inner)
     })?;
-    let summary: serde_json::Map<String, Value> =
-        serde_json::from_str(&r.summary_json).context("summary from the server")?;
+    let r = result_from_proto(r)?;
     let Some(dir) = args.out else {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        println!("{}", serde_json::to_string_pretty(&r.summary)?);
         return Ok(());
     };
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    crate::output::clear_results(&dir)?;
-    // steps.csv: the same header and number format as `signorini run` (CsvSteps).
-    let mut csv = csv_header(&r.columns);
-    csv.push('\n');
-    for (i, (step, t)) in r.step.iter().zip(&r.t).enumerate() {
-        let _ = write!(csv, "{step},{t:?}");
-        for s in &r.series {
-            let v = s
-                .values
-                .get(i)
-                .copied()
-                .ok_or_else(|| anyhow!("series {} is short", s.column))?;
-            let _ = write!(csv, ",{v:?}");
-        }
-        csv.push('\n');
-    }
-    // An analysis records no steps: like `run`, it leaves no steps.csv at all.
-    if !(r.columns.is_empty() && r.step.is_empty()) {
-        write_atomic(&dir.join("steps.csv"), &csv)?;
-    }
-    for t in &r.tables {
-        let table = Table {
-            name: t.name.clone(),
-            columns: t.columns.clone(),
-            rows: t.rows.iter().map(|row| row.values.clone()).collect(),
-        };
-        write_table(&dir, &table)?;
-    }
-    // NAME.svg per figure, as `signorini run` writes them. The names come from the server: only
-    // plain file stems are written, so no name can reach outside `dir`.
-    for f in &r.figures {
-        if !is_file_stem(&f.name) {
-            return Err(anyhow!(
-                "figure name {:?} from the server is not a file stem",
-                f.name
-            ));
-        }
-        write_figure(
-            &dir,
-            &Figure {
-                name: f.name.clone(),
-                svg: f.svg.clone(),
-            },
-        )?;
-    }
-    write_summary(&dir, &summary)?;
+    clear_results(&dir)?;
+    // The files `signorini run` writes, by the same writers.
+    write_steps(&dir, &r.columns, &r.steps, &r.t, &r.values)?;
+    write_run_files(
+        &dir,
+        &FinishedRun {
+            summary: r.summary,
+            tables: r.tables,
+            figures: r.figures,
+        },
+    )?;
     println!("results of {} in {}", args.id, dir.display());
     Ok(())
 }
 
-/// A name the core gives a table or figure: `[A-Za-z0-9_-]+`, so `NAME.svg` stays in its directory.
-fn is_file_stem(name: &str) -> bool {
-    !name.is_empty()
-        && name
-            .bytes()
-            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
-}
-
-fn frame_json(kind: &str, f: &pb::StepFrame) -> Value {
-    let n = f.columns.len().max(1);
-    json!({
-        "kind": kind, "id": f.id, "seq": f.seq, "columns": f.columns, "step": f.step, "t": f.t,
-        "rows": f.values.chunks(n).collect::<Vec<_>>(), "last": f.last,
-    })
-}
-
 /// `watch`: follows a job's zenoh keys until it ends.
 pub fn watch(args: WatchArgs) -> Result<()> {
-    crate::worker::check_id(&args.id).map_err(|e| anyhow!("{e}"))?;
+    crate::engine::check_id(&args.id).map_err(|e| anyhow!("{e}"))?;
     runtime()?.block_on(async {
         let session = stream::open_session(&ZenohOptions {
             listen: Vec::new(),
@@ -319,7 +260,7 @@ pub fn watch(args: WatchArgs) -> Result<()> {
     })
 }
 
-async fn query_status(session: &zenoh::Session, id: &str) -> Result<Option<pb::JobStatus>> {
+async fn query_status(session: &zenoh::Session, id: &str) -> Result<Option<JobView>> {
     let replies = session
         .get(stream::status_key(id))
         .await
@@ -328,12 +269,17 @@ async fn query_status(session: &zenoh::Session, id: &str) -> Result<Option<pb::J
         return Ok(None);
     };
     match reply.result() {
-        Ok(sample) => Ok(Some(pb::JobStatus::decode(&*sample.payload().to_bytes())?)),
+        Ok(sample) => Ok(Some(decode_status(&sample.payload().to_bytes())?)),
         Err(e) => Err(anyhow!(
             "{}",
             String::from_utf8_lossy(&e.payload().to_bytes())
         )),
     }
+}
+
+/// A zenoh status frame.
+fn decode_status(bytes: &[u8]) -> Result<JobView> {
+    status_from_proto(pb::JobStatus::decode(bytes)?)
 }
 
 async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()> {
@@ -351,15 +297,17 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
         ProgressStyle::with_template("{bar:40} {pos}/{len} steps {msg}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let report = |s: &pb::JobStatus| -> Result<bool> {
-        let st = state_from_proto(s.state);
+    let report = |s: &JobView| -> bool {
         if args.json {
-            println!("{}", json!({ "kind": "status", "status": status_json(s) }));
-        } else if let Some(p) = &s.progress {
-            bar.set_length(p.total.max(1));
-            bar.set_position(p.step);
+            println!(
+                "{}",
+                json!({ "kind": "status", "status": StatusJson::from(s) })
+            );
+        } else {
+            bar.set_length(s.total.max(1));
+            bar.set_position(s.done);
         }
-        Ok(st.is_some_and(|x| x.is_terminal()))
+        s.state.is_terminal()
     };
     // The latest status (the query also makes sure our subscription is known to the server).
     let mut tries = 0;
@@ -374,9 +322,12 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
             Err(e) => return Err(e),
         }
     };
-    if report(&current)? {
+    if report(&current) {
         bar.finish_and_clear();
-        println!("{}", serde_json::to_string_pretty(&status_json(&current))?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&StatusJson::from(&current))?
+        );
         return Ok(());
     }
     let mut last_status;
@@ -387,7 +338,7 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
             Err(_) => {
                 // Quiet for a while: ask (a final status may have been missed).
                 if let Some(s) = query_status(session, &args.id).await?
-                    && report(&s)?
+                    && report(&s)
                 {
                     last_status = s;
                     break;
@@ -398,8 +349,8 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
         let key = sample.key_expr().as_str().to_string();
         let bytes = sample.payload().to_bytes();
         if key.ends_with("/status") {
-            let s = pb::JobStatus::decode(&*bytes)?;
-            let done = report(&s)?;
+            let s = decode_status(&bytes)?;
+            let done = report(&s);
             last_status = s;
             if done {
                 break;
@@ -412,7 +363,17 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
                 "state"
             };
             if args.json {
-                println!("{}", frame_json(kind, &f));
+                let json = FrameJson {
+                    kind,
+                    id: &f.id,
+                    seq: f.seq,
+                    columns: &f.columns,
+                    step: &f.step,
+                    t: &f.t,
+                    rows: FrameJson::rows(&f.values, f.columns.len()),
+                    last: f.last,
+                };
+                println!("{}", serde_json::to_string(&json)?);
             } else if kind == "energy" {
                 let n = f.columns.len().max(1);
                 if let (Some(row), Some(step)) = (f.values.chunks(n).last(), f.step.last()) {
@@ -438,7 +399,7 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
     if !args.json {
         println!(
             "{}",
-            serde_json::to_string_pretty(&status_json(&last_status))?
+            serde_json::to_string_pretty(&StatusJson::from(&last_status))?
         );
     }
     Ok(())

@@ -1,11 +1,10 @@
 //! `signorini run SPEC --out DIR`: validate a spec, run it in-process, write the results.
 
-use crate::output::{CsvSteps, clear_results, write_figure, write_summary, write_table};
+use crate::output::{CsvSteps, clear_results, finish_run, write_run_files};
 use crate::spec_file::{self, Format};
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use serde_json::json;
 use signorini_core::job::{self, RunOutput};
 use signorini_core::observer::{Columns, Observer, Progress, StepRecord};
 use std::ops::ControlFlow;
@@ -92,7 +91,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     };
     let started = Instant::now();
     let result = job::run(&job, &mut observer);
-    let wall = started.elapsed().as_secs_f64();
+    let wall = started.elapsed();
     observer.bar.finish_and_clear();
     let output: RunOutput = match result {
         Ok(o) => o,
@@ -102,22 +101,10 @@ pub fn run(args: RunArgs) -> Result<()> {
         }
     };
     observer.csv.finish()?;
-    for t in &output.tables {
-        write_table(&args.out, t)?;
-    }
-    for f in &output.figures {
-        write_figure(&args.out, f)?;
-    }
-    let mut summary = output.summary;
-    let steps = summary.get("steps").and_then(|s| s.as_f64()).unwrap_or(0.0);
-    summary.insert("wall_s".into(), json!(wall));
-    summary.insert(
-        "steps_per_s".into(),
-        json!(if wall > 0.0 { steps / wall } else { 0.0 }),
-    );
-    write_summary(&args.out, &summary)?;
+    let run = finish_run(output, wall);
+    write_run_files(&args.out, &run)?;
     if !args.quiet {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        println!("{}", serde_json::to_string_pretty(&run.summary)?);
         println!("results in {}", args.out.display());
     }
     Ok(())

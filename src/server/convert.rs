@@ -1,5 +1,5 @@
 //! Conversions at the gRPC edge: proto messages ⇄ the core's `JobSpec` (one domain type), and
-//! the service's views → proto. Every proto message and every core spec struct is destructured
+//! the capabilities → proto. Every proto message and every core spec struct is destructured
 //! field by field (no `..`), so a field added to the `.proto` or to the core spec breaks the build
 //! here until it is handled. These conversions only move data; validation happens once, in
 //! `Job::from_spec` (a missing required field is reported with its path, like serde does for JSON
@@ -12,8 +12,6 @@
 //! this over every file in `examples/`).
 
 use crate::proto::v1 as pb;
-use crate::store::{JobState, StoredResult};
-use crate::worker::JobView;
 use signorini_core::contact::Activation;
 use signorini_core::lcp::LcpSolverKind;
 use signorini_core::modal::forced::Excitation;
@@ -1233,113 +1231,6 @@ fn analysis_to_proto(a: &AnalysisSpec) -> pb::AnalysisSpec {
         }
     };
     pb::AnalysisSpec { kind: Some(kind) }
-}
-
-/// A job state → proto.
-pub fn state_to_proto(s: JobState) -> pb::JobState {
-    match s {
-        JobState::Queued => pb::JobState::Queued,
-        JobState::Running => pb::JobState::Running,
-        JobState::Succeeded => pb::JobState::Succeeded,
-        JobState::Failed => pb::JobState::Failed,
-        JobState::Cancelled => pb::JobState::Cancelled,
-    }
-}
-
-/// A proto job state → the service's (None for UNSPECIFIED or unknown values).
-pub fn state_from_proto(s: i32) -> Option<JobState> {
-    match pb::JobState::try_from(s).ok()? {
-        pb::JobState::Unspecified => None,
-        pb::JobState::Queued => Some(JobState::Queued),
-        pb::JobState::Running => Some(JobState::Running),
-        pb::JobState::Succeeded => Some(JobState::Succeeded),
-        pb::JobState::Failed => Some(JobState::Failed),
-        pb::JobState::Cancelled => Some(JobState::Cancelled),
-    }
-}
-
-/// A status view → proto (the gRPC `JobStatus` and the zenoh status frame).
-pub fn status_to_proto(v: &JobView) -> pb::JobStatus {
-    let JobView {
-        id,
-        name,
-        state,
-        done,
-        total,
-        t,
-        error,
-        created_ms,
-        started_ms,
-        finished_ms,
-    } = v;
-    pb::JobStatus {
-        id: id.clone(),
-        state: state_to_proto(*state) as i32,
-        progress: Some(pb::Progress {
-            step: *done,
-            total: *total,
-            t: *t,
-            fraction: v.fraction(),
-        }),
-        name: name.clone(),
-        error: error.as_ref().map(|(field, reason)| pb::JobError {
-            field: field.clone(),
-            reason: reason.clone(),
-        }),
-        created_ms: *created_ms,
-        started_ms: *started_ms,
-        finished_ms: *finished_ms,
-    }
-}
-
-/// A stored result → proto (column-major series).
-pub fn result_to_proto(view: &JobView, r: &StoredResult) -> pb::JobResult {
-    let StoredResult {
-        summary,
-        columns,
-        steps,
-        t,
-        values: _,
-        tables,
-        figures,
-    } = r;
-    pb::JobResult {
-        id: view.id.clone(),
-        status: Some(status_to_proto(view)),
-        summary_json: serde_json::Value::Object(summary.clone()).to_string(),
-        columns: columns.clone(),
-        step: steps.clone(),
-        t: t.clone(),
-        series: columns
-            .iter()
-            .enumerate()
-            .map(|(c, name)| pb::Series {
-                column: name.clone(),
-                values: r.column(c),
-            })
-            .collect(),
-        tables: tables
-            .iter()
-            .map(|tb| pb::Table {
-                name: tb.name.clone(),
-                columns: tb.columns.clone(),
-                rows: tb
-                    .rows
-                    .iter()
-                    .map(|row| pb::Row {
-                        values: row.clone(),
-                    })
-                    .collect(),
-            })
-            .collect(),
-        figures: figures
-            .iter()
-            .map(|f| pb::Figure {
-                name: f.name.clone(),
-                svg: f.svg.clone(),
-            })
-            .collect(),
-    }
 }
 
 /// The capabilities description → proto.

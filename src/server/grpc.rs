@@ -1,10 +1,12 @@
 //! gRPC API (`signorini.v1.Simulation`, tonic). Each method: validate → convert → dispatch to the
-//! [`Engine`](crate::worker::Engine) → respond; [`ApiError`] becomes a `Status` here and nowhere
-//! else.
+//! [`Engine`](crate::engine::Engine) → respond, encoding with [`crate::proto::encode`]; [`ApiError`]
+//! becomes a `Status` here and nowhere else.
 
 use super::AppState;
 use super::convert;
+use crate::engine::events::JobEvent;
 use crate::error::ApiError;
+use crate::proto::encode::{result_to_proto, status_to_proto, step_frames};
 use crate::proto::v1 as pb;
 use crate::proto::v1::simulation_server::Simulation;
 use crate::spec_file::{self, Format};
@@ -67,6 +69,27 @@ pub fn to_status(e: ApiError) -> Status {
     status
 }
 
+/// An event as the frames of `WatchJob`: a status, or a step batch's energy and state frames.
+fn watch_frames(event: &JobEvent) -> Vec<pb::WatchFrame> {
+    use pb::watch_frame::Frame;
+    let frames = match event {
+        JobEvent::Status(v) => vec![Frame::Status(status_to_proto(v))],
+        JobEvent::Steps(batch) => {
+            let (energy, state) = step_frames(batch);
+            energy
+                .map(Frame::Energy)
+                .into_iter()
+                .chain(state.map(Frame::State))
+                .collect()
+        }
+        JobEvent::Closed(_) => Vec::new(),
+    };
+    frames
+        .into_iter()
+        .map(|frame| pb::WatchFrame { frame: Some(frame) })
+        .collect()
+}
+
 type FrameStream = Pin<Box<dyn Stream<Item = Result<pb::WatchFrame, Status>> + Send + 'static>>;
 
 #[tonic::async_trait]
@@ -104,7 +127,7 @@ impl Simulation for SimulationService {
     ) -> Result<Response<pb::JobStatus>, Status> {
         let pb::GetJobRequest { id } = req.into_inner();
         let view = self.state.engine.status(&id).map_err(to_status)?;
-        Ok(Response::new(convert::status_to_proto(&view)))
+        Ok(Response::new(status_to_proto(&view)))
     }
 
     async fn list_jobs(
@@ -114,7 +137,7 @@ impl Simulation for SimulationService {
         let pb::ListJobsRequest {} = req.into_inner();
         let jobs = self.state.engine.list().map_err(to_status)?;
         Ok(Response::new(pb::ListJobsResponse {
-            jobs: jobs.iter().map(convert::status_to_proto).collect(),
+            jobs: jobs.iter().map(status_to_proto).collect(),
         }))
     }
 
@@ -125,7 +148,7 @@ impl Simulation for SimulationService {
         self.authorize(&req)?;
         let pb::CancelJobRequest { id } = req.into_inner();
         let view = self.state.cancel_and_wait(&id).await.map_err(to_status)?;
-        Ok(Response::new(convert::status_to_proto(&view)))
+        Ok(Response::new(status_to_proto(&view)))
     }
 
     type WatchJobStream = FrameStream;
@@ -135,11 +158,9 @@ impl Simulation for SimulationService {
         req: Request<pb::WatchJobRequest>,
     ) -> Result<Response<Self::WatchJobStream>, Status> {
         let pb::WatchJobRequest { id } = req.into_inner();
-        let (current, frames) = self.state.follow(&id).map_err(to_status)?;
+        let (current, frames) = self.state.follow(&id, watch_frames).map_err(to_status)?;
         let first = tokio_stream::iter([Ok(pb::WatchFrame {
-            frame: Some(pb::watch_frame::Frame::Status(convert::status_to_proto(
-                &current,
-            ))),
+            frame: Some(pb::watch_frame::Frame::Status(status_to_proto(&current))),
         })]);
         match frames {
             None => Ok(Response::new(Box::pin(first))),
@@ -160,7 +181,7 @@ impl Simulation for SimulationService {
         .await
         .map_err(|e| Status::internal(e.to_string()))?
         .map_err(to_status)?;
-        Ok(Response::new(convert::result_to_proto(&view, &result)))
+        Ok(Response::new(result_to_proto(&view, &result)))
     }
 
     async fn capabilities(

@@ -1,12 +1,14 @@
-//! HTTP/JSON API (axum). Each handler: validate → convert → dispatch to the [`crate::worker::Engine`] → respond.
+//! HTTP/JSON API (axum). Each handler: validate → convert → dispatch to the [`crate::engine::Engine`] → respond,
+//! encoding statuses and frames with [`super::json`].
 //! Errors are `{"error": {"field", "reason"}}` with a status code per [`ApiError`] kind.
 
 use super::AppState;
+use super::json::{FrameJson, StatusJson};
+use crate::engine::events::JobEvent;
 use crate::error::ApiError;
-use crate::proto::v1::{StepFrame, watch_frame};
 use crate::spec_file::{self, Format};
-use crate::store::{JobState, StoredResult};
-use crate::worker::JobView;
+use crate::status::JobView;
+use crate::store::StoredResult;
 use axum::extract::rejection::StringRejection;
 use axum::extract::{DefaultBodyLimit, Path, Query, State};
 use axum::http::{HeaderMap, Method, StatusCode, Uri, header};
@@ -82,20 +84,6 @@ fn authorize(state: &AppState, headers: &HeaderMap) -> Result<(), ApiError> {
     state.authorize(given)
 }
 
-/// The status body: `{"id", "state", "progress": {"step", "total", "t", "fraction"}, …}`.
-pub fn status_json(v: &JobView) -> Value {
-    json!({
-        "id": v.id,
-        "name": v.name,
-        "state": v.state.as_str(),
-        "progress": { "step": v.done, "total": v.total, "t": v.t, "fraction": v.fraction() },
-        "error": v.error.as_ref().map(|(f, r)| json!({ "field": f, "reason": r })),
-        "created_ms": v.created_ms,
-        "started_ms": v.started_ms,
-        "finished_ms": v.finished_ms,
-    })
-}
-
 #[derive(Debug, Deserialize)]
 struct SubmitQuery {
     id: Option<String>,
@@ -144,27 +132,32 @@ async fn submit_job(
     Ok((StatusCode::CREATED, Json(json!({ "id": id }))))
 }
 
+/// `{"jobs": [status…]}`, oldest first.
 async fn list_jobs(State(state): State<AppState>) -> Result<Json<Value>, ApiError> {
     let jobs = state.engine.list()?;
-    Ok(Json(
-        json!({ "jobs": jobs.iter().map(status_json).collect::<Vec<_>>() }),
-    ))
+    let jobs: Vec<StatusJson> = jobs.iter().map(StatusJson::from).collect();
+    Ok(Json(json!({ "jobs": jobs })))
+}
+
+/// Answers a status as [`StatusJson`].
+fn status_body(v: &JobView) -> Response {
+    Json(StatusJson::from(v)).into_response()
 }
 
 async fn get_job(
     State(state): State<AppState>,
     Path(id): Path<String>,
-) -> Result<Json<Value>, ApiError> {
-    Ok(Json(status_json(&state.engine.status(&id)?)))
+) -> Result<Response, ApiError> {
+    Ok(status_body(&state.engine.status(&id)?))
 }
 
 async fn cancel_job(
     State(state): State<AppState>,
     headers: HeaderMap,
     Path(id): Path<String>,
-) -> Result<Json<Value>, ApiError> {
+) -> Result<Response, ApiError> {
     authorize(&state, &headers)?;
-    Ok(Json(status_json(&state.cancel_and_wait(&id).await?)))
+    Ok(status_body(&state.cancel_and_wait(&id).await?))
 }
 
 /// `{"id", "summary", "columns", "steps": {"step": […], "t": […], column: […]}, "tables",
@@ -263,99 +256,113 @@ async fn healthz() -> Json<Value> {
     Json(json!({ "status": "ok" }))
 }
 
+/// Samples of a metric: `({labels}, value)`.
+type Samples = Vec<(String, String)>;
+
+/// Prometheus text: per metric its help and type lines, then `NAME{labels} value` per sample.
 async fn metrics(State(state): State<AppState>) -> Result<Response, ApiError> {
     let counts = state.engine.counts()?;
     let steps = state.engine.steps_total();
     let rate = state.steps_rate(steps);
     let stats = state.engine.stream_stats();
+    let one = |value: String| -> Samples { vec![(String::new(), value)] };
+    let load = |c: &std::sync::atomic::AtomicU64| {
+        one(c.load(std::sync::atomic::Ordering::Relaxed).to_string())
+    };
+    let jobs: Samples = counts
+        .into_iter()
+        .map(|(st, n)| (format!("{{state=\"{}\"}}", st.as_str()), n.to_string()))
+        .collect();
+    let metrics = [
+        ("signorini_jobs", "gauge", "Jobs by state.", jobs),
+        (
+            "signorini_queue_depth",
+            "gauge",
+            "Jobs waiting for a worker.",
+            one(state.engine.queue_depth().to_string()),
+        ),
+        (
+            "signorini_workers",
+            "gauge",
+            "Worker threads.",
+            one(state.engine.workers().to_string()),
+        ),
+        (
+            "signorini_steps_total",
+            "counter",
+            "Time steps computed.",
+            one(steps.to_string()),
+        ),
+        (
+            "signorini_steps_per_second",
+            "gauge",
+            "Steps per second since the previous scrape.",
+            one(rate.to_string()),
+        ),
+        (
+            "signorini_frames_published_total",
+            "counter",
+            "zenoh frames put.",
+            load(&stats.frames_published),
+        ),
+        (
+            "signorini_frames_dropped_total",
+            "counter",
+            "Step frames dropped for a slow link.",
+            load(&stats.frames_dropped),
+        ),
+    ];
     let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "# HELP signorini_jobs Jobs by state.\n# TYPE signorini_jobs gauge"
-    );
-    for (st, n) in counts {
-        let _ = writeln!(s, "signorini_jobs{{state=\"{}\"}} {n}", st.as_str());
+    for (name, kind, help, samples) in metrics {
+        let _ = writeln!(s, "# HELP {name} {help}\n# TYPE {name} {kind}");
+        for (labels, value) in samples {
+            let _ = writeln!(s, "{name}{labels} {value}");
+        }
     }
-    let _ = writeln!(
-        s,
-        "# HELP signorini_queue_depth Jobs waiting for a worker.\n# TYPE signorini_queue_depth gauge"
-    );
-    let _ = writeln!(s, "signorini_queue_depth {}", state.engine.queue_depth());
-    let _ = writeln!(
-        s,
-        "# HELP signorini_workers Worker threads.\n# TYPE signorini_workers gauge"
-    );
-    let _ = writeln!(s, "signorini_workers {}", state.engine.workers());
-    let _ = writeln!(
-        s,
-        "# HELP signorini_steps_total Time steps computed.\n# TYPE signorini_steps_total counter"
-    );
-    let _ = writeln!(s, "signorini_steps_total {steps}");
-    let _ = writeln!(
-        s,
-        "# HELP signorini_steps_per_second Steps per second since the previous scrape.\n# TYPE signorini_steps_per_second gauge"
-    );
-    let _ = writeln!(s, "signorini_steps_per_second {rate}");
-    let _ = writeln!(
-        s,
-        "# HELP signorini_frames_published_total zenoh frames put.\n# TYPE signorini_frames_published_total counter"
-    );
-    let _ = writeln!(
-        s,
-        "signorini_frames_published_total {}",
-        stats
-            .frames_published
-            .load(std::sync::atomic::Ordering::Relaxed)
-    );
-    let _ = writeln!(
-        s,
-        "# HELP signorini_frames_dropped_total Step frames dropped for a slow link.\n# TYPE signorini_frames_dropped_total counter"
-    );
-    let _ = writeln!(
-        s,
-        "signorini_frames_dropped_total {}",
-        stats
-            .frames_dropped
-            .load(std::sync::atomic::Ordering::Relaxed)
-    );
     Ok(([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], s).into_response())
 }
 
-fn frame_json(f: &StepFrame) -> Value {
-    let n = f.columns.len().max(1);
-    let rows: Vec<&[f64]> = f.values.chunks(n).collect();
-    json!({ "columns": f.columns, "step": f.step, "t": f.t, "rows": rows, "last": f.last })
+/// A job event as server-sent events: `status` ([`StatusJson`]) or `energy` (the energy columns
+/// of a step batch as [`FrameJson`]); the state columns are not sent.
+fn sse_events(event: &JobEvent) -> Vec<Event> {
+    let event = match event {
+        JobEvent::Status(v) => Event::default()
+            .event("status")
+            .json_data(StatusJson::from(v)),
+        JobEvent::Steps(b) if !b.energy.columns.is_empty() => {
+            Event::default().event("energy").json_data(FrameJson {
+                kind: "energy",
+                id: &b.id,
+                seq: b.seq,
+                columns: &b.energy.columns,
+                step: &b.step,
+                t: &b.t,
+                rows: FrameJson::rows(&b.energy.values, b.energy.columns.len()),
+                last: b.last,
+            })
+        }
+        JobEvent::Steps(_) | JobEvent::Closed(_) => return Vec::new(),
+    };
+    event.into_iter().collect()
 }
 
-/// Server-sent events of one job: its current status, then its status and energy frames as
+/// Server-sent events of one job: its current status, then its status and energy events as
 /// they are published; the stream ends after the job's final status.
 async fn job_events(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Sse<impl tokio_stream::Stream<Item = Result<Event, Infallible>>>, ApiError> {
-    let (current, frames) = state.follow(&id)?;
-    let first = Event::default()
-        .event("status")
-        .json_data(status_json(&current))
-        .map_err(|e| ApiError::Internal(e.to_string()))?;
-    let rest: std::pin::Pin<Box<dyn tokio_stream::Stream<Item = Event> + Send>> = match frames {
+    let (current, events) = state.follow(&id, sse_events)?;
+    let first = sse_events(&JobEvent::Status(current));
+    let rest: std::pin::Pin<Box<dyn tokio_stream::Stream<Item = Event> + Send>> = match events {
         None => Box::pin(tokio_stream::empty()),
-        Some(frames) => Box::pin(frames.filter_map(|frame| match frame.frame? {
-            watch_frame::Frame::Status(s) => {
-                let state = super::convert::state_from_proto(s.state).map_or("unknown", JobState::as_str);
-                let p = s.progress.unwrap_or_default();
-                let body = json!({ "id": s.id, "state": state, "progress": { "step": p.step, "total": p.total, "t": p.t, "fraction": p.fraction } });
-                Event::default().event("status").json_data(body).ok()
-            }
-            watch_frame::Frame::Energy(f) => Event::default().event("energy").json_data(frame_json(&f)).ok(),
-            watch_frame::Frame::State(_) => None,
-        })),
+        Some(events) => Box::pin(events),
     };
-    let stream = tokio_stream::iter([first]).chain(rest).map(Ok);
+    let stream = tokio_stream::iter(first).chain(rest).map(Ok);
     Ok(Sse::new(stream).keep_alive(KeepAlive::new().interval(Duration::from_secs(10))))
 }
 
 async fn live_page(Path(id): Path<String>) -> Result<Html<String>, ApiError> {
-    crate::worker::check_id(&id)?;
+    crate::engine::check_id(&id)?;
     Ok(Html(include_str!("live.html").replace("{{JOB_ID}}", &id)))
 }

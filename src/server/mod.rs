@@ -4,14 +4,16 @@
 pub mod convert;
 pub mod grpc;
 pub mod http;
+pub mod json;
 
 use crate::config::ServeConfig;
+use crate::engine::Engine;
+use crate::engine::events::JobEvent;
 use crate::error::ApiError;
 use crate::proto::v1::simulation_server::SimulationServer;
-use crate::proto::v1::{WatchFrame, watch_frame};
+use crate::status::JobView;
 use crate::store::Store;
 use crate::stream::{self, Streamer, ZenohOptions};
-use crate::worker::{Engine, JobView};
 use anyhow::{Context, Result};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -25,7 +27,7 @@ pub struct AppState {
     /// The job engine.
     pub engine: Engine,
     token: Option<Arc<str>>,
-    frames: broadcast::Sender<Arc<WatchFrame>>,
+    events: broadcast::Sender<Arc<JobEvent>>,
     rate: Arc<Mutex<(Instant, u64)>>,
 }
 
@@ -45,39 +47,24 @@ impl AppState {
         }
     }
 
-    /// Every published frame.
-    pub fn watch(&self) -> broadcast::Receiver<Arc<WatchFrame>> {
-        self.frames.subscribe()
-    }
-
-    /// A job's current status and, unless it is already over, the frames published for it up
-    /// to and including its final status (gRPC `WatchJob`, SSE). The subscription is taken
-    /// before the status is read, so no frame falls between the two.
-    pub fn follow(
+    /// A job's current status and, unless it is already over, the status and step events
+    /// published for it up to and including its final status, each encoded by `encode` into
+    /// what the client receives (gRPC `WatchJob`, SSE). The subscription is taken before the
+    /// status is read, so no event falls between the two.
+    pub fn follow<T: Send + 'static>(
         &self,
         id: &str,
-    ) -> Result<
-        (
-            JobView,
-            Option<impl Stream<Item = WatchFrame> + Send + 'static>,
-        ),
-        ApiError,
-    > {
-        let rx = self.watch();
+        encode: impl Fn(&JobEvent) -> Vec<T> + Send + 'static,
+    ) -> Result<(JobView, Option<impl Stream<Item = T> + Send + 'static>), ApiError> {
+        let rx = self.events.subscribe();
         let current = self.engine.status(id)?;
         if current.state.is_terminal() {
             return Ok((current, None));
         }
         let id = id.to_string();
-        let frames = BroadcastStream::new(rx).filter_map(move |msg| {
-            let frame = msg.ok()?;
-            let of_job = match frame.frame.as_ref()? {
-                watch_frame::Frame::Status(s) => s.id == id,
-                watch_frame::Frame::Energy(f) | watch_frame::Frame::State(f) => f.id == id,
-            };
-            of_job.then(|| WatchFrame::clone(&frame))
-        });
-        Ok((current, Some(until_terminal(frames))))
+        let events = BroadcastStream::new(rx)
+            .filter_map(move |msg| msg.ok().filter(|event| event.job_id() == id));
+        Ok((current, Some(until_terminal(events, encode))))
     }
 
     /// Cancels a job and waits (up to 5 s) until a running one has stopped.
@@ -146,15 +133,12 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
         .map_err(anyhow::Error::from)?;
     {
         let engine = engine.clone();
-        stream::serve_status_queryable(session.clone(), move |id| {
-            engine.find(id).map(|v| convert::status_to_proto(&v))
-        })
-        .await?;
+        stream::serve_status_queryable(session.clone(), move |id| engine.find(id)).await?;
     }
     let state = AppState {
         engine: engine.clone(),
         token: cfg.token.as_deref().map(Arc::from),
-        frames: streamer_sender(&streamer),
+        events: streamer.sender(),
         rate: Arc::new(Mutex::new((Instant::now(), 0))),
     };
 
@@ -207,29 +191,30 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
     Ok(())
 }
 
-fn streamer_sender(s: &Streamer) -> broadcast::Sender<Arc<WatchFrame>> {
-    s.sender()
-}
-
-/// Passes frames through up to and including the first terminal status, and ends there. (A
-/// combinator such as `map_while` would only end the stream when the *next* frame of the job
-/// arrives — never, once the job is over.) A forwarding task ends the stream by dropping its sender
-/// right after the terminal status, or stops when the client goes away.
-fn until_terminal(
-    frames: impl Stream<Item = WatchFrame> + Send + 'static,
-) -> impl Stream<Item = WatchFrame> + Send + 'static {
+/// Encodes events and passes them through up to and including the first terminal status, and
+/// ends there. (A combinator such as `map_while` would only end the stream when the *next* event
+/// of the job arrives — never, once the job is over.) A forwarding task ends the stream by
+/// dropping its sender right after the terminal status, or stops when the client goes away.
+fn until_terminal<T: Send + 'static>(
+    events: impl Stream<Item = Arc<JobEvent>> + Send + 'static,
+    encode: impl Fn(&JobEvent) -> Vec<T> + Send + 'static,
+) -> impl Stream<Item = T> + Send + 'static {
     let (tx, rx) = tokio::sync::mpsc::channel(64);
     tokio::spawn(async move {
-        let mut frames = std::pin::pin!(frames);
+        let mut events = std::pin::pin!(events);
         loop {
-            let frame = tokio::select! {
-                f = frames.next() => f,
+            let event = tokio::select! {
+                e = events.next() => e,
                 () = tx.closed() => None,
             };
-            let Some(f) = frame else { return };
-            let ended = matches!(&f.frame, Some(watch_frame::Frame::Status(s))
-                if convert::state_from_proto(s.state).is_some_and(|s| s.is_terminal()));
-            if tx.send(f).await.is_err() || ended {
+            let Some(event) = event else { return };
+            let ended = matches!(&*event, JobEvent::Status(s) if s.state.is_terminal());
+            for item in encode(&event) {
+                if tx.send(item).await.is_err() {
+                    return;
+                }
+            }
+            if ended {
                 return;
             }
         }

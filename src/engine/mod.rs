@@ -1,0 +1,462 @@
+//! The job engine: accepts jobs (validated once, by `Job::from_spec`), keeps them in a bounded
+//! queue, runs them on dedicated std threads (never on the async executor), and records their
+//! status and results in the [`Store`]. It speaks no wire format: what happens to a job leaves as
+//! [`JobEvent`]s, which the adapters (`crate::stream`, `crate::server`) encode.
+//!
+//! Cancellation is an `AtomicBool` the run's observer reads after every step, so a running job
+//! stops within one step of the call. Progress (step, t, fraction) lives in atomics read by
+//! `GetJob` and is sent as a status event about every 200 ms.
+
+pub mod events;
+pub mod ids;
+mod observer;
+
+use crate::config::Limits;
+use crate::error::ApiError;
+use crate::output::finish_run;
+use crate::status::{JobState, JobView};
+use crate::store::{Store, StoredResult};
+use events::{EventSink, JobEvent, StreamStats};
+use ids::{new_id, now_ms};
+use observer::ServiceObserver;
+use signorini_core::job::{self, Job, RunError};
+use signorini_core::spec::{JobSpec, SpecError};
+use std::collections::{HashMap, VecDeque};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::Instant;
+use tokio::sync::watch;
+
+pub use ids::check_id;
+
+/// A queued or running job.
+struct LiveJob {
+    id: String,
+    name: Option<String>,
+    job: Job,
+    created_ms: u64,
+    cancel: AtomicBool,
+    running: AtomicBool,
+    started_ms: AtomicU64,
+    done: AtomicU64,
+    total: AtomicU64,
+    t_bits: AtomicU64,
+    ended: watch::Sender<bool>,
+}
+
+impl LiveJob {
+    fn view(&self) -> JobView {
+        JobView {
+            id: self.id.clone(),
+            name: self.name.clone(),
+            state: if self.running.load(Ordering::Acquire) {
+                JobState::Running
+            } else {
+                JobState::Queued
+            },
+            done: self.done.load(Ordering::Relaxed),
+            total: self.total.load(Ordering::Relaxed),
+            t: f64::from_bits(self.t_bits.load(Ordering::Relaxed)),
+            error: None,
+            created_ms: self.created_ms,
+            started_ms: self.started_ms.load(Ordering::Relaxed),
+            finished_ms: 0,
+        }
+    }
+
+    /// The status of the job as it ends now in `state`.
+    fn ended_view(&self, state: JobState) -> JobView {
+        JobView {
+            state,
+            finished_ms: now_ms(),
+            ..self.view()
+        }
+    }
+}
+
+/// Service counters for `/metrics`.
+#[derive(Debug, Default)]
+pub struct Counters {
+    /// Steps computed by all workers.
+    pub steps_total: AtomicU64,
+}
+
+/// What the engine's handle and its worker threads share.
+struct Inner {
+    store: Store,
+    limits: Limits,
+    queue_limit: usize,
+    queue: Mutex<VecDeque<Arc<LiveJob>>>,
+    wake: Condvar,
+    live: Mutex<HashMap<String, Arc<LiveJob>>>,
+    sink: EventSink,
+    shutdown: AtomicBool,
+    counters: Counters,
+    workers: usize,
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// The engine: cheap to clone, shared by the gRPC and HTTP handlers.
+#[derive(Clone)]
+pub struct Engine {
+    inner: Arc<Inner>,
+    threads: Arc<Mutex<Vec<JoinHandle<()>>>>,
+}
+
+/// Checks a job against the server's limits; the error names the field to change.
+fn check_limits(job: &Job, limits: &Limits) -> Result<(), SpecError> {
+    let size = job.size();
+    if size.dofs > limits.max_dofs {
+        return Err(SpecError::new(
+            "model",
+            format!(
+                "{} degrees of freedom exceed this server's limit of {}",
+                size.dofs, limits.max_dofs
+            ),
+        ));
+    }
+    if size.steps > limits.max_steps {
+        return Err(SpecError::new(
+            "time",
+            format!(
+                "{} steps exceed this server's limit of {}",
+                size.steps, limits.max_steps
+            ),
+        ));
+    }
+    if size.output_bytes > limits.max_output_bytes {
+        return Err(SpecError::new(
+            "output.every",
+            format!(
+                "the recorded output (≈ {} MiB) exceeds this server's limit of {} MiB: record fewer steps",
+                size.output_bytes >> 20,
+                limits.max_output_bytes >> 20
+            ),
+        ));
+    }
+    Ok(())
+}
+
+impl Engine {
+    /// Opens the engine on `store`: re-queues the jobs a previous process left unfinished and
+    /// starts `workers` threads.
+    pub fn start(
+        store: Store,
+        limits: Limits,
+        queue_limit: usize,
+        workers: usize,
+        sink: EventSink,
+    ) -> Result<Engine, ApiError> {
+        let recovered = store.recover()?;
+        let inner = Arc::new(Inner {
+            store,
+            limits,
+            queue_limit,
+            queue: Mutex::new(VecDeque::new()),
+            wake: Condvar::new(),
+            live: Mutex::new(HashMap::new()),
+            sink,
+            shutdown: AtomicBool::new(false),
+            counters: Counters::default(),
+            workers,
+        });
+        for (view, spec_json) in recovered {
+            let built = crate::spec_file::parse(&spec_json, crate::spec_file::Format::Json)
+                .and_then(|spec| Job::from_spec(&spec));
+            match built {
+                Ok(job) => {
+                    tracing::info!(id = %view.id, "re-queued after restart");
+                    let live = Arc::new(new_live(
+                        view.id.clone(),
+                        view.name.clone(),
+                        job,
+                        view.created_ms,
+                    ));
+                    lock(&inner.live).insert(view.id.clone(), live.clone());
+                    lock(&inner.queue).push_back(live);
+                }
+                Err(e) => {
+                    let mut failed = view;
+                    failed.state = JobState::Failed;
+                    failed.finished_ms = now_ms();
+                    failed.error = Some((
+                        e.field,
+                        format!("no longer valid after restart: {}", e.reason),
+                    ));
+                    inner.store.finish(&failed, None)?;
+                }
+            }
+        }
+        let engine = Engine {
+            inner,
+            threads: Arc::new(Mutex::new(Vec::new())),
+        };
+        for k in 0..workers {
+            let inner = engine.inner.clone();
+            let handle = std::thread::Builder::new()
+                .name(format!("signorini-worker-{k}"))
+                .spawn(move || worker_loop(&inner))
+                .map_err(|e| ApiError::Internal(format!("spawning worker: {e}")))?;
+            lock(&engine.threads).push(handle);
+        }
+        Ok(engine)
+    }
+
+    /// Validates, checks limits and queues a job. Returns its id.
+    pub fn submit(&self, spec: &JobSpec, id: Option<String>) -> Result<String, ApiError> {
+        if self.inner.shutdown.load(Ordering::Acquire) {
+            return Err(ApiError::Unavailable);
+        }
+        if let Some(id) = &id {
+            check_id(id)?;
+        }
+        let job = Job::from_spec(spec)?;
+        check_limits(&job, &self.inner.limits)?;
+        let spec_json =
+            serde_json::to_string(spec).map_err(|e| ApiError::Internal(e.to_string()))?;
+        let id = id.unwrap_or_else(new_id);
+        let created_ms = now_ms();
+        let live = Arc::new(new_live(id.clone(), spec.name.clone(), job, created_ms));
+        {
+            let mut queue = lock(&self.inner.queue);
+            if queue.len() >= self.inner.queue_limit {
+                return Err(ApiError::QueueFull {
+                    limit: self.inner.queue_limit,
+                });
+            }
+            if !self.inner.store.insert(&live.view(), &spec_json)? {
+                return Err(ApiError::AlreadyExists { id });
+            }
+            lock(&self.inner.live).insert(id.clone(), live.clone());
+            // Queued before a worker can take the job (it takes jobs under this lock), so the
+            // `queued` status cannot go out after `running`.
+            self.inner.sink.send(JobEvent::Status(live.view()));
+            queue.push_back(live.clone());
+        }
+        self.inner.wake.notify_one();
+        Ok(id)
+    }
+
+    /// A job's status.
+    pub fn status(&self, id: &str) -> Result<JobView, ApiError> {
+        if let Some(live) = lock(&self.inner.live).get(id) {
+            return Ok(live.view());
+        }
+        self.inner
+            .store
+            .get(id)?
+            .ok_or_else(|| ApiError::NotFound { id: id.into() })
+    }
+
+    /// The status if the job exists (for the zenoh status queryable).
+    pub fn find(&self, id: &str) -> Option<JobView> {
+        self.status(id).ok()
+    }
+
+    /// Every job, oldest first, with live progress.
+    pub fn list(&self) -> Result<Vec<JobView>, ApiError> {
+        let stored = self.inner.store.list()?;
+        let live = lock(&self.inner.live);
+        Ok(stored
+            .into_iter()
+            .map(|v| live.get(&v.id).map_or(v, |l| l.view()))
+            .collect())
+    }
+
+    /// Cancels a job. A queued job ends at once; a running one stops at the end of its current
+    /// step: await [`Engine::ended`] for that. Finished jobs are left as they are.
+    pub fn cancel(&self, id: &str) -> Result<JobView, ApiError> {
+        let live = lock(&self.inner.live).get(id).cloned();
+        let Some(live) = live else {
+            return self.status(id);
+        };
+        live.cancel.store(true, Ordering::Release);
+        let was_queued = {
+            let mut queue = lock(&self.inner.queue);
+            let before = queue.len();
+            queue.retain(|j| j.id != id);
+            queue.len() != before
+        };
+        if was_queued {
+            let view = live.ended_view(JobState::Cancelled);
+            self.inner.store.finish(&view, None)?;
+            lock(&self.inner.live).remove(id);
+            self.inner.sink.send(JobEvent::Status(view.clone()));
+            self.inner.sink.send(JobEvent::Closed(id.to_string()));
+            live.ended.send_replace(true);
+            return Ok(view);
+        }
+        Ok(live.view())
+    }
+
+    /// A receiver that turns `true` when a live job has ended (`None` if not live).
+    pub fn ended(&self, id: &str) -> Option<watch::Receiver<bool>> {
+        lock(&self.inner.live).get(id).map(|l| l.ended.subscribe())
+    }
+
+    /// The result of a succeeded job.
+    pub fn result(&self, id: &str) -> Result<(JobView, StoredResult), ApiError> {
+        let view = self.status(id)?;
+        if view.state != JobState::Succeeded {
+            return Err(ApiError::NoResult {
+                id: id.into(),
+                state: view.state.as_str(),
+            });
+        }
+        let result = self
+            .inner
+            .store
+            .result(id)?
+            .ok_or_else(|| ApiError::Internal(format!("result of {id} missing")))?;
+        Ok((view, result))
+    }
+
+    /// Jobs per state (from the store).
+    pub fn counts(&self) -> Result<Vec<(JobState, u64)>, ApiError> {
+        Ok(self.inner.store.counts()?)
+    }
+
+    /// Jobs waiting for a worker.
+    pub fn queue_depth(&self) -> usize {
+        lock(&self.inner.queue).len()
+    }
+
+    /// Worker threads.
+    pub fn workers(&self) -> usize {
+        self.inner.workers
+    }
+
+    /// Steps computed since start.
+    pub fn steps_total(&self) -> u64 {
+        self.inner.counters.steps_total.load(Ordering::Relaxed)
+    }
+
+    /// Stream counters.
+    pub fn stream_stats(&self) -> &StreamStats {
+        self.inner.sink.stats()
+    }
+
+    /// Stops taking jobs, stops running ones (they stay `running` in the store and run again at
+    /// the next start) and joins the worker threads. Blocking: call from a blocking context.
+    pub fn shutdown(&self) {
+        self.inner.shutdown.store(true, Ordering::Release);
+        self.inner.wake.notify_all();
+        let threads: Vec<_> = lock(&self.threads).drain(..).collect();
+        for t in threads {
+            let _ = t.join();
+        }
+    }
+}
+
+fn new_live(id: String, name: Option<String>, job: Job, created_ms: u64) -> LiveJob {
+    let total = job.size().steps;
+    LiveJob {
+        id,
+        name,
+        job,
+        created_ms,
+        cancel: AtomicBool::new(false),
+        running: AtomicBool::new(false),
+        started_ms: AtomicU64::new(0),
+        done: AtomicU64::new(0),
+        total: AtomicU64::new(total),
+        t_bits: AtomicU64::new(0),
+        ended: watch::channel(false).0,
+    }
+}
+
+fn next_job(inner: &Inner) -> Option<Arc<LiveJob>> {
+    let mut queue = lock(&inner.queue);
+    loop {
+        if inner.shutdown.load(Ordering::Acquire) {
+            return None;
+        }
+        if let Some(j) = queue.pop_front() {
+            return Some(j);
+        }
+        queue = inner.wake.wait(queue).unwrap_or_else(|p| p.into_inner());
+    }
+}
+
+/// The text of a panic payload (`panic!` with a message gives a `&str` or a `String`).
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a panic without a message".into())
+}
+
+fn worker_loop(inner: &Inner) {
+    while let Some(live) = next_job(inner) {
+        run_one(inner, &live);
+    }
+}
+
+fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
+    let started = now_ms();
+    live.started_ms.store(started, Ordering::Relaxed);
+    live.running.store(true, Ordering::Release);
+    if let Err(e) = inner.store.set_running(&live.id, started) {
+        tracing::error!(id = %live.id, "store: {e}");
+    }
+    inner.sink.send(JobEvent::Status(live.view()));
+    tracing::info!(id = %live.id, "running");
+
+    let mut observer = ServiceObserver::new(inner, live);
+    let clock = Instant::now();
+    // A panic in the numerics (a bug) fails this job and keeps the worker and the server alive.
+    let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        job::run(&live.job, &mut observer)
+    }))
+    .map_err(|panic| panic_message(panic.as_ref()));
+    let wall = clock.elapsed();
+    // The last batch goes out after the result is stored: whoever saw it can fetch the result.
+    let last_batch = observer.last_batch();
+    observer.count_steps();
+    let recorded = observer.into_recorded();
+
+    let (state, error, result) = match outcome {
+        Ok(Ok(output)) => {
+            let run = finish_run(output, wall);
+            let result = StoredResult {
+                summary: run.summary,
+                tables: run.tables,
+                figures: run.figures,
+                ..recorded
+            };
+            (JobState::Succeeded, None, Some(result))
+        }
+        Ok(Err(RunError::Stopped { .. })) if !live.cancel.load(Ordering::Acquire) => {
+            // Server shutdown: leave the job `running` in the store; the next start re-runs it.
+            tracing::info!(id = %live.id, "interrupted by shutdown");
+            return;
+        }
+        Ok(Err(RunError::Stopped { .. })) => (JobState::Cancelled, None, None),
+        Ok(Err(e)) => (JobState::Failed, Some(("run".into(), e.to_string())), None),
+        Err(panic) => {
+            tracing::error!(id = %live.id, "the run panicked: {panic}");
+            let reason = format!("internal error (a bug: please report it with the spec): {panic}");
+            (JobState::Failed, Some(("run".into(), reason)), None)
+        }
+    };
+    let mut view = JobView {
+        error,
+        ..live.ended_view(state)
+    };
+    if let Err(e) = inner.store.finish(&view, result.as_ref()) {
+        tracing::error!(id = %live.id, "store: {e}");
+        view.state = JobState::Failed;
+        view.error = Some(("store".into(), e.to_string()));
+    }
+    lock(&inner.live).remove(&live.id);
+    inner.sink.send(last_batch);
+    tracing::info!(id = %live.id, state = view.state.as_str(), wall_s = wall.as_secs_f64(), "finished");
+    inner.sink.send(JobEvent::Status(view));
+    inner.sink.send(JobEvent::Closed(live.id.clone()));
+    live.ended.send_replace(true);
+}

@@ -1,0 +1,230 @@
+//! The engine's domain types ⇄ protobuf messages, for the gRPC API and the zenoh stream (they
+//! carry the same messages). Every domain struct is destructured field by field (no `..`), so a
+//! field added to it breaks the build here until it is handled.
+
+use super::v1 as pb;
+use crate::engine::events::{ColumnGroup, StepBatch};
+use crate::status::{JobState, JobView};
+use crate::store::StoredResult;
+use anyhow::{Context, Result, anyhow};
+use signorini_core::job::{Figure, Table};
+
+/// A job state → proto.
+pub fn state_to_proto(s: JobState) -> pb::JobState {
+    match s {
+        JobState::Queued => pb::JobState::Queued,
+        JobState::Running => pb::JobState::Running,
+        JobState::Succeeded => pb::JobState::Succeeded,
+        JobState::Failed => pb::JobState::Failed,
+        JobState::Cancelled => pb::JobState::Cancelled,
+    }
+}
+
+/// A proto job state → the domain's (None for UNSPECIFIED or unknown values).
+pub fn state_from_proto(s: i32) -> Option<JobState> {
+    match pb::JobState::try_from(s).ok()? {
+        pb::JobState::Unspecified => None,
+        pb::JobState::Queued => Some(JobState::Queued),
+        pb::JobState::Running => Some(JobState::Running),
+        pb::JobState::Succeeded => Some(JobState::Succeeded),
+        pb::JobState::Failed => Some(JobState::Failed),
+        pb::JobState::Cancelled => Some(JobState::Cancelled),
+    }
+}
+
+/// A status → proto (the gRPC `JobStatus` and the zenoh status frame).
+pub fn status_to_proto(v: &JobView) -> pb::JobStatus {
+    let JobView {
+        id,
+        name,
+        state,
+        done,
+        total,
+        t,
+        error,
+        created_ms,
+        started_ms,
+        finished_ms,
+    } = v;
+    pb::JobStatus {
+        id: id.clone(),
+        state: state_to_proto(*state) as i32,
+        progress: Some(pb::Progress {
+            step: *done,
+            total: *total,
+            t: *t,
+            fraction: v.fraction(),
+        }),
+        name: name.clone(),
+        error: error.as_ref().map(|(field, reason)| pb::JobError {
+            field: field.clone(),
+            reason: reason.clone(),
+        }),
+        created_ms: *created_ms,
+        started_ms: *started_ms,
+        finished_ms: *finished_ms,
+    }
+}
+
+/// A proto status → the domain's (what a client of the gRPC API or the zenoh stream reads).
+pub fn status_from_proto(s: pb::JobStatus) -> Result<JobView> {
+    let pb::JobStatus {
+        id,
+        state,
+        progress,
+        name,
+        error,
+        created_ms,
+        started_ms,
+        finished_ms,
+    } = s;
+    let pb::Progress {
+        step,
+        total,
+        t,
+        fraction: _,
+    } = progress.unwrap_or_default();
+    Ok(JobView {
+        state: state_from_proto(state)
+            .ok_or_else(|| anyhow!("job {id}: unknown state {state} from the server"))?,
+        id,
+        name,
+        done: step,
+        total,
+        t,
+        error: error.map(|pb::JobError { field, reason }| (field, reason)),
+        created_ms,
+        started_ms,
+        finished_ms,
+    })
+}
+
+/// A step batch → its energy and state frames (a group without columns gives no frame).
+pub fn step_frames(b: &StepBatch) -> (Option<pb::StepFrame>, Option<pb::StepFrame>) {
+    let StepBatch {
+        id,
+        seq,
+        step,
+        t,
+        computed_unix_ns,
+        energy,
+        state,
+        last,
+    } = b;
+    let frame = |group: &ColumnGroup| {
+        let ColumnGroup { columns, values } = group;
+        (!columns.is_empty()).then(|| pb::StepFrame {
+            id: id.clone(),
+            seq: *seq,
+            columns: columns.clone(),
+            step: step.clone(),
+            t: t.clone(),
+            values: values.clone(),
+            computed_unix_ns: computed_unix_ns.clone(),
+            last: *last,
+        })
+    };
+    (frame(energy), frame(state))
+}
+
+/// A stored result → proto (column-major series).
+pub fn result_to_proto(view: &JobView, r: &StoredResult) -> pb::JobResult {
+    let StoredResult {
+        summary,
+        columns,
+        steps,
+        t,
+        values: _,
+        tables,
+        figures,
+    } = r;
+    pb::JobResult {
+        id: view.id.clone(),
+        status: Some(status_to_proto(view)),
+        summary_json: serde_json::Value::Object(summary.clone()).to_string(),
+        columns: columns.clone(),
+        step: steps.clone(),
+        t: t.clone(),
+        series: columns
+            .iter()
+            .enumerate()
+            .map(|(c, name)| pb::Series {
+                column: name.clone(),
+                values: r.column(c),
+            })
+            .collect(),
+        tables: tables
+            .iter()
+            .map(|tb| pb::Table {
+                name: tb.name.clone(),
+                columns: tb.columns.clone(),
+                rows: tb
+                    .rows
+                    .iter()
+                    .map(|row| pb::Row {
+                        values: row.clone(),
+                    })
+                    .collect(),
+            })
+            .collect(),
+        figures: figures
+            .iter()
+            .map(|f| pb::Figure {
+                name: f.name.clone(),
+                svg: f.svg.clone(),
+            })
+            .collect(),
+    }
+}
+
+/// A proto result → the stored form (row-major series), as a client writes it to files.
+pub fn result_from_proto(r: pb::JobResult) -> Result<StoredResult> {
+    let pb::JobResult {
+        id: _,
+        status: _,
+        summary_json,
+        columns,
+        step,
+        t,
+        series,
+        tables,
+        figures,
+    } = r;
+    let summary = serde_json::from_str(&summary_json).context("summary from the server")?;
+    let mut values = Vec::with_capacity(step.len() * series.len());
+    for i in 0..step.len() {
+        for s in &series {
+            let v = s
+                .values
+                .get(i)
+                .copied()
+                .ok_or_else(|| anyhow!("series {} is short", s.column))?;
+            values.push(v);
+        }
+    }
+    Ok(StoredResult {
+        summary,
+        columns,
+        steps: step,
+        t,
+        values,
+        tables: tables
+            .into_iter()
+            .map(
+                |pb::Table {
+                     name,
+                     columns,
+                     rows,
+                 }| Table {
+                    name,
+                    columns,
+                    rows: rows.into_iter().map(|row| row.values).collect(),
+                },
+            )
+            .collect(),
+        figures: figures
+            .into_iter()
+            .map(|pb::Figure { name, svg }| Figure { name, svg })
+            .collect(),
+    })
+}
