@@ -10,7 +10,7 @@
 
 use rusqlite::{Connection, OptionalExtension, params};
 use serde_json::{Map, Value};
-use signorini_core::job::{Figure, Table};
+use signorini_core::outcome::{Figure, Table};
 use signorini_core::spec::SpecError;
 use std::path::Path;
 use std::sync::Mutex;

@@ -12,7 +12,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use prost::Message;
 use serde_json::{Value, json};
-use signorini_core::job::{Figure, Table};
+use signorini_core::outcome::{Figure, Table};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Duration;

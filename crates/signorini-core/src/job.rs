@@ -7,12 +7,11 @@ use crate::contact::{Activation, IndexSetRule};
 use crate::integrators::alpha::{AlphaParams, AlphaScheme, NonsmoothAlpha, ParamError};
 use crate::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
 use crate::integrators::position_contact::{PositionContact, PositionContactParams};
-use crate::integrators::{
-    LinearScheme, LinearState, OutputOptions, RunStop, StepError, run_linear,
-};
+use crate::integrators::{LinearScheme, LinearState, OutputOptions, run_linear};
 use crate::lcp::LcpOptions;
 use crate::model::{Contact, Forcing, HarmonicLoad, LinearModel, ModelError};
 use crate::observer::Observer;
+use crate::outcome::{RunError, RunOutput};
 use crate::scenes::Bar;
 use crate::spec::{
     IntegratorSpec, JobSpec, LinearSpec, ModelSpec, MoreauJeanSpec, SpecError, TimeSpec,
@@ -20,68 +19,6 @@ use crate::spec::{
 use crate::spec::{NsAlphaSpec, PositionContactSpec};
 use crate::trace::EnergyTrace;
 use serde_json::{Map, Value, json};
-use thiserror::Error;
-
-/// A table an analysis produces besides the step records (e.g. `backbone`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Table {
-    /// File stem, e.g. `backbone` for `backbone.csv`.
-    pub name: String,
-    /// Column names.
-    pub columns: Vec<String>,
-    /// Rows of values.
-    pub rows: Vec<Vec<f64>>,
-}
-
-/// A picture a job produces (SVG text).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Figure {
-    /// File stem, e.g. `backbone` for `backbone.svg`.
-    pub name: String,
-    /// SVG document.
-    pub svg: String,
-}
-
-/// What a finished run returns (the step records went to the observer).
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct RunOutput {
-    /// `summary.json` (the caller adds `wall_s` and `steps_per_s`).
-    pub summary: Map<String, Value>,
-    /// Extra tables.
-    pub tables: Vec<Table>,
-    /// Figures.
-    pub figures: Vec<Figure>,
-}
-
-/// Why a run failed.
-#[derive(Debug, Clone, PartialEq, Error)]
-pub enum RunError {
-    /// A step failed.
-    #[error(transparent)]
-    Step(#[from] StepError),
-    /// The observer stopped the run (cancellation).
-    #[error("stopped after {step} steps")]
-    Stopped {
-        /// Steps done.
-        step: u64,
-    },
-    /// The scheme's iteration matrix could not be factorised (M, C, K passed validation, so this
-    /// only happens when θh or h is extreme enough to lose definiteness to round-off).
-    #[error("iteration matrix of the scheme is not positive definite: {0}")]
-    IterationMatrix(crate::band::BandError),
-    /// A SOI2 run failed (Newton, singular matrix, inconsistent start).
-    #[error(transparent)]
-    Soi2(crate::soi2::Soi2Error),
-}
-
-impl From<RunStop> for RunError {
-    fn from(s: RunStop) -> Self {
-        match s {
-            RunStop::Step(e) => RunError::Step(e),
-            RunStop::Stopped { step } => RunError::Stopped { step },
-        }
-    }
-}
 
 /// Size of a job, for the service's limits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -16,6 +16,7 @@ pub mod lcp;
 pub mod modal;
 pub mod model;
 pub mod observer;
+pub mod outcome;
 pub mod plot;
 pub mod scenes;
 pub mod soi2;

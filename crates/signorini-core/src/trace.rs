@@ -9,8 +9,8 @@
 //! doubles: memory and figure size stay bounded for any number of steps, and a one-step spike
 //! (an impact, a residual jump) is never decimated away.
 
-use crate::job::Figure;
 use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::outcome::Figure;
 use crate::plot::{Curve, line_chart};
 use std::ops::ControlFlow;
 

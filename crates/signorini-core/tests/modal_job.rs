@@ -3,10 +3,11 @@
 //! figures, progress per task and cancellation; and the energy figures every time-integration
 //! job returns.
 
-use signorini_core::job::{Job, RunError, run};
+use signorini_core::job::{Job, run};
 use signorini_core::modal::forced::{ForcedResponseJob, ForcedResponseSpec, respond};
 use signorini_core::modal::main_asymptote;
 use signorini_core::observer::{Observer, Progress, StepRecord};
+use signorini_core::outcome::RunError;
 use signorini_core::spec::JobSpec;
 use std::ops::ControlFlow;
 

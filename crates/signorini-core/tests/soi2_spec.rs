@@ -1,7 +1,8 @@
 //! SOI2 jobs through the job spec: runs, summaries, and one test per bad input.
 
-use signorini_core::job::{Job, RunError, run};
+use signorini_core::job::{Job, run};
 use signorini_core::observer::Recorder;
+use signorini_core::outcome::RunError;
 use signorini_core::soi2::Soi2Error;
 use signorini_core::spec::{JobSpec, SpecError};
 

@@ -5,8 +5,8 @@
 //! energy averaged over `average_periods` periods. Tasks run in parallel on scoped threads.
 
 use super::{scan, svg};
-use crate::job::{RunError, RunOutput, Table};
 use crate::observer::{Observer, Progress};
+use crate::outcome::{RunError, RunOutput, Table};
 use crate::scenes::HarmonicSpec;
 use crate::spec::SpecError;
 use crate::wfem::{WaveBar, step};

@@ -13,8 +13,8 @@ pub mod kernel;
 pub mod orbit;
 pub mod svg;
 
-use crate::job::{RunError, RunOutput, Table};
 use crate::observer::{Observer, Progress};
+use crate::outcome::{RunError, RunOutput, Table};
 use crate::spec::SpecError;
 use crate::wfem::{EndCondition, WaveBar};
 pub use forced::{ForcedResponseJob, ForcedResponseSpec};

@@ -5,7 +5,7 @@
 use super::forced::{Excitation, Response};
 use super::orbit::Orbit;
 use super::{BackbonePoint, main_asymptote};
-use crate::job::Figure;
+use crate::outcome::Figure;
 use crate::plot::{
     Axes, H, MB, ML, MR, MT, W, frame, header, polyline, vline, with_legend_room, y_range,
 };

@@ -1074,12 +1074,3 @@ impl Soi2Job {
         Ok(m)
     }
 }
-
-impl From<Soi2Error> for crate::job::RunError {
-    fn from(e: Soi2Error) -> Self {
-        match e {
-            Soi2Error::Stopped { step } => crate::job::RunError::Stopped { step },
-            other => crate::job::RunError::Soi2(other),
-        }
-    }
-}

@@ -4,9 +4,9 @@
 use super::{WaveBar, WaveState, step};
 use crate::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS};
 use crate::integrators::StepError;
-use crate::job::{RunError, RunOutput};
 use crate::modal::{self, AnalysisSpec, ForcedResponseJob, ModalJob};
 use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::outcome::{RunError, RunOutput};
 use crate::scenes::Bar;
 use crate::spec::{IntegratorSpec, JobSpec, ModelSpec, SpecError};
 use serde_json::{Map, Value, json};
