@@ -11,7 +11,6 @@ use crate::error::ApiError;
 use crate::proto::v1::StepFrame;
 use crate::store::{JobRow, JobState, Store, StoredResult};
 use crate::stream::{StreamMsg, StreamSink};
-use serde_json::json;
 use signorini_core::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS};
 use signorini_core::job::{self, Job};
 use signorini_core::observer::{Columns, Observer, Progress, StepRecord};
@@ -537,7 +536,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
         job::run(&live.job, &mut observer)
     }))
     .map_err(|panic| panic_message(panic.as_ref()));
-    let wall = clock.elapsed().as_secs_f64();
+    let wall = clock.elapsed();
     // The last frames go out after the result is stored: whoever saw them can fetch it.
     let last_frames = observer.last_frames();
     observer.count_steps();
@@ -546,15 +545,8 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     let mut result = None;
     match outcome {
         Ok(Ok(output)) => {
-            let mut summary = output.summary;
-            let steps = summary.get("steps").and_then(|s| s.as_f64()).unwrap_or(0.0);
-            summary.insert("wall_s".into(), json!(wall));
-            summary.insert(
-                "steps_per_s".into(),
-                json!(if wall > 0.0 { steps / wall } else { 0.0 }),
-            );
             result = Some(StoredResult {
-                summary,
+                summary: output.summary.with_timing(wall).to_map(),
                 columns: observer.columns.clone(),
                 steps: std::mem::take(&mut observer.rec_steps),
                 t: std::mem::take(&mut observer.rec_t),
@@ -590,7 +582,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     }
     lock(&inner.live).remove(&live.id);
     inner.sink.send(last_frames);
-    tracing::info!(id = %live.id, state = row.state.as_str(), wall_s = wall, "finished");
+    tracing::info!(id = %live.id, state = row.state.as_str(), wall_s = wall.as_secs_f64(), "finished");
     inner.sink.send(status_msg(&JobView::from_row(&row)));
     inner.sink.send(StreamMsg::Closed(live.id.clone()));
     live.ended.send_replace(true);

@@ -5,7 +5,6 @@ use crate::spec_file::{self, Format};
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use serde_json::json;
 use signorini_core::job;
 use signorini_core::observer::{Columns, Observer, Progress, StepRecord};
 use signorini_core::outcome::RunOutput;
@@ -93,7 +92,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     };
     let started = Instant::now();
     let result = job::run(&job, &mut observer);
-    let wall = started.elapsed().as_secs_f64();
+    let wall = started.elapsed();
     observer.bar.finish_and_clear();
     let output: RunOutput = match result {
         Ok(o) => o,
@@ -109,13 +108,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     for f in &output.figures {
         write_figure(&args.out, f)?;
     }
-    let mut summary = output.summary;
-    let steps = summary.get("steps").and_then(|s| s.as_f64()).unwrap_or(0.0);
-    summary.insert("wall_s".into(), json!(wall));
-    summary.insert(
-        "steps_per_s".into(),
-        json!(if wall > 0.0 { steps / wall } else { 0.0 }),
-    );
+    let summary = output.summary.with_timing(wall).to_map();
     write_summary(&args.out, &summary)?;
     if !args.quiet {
         println!("{}", serde_json::to_string_pretty(&summary)?);

@@ -11,14 +11,13 @@ use crate::integrators::{LinearScheme, LinearState, OutputOptions, run_linear};
 use crate::lcp::LcpOptions;
 use crate::model::{Contact, Forcing, HarmonicLoad, LinearModel, ModelError};
 use crate::observer::Observer;
-use crate::outcome::{RunError, RunOutput};
+use crate::outcome::{LinearSummary, RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader};
 use crate::scenes::Bar;
 use crate::spec::{
     IntegratorSpec, JobSpec, LinearSpec, ModelSpec, MoreauJeanSpec, SpecError, TimeSpec,
 };
 use crate::spec::{NsAlphaSpec, PositionContactSpec};
 use crate::trace::EnergyTrace;
-use serde_json::{Map, Value, json};
 
 /// Size of a job, for the service's limits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -192,10 +191,9 @@ fn run_soi2_job(
     j: &crate::soi2::run::Soi2Job,
     observer: &mut dyn Observer,
 ) -> Result<RunOutput, RunError> {
-    let mut summary = header(job);
-    summary.extend(j.run(observer)?);
+    let body = SummaryBody::Soi2(Box::new(j.run(observer)?));
     Ok(RunOutput {
-        summary,
+        summary: RunSummary::new(header(job), body),
         tables: Vec::new(),
         figures: Vec::new(),
     })
@@ -226,48 +224,37 @@ fn run_linear_job(
         &j.output,
         observer,
     )?;
-    let mut summary = header(job);
-    summary.extend(
-        json!({
-            "kind": "time_integration",
-            "dofs": j.model.dofs(),
-            "contacts": j.model.contacts.len(),
-            "h": j.h,
-            "steps": stats.steps,
-            "t_end": stats.t_end,
-            "max_abs_balance_residual": stats.max_abs_balance_residual,
-            "energy_initial": stats.energy_initial,
-            "energy_final": stats.energy_final,
-            "energy_max": stats.energy_max,
-            "algorithmic_energy_max": stats.algorithmic_energy_max,
-            "impacts": stats.impacts,
-            "lcp_max_error": stats.lcp_max_error,
-            "lcp_solves": stats.lcp_solves,
-            "work_ext_total": stats.work_ext_total,
-            "work_damping_total": stats.work_damping_total,
-            "work_contact_total": stats.work_contact_total,
-        })
-        .as_object()
-        .cloned()
-        .unwrap_or_default(),
-    );
+    let body = SummaryBody::Linear(LinearSummary {
+        dofs: j.model.dofs(),
+        contacts: j.model.contacts.len(),
+        h: j.h,
+        steps: stats.steps,
+        t_end: stats.t_end,
+        max_abs_balance_residual: stats.max_abs_balance_residual,
+        energy_initial: stats.energy_initial,
+        energy_final: stats.energy_final,
+        energy_max: stats.energy_max,
+        algorithmic_energy_max: stats.algorithmic_energy_max,
+        impacts: stats.impacts,
+        lcp_max_error: stats.lcp_max_error,
+        lcp_solves: stats.lcp_solves,
+        work_ext_total: stats.work_ext_total,
+        work_damping_total: stats.work_damping_total,
+        work_contact_total: stats.work_contact_total,
+    });
     Ok(RunOutput {
-        summary,
+        summary: RunSummary::new(header(job), body),
         tables: Vec::new(),
         figures: Vec::new(),
     })
 }
 
-fn header(job: &Job) -> Map<String, Value> {
-    let mut m = Map::new();
-    if let Some(name) = &job.spec.name {
-        m.insert("name".into(), json!(name));
+fn header(job: &Job) -> SummaryHeader {
+    SummaryHeader {
+        name: job.spec.name.clone(),
+        scene: job.spec.model.as_ref().map(|m| m.scene().to_string()),
+        scheme: job.spec.integrator.scheme().to_string(),
     }
-    if let Some(model) = &job.spec.model {
-        m.insert("scene".into(), json!(model.scene()));
-    }
-    m.insert("scheme".into(), json!(job.spec.integrator.scheme()));
-    m
 }
 
 /// Builds the linear model of a scene; errors carry `model.`-prefixed fields.

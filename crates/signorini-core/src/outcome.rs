@@ -3,8 +3,10 @@
 
 use crate::band::BandError;
 use crate::integrators::{RunStop, StepError};
-use crate::soi2::Soi2Error;
+use crate::soi2::{GlobalErrors, Soi2Error};
+use serde::Serialize;
 use serde_json::{Map, Value};
+use std::time::Duration;
 use thiserror::Error;
 
 /// A table an analysis produces besides the step records (e.g. `backbone`).
@@ -28,10 +30,10 @@ pub struct Figure {
 }
 
 /// What a finished run returns (the step records went to the observer).
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct RunOutput {
-    /// `summary.json` (the caller adds `wall_s` and `steps_per_s`).
-    pub summary: Map<String, Value>,
+    /// `summary.json` (the caller attaches the wall time, [`RunSummary::with_timing`]).
+    pub summary: RunSummary,
     /// Extra tables.
     pub tables: Vec<Table>,
     /// Figures.
@@ -75,4 +77,305 @@ impl From<Soi2Error> for RunError {
             other => RunError::Soi2(other),
         }
     }
+}
+
+/// `summary.json`: which job ran ([`SummaryHeader`]), what it measured ([`SummaryBody`], one
+/// struct per job kind) and, once the caller attached it, how long it took ([`Timing`]). It
+/// serialises flat, in that order: `name`, `scene`, `scheme`, `kind`, the kind's fields, `wall_s`,
+/// `steps_per_s`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunSummary {
+    /// Name, scene, scheme.
+    #[serde(flatten)]
+    pub header: SummaryHeader,
+    /// What the run measured.
+    #[serde(flatten)]
+    pub body: SummaryBody,
+    /// Wall time, attached by the caller after the run.
+    #[serde(flatten)]
+    pub timing: Option<Timing>,
+}
+
+impl RunSummary {
+    /// The summary of a run, without timing.
+    pub fn new(header: SummaryHeader, body: SummaryBody) -> Self {
+        Self {
+            header,
+            body,
+            timing: None,
+        }
+    }
+
+    /// Attaches the wall time of the run: `wall_s`, and `steps_per_s` (steps per second of a
+    /// time integration, 0 for an analysis or a zero wall time).
+    pub fn with_timing(mut self, wall: Duration) -> Self {
+        let wall_s = wall.as_secs_f64();
+        let steps = self.body.steps().unwrap_or(0) as f64;
+        self.timing = Some(Timing {
+            wall_s,
+            steps_per_s: if wall_s > 0.0 { steps / wall_s } else { 0.0 },
+        });
+        self
+    }
+
+    /// The summary as a JSON object (the `summary.json` document).
+    pub fn to_map(&self) -> Map<String, Value> {
+        match serde_json::to_value(self) {
+            Ok(Value::Object(map)) => map,
+            // A struct of numbers, strings and lists serialises to an object.
+            _ => Map::new(),
+        }
+    }
+}
+
+/// The spec's identification of the job.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SummaryHeader {
+    /// The spec's `name`, if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// The scene of `[model]` (none for an `[analysis]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scene: Option<String>,
+    /// The integrator scheme.
+    pub scheme: String,
+}
+
+/// Wall time of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Timing {
+    /// Seconds from start to end of the run.
+    pub wall_s: f64,
+    /// Steps per second (0 for an analysis).
+    pub steps_per_s: f64,
+}
+
+/// What a run measured, per job kind; `kind` is `time_integration` for the three integrating
+/// kinds.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum SummaryBody {
+    /// A linear model under a linear scheme.
+    #[serde(rename = "time_integration")]
+    Linear(LinearSummary),
+    /// A constrained mechanism under a SOI2 scheme.
+    #[serde(rename = "time_integration")]
+    Soi2(Box<Soi2Summary>),
+    /// A bar under WFEM.
+    #[serde(rename = "time_integration")]
+    Wave(WaveSummary),
+    /// Backbones of the nonsmooth modes.
+    NonsmoothModes(ModesSummary),
+    /// A forced-response sweep.
+    ForcedResponse(ForcedSummary),
+}
+
+impl SummaryBody {
+    /// Steps integrated (none for an analysis).
+    pub fn steps(&self) -> Option<u64> {
+        match self {
+            SummaryBody::Linear(s) => Some(s.steps),
+            SummaryBody::Soi2(s) => Some(s.steps),
+            SummaryBody::Wave(s) => Some(s.steps),
+            SummaryBody::NonsmoothModes(_) | SummaryBody::ForcedResponse(_) => None,
+        }
+    }
+}
+
+/// Summary of a linear-scheme run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LinearSummary {
+    /// Degrees of freedom.
+    pub dofs: usize,
+    /// Contacts.
+    pub contacts: usize,
+    /// Step size.
+    pub h: f64,
+    /// Steps done.
+    pub steps: u64,
+    /// Final time.
+    pub t_end: f64,
+    /// max |balance_residual| over the steps.
+    pub max_abs_balance_residual: f64,
+    /// Energy at t = 0.
+    pub energy_initial: f64,
+    /// Energy at the end.
+    pub energy_final: f64,
+    /// Largest energy.
+    pub energy_max: f64,
+    /// Largest algorithmic energy H.
+    pub algorithmic_energy_max: f64,
+    /// Steps with an impact.
+    pub impacts: u64,
+    /// Largest LCP error.
+    pub lcp_max_error: f64,
+    /// LCP solves.
+    pub lcp_solves: u64,
+    /// Cumulative work of the external forces.
+    pub work_ext_total: f64,
+    /// Cumulative work of the damping forces.
+    pub work_damping_total: f64,
+    /// Cumulative work of the contact impulses.
+    pub work_contact_total: f64,
+}
+
+/// Summary of a SOI2 run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Soi2Summary {
+    /// Coordinates y.
+    pub dofs: usize,
+    /// Holonomic constraints (multipliers λ).
+    pub holonomic_constraints: usize,
+    /// Nonholonomic constraints (multipliers ψ).
+    pub nonholonomic_constraints: usize,
+    /// Base step h.
+    pub h: f64,
+    /// Relative step sizes, repeated.
+    pub pattern: Vec<f64>,
+    /// Whether the (14a)–(14b) adjustments were applied.
+    pub adjust: bool,
+    /// α_m.
+    pub alpha_m: f64,
+    /// α_f.
+    pub alpha_f: f64,
+    /// β.
+    pub beta: f64,
+    /// γ.
+    pub gamma: f64,
+    /// Formulation of the method.
+    pub formulation: String,
+    /// Steps done.
+    pub steps: u64,
+    /// Final time.
+    pub t_end: f64,
+    /// Sum of Newton iterations.
+    pub newton_iterations_total: u64,
+    /// Mean Newton iterations per step.
+    pub newton_iterations_mean: f64,
+    /// Largest Newton iteration count of a step.
+    pub newton_iterations_max: usize,
+    /// Newton strategy (`simplified` or `full`).
+    pub newton: String,
+    /// Newton Jacobians built.
+    pub newton_jacobians_total: u64,
+    /// max ‖g‖∞ over the steps.
+    pub max_position_residual: f64,
+    /// max ‖g_t + g_y z‖∞ over the steps.
+    pub max_velocity_residual: f64,
+    /// max ‖k‖∞ over the steps.
+    pub max_nonholonomic_residual: f64,
+    /// Mechanical energy at t₀.
+    pub energy_initial: f64,
+    /// Mechanical energy at the end.
+    pub energy_final: f64,
+    /// Work of the damping forces.
+    pub work_damping_total: f64,
+    /// Final positions.
+    pub y_final: Vec<f64>,
+    /// Final velocities.
+    pub z_final: Vec<f64>,
+    /// Final multipliers.
+    pub lambda_final: Vec<f64>,
+    /// Global errors against the exact solution, for models that have one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub errors: Option<GlobalErrors>,
+}
+
+/// Summary of a WFEM run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WaveSummary {
+    /// Cells.
+    pub cells: usize,
+    /// Degrees of freedom (2 per cell).
+    pub dofs: usize,
+    /// Contacts (the bar's end).
+    pub contacts: usize,
+    /// Step size.
+    pub h: f64,
+    /// Steps done.
+    pub steps: u64,
+    /// Final time.
+    pub t_end: f64,
+    /// Cell energy at t = 0.
+    pub energy_initial: f64,
+    /// Cell energy at the end.
+    pub energy_final: f64,
+    /// max |balance_residual| over the records.
+    pub max_abs_balance_residual: f64,
+    /// Cumulative work of the external forces.
+    pub work_ext_total: f64,
+    /// Cumulative work of the damping forces.
+    pub work_damping_total: f64,
+    /// Cumulative work of the contact.
+    pub work_contact_total: f64,
+    /// Gap closures.
+    pub closures: u64,
+    /// Steps in contact.
+    pub contact_steps: u64,
+}
+
+/// Summary of a nonsmooth-modes analysis.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModesSummary {
+    /// Cells.
+    pub cells: usize,
+    /// Contact phases per period.
+    pub phases: usize,
+    /// Period range scanned, in steps.
+    pub period_steps: [usize; 2],
+    /// Per gap: points found.
+    pub gaps: Vec<GapScan>,
+    /// Rows of `backbone.csv`.
+    pub points: usize,
+    /// The stability run of the first-mode orbit (`null` when none ran).
+    pub stability: Option<StabilityRun>,
+}
+
+/// The scan of one gap.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GapScan {
+    /// Gap g0.
+    pub gap: f64,
+    /// Admissible orbits.
+    pub admissible: usize,
+    /// Candidates with a nontrivial kernel (admissible ones only unless `all_candidates`).
+    pub candidates: usize,
+}
+
+/// The stability run of an orbit: its start perturbed, run for some periods.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StabilityRun {
+    /// Gap g0.
+    pub gap: f64,
+    /// Free-phase steps of the orbit.
+    pub m: usize,
+    /// Contact-phase steps of the orbit.
+    pub p: usize,
+    /// Periods run.
+    pub periods: usize,
+    /// Relative size of the initial perturbation.
+    pub perturbation: f64,
+    /// Orbital distance of the perturbed run over its last period, relative to the orbit's size.
+    pub relative_deviation: f64,
+    /// Same measure for the unperturbed run (drift of the orbit itself).
+    pub orbit_drift: f64,
+}
+
+/// Summary of a forced-response sweep.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ForcedSummary {
+    /// Cells.
+    pub cells: usize,
+    /// Gap g0.
+    pub gap: f64,
+    /// `wall` or `force`.
+    pub excitation: String,
+    /// w0 or f0.
+    pub amplitude: f64,
+    /// (ω, γ) runs.
+    pub tasks: u64,
+    /// Largest relative balance residual of the runs.
+    pub max_relative_balance_residual: f64,
+    /// E_lin, the energy of the grazing first linear mode.
+    pub energy_linear_grazing: f64,
 }

@@ -158,6 +158,7 @@ fn modal_job_writes_the_pinned_backbone_table_and_svg_figures_with_progress_per_
     let spec = "name = \"modes\"\n[analysis]\nkind = \"nonsmooth_modes\"\ncells = 20\ngaps = [1e-3, 0.0, -1e-3]\nmax_period_steps = 80\nphases = 1\nstability_periods = 50\n";
     let mut obs = Counter::default();
     let out = run(&job(spec), &mut obs).expect("run");
+    let summary = out.summary.to_map();
     // Progress: one call per task (period length × gap), counting up to the total.
     let tasks = 3 * (80 - 2 + 1) as u64;
     assert_eq!(obs.calls.len() as u64, tasks);
@@ -254,12 +255,7 @@ fn modal_job_writes_the_pinned_backbone_table_and_svg_figures_with_progress_per_
         backbone.contains("ω / ω₁") && backbone.contains("4/3"),
         "axis label and asymptote"
     );
-    assert!(
-        out.summary["stability"]["relative_deviation"]
-            .as_f64()
-            .unwrap()
-            < 1e-3
-    );
+    assert!(summary["stability"]["relative_deviation"].as_f64().unwrap() < 1e-3);
     // Cancellation: Break on the 5th task stops the job.
     let mut obs = Counter {
         stop_after: Some(5),

@@ -6,12 +6,13 @@
 
 use super::{scan, svg};
 use crate::observer::{Observer, Progress};
-use crate::outcome::{RunError, RunOutput, Table};
+use crate::outcome::{
+    ForcedSummary, RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader, Table,
+};
 use crate::scenes::HarmonicSpec;
 use crate::spec::SpecError;
 use crate::wfem::{WaveBar, step};
 use serde::{Deserialize, Serialize};
-use serde_json::{Map, Value, json};
 use std::ops::ControlFlow;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -210,6 +211,16 @@ impl ForcedResponseJob {
     }
 }
 
+impl Excitation {
+    /// The name written in specs and summaries.
+    pub fn name(self) -> &'static str {
+        match self {
+            Excitation::Wall => "wall",
+            Excitation::Force => "force",
+        }
+    }
+}
+
 /// Steady-state response of one (ω, γ) task.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Response {
@@ -258,7 +269,7 @@ pub fn respond(job: &ForcedResponseJob, omega_over_omega1: f64, damping: f64) ->
 /// Runs the sweep: every (γ, ω) task on the worker threads, `forced_response` table, figure.
 pub fn run_forced(
     job: &ForcedResponseJob,
-    mut summary: Map<String, Value>,
+    header: SummaryHeader,
     observer: &mut dyn Observer,
 ) -> Result<RunOutput, RunError> {
     let tasks: Vec<(f64, f64)> = job
@@ -348,23 +359,17 @@ pub fn run_forced(
     let worst = results
         .iter()
         .fold(0.0f64, |m, r| m.max(r.balance_residual));
-    summary.extend(
-        json!({
-            "kind": "forced_response",
-            "cells": job.cells,
-            "gap": job.bar.gap,
-            "excitation": job.excitation,
-            "amplitude": job.amplitude,
-            "tasks": total,
-            "max_relative_balance_residual": worst,
-            "energy_linear_grazing": e_lin,
-        })
-        .as_object()
-        .cloned()
-        .unwrap_or_default(),
-    );
+    let body = SummaryBody::ForcedResponse(ForcedSummary {
+        cells: job.cells,
+        gap: job.bar.gap,
+        excitation: job.excitation.name().to_string(),
+        amplitude: job.amplitude,
+        tasks: total,
+        max_relative_balance_residual: worst,
+        energy_linear_grazing: e_lin,
+    });
     Ok(RunOutput {
-        summary,
+        summary: RunSummary::new(header, body),
         tables: vec![Table {
             name: "forced_response".into(),
             columns: [

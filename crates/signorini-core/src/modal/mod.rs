@@ -14,14 +14,16 @@ pub mod orbit;
 pub mod svg;
 
 use crate::observer::{Observer, Progress};
-use crate::outcome::{RunError, RunOutput, Table};
+use crate::outcome::{
+    GapScan, ModesSummary, RunError, RunOutput, RunSummary, StabilityRun, SummaryBody,
+    SummaryHeader, Table,
+};
 use crate::spec::SpecError;
 use crate::wfem::{EndCondition, WaveBar};
 pub use forced::{ForcedResponseJob, ForcedResponseSpec};
 use kernel::{SignedPermutation, kernel_dim_closed_form};
 use orbit::{Orbit, admissible_orbit};
 use serde::{Deserialize, Serialize};
-use serde_json::{Map, Value, json};
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
@@ -431,7 +433,7 @@ fn threads() -> usize {
 /// Runs a modal analysis job: one scan per gap, `backbone` table, figures, stability.
 pub fn run_modes(
     job: &ModalJob,
-    mut summary: Map<String, Value>,
+    header: SummaryHeader,
     observer: &mut dyn Observer,
 ) -> Result<RunOutput, RunError> {
     let total = job.tasks();
@@ -491,44 +493,46 @@ pub fn run_modes(
             Ok(_) => return Err(RunError::Stopped { step: done_before }),
         };
         let admissible = points.iter().filter(|p| p.orbit.is_some()).count();
-        per_gap.push(json!({"gap": gap, "admissible": admissible, "candidates": points.len()}));
+        per_gap.push(GapScan {
+            gap,
+            admissible,
+            candidates: points.len(),
+        });
         rows.extend(points.iter().map(backbone_row));
         all_points.push((bar, points));
     }
     let mut figures = vec![svg::backbone_figure(&all_points, None)];
-    let mut stability = Value::Null;
+    let mut stability = None;
     for (bar, points) in &all_points {
         if let Some(pt) = first_mode_orbit(points)
             && let Some(orbit) = &pt.orbit
         {
             let name = format!("orbit_gap_{}", gap_label(bar.gap));
             figures.push(svg::space_time_figure(&name, bar, orbit));
-            if job.stability_periods > 0 && bar.gap > 0.0 && stability.is_null() {
+            if job.stability_periods > 0 && bar.gap > 0.0 && stability.is_none() {
                 let st = orbit::stability(bar, orbit, job.stability_periods, 1e-6);
-                stability = json!({
-                    "gap": bar.gap, "m": pt.m, "p": pt.p, "periods": st.periods,
-                    "perturbation": st.perturbation, "relative_deviation": st.relative_deviation,
-                    "orbit_drift": st.orbit_drift,
+                stability = Some(StabilityRun {
+                    gap: bar.gap,
+                    m: pt.m,
+                    p: pt.p,
+                    periods: st.periods,
+                    perturbation: st.perturbation,
+                    relative_deviation: st.relative_deviation,
+                    orbit_drift: st.orbit_drift,
                 });
             }
         }
     }
-    summary.extend(
-        json!({
-            "kind": "nonsmooth_modes",
-            "cells": job.cells,
-            "phases": job.phases,
-            "period_steps": [job.period_steps.0, job.period_steps.1],
-            "gaps": per_gap,
-            "points": rows.len(),
-            "stability": stability,
-        })
-        .as_object()
-        .cloned()
-        .unwrap_or_default(),
-    );
+    let body = SummaryBody::NonsmoothModes(ModesSummary {
+        cells: job.cells,
+        phases: job.phases,
+        period_steps: [job.period_steps.0, job.period_steps.1],
+        gaps: per_gap,
+        points: rows.len(),
+        stability,
+    });
     Ok(RunOutput {
-        summary,
+        summary: RunSummary::new(header, body),
         tables: vec![Table {
             name: "backbone".into(),
             columns: BACKBONE_COLUMNS.iter().map(|s| s.to_string()).collect(),
