@@ -8,7 +8,8 @@
 use anyhow::{Context, Result};
 use serde_json::{Map, Value};
 use signorini_core::observer::{Columns, Observer, StepRecord};
-use signorini_core::outcome::{Figure, Table};
+use signorini_core::outcome::Table;
+use signorini_figures::Figure;
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
 use std::ops::ControlFlow;

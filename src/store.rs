@@ -10,8 +10,9 @@
 
 use rusqlite::{Connection, OptionalExtension, params};
 use serde_json::{Map, Value};
-use signorini_core::outcome::{Figure, Table};
+use signorini_core::outcome::Table;
 use signorini_core::spec::SpecError;
+use signorini_figures::Figure;
 use std::path::Path;
 use std::sync::Mutex;
 use thiserror::Error;

@@ -552,7 +552,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
                 t: std::mem::take(&mut observer.rec_t),
                 values: std::mem::take(&mut observer.rec_values),
                 tables: output.tables,
-                figures: output.figures,
+                figures: signorini_figures::render(&output.charts),
             });
         }
         Ok(Err(RunError::Stopped { .. })) if !live.cancel.load(Ordering::Acquire) => {

@@ -105,7 +105,7 @@ pub fn run(args: RunArgs) -> Result<()> {
     for t in &output.tables {
         write_table(&args.out, t)?;
     }
-    for f in &output.figures {
+    for f in &signorini_figures::render(&output.charts) {
         write_figure(&args.out, f)?;
     }
     let summary = output.summary.with_timing(wall).to_map();

@@ -174,7 +174,7 @@ impl Job {
 }
 
 /// Runs a validated job to the end (or until the observer stops it). A run that records steps
-/// also returns the figures `energy` and `residuals` of its records ([`EnergyTrace`]).
+/// also returns the charts `energy` and `residuals` of its records ([`EnergyTrace`]).
 pub fn run(job: &Job, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
     let mut trace = EnergyTrace::new(observer);
     let mut output = match &job.kind {
@@ -182,7 +182,7 @@ pub fn run(job: &Job, observer: &mut dyn Observer) -> Result<RunOutput, RunError
         JobKind::Soi2(j) => run_soi2_job(job, j, &mut trace),
         JobKind::Wave(j) => j.run(header(job), &mut trace),
     }?;
-    output.figures.extend(trace.figures());
+    output.charts.extend(trace.charts());
     Ok(output)
 }
 
@@ -195,7 +195,7 @@ fn run_soi2_job(
     Ok(RunOutput {
         summary: RunSummary::new(header(job), body),
         tables: Vec::new(),
-        figures: Vec::new(),
+        charts: Vec::new(),
     })
 }
 
@@ -245,7 +245,7 @@ fn run_linear_job(
     Ok(RunOutput {
         summary: RunSummary::new(header(job), body),
         tables: Vec::new(),
-        figures: Vec::new(),
+        charts: Vec::new(),
     })
 }
 

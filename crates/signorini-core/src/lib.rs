@@ -17,7 +17,6 @@ pub mod modal;
 pub mod model;
 pub mod observer;
 pub mod outcome;
-pub mod plot;
 pub mod scenes;
 pub mod soi2;
 pub mod spec;

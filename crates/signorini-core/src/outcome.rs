@@ -1,5 +1,6 @@
-//! What a finished run gives back: its summary, extra tables and figures ([`RunOutput`]), or why
-//! it failed ([`RunError`]). A leaf: the job kinds build these, nothing here knows the job kinds.
+//! What a finished run gives back: its summary, extra tables and the data of its figures
+//! ([`RunOutput`]), or why it failed ([`RunError`]). A leaf: the job kinds build these; nothing
+//! here knows the job kinds.
 
 use crate::band::BandError;
 use crate::integrators::{RunStop, StepError};
@@ -20,13 +21,104 @@ pub struct Table {
     pub rows: Vec<Vec<f64>>,
 }
 
-/// A picture a job produces (SVG text).
+/// The data of a figure a job makes; the `signorini-figures` crate draws it. Each chart has a
+/// name, the file stem of its figure ([`Chart::name`]).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Figure {
-    /// File stem, e.g. `backbone` for `backbone.svg`.
+pub enum Chart {
+    /// `energy` (energies and cumulative works) or `residuals` (log₁₀ of the balance and
+    /// constraint residuals) of a time integration: the min/max envelopes of its records.
+    Trace(TraceChart),
+    /// `backbone`: the admissible points of a nonsmooth-modes scan, every gap.
+    Backbone(Vec<ModePoint>),
+    /// `orbit_gap_*`: the displacement field of a periodic orbit over one period.
+    SpaceTime(SpaceTime),
+    /// `forced_response`: mean energies of a sweep over the backbone of the same bar.
+    ForcedResponse(ForcedChart),
+}
+
+impl Chart {
+    /// File stem of the figure, e.g. `backbone` for `backbone.svg`.
+    pub fn name(&self) -> &str {
+        match self {
+            Chart::Trace(t) if t.log => "residuals",
+            Chart::Trace(_) => "energy",
+            Chart::Backbone(_) => "backbone",
+            Chart::SpaceTime(s) => &s.name,
+            Chart::ForcedResponse(_) => "forced_response",
+        }
+    }
+}
+
+/// Envelopes of some columns of a run's records against t.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TraceChart {
+    /// The values are log₁₀|v| (residuals) rather than v (energies).
+    pub log: bool,
+    /// One series per traced column the run has, in a fixed order.
+    pub series: Vec<TracedSeries>,
+}
+
+/// The envelope of one column: two points (t, value) per bucket, its extremes in time order;
+/// a point that is not finite marks a bucket without a finite value (for a log series, a
+/// bucket of exact zeros).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TracedSeries {
+    /// Column name in `steps.csv`.
+    pub column: String,
+    /// The envelope's points.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// A point of a frequency–energy backbone.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModePoint {
+    /// Gap g0 of the scan.
+    pub gap: f64,
+    /// ω/ω₁.
+    pub omega_over_omega1: f64,
+    /// Energy / E_lin.
+    pub energy_normalized: f64,
+}
+
+/// Displacement u(x, t) of a periodic orbit over one period, sampled on a grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpaceTime {
+    /// Figure name, `orbit_gap_positive`, `_zero` or `_negative`.
     pub name: String,
-    /// SVG document.
-    pub svg: String,
+    /// Bar length L (x runs over [0, L]).
+    pub length: f64,
+    /// Period T (t runs over [0, T]).
+    pub period: f64,
+    /// Steps of the first free phase.
+    pub free_steps: usize,
+    /// Steps in contact per period.
+    pub contact_steps: usize,
+    /// Rows in increasing t, each the displacement at equally spaced x.
+    pub field: Vec<Vec<f64>>,
+}
+
+/// A forced-response sweep and the backbone it is drawn over.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ForcedChart {
+    /// Driven by a moving wall (else by a distributed force).
+    pub moving_wall: bool,
+    /// E_lin, the energy unit.
+    pub energy_linear_grazing: f64,
+    /// The responses, sorted by damping then ω.
+    pub responses: Vec<ForcedPoint>,
+    /// Admissible backbone points of the same bar (empty when not asked for).
+    pub backbone: Vec<ModePoint>,
+}
+
+/// The steady-state mean energy of one (γ, ω) run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ForcedPoint {
+    /// Damping γ.
+    pub damping: f64,
+    /// ω/ω₁.
+    pub omega_over_omega1: f64,
+    /// Mean cell energy.
+    pub mean_energy: f64,
 }
 
 /// What a finished run returns (the step records went to the observer).
@@ -36,8 +128,8 @@ pub struct RunOutput {
     pub summary: RunSummary,
     /// Extra tables.
     pub tables: Vec<Table>,
-    /// Figures.
-    pub figures: Vec<Figure>,
+    /// The data of its figures.
+    pub charts: Vec<Chart>,
 }
 
 /// Why a run failed.

@@ -4,10 +4,11 @@
 //! [`crate::wfem`]): `transient_periods` forcing periods to reach the steady state, then the cell
 //! energy averaged over `average_periods` periods. Tasks run in parallel on scoped threads.
 
-use super::{scan, svg};
+use super::{mode_points, scan};
 use crate::observer::{Observer, Progress};
 use crate::outcome::{
-    ForcedSummary, RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader, Table,
+    Chart, ForcedChart, ForcedPoint, ForcedSummary, RunError, RunOutput, RunSummary, SummaryBody,
+    SummaryHeader, Table,
 };
 use crate::scenes::HarmonicSpec;
 use crate::spec::SpecError;
@@ -355,7 +356,19 @@ pub fn run_forced(
     } else {
         Vec::new()
     };
-    let figure = svg::forced_figure(&results, e_lin, &backbone, job.excitation);
+    let chart = ForcedChart {
+        moving_wall: job.excitation == Excitation::Wall,
+        energy_linear_grazing: e_lin,
+        responses: results
+            .iter()
+            .map(|r| ForcedPoint {
+                damping: r.damping,
+                omega_over_omega1: r.omega_over_omega1,
+                mean_energy: r.mean_energy,
+            })
+            .collect(),
+        backbone: mode_points(backbone.iter()),
+    };
     let worst = results
         .iter()
         .fold(0.0f64, |m, r| m.max(r.balance_residual));
@@ -383,6 +396,6 @@ pub fn run_forced(
             .to_vec(),
             rows,
         }],
-        figures: vec![figure],
+        charts: vec![Chart::ForcedResponse(chart)],
     })
 }

@@ -11,12 +11,11 @@ pub mod fast;
 pub mod forced;
 pub mod kernel;
 pub mod orbit;
-pub mod svg;
 
 use crate::observer::{Observer, Progress};
 use crate::outcome::{
-    GapScan, ModesSummary, RunError, RunOutput, RunSummary, StabilityRun, SummaryBody,
-    SummaryHeader, Table,
+    Chart, GapScan, ModePoint, ModesSummary, RunError, RunOutput, RunSummary, StabilityRun,
+    SummaryBody, SummaryHeader, Table,
 };
 use crate::spec::SpecError;
 use crate::wfem::{EndCondition, WaveBar};
@@ -501,14 +500,16 @@ pub fn run_modes(
         rows.extend(points.iter().map(backbone_row));
         all_points.push((bar, points));
     }
-    let mut figures = vec![svg::backbone_figure(&all_points, None)];
+    let mut charts = vec![Chart::Backbone(mode_points(
+        all_points.iter().flat_map(|(_, p)| p),
+    ))];
     let mut stability = None;
     for (bar, points) in &all_points {
         if let Some(pt) = first_mode_orbit(points)
             && let Some(orbit) = &pt.orbit
         {
             let name = format!("orbit_gap_{}", gap_label(bar.gap));
-            figures.push(svg::space_time_figure(&name, bar, orbit));
+            charts.push(Chart::SpaceTime(orbit::space_time(&name, bar, orbit)));
             if job.stability_periods > 0 && bar.gap > 0.0 && stability.is_none() {
                 let st = orbit::stability(bar, orbit, job.stability_periods, 1e-6);
                 stability = Some(StabilityRun {
@@ -538,8 +539,20 @@ pub fn run_modes(
             columns: BACKBONE_COLUMNS.iter().map(|s| s.to_string()).collect(),
             rows,
         }],
-        figures: std::mem::take(&mut figures),
+        charts,
     })
+}
+
+/// The admissible points of a scan, for the backbone figures.
+pub(crate) fn mode_points<'a>(points: impl Iterator<Item = &'a BackbonePoint>) -> Vec<ModePoint> {
+    points
+        .filter(|p| p.orbit.is_some())
+        .map(|p| ModePoint {
+            gap: p.gap,
+            omega_over_omega1: p.omega_over_omega1,
+            energy_normalized: p.energy_normalized,
+        })
+        .collect()
 }
 
 fn gap_label(g: f64) -> &'static str {

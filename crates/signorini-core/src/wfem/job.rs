@@ -121,7 +121,7 @@ impl WaveJob {
                 Ok(RunOutput {
                     summary: RunSummary::new(header, SummaryBody::Wave(stats.summary(bar))),
                     tables: Vec::new(),
-                    figures: Vec::new(),
+                    charts: Vec::new(),
                 })
             }
             WaveJob::Modes(m) => modal::run_modes(m, header, observer),
