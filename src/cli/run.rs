@@ -91,7 +91,8 @@ pub fn run(args: RunArgs) -> Result<()> {
         last_draw: Instant::now(),
     };
     let started = Instant::now();
-    let result = job::run(&job, &mut observer);
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let result = job::run(&job, threads, &mut observer);
     let wall = started.elapsed();
     observer.bar.finish_and_clear();
     let output: RunOutput = match result {

@@ -175,12 +175,16 @@ impl Job {
 
 /// Runs a validated job to the end (or until the observer stops it). A run that records steps
 /// also returns the charts `energy` and `residuals` of its records ([`EnergyTrace`]).
-pub fn run(job: &Job, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
+///
+/// `threads` is the parallelism the caller grants: an analysis (nonsmooth modes, forced
+/// response) spreads its independent tasks over that many threads (0 counts as 1), a time
+/// integration runs on the calling thread. The results do not depend on it.
+pub fn run(job: &Job, threads: usize, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
     let mut trace = EnergyTrace::new(observer);
     let mut output = match &job.kind {
         JobKind::Linear(j) => run_linear_job(job, j, &mut trace),
         JobKind::Soi2(j) => run_soi2_job(job, j, &mut trace),
-        JobKind::Wave(j) => j.run(header(job), &mut trace),
+        JobKind::Wave(j) => j.run(header(job), threads, &mut trace),
     }?;
     output.charts.extend(trace.charts());
     Ok(output)

@@ -41,7 +41,7 @@ fn every_scheme_name_runs_and_closes_its_balance() {
         let job = Job::from_spec(&spec(integrator.clone()))
             .unwrap_or_else(|e| panic!("{integrator}: {e}"));
         let mut rec = Recorder::default();
-        let out = job::run(&job, &mut rec).expect("runs");
+        let out = job::run(&job, 1, &mut rec).expect("runs");
         let summary = out.summary.to_map();
         assert_eq!(summary["scheme"], json!(name));
         let residual = summary["max_abs_balance_residual"].as_f64().unwrap();

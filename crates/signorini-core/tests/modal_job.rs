@@ -99,6 +99,9 @@ impl Observer for Counter {
     }
 }
 
+/// Threads granted to a job: two, so the analyses take their parallel path.
+const THREADS: usize = 2;
+
 fn job(text: &str) -> Job {
     Job::from_spec(&toml::from_str::<JobSpec>(text).expect("toml")).expect("valid job")
 }
@@ -107,7 +110,7 @@ fn job(text: &str) -> Job {
 fn modal_job_writes_the_pinned_backbone_table_with_progress_per_task() {
     let spec = "name = \"modes\"\n[analysis]\nkind = \"nonsmooth_modes\"\ncells = 20\ngaps = [1e-3, 0.0, -1e-3]\nmax_period_steps = 80\nphases = 1\nstability_periods = 50\n";
     let mut obs = Counter::default();
-    let out = run(&job(spec), &mut obs).expect("run");
+    let out = run(&job(spec), THREADS, &mut obs).expect("run");
     let summary = out.summary.to_map();
     // Progress: one call per task (period length × gap), counting up to the total.
     let tasks = 3 * (80 - 2 + 1) as u64;
@@ -164,7 +167,7 @@ fn modal_job_writes_the_pinned_backbone_table_with_progress_per_task() {
         stop_after: Some(5),
         ..Counter::default()
     };
-    match run(&job(spec), &mut obs) {
+    match run(&job(spec), THREADS, &mut obs) {
         Err(RunError::Stopped { step }) => {
             assert!((5..tasks).contains(&step), "{step}");
             assert_eq!(obs.calls.len(), 5, "no progress call after Break");
@@ -177,7 +180,7 @@ fn modal_job_writes_the_pinned_backbone_table_with_progress_per_task() {
 fn forced_response_job_runs_every_task_and_stops_on_break() {
     let spec = "name = \"forced\"\n[analysis]\nkind = \"forced_response\"\ncells = 20\ngap = 1e-3\nexcitation = \"force\"\namplitude = 2e-3\nomegas = [0.9, 1.1, 1.3, 1.5]\ndamping = [0.02, 0.1]\ntransient_periods = 40\naverage_periods = 10\n";
     let mut obs = Counter::default();
-    let out = run(&job(spec), &mut obs).expect("run");
+    let out = run(&job(spec), THREADS, &mut obs).expect("run");
     assert_eq!(obs.calls.len(), 8);
     assert_eq!(obs.calls.last().map(|p| (p.done, p.total)), Some((8, 8)));
     let t = out
@@ -198,6 +201,8 @@ fn forced_response_job_runs_every_task_and_stops_on_break() {
     };
     // Tasks already running finish (they are short here, so all may be done); the job still
     // ends with Stopped and the observer is not called after its Break.
-    assert!(matches!(run(&job(spec), &mut obs), Err(RunError::Stopped { step }) if step <= 8));
+    assert!(
+        matches!(run(&job(spec), THREADS, &mut obs), Err(RunError::Stopped { step }) if step <= 8)
+    );
     assert_eq!(obs.calls.len(), 2);
 }

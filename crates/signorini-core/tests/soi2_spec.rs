@@ -25,7 +25,7 @@ fn jay_negrut_test_job_reports_global_errors() {
     let job = Job::from_spec(&s).expect("valid");
     assert_eq!(job.size().steps, 64);
     let mut rec = Recorder::default();
-    let out = run(&job, &mut rec).expect("runs");
+    let out = run(&job, 1, &mut rec).expect("runs");
     let summary = out.summary.to_map();
     let e = summary["errors"].as_object().expect("errors");
     // Fig. 1 at h = 2⁻⁵ (measured by tests/soi2_order.rs): all errors ~1e-4 or below.
@@ -71,7 +71,7 @@ fn pendulum_and_slider_crank_jobs_run() {
             r#"{{"model": {{"scene": "{scene}"}}, "integrator": {{"scheme": "{scheme}"}}, "time": {{"h": 0.001, "t_end": 0.1}}}}"#
         ));
         let job = Job::from_spec(&s).expect("valid");
-        let out = run(&job, &mut Recorder::default()).expect("runs");
+        let out = run(&job, 1, &mut Recorder::default()).expect("runs");
         let summary = out.summary.to_map();
         assert_eq!(summary["steps"], 100, "{scene}/{scheme}");
         assert!(summary["max_position_residual"].as_f64().expect("res") < 1e-10);
@@ -141,7 +141,7 @@ fn bad_input_newton_divergence() {
             "time": {"h": 0.01, "t_end": 1.0}}"#,
     );
     let job = Job::from_spec(&s).expect("valid");
-    match run(&job, &mut Recorder::default()) {
+    match run(&job, 1, &mut Recorder::default()) {
         Err(RunError::Soi2(Soi2Error::NewtonDiverged {
             step,
             t,
@@ -162,7 +162,7 @@ fn bad_input_newton_divergence() {
             "time": {"h": 8.0, "t_end": 64.0}}"#,
     );
     let job = Job::from_spec(&s).expect("valid");
-    let err = run(&job, &mut Recorder::default()).expect_err("diverges");
+    let err = run(&job, 1, &mut Recorder::default()).expect_err("diverges");
     let msg = err.to_string();
     assert!(
         msg.contains("Newton did not converge") || msg.contains("singular Newton matrix"),
@@ -209,7 +209,7 @@ fn example_specs_parse_validate_and_run() {
             std::fs::read_to_string(dir.join(format!("{name}.toml"))).expect("example exists");
         let s: JobSpec = toml::from_str(&text).expect("example parses");
         let job = Job::from_spec(&s).expect("example is valid");
-        let out = run(&job, &mut Recorder::default()).expect("example runs");
+        let out = run(&job, 1, &mut Recorder::default()).expect("example runs");
         let summary = out.summary.to_map();
         assert!(
             summary["max_position_residual"].as_f64().expect("res") < 1e-9,
@@ -235,7 +235,7 @@ fn newton_strategy_from_the_spec() {
                     "time": {{"h": 0.001953125, "t_end": 1.0}}}}"#
             ));
             let job = Job::from_spec(&s).expect("valid");
-            run(&job, &mut Recorder::default())
+            run(&job, 1, &mut Recorder::default())
                 .expect("runs")
                 .summary
                 .to_map()

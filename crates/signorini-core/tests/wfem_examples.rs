@@ -18,7 +18,7 @@ fn examples_validate_and_the_wfem_dep_bar_runs() {
     }
     let job = Job::from_spec(&load("wfem_dep_bar.toml")).expect("wfem_dep_bar");
     let mut rec = Recorder::default();
-    let out = run(&job, &mut rec).expect("run");
+    let out = run(&job, 1, &mut rec).expect("run");
     let summary = out.summary.to_map();
     assert_eq!(summary["scheme"], "wfem");
     assert!(summary["closures"].as_u64().unwrap() >= 2);

@@ -17,6 +17,9 @@ impl Observer for Nothing {
     }
 }
 
+/// Threads granted to a job: two, so the analyses take their parallel path.
+const THREADS: usize = 2;
+
 fn job(text: &str) -> Job {
     Job::from_spec(&toml::from_str::<JobSpec>(text).expect("toml")).expect("valid job")
 }
@@ -73,7 +76,7 @@ fn xml_elements(doc: &str) -> Vec<String> {
 #[test]
 fn modal_job_figures_are_the_backbone_and_one_orbit_per_gap_in_well_formed_svg() {
     let spec = "name = \"modes\"\n[analysis]\nkind = \"nonsmooth_modes\"\ncells = 20\ngaps = [1e-3, 0.0, -1e-3]\nmax_period_steps = 80\nphases = 1\nstability_periods = 50\n";
-    let out = run(&job(spec), &mut Nothing).expect("run");
+    let out = run(&job(spec), THREADS, &mut Nothing).expect("run");
     let figures = render(&out.charts);
     // Figures: the backbone and one orbit per gap, well-formed, with axes, curves and labels.
     let names: Vec<&str> = figures.iter().map(|f| f.name.as_str()).collect();
@@ -122,7 +125,7 @@ fn modal_job_figures_are_the_backbone_and_one_orbit_per_gap_in_well_formed_svg()
 #[test]
 fn forced_response_job_figure_is_well_formed_svg() {
     let spec = "name = \"forced\"\n[analysis]\nkind = \"forced_response\"\ncells = 20\ngap = 1e-3\nexcitation = \"force\"\namplitude = 2e-3\nomegas = [0.9, 1.1, 1.3, 1.5]\ndamping = [0.02, 0.1]\ntransient_periods = 40\naverage_periods = 10\n";
-    let out = run(&job(spec), &mut Nothing).expect("run");
+    let out = run(&job(spec), THREADS, &mut Nothing).expect("run");
     let figures = render(&out.charts);
     for f in &figures {
         let el = xml_elements(&f.svg);
@@ -171,7 +174,7 @@ fn time_integration_jobs_return_energy_and_residual_figures() {
         ),
     ];
     for (spec, energy_labels, residual_labels) in cases {
-        let out = run(&job(spec), &mut Nothing).expect("run");
+        let out = run(&job(spec), THREADS, &mut Nothing).expect("run");
         let figures = render(&out.charts);
         let names: Vec<&str> = figures.iter().map(|f| f.name.as_str()).collect();
         assert_eq!(names, ["energy", "residuals"], "{spec}");
@@ -189,7 +192,7 @@ fn time_integration_jobs_return_energy_and_residual_figures() {
         }
     }
     let spec = include_str!("../../../examples/nonsmooth_modes.toml");
-    let out = run(&job(spec), &mut Nothing).expect("run");
+    let out = run(&job(spec), THREADS, &mut Nothing).expect("run");
     let figures = render(&out.charts);
     assert!(
         figures

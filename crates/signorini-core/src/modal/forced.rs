@@ -2,7 +2,7 @@
 //! `w(t) = w0 sin ωt` or a distributed force `f0 sin ωt`, swept over ω for several damping
 //! values. Each (damping, ω) is an independent WFEM run of Algorithm 2 (with the source step of
 //! [`crate::wfem`]): `transient_periods` forcing periods to reach the steady state, then the cell
-//! energy averaged over `average_periods` periods. Tasks run in parallel on scoped threads.
+//! energy averaged over `average_periods` periods. Tasks run in parallel on the threads the caller grants.
 
 use super::{mode_points, scan};
 use crate::observer::{Observer, Progress};
@@ -267,10 +267,12 @@ pub fn respond(job: &ForcedResponseJob, omega_over_omega1: f64, damping: f64) ->
     }
 }
 
-/// Runs the sweep: every (γ, ω) task on the worker threads, `forced_response` table, figure.
+/// Runs the sweep: every (γ, ω) task on `threads` threads (the caller's grant), the
+/// `forced_response` table and chart. The results do not depend on `threads`.
 pub fn run_forced(
     job: &ForcedResponseJob,
     header: SummaryHeader,
+    threads: usize,
     observer: &mut dyn Observer,
 ) -> Result<RunOutput, RunError> {
     let tasks: Vec<(f64, f64)> = job
@@ -282,11 +284,10 @@ pub fn run_forced(
     let next = AtomicUsize::new(0);
     let stop = AtomicBool::new(false);
     let results: Mutex<Vec<Response>> = Mutex::new(Vec::new());
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let (tx, rx) = std::sync::mpsc::channel::<()>();
     let mut stopped = false;
     std::thread::scope(|s| {
-        for _ in 0..threads {
+        for _ in 0..threads.max(1) {
             let tx = tx.clone();
             let (next, stop, results, tasks) = (&next, &stop, &results, &tasks);
             s.spawn(move || {

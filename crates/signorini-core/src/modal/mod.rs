@@ -425,14 +425,12 @@ pub fn first_mode_orbit(points: &[BackbonePoint]) -> Option<&BackbonePoint> {
     first.get(first.len() / 2).copied()
 }
 
-fn threads() -> usize {
-    std::thread::available_parallelism().map_or(1, |n| n.get())
-}
-
-/// Runs a modal analysis job: one scan per gap, `backbone` table, figures, stability.
+/// Runs a modal analysis job: one scan per gap on `threads` threads (the caller's grant), the
+/// `backbone` table, its charts, stability. The points do not depend on `threads`.
 pub fn run_modes(
     job: &ModalJob,
     header: SummaryHeader,
+    threads: usize,
     observer: &mut dyn Observer,
 ) -> Result<RunOutput, RunError> {
     let total = job.tasks();
@@ -465,7 +463,7 @@ pub fn run_modes(
                     job.period_steps,
                     job.phases,
                     job.all_candidates,
-                    threads(),
+                    threads,
                     &on_period,
                 )
             });

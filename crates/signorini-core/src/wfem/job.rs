@@ -108,10 +108,12 @@ impl WaveJob {
         }
     }
 
-    /// Runs the job; `header` names it in the summary.
+    /// Runs the job; `header` names it in the summary; an analysis spreads its tasks over
+    /// `threads` threads.
     pub fn run(
         &self,
         header: SummaryHeader,
+        threads: usize,
         observer: &mut dyn Observer,
     ) -> Result<RunOutput, RunError> {
         match self {
@@ -124,8 +126,8 @@ impl WaveJob {
                     charts: Vec::new(),
                 })
             }
-            WaveJob::Modes(m) => modal::run_modes(m, header, observer),
-            WaveJob::Forced(f) => modal::forced::run_forced(f, header, observer),
+            WaveJob::Modes(m) => modal::run_modes(m, header, threads, observer),
+            WaveJob::Forced(f) => modal::forced::run_forced(f, header, threads, observer),
         }
     }
 }
