@@ -471,3 +471,40 @@ pub struct ForcedSummary {
     /// E_lin, the energy of the grazing first linear mode.
     pub energy_linear_grazing: f64,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `summary.json` is flat, in the order header, `kind`, the kind's fields, timing; an
+    /// absent name or scene is left out, a missing stability run is `null`.
+    #[test]
+    fn summary_serialises_flat_in_order() {
+        let summary = RunSummary::new(
+            SummaryHeader {
+                name: None,
+                scene: None,
+                scheme: "moreau_jean".into(),
+            },
+            SummaryBody::NonsmoothModes(ModesSummary {
+                cells: 4,
+                phases: 1,
+                period_steps: [2, 16],
+                gaps: vec![GapScan {
+                    gap: 0.0,
+                    admissible: 3,
+                    candidates: 5,
+                }],
+                points: 3,
+                stability: None,
+            }),
+        )
+        .with_timing(Duration::from_millis(500));
+        assert_eq!(
+            serde_json::to_string(&summary).ok().as_deref(),
+            Some(
+                r#"{"scheme":"moreau_jean","kind":"nonsmooth_modes","cells":4,"phases":1,"period_steps":[2,16],"gaps":[{"gap":0.0,"admissible":3,"candidates":5}],"points":3,"stability":null,"wall_s":0.5,"steps_per_s":0.0}"#
+            )
+        );
+    }
+}

@@ -2,7 +2,8 @@
 //! `w(t) = w0 sin ωt` or a distributed force `f0 sin ωt`, swept over ω for several damping
 //! values. Each (damping, ω) is an independent WFEM run of Algorithm 2 (with the source step of
 //! [`crate::wfem`]): `transient_periods` forcing periods to reach the steady state, then the cell
-//! energy averaged over `average_periods` periods. Tasks run in parallel on the threads the caller grants.
+//! energy averaged over `average_periods` periods. Tasks run in parallel on the threads the
+//! caller grants.
 
 use super::{mode_points, scan};
 use crate::observer::{Observer, Progress};
@@ -399,4 +400,17 @@ pub fn run_forced(
         }],
         charts: vec![Chart::ForcedResponse(chart)],
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Excitation;
+
+    /// The summary's name of an excitation is its spec spelling.
+    #[test]
+    fn excitation_names_are_the_spec_spelling() {
+        for e in [Excitation::Wall, Excitation::Force] {
+            assert_eq!(serde_json::to_value(e).ok(), Some(e.name().into()));
+        }
+    }
 }
