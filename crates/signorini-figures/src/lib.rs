@@ -13,6 +13,8 @@
 //! (reference lines labelled above the plot area, a space–time colour map, swatch legends) are
 //! custom drawing either way; moving 600 tested lines beat rewriting them.
 
+#![warn(missing_docs)]
+
 pub mod modal;
 pub mod plot;
 pub mod trace;
