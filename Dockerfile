@@ -7,16 +7,17 @@ WORKDIR /src
 # 1. Dependencies only: manifests and stub sources, so this layer is reused until Cargo.lock changes.
 COPY Cargo.toml Cargo.lock ./
 COPY crates/signorini-core/Cargo.toml crates/signorini-core/Cargo.toml
-RUN mkdir -p src benches crates/signorini-core/src crates/signorini-core/benches \
+COPY crates/signorini-figures/Cargo.toml crates/signorini-figures/Cargo.toml
+RUN mkdir -p src benches crates/signorini-core/src crates/signorini-core/benches crates/signorini-figures/src \
  && echo 'fn main() {}' > src/main.rs && touch src/lib.rs \
  && echo 'fn main() {}' > benches/service.rs \
- && touch crates/signorini-core/src/lib.rs \
+ && touch crates/signorini-core/src/lib.rs crates/signorini-figures/src/lib.rs \
  && for b in $(sed -n 's/^name = "\(.*\)"/\1/p' crates/signorini-core/Cargo.toml | tail -n +2); do echo 'fn main() {}' > crates/signorini-core/benches/$b.rs; done \
  && printf 'fn main() {}\n' > build.rs \
  && cargo build --release --locked --bin signorini || true
 # 2. The real sources.
 COPY . .
-RUN touch src/main.rs src/lib.rs crates/signorini-core/src/lib.rs build.rs \
+RUN touch src/main.rs src/lib.rs crates/signorini-core/src/lib.rs crates/signorini-figures/src/lib.rs build.rs \
  && cargo build --release --locked --bin signorini \
  && install -D target/release/signorini /out/signorini
 

@@ -8,9 +8,10 @@
 //! look like valid results.
 
 use anyhow::{Context, Result, anyhow};
-use serde_json::{Map, Value, json};
-use signorini_core::job::{Figure, RunOutput, Table};
+use serde_json::{Map, Value};
 use signorini_core::observer::{Columns, Observer, StepRecord};
+use signorini_core::outcome::{RunOutput, Table};
+use signorini_figures::Figure;
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
 use std::ops::ControlFlow;
@@ -29,25 +30,21 @@ pub struct FinishedRun {
     pub figures: Vec<Figure>,
 }
 
-/// A run's output with its wall time attached: `wall_s` and `steps_per_s` (0 for a run that took
-/// no measurable time) go into the summary, after the run's own entries.
+/// A run's output with its wall time attached once ([`RunSummary::with_timing`]: `wall_s` and
+/// `steps_per_s`, 0 for a run that took no measurable time, after the run's own entries) and its
+/// chart data drawn as figures.
+///
+/// [`RunSummary::with_timing`]: signorini_core::outcome::RunSummary::with_timing
 pub fn finish_run(output: RunOutput, wall: Duration) -> FinishedRun {
     let RunOutput {
-        mut summary,
-        tables,
-        figures,
-    } = output;
-    let wall = wall.as_secs_f64();
-    let steps = summary.get("steps").and_then(|s| s.as_f64()).unwrap_or(0.0);
-    summary.insert("wall_s".into(), json!(wall));
-    summary.insert(
-        "steps_per_s".into(),
-        json!(if wall > 0.0 { steps / wall } else { 0.0 }),
-    );
-    FinishedRun {
         summary,
         tables,
-        figures,
+        charts,
+    } = output;
+    FinishedRun {
+        summary: summary.with_timing(wall).to_map(),
+        tables,
+        figures: signorini_figures::render(&charts),
     }
 }
 

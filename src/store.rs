@@ -11,8 +11,9 @@
 use crate::status::{JobState, JobView};
 use rusqlite::{Connection, OptionalExtension, params};
 use serde_json::{Map, Value};
-use signorini_core::job::{Figure, Table};
+use signorini_core::outcome::Table;
 use signorini_core::spec::SpecError;
+use signorini_figures::Figure;
 use std::path::Path;
 use std::sync::Mutex;
 use thiserror::Error;

@@ -6,8 +6,8 @@ use crate::output::{fmt_value, write_atomic, write_figure};
 use anyhow::{Context, Result, anyhow, bail};
 use clap::Args;
 use serde_json::{Map, Value};
-use signorini_core::plot::{Curve, line_chart};
 use signorini_core::trace::Envelope;
+use signorini_figures::{Curve, line_chart};
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 

@@ -5,8 +5,9 @@ use crate::spec_file::{self, Format};
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use signorini_core::job::{self, RunOutput};
+use signorini_core::job;
 use signorini_core::observer::{Columns, Observer, Progress, StepRecord};
+use signorini_core::outcome::RunOutput;
 use std::ops::ControlFlow;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -90,7 +91,9 @@ pub fn run(args: RunArgs) -> Result<()> {
         last_draw: Instant::now(),
     };
     let started = Instant::now();
-    let result = job::run(&job, &mut observer);
+    // The CLI runs one job: it may use every core for an analysis's parallel scans.
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let result = job::run(&job, threads, &mut observer);
     let wall = started.elapsed();
     observer.bar.finish_and_clear();
     let output: RunOutput = match result {

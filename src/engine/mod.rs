@@ -19,7 +19,8 @@ use crate::store::{Store, StoredResult};
 use events::{EventSink, JobEvent, StreamStats};
 use ids::{new_id, now_ms};
 use observer::ServiceObserver;
-use signorini_core::job::{self, Job, RunError};
+use signorini_core::job::{self, Job};
+use signorini_core::outcome::RunError;
 use signorini_core::spec::{JobSpec, SpecError};
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -382,6 +383,14 @@ fn next_job(inner: &Inner) -> Option<Arc<LiveJob>> {
     }
 }
 
+/// Threads a job may use for its parallel tasks (an analysis): the machine's cores shared among
+/// the workers, 1 with the default of one worker per core, so the pool never runs more busy
+/// threads than cores.
+fn threads_per_job(workers: usize) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    (cores / workers.max(1)).max(1)
+}
+
 /// The text of a panic payload (`panic!` with a message gives a `&str` or a `String`).
 fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
     payload
@@ -411,7 +420,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     let clock = Instant::now();
     // A panic in the numerics (a bug) fails this job and keeps the worker and the server alive.
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        job::run(&live.job, &mut observer)
+        job::run(&live.job, threads_per_job(inner.workers), &mut observer)
     }))
     .map_err(|panic| panic_message(panic.as_ref()));
     let wall = clock.elapsed();

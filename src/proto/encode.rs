@@ -7,7 +7,8 @@ use crate::engine::events::{ColumnGroup, StepBatch};
 use crate::status::{JobState, JobView};
 use crate::store::StoredResult;
 use anyhow::{Context, Result, anyhow};
-use signorini_core::job::{Figure, Table};
+use signorini_core::outcome::Table;
+use signorini_figures::Figure;
 
 /// A job state → proto.
 pub fn state_to_proto(s: JobState) -> pb::JobState {

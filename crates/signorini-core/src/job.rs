@@ -7,81 +7,17 @@ use crate::contact::{Activation, IndexSetRule};
 use crate::integrators::alpha::{AlphaParams, AlphaScheme, NonsmoothAlpha, ParamError};
 use crate::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
 use crate::integrators::position_contact::{PositionContact, PositionContactParams};
-use crate::integrators::{
-    LinearScheme, LinearState, OutputOptions, RunStop, StepError, run_linear,
-};
+use crate::integrators::{LinearScheme, LinearState, OutputOptions, run_linear};
 use crate::lcp::LcpOptions;
 use crate::model::{Contact, Forcing, HarmonicLoad, LinearModel, ModelError};
 use crate::observer::Observer;
+use crate::outcome::{LinearSummary, RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader};
 use crate::scenes::Bar;
 use crate::spec::{
     IntegratorSpec, JobSpec, LinearSpec, ModelSpec, MoreauJeanSpec, SpecError, TimeSpec,
 };
 use crate::spec::{NsAlphaSpec, PositionContactSpec};
 use crate::trace::EnergyTrace;
-use serde_json::{Map, Value, json};
-use thiserror::Error;
-
-/// A table an analysis produces besides the step records (e.g. `backbone`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Table {
-    /// File stem, e.g. `backbone` for `backbone.csv`.
-    pub name: String,
-    /// Column names.
-    pub columns: Vec<String>,
-    /// Rows of values.
-    pub rows: Vec<Vec<f64>>,
-}
-
-/// A picture a job produces (SVG text).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Figure {
-    /// File stem, e.g. `backbone` for `backbone.svg`.
-    pub name: String,
-    /// SVG document.
-    pub svg: String,
-}
-
-/// What a finished run returns (the step records went to the observer).
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct RunOutput {
-    /// `summary.json` (the caller adds `wall_s` and `steps_per_s`).
-    pub summary: Map<String, Value>,
-    /// Extra tables.
-    pub tables: Vec<Table>,
-    /// Figures.
-    pub figures: Vec<Figure>,
-}
-
-/// Why a run failed.
-#[derive(Debug, Clone, PartialEq, Error)]
-pub enum RunError {
-    /// A step failed.
-    #[error(transparent)]
-    Step(#[from] StepError),
-    /// The observer stopped the run (cancellation).
-    #[error("stopped after {step} steps")]
-    Stopped {
-        /// Steps done.
-        step: u64,
-    },
-    /// The scheme's iteration matrix could not be factorised (M, C, K passed validation, so this
-    /// only happens when θh or h is extreme enough to lose definiteness to round-off).
-    #[error("iteration matrix of the scheme is not positive definite: {0}")]
-    IterationMatrix(crate::band::BandError),
-    /// A SOI2 run failed (Newton, singular matrix, inconsistent start).
-    #[error(transparent)]
-    Soi2(crate::soi2::Soi2Error),
-}
-
-impl From<RunStop> for RunError {
-    fn from(s: RunStop) -> Self {
-        match s {
-            RunStop::Step(e) => RunError::Step(e),
-            RunStop::Stopped { step } => RunError::Stopped { step },
-        }
-    }
-}
 
 /// Size of a job, for the service's limits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -238,15 +174,19 @@ impl Job {
 }
 
 /// Runs a validated job to the end (or until the observer stops it). A run that records steps
-/// also returns the figures `energy` and `residuals` of its records ([`EnergyTrace`]).
-pub fn run(job: &Job, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
+/// also returns the charts `energy` and `residuals` of its records ([`EnergyTrace`]).
+///
+/// `threads` is the parallelism the caller grants: an analysis (nonsmooth modes, forced
+/// response) spreads its independent tasks over that many threads (0 counts as 1), a time
+/// integration runs on the calling thread. The results do not depend on it.
+pub fn run(job: &Job, threads: usize, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
     let mut trace = EnergyTrace::new(observer);
     let mut output = match &job.kind {
         JobKind::Linear(j) => run_linear_job(job, j, &mut trace),
         JobKind::Soi2(j) => run_soi2_job(job, j, &mut trace),
-        JobKind::Wave(j) => j.run(header(job), &mut trace),
+        JobKind::Wave(j) => j.run(header(job), threads, &mut trace),
     }?;
-    output.figures.extend(trace.figures());
+    output.charts.extend(trace.charts());
     Ok(output)
 }
 
@@ -255,12 +195,11 @@ fn run_soi2_job(
     j: &crate::soi2::run::Soi2Job,
     observer: &mut dyn Observer,
 ) -> Result<RunOutput, RunError> {
-    let mut summary = header(job);
-    summary.extend(j.run(observer)?);
+    let body = SummaryBody::Soi2(Box::new(j.run(observer)?));
     Ok(RunOutput {
-        summary,
+        summary: RunSummary::new(header(job), body),
         tables: Vec::new(),
-        figures: Vec::new(),
+        charts: Vec::new(),
     })
 }
 
@@ -289,48 +228,37 @@ fn run_linear_job(
         &j.output,
         observer,
     )?;
-    let mut summary = header(job);
-    summary.extend(
-        json!({
-            "kind": "time_integration",
-            "dofs": j.model.dofs(),
-            "contacts": j.model.contacts.len(),
-            "h": j.h,
-            "steps": stats.steps,
-            "t_end": stats.t_end,
-            "max_abs_balance_residual": stats.max_abs_balance_residual,
-            "energy_initial": stats.energy_initial,
-            "energy_final": stats.energy_final,
-            "energy_max": stats.energy_max,
-            "algorithmic_energy_max": stats.algorithmic_energy_max,
-            "impacts": stats.impacts,
-            "lcp_max_error": stats.lcp_max_error,
-            "lcp_solves": stats.lcp_solves,
-            "work_ext_total": stats.work_ext_total,
-            "work_damping_total": stats.work_damping_total,
-            "work_contact_total": stats.work_contact_total,
-        })
-        .as_object()
-        .cloned()
-        .unwrap_or_default(),
-    );
+    let body = SummaryBody::Linear(LinearSummary {
+        dofs: j.model.dofs(),
+        contacts: j.model.contacts.len(),
+        h: j.h,
+        steps: stats.steps,
+        t_end: stats.t_end,
+        max_abs_balance_residual: stats.max_abs_balance_residual,
+        energy_initial: stats.energy_initial,
+        energy_final: stats.energy_final,
+        energy_max: stats.energy_max,
+        algorithmic_energy_max: stats.algorithmic_energy_max,
+        impacts: stats.impacts,
+        lcp_max_error: stats.lcp_max_error,
+        lcp_solves: stats.lcp_solves,
+        work_ext_total: stats.work_ext_total,
+        work_damping_total: stats.work_damping_total,
+        work_contact_total: stats.work_contact_total,
+    });
     Ok(RunOutput {
-        summary,
+        summary: RunSummary::new(header(job), body),
         tables: Vec::new(),
-        figures: Vec::new(),
+        charts: Vec::new(),
     })
 }
 
-fn header(job: &Job) -> Map<String, Value> {
-    let mut m = Map::new();
-    if let Some(name) = &job.spec.name {
-        m.insert("name".into(), json!(name));
+fn header(job: &Job) -> SummaryHeader {
+    SummaryHeader {
+        name: job.spec.name.clone(),
+        scene: job.spec.model.as_ref().map(|m| m.scene().to_string()),
+        scheme: job.spec.integrator.scheme().to_string(),
     }
-    if let Some(model) = &job.spec.model {
-        m.insert("scene".into(), json!(model.scene()));
-    }
-    m.insert("scheme".into(), json!(job.spec.integrator.scheme()));
-    m
 }
 
 /// Builds the linear model of a scene; errors carry `model.`-prefixed fields.

@@ -16,7 +16,7 @@ pub mod lcp;
 pub mod modal;
 pub mod model;
 pub mod observer;
-pub mod plot;
+pub mod outcome;
 pub mod scenes;
 pub mod soi2;
 pub mod spec;

@@ -76,7 +76,7 @@ impl Progress {
 }
 
 /// Receives what a run produces. Returning [`ControlFlow::Break`] from any method stops the run
-/// at the end of the current step; the run then ends with [`crate::job::RunError::Stopped`].
+/// at the end of the current step; the run then ends with [`crate::outcome::RunError::Stopped`].
 pub trait Observer {
     /// Called once before the first record, with the run's columns.
     fn start(&mut self, columns: &Columns) {

@@ -1,7 +1,7 @@
-//! A run's energy terms as pictures. [`EnergyTrace`] passes every record on to the caller's
-//! observer and keeps a bounded [`Envelope`] of each column worth looking at; at the end it
-//! draws `energy.svg` (the energies and the cumulative works against t, DESIGN §5) and
-//! `residuals.svg` (log₁₀ of the balance residual and of the constraint residuals: the checks
+//! A run's energy terms as data for its figures. [`EnergyTrace`] passes every record on to the
+//! caller's observer and keeps a bounded [`Envelope`] of each column worth looking at: the
+//! energies and the cumulative works ([`ENERGY_COLUMNS`], the `energy` chart) and the balance
+//! and constraint residuals, as log₁₀ ([`RESIDUAL_COLUMNS`], the `residuals` chart: the checks
 //! that must sit at round-off).
 //!
 //! An envelope keeps, for each bucket of consecutive values, the smallest and the largest with
@@ -9,64 +9,31 @@
 //! doubles: memory and figure size stay bounded for any number of steps, and a one-step spike
 //! (an impact, a residual jump) is never decimated away.
 
-use crate::job::Figure;
 use crate::observer::{Columns, Observer, Progress, StepRecord};
-use crate::plot::{Curve, line_chart};
+use crate::outcome::{Chart, TraceChart, TracedSeries};
 use std::ops::ControlFlow;
 
 /// Buckets kept per envelope before neighbours merge (so between half this and this many).
 pub const MAX_BUCKETS: usize = 400;
 
-/// A column worth plotting: name, legend label, colour, dash pattern.
-struct Pick {
-    column: &'static str,
-    label: &'static str,
-    color: &'static str,
-    dash: &'static str,
-}
-
-const fn pick(
-    column: &'static str,
-    label: &'static str,
-    color: &'static str,
-    dash: &'static str,
-) -> Pick {
-    Pick {
-        column,
-        label,
-        color,
-        dash,
-    }
-}
-
-/// `energy.svg`: the energies of the run and the works done on it so far.
-const ENERGIES: [Pick; 8] = [
-    pick("energy", "energy", "black", ""),
-    pick(
-        "algorithmic_energy",
-        "algorithmic energy H",
-        "#7f7f7f",
-        "6 3",
-    ),
-    pick("kinetic", "kinetic", "#1f77b4", ""),
-    pick("strain", "strain", "#ff7f0e", ""),
-    pick("potential", "potential", "#ff7f0e", ""),
-    pick("work_ext_total", "Σ work_ext", "#2ca02c", "4 2"),
-    pick("work_damping_total", "Σ work_damping", "#d62728", "4 2"),
-    pick("work_contact_total", "Σ work_contact", "#9467bd", "4 2"),
+/// The `energy` chart's columns: the energies of the run and the works done on it so far.
+pub const ENERGY_COLUMNS: [&str; 8] = [
+    "energy",
+    "algorithmic_energy",
+    "kinetic",
+    "strain",
+    "potential",
+    "work_ext_total",
+    "work_damping_total",
+    "work_contact_total",
 ];
 
-/// `residuals.svg`: what must stay at round-off (or at the Newton tolerance).
-const RESIDUALS: [Pick; 4] = [
-    pick("balance_residual", "balance_residual", "black", ""),
-    pick("position_residual", "position constraint g", "#1f77b4", ""),
-    pick("velocity_residual", "velocity constraint", "#ff7f0e", ""),
-    pick(
-        "nonholonomic_residual",
-        "nonholonomic constraint",
-        "#2ca02c",
-        "",
-    ),
+/// The `residuals` chart's columns: what must stay at round-off (or at the Newton tolerance).
+pub const RESIDUAL_COLUMNS: [&str; 4] = [
+    "balance_residual",
+    "position_residual",
+    "velocity_residual",
+    "nonholonomic_residual",
 ];
 
 /// Smallest and largest value of a bucket, each with its time (NaN until a finite value).
@@ -163,11 +130,6 @@ impl Envelope {
         self.buckets.iter().flat_map(Extremes::points)
     }
 
-    /// True when some value was finite (for a log envelope: not zero).
-    pub fn has_values(&self) -> bool {
-        self.buckets.iter().any(|b| b.hi.1.is_finite())
-    }
-
     /// Number of buckets.
     pub fn buckets(&self) -> usize {
         self.buckets.len()
@@ -179,10 +141,10 @@ impl Envelope {
     }
 }
 
-/// One plotted column of a run: where it is in the records, how it is drawn, its envelope.
+/// One traced column of a run: where it is in the records, its envelope.
 struct Traced {
     index: usize,
-    pick: &'static Pick,
+    column: &'static str,
     envelope: Envelope,
 }
 
@@ -204,72 +166,42 @@ impl<'a> EnergyTrace<'a> {
         }
     }
 
-    /// `energy.svg` and `residuals.svg`, for the columns the run had (none for a run that
+    /// The `energy` and `residuals` charts, for the columns the run had (none for a run that
     /// recorded no step, e.g. an analysis).
-    pub fn figures(&self) -> Vec<Figure> {
+    pub fn charts(&self) -> Vec<Chart> {
         let mut out = Vec::new();
         if self.records == 0 {
             return out;
         }
         for log in [false, true] {
-            let curves: Vec<Curve> = self
+            let series: Vec<TracedSeries> = self
                 .traced
                 .iter()
                 .filter(|c| c.envelope.is_log() == log)
-                .map(|c| Curve {
-                    label: legend_label(c, log),
-                    color: c.pick.color,
-                    dash: c.pick.dash,
+                .map(|c| TracedSeries {
+                    column: c.column.to_string(),
                     points: c.envelope.points().collect(),
                 })
                 .collect();
-            if curves.is_empty() {
-                continue;
+            if !series.is_empty() {
+                out.push(Chart::Trace(TraceChart { log, series }));
             }
-            out.push(if log {
-                line_chart(
-                    "residuals",
-                    "Checks: log₁₀ |residual| per recorded step (exact zeros not drawn)",
-                    "log₁₀ |residual|",
-                    true,
-                    &curves,
-                )
-            } else {
-                line_chart(
-                    "energy",
-                    "Energies and cumulative works (min/max envelope of the records)",
-                    "energy, work",
-                    false,
-                    &curves,
-                )
-            });
         }
         out
     }
 }
 
-/// The legend label of a traced column, saying so when nothing could be drawn.
-fn legend_label(c: &Traced, log: bool) -> String {
-    if c.envelope.has_values() {
-        c.pick.label.to_string()
-    } else if log {
-        format!("{}: exactly 0 at every step", c.pick.label)
-    } else {
-        format!("{}: not finite", c.pick.label)
-    }
-}
-
 impl Observer for EnergyTrace<'_> {
     fn start(&mut self, columns: &Columns) {
-        let picks = ENERGIES
+        let picks = ENERGY_COLUMNS
             .iter()
-            .map(|p| (p, false))
-            .chain(RESIDUALS.iter().map(|p| (p, true)));
+            .map(|c| (*c, false))
+            .chain(RESIDUAL_COLUMNS.iter().map(|c| (*c, true)));
         self.traced = picks
-            .filter_map(|(pick, log)| {
+            .filter_map(|(column, log)| {
                 Some(Traced {
-                    index: columns.index(pick.column)?,
-                    pick,
+                    index: columns.index(column)?,
+                    column,
                     envelope: Envelope::new(log),
                 })
             })
@@ -298,12 +230,12 @@ mod tests {
     use super::*;
     use crate::observer::Recorder;
 
-    /// Feeds `rows` through a trace over `inner`: its figures and the buckets it kept.
+    /// Feeds `rows` through a trace over `inner`: its charts and the buckets it kept.
     fn feed(
         inner: &mut Recorder,
         names: &[&str],
         rows: &[(f64, Vec<f64>)],
-    ) -> (Vec<Figure>, Vec<Vec<Extremes>>) {
+    ) -> (Vec<Chart>, Vec<Vec<Extremes>>) {
         let mut trace = EnergyTrace::new(inner);
         trace.start(&Columns::new(names.iter().map(|s| s.to_string()).collect()));
         let mut buckets = Vec::new();
@@ -323,7 +255,7 @@ mod tests {
             .iter()
             .map(|c| c.envelope.buckets.clone())
             .collect();
-        (trace.figures(), kept)
+        (trace.charts(), kept)
     }
 
     /// A long run: the buckets stay bounded, a one-record spike and the global extremes survive
@@ -373,7 +305,7 @@ mod tests {
             .collect();
         assert!(ts.windows(2).all(|w| w[0] < w[1]));
         assert_eq!(
-            figures.iter().map(|f| f.name.as_str()).collect::<Vec<_>>(),
+            figures.iter().map(Chart::name).collect::<Vec<_>>(),
             ["energy", "residuals"]
         );
     }

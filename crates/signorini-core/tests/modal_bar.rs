@@ -1,6 +1,9 @@
 //! Nonsmooth modal analysis (Yoong et al. 2018, §§4–6): kernels from the cycle structure against
 //! the dense SVD, grazing modes, asymptotes, hardening/softening, two contact phases, stability.
 
+// Only the core library must stay pure (clippy.toml): a test may read fixtures and print.
+#![allow(clippy::disallowed_macros, clippy::disallowed_methods)]
+
 use nalgebra::DMatrix;
 use signorini_core::modal::kernel::{
     SignedPermutation, dense_kernel_dim, dense_matrix, kernel_dim_closed_form,

@@ -81,7 +81,7 @@ fn load(name: &'static str) -> Fixture {
 fn run_spec(spec: &JobSpec) -> Recorder {
     let job = Job::from_spec(spec).expect("valid spec");
     let mut rec = Recorder::default();
-    run(&job, &mut rec).expect("run");
+    run(&job, 1, &mut rec).expect("run");
     rec
 }
 

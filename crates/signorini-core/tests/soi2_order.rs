@@ -4,9 +4,10 @@
 #![allow(clippy::disallowed_macros, clippy::disallowed_methods)]
 
 use signorini_core::observer::Recorder;
+use signorini_core::soi2::GlobalErrors;
 use signorini_core::soi2::method::{Coefficients, Formulation, Method, NewtonOptions, StartValue};
 use signorini_core::soi2::models::{JayNegrutTest, Pendulum};
-use signorini_core::soi2::run::{End, GlobalErrors, Schedule, Soi2Output, integrate};
+use signorini_core::soi2::run::{End, Schedule, Soi2Output, integrate};
 use signorini_core::soi2::{ConstrainedModel, method::Soi2State};
 
 fn method(formulation: Formulation) -> Method {

@@ -2,16 +2,19 @@
 //! `w(t) = w0 sin ωt` or a distributed force `f0 sin ωt`, swept over ω for several damping
 //! values. Each (damping, ω) is an independent WFEM run of Algorithm 2 (with the source step of
 //! [`crate::wfem`]): `transient_periods` forcing periods to reach the steady state, then the cell
-//! energy averaged over `average_periods` periods. Tasks run in parallel on scoped threads.
+//! energy averaged over `average_periods` periods. Tasks run in parallel on the threads the
+//! caller grants.
 
-use super::{scan, svg};
-use crate::job::{RunError, RunOutput, Table};
+use super::{mode_points, scan};
 use crate::observer::{Observer, Progress};
+use crate::outcome::{
+    Chart, ForcedChart, ForcedPoint, ForcedSummary, RunError, RunOutput, RunSummary, SummaryBody,
+    SummaryHeader, Table,
+};
 use crate::scenes::HarmonicSpec;
 use crate::spec::SpecError;
 use crate::wfem::{WaveBar, step};
 use serde::{Deserialize, Serialize};
-use serde_json::{Map, Value, json};
 use std::ops::ControlFlow;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -210,6 +213,16 @@ impl ForcedResponseJob {
     }
 }
 
+impl Excitation {
+    /// The name written in specs and summaries.
+    pub fn name(self) -> &'static str {
+        match self {
+            Excitation::Wall => "wall",
+            Excitation::Force => "force",
+        }
+    }
+}
+
 /// Steady-state response of one (ω, γ) task.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Response {
@@ -255,10 +268,12 @@ pub fn respond(job: &ForcedResponseJob, omega_over_omega1: f64, damping: f64) ->
     }
 }
 
-/// Runs the sweep: every (γ, ω) task on the worker threads, `forced_response` table, figure.
+/// Runs the sweep: every (γ, ω) task on `threads` threads (the caller's grant), the
+/// `forced_response` table and chart. The results do not depend on `threads`.
 pub fn run_forced(
     job: &ForcedResponseJob,
-    mut summary: Map<String, Value>,
+    header: SummaryHeader,
+    threads: usize,
     observer: &mut dyn Observer,
 ) -> Result<RunOutput, RunError> {
     let tasks: Vec<(f64, f64)> = job
@@ -270,11 +285,10 @@ pub fn run_forced(
     let next = AtomicUsize::new(0);
     let stop = AtomicBool::new(false);
     let results: Mutex<Vec<Response>> = Mutex::new(Vec::new());
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let (tx, rx) = std::sync::mpsc::channel::<()>();
     let mut stopped = false;
     std::thread::scope(|s| {
-        for _ in 0..threads {
+        for _ in 0..threads.max(1) {
             let tx = tx.clone();
             let (next, stop, results, tasks) = (&next, &stop, &results, &tasks);
             s.spawn(move || {
@@ -344,27 +358,33 @@ pub fn run_forced(
     } else {
         Vec::new()
     };
-    let figure = svg::forced_figure(&results, e_lin, &backbone, job.excitation);
+    let chart = ForcedChart {
+        moving_wall: job.excitation == Excitation::Wall,
+        energy_linear_grazing: e_lin,
+        responses: results
+            .iter()
+            .map(|r| ForcedPoint {
+                damping: r.damping,
+                omega_over_omega1: r.omega_over_omega1,
+                mean_energy: r.mean_energy,
+            })
+            .collect(),
+        backbone: mode_points(backbone.iter()),
+    };
     let worst = results
         .iter()
         .fold(0.0f64, |m, r| m.max(r.balance_residual));
-    summary.extend(
-        json!({
-            "kind": "forced_response",
-            "cells": job.cells,
-            "gap": job.bar.gap,
-            "excitation": job.excitation,
-            "amplitude": job.amplitude,
-            "tasks": total,
-            "max_relative_balance_residual": worst,
-            "energy_linear_grazing": e_lin,
-        })
-        .as_object()
-        .cloned()
-        .unwrap_or_default(),
-    );
+    let body = SummaryBody::ForcedResponse(ForcedSummary {
+        cells: job.cells,
+        gap: job.bar.gap,
+        excitation: job.excitation.name().to_string(),
+        amplitude: job.amplitude,
+        tasks: total,
+        max_relative_balance_residual: worst,
+        energy_linear_grazing: e_lin,
+    });
     Ok(RunOutput {
-        summary,
+        summary: RunSummary::new(header, body),
         tables: vec![Table {
             name: "forced_response".into(),
             columns: [
@@ -378,6 +398,19 @@ pub fn run_forced(
             .to_vec(),
             rows,
         }],
-        figures: vec![figure],
+        charts: vec![Chart::ForcedResponse(chart)],
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Excitation;
+
+    /// The summary's name of an excitation is its spec spelling.
+    #[test]
+    fn excitation_names_are_the_spec_spelling() {
+        for e in [Excitation::Wall, Excitation::Force] {
+            assert_eq!(serde_json::to_value(e).ok(), Some(e.name().into()));
+        }
+    }
 }

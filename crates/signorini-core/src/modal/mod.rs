@@ -11,17 +11,18 @@ pub mod fast;
 pub mod forced;
 pub mod kernel;
 pub mod orbit;
-pub mod svg;
 
-use crate::job::{RunError, RunOutput, Table};
 use crate::observer::{Observer, Progress};
+use crate::outcome::{
+    Chart, GapScan, ModePoint, ModesSummary, RunError, RunOutput, RunSummary, StabilityRun,
+    SummaryBody, SummaryHeader, Table,
+};
 use crate::spec::SpecError;
 use crate::wfem::{EndCondition, WaveBar};
 pub use forced::{ForcedResponseJob, ForcedResponseSpec};
 use kernel::{SignedPermutation, kernel_dim_closed_form};
 use orbit::{Orbit, admissible_orbit};
 use serde::{Deserialize, Serialize};
-use serde_json::{Map, Value, json};
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
@@ -424,14 +425,12 @@ pub fn first_mode_orbit(points: &[BackbonePoint]) -> Option<&BackbonePoint> {
     first.get(first.len() / 2).copied()
 }
 
-fn threads() -> usize {
-    std::thread::available_parallelism().map_or(1, |n| n.get())
-}
-
-/// Runs a modal analysis job: one scan per gap, `backbone` table, figures, stability.
+/// Runs a modal analysis job: one scan per gap on `threads` threads (the caller's grant), the
+/// `backbone` table, its charts, stability. The points do not depend on `threads`.
 pub fn run_modes(
     job: &ModalJob,
-    mut summary: Map<String, Value>,
+    header: SummaryHeader,
+    threads: usize,
     observer: &mut dyn Observer,
 ) -> Result<RunOutput, RunError> {
     let total = job.tasks();
@@ -464,7 +463,7 @@ pub fn run_modes(
                     job.period_steps,
                     job.phases,
                     job.all_candidates,
-                    threads(),
+                    threads,
                     &on_period,
                 )
             });
@@ -491,51 +490,67 @@ pub fn run_modes(
             Ok(_) => return Err(RunError::Stopped { step: done_before }),
         };
         let admissible = points.iter().filter(|p| p.orbit.is_some()).count();
-        per_gap.push(json!({"gap": gap, "admissible": admissible, "candidates": points.len()}));
+        per_gap.push(GapScan {
+            gap,
+            admissible,
+            candidates: points.len(),
+        });
         rows.extend(points.iter().map(backbone_row));
         all_points.push((bar, points));
     }
-    let mut figures = vec![svg::backbone_figure(&all_points, None)];
-    let mut stability = Value::Null;
+    let mut charts = vec![Chart::Backbone(mode_points(
+        all_points.iter().flat_map(|(_, p)| p),
+    ))];
+    let mut stability = None;
     for (bar, points) in &all_points {
         if let Some(pt) = first_mode_orbit(points)
             && let Some(orbit) = &pt.orbit
         {
             let name = format!("orbit_gap_{}", gap_label(bar.gap));
-            figures.push(svg::space_time_figure(&name, bar, orbit));
-            if job.stability_periods > 0 && bar.gap > 0.0 && stability.is_null() {
+            charts.push(Chart::SpaceTime(orbit::space_time(&name, bar, orbit)));
+            if job.stability_periods > 0 && bar.gap > 0.0 && stability.is_none() {
                 let st = orbit::stability(bar, orbit, job.stability_periods, 1e-6);
-                stability = json!({
-                    "gap": bar.gap, "m": pt.m, "p": pt.p, "periods": st.periods,
-                    "perturbation": st.perturbation, "relative_deviation": st.relative_deviation,
-                    "orbit_drift": st.orbit_drift,
+                stability = Some(StabilityRun {
+                    gap: bar.gap,
+                    m: pt.m,
+                    p: pt.p,
+                    periods: st.periods,
+                    perturbation: st.perturbation,
+                    relative_deviation: st.relative_deviation,
+                    orbit_drift: st.orbit_drift,
                 });
             }
         }
     }
-    summary.extend(
-        json!({
-            "kind": "nonsmooth_modes",
-            "cells": job.cells,
-            "phases": job.phases,
-            "period_steps": [job.period_steps.0, job.period_steps.1],
-            "gaps": per_gap,
-            "points": rows.len(),
-            "stability": stability,
-        })
-        .as_object()
-        .cloned()
-        .unwrap_or_default(),
-    );
+    let body = SummaryBody::NonsmoothModes(ModesSummary {
+        cells: job.cells,
+        phases: job.phases,
+        period_steps: [job.period_steps.0, job.period_steps.1],
+        gaps: per_gap,
+        points: rows.len(),
+        stability,
+    });
     Ok(RunOutput {
-        summary,
+        summary: RunSummary::new(header, body),
         tables: vec![Table {
             name: "backbone".into(),
             columns: BACKBONE_COLUMNS.iter().map(|s| s.to_string()).collect(),
             rows,
         }],
-        figures: std::mem::take(&mut figures),
+        charts,
     })
+}
+
+/// The admissible points of a scan, for the backbone figures.
+pub(crate) fn mode_points<'a>(points: impl Iterator<Item = &'a BackbonePoint>) -> Vec<ModePoint> {
+    points
+        .filter(|p| p.orbit.is_some())
+        .map(|p| ModePoint {
+            gap: p.gap,
+            omega_over_omega1: p.omega_over_omega1,
+            energy_normalized: p.energy_normalized,
+        })
+        .collect()
 }
 
 fn gap_label(g: f64) -> &'static str {

@@ -1,6 +1,7 @@
 //! Periodic orbits of the wave bar: trajectories of kernel vectors, admissibility COND1–COND3
 //! (§5.1), and stability by perturbed integration (§6.5).
 
+use crate::outcome::SpaceTime;
 use crate::scenes::LeftEnd;
 use crate::wfem::{EndCondition, WaveBar, WaveState, step, transport};
 use nalgebra::{DMatrix, DVector};
@@ -271,5 +272,35 @@ pub fn stability(bar: &WaveBar, orbit: &Orbit, periods: usize, perturbation: f64
         perturbation,
         relative_deviation: dev / scale,
         orbit_drift: drift / scale,
+    }
+}
+
+/// Displacement u(x, t) of an orbit over one period (Figs. 9, 13), sampled on at most 80 points
+/// in x (interfaces) by 120 in t (steps), by running the orbit's phases from its ring state.
+pub fn space_time(name: &str, bar: &WaveBar, orbit: &Orbit) -> SpaceTime {
+    let n = bar.cells;
+    let t_steps = orbit.period_steps();
+    let mut state = WaveState::from_ring(orbit.ring.clone(), 0.0, orbit.u[0]);
+    let nx = n.min(80);
+    let nt = t_steps.min(120);
+    let mut field: Vec<Vec<f64>> = Vec::with_capacity(nt);
+    let mut step = 0;
+    for &(end, steps) in &orbit.phases {
+        for _ in 0..steps {
+            if step * nt / t_steps.max(1) >= field.len() {
+                let u = state.interface_displacements(bar);
+                field.push((0..nx).map(|j| u[(j * n) / nx + 1]).collect());
+            }
+            transport(bar, &mut state, end, 0.0);
+            step += 1;
+        }
+    }
+    SpaceTime {
+        name: name.to_string(),
+        length: bar.length,
+        period: t_steps as f64 * bar.dt(),
+        free_steps: orbit.phases[0].1,
+        contact_steps: orbit.contact_steps(),
+        field,
     }
 }

@@ -385,3 +385,19 @@ pub fn kinetic_energy<M: ConstrainedModel + ?Sized>(
     let zv = DVector::from_column_slice(z);
     0.5 * zv.dot(&(&m * &zv))
 }
+
+/// Global errors ‖·‖₂ at the end of a run against the exact solution: y_N, z_N, λ_N, ψ_N at
+/// t_N, and a_{N+α} at t_N + α h_{N−1} (§2, §7).
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct GlobalErrors {
+    /// ‖y_N − y(t_N)‖₂.
+    pub y: f64,
+    /// ‖z_N − z(t_N)‖₂.
+    pub z: f64,
+    /// ‖a_{N+α} − a(t_N + α h_{N−1})‖₂.
+    pub a: f64,
+    /// ‖λ_N − λ(t_N)‖₂.
+    pub lambda: f64,
+    /// ‖ψ_N − ψ(t_N)‖₂.
+    pub psi: f64,
+}

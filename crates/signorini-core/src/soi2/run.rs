@@ -7,13 +7,13 @@ use super::method::{
 };
 use super::models::{JayNegrutTest, Pendulum, SliderCrank};
 use super::{
-    ConstrainedModel, Soi2Error, check_consistency, check_constraint_rank, constraint_residuals,
-    dist2, kinetic_energy,
+    ConstrainedModel, GlobalErrors, Soi2Error, check_consistency, check_constraint_rank,
+    constraint_residuals, dist2, kinetic_energy,
 };
 use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::outcome::Soi2Summary;
 use crate::spec::{IntegratorSpec, JobSpec, ModelSpec, SpecError, TimeSpec};
 use serde::{Deserialize, Serialize};
-use serde_json::{Map, Value, json};
 use std::ops::ControlFlow;
 
 // ---------------------------------------------------------------------------------------------
@@ -319,22 +319,6 @@ pub struct Soi2Output {
     pub every: u64,
     /// Coordinates j whose y_j, z_j are recorded.
     pub probes: Vec<usize>,
-}
-
-/// Global errors ‖·‖₂ at the end of a run against the exact solution: y_N, z_N, λ_N, ψ_N at
-/// t_N, and a_{N+α} at t_N + α h_{N−1} (§2, §7).
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
-pub struct GlobalErrors {
-    /// ‖y_N − y(t_N)‖₂.
-    pub y: f64,
-    /// ‖z_N − z(t_N)‖₂.
-    pub z: f64,
-    /// ‖a_{N+α} − a(t_N + α h_{N−1})‖₂.
-    pub a: f64,
-    /// ‖λ_N − λ(t_N)‖₂.
-    pub lambda: f64,
-    /// ‖ψ_N − ψ(t_N)‖₂.
-    pub psi: f64,
 }
 
 /// What a run measured over all its steps.
@@ -1000,7 +984,7 @@ impl Soi2Job {
     }
 
     /// Runs the job; the summary's SOI2 part (the caller adds name, scene, scheme).
-    pub fn run(&self, observer: &mut dyn Observer) -> Result<Map<String, Value>, Soi2Error> {
+    pub fn run(&self, observer: &mut dyn Observer) -> Result<Soi2Summary, Soi2Error> {
         let sizes = &self.schedule;
         let (state, stats) = match &self.model {
             Soi2Model::Pendulum(p) => integrate_with(
@@ -1035,51 +1019,39 @@ impl Soi2Job {
             )?,
         };
         let c = self.method.coefficients;
-        let mut m = json!({
-            "kind": "time_integration",
-            "dofs": state.y.len(),
-            "holonomic_constraints": state.lambda.len(),
-            "nonholonomic_constraints": state.psi.len(),
-            "h": self.schedule.h,
-            "pattern": self.schedule.pattern,
-            "adjust": self.adjust,
-            "alpha_m": c.alpha_m,
-            "alpha_f": c.alpha_f,
-            "beta": c.beta,
-            "gamma": c.gamma,
-            "formulation": format!("{:?}", self.method.formulation),
-            "steps": stats.steps,
-            "t_end": stats.t_end,
-            "newton_iterations_total": stats.newton_iterations,
-            "newton_iterations_mean": if stats.steps > 0 { stats.newton_iterations as f64 / stats.steps as f64 } else { 0.0 },
-            "newton_iterations_max": stats.newton_iterations_max,
-            "newton": NewtonSpec::from(self.newton).name(),
-            "newton_jacobians_total": stats.newton_jacobians,
-            "max_position_residual": stats.max_position_residual,
-            "max_velocity_residual": stats.max_velocity_residual,
-            "max_nonholonomic_residual": stats.max_nonholonomic_residual,
-            "energy_initial": stats.energy_initial,
-            "energy_final": stats.energy_final,
-            "work_damping_total": stats.work_damping_total,
-            "y_final": state.y,
-            "z_final": state.z,
-            "lambda_final": state.lambda,
+        Ok(Soi2Summary {
+            dofs: state.y.len(),
+            holonomic_constraints: state.lambda.len(),
+            nonholonomic_constraints: state.psi.len(),
+            h: self.schedule.h,
+            pattern: self.schedule.pattern.clone(),
+            adjust: self.adjust,
+            alpha_m: c.alpha_m,
+            alpha_f: c.alpha_f,
+            beta: c.beta,
+            gamma: c.gamma,
+            formulation: format!("{:?}", self.method.formulation),
+            steps: stats.steps,
+            t_end: stats.t_end,
+            newton_iterations_total: stats.newton_iterations,
+            newton_iterations_mean: if stats.steps > 0 {
+                stats.newton_iterations as f64 / stats.steps as f64
+            } else {
+                0.0
+            },
+            newton_iterations_max: stats.newton_iterations_max,
+            newton: NewtonSpec::from(self.newton).name().to_string(),
+            newton_jacobians_total: stats.newton_jacobians,
+            max_position_residual: stats.max_position_residual,
+            max_velocity_residual: stats.max_velocity_residual,
+            max_nonholonomic_residual: stats.max_nonholonomic_residual,
+            energy_initial: stats.energy_initial,
+            energy_final: stats.energy_final,
+            work_damping_total: stats.work_damping_total,
+            y_final: state.y,
+            z_final: state.z,
+            lambda_final: state.lambda,
+            errors: stats.errors,
         })
-        .as_object()
-        .cloned()
-        .unwrap_or_default();
-        if let Some(e) = stats.errors {
-            m.insert("errors".into(), json!(e));
-        }
-        Ok(m)
-    }
-}
-
-impl From<Soi2Error> for crate::job::RunError {
-    fn from(e: Soi2Error) -> Self {
-        match e {
-            Soi2Error::Stopped { step } => crate::job::RunError::Stopped { step },
-            other => crate::job::RunError::Soi2(other),
-        }
     }
 }

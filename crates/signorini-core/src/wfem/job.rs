@@ -4,12 +4,11 @@
 use super::{WaveBar, WaveState, step};
 use crate::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS};
 use crate::integrators::StepError;
-use crate::job::{RunError, RunOutput};
 use crate::modal::{self, AnalysisSpec, ForcedResponseJob, ModalJob};
 use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::outcome::{RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader, WaveSummary};
 use crate::scenes::Bar;
 use crate::spec::{IntegratorSpec, JobSpec, ModelSpec, SpecError};
-use serde_json::{Map, Value, json};
 use std::ops::ControlFlow;
 
 /// A validated job on wave finite elements.
@@ -109,25 +108,26 @@ impl WaveJob {
         }
     }
 
-    /// Runs the job; `summary` holds the spec's header fields.
+    /// Runs the job; `header` names it in the summary; an analysis spreads its tasks over
+    /// `threads` threads.
     pub fn run(
         &self,
-        mut summary: Map<String, Value>,
+        header: SummaryHeader,
+        threads: usize,
         observer: &mut dyn Observer,
     ) -> Result<RunOutput, RunError> {
         match self {
             WaveJob::Integrate { bar, steps, every } => {
                 let mut state = bar.initial_state();
                 let stats = run_wave(bar, &mut state, *steps, *every, observer)?;
-                summary.extend(stats.summary(bar));
                 Ok(RunOutput {
-                    summary,
+                    summary: RunSummary::new(header, SummaryBody::Wave(stats.summary(bar))),
                     tables: Vec::new(),
-                    figures: Vec::new(),
+                    charts: Vec::new(),
                 })
             }
-            WaveJob::Modes(m) => modal::run_modes(m, summary, observer),
-            WaveJob::Forced(f) => modal::forced::run_forced(f, summary, observer),
+            WaveJob::Modes(m) => modal::run_modes(m, header, threads, observer),
+            WaveJob::Forced(f) => modal::forced::run_forced(f, header, threads, observer),
         }
     }
 }
@@ -171,27 +171,23 @@ pub struct WaveRunStats {
 }
 
 impl WaveRunStats {
-    fn summary(&self, bar: &WaveBar) -> Map<String, Value> {
-        json!({
-            "kind": "time_integration",
-            "cells": bar.cells,
-            "dofs": 2 * bar.cells,
-            "contacts": 1,
-            "h": bar.dt(),
-            "steps": self.steps,
-            "t_end": self.t_end,
-            "energy_initial": self.energy_initial,
-            "energy_final": self.energy_final,
-            "max_abs_balance_residual": self.max_abs_balance_residual,
-            "work_ext_total": self.work_ext_total,
-            "work_damping_total": self.work_damping_total,
-            "work_contact_total": self.work_contact_total,
-            "closures": self.closures,
-            "contact_steps": self.contact_steps,
-        })
-        .as_object()
-        .cloned()
-        .unwrap_or_default()
+    fn summary(&self, bar: &WaveBar) -> WaveSummary {
+        WaveSummary {
+            cells: bar.cells,
+            dofs: 2 * bar.cells,
+            contacts: 1,
+            h: bar.dt(),
+            steps: self.steps,
+            t_end: self.t_end,
+            energy_initial: self.energy_initial,
+            energy_final: self.energy_final,
+            max_abs_balance_residual: self.max_abs_balance_residual,
+            work_ext_total: self.work_ext_total,
+            work_damping_total: self.work_damping_total,
+            work_contact_total: self.work_contact_total,
+            closures: self.closures,
+            contact_steps: self.contact_steps,
+        }
     }
 }
 

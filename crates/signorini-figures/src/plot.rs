@@ -2,7 +2,7 @@
 //! ticks and labels, curves, reference lines and a legend. [`line_chart`] draws curves against
 //! t; the primitives serve the modal-analysis figures too.
 
-use crate::job::Figure;
+use crate::Figure;
 use std::fmt::Write;
 
 /// Canvas width (px).

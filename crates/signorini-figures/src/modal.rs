@@ -2,14 +2,12 @@
 //! linear frequencies and the main-branch asymptotes, space–time displacement of an orbit, and
 //! forced-response curves over the backbones.
 
-use super::forced::{Excitation, Response};
-use super::orbit::Orbit;
-use super::{BackbonePoint, main_asymptote};
-use crate::job::Figure;
+use crate::Figure;
 use crate::plot::{
     Axes, H, MB, ML, MR, MT, W, frame, header, polyline, vline, with_legend_room, y_range,
 };
-use crate::wfem::{WaveBar, WaveState, transport};
+use signorini_core::modal::main_asymptote;
+use signorini_core::outcome::{ForcedChart, ModePoint, SpaceTime};
 use std::fmt::Write;
 
 fn gap_color(g: f64) -> &'static str {
@@ -22,7 +20,7 @@ fn gap_color(g: f64) -> &'static str {
     }
 }
 
-fn draw_backbone_points(s: &mut String, ax: &Axes, points: &[&BackbonePoint]) {
+fn draw_backbone_points(s: &mut String, ax: &Axes, points: &[ModePoint]) {
     for pt in points {
         let e = pt.energy_normalized;
         if e.is_nan() || e <= 0.0 {
@@ -108,23 +106,13 @@ fn legend_and_lines(s: &mut String, ax: &Axes) {
 
 /// Frequency–energy plot (Figs. 5–6): admissible points of every gap, log₁₀ of the normalised
 /// energy against ω/ω₁, with ω_k, Ω_k and the main-branch asymptotes.
-pub fn backbone_figure(
-    scans: &[(WaveBar, Vec<BackbonePoint>)],
-    x_range: Option<(f64, f64)>,
-) -> Figure {
-    let pts: Vec<&BackbonePoint> = scans
+pub fn backbone_figure(pts: &[ModePoint]) -> Figure {
+    let hi = pts
         .iter()
-        .flat_map(|(_, p)| p.iter())
-        .filter(|p| p.orbit.is_some())
-        .collect();
-    let x = x_range.unwrap_or_else(|| {
-        let hi = pts
-            .iter()
-            .map(|p| p.omega_over_omega1)
-            .fold(2.2f64, f64::max)
-            .min(8.5);
-        (0.5, hi + 0.1)
-    });
+        .map(|p| p.omega_over_omega1)
+        .fold(2.2f64, f64::max)
+        .min(8.5);
+    let x = (0.5, hi + 0.1);
     let y = y_range(
         pts.iter()
             .filter(|p| p.energy_normalized > 0.0)
@@ -139,7 +127,7 @@ pub fn backbone_figure(
     header(&mut s, "Nonsmooth modes: frequency–energy backbones");
     frame(&mut s, &ax, "ω / ω₁", "energy / E_lin (log₁₀)", true);
     legend_and_lines(&mut s, &ax);
-    draw_backbone_points(&mut s, &ax, &pts);
+    draw_backbone_points(&mut s, &ax, pts);
     s.push_str("</svg>");
     Figure {
         name: "backbone".into(),
@@ -149,41 +137,24 @@ pub fn backbone_figure(
 
 /// Space–time displacement u(x, t) of an orbit over one period (Figs. 9, 13): a colour map
 /// (blue negative, red positive), x to the right, t upward.
-pub fn space_time_figure(name: &str, bar: &WaveBar, orbit: &Orbit) -> Figure {
-    let n = bar.cells;
-    let t_steps = orbit.period_steps();
-    let mut state = WaveState::from_ring(orbit.ring.clone(), 0.0, orbit.u[0]);
-    let nx = n.min(80);
-    let nt = t_steps.min(120);
-    let mut field: Vec<Vec<f64>> = Vec::with_capacity(nt);
-    let mut step = 0;
-    for &(end, steps) in &orbit.phases {
-        for _ in 0..steps {
-            if step * nt / t_steps.max(1) >= field.len() {
-                let u = state.interface_displacements(bar);
-                field.push((0..nx).map(|j| u[(j * n) / nx + 1]).collect());
-            }
-            transport(bar, &mut state, end, 0.0);
-            step += 1;
-        }
-    }
+pub fn space_time_figure(st: &SpaceTime) -> Figure {
+    let (name, field) = (&st.name, &st.field);
+    let nx = field.first().map_or(1, Vec::len).max(1);
     let umax = field
         .iter()
         .flatten()
         .fold(0.0f64, |m, x| m.max(x.abs()))
         .max(1e-300);
     let ax = Axes {
-        x: (0.0, bar.length),
-        y: (0.0, t_steps as f64 * bar.dt()),
+        x: (0.0, st.length),
+        y: (0.0, st.period),
     };
     let mut s = String::new();
     header(
         &mut s,
         &format!(
             "Space–time displacement, {} ({} + {} steps)",
-            name,
-            orbit.phases[0].1,
-            orbit.contact_steps()
+            name, st.free_steps, st.contact_steps
         ),
     );
     let cw = (W - ML - MR) / nx as f64;
@@ -218,19 +189,15 @@ pub fn space_time_figure(name: &str, bar: &WaveBar, orbit: &Orbit) -> Figure {
     );
     s.push_str("</svg>");
     Figure {
-        name: name.into(),
+        name: name.clone(),
         svg: s,
     }
 }
 
 /// Forced-response curves (Figs. 23–25): mean energy per damping value against ω/ω₁, over the
 /// backbone points of the same bar.
-pub fn forced_figure(
-    results: &[Response],
-    e_lin: f64,
-    backbone: &[BackbonePoint],
-    excitation: Excitation,
-) -> Figure {
+pub fn forced_figure(chart: &ForcedChart) -> Figure {
+    let (results, e_lin) = (&chart.responses, chart.energy_linear_grazing);
     let palette = [
         "#9467bd", "#ff7f0e", "#17becf", "#e377c2", "#7f7f7f", "#bcbd22",
     ];
@@ -243,7 +210,7 @@ pub fn forced_figure(
     } else {
         (0.5, 2.5)
     };
-    let bb: Vec<&BackbonePoint> = backbone.iter().filter(|p| p.orbit.is_some()).collect();
+    let bb = &chart.backbone;
     let ys = results
         .iter()
         .map(|r| (r.mean_energy / e_lin).log10())
@@ -260,9 +227,10 @@ pub fn forced_figure(
         y: with_legend_room(y_range(ys), 6 + dampings.len()),
     };
     let mut s = String::new();
-    let what = match excitation {
-        Excitation::Wall => "moving wall",
-        Excitation::Force => "distributed force",
+    let what = if chart.moving_wall {
+        "moving wall"
+    } else {
+        "distributed force"
     };
     header(
         &mut s,
@@ -270,7 +238,7 @@ pub fn forced_figure(
     );
     frame(&mut s, &ax, "ω / ω₁", "mean energy / E_lin (log₁₀)", true);
     legend_and_lines(&mut s, &ax);
-    draw_backbone_points(&mut s, &ax, &bb);
+    draw_backbone_points(&mut s, &ax, bb);
     for (i, g) in dampings.iter().enumerate() {
         let color = palette[i % palette.len()];
         polyline(

@@ -1,0 +1,510 @@
+//! What a finished run gives back: its summary, extra tables and the data of its figures
+//! ([`RunOutput`]), or why it failed ([`RunError`]). A leaf: the job kinds build these; nothing
+//! here knows the job kinds.
+
+use crate::band::BandError;
+use crate::integrators::{RunStop, StepError};
+use crate::soi2::{GlobalErrors, Soi2Error};
+use serde::Serialize;
+use serde_json::{Map, Value};
+use std::time::Duration;
+use thiserror::Error;
+
+/// A table an analysis produces besides the step records (e.g. `backbone`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Table {
+    /// File stem, e.g. `backbone` for `backbone.csv`.
+    pub name: String,
+    /// Column names.
+    pub columns: Vec<String>,
+    /// Rows of values.
+    pub rows: Vec<Vec<f64>>,
+}
+
+/// The data of a figure a job makes; the `signorini-figures` crate draws it. Each chart has a
+/// name, the file stem of its figure ([`Chart::name`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Chart {
+    /// `energy` (energies and cumulative works) or `residuals` (log₁₀ of the balance and
+    /// constraint residuals) of a time integration: the min/max envelopes of its records.
+    Trace(TraceChart),
+    /// `backbone`: the admissible points of a nonsmooth-modes scan, every gap.
+    Backbone(Vec<ModePoint>),
+    /// `orbit_gap_*`: the displacement field of a periodic orbit over one period.
+    SpaceTime(SpaceTime),
+    /// `forced_response`: mean energies of a sweep over the backbone of the same bar.
+    ForcedResponse(ForcedChart),
+}
+
+impl Chart {
+    /// File stem of the figure, e.g. `backbone` for `backbone.svg`.
+    pub fn name(&self) -> &str {
+        match self {
+            Chart::Trace(t) if t.log => "residuals",
+            Chart::Trace(_) => "energy",
+            Chart::Backbone(_) => "backbone",
+            Chart::SpaceTime(s) => &s.name,
+            Chart::ForcedResponse(_) => "forced_response",
+        }
+    }
+}
+
+/// Envelopes of some columns of a run's records against t.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TraceChart {
+    /// The values are log₁₀|v| (residuals) rather than v (energies).
+    pub log: bool,
+    /// One series per traced column the run has, in a fixed order.
+    pub series: Vec<TracedSeries>,
+}
+
+/// The envelope of one column: two points (t, value) per bucket, its extremes in time order;
+/// a point that is not finite marks a bucket without a finite value (for a log series, a
+/// bucket of exact zeros).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TracedSeries {
+    /// Column name in `steps.csv`.
+    pub column: String,
+    /// The envelope's points.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// A point of a frequency–energy backbone.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModePoint {
+    /// Gap g0 of the scan.
+    pub gap: f64,
+    /// ω/ω₁.
+    pub omega_over_omega1: f64,
+    /// Energy / E_lin.
+    pub energy_normalized: f64,
+}
+
+/// Displacement u(x, t) of a periodic orbit over one period, sampled on a grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpaceTime {
+    /// Figure name, `orbit_gap_positive`, `_zero` or `_negative`.
+    pub name: String,
+    /// Bar length L (x runs over [0, L]).
+    pub length: f64,
+    /// Period T (t runs over [0, T]).
+    pub period: f64,
+    /// Steps of the first free phase.
+    pub free_steps: usize,
+    /// Steps in contact per period.
+    pub contact_steps: usize,
+    /// Rows in increasing t, each the displacement at equally spaced x.
+    pub field: Vec<Vec<f64>>,
+}
+
+/// A forced-response sweep and the backbone it is drawn over.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ForcedChart {
+    /// Driven by a moving wall (else by a distributed force).
+    pub moving_wall: bool,
+    /// E_lin, the energy unit.
+    pub energy_linear_grazing: f64,
+    /// The responses, sorted by damping then ω.
+    pub responses: Vec<ForcedPoint>,
+    /// Admissible backbone points of the same bar (empty when not asked for).
+    pub backbone: Vec<ModePoint>,
+}
+
+/// The steady-state mean energy of one (γ, ω) run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ForcedPoint {
+    /// Damping γ.
+    pub damping: f64,
+    /// ω/ω₁.
+    pub omega_over_omega1: f64,
+    /// Mean cell energy.
+    pub mean_energy: f64,
+}
+
+/// What a finished run returns (the step records went to the observer).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunOutput {
+    /// `summary.json` (the caller attaches the wall time, [`RunSummary::with_timing`]).
+    pub summary: RunSummary,
+    /// Extra tables.
+    pub tables: Vec<Table>,
+    /// The data of its figures.
+    pub charts: Vec<Chart>,
+}
+
+/// Why a run failed.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum RunError {
+    /// A step failed.
+    #[error(transparent)]
+    Step(#[from] StepError),
+    /// The observer stopped the run (cancellation).
+    #[error("stopped after {step} steps")]
+    Stopped {
+        /// Steps done.
+        step: u64,
+    },
+    /// The scheme's iteration matrix could not be factorised (M, C, K passed validation, so this
+    /// only happens when θh or h is extreme enough to lose definiteness to round-off).
+    #[error("iteration matrix of the scheme is not positive definite: {0}")]
+    IterationMatrix(BandError),
+    /// A SOI2 run failed (Newton, singular matrix, inconsistent start).
+    #[error(transparent)]
+    Soi2(Soi2Error),
+}
+
+impl From<RunStop> for RunError {
+    fn from(s: RunStop) -> Self {
+        match s {
+            RunStop::Step(e) => RunError::Step(e),
+            RunStop::Stopped { step } => RunError::Stopped { step },
+        }
+    }
+}
+
+impl From<Soi2Error> for RunError {
+    fn from(e: Soi2Error) -> Self {
+        match e {
+            Soi2Error::Stopped { step } => RunError::Stopped { step },
+            other => RunError::Soi2(other),
+        }
+    }
+}
+
+/// `summary.json`: which job ran ([`SummaryHeader`]), what it measured ([`SummaryBody`], one
+/// struct per job kind) and, once the caller attached it, how long it took ([`Timing`]). It
+/// serialises flat, in that order: `name`, `scene`, `scheme`, `kind`, the kind's fields, `wall_s`,
+/// `steps_per_s`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunSummary {
+    /// Name, scene, scheme.
+    #[serde(flatten)]
+    pub header: SummaryHeader,
+    /// What the run measured.
+    #[serde(flatten)]
+    pub body: SummaryBody,
+    /// Wall time, attached by the caller after the run.
+    #[serde(flatten)]
+    pub timing: Option<Timing>,
+}
+
+impl RunSummary {
+    /// The summary of a run, without timing.
+    pub fn new(header: SummaryHeader, body: SummaryBody) -> Self {
+        Self {
+            header,
+            body,
+            timing: None,
+        }
+    }
+
+    /// Attaches the wall time of the run: `wall_s`, and `steps_per_s` (steps per second of a
+    /// time integration, 0 for an analysis or a zero wall time).
+    pub fn with_timing(mut self, wall: Duration) -> Self {
+        let wall_s = wall.as_secs_f64();
+        let steps = self.body.steps().unwrap_or(0) as f64;
+        self.timing = Some(Timing {
+            wall_s,
+            steps_per_s: if wall_s > 0.0 { steps / wall_s } else { 0.0 },
+        });
+        self
+    }
+
+    /// The summary as a JSON object (the `summary.json` document).
+    pub fn to_map(&self) -> Map<String, Value> {
+        match serde_json::to_value(self) {
+            Ok(Value::Object(map)) => map,
+            // A struct of numbers, strings and lists serialises to an object.
+            _ => Map::new(),
+        }
+    }
+}
+
+/// The spec's identification of the job.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SummaryHeader {
+    /// The spec's `name`, if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// The scene of `[model]` (none for an `[analysis]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scene: Option<String>,
+    /// The integrator scheme.
+    pub scheme: String,
+}
+
+/// Wall time of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Timing {
+    /// Seconds from start to end of the run.
+    pub wall_s: f64,
+    /// Steps per second (0 for an analysis).
+    pub steps_per_s: f64,
+}
+
+/// What a run measured, per job kind; `kind` is `time_integration` for the three integrating
+/// kinds.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum SummaryBody {
+    /// A linear model under a linear scheme.
+    #[serde(rename = "time_integration")]
+    Linear(LinearSummary),
+    /// A constrained mechanism under a SOI2 scheme.
+    #[serde(rename = "time_integration")]
+    Soi2(Box<Soi2Summary>),
+    /// A bar under WFEM.
+    #[serde(rename = "time_integration")]
+    Wave(WaveSummary),
+    /// Backbones of the nonsmooth modes.
+    NonsmoothModes(ModesSummary),
+    /// A forced-response sweep.
+    ForcedResponse(ForcedSummary),
+}
+
+impl SummaryBody {
+    /// Steps integrated (none for an analysis).
+    pub fn steps(&self) -> Option<u64> {
+        match self {
+            SummaryBody::Linear(s) => Some(s.steps),
+            SummaryBody::Soi2(s) => Some(s.steps),
+            SummaryBody::Wave(s) => Some(s.steps),
+            SummaryBody::NonsmoothModes(_) | SummaryBody::ForcedResponse(_) => None,
+        }
+    }
+}
+
+/// Summary of a linear-scheme run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LinearSummary {
+    /// Degrees of freedom.
+    pub dofs: usize,
+    /// Contacts.
+    pub contacts: usize,
+    /// Step size.
+    pub h: f64,
+    /// Steps done.
+    pub steps: u64,
+    /// Final time.
+    pub t_end: f64,
+    /// max |balance_residual| over the steps.
+    pub max_abs_balance_residual: f64,
+    /// Energy at t = 0.
+    pub energy_initial: f64,
+    /// Energy at the end.
+    pub energy_final: f64,
+    /// Largest energy.
+    pub energy_max: f64,
+    /// Largest algorithmic energy H.
+    pub algorithmic_energy_max: f64,
+    /// Steps with an impact.
+    pub impacts: u64,
+    /// Largest LCP error.
+    pub lcp_max_error: f64,
+    /// LCP solves.
+    pub lcp_solves: u64,
+    /// Cumulative work of the external forces.
+    pub work_ext_total: f64,
+    /// Cumulative work of the damping forces.
+    pub work_damping_total: f64,
+    /// Cumulative work of the contact impulses.
+    pub work_contact_total: f64,
+}
+
+/// Summary of a SOI2 run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Soi2Summary {
+    /// Coordinates y.
+    pub dofs: usize,
+    /// Holonomic constraints (multipliers λ).
+    pub holonomic_constraints: usize,
+    /// Nonholonomic constraints (multipliers ψ).
+    pub nonholonomic_constraints: usize,
+    /// Base step h.
+    pub h: f64,
+    /// Relative step sizes, repeated.
+    pub pattern: Vec<f64>,
+    /// Whether the (14a)–(14b) adjustments were applied.
+    pub adjust: bool,
+    /// α_m.
+    pub alpha_m: f64,
+    /// α_f.
+    pub alpha_f: f64,
+    /// β.
+    pub beta: f64,
+    /// γ.
+    pub gamma: f64,
+    /// Formulation of the method.
+    pub formulation: String,
+    /// Steps done.
+    pub steps: u64,
+    /// Final time.
+    pub t_end: f64,
+    /// Sum of Newton iterations.
+    pub newton_iterations_total: u64,
+    /// Mean Newton iterations per step.
+    pub newton_iterations_mean: f64,
+    /// Largest Newton iteration count of a step.
+    pub newton_iterations_max: usize,
+    /// Newton strategy (`simplified` or `full`).
+    pub newton: String,
+    /// Newton Jacobians built.
+    pub newton_jacobians_total: u64,
+    /// max ‖g‖∞ over the steps.
+    pub max_position_residual: f64,
+    /// max ‖g_t + g_y z‖∞ over the steps.
+    pub max_velocity_residual: f64,
+    /// max ‖k‖∞ over the steps.
+    pub max_nonholonomic_residual: f64,
+    /// Mechanical energy at t₀.
+    pub energy_initial: f64,
+    /// Mechanical energy at the end.
+    pub energy_final: f64,
+    /// Work of the damping forces.
+    pub work_damping_total: f64,
+    /// Final positions.
+    pub y_final: Vec<f64>,
+    /// Final velocities.
+    pub z_final: Vec<f64>,
+    /// Final multipliers.
+    pub lambda_final: Vec<f64>,
+    /// Global errors against the exact solution, for models that have one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub errors: Option<GlobalErrors>,
+}
+
+/// Summary of a WFEM run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WaveSummary {
+    /// Cells.
+    pub cells: usize,
+    /// Degrees of freedom (2 per cell).
+    pub dofs: usize,
+    /// Contacts (the bar's end).
+    pub contacts: usize,
+    /// Step size.
+    pub h: f64,
+    /// Steps done.
+    pub steps: u64,
+    /// Final time.
+    pub t_end: f64,
+    /// Cell energy at t = 0.
+    pub energy_initial: f64,
+    /// Cell energy at the end.
+    pub energy_final: f64,
+    /// max |balance_residual| over the records.
+    pub max_abs_balance_residual: f64,
+    /// Cumulative work of the external forces.
+    pub work_ext_total: f64,
+    /// Cumulative work of the damping forces.
+    pub work_damping_total: f64,
+    /// Cumulative work of the contact.
+    pub work_contact_total: f64,
+    /// Gap closures.
+    pub closures: u64,
+    /// Steps in contact.
+    pub contact_steps: u64,
+}
+
+/// Summary of a nonsmooth-modes analysis.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModesSummary {
+    /// Cells.
+    pub cells: usize,
+    /// Contact phases per period.
+    pub phases: usize,
+    /// Period range scanned, in steps.
+    pub period_steps: [usize; 2],
+    /// Per gap: points found.
+    pub gaps: Vec<GapScan>,
+    /// Rows of `backbone.csv`.
+    pub points: usize,
+    /// The stability run of the first-mode orbit (`null` when none ran).
+    pub stability: Option<StabilityRun>,
+}
+
+/// The scan of one gap.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GapScan {
+    /// Gap g0.
+    pub gap: f64,
+    /// Admissible orbits.
+    pub admissible: usize,
+    /// Candidates with a nontrivial kernel (admissible ones only unless `all_candidates`).
+    pub candidates: usize,
+}
+
+/// The stability run of an orbit: its start perturbed, run for some periods.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StabilityRun {
+    /// Gap g0.
+    pub gap: f64,
+    /// Free-phase steps of the orbit.
+    pub m: usize,
+    /// Contact-phase steps of the orbit.
+    pub p: usize,
+    /// Periods run.
+    pub periods: usize,
+    /// Relative size of the initial perturbation.
+    pub perturbation: f64,
+    /// Orbital distance of the perturbed run over its last period, relative to the orbit's size.
+    pub relative_deviation: f64,
+    /// Same measure for the unperturbed run (drift of the orbit itself).
+    pub orbit_drift: f64,
+}
+
+/// Summary of a forced-response sweep.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ForcedSummary {
+    /// Cells.
+    pub cells: usize,
+    /// Gap g0.
+    pub gap: f64,
+    /// `wall` or `force`.
+    pub excitation: String,
+    /// w0 or f0.
+    pub amplitude: f64,
+    /// (ω, γ) runs.
+    pub tasks: u64,
+    /// Largest relative balance residual of the runs.
+    pub max_relative_balance_residual: f64,
+    /// E_lin, the energy of the grazing first linear mode.
+    pub energy_linear_grazing: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `summary.json` is flat, in the order header, `kind`, the kind's fields, timing; an
+    /// absent name or scene is left out, a missing stability run is `null`.
+    #[test]
+    fn summary_serialises_flat_in_order() {
+        let summary = RunSummary::new(
+            SummaryHeader {
+                name: None,
+                scene: None,
+                scheme: "moreau_jean".into(),
+            },
+            SummaryBody::NonsmoothModes(ModesSummary {
+                cells: 4,
+                phases: 1,
+                period_steps: [2, 16],
+                gaps: vec![GapScan {
+                    gap: 0.0,
+                    admissible: 3,
+                    candidates: 5,
+                }],
+                points: 3,
+                stability: None,
+            }),
+        )
+        .with_timing(Duration::from_millis(500));
+        assert_eq!(
+            serde_json::to_string(&summary).ok().as_deref(),
+            Some(
+                r#"{"scheme":"moreau_jean","kind":"nonsmooth_modes","cells":4,"phases":1,"period_steps":[2,16],"gaps":[{"gap":0.0,"admissible":3,"candidates":5}],"points":3,"stability":null,"wall_s":0.5,"steps_per_s":0.0}"#
+            )
+        );
+    }
+}
