@@ -2,9 +2,6 @@
 //! peaks, energy balance with forcing and damping, the pinned `backbone` columns, progress per
 //! task and cancellation. Their figures are tested in `crates/signorini-figures/tests/figures.rs`.
 
-// Only the core library must stay pure (clippy.toml): a test may read fixtures and print.
-#![allow(clippy::disallowed_macros, clippy::disallowed_methods)]
-
 use signorini_core::job::{Job, run};
 use signorini_core::modal::forced::{ForcedResponseJob, ForcedResponseSpec, respond};
 use signorini_core::modal::main_asymptote;
