@@ -543,3 +543,47 @@ proptest! {
         let _ = Expr::parse(&src, &block());
     }
 }
+
+/// The recipe of the model layer: the Coriolis/centrifugal vector c = Ṁq̇ − ½∇_q(q̇ᵀMq̇) built
+/// symbolically from M(q), for a pendulum on a cart (q = (x, θ)): c = (−m₂ l sin θ θ̇², 0).
+#[test]
+fn coriolis_vector_from_the_mass_matrix() {
+    let s = Scope::lagrangian(
+        &strings(&["x", "th"]),
+        &params(&[("m1", 2.0), ("m2", 0.5), ("l", 0.8)]),
+    )
+    .expect("scope");
+    let n = 2;
+    let p = |src: &str| Expr::parse(src, &s).expect("parse");
+    let mass = [
+        p("m1 + m2"),
+        p("m2*l*cos(th)"),
+        p("m2*l*cos(th)"),
+        p("m2*l^2"),
+    ];
+    let qd = |i: usize| Expr::var(n + i);
+    let kinetic2: Expr = (0..n)
+        .flat_map(|i| (0..n).map(move |j| (i, j)))
+        .map(|(i, j)| mass[i * n + j].clone() * qd(i) * qd(j))
+        .sum();
+    let c: Vec<Expr> = (0..n)
+        .map(|k| {
+            let m_dot_qd: Expr = (0..n)
+                .map(|j| {
+                    let m_dot: Expr = (0..n).map(|l| mass[k * n + j].derivative(l) * qd(l)).sum();
+                    m_dot * qd(j)
+                })
+                .sum();
+            m_dot_qd - Expr::constant(0.5) * kinetic2.derivative(k)
+        })
+        .collect();
+    let tape = Tape::compile(&c);
+    for at in points(5) {
+        let v = [at[0], at[1], at[2], at[3], 0.0];
+        let mut out = [0.0; 2];
+        tape.eval_into(&v, &mut Vec::new(), &mut out);
+        let want = -0.5 * 0.8 * at[1].sin() * at[3] * at[3];
+        assert!((out[0] - want).abs() < 1e-15, "{} vs {want}", out[0]);
+        assert!(out[1].abs() < 1e-15, "{}", out[1]);
+    }
+}

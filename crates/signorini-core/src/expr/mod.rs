@@ -561,3 +561,63 @@ impl fmt::Display for Shown<'_> {
         self.write(self.e, 0, f)
     }
 }
+
+/// Building expressions in code (the model layer composes, e.g., the Coriolis vector from the
+/// mass matrix): the operators simplify as the parser does.
+impl std::ops::Add for Expr {
+    type Output = Expr;
+    fn add(self, rhs: Expr) -> Expr {
+        diff::add(self, rhs)
+    }
+}
+
+impl std::ops::Sub for Expr {
+    type Output = Expr;
+    fn sub(self, rhs: Expr) -> Expr {
+        diff::sub(self, rhs)
+    }
+}
+
+impl std::ops::Mul for Expr {
+    type Output = Expr;
+    fn mul(self, rhs: Expr) -> Expr {
+        diff::mul(self, rhs)
+    }
+}
+
+impl std::ops::Div for Expr {
+    type Output = Expr;
+    fn div(self, rhs: Expr) -> Expr {
+        diff::div(self, rhs)
+    }
+}
+
+impl std::ops::Neg for Expr {
+    type Output = Expr;
+    fn neg(self) -> Expr {
+        diff::neg(self)
+    }
+}
+
+impl std::iter::Sum for Expr {
+    fn sum<I: Iterator<Item = Expr>>(iter: I) -> Expr {
+        iter.fold(Expr::constant(0.0), |a, b| a + b)
+    }
+}
+
+impl Expr {
+    /// self^exponent.
+    pub fn pow(self, exponent: Expr) -> Expr {
+        diff::pow(self, exponent)
+    }
+
+    /// f(self).
+    pub fn apply(self, f: Func) -> Expr {
+        diff::call(f, self)
+    }
+
+    /// f(self, other).
+    pub fn apply2(self, f: Func2, other: Expr) -> Expr {
+        diff::call2(f, self, other)
+    }
+}

@@ -26,6 +26,24 @@ enum Instr {
     Call2(Func2, u32, u32),
 }
 
+/// An operation of the final tape: operands are registers (variables first, then constants,
+/// then the results of earlier operations).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Op {
+    Neg(u32),
+    Add(u32, u32),
+    Sub(u32, u32),
+    Mul(u32, u32),
+    Div(u32, u32),
+    Powi(u32, i32),
+    Powf(u32, f64),
+    Pow(u32, u32),
+    Call(Func, u32),
+    Call2(Func2, u32, u32),
+    /// sin(a) and cos(a) into two consecutive registers.
+    SinCos(u32),
+}
+
 /// Identity of an instruction for hash-consing (constants by their bits).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 enum Key {
@@ -67,11 +85,19 @@ impl Instr {
 const POWI_MAX: f64 = 64.0;
 
 /// Compiled expressions: evaluates all its outputs at once over a shared variable vector.
+///
+/// The register file is `[variables | constants | results]`: the variables and constants are
+/// copied in before the run, so only operations are dispatched.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Tape {
-    code: Vec<Instr>,
+    constants: Vec<f64>,
+    code: Vec<Op>,
     outputs: Vec<u32>,
     n_vars: usize,
+    /// Distinct nodes: operations, constants and the variables used.
+    nodes: usize,
+    /// Length of the register file.
+    registers: usize,
 }
 
 struct Builder {
@@ -135,22 +161,104 @@ impl Tape {
             memo: HashMap::new(),
             n_vars: 0,
         };
-        let outputs = exprs.iter().map(|e| b.node(e)).collect();
+        let roots: Vec<u32> = exprs.iter().map(|e| b.node(e)).collect();
+        // sin(a) and cos(a) both present: one `sin_cos` (one libm call, and what a dual number's
+        // sin or cos computes anyway) fills both registers. Mechanisms have both for every angle.
+        let mut sin_of = HashMap::new();
+        for (k, ins) in b.code.iter().enumerate() {
+            if let Instr::Call(Func::Sin, a) = *ins {
+                sin_of.insert(a, k);
+            }
+        }
+        let mut cos_of_sin = HashMap::new();
+        for (k, ins) in b.code.iter().enumerate() {
+            if let Instr::Call(Func::Cos, a) = *ins
+                && let Some(&s) = sin_of.get(&a)
+            {
+                cos_of_sin.insert(s, k);
+                cos_of_sin.insert(k, s);
+            }
+        }
+        // Lay the registers out: variables at their own index, constants after them, then the
+        // operations' results in order (the builder emitted every operand before its use).
+        let n_vars = b.n_vars;
+        let n_consts = b
+            .code
+            .iter()
+            .filter(|i| matches!(i, Instr::Const(_)))
+            .count();
+        let mut constants = Vec::with_capacity(n_consts);
+        let mut code = Vec::with_capacity(b.code.len() - n_consts);
+        let mut slot = vec![u32::MAX; b.code.len()];
+        let mut next = (n_vars + n_consts) as u32;
+        for (k, ins) in b.code.iter().enumerate() {
+            if slot[k] != u32::MAX {
+                // The second of a sin/cos pair, filled by the first.
+                continue;
+            }
+            let at = |r: u32| slot[r as usize];
+            let op = match *ins {
+                Instr::Const(c) => {
+                    slot[k] = (n_vars + constants.len()) as u32;
+                    constants.push(c);
+                    continue;
+                }
+                Instr::Var(i) => {
+                    slot[k] = i;
+                    continue;
+                }
+                Instr::Call(f @ (Func::Sin | Func::Cos), a) if cos_of_sin.contains_key(&k) => {
+                    let other = cos_of_sin[&k];
+                    let (sin, cos) = if f == Func::Sin {
+                        (k, other)
+                    } else {
+                        (other, k)
+                    };
+                    code.push(Op::SinCos(at(a)));
+                    slot[sin] = next;
+                    slot[cos] = next + 1;
+                    next += 2;
+                    continue;
+                }
+                Instr::Neg(a) => Op::Neg(at(a)),
+                Instr::Add(a, c) => Op::Add(at(a), at(c)),
+                Instr::Sub(a, c) => Op::Sub(at(a), at(c)),
+                Instr::Mul(a, c) => Op::Mul(at(a), at(c)),
+                Instr::Div(a, c) => Op::Div(at(a), at(c)),
+                Instr::Powi(a, k) => Op::Powi(at(a), k),
+                Instr::Powf(a, k) => Op::Powf(at(a), k),
+                Instr::Pow(a, c) => Op::Pow(at(a), at(c)),
+                Instr::Call(f, a) => Op::Call(f, at(a)),
+                Instr::Call2(f, a, c) => Op::Call2(f, at(a), at(c)),
+            };
+            slot[k] = next;
+            next += 1;
+            code.push(op);
+        }
         Tape {
-            code: b.code,
-            outputs,
-            n_vars: b.n_vars,
+            constants,
+            code,
+            outputs: roots.iter().map(|&r| slot[r as usize]).collect(),
+            n_vars,
+            nodes: b.code.len(),
+            registers: next as usize,
         }
     }
 
-    /// Number of instructions (nodes evaluated per call, constants and variables included).
+    /// Number of nodes of the compiled DAG: operations plus distinct constants and variables
+    /// used.
     pub fn len(&self) -> usize {
-        self.code.len()
+        self.nodes
     }
 
-    /// Whether the tape has no instruction (it has no output either).
+    /// Whether the tape has no node (it has no output either).
     pub fn is_empty(&self) -> bool {
-        self.code.is_empty()
+        self.len() == 0
+    }
+
+    /// Number of operations dispatched per evaluation (constants and variables are copied in).
+    pub fn operations(&self) -> usize {
+        self.code.len()
     }
 
     /// Number of outputs.
@@ -197,21 +305,26 @@ impl Tape {
             vars.len()
         );
         r.clear();
-        r.reserve(self.code.len());
-        for ins in &self.code {
-            let v = match *ins {
-                Instr::Const(c) => T::from(c),
-                Instr::Var(i) => vars[i as usize],
-                Instr::Neg(a) => -r[a as usize],
-                Instr::Add(a, b) => r[a as usize] + r[b as usize],
-                Instr::Sub(a, b) => r[a as usize] - r[b as usize],
-                Instr::Mul(a, b) => r[a as usize] * r[b as usize],
-                Instr::Div(a, b) => r[a as usize] / r[b as usize],
-                Instr::Powi(a, k) => r[a as usize].powi(k),
-                Instr::Powf(a, c) => r[a as usize].powf(c),
-                Instr::Pow(a, b) => pow(r[a as usize], r[b as usize]),
-                Instr::Call(f, a) => f.apply(r[a as usize]),
-                Instr::Call2(f, a, b) => f.apply(r[a as usize], r[b as usize]),
+        r.reserve(self.registers);
+        r.extend_from_slice(&vars[..self.n_vars]);
+        r.extend(self.constants.iter().map(|&c| T::from(c)));
+        for op in &self.code {
+            let v = match *op {
+                Op::Neg(a) => -r[a as usize],
+                Op::Add(a, b) => r[a as usize] + r[b as usize],
+                Op::Sub(a, b) => r[a as usize] - r[b as usize],
+                Op::Mul(a, b) => r[a as usize] * r[b as usize],
+                Op::Div(a, b) => r[a as usize] / r[b as usize],
+                Op::Powi(a, k) => r[a as usize].powi(k),
+                Op::Powf(a, c) => r[a as usize].powf(c),
+                Op::Pow(a, b) => pow(r[a as usize], r[b as usize]),
+                Op::Call(f, a) => f.apply(r[a as usize]),
+                Op::Call2(f, a, b) => f.apply(r[a as usize], r[b as usize]),
+                Op::SinCos(a) => {
+                    let (sin, cos) = r[a as usize].sin_cos();
+                    r.push(sin);
+                    cos
+                }
             };
             r.push(v);
         }
