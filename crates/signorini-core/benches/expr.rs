@@ -72,6 +72,24 @@ fn main() {
         ("l".to_string(), Param::Value(0.5)),
     ];
     let scope = Scope::lagrangian(&coords, &params).expect("scope");
+    // One-off cost at validation: parse, differentiate twice, compile.
+    let setup = time(20, |_| {
+        let g: Vec<Expr> = JOINTS
+            .iter()
+            .map(|s| Expr::parse(s, &scope).expect("parse"))
+            .collect();
+        let q: Vec<usize> = (0..8).collect();
+        let mut all = g.clone();
+        for e in &g {
+            all.extend(e.gradient(&q));
+            all.extend(e.hessian(&q));
+        }
+        black_box(Tape::compile(&all));
+    });
+    println!(
+        "setup (parse 7 joints, gradients, Hessians, compile one tape): {:.0} µs",
+        setup / 1e3
+    );
     let g: Vec<Expr> = JOINTS
         .iter()
         .map(|s| Expr::parse(s, &scope).expect("parse"))
