@@ -374,7 +374,7 @@ fn common_subexpressions_are_computed_once() {
     assert!(tape.len() <= 12, "{} instructions", tape.len());
     assert_eq!(tape.outputs(), 4);
     let at = [0.0, 0.0, 0.7, 0.0, 0.0, 0.0, 0.0];
-    let mut out = [0.0; 4];
+    let mut out = [0.0f64; 4];
     tape.eval_into(&at, &mut Vec::new(), &mut out);
     assert_eq!(out[0], v.eval(&at));
     assert_eq!(&out[1..3], &[0.0, 0.0]);
@@ -586,4 +586,40 @@ fn coriolis_vector_from_the_mass_matrix() {
         assert!((out[0] - want).abs() < 1e-15, "{} vs {want}", out[0]);
         assert!(out[1].abs() < 1e-15, "{}", out[1]);
     }
+}
+
+/// The deepest expressions the parser accepts differentiate twice and compile without exhausting
+/// a test thread's stack.
+#[test]
+fn deepest_expressions_differentiate_and_compile() {
+    let s = block();
+    let nested = format!("{}x{}", "sin(".repeat(390), ")".repeat(390));
+    let chain = format!("{}x", "x*y+".repeat(190));
+    for src in [nested, chain] {
+        let e = Expr::parse(&src, &s).expect("parse");
+        let h = e.hessian(&[0, 1]);
+        let tape = Tape::compile(&h);
+        let mut out = [0.0f64; 4];
+        tape.eval_into(
+            &[0.3, 0.6, 0.0, 0.0, 0.0, 0.0, 0.0],
+            &mut Vec::new(),
+            &mut out,
+        );
+        assert!(out.iter().all(|v| v.is_finite()));
+    }
+}
+
+/// A spec writes parameters as numbers or strings; both deserialize into [`Param`].
+#[test]
+fn parameters_deserialize_from_numbers_and_strings() {
+    let text = r#"parameters = { m = 1, w = 0.2, inertia = "m*w^2/12" }"#;
+    #[derive(serde::Deserialize)]
+    struct Spec {
+        parameters: std::collections::BTreeMap<String, Param>,
+    }
+    let spec: Spec = toml::from_str(text).expect("toml");
+    let ps: Vec<(String, Param)> = spec.parameters.into_iter().collect();
+    assert_eq!(ps[1], ("m".to_string(), Param::Value(1.0)));
+    let s = Scope::lagrangian(&strings(&["x"]), &ps).expect("scope");
+    assert!((s.parameter("inertia").expect("inertia") - 0.04 / 12.0).abs() < 1e-18);
 }

@@ -20,6 +20,25 @@
 //!    forward-mode dual number of `num-dual` ([`Number`]), so both symbolic and automatic
 //!    derivatives are available from the same tape.
 //!
+//! ```
+//! use signorini_core::expr::{Expr, Param, Scope, Tape};
+//!
+//! let coordinates = ["x", "y", "phi"].map(String::from);
+//! let parameters = [("w", 0.2), ("hgt", 0.4)].map(|(n, v)| (n.to_string(), Param::Value(v)));
+//! let scope = Scope::lagrangian(&coordinates, &parameters)?; // x, y, phi, x_dot, y_dot, phi_dot, t
+//! let gap = Expr::parse("y - hgt/2*cos(phi) - w/2*sin(phi)", &scope)?;
+//! let q = [0, 1, 2];
+//! let mut outputs = vec![gap.clone()];
+//! outputs.extend(gap.gradient(&q)); // exact ∇g
+//! outputs.extend(gap.hessian(&q)); // exact H_g, row-major
+//! let tape = Tape::compile(&outputs); // once, at validation
+//! let (mut scratch, mut out) = (Vec::new(), vec![0.0f64; tape.outputs()]);
+//! let vars = [0.0, 0.2, 0.0, 0.0, 0.0, 1.0, 0.0];
+//! tape.eval_into(&vars, &mut scratch, &mut out); // every step, no allocation
+//! assert!(out[0].abs() < 1e-15 && out[2] == 1.0 && out[3] == -0.1); // g, ∂g/∂y, ∂g/∂phi
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! # Grammar
 //!
 //! ```text
