@@ -623,3 +623,12 @@ fn parameters_deserialize_from_numbers_and_strings() {
     let s = Scope::lagrangian(&strings(&["x"]), &ps).expect("scope");
     assert!((s.parameter("inertia").expect("inertia") - 0.04 / 12.0).abs() < 1e-18);
 }
+
+/// A compiled model holds expressions and tapes and may move to the engine's worker threads.
+#[test]
+fn expressions_and_tapes_are_send_and_sync() {
+    fn check<T: Send + Sync>() {}
+    check::<Expr>();
+    check::<Tape>();
+    check::<Scope>();
+}

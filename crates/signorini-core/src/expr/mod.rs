@@ -531,7 +531,10 @@ impl Shown<'_> {
                 f.write_str(if *c > 0.0 { "1/0" } else { "-1/0" })?
             }
             Node::Const(c) => write!(f, "{c:?}")?,
-            Node::Var(i) => f.write_str(&self.names[*i])?,
+            Node::Var(i) => match self.names.get(*i) {
+                Some(name) => f.write_str(name)?,
+                None => write!(f, "var{i}")?,
+            },
             Node::Neg(a) => {
                 f.write_str("-")?;
                 self.write(a, 3, f)?;

@@ -277,6 +277,12 @@ impl Tape {
     /// Panics if `vars` is shorter than [`Tape::variables`] or `out` than [`Tape::outputs`]
     /// (sizes fixed by the model, not by user input).
     pub fn eval_into<T: Number>(&self, vars: &[T], scratch: &mut Vec<T>, out: &mut [T]) {
+        assert!(
+            out.len() >= self.outputs.len(),
+            "tape has {} outputs, got room for {}",
+            self.outputs.len(),
+            out.len()
+        );
         self.run(vars, scratch);
         for (o, &r) in out.iter_mut().zip(&self.outputs) {
             *o = scratch[r as usize];
