@@ -1,12 +1,13 @@
-//! The compiled form: a flat register tape in static single assignment (instruction k writes
-//! register k), built by hash-consing so that equal subexpressions of all outputs are computed
-//! once.
+//! The compiled form: a flat register tape in static single assignment. The builder hash-conses
+//! the expression DAGs into instructions (equal subexpressions of all outputs computed once);
+//! the layout then puts the variables and constants first in the register file, so that only
+//! operations are dispatched, each writing the next register.
 
 use super::{Expr, Func, Func2, Node, Number};
 use std::collections::HashMap;
 use std::sync::Arc;
 
-/// One instruction; operands are earlier registers.
+/// One instruction of the builder; operands are earlier instructions.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Instr {
     Const(f64),
