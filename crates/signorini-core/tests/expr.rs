@@ -632,3 +632,34 @@ fn expressions_and_tapes_are_send_and_sync() {
     check::<Tape>();
     check::<Scope>();
 }
+
+/// ė = g_q q̇ + g_t against a central difference along the motion q + s q̇, t + s.
+#[test]
+fn time_derivative_along_the_motion() {
+    let s = block();
+    for src in [
+        "y - hgt/2*cos(phi) - w/2*sin(phi)",
+        "exp(-t)*sin(2*pi*t)*x",
+        "-x^2 + t^2*phi",
+    ] {
+        let e = Expr::parse(src, &s).expect("parse");
+        let value = e.compile();
+        let rate = e.time_derivative(3).expect("no velocities").compile();
+        for at in points(10) {
+            let shifted = |h: f64| -> [f64; 7] {
+                let mut v = at;
+                for i in 0..3 {
+                    v[i] += h * at[3 + i];
+                }
+                v[6] += h;
+                v
+            };
+            let h = 1e-5;
+            let fd = (value.eval(&shifted(h)) - value.eval(&shifted(-h))) / (2.0 * h);
+            let got = rate.eval(&at);
+            assert!(close(got, fd, 1e-7), "{src}: {got} vs {fd}");
+        }
+    }
+    let f = Expr::parse("-0.01*phi_dot", &s).expect("parse");
+    assert!(f.time_derivative(3).is_none());
+}

@@ -472,6 +472,17 @@ impl Expr {
         h
     }
 
+    /// The total time derivative along the motion, in the layout of [`Scope::lagrangian`] with
+    /// `n` coordinates: ė = Σᵢ ∂e/∂qᵢ q̇ᵢ + ∂e/∂t (the velocity of a gap, g_q q̇ + g_t of a joint).
+    /// `None` if the expression uses a velocity (its derivative would need accelerations).
+    pub fn time_derivative(&self, n: usize) -> Option<Expr> {
+        if self.variables().iter().any(|&v| (n..2 * n).contains(&v)) {
+            return None;
+        }
+        let along: Expr = (0..n).map(|i| self.derivative(i) * Expr::var(n + i)).sum();
+        Some(along + self.derivative(2 * n))
+    }
+
     /// A one-output [`Tape`].
     pub fn compile(&self) -> Tape {
         Tape::compile(std::slice::from_ref(self))
