@@ -10,6 +10,7 @@ pub mod band;
 pub mod capabilities;
 pub mod contact;
 pub mod energy;
+pub mod expr;
 pub mod integrators;
 pub mod job;
 pub mod lcp;
