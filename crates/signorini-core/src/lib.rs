@@ -16,6 +16,7 @@ pub mod job;
 pub mod lcp;
 pub mod modal;
 pub mod model;
+pub mod nonlinear;
 pub mod observer;
 pub mod outcome;
 pub mod scenes;

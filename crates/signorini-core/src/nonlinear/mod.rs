@@ -1,0 +1,59 @@
+//! Nonlinear Lagrangian systems with unilateral contacts, and the time-stepping that runs them.
+//!
+//! The equations of motion are Lagrange's, with the contact impulses of Moreau's sweeping
+//! process:
+//!
+//! ```text
+//! M(q) dv = F(t, q, v) dt + Σ_α ∇g_α(q, t) dP_α,     F = −∇V(q, t) − c(q, v) + f(t, q, v),
+//! c(q, v) = Ṁ(q) v − ½ ∇_q(vᵀ M(q) v),               g_α(q, t) ≥ 0 with Newton's impact law,
+//! ```
+//!
+//! where c is the Coriolis/centrifugal vector derived from M, V the potential (conservative
+//! forces, part of the energy) and f the applied non-conservative forces (their work is
+//! `work_ext`). [`LagrangianSystem`] is the interface an integrator needs: values and exact
+//! Jacobians, no finite differences. The user models of `scene = "lagrangian"` implement it
+//! from compiled expressions; a test can implement it by hand.
+
+/// A nonlinear mechanical system with unilateral contacts, as the nonlinear Moreau–Jean
+/// time-stepping sees it. Matrices are row-major slices; sizes are [`Self::dofs`] = n and
+/// [`Self::contacts`] = m. Every function is exact (closed form, symbolic or automatic
+/// differentiation).
+pub trait LagrangianSystem {
+    /// Generalized coordinates n.
+    fn dofs(&self) -> usize;
+
+    /// Unilateral contacts m.
+    fn contacts(&self) -> usize;
+
+    /// Initial positions q₀ and velocities v₀.
+    fn initial(&self) -> (Vec<f64>, Vec<f64>);
+
+    /// Mass matrix M(q), n×n, symmetric positive definite.
+    fn mass(&self, q: &[f64], out: &mut [f64]);
+
+    /// Smooth generalized forces F(t, q, v) = −∇V − c(q, v) + f, n entries.
+    fn forces(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]);
+
+    /// Jacobians ∂F/∂q and ∂F/∂v, n×n each (Newton's iteration matrix).
+    fn force_jacobians(&self, t: f64, q: &[f64], v: &[f64], dq: &mut [f64], dv: &mut [f64]);
+
+    /// The applied non-conservative forces f(t, q, v) alone, n entries (their work is
+    /// `work_ext`).
+    fn applied_forces(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]);
+
+    /// Potential energy V(q, t).
+    fn potential(&self, t: f64, q: &[f64]) -> f64;
+
+    /// Gaps g_α(q, t), m entries.
+    fn gaps(&self, t: f64, q: &[f64], out: &mut [f64]);
+
+    /// Gap Jacobian, m×n: row α is ∇_q g_α(q, t)ᵀ (the contact's normal direction in
+    /// generalized coordinates, Gᵀ of the linear case).
+    fn gap_jacobian(&self, t: f64, q: &[f64], out: &mut [f64]);
+
+    /// ∂g_α/∂t (q, t), m entries: 0 for a fixed obstacle.
+    fn gap_rates(&self, t: f64, q: &[f64], out: &mut [f64]);
+
+    /// Newton restitution coefficient e_α ∈ [0, 1] of contact α.
+    fn restitution(&self, alpha: usize) -> f64;
+}
