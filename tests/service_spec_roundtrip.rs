@@ -3,13 +3,17 @@
 //! and converted back, gives an equal `JobSpec`. A new example using a field the proto does not
 //! carry fails here. A few extra specs cover the schemes and enum values no example uses.
 
+#[path = "common/to_proto.rs"]
+mod to_proto;
+
 use prost::Message;
 use signorini::proto::v1 as pb;
-use signorini::server::convert::{job_spec, job_spec_to_proto};
+use signorini::server::convert::job_spec;
 use signorini::spec_file::{Format, parse};
 use signorini_core::spec::JobSpec;
 use std::collections::BTreeSet;
 use std::path::Path;
+use to_proto::job_spec_to_proto;
 
 fn round_trip(spec: &JobSpec) -> JobSpec {
     let typed = job_spec_to_proto(spec);
@@ -149,7 +153,10 @@ fn newton_strategy_round_trips_and_defaults() {
     let core = job_spec(typed).expect("converts");
     match &core.integrator {
         signorini_core::spec::IntegratorSpec::Soi2GeneralizedAlpha(g) => {
-            assert_eq!(g.newton, signorini_core::soi2::run::NewtonSpec::Simplified);
+            assert_eq!(
+                g.solve.newton,
+                signorini_core::soi2::run::NewtonSpec::Simplified
+            );
         }
         other => panic!("{other:?}"),
     }

@@ -3,7 +3,7 @@
 //! summary and any tables or figures the job makes.
 
 use crate::band::SymBand;
-use crate::contact::{Activation, IndexSetRule};
+use crate::contact::IndexSetRule;
 use crate::integrators::alpha::{AlphaParams, AlphaScheme, NonsmoothAlpha, ParamError};
 use crate::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
 use crate::integrators::position_contact::{PositionContact, PositionContactParams};
@@ -579,56 +579,17 @@ fn moreau_jean_params(p: &MoreauJeanSpec, variant: bool) -> Result<MoreauJeanPar
             format!("must be in [0, 1], got {}", p.theta),
         ));
     }
-    let gamma = match (p.activation, p.activation_gamma) {
-        (Activation::GapAndVelocity, Some(_)) => {
-            return Err(SpecError::new(
-                "integrator.activation_gamma",
-                "only used with activation = \"predicted_gap\"",
-            ));
-        }
-        (_, Some(g)) if !g.is_finite() || g <= 0.0 => {
-            return Err(SpecError::new(
-                "integrator.activation_gamma",
-                format!("must be > 0, got {g}"),
-            ));
-        }
-        (_, g) => g.unwrap_or(1.0),
-    };
     Ok(MoreauJeanParams {
         theta: p.theta,
         variant,
-        index_set: IndexSetRule {
-            activation: p.activation,
-            gamma,
-        },
+        index_set: p.index_set.rule()?,
     })
 }
-/// The index-set rule of an α-family spec (same fields and checks as `moreau_jean`).
-fn alpha_index_set(
-    activation: Activation,
-    activation_gamma: Option<f64>,
-) -> Result<IndexSetRule, SpecError> {
-    let gamma = match (activation, activation_gamma) {
-        (Activation::GapAndVelocity, Some(_)) => {
-            return Err(SpecError::new(
-                "integrator.activation_gamma",
-                "only used with activation = \"predicted_gap\"",
-            ));
-        }
-        (_, Some(g)) if !g.is_finite() || g <= 0.0 => {
-            return Err(SpecError::new(
-                "integrator.activation_gamma",
-                format!("must be > 0, got {g}"),
-            ));
-        }
-        (_, g) => g.unwrap_or(1.0),
-    };
-    Ok(IndexSetRule { activation, gamma })
-}
-
-/// Maps a parameter error of the α-family to a spec error on `integrator.<field>`.
-fn alpha_check(p: &AlphaParams, allow_unstable: bool) -> Result<(), SpecError> {
-    match p.validate() {
+/// The outcome of a scheme's parameter check (`validate`), with `allow_unstable`: a stability
+/// condition may be waived, any other error (a parameter outside its domain) may not. Errors
+/// name `integrator.<field>`.
+fn stability_checked(check: Result<(), ParamError>, allow_unstable: bool) -> Result<(), SpecError> {
+    match check {
         Ok(()) => Ok(()),
         Err(ParamError {
             stability: true, ..
@@ -699,11 +660,10 @@ fn ns_alpha_from_spec(p: &NsAlphaSpec, scheme: AlphaScheme) -> Result<AlphaParam
 
 /// Validated parameters of an `ns_*` integrator spec.
 fn alpha_params(spec: &IntegratorSpec) -> Result<AlphaParams, SpecError> {
-    let (mut params, activation, activation_gamma, allow_unstable) = match spec {
+    let (mut params, index_set, allow_unstable) = match spec {
         IntegratorSpec::NsNewmark(p) => (
             AlphaParams::newmark(p.beta, p.gamma),
-            p.activation,
-            p.activation_gamma,
+            p.index_set,
             p.allow_unstable,
         ),
         IntegratorSpec::NsHht(p) => {
@@ -711,27 +671,24 @@ fn alpha_params(spec: &IntegratorSpec) -> Result<AlphaParams, SpecError> {
             let beta = p.beta.unwrap_or(0.25 * (1.0 + p.alpha) * (1.0 + p.alpha));
             (
                 AlphaParams::hht_with(p.alpha, beta, gamma),
-                p.activation,
-                p.activation_gamma,
+                p.index_set,
                 p.allow_unstable,
             )
         }
         IntegratorSpec::NsGeneralizedAlpha(p) => (
             ns_alpha_from_spec(p, AlphaScheme::GeneralizedAlpha)?,
-            p.activation,
-            p.activation_gamma,
+            p.index_set,
             p.allow_unstable,
         ),
         IntegratorSpec::NsKhAlpha(p) => (
             ns_alpha_from_spec(p, AlphaScheme::KrenkHogsberg)?,
-            p.activation,
-            p.activation_gamma,
+            p.index_set,
             p.allow_unstable,
         ),
         other => unreachable!("alpha_params called for {}", other.scheme()),
     };
-    params.index_set = alpha_index_set(activation, activation_gamma)?;
-    alpha_check(&params, allow_unstable)?;
+    params.index_set = index_set.rule()?;
+    stability_checked(params.validate(), allow_unstable)?;
     Ok(params)
 }
 
@@ -765,21 +722,6 @@ fn position_contact_params(
             }
         }
     };
-    match params.validate() {
-        Ok(()) => Ok(params),
-        Err(ParamError {
-            stability: true, ..
-        }) if p.allow_unstable => Ok(params),
-        Err(e) => {
-            let hint = if e.stability {
-                " (set allow_unstable = true to run it anyway)"
-            } else {
-                ""
-            };
-            Err(SpecError::new(
-                format!("integrator.{}", e.field),
-                format!("{}{hint}", e.reason),
-            ))
-        }
-    }
+    stability_checked(params.validate(), p.allow_unstable)?;
+    Ok(params)
 }

@@ -5,7 +5,7 @@
 //! A spec is only data; [`crate::job::Job::from_spec`] validates it once and builds the model
 //! and the integrator, with errors that name the field ([`SpecError`]).
 
-use crate::contact::Activation;
+use crate::contact::{Activation, IndexSetRule};
 use crate::lcp::LcpSolverKind;
 use crate::scenes::{BarSpec, BouncingBall, Chain};
 use crate::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
@@ -209,21 +209,55 @@ pub struct MoreauJeanSpec {
     /// θ ∈ [0, 1], default ½.
     #[serde(default = "half")]
     pub theta: f64,
-    /// Index-set rule: `gap_and_velocity` ((24), default) or `predicted_gap` (Siconos').
-    #[serde(default)]
-    pub activation: Activation,
-    /// γ > 0 of the predicted-gap rule `g(q_k) + γ h U_k ≤ 0`, default 1.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub activation_gamma: Option<f64>,
+    /// Index-set rule (`activation`, `activation_gamma`).
+    #[serde(flatten)]
+    pub index_set: IndexSetSpec,
 }
 
 impl Default for MoreauJeanSpec {
     fn default() -> Self {
         Self {
-            theta: 0.5,
-            activation: Activation::default(),
-            activation_gamma: None,
+            theta: half(),
+            index_set: IndexSetSpec::default(),
         }
+    }
+}
+
+/// The index set of the velocity-level schemes (Moreau–Jean and the nonsmooth α-family): which
+/// contacts enter a step's LCP. Its fields sit directly in `[integrator]`.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct IndexSetSpec {
+    /// Index-set rule: `gap_and_velocity` ((24) of Acary 2016, default) or `predicted_gap`
+    /// (Siconos' `g(q_k) + γ h U_k ≤ 0`, no sign test on U_k).
+    #[serde(default)]
+    pub activation: Activation,
+    /// γ > 0 of the predicted-gap rule, default 1 (only with `activation = "predicted_gap"`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub activation_gamma: Option<f64>,
+}
+
+impl IndexSetSpec {
+    /// The validated rule; errors name `integrator.activation_gamma`.
+    pub fn rule(&self) -> Result<IndexSetRule, SpecError> {
+        let gamma = match (self.activation, self.activation_gamma) {
+            (Activation::GapAndVelocity, Some(_)) => {
+                return Err(SpecError::new(
+                    "integrator.activation_gamma",
+                    "only used with activation = \"predicted_gap\"",
+                ));
+            }
+            (_, Some(g)) if !g.is_finite() || g <= 0.0 => {
+                return Err(SpecError::new(
+                    "integrator.activation_gamma",
+                    format!("must be > 0, got {g}"),
+                ));
+            }
+            (_, g) => g.unwrap_or(1.0),
+        };
+        Ok(IndexSetRule {
+            activation: self.activation,
+            gamma,
+        })
     }
 }
 
@@ -343,12 +377,9 @@ pub struct NsNewmarkSpec {
     /// γ, default ½.
     #[serde(default = "half")]
     pub gamma: f64,
-    /// Index-set rule, as for `moreau_jean`.
-    #[serde(default)]
-    pub activation: Activation,
-    /// γ of the predicted-gap rule, as for `moreau_jean`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub activation_gamma: Option<f64>,
+    /// Index-set rule (`activation`, `activation_gamma`), as for `moreau_jean`.
+    #[serde(flatten)]
+    pub index_set: IndexSetSpec,
     /// Run parameters outside the dissipation conditions anyway (default false).
     #[serde(default, skip_serializing_if = "is_false")]
     pub allow_unstable: bool,
@@ -367,12 +398,9 @@ pub struct NsHhtSpec {
     /// γ, default ½ + α.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gamma: Option<f64>,
-    /// Index-set rule, as for `moreau_jean`.
-    #[serde(default)]
-    pub activation: Activation,
-    /// γ of the predicted-gap rule, as for `moreau_jean`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub activation_gamma: Option<f64>,
+    /// Index-set rule (`activation`, `activation_gamma`), as for `moreau_jean`.
+    #[serde(flatten)]
+    pub index_set: IndexSetSpec,
     /// Run parameters outside (83) anyway (default false).
     #[serde(default, skip_serializing_if = "is_false")]
     pub allow_unstable: bool,
@@ -399,12 +427,9 @@ pub struct NsAlphaSpec {
     /// γ.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gamma: Option<f64>,
-    /// Index-set rule, as for `moreau_jean`.
-    #[serde(default)]
-    pub activation: Activation,
-    /// γ of the predicted-gap rule, as for `moreau_jean`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub activation_gamma: Option<f64>,
+    /// Index-set rule (`activation`, `activation_gamma`), as for `moreau_jean`.
+    #[serde(flatten)]
+    pub index_set: IndexSetSpec,
     /// Run parameters outside the stability conditions anyway (default false).
     #[serde(default, skip_serializing_if = "is_false")]
     pub allow_unstable: bool,

@@ -95,6 +95,35 @@ impl From<NewtonStrategy> for NewtonSpec {
     }
 }
 
+/// The Newton settings of the SOI2 schemes (the nonlinear step systems (13), (17), HHT-I3's)
+/// and the consistency check of the initial values. Its fields sit directly in `[integrator]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Soi2NewtonSpec {
+    /// Step Newton strategy: `simplified` (default) or `full`.
+    #[serde(default)]
+    pub newton: NewtonSpec,
+    /// Newton convergence: ‖Δx‖∞ ≤ tol·(1 + ‖x‖∞), > 0, default 1e-10.
+    #[serde(default = "default_newton_tolerance")]
+    pub newton_tolerance: f64,
+    /// Newton iterations per step, ≥ 1, default 25.
+    #[serde(default = "default_newton_max_iterations")]
+    pub newton_max_iterations: usize,
+    /// Largest constraint residual accepted in the initial values, > 0, default 1e-8.
+    #[serde(default = "default_consistency_tolerance")]
+    pub consistency_tolerance: f64,
+}
+
+impl Default for Soi2NewtonSpec {
+    fn default() -> Self {
+        Self {
+            newton: NewtonSpec::Simplified,
+            newton_tolerance: default_newton_tolerance(),
+            newton_max_iterations: default_newton_max_iterations(),
+            consistency_tolerance: default_consistency_tolerance(),
+        }
+    }
+}
+
 /// `scheme = "soi2_generalized_alpha"`: generalized-α-SOI2 (13). Coefficients from `rho_inf`
 /// (default 0.2, the paper's experiments) or given as `alpha_m`, `alpha_f` (and optionally
 /// `beta`, `gamma`, which default to (1 − α)²/4 and ½ − α with α = α_m − α_f).
@@ -123,18 +152,10 @@ pub struct Soi2GeneralizedAlphaSpec {
     /// Start value of a_α.
     #[serde(default)]
     pub start: StartSpec,
-    /// Newton convergence: ‖Δx‖∞ ≤ tol·(1 + ‖x‖∞), default 1e-10.
-    #[serde(default = "default_newton_tolerance")]
-    pub newton_tolerance: f64,
-    /// Newton iterations per step, default 25.
-    #[serde(default = "default_newton_max_iterations")]
-    pub newton_max_iterations: usize,
-    /// Step Newton strategy: `simplified` (default) or `full`.
-    #[serde(default)]
-    pub newton: NewtonSpec,
-    /// Largest constraint residual accepted in the initial values, default 1e-8.
-    #[serde(default = "default_consistency_tolerance")]
-    pub consistency_tolerance: f64,
+    /// Newton settings (`newton`, `newton_tolerance`, `newton_max_iterations`,
+    /// `consistency_tolerance`).
+    #[serde(flatten)]
+    pub solve: Soi2NewtonSpec,
 }
 
 impl Default for Soi2GeneralizedAlphaSpec {
@@ -147,10 +168,7 @@ impl Default for Soi2GeneralizedAlphaSpec {
             gamma: None,
             additive: None,
             start: StartSpec::A0,
-            newton_tolerance: default_newton_tolerance(),
-            newton_max_iterations: default_newton_max_iterations(),
-            newton: NewtonSpec::Simplified,
-            consistency_tolerance: default_consistency_tolerance(),
+            solve: Soi2NewtonSpec::default(),
         }
     }
 }
@@ -166,18 +184,10 @@ pub struct HhtSoi2Spec {
     /// Start value of a_α.
     #[serde(default)]
     pub start: StartSpec,
-    /// Newton convergence: ‖Δx‖∞ ≤ tol·(1 + ‖x‖∞), default 1e-10.
-    #[serde(default = "default_newton_tolerance")]
-    pub newton_tolerance: f64,
-    /// Newton iterations per step, default 25.
-    #[serde(default = "default_newton_max_iterations")]
-    pub newton_max_iterations: usize,
-    /// Step Newton strategy: `simplified` (default) or `full`.
-    #[serde(default)]
-    pub newton: NewtonSpec,
-    /// Largest constraint residual accepted in the initial values, default 1e-8.
-    #[serde(default = "default_consistency_tolerance")]
-    pub consistency_tolerance: f64,
+    /// Newton settings (`newton`, `newton_tolerance`, `newton_max_iterations`,
+    /// `consistency_tolerance`).
+    #[serde(flatten)]
+    pub solve: Soi2NewtonSpec,
 }
 
 impl Default for HhtSoi2Spec {
@@ -185,10 +195,7 @@ impl Default for HhtSoi2Spec {
         Self {
             alpha: default_hht_alpha(),
             start: StartSpec::A0,
-            newton_tolerance: default_newton_tolerance(),
-            newton_max_iterations: default_newton_max_iterations(),
-            newton: NewtonSpec::Simplified,
-            consistency_tolerance: default_consistency_tolerance(),
+            solve: Soi2NewtonSpec::default(),
         }
     }
 }
@@ -642,34 +649,31 @@ pub fn mismatch(scene: &str, scheme: &str) -> SpecError {
     }
 }
 
-fn newton_options(tol: f64, max_it: usize) -> Result<NewtonOptions, SpecError> {
-    if !(tol.is_finite() && tol > 0.0) {
-        return Err(SpecError::new(
-            "integrator.newton_tolerance",
-            format!("must be a finite number > 0, got {tol}"),
-        ));
-    }
-    if max_it == 0 {
+/// The validated Newton group: (options, strategy, consistency tolerance); errors name the field.
+fn newton_settings(n: &Soi2NewtonSpec) -> Result<(NewtonOptions, NewtonStrategy, f64), SpecError> {
+    let finite_positive = |field: &str, x: f64| {
+        if x.is_finite() && x > 0.0 {
+            Ok(())
+        } else {
+            Err(SpecError::new(
+                format!("integrator.{field}"),
+                format!("must be a finite number > 0, got {x}"),
+            ))
+        }
+    };
+    finite_positive("consistency_tolerance", n.consistency_tolerance)?;
+    finite_positive("newton_tolerance", n.newton_tolerance)?;
+    if n.newton_max_iterations == 0 {
         return Err(SpecError::new(
             "integrator.newton_max_iterations",
             "must be ≥ 1",
         ));
     }
-    Ok(NewtonOptions {
-        tolerance: tol,
-        max_iterations: max_it,
-    })
-}
-
-fn check_tolerance(tol: f64) -> Result<(), SpecError> {
-    if tol.is_finite() && tol > 0.0 {
-        Ok(())
-    } else {
-        Err(SpecError::new(
-            "integrator.consistency_tolerance",
-            format!("must be a finite number > 0, got {tol}"),
-        ))
-    }
+    let options = NewtonOptions {
+        tolerance: n.newton_tolerance,
+        max_iterations: n.newton_max_iterations,
+    };
+    Ok((options, n.newton.into(), n.consistency_tolerance))
 }
 
 /// Checks generalized-α coefficients against Theorem 1's hypotheses; errors name the field.
@@ -882,8 +886,7 @@ pub fn job_from_spec(spec: &JobSpec) -> Result<Option<Soi2Job>, SpecError> {
                 None if is_additive => Formulation::Additive,
                 None => Formulation::General,
             };
-            check_tolerance(p.consistency_tolerance)?;
-            let newton = newton_options(p.newton_tolerance, p.newton_max_iterations)?;
+            let (newton, strategy, consistency) = newton_settings(&p.solve)?;
             (
                 Method {
                     formulation,
@@ -891,8 +894,8 @@ pub fn job_from_spec(spec: &JobSpec) -> Result<Option<Soi2Job>, SpecError> {
                     newton,
                 },
                 p.start.into(),
-                p.newton.into(),
-                p.consistency_tolerance,
+                strategy,
+                consistency,
             )
         }
         IntegratorSpec::Soi2Hht(p) | IntegratorSpec::HhtI3(p) => {
@@ -925,8 +928,7 @@ pub fn job_from_spec(spec: &JobSpec) -> Result<Option<Soi2Job>, SpecError> {
                     ),
                 ));
             }
-            check_tolerance(p.consistency_tolerance)?;
-            let newton = newton_options(p.newton_tolerance, p.newton_max_iterations)?;
+            let (newton, strategy, consistency) = newton_settings(&p.solve)?;
             (
                 Method {
                     formulation,
@@ -934,8 +936,8 @@ pub fn job_from_spec(spec: &JobSpec) -> Result<Option<Soi2Job>, SpecError> {
                     newton,
                 },
                 p.start.into(),
-                p.newton.into(),
-                p.consistency_tolerance,
+                strategy,
+                consistency,
             )
         }
         _ => {
