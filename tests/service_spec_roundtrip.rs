@@ -153,10 +153,7 @@ fn newton_strategy_round_trips_and_defaults() {
     let core = job_spec(typed).expect("converts");
     match &core.integrator {
         signorini_core::spec::IntegratorSpec::Soi2GeneralizedAlpha(g) => {
-            assert_eq!(
-                g.solve.newton,
-                signorini_core::soi2::run::NewtonSpec::Simplified
-            );
+            assert_eq!(g.solve.newton, signorini_core::spec::NewtonSpec::Simplified);
         }
         other => panic!("{other:?}"),
     }

@@ -15,17 +15,14 @@ use crate::store::{JobState, StoredResult};
 use crate::worker::JobView;
 use signorini_core::contact::Activation;
 use signorini_core::lcp::LcpSolverKind;
-use signorini_core::modal::forced::Excitation;
-use signorini_core::modal::{AnalysisSpec, ForcedResponseSpec, ModalSpec};
 use signorini_core::scenes::{BarSpec, BouncingBall, Chain, HarmonicSpec, LeftEnd, MassMatrix};
 use signorini_core::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
-use signorini_core::soi2::run::{
-    HhtSoi2Spec, NewtonSpec, Soi2GeneralizedAlphaSpec, Soi2NewtonSpec, StartSpec,
-};
 use signorini_core::spec::{
-    ContactSolverSpec, HarmonicForceSpec, IndexSetSpec, IntegratorSpec, JobSpec, LinearSpec,
-    ModelSpec, MoreauJeanSpec, NsAlphaSpec, NsHhtSpec, NsNewmarkSpec, OutputSpec,
-    PositionContactSpec, SpecError, TimeSpec, WfemSpec,
+    AnalysisSpec, ContactSolverSpec, Excitation, ForcedResponseSpec, HarmonicForceSpec,
+    HhtSoi2Spec, IndexSetSpec, IntegratorSpec, JobSpec, LinearSpec, ModalSpec, ModelSpec,
+    MoreauJeanSpec, NewtonSpec, NsAlphaSpec, NsHhtSpec, NsNewmarkSpec, OutputSpec,
+    PositionContactSpec, Soi2GeneralizedAlphaSpec, Soi2NewtonSpec, SpecError, StartSpec, TimeSpec,
+    WfemSpec,
 };
 
 fn usize_of(field: &str, v: u64) -> Result<usize, SpecError> {

@@ -8,8 +8,10 @@
 
 use crate::scenes::{BarSpec, BouncingBall, Chain};
 use crate::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
-use crate::soi2::run::{HhtSoi2Spec, Soi2GeneralizedAlphaSpec};
-use crate::spec::{ContactSolverSpec, LinearSpec, MoreauJeanSpec, NsNewmarkSpec, OutputSpec};
+use crate::spec::{
+    ContactSolverSpec, HhtSoi2Spec, LinearSpec, MoreauJeanSpec, NsNewmarkSpec, OutputSpec,
+    Soi2GeneralizedAlphaSpec,
+};
 use serde::Serialize;
 use serde_json::Value;
 
@@ -702,15 +704,15 @@ mod tests {
         for (name, spec) in [
             (
                 "soi2_generalized_alpha",
-                serde_json::to_value(crate::soi2::run::Soi2GeneralizedAlphaSpec::default()),
+                serde_json::to_value(crate::spec::Soi2GeneralizedAlphaSpec::default()),
             ),
             (
                 "soi2_hht",
-                serde_json::to_value(crate::soi2::run::HhtSoi2Spec::default()),
+                serde_json::to_value(crate::spec::HhtSoi2Spec::default()),
             ),
             (
                 "hht_i3",
-                serde_json::to_value(crate::soi2::run::HhtSoi2Spec::default()),
+                serde_json::to_value(crate::spec::HhtSoi2Spec::default()),
             ),
         ] {
             let c = caps

@@ -4,10 +4,10 @@
 //! job returns.
 
 use signorini_core::job::{Job, RunError, run};
-use signorini_core::modal::forced::{ForcedResponseJob, ForcedResponseSpec, respond};
+use signorini_core::modal::forced::{ForcedResponseJob, respond};
 use signorini_core::modal::main_asymptote;
 use signorini_core::observer::{Observer, Progress, StepRecord};
-use signorini_core::spec::JobSpec;
+use signorini_core::spec::{ForcedResponseSpec, JobSpec};
 use std::ops::ControlFlow;
 
 fn forced(excitation: &str, gap: f64, amplitude: f64) -> ForcedResponseJob {

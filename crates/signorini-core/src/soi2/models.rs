@@ -2,7 +2,7 @@
 //! scene's `[model]` parameters in the job spec and the [`ConstrainedModel`].
 
 use super::{ConstrainedModel, Dims, ExactValues, InitialValues, Scalar};
-use crate::spec::SpecError;
+use crate::spec::error::SpecError;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 

@@ -1,141 +1,10 @@
-//! The job spec: one serde schema for the three spellings (TOML for the CLI, JSON over HTTP,
-//! protobuf over gRPC converts to it). The field names pinned in DESIGN.md §7 are a public
-//! contract: add fields freely, rename none. Unknown fields are rejected.
-//!
-//! A spec is only data; [`crate::job::Job::from_spec`] validates it once and builds the model
-//! and the integrator, with errors that name the field ([`SpecError`]).
+//! `[integrator]`: the schemes and their parameters. The field groups several schemes share
+//! (the index set, the SOI2 Newton settings) are one struct each, flattened into the scheme's
+//! table, with their defaults and their check in one place.
 
+use super::SpecError;
 use crate::contact::{Activation, IndexSetRule};
-use crate::lcp::LcpSolverKind;
-use crate::scenes::{BarSpec, BouncingBall, Chain};
-use crate::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
-use crate::soi2::run::{HhtSoi2Spec, Soi2GeneralizedAlphaSpec};
 use serde::{Deserialize, Serialize};
-use thiserror::Error;
-
-/// A whole job.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct JobSpec {
-    /// Optional label.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub name: Option<String>,
-    /// The model (required by time-integration jobs).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub model: Option<ModelSpec>,
-    /// The integrator; Moreau–Jean with θ = ½ when absent.
-    #[serde(default)]
-    pub integrator: IntegratorSpec,
-    /// Step size and duration (required by time-integration jobs).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub time: Option<TimeSpec>,
-    /// LCP solver settings.
-    #[serde(default)]
-    pub contact_solver: ContactSolverSpec,
-    /// What to record.
-    #[serde(default)]
-    pub output: OutputSpec,
-    /// A job that is not a time integration (`kind = "nonsmooth_modes"` or `"forced_response"`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub analysis: Option<crate::modal::AnalysisSpec>,
-}
-
-/// `[model]`: the scene and its parameters.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "scene", rename_all = "snake_case")]
-pub enum ModelSpec {
-    /// A ball bouncing on the ground.
-    BouncingBall(BouncingBall),
-    /// Elastic bar of linear finite elements against an obstacle.
-    Bar(BarSpec),
-    /// The Doyen–Ern–Piperno bouncing bar (defaults from Yoong et al. 2018, Table 1).
-    DepBar(BarSpec),
-    /// Masses and springs, one contact per mass.
-    Chain(Chain),
-    /// Raw matrices.
-    Linear(LinearSpec),
-    /// The pendulum (16) of Jay & Negrut 2008, Fig. 3 (SOI2 schemes).
-    Pendulum(Pendulum),
-    /// A rigid slider-crank under gravity (SOI2 schemes).
-    SliderCrank(SliderCrank),
-    /// The test problem (15) of Jay & Negrut 2008, with its exact solution (SOI2 schemes).
-    JayNegrutTest(JayNegrutTest),
-}
-
-impl ModelSpec {
-    /// The scene's name as written in specs.
-    pub fn scene(&self) -> &'static str {
-        match self {
-            ModelSpec::BouncingBall(_) => "bouncing_ball",
-            ModelSpec::Bar(_) => "bar",
-            ModelSpec::DepBar(_) => "dep_bar",
-            ModelSpec::Chain(_) => "chain",
-            ModelSpec::Linear(_) => "linear",
-            ModelSpec::Pendulum(_) => "pendulum",
-            ModelSpec::SliderCrank(_) => "slider_crank",
-            ModelSpec::JayNegrutTest(_) => "jay_negrut_test",
-        }
-    }
-}
-
-/// One harmonic term of the force of a `linear` model: `shape · sin(omega t + phase)`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct HarmonicForceSpec {
-    /// Amplitude per dof.
-    pub shape: Vec<f64>,
-    /// Angular frequency.
-    pub omega: f64,
-    /// Phase (default 0).
-    #[serde(default)]
-    pub phase: f64,
-}
-
-/// `scene = "linear"`: `M q̈ + C q̇ + K q = F(t) + G λ`, `g = g_matrix · q + g_offset ≥ 0`.
-/// Each matrix is given as dense rows (`mass`) or as triplets (`mass_triplets`), not both.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct LinearSpec {
-    /// M as dense rows.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub mass: Option<Vec<Vec<f64>>>,
-    /// M as `[row, col, value]` triplets (repeated entries add up).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub mass_triplets: Option<Vec<(usize, usize, f64)>>,
-    /// K as dense rows (zero when absent).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub stiffness: Option<Vec<Vec<f64>>>,
-    /// K as triplets.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub stiffness_triplets: Option<Vec<(usize, usize, f64)>>,
-    /// C as dense rows (zero when absent).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub damping: Option<Vec<Vec<f64>>>,
-    /// C as triplets.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub damping_triplets: Option<Vec<(usize, usize, f64)>>,
-    /// Constant force (zero when absent).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub force: Option<Vec<f64>>,
-    /// Harmonic force terms.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub harmonic_force: Vec<HarmonicForceSpec>,
-    /// Gᵀ: one row per contact, n entries each.
-    #[serde(default)]
-    pub g_matrix: Vec<Vec<f64>>,
-    /// w: one offset per contact (zero when absent).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub g_offset: Option<Vec<f64>>,
-    /// Restitution per contact.
-    #[serde(default)]
-    pub restitution: Vec<f64>,
-    /// Initial positions (zero when absent).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub q0: Option<Vec<f64>>,
-    /// Initial velocities (zero when absent).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub v0: Option<Vec<f64>>,
-}
 
 /// `[integrator]`: the scheme and its parameters.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -167,6 +36,17 @@ pub enum IntegratorSpec {
     Wfem(WfemSpec),
 }
 
+/// The families of schemes: each runs its own kind of model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SchemeFamily {
+    /// Linear models with unilateral contacts (Moreau–Jean, the α-family, the baselines).
+    Linear,
+    /// Nonlinear constrained models (SOI2 schemes, HHT-I3).
+    Soi2,
+    /// Wave finite elements on the `bar` and `dep_bar` scenes.
+    Wave,
+}
+
 /// Parameters of `wfem` (none: Δt = Δx/c is fixed by the bar, and `time.h` must equal it).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -179,6 +59,24 @@ impl Default for IntegratorSpec {
 }
 
 impl IntegratorSpec {
+    /// Which family of integrators the scheme belongs to.
+    pub fn family(&self) -> SchemeFamily {
+        match self {
+            IntegratorSpec::MoreauJean(_)
+            | IntegratorSpec::MoreauJeanVariant(_)
+            | IntegratorSpec::NsNewmark(_)
+            | IntegratorSpec::NsHht(_)
+            | IntegratorSpec::NsGeneralizedAlpha(_)
+            | IntegratorSpec::NsKhAlpha(_)
+            | IntegratorSpec::NewmarkPositionContact(_)
+            | IntegratorSpec::HhtPositionContact(_) => SchemeFamily::Linear,
+            IntegratorSpec::Soi2GeneralizedAlpha(_)
+            | IntegratorSpec::Soi2Hht(_)
+            | IntegratorSpec::HhtI3(_) => SchemeFamily::Soi2,
+            IntegratorSpec::Wfem(_) => SchemeFamily::Wave,
+        }
+    }
+
     /// The scheme's name as written in specs.
     pub fn scheme(&self) -> &'static str {
         match self {
@@ -261,103 +159,6 @@ impl IndexSetSpec {
     }
 }
 
-/// `[time]`: step size and duration (`t_end` or `steps`, not both).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct TimeSpec {
-    /// Step size h > 0.
-    pub h: f64,
-    /// Final time ≥ 0.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub t_end: Option<f64>,
-    /// Number of steps.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub steps: Option<u64>,
-    /// Relative step sizes repeated over the run (variable-step schemes only).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub pattern: Option<Vec<f64>>,
-    /// Use the step-size adjusting formulas (variable-step schemes only).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub adjust: Option<bool>,
-}
-
-fn default_tolerance() -> f64 {
-    1e-12
-}
-
-fn default_max_iterations() -> usize {
-    100_000
-}
-
-/// `[contact_solver]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ContactSolverSpec {
-    /// `auto` (default), `lemke`, `pgs` or `enum`.
-    #[serde(default)]
-    pub kind: LcpSolverKind,
-    /// Largest complementarity error accepted, default 1e-12.
-    #[serde(default = "default_tolerance")]
-    pub tolerance: f64,
-    /// Pivot or sweep budget, default 100 000.
-    #[serde(default = "default_max_iterations")]
-    pub max_iterations: usize,
-}
-
-impl Default for ContactSolverSpec {
-    fn default() -> Self {
-        Self {
-            kind: LcpSolverKind::Auto,
-            tolerance: default_tolerance(),
-            max_iterations: default_max_iterations(),
-        }
-    }
-}
-
-fn one() -> u64 {
-    1
-}
-
-/// `[output]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct OutputSpec {
-    /// Record every k-th step (≥ 1, default 1); the last step is always recorded.
-    #[serde(default = "one")]
-    pub every: u64,
-    /// Dofs whose q_j, v_j are recorded (default none).
-    #[serde(default)]
-    pub probes: Vec<usize>,
-}
-
-impl Default for OutputSpec {
-    fn default() -> Self {
-        Self {
-            every: 1,
-            probes: Vec::new(),
-        }
-    }
-}
-
-/// An invalid spec: which field, and why.
-#[derive(Debug, Clone, PartialEq, Eq, Error)]
-#[error("{field}: {reason}")]
-pub struct SpecError {
-    /// Dotted path of the field, e.g. `model.mass` or `time.h`.
-    pub field: String,
-    /// What is wrong with it.
-    pub reason: String,
-}
-
-impl SpecError {
-    /// An error on `field`.
-    pub fn new(field: impl Into<String>, reason: impl Into<String>) -> Self {
-        Self {
-            field: field.into(),
-            reason: reason.into(),
-        }
-    }
-}
 fn quarter() -> f64 {
     0.25
 }
@@ -452,4 +253,161 @@ pub struct PositionContactSpec {
     /// Run parameters outside (89)/(83) anyway (default false).
     #[serde(default, skip_serializing_if = "is_false")]
     pub allow_unstable: bool,
+}
+
+// ---------------------------------------------------------------------------------------------
+// SOI2 schemes (Jay & Negrut 2008)
+
+fn default_newton_tolerance() -> f64 {
+    1e-10
+}
+fn default_newton_max_iterations() -> usize {
+    25
+}
+fn default_consistency_tolerance() -> f64 {
+    1e-8
+}
+fn default_hht_alpha() -> f64 {
+    -0.2
+}
+
+/// Start value of a_α in specs: `a0` (default) or `lunk_simeon` ((8)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StartSpec {
+    /// a_α := a₀.
+    #[default]
+    A0,
+    /// a_α from (8).
+    LunkSimeon,
+}
+
+/// How the Newton iterations of each step (the nonlinear system (13), (17) or HHT-I3's) get
+/// their Jacobian, in specs: `newton = "simplified"` (default) or `"full"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NewtonSpec {
+    /// `NewtonStrategy::Simplified`: the AD Jacobian and its LU factorisation are kept across
+    /// iterations and steps of one size while the increments contract (by ≤ ½ per iteration),
+    /// rebuilt otherwise. Fewer Jacobians, more (cheap) iterations.
+    #[default]
+    Simplified,
+    /// `NewtonStrategy::Full`: a fresh AD Jacobian at every iterate (quadratic convergence;
+    /// the iteration counts comparable with the paper's).
+    Full,
+}
+
+impl NewtonSpec {
+    /// The name written in specs and summaries.
+    pub fn name(self) -> &'static str {
+        match self {
+            NewtonSpec::Simplified => "simplified",
+            NewtonSpec::Full => "full",
+        }
+    }
+}
+
+/// The Newton settings of the SOI2 schemes (the nonlinear step systems (13), (17), HHT-I3's)
+/// and the consistency check of the initial values. Its fields sit directly in `[integrator]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Soi2NewtonSpec {
+    /// Step Newton strategy: `simplified` (default) or `full`.
+    #[serde(default)]
+    pub newton: NewtonSpec,
+    /// Newton convergence: ‖Δx‖∞ ≤ tol·(1 + ‖x‖∞), > 0, default 1e-10.
+    #[serde(default = "default_newton_tolerance")]
+    pub newton_tolerance: f64,
+    /// Newton iterations per step, ≥ 1, default 25.
+    #[serde(default = "default_newton_max_iterations")]
+    pub newton_max_iterations: usize,
+    /// Largest constraint residual accepted in the initial values, > 0, default 1e-8.
+    #[serde(default = "default_consistency_tolerance")]
+    pub consistency_tolerance: f64,
+}
+
+impl Default for Soi2NewtonSpec {
+    fn default() -> Self {
+        Self {
+            newton: NewtonSpec::Simplified,
+            newton_tolerance: default_newton_tolerance(),
+            newton_max_iterations: default_newton_max_iterations(),
+            consistency_tolerance: default_consistency_tolerance(),
+        }
+    }
+}
+
+/// `scheme = "soi2_generalized_alpha"`: generalized-α-SOI2 (13). Coefficients from `rho_inf`
+/// (default 0.2, the paper's experiments) or given as `alpha_m`, `alpha_f` (and optionally
+/// `beta`, `gamma`, which default to (1 − α)²/4 and ½ − α with α = α_m − α_f).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Soi2GeneralizedAlphaSpec {
+    /// ρ∞ ∈ [0, 1].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rho_inf: Option<f64>,
+    /// α_m ≠ 1 (with r = |α_m/(1−α_m)| ≤ 1).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha_m: Option<f64>,
+    /// α_f ≠ 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha_f: Option<f64>,
+    /// β ≠ 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beta: Option<f64>,
+    /// γ ≠ 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gamma: Option<f64>,
+    /// Use the additive-force form of (13d): default = when the model's forces are additive;
+    /// `true` is refused for a model whose forces are not.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub additive: Option<bool>,
+    /// Start value of a_α.
+    #[serde(default)]
+    pub start: StartSpec,
+    /// Newton settings (`newton`, `newton_tolerance`, `newton_max_iterations`,
+    /// `consistency_tolerance`).
+    #[serde(flatten)]
+    pub solve: Soi2NewtonSpec,
+}
+
+impl Default for Soi2GeneralizedAlphaSpec {
+    fn default() -> Self {
+        Self {
+            rho_inf: None,
+            alpha_m: None,
+            alpha_f: None,
+            beta: None,
+            gamma: None,
+            additive: None,
+            start: StartSpec::A0,
+            solve: Soi2NewtonSpec::default(),
+        }
+    }
+}
+
+/// `scheme = "soi2_hht"` (HHT-SOI2 (17)) and `scheme = "hht_i3"` (the index-3 baseline):
+/// HHT-α with α ∈ [−⅓, 0] (default −0.2).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HhtSoi2Spec {
+    /// α ∈ [−⅓, 0].
+    #[serde(default = "default_hht_alpha")]
+    pub alpha: f64,
+    /// Start value of a_α.
+    #[serde(default)]
+    pub start: StartSpec,
+    /// Newton settings (`newton`, `newton_tolerance`, `newton_max_iterations`,
+    /// `consistency_tolerance`).
+    #[serde(flatten)]
+    pub solve: Soi2NewtonSpec,
+}
+
+impl Default for HhtSoi2Spec {
+    fn default() -> Self {
+        Self {
+            alpha: default_hht_alpha(),
+            start: StartSpec::A0,
+            solve: Soi2NewtonSpec::default(),
+        }
+    }
 }
