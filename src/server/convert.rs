@@ -41,6 +41,8 @@ pub fn job_spec(p: pb::JobSpec) -> Result<JobSpec, SpecError> {
         analysis,
     } = p;
     Ok(JobSpec {
+        // An editor hint of spec files; a typed spec has no file.
+        schema: None,
         name,
         model: model.map(model_spec).transpose()?,
         integrator: integrator

@@ -22,6 +22,8 @@ type Triplets = Vec<(usize, usize, f64)>;
 /// The core spec → the typed proto message.
 pub fn job_spec_to_proto(s: &JobSpec) -> pb::JobSpec {
     let JobSpec {
+        // An editor hint of spec files, not carried by the typed spec.
+        schema: _,
         name,
         model,
         integrator,

@@ -1,10 +1,11 @@
 //! `[analysis]`: the jobs that are not a time integration (nonsmooth modal analysis and
 //! forced-response sweeps of the bar on wave finite elements, Yoong et al. 2018 §§4–7).
 
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// `[analysis]`: a job kind that is not a time integration.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum AnalysisSpec {
     /// Backbone curves of the nonsmooth modes.
@@ -24,11 +25,12 @@ fn one_u() -> usize {
 }
 
 /// `kind = "nonsmooth_modes"`: the unit-free bar of §6 (fixed left end) and the scan ranges.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ModalSpec {
     /// Cells N ≥ 2 (default 100).
     #[serde(default = "default_cells")]
+    #[schemars(range(min = 2, max = 1_000_000))]
     pub cells: usize,
     /// Gap g0 (any sign). Give `gap` or `gaps`; default `gaps = [1e-3, 0, −1e-3]`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -44,18 +46,23 @@ pub struct ModalSpec {
     pub min_period_steps: Option<usize>,
     /// Contact phases per period: 1 ((9), default) or 2 ((18), equal contact durations).
     #[serde(default = "one_u")]
+    #[schemars(range(min = 1, max = 2))]
     pub phases: usize,
     /// Length L (default 1).
     #[serde(default = "one_f")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub length: f64,
     /// Young's modulus E (default 1).
     #[serde(default = "one_f")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub young: f64,
     /// Density ρ (default 1).
     #[serde(default = "one_f")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub density: f64,
     /// Section S (default 1).
     #[serde(default = "one_f")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub area: f64,
     /// Periods of the stability run of the first-mode orbit (0 = none, default 0; §6.5 uses 1000).
     #[serde(default)]
@@ -66,7 +73,7 @@ pub struct ModalSpec {
 }
 
 /// How the bar is driven.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Excitation {
     /// Harmonically moving wall (f0 = 0, w0 ≠ 0).
@@ -99,23 +106,28 @@ fn d_average() -> usize {
 }
 
 /// `kind = "forced_response"`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ForcedResponseSpec {
     /// Cells N ≥ 2 (default 100).
     #[serde(default = "d_cells")]
+    #[schemars(range(min = 2, max = 100_000))]
     pub cells: usize,
     /// Length (default 1).
     #[serde(default = "d_one")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub length: f64,
     /// Young's modulus (default 1).
     #[serde(default = "d_one")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub young: f64,
     /// Density (default 1).
     #[serde(default = "d_one")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub density: f64,
     /// Section (default 1).
     #[serde(default = "d_one")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub area: f64,
     /// Gap g0 (default 10⁻³).
     #[serde(default = "d_gap")]

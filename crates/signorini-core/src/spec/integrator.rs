@@ -4,10 +4,11 @@
 
 use super::SpecError;
 use crate::contact::{Activation, IndexSetRule};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// `[integrator]`: the scheme and its parameters.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(tag = "scheme", rename_all = "snake_case")]
 pub enum IntegratorSpec {
     /// Moreau–Jean θ-scheme, Acary 2016 (21)–(24).
@@ -48,7 +49,7 @@ pub enum SchemeFamily {
 }
 
 /// Parameters of `wfem` (none: Δt = Δx/c is fixed by the bar, and `time.h` must equal it).
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct WfemSpec {}
 
@@ -101,11 +102,12 @@ fn half() -> f64 {
 }
 
 /// Parameters of `moreau_jean` and `moreau_jean_variant`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MoreauJeanSpec {
     /// θ ∈ [0, 1], default ½.
     #[serde(default = "half")]
+    #[schemars(range(min = 0.0, max = 1.0))]
     pub theta: f64,
     /// Index-set rule (`activation`, `activation_gamma`).
     #[serde(flatten)]
@@ -123,7 +125,7 @@ impl Default for MoreauJeanSpec {
 
 /// The index set of the velocity-level schemes (Moreau–Jean and the nonsmooth α-family): which
 /// contacts enter a step's LCP. Its fields sit directly in `[integrator]`.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 pub struct IndexSetSpec {
     /// Index-set rule: `gap_and_velocity` ((24) of Acary 2016, default) or `predicted_gap`
     /// (Siconos' `g(q_k) + γ h U_k ≤ 0`, no sign test on U_k).
@@ -131,6 +133,7 @@ pub struct IndexSetSpec {
     pub activation: Activation,
     /// γ > 0 of the predicted-gap rule, default 1 (only with `activation = "predicted_gap"`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub activation_gamma: Option<f64>,
 }
 
@@ -169,7 +172,7 @@ fn is_false(b: &bool) -> bool {
 
 /// Parameters of `ns_newmark` (Acary 2016 (25), α_m = α_f = 0). Dissipative for 2β ≥ γ ≥ ½ (89);
 /// parameters outside are rejected unless `allow_unstable = true`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct NsNewmarkSpec {
     /// β, default ¼ (with γ = ½: the trapezoidal rule, Corollary 1).
@@ -188,7 +191,7 @@ pub struct NsNewmarkSpec {
 
 /// Parameters of `ns_hht` (Acary 2016 (78)): α, and β, γ defaulting to the second-order choice
 /// γ = ½ + α, β = (1 + α)²/4. Dissipative for 2β ≥ γ ≥ ½, 0 ≤ α ≤ γ − ½ ≤ ½ (83).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct NsHhtSpec {
     /// α = α_f (required); the classical range is [0, ⅓].
@@ -210,11 +213,12 @@ pub struct NsHhtSpec {
 /// Parameters of `ns_generalized_alpha` and `ns_kh_alpha`: `rho_inf` ∈ [0, 1] (by (26)–(27);
 /// default 0.8 when nothing is given), or `alpha_m`, `alpha_f` with optional `gamma` (default
 /// (26)) and `beta` (default ¼(γ + ½)²), not both.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct NsAlphaSpec {
     /// Spectral radius at infinity ρ∞ ∈ [0, 1].
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 0.0, max = 1.0))]
     pub rho_inf: Option<f64>,
     /// α_m < 1.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -238,7 +242,7 @@ pub struct NsAlphaSpec {
 
 /// Parameters of `newmark_position_contact` (β default ¼, γ default ½, no α) and
 /// `hht_position_contact` (α required, β and γ defaulting as for `ns_hht`).
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PositionContactSpec {
     /// HHT α (hht_position_contact only).
@@ -272,7 +276,7 @@ fn default_hht_alpha() -> f64 {
 }
 
 /// Start value of a_α in specs: `a0` (default) or `lunk_simeon` ((8)).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum StartSpec {
     /// a_α := a₀.
@@ -284,7 +288,7 @@ pub enum StartSpec {
 
 /// How the Newton iterations of each step (the nonlinear system (13), (17) or HHT-I3's) get
 /// their Jacobian, in specs: `newton = "simplified"` (default) or `"full"`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum NewtonSpec {
     /// `NewtonStrategy::Simplified`: the AD Jacobian and its LU factorisation are kept across
@@ -309,19 +313,22 @@ impl NewtonSpec {
 
 /// The Newton settings of the SOI2 schemes (the nonlinear step systems (13), (17), HHT-I3's)
 /// and the consistency check of the initial values. Its fields sit directly in `[integrator]`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct Soi2NewtonSpec {
     /// Step Newton strategy: `simplified` (default) or `full`.
     #[serde(default)]
     pub newton: NewtonSpec,
     /// Newton convergence: ‖Δx‖∞ ≤ tol·(1 + ‖x‖∞), > 0, default 1e-10.
     #[serde(default = "default_newton_tolerance")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub newton_tolerance: f64,
     /// Newton iterations per step, ≥ 1, default 25.
     #[serde(default = "default_newton_max_iterations")]
+    #[schemars(range(min = 1))]
     pub newton_max_iterations: usize,
     /// Largest constraint residual accepted in the initial values, > 0, default 1e-8.
     #[serde(default = "default_consistency_tolerance")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub consistency_tolerance: f64,
 }
 
@@ -339,11 +346,12 @@ impl Default for Soi2NewtonSpec {
 /// `scheme = "soi2_generalized_alpha"`: generalized-α-SOI2 (13). Coefficients from `rho_inf`
 /// (default 0.2, the paper's experiments) or given as `alpha_m`, `alpha_f` (and optionally
 /// `beta`, `gamma`, which default to (1 − α)²/4 and ½ − α with α = α_m − α_f).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Soi2GeneralizedAlphaSpec {
     /// ρ∞ ∈ [0, 1].
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 0.0, max = 1.0))]
     pub rho_inf: Option<f64>,
     /// α_m ≠ 1 (with r = |α_m/(1−α_m)| ≤ 1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -387,11 +395,12 @@ impl Default for Soi2GeneralizedAlphaSpec {
 
 /// `scheme = "soi2_hht"` (HHT-SOI2 (17)) and `scheme = "hht_i3"` (the index-3 baseline):
 /// HHT-α with α ∈ [−⅓, 0] (default −0.2).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct HhtSoi2Spec {
     /// α ∈ [−⅓, 0].
     #[serde(default = "default_hht_alpha")]
+    #[schemars(range(min = -0.3333333333333333, max = 0.0))]
     pub alpha: f64,
     /// Start value of a_α.
     #[serde(default)]

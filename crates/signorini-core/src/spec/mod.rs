@@ -23,12 +23,16 @@ pub use model::{HarmonicForceSpec, LinearSpec, ModelSpec};
 
 use crate::integrators::OutputOptions;
 use crate::lcp::{LcpOptions, LcpSolverKind};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// A whole job.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct JobSpec {
+    /// The JSON Schema this file follows (`signorini schema`), for editors; runs ignore it.
+    #[serde(rename = "$schema", default, skip_serializing_if = "Option::is_none")]
+    pub schema: Option<String>,
     /// Optional label.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
@@ -53,13 +57,15 @@ pub struct JobSpec {
 }
 
 /// `[time]`: step size and duration (`t_end` or `steps`, not both).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TimeSpec {
     /// Step size h > 0.
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub h: f64,
     /// Final time ≥ 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 0.0))]
     pub t_end: Option<f64>,
     /// Number of steps.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -81,7 +87,7 @@ fn default_max_iterations() -> usize {
 }
 
 /// `[contact_solver]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ContactSolverSpec {
     /// `auto` (default), `lemke`, `pgs` or `enum`.
@@ -89,9 +95,11 @@ pub struct ContactSolverSpec {
     pub kind: LcpSolverKind,
     /// Largest complementarity error accepted, default 1e-12.
     #[serde(default = "default_tolerance")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub tolerance: f64,
     /// Pivot or sweep budget, default 100 000.
     #[serde(default = "default_max_iterations")]
+    #[schemars(range(min = 1))]
     pub max_iterations: usize,
 }
 
@@ -110,11 +118,12 @@ fn one() -> u64 {
 }
 
 /// `[output]`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct OutputSpec {
     /// Record every k-th step (≥ 1, default 1); the last step is always recorded.
     #[serde(default = "one")]
+    #[schemars(range(min = 1))]
     pub every: u64,
     /// Dofs whose q_j, v_j are recorded (default none).
     #[serde(default)]
@@ -345,4 +354,13 @@ pub fn mismatch(model: &ModelSpec, scheme: &str) -> SpecError {
             ),
         )
     }
+}
+
+/// The JSON Schema (draft 2020-12) of a job spec, generated from these types: each field's doc
+/// comment is its `description`, its serde default its `default`, and the ranges the builders
+/// check are `minimum`/`maximum` where they are closed bounds (stated in the description
+/// otherwise). Editors validate and complete TOML and JSON spec files with it; the CLI prints
+/// it (`signorini schema`) and [`crate::capabilities`] is read from it.
+pub fn json_schema() -> serde_json::Value {
+    schemars::schema_for!(JobSpec).to_value()
 }

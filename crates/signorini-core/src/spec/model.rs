@@ -3,10 +3,11 @@
 
 use crate::scenes::{BarSpec, BouncingBall, Chain};
 use crate::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// `[model]`: the scene and its parameters.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(tag = "scene", rename_all = "snake_case")]
 pub enum ModelSpec {
     /// A ball bouncing on the ground.
@@ -53,7 +54,7 @@ impl ModelSpec {
 }
 
 /// One harmonic term of the force of a `linear` model: `shape · sin(omega t + phase)`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct HarmonicForceSpec {
     /// Amplitude per dof.
@@ -67,7 +68,7 @@ pub struct HarmonicForceSpec {
 
 /// `scene = "linear"`: `M q̈ + C q̇ + K q = F(t) + G λ`, `g = g_matrix · q + g_offset ≥ 0`.
 /// Each matrix is given as dense rows (`mass`) or as triplets (`mass_triplets`), not both.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LinearSpec {
     /// M as dense rows.
