@@ -846,10 +846,18 @@ pub fn capabilities_to_proto(
             })
             .collect(),
     };
+    let signorini_core::capabilities::Capabilities {
+        models,
+        integrators,
+        analyses,
+        contact_solvers,
+        sections,
+    } = c;
     pb::CapabilitiesResponse {
-        models: c.models.iter().map(comp).collect(),
-        integrators: c.integrators.iter().map(comp).collect(),
-        contact_solvers: c.contact_solvers.iter().map(comp).collect(),
-        sections: c.sections.iter().map(comp).collect(),
+        models: models.iter().map(comp).collect(),
+        integrators: integrators.iter().map(comp).collect(),
+        contact_solvers: contact_solvers.iter().map(comp).collect(),
+        sections: sections.iter().map(comp).collect(),
+        analyses: analyses.iter().map(comp).collect(),
     }
 }

@@ -186,6 +186,7 @@ pub struct NsNewmarkSpec {
     pub index_set: IndexSetSpec,
     /// Run parameters outside the dissipation conditions anyway (default false).
     #[serde(default, skip_serializing_if = "is_false")]
+    #[schemars(extend("default" = false))]
     pub allow_unstable: bool,
 }
 
@@ -207,6 +208,7 @@ pub struct NsHhtSpec {
     pub index_set: IndexSetSpec,
     /// Run parameters outside (83) anyway (default false).
     #[serde(default, skip_serializing_if = "is_false")]
+    #[schemars(extend("default" = false))]
     pub allow_unstable: bool,
 }
 
@@ -237,6 +239,7 @@ pub struct NsAlphaSpec {
     pub index_set: IndexSetSpec,
     /// Run parameters outside the stability conditions anyway (default false).
     #[serde(default, skip_serializing_if = "is_false")]
+    #[schemars(extend("default" = false))]
     pub allow_unstable: bool,
 }
 
@@ -256,6 +259,7 @@ pub struct PositionContactSpec {
     pub gamma: Option<f64>,
     /// Run parameters outside (89)/(83) anyway (default false).
     #[serde(default, skip_serializing_if = "is_false")]
+    #[schemars(extend("default" = false))]
     pub allow_unstable: bool,
 }
 
