@@ -198,6 +198,32 @@ mod tests {
     }
 
     #[test]
+    fn unknown_field_next_to_a_field_group_is_named() {
+        // The index set and the Newton settings are flattened into the scheme's table; a
+        // misspelt field beside them is still named, in TOML and JSON, with or without a
+        // missing required field.
+        let e = parse(
+            "[model]\nscene = \"chain\"\n[integrator]\nscheme = \"ns_hht\"\nalpha = 0.1\nactivaton = \"predicted_gap\"\n[time]\nh = 0.01\nsteps = 1\n",
+            Format::Toml,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "integrator.activaton", "{e}");
+        assert!(e.reason.contains("unknown field"), "{e}");
+        let e = parse(
+            r#"{"model": {"scene": "pendulum"}, "integrator": {"scheme": "soi2_hht", "newton_tolerence": 1e-9}, "time": {"h": 0.01, "steps": 1}}"#,
+            Format::Json,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "integrator.newton_tolerence", "{e}");
+        let e = parse(
+            r#"{"model": {"scene": "chain"}, "integrator": {"scheme": "ns_hht", "activation_gamma": "x"}, "time": {"h": 0.01, "steps": 1}}"#,
+            Format::Json,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "integrator.activation_gamma", "{e}");
+    }
+
+    #[test]
     fn unknown_value_of_an_enumerated_field_is_named() {
         // serde says "unknown variant" for these as for an unknown scheme: the field, not
         // `integrator.scheme`, must be named, in TOML (CLI) and JSON (HTTP).
