@@ -11,25 +11,32 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(tag = "scheme", rename_all = "snake_case")]
 pub enum IntegratorSpec {
-    /// Moreau–Jean θ-scheme, Acary 2016 (21)–(24).
+    /// Moreau–Jean θ-scheme, Acary 2016 (21)–(24); θ ∈ [0, 1].
     MoreauJean(MoreauJeanSpec),
     /// Its variant (29): `q_{k+1} = q_k + h v_{k+1/2}`.
     MoreauJeanVariant(MoreauJeanSpec),
-    /// Nonsmooth Newmark, Acary 2016 (25) with α_m = α_f = 0.
+    /// Nonsmooth Newmark, Acary 2016 (25) with α_m = α_f = 0. Dissipative for 2β ≥ γ ≥ ½ (89);
+    /// parameters outside are refused unless `allow_unstable = true`.
     NsNewmark(NsNewmarkSpec),
-    /// Nonsmooth HHT, Acary 2016 (25) with α_m = 0, α_f = α (78).
+    /// Nonsmooth HHT, Acary 2016 (25) with α_m = 0, α_f = α (78); α required, β and γ default to
+    /// (1 + α)²/4 and ½ + α. Dissipative for 2β ≥ γ ≥ ½, 0 ≤ α ≤ γ − ½ ≤ ½ (83).
     NsHht(NsHhtSpec),
-    /// Nonsmooth generalized-α, Acary 2016 (25)–(27).
+    /// Nonsmooth generalized-α, Acary 2016 (25)–(27): `rho_inf` (default 0.8 when nothing is
+    /// given), or `alpha_m`, `alpha_f` with optional `gamma` and `beta`, not both.
     NsGeneralizedAlpha(NsAlphaSpec),
-    /// Nonsmooth Krenk–Høgsberg generalized-α, Acary 2016 (30).
+    /// Nonsmooth Krenk–Høgsberg generalized-α, Acary 2016 (30); parameters as for
+    /// `ns_generalized_alpha`.
     NsKhAlpha(NsAlphaSpec),
-    /// Standard Newmark with contact at position level (the baseline that blows up).
+    /// Standard Newmark with contact at position level (the baseline that blows up); β default
+    /// ¼, γ default ½, no α.
     NewmarkPositionContact(PositionContactSpec),
-    /// Standard HHT with contact at position level (baseline).
+    /// Standard HHT with contact at position level (baseline); α required, β and γ defaulting
+    /// as for `ns_hht`.
     HhtPositionContact(PositionContactSpec),
-    /// Generalized-α-SOI2, Jay & Negrut 2008 (13).
+    /// Generalized-α-SOI2, Jay & Negrut 2008 (13): coefficients from `rho_inf` (default 0.2) or
+    /// given as `alpha_m`, `alpha_f` (and optionally `beta`, `gamma`).
     Soi2GeneralizedAlpha(Soi2GeneralizedAlphaSpec),
-    /// HHT-SOI2, Jay & Negrut 2008 (17).
+    /// HHT-SOI2, Jay & Negrut 2008 (17); α ∈ [−⅓, 0].
     Soi2Hht(HhtSoi2Spec),
     /// HHT-I3 (index 3, position constraints only): the baseline of HHT-SOI2.
     HhtI3(HhtSoi2Spec),
