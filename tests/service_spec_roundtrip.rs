@@ -186,11 +186,11 @@ mod random {
     use signorini_core::scenes::{BarSpec, BouncingBall, Chain, HarmonicSpec, LeftEnd, MassMatrix};
     use signorini_core::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
     use signorini_core::spec::{
-        AnalysisSpec, ContactSolverSpec, Excitation, ForcedResponseSpec, HarmonicForceSpec,
-        HhtSoi2Spec, IndexSetSpec, IntegratorSpec, JobSpec, LinearSpec, ModalSpec, ModelSpec,
-        MoreauJeanSpec, NewtonSpec, NsAlphaSpec, NsHhtSpec, NsNewmarkSpec, OutputSpec,
-        PositionContactSpec, Soi2GeneralizedAlphaSpec, Soi2NewtonSpec, StartSpec, TimeSpec,
-        WfemSpec,
+        AlphaCoefficientsSpec, AnalysisSpec, ContactSolverSpec, Excitation, ForcedResponseSpec,
+        HarmonicForceSpec, HhtSoi2Spec, IndexSetSpec, IntegratorSpec, JobSpec, LinearSpec,
+        ModalSpec, ModelSpec, MoreauJeanSpec, NewtonSpec, NsAlphaSpec, NsHhtSpec, NsNewmarkSpec,
+        OutputSpec, PositionContactSpec, Soi2GeneralizedAlphaSpec, Soi2NewtonSpec, StartSpec,
+        TimeSpec, WfemSpec,
     };
 
     fn x() -> impl Strategy<Value = f64> {
@@ -419,6 +419,18 @@ mod random {
             )
     }
 
+    fn coefficients() -> impl Strategy<Value = AlphaCoefficientsSpec> {
+        (ox(), ox(), ox(), ox(), ox()).prop_map(|(rho_inf, alpha_m, alpha_f, beta, gamma)| {
+            AlphaCoefficientsSpec {
+                rho_inf,
+                alpha_m,
+                alpha_f,
+                beta,
+                gamma,
+            }
+        })
+    }
+
     fn start() -> impl Strategy<Value = StartSpec> {
         prop_oneof![Just(StartSpec::A0), Just(StartSpec::LunkSimeon)]
     }
@@ -428,13 +440,9 @@ mod random {
             (x(), index_set()).prop_map(|(theta, index_set)| MoreauJeanSpec { theta, index_set })
         };
         let alpha = || {
-            (ox(), ox(), ox(), ox(), ox(), index_set(), any::<bool>()).prop_map(
-                |(rho_inf, alpha_m, alpha_f, beta, gamma, index_set, allow_unstable)| NsAlphaSpec {
-                    rho_inf,
-                    alpha_m,
-                    alpha_f,
-                    beta,
-                    gamma,
+            (coefficients(), index_set(), any::<bool>()).prop_map(
+                |(coefficients, index_set, allow_unstable)| NsAlphaSpec {
+                    coefficients,
                     index_set,
                     allow_unstable,
                 },
@@ -486,30 +494,16 @@ mod random {
             position().prop_map(IntegratorSpec::NewmarkPositionContact),
             position().prop_map(IntegratorSpec::HhtPositionContact),
             Just(IntegratorSpec::Wfem(WfemSpec {})),
-            (
-                ox(),
-                ox(),
-                ox(),
-                ox(),
-                ox(),
-                of(any::<bool>()),
-                start(),
-                solve()
-            )
-                .prop_map(
-                    |(rho_inf, alpha_m, alpha_f, beta, gamma, additive, start, solve)| {
-                        IntegratorSpec::Soi2GeneralizedAlpha(Soi2GeneralizedAlphaSpec {
-                            rho_inf,
-                            alpha_m,
-                            alpha_f,
-                            beta,
-                            gamma,
-                            additive,
-                            start,
-                            solve,
-                        })
-                    }
-                ),
+            (coefficients(), of(any::<bool>()), start(), solve()).prop_map(
+                |(coefficients, additive, start, solve)| {
+                    IntegratorSpec::Soi2GeneralizedAlpha(Soi2GeneralizedAlphaSpec {
+                        coefficients,
+                        additive,
+                        start,
+                        solve,
+                    })
+                }
+            ),
             hht_soi2().prop_map(IntegratorSpec::Soi2Hht),
             hht_soi2().prop_map(IntegratorSpec::HhtI3),
         ]

@@ -18,9 +18,9 @@ use signorini_core::lcp::LcpSolverKind;
 use signorini_core::scenes::{BarSpec, BouncingBall, Chain, HarmonicSpec, LeftEnd, MassMatrix};
 use signorini_core::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
 use signorini_core::spec::{
-    AnalysisSpec, ContactSolverSpec, Excitation, ForcedResponseSpec, HarmonicForceSpec,
-    HhtSoi2Spec, IndexSetSpec, IntegratorSpec, JobSpec, LinearSpec, ModalSpec, ModelSpec,
-    MoreauJeanSpec, NewtonSpec, NsAlphaSpec, NsHhtSpec, NsNewmarkSpec, OutputSpec,
+    AlphaCoefficientsSpec, AnalysisSpec, ContactSolverSpec, Excitation, ForcedResponseSpec,
+    HarmonicForceSpec, HhtSoi2Spec, IndexSetSpec, IntegratorSpec, JobSpec, LinearSpec, ModalSpec,
+    ModelSpec, MoreauJeanSpec, NewtonSpec, NsAlphaSpec, NsHhtSpec, NsNewmarkSpec, OutputSpec,
     PositionContactSpec, Soi2GeneralizedAlphaSpec, Soi2NewtonSpec, SpecError, StartSpec, TimeSpec,
     WfemSpec,
 };
@@ -360,11 +360,13 @@ fn ns_alpha(p: pb::NsAlpha) -> Result<NsAlphaSpec, SpecError> {
         allow_unstable,
     } = p;
     Ok(NsAlphaSpec {
-        rho_inf,
-        alpha_m,
-        alpha_f,
-        beta,
-        gamma,
+        coefficients: AlphaCoefficientsSpec {
+            rho_inf,
+            alpha_m,
+            alpha_f,
+            beta,
+            gamma,
+        },
         index_set: index_set(act, activation_gamma)?,
         allow_unstable,
     })
@@ -445,11 +447,13 @@ fn soi2_generalized_alpha(
         newton,
     } = p;
     Ok(Soi2GeneralizedAlphaSpec {
-        rho_inf,
-        alpha_m,
-        alpha_f,
-        beta,
-        gamma,
+        coefficients: AlphaCoefficientsSpec {
+            rho_inf,
+            alpha_m,
+            alpha_f,
+            beta,
+            gamma,
+        },
         additive,
         start: soi2_start(start)?,
         solve: soi2_solve(

@@ -11,9 +11,9 @@ use signorini_core::lcp::LcpSolverKind;
 use signorini_core::scenes::{BarSpec, BouncingBall, Chain, HarmonicSpec, LeftEnd, MassMatrix};
 use signorini_core::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
 use signorini_core::spec::{
-    AnalysisSpec, ContactSolverSpec, Excitation, ForcedResponseSpec, HarmonicForceSpec,
-    HhtSoi2Spec, IndexSetSpec, IntegratorSpec, JobSpec, LinearSpec, ModalSpec, ModelSpec,
-    MoreauJeanSpec, NewtonSpec, NsAlphaSpec, NsHhtSpec, NsNewmarkSpec, OutputSpec,
+    AlphaCoefficientsSpec, AnalysisSpec, ContactSolverSpec, Excitation, ForcedResponseSpec,
+    HarmonicForceSpec, HhtSoi2Spec, IndexSetSpec, IntegratorSpec, JobSpec, LinearSpec, ModalSpec,
+    ModelSpec, MoreauJeanSpec, NewtonSpec, NsAlphaSpec, NsHhtSpec, NsNewmarkSpec, OutputSpec,
     PositionContactSpec, Soi2GeneralizedAlphaSpec, Soi2NewtonSpec, StartSpec, TimeSpec, WfemSpec,
 };
 
@@ -323,11 +323,14 @@ fn integrator_to_proto(i: &IntegratorSpec) -> pb::IntegratorSpec {
     };
     let alpha = |a: &NsAlphaSpec| {
         let NsAlphaSpec {
-            rho_inf,
-            alpha_m,
-            alpha_f,
-            beta,
-            gamma,
+            coefficients:
+                AlphaCoefficientsSpec {
+                    rho_inf,
+                    alpha_m,
+                    alpha_f,
+                    beta,
+                    gamma,
+                },
             index_set:
                 IndexSetSpec {
                     activation,
@@ -426,11 +429,14 @@ fn integrator_to_proto(i: &IntegratorSpec) -> pb::IntegratorSpec {
         IntegratorSpec::HhtPositionContact(p) => Scheme::HhtPositionContact(pc(p)),
         IntegratorSpec::Soi2GeneralizedAlpha(g) => {
             let Soi2GeneralizedAlphaSpec {
-                rho_inf,
-                alpha_m,
-                alpha_f,
-                beta,
-                gamma,
+                coefficients:
+                    AlphaCoefficientsSpec {
+                        rho_inf,
+                        alpha_m,
+                        alpha_f,
+                        beta,
+                        gamma,
+                    },
                 additive,
                 start,
                 solve,

@@ -503,6 +503,7 @@ fn stability_checked(check: Result<(), ParamError>, allow_unstable: bool) -> Res
 
 /// Parameters of `ns_generalized_alpha` / `ns_kh_alpha` from ρ∞ (26)–(27) or given directly.
 fn ns_alpha_from_spec(p: &NsAlphaSpec, scheme: AlphaScheme) -> Result<AlphaParams, SpecError> {
+    let p = &p.coefficients;
     let direct = [
         ("alpha_m", p.alpha_m),
         ("alpha_f", p.alpha_f),

@@ -532,6 +532,7 @@ pub fn check_coefficients(c: &Coefficients) -> Result<(), SpecError> {
 }
 
 fn generalized_alpha_coefficients(p: &Soi2GeneralizedAlphaSpec) -> Result<Coefficients, SpecError> {
+    let p = &p.coefficients;
     let explicit =
         p.alpha_m.is_some() || p.alpha_f.is_some() || p.beta.is_some() || p.gamma.is_some();
     let c = match (p.rho_inf, explicit) {

@@ -219,28 +219,40 @@ pub struct NsHhtSpec {
     pub allow_unstable: bool,
 }
 
+/// The coefficients of a generalized-α scheme (`ns_generalized_alpha`, `ns_kh_alpha`,
+/// `soi2_generalized_alpha`): the spectral radius at infinity ρ∞, or α_m and α_f with optional β
+/// and γ, not both. Each scheme derives the missing ones and checks them by its own conditions.
+/// Its fields sit directly in `[integrator]`.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
+pub struct AlphaCoefficientsSpec {
+    /// Spectral radius at infinity ρ∞ ∈ [0, 1]: sets α_m, α_f, β, γ.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 0.0, max = 1.0))]
+    pub rho_inf: Option<f64>,
+    /// α_m (with α_f, instead of rho_inf).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha_m: Option<f64>,
+    /// α_f (with α_m, instead of rho_inf).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha_f: Option<f64>,
+    /// β (derived from γ when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beta: Option<f64>,
+    /// γ (derived from α_m, α_f when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gamma: Option<f64>,
+}
+
 /// Parameters of `ns_generalized_alpha` and `ns_kh_alpha`: `rho_inf` ∈ [0, 1] (by (26)–(27);
 /// default 0.8 when nothing is given), or `alpha_m`, `alpha_f` with optional `gamma` (default
 /// (26)) and `beta` (default ¼(γ + ½)²), not both.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct NsAlphaSpec {
-    /// Spectral radius at infinity ρ∞ ∈ [0, 1].
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schemars(range(min = 0.0, max = 1.0))]
-    pub rho_inf: Option<f64>,
-    /// α_m < 1.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub alpha_m: Option<f64>,
-    /// α_f ≤ 1.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub alpha_f: Option<f64>,
-    /// β.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub beta: Option<f64>,
-    /// γ.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub gamma: Option<f64>,
+    /// The coefficients (`rho_inf`, or `alpha_m`, `alpha_f`, `beta`, `gamma`); here α_m < 1,
+    /// α_f ≤ 1 and the stability conditions of Acary 2016 apply.
+    #[serde(flatten)]
+    pub coefficients: AlphaCoefficientsSpec,
     /// Index-set rule (`activation`, `activation_gamma`), as for `moreau_jean`.
     #[serde(flatten)]
     pub index_set: IndexSetSpec,
@@ -360,22 +372,10 @@ impl Default for Soi2NewtonSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Soi2GeneralizedAlphaSpec {
-    /// ρ∞ ∈ [0, 1].
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schemars(range(min = 0.0, max = 1.0))]
-    pub rho_inf: Option<f64>,
-    /// α_m ≠ 1 (with r = |α_m/(1−α_m)| ≤ 1).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub alpha_m: Option<f64>,
-    /// α_f ≠ 1.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub alpha_f: Option<f64>,
-    /// β ≠ 0.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub beta: Option<f64>,
-    /// γ ≠ 0.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub gamma: Option<f64>,
+    /// The coefficients (`rho_inf`, or `alpha_m`, `alpha_f`, `beta`, `gamma`); here α_m ≠ 1
+    /// with r = |α_m/(1 − α_m)| ≤ 1, α_f ≠ 1, β ≠ 0, γ ≠ 0 (Theorem 1).
+    #[serde(flatten)]
+    pub coefficients: AlphaCoefficientsSpec,
     /// Use the additive-force form of (13d): default = when the model's forces are additive;
     /// `true` is refused for a model whose forces are not.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -392,11 +392,7 @@ pub struct Soi2GeneralizedAlphaSpec {
 impl Default for Soi2GeneralizedAlphaSpec {
     fn default() -> Self {
         Self {
-            rho_inf: None,
-            alpha_m: None,
-            alpha_f: None,
-            beta: None,
-            gamma: None,
+            coefficients: AlphaCoefficientsSpec::default(),
             additive: None,
             start: StartSpec::A0,
             solve: Soi2NewtonSpec::default(),

@@ -15,9 +15,9 @@ pub mod model;
 pub use analysis::{AnalysisSpec, Excitation, ForcedResponseSpec, ModalSpec};
 pub use error::SpecError;
 pub use integrator::{
-    HhtSoi2Spec, IndexSetSpec, IntegratorSpec, MoreauJeanSpec, NewtonSpec, NsAlphaSpec, NsHhtSpec,
-    NsNewmarkSpec, PositionContactSpec, SchemeFamily, Soi2GeneralizedAlphaSpec, Soi2NewtonSpec,
-    StartSpec, WfemSpec,
+    AlphaCoefficientsSpec, HhtSoi2Spec, IndexSetSpec, IntegratorSpec, MoreauJeanSpec, NewtonSpec,
+    NsAlphaSpec, NsHhtSpec, NsNewmarkSpec, PositionContactSpec, SchemeFamily,
+    Soi2GeneralizedAlphaSpec, Soi2NewtonSpec, StartSpec, WfemSpec,
 };
 pub use model::{HarmonicForceSpec, LinearSpec, ModelSpec};
 
