@@ -27,12 +27,25 @@ impl Format {
 
 /// Parses spec text. Errors name the field by its dotted path (`model.mas: unknown field …`).
 pub fn parse(text: &str, format: Format) -> Result<JobSpec, SpecError> {
-    parse_tracked(text, format).map_err(|e| match (e.field.as_str(), tree(text, format)) {
-        ("model" | "model.scene", Some(root)) => refine::<ModelSpec>(&root, "model", "scene", e),
-        ("integrator" | "integrator.scheme", Some(root)) => {
-            refine::<IntegratorSpec>(&root, "integrator", "scheme", e)
+    parse_tracked(text, format).map_err(|e| {
+        let missing = e.reason.starts_with("missing field");
+        match (e.field.as_str(), tree(text, format)) {
+            ("model" | "model.scene", Some(root)) => {
+                refine::<ModelSpec>(&root, "model", "scene", e)
+            }
+            ("integrator" | "integrator.scheme", Some(root)) => {
+                refine::<IntegratorSpec>(&root, "integrator", "scheme", e)
+            }
+            // serde reports a missing field before it reads the flattened field groups: a
+            // field of the section that is wrong in itself comes first, as without the groups.
+            (f, Some(root)) if missing && f.starts_with("model.") => {
+                refine::<ModelSpec>(&root, "model", "scene", e)
+            }
+            (f, Some(root)) if missing && f.starts_with("integrator.") => {
+                refine::<IntegratorSpec>(&root, "integrator", "scheme", e)
+            }
+            _ => e,
         }
-        _ => e,
     })
 }
 
@@ -90,13 +103,32 @@ fn refine<T: DeserializeOwned>(
             (tag.to_string(), tag_value.clone()),
             (key.clone(), value.clone()),
         ]);
-        if let Err(e) = serde_json::from_value::<T>(Value::Object(probe))
-            && !e.to_string().starts_with("missing field")
-        {
-            return SpecError::new(format!("{section}.{key}"), error.reason);
+        if let Some(reason) = probe_error::<T>(probe) {
+            return SpecError::new(format!("{section}.{key}"), reason);
         }
     }
     error
+}
+
+/// Why a probe (the tag and one field) fails, unless only for a missing field. serde
+/// reports a missing required field (`ns_hht`'s `alpha`) before it reads the flattened field
+/// groups (the index set, the Newton settings), so each missing field is filled with a number
+/// (every required field of a tagged section is one) and the probe tried again.
+fn probe_error<T: DeserializeOwned>(mut probe: Map<String, Value>) -> Option<String> {
+    for _ in 0..8 {
+        let message = serde_json::from_value::<T>(Value::Object(probe.clone()))
+            .err()?
+            .to_string();
+        let Some(rest) = message.strip_prefix("missing field `") else {
+            return Some(message);
+        };
+        let missing = rest.split('`').next().unwrap_or_default().to_string();
+        if probe.contains_key(&missing) {
+            return None;
+        }
+        probe.insert(missing, Value::from(0.0));
+    }
+    None
 }
 
 /// Parses and validates: the one entry point from text to a runnable [`Job`].
@@ -163,6 +195,32 @@ mod tests {
         )
         .unwrap_err();
         assert_eq!(e.field, "model.masses", "{e}");
+    }
+
+    #[test]
+    fn unknown_field_next_to_a_field_group_is_named() {
+        // The index set and the Newton settings are flattened into the scheme's table; a
+        // misspelt field beside them is still named, in TOML and JSON, with or without a
+        // missing required field.
+        let e = parse(
+            "[model]\nscene = \"chain\"\n[integrator]\nscheme = \"ns_hht\"\nalpha = 0.1\nactivaton = \"predicted_gap\"\n[time]\nh = 0.01\nsteps = 1\n",
+            Format::Toml,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "integrator.activaton", "{e}");
+        assert!(e.reason.contains("unknown field"), "{e}");
+        let e = parse(
+            r#"{"model": {"scene": "pendulum"}, "integrator": {"scheme": "soi2_hht", "newton_tolerence": 1e-9}, "time": {"h": 0.01, "steps": 1}}"#,
+            Format::Json,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "integrator.newton_tolerence", "{e}");
+        let e = parse(
+            r#"{"model": {"scene": "chain"}, "integrator": {"scheme": "ns_hht", "activation_gamma": "x"}, "time": {"h": 0.01, "steps": 1}}"#,
+            Format::Json,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "integrator.activation_gamma", "{e}");
     }
 
     #[test]

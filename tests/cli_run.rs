@@ -401,3 +401,33 @@ fn compare_draws_one_curve_per_run_and_tabulates_the_summaries() {
     refused(&[&outs[0], &analysis], "energy", "no step table");
     refused(&[&outs[0], &outs[1]], "kinetc", "no column \"kinetc\"");
 }
+
+/// `signorini schema` prints the JSON Schema of job specs: valid JSON naming every scene and
+/// scheme, the same document `--out` writes.
+#[test]
+fn schema_command_prints_the_spec_schema() {
+    let out = signorini().arg("schema").output().expect("running schema");
+    assert!(out.status.success(), "{out:?}");
+    let schema: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    assert_eq!(schema["title"], "JobSpec");
+    let text = String::from_utf8_lossy(&out.stdout);
+    for name in [
+        "\"bouncing_ball\"",
+        "\"soi2_hht\"",
+        "\"nonsmooth_modes\"",
+        "\"activation_gamma\"",
+    ] {
+        assert!(text.contains(name), "{name} missing");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("signorini.schema.json");
+    let status = signorini()
+        .args(["schema", "--out"])
+        .arg(&path)
+        .status()
+        .expect("running schema --out");
+    assert!(status.success());
+    let written: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    assert_eq!(written, schema);
+}

@@ -203,6 +203,7 @@ pub fn capabilities(args: CapabilitiesArgs) -> Result<()> {
         let out = json!({
             "models": caps.models.iter().map(comp).collect::<Vec<_>>(),
             "integrators": caps.integrators.iter().map(comp).collect::<Vec<_>>(),
+            "analyses": caps.analyses.iter().map(comp).collect::<Vec<_>>(),
             "contact_solvers": caps.contact_solvers.iter().map(comp).collect::<Vec<_>>(),
             "sections": caps.sections.iter().map(comp).collect::<Vec<_>>(),
         });

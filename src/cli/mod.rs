@@ -3,6 +3,7 @@
 pub mod client;
 mod compare;
 mod run;
+mod schema;
 pub mod serve;
 
 use anyhow::Result;
@@ -37,6 +38,8 @@ pub enum Command {
     Cancel(client::IdArgs),
     /// List every scene, scheme and contact solver with parameters, defaults and ranges.
     Capabilities(client::CapabilitiesArgs),
+    /// Print the JSON Schema of job specs (editors validate and complete spec files with it).
+    Schema(schema::SchemaArgs),
     /// Compare finished runs (result directories): a figure per column, a table of summaries.
     Compare(compare::CompareArgs),
 }
@@ -52,6 +55,7 @@ pub fn dispatch(cli: Cli) -> Result<()> {
         Command::Result(args) => client::result(args),
         Command::Cancel(args) => client::cancel(args),
         Command::Capabilities(args) => client::capabilities(args),
+        Command::Schema(args) => schema::schema(args),
         Command::Compare(args) => compare::compare(args),
     }
 }

@@ -6,23 +6,21 @@
 //! and TOML).
 //!
 //! The typed message mirrors the whole spec. One thing it cannot say: proto3 `repeated` fields have
-//! no presence, so an empty list means "absent" (the default). `job_spec_to_proto` followed by
-//! `job_spec` gives back an equal spec whenever no optional list is `Some(vec![])` — which the core
-//! rejects anyway for every such list that must be non-empty (tests/service_spec_roundtrip.rs runs
-//! this over every file in `examples/`).
+//! no presence, so an empty list means "absent" (the default). The inverse conversion lives with
+//! the tests (`tests/common/to_proto.rs`), which round-trip every file in `examples/` and random
+//! specs through the wire (`tests/service_spec_roundtrip.rs`).
 
 use crate::proto::v1 as pb;
 use signorini_core::contact::Activation;
 use signorini_core::lcp::LcpSolverKind;
-use signorini_core::modal::forced::Excitation;
-use signorini_core::modal::{AnalysisSpec, ForcedResponseSpec, ModalSpec};
 use signorini_core::scenes::{BarSpec, BouncingBall, Chain, HarmonicSpec, LeftEnd, MassMatrix};
 use signorini_core::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
-use signorini_core::soi2::run::{HhtSoi2Spec, NewtonSpec, Soi2GeneralizedAlphaSpec, StartSpec};
 use signorini_core::spec::{
-    ContactSolverSpec, HarmonicForceSpec, IntegratorSpec, JobSpec, LinearSpec, ModelSpec,
-    MoreauJeanSpec, NsAlphaSpec, NsHhtSpec, NsNewmarkSpec, OutputSpec, PositionContactSpec,
-    SpecError, TimeSpec, WfemSpec,
+    AlphaCoefficientsSpec, AnalysisSpec, ContactSolverSpec, Excitation, ForcedResponseSpec,
+    HarmonicForceSpec, HhtSoi2Spec, IndexSetSpec, IntegratorSpec, JobSpec, LinearSpec, ModalSpec,
+    ModelSpec, MoreauJeanSpec, NewtonSpec, NsAlphaSpec, NsHhtSpec, NsNewmarkSpec, OutputSpec,
+    PositionContactSpec, Soi2GeneralizedAlphaSpec, Soi2NewtonSpec, SpecError, StartSpec, TimeSpec,
+    WfemSpec,
 };
 
 fn usize_of(field: &str, v: u64) -> Result<usize, SpecError> {
@@ -41,6 +39,8 @@ pub fn job_spec(p: pb::JobSpec) -> Result<JobSpec, SpecError> {
         analysis,
     } = p;
     Ok(JobSpec {
+        // An editor hint of spec files; a typed spec has no file.
+        schema: None,
         name,
         model: model.map(model_spec).transpose()?,
         integrator: integrator
@@ -304,6 +304,13 @@ fn activation(p: i32) -> Result<Activation, SpecError> {
     }
 }
 
+fn index_set(act: i32, activation_gamma: Option<f64>) -> Result<IndexSetSpec, SpecError> {
+    Ok(IndexSetSpec {
+        activation: activation(act)?,
+        activation_gamma,
+    })
+}
+
 fn ns_newmark(p: pb::NsNewmark) -> Result<NsNewmarkSpec, SpecError> {
     let pb::NsNewmark {
         beta,
@@ -316,8 +323,7 @@ fn ns_newmark(p: pb::NsNewmark) -> Result<NsNewmarkSpec, SpecError> {
     Ok(NsNewmarkSpec {
         beta: beta.unwrap_or(d.beta),
         gamma: gamma.unwrap_or(d.gamma),
-        activation: activation(act)?,
-        activation_gamma,
+        index_set: index_set(act, activation_gamma)?,
         allow_unstable,
     })
 }
@@ -335,8 +341,7 @@ fn ns_hht(p: pb::NsHht) -> Result<NsHhtSpec, SpecError> {
         alpha: alpha.ok_or_else(|| SpecError::new("integrator.alpha", "missing field `alpha`"))?,
         beta,
         gamma,
-        activation: activation(act)?,
-        activation_gamma,
+        index_set: index_set(act, activation_gamma)?,
         allow_unstable,
     })
 }
@@ -353,13 +358,14 @@ fn ns_alpha(p: pb::NsAlpha) -> Result<NsAlphaSpec, SpecError> {
         allow_unstable,
     } = p;
     Ok(NsAlphaSpec {
-        rho_inf,
-        alpha_m,
-        alpha_f,
-        beta,
-        gamma,
-        activation: activation(act)?,
-        activation_gamma,
+        coefficients: AlphaCoefficientsSpec {
+            rho_inf,
+            alpha_m,
+            alpha_f,
+            beta,
+            gamma,
+        },
+        index_set: index_set(act, activation_gamma)?,
         allow_unstable,
     })
 }
@@ -403,6 +409,25 @@ fn soi2_newton(p: i32) -> Result<NewtonSpec, SpecError> {
     }
 }
 
+/// The Newton group of the SOI2 schemes; unset fields take the core defaults.
+fn soi2_solve(
+    newton: i32,
+    newton_tolerance: Option<f64>,
+    newton_max_iterations: Option<u64>,
+    consistency_tolerance: Option<f64>,
+) -> Result<Soi2NewtonSpec, SpecError> {
+    let d = Soi2NewtonSpec::default();
+    Ok(Soi2NewtonSpec {
+        newton: soi2_newton(newton)?,
+        newton_tolerance: newton_tolerance.unwrap_or(d.newton_tolerance),
+        newton_max_iterations: newton_max_iterations
+            .map(|n| usize_of("integrator.newton_max_iterations", n))
+            .transpose()?
+            .unwrap_or(d.newton_max_iterations),
+        consistency_tolerance: consistency_tolerance.unwrap_or(d.consistency_tolerance),
+    })
+}
+
 fn soi2_generalized_alpha(
     p: pb::Soi2GeneralizedAlpha,
 ) -> Result<Soi2GeneralizedAlphaSpec, SpecError> {
@@ -419,22 +444,22 @@ fn soi2_generalized_alpha(
         consistency_tolerance,
         newton,
     } = p;
-    let d = Soi2GeneralizedAlphaSpec::default();
     Ok(Soi2GeneralizedAlphaSpec {
-        rho_inf,
-        alpha_m,
-        alpha_f,
-        beta,
-        gamma,
+        coefficients: AlphaCoefficientsSpec {
+            rho_inf,
+            alpha_m,
+            alpha_f,
+            beta,
+            gamma,
+        },
         additive,
         start: soi2_start(start)?,
-        newton_tolerance: newton_tolerance.unwrap_or(d.newton_tolerance),
-        newton_max_iterations: newton_max_iterations
-            .map(|n| usize_of("integrator.newton_max_iterations", n))
-            .transpose()?
-            .unwrap_or(d.newton_max_iterations),
-        newton: soi2_newton(newton)?,
-        consistency_tolerance: consistency_tolerance.unwrap_or(d.consistency_tolerance),
+        solve: soi2_solve(
+            newton,
+            newton_tolerance,
+            newton_max_iterations,
+            consistency_tolerance,
+        )?,
     })
 }
 
@@ -451,13 +476,12 @@ fn hht_soi2(p: pb::HhtSoi2) -> Result<HhtSoi2Spec, SpecError> {
     Ok(HhtSoi2Spec {
         alpha: alpha.unwrap_or(d.alpha),
         start: soi2_start(start)?,
-        newton_tolerance: newton_tolerance.unwrap_or(d.newton_tolerance),
-        newton_max_iterations: newton_max_iterations
-            .map(|n| usize_of("integrator.newton_max_iterations", n))
-            .transpose()?
-            .unwrap_or(d.newton_max_iterations),
-        newton: soi2_newton(newton)?,
-        consistency_tolerance: consistency_tolerance.unwrap_or(d.consistency_tolerance),
+        solve: soi2_solve(
+            newton,
+            newton_tolerance,
+            newton_max_iterations,
+            consistency_tolerance,
+        )?,
     })
 }
 
@@ -634,8 +658,7 @@ fn moreau_jean(p: pb::MoreauJean) -> Result<MoreauJeanSpec, SpecError> {
     let d = MoreauJeanSpec::default();
     Ok(MoreauJeanSpec {
         theta: theta.unwrap_or(d.theta),
-        activation: self::activation(activation)?,
-        activation_gamma,
+        index_set: index_set(activation, activation_gamma)?,
     })
 }
 
@@ -698,541 +721,6 @@ fn output_spec(p: pb::OutputSpec) -> Result<OutputSpec, SpecError> {
     })
 }
 
-/// The core spec → the typed proto message (the inverse of [`job_spec`]: every value is written
-/// explicitly, defaults included, so converting back gives an equal spec; see the module note on
-/// empty lists).
-pub fn job_spec_to_proto(s: &JobSpec) -> pb::JobSpec {
-    let JobSpec {
-        name,
-        model,
-        integrator,
-        time,
-        contact_solver,
-        output,
-        analysis,
-    } = s;
-    pb::JobSpec {
-        name: name.clone(),
-        model: model.as_ref().map(model_to_proto),
-        integrator: Some(integrator_to_proto(integrator)),
-        time: time.as_ref().map(time_to_proto),
-        contact_solver: Some(contact_solver_to_proto(contact_solver)),
-        output: Some(output_to_proto(output)),
-        analysis: analysis.as_ref().map(analysis_to_proto),
-    }
-}
-
-fn u64_of(v: usize) -> u64 {
-    // usize is at most 64 bits on every target we build for.
-    v as u64
-}
-
-fn model_to_proto(m: &ModelSpec) -> pb::ModelSpec {
-    use pb::model_spec::Scene;
-    let scene = match m {
-        ModelSpec::BouncingBall(b) => {
-            let BouncingBall {
-                mass,
-                gravity,
-                q0,
-                v0,
-                restitution,
-            } = b;
-            Scene::BouncingBall(pb::BouncingBall {
-                mass: Some(*mass),
-                gravity: Some(*gravity),
-                q0: Some(*q0),
-                v0: Some(*v0),
-                restitution: Some(*restitution),
-            })
-        }
-        ModelSpec::Bar(b) => Scene::Bar(bar_to_proto(b)),
-        ModelSpec::DepBar(b) => Scene::DepBar(bar_to_proto(b)),
-        ModelSpec::Chain(c) => {
-            let Chain {
-                masses,
-                stiffness,
-                positions,
-                velocities,
-                wall,
-                restitution,
-                force,
-            } = c;
-            Scene::Chain(pb::ChainModel {
-                masses: masses.clone(),
-                stiffness: Some(*stiffness),
-                positions: positions.clone(),
-                velocities: velocities.clone(),
-                wall: Some(*wall),
-                restitution: Some(*restitution),
-                force: force.clone().unwrap_or_default(),
-            })
-        }
-        ModelSpec::Linear(l) => Scene::Linear(linear_to_proto(l)),
-        ModelSpec::Pendulum(p) => {
-            let Pendulum {
-                mass,
-                length,
-                stiffness,
-                damping,
-                gravity,
-                theta0,
-                omega0,
-                y0,
-                z0,
-            } = p;
-            Scene::Pendulum(pb::Pendulum {
-                mass: Some(*mass),
-                length: Some(*length),
-                stiffness: Some(*stiffness),
-                damping: Some(*damping),
-                gravity: Some(*gravity),
-                theta0: Some(*theta0),
-                omega0: Some(*omega0),
-                y0: y0.clone().unwrap_or_default(),
-                z0: z0.clone().unwrap_or_default(),
-            })
-        }
-        ModelSpec::SliderCrank(c) => {
-            let SliderCrank {
-                crank_length,
-                crank_mass,
-                rod_length,
-                rod_mass,
-                slider_mass,
-                gravity,
-                crank_angle,
-                crank_speed,
-            } = c;
-            Scene::SliderCrank(pb::SliderCrank {
-                crank_length: Some(*crank_length),
-                crank_mass: Some(*crank_mass),
-                rod_length: Some(*rod_length),
-                rod_mass: Some(*rod_mass),
-                slider_mass: Some(*slider_mass),
-                gravity: Some(*gravity),
-                crank_angle: Some(*crank_angle),
-                crank_speed: Some(*crank_speed),
-            })
-        }
-        ModelSpec::JayNegrutTest(j) => {
-            let JayNegrutTest { y0, z0 } = j;
-            Scene::JayNegrutTest(pb::JayNegrutTest {
-                y0: y0.clone().unwrap_or_default(),
-                z0: z0.clone().unwrap_or_default(),
-            })
-        }
-    };
-    pb::ModelSpec { scene: Some(scene) }
-}
-
-fn harmonic_to_proto(h: &HarmonicSpec) -> pb::Harmonic {
-    let HarmonicSpec { amplitude, omega } = h;
-    pb::Harmonic {
-        amplitude: *amplitude,
-        omega: *omega,
-    }
-}
-
-fn bar_to_proto(b: &BarSpec) -> pb::BarModel {
-    let BarSpec {
-        elements,
-        length,
-        young,
-        density,
-        area,
-        mass_matrix,
-        left,
-        gap,
-        restitution,
-        initial_velocity,
-        initial_displacement,
-        body_force,
-        rayleigh_mass,
-        rayleigh_stiffness,
-        harmonic_force,
-        wall_motion,
-    } = b;
-    pb::BarModel {
-        elements: elements.map(u64_of),
-        length: *length,
-        young: *young,
-        density: *density,
-        area: *area,
-        mass_matrix: match mass_matrix {
-            None => pb::MassMatrix::Unspecified,
-            Some(MassMatrix::Lumped) => pb::MassMatrix::Lumped,
-            Some(MassMatrix::Consistent) => pb::MassMatrix::Consistent,
-        } as i32,
-        left: match left {
-            None => pb::LeftEnd::Unspecified,
-            Some(LeftEnd::Fixed) => pb::LeftEnd::Fixed,
-            Some(LeftEnd::Free) => pb::LeftEnd::Free,
-        } as i32,
-        gap: *gap,
-        restitution: *restitution,
-        initial_velocity: *initial_velocity,
-        initial_displacement: *initial_displacement,
-        body_force: *body_force,
-        rayleigh_mass: *rayleigh_mass,
-        rayleigh_stiffness: *rayleigh_stiffness,
-        harmonic_force: harmonic_force.as_ref().map(harmonic_to_proto),
-        wall_motion: wall_motion.as_ref().map(harmonic_to_proto),
-    }
-}
-
-fn dense_to_proto(m: &[Vec<f64>]) -> pb::DenseMatrix {
-    pb::DenseMatrix {
-        rows: m.iter().map(|r| pb::Row { values: r.clone() }).collect(),
-    }
-}
-
-fn triplets_to_proto(t: &Option<Triplets>) -> Vec<pb::Triplet> {
-    t.iter()
-        .flatten()
-        .map(|&(row, col, value)| pb::Triplet {
-            row: u64_of(row),
-            col: u64_of(col),
-            value,
-        })
-        .collect()
-}
-
-fn linear_to_proto(l: &LinearSpec) -> pb::LinearModel {
-    let LinearSpec {
-        mass,
-        mass_triplets,
-        stiffness,
-        stiffness_triplets,
-        damping,
-        damping_triplets,
-        force,
-        harmonic_force,
-        g_matrix,
-        g_offset,
-        restitution,
-        q0,
-        v0,
-    } = l;
-    pb::LinearModel {
-        mass: mass.as_deref().map(dense_to_proto),
-        mass_triplets: triplets_to_proto(mass_triplets),
-        stiffness: stiffness.as_deref().map(dense_to_proto),
-        stiffness_triplets: triplets_to_proto(stiffness_triplets),
-        damping: damping.as_deref().map(dense_to_proto),
-        damping_triplets: triplets_to_proto(damping_triplets),
-        force: force.clone().unwrap_or_default(),
-        harmonic_force: harmonic_force
-            .iter()
-            .map(|h| {
-                let HarmonicForceSpec {
-                    shape,
-                    omega,
-                    phase,
-                } = h;
-                pb::HarmonicForce {
-                    shape: shape.clone(),
-                    omega: *omega,
-                    phase: *phase,
-                }
-            })
-            .collect(),
-        g_matrix: Some(dense_to_proto(g_matrix)),
-        g_offset: g_offset.clone().unwrap_or_default(),
-        restitution: restitution.clone(),
-        q0: q0.clone().unwrap_or_default(),
-        v0: v0.clone().unwrap_or_default(),
-    }
-}
-
-fn activation_to_proto(a: Activation) -> i32 {
-    let a = match a {
-        Activation::GapAndVelocity => pb::Activation::GapAndVelocity,
-        Activation::PredictedGap => pb::Activation::PredictedGap,
-    };
-    a as i32
-}
-
-fn start_to_proto(s: StartSpec) -> i32 {
-    let s = match s {
-        StartSpec::A0 => pb::Soi2Start::A0,
-        StartSpec::LunkSimeon => pb::Soi2Start::LunkSimeon,
-    };
-    s as i32
-}
-
-fn newton_to_proto(n: NewtonSpec) -> i32 {
-    let n = match n {
-        NewtonSpec::Simplified => pb::Soi2Newton::Simplified,
-        NewtonSpec::Full => pb::Soi2Newton::Full,
-    };
-    n as i32
-}
-
-fn integrator_to_proto(i: &IntegratorSpec) -> pb::IntegratorSpec {
-    use pb::integrator_spec::Scheme;
-    let mj = |m: &MoreauJeanSpec| {
-        let MoreauJeanSpec {
-            theta,
-            activation,
-            activation_gamma,
-        } = m;
-        pb::MoreauJean {
-            theta: Some(*theta),
-            activation: activation_to_proto(*activation),
-            activation_gamma: *activation_gamma,
-        }
-    };
-    let alpha = |a: &NsAlphaSpec| {
-        let NsAlphaSpec {
-            rho_inf,
-            alpha_m,
-            alpha_f,
-            beta,
-            gamma,
-            activation,
-            activation_gamma,
-            allow_unstable,
-        } = a;
-        pb::NsAlpha {
-            rho_inf: *rho_inf,
-            alpha_m: *alpha_m,
-            alpha_f: *alpha_f,
-            beta: *beta,
-            gamma: *gamma,
-            activation: activation_to_proto(*activation),
-            activation_gamma: *activation_gamma,
-            allow_unstable: *allow_unstable,
-        }
-    };
-    let pc = |p: &PositionContactSpec| {
-        let PositionContactSpec {
-            alpha,
-            beta,
-            gamma,
-            allow_unstable,
-        } = p;
-        pb::PositionContact {
-            alpha: *alpha,
-            beta: *beta,
-            gamma: *gamma,
-            allow_unstable: *allow_unstable,
-        }
-    };
-    let hht_soi2 = |h: &HhtSoi2Spec| {
-        let HhtSoi2Spec {
-            alpha,
-            start,
-            newton_tolerance,
-            newton_max_iterations,
-            newton,
-            consistency_tolerance,
-        } = h;
-        pb::HhtSoi2 {
-            alpha: Some(*alpha),
-            start: start_to_proto(*start),
-            newton_tolerance: Some(*newton_tolerance),
-            newton_max_iterations: Some(u64_of(*newton_max_iterations)),
-            consistency_tolerance: Some(*consistency_tolerance),
-            newton: newton_to_proto(*newton),
-        }
-    };
-    let scheme = match i {
-        IntegratorSpec::MoreauJean(m) => Scheme::MoreauJean(mj(m)),
-        IntegratorSpec::MoreauJeanVariant(m) => Scheme::MoreauJeanVariant(mj(m)),
-        IntegratorSpec::NsNewmark(n) => {
-            let NsNewmarkSpec {
-                beta,
-                gamma,
-                activation,
-                activation_gamma,
-                allow_unstable,
-            } = n;
-            Scheme::NsNewmark(pb::NsNewmark {
-                beta: Some(*beta),
-                gamma: Some(*gamma),
-                activation: activation_to_proto(*activation),
-                activation_gamma: *activation_gamma,
-                allow_unstable: *allow_unstable,
-            })
-        }
-        IntegratorSpec::NsHht(n) => {
-            let NsHhtSpec {
-                alpha,
-                beta,
-                gamma,
-                activation,
-                activation_gamma,
-                allow_unstable,
-            } = n;
-            Scheme::NsHht(pb::NsHht {
-                alpha: Some(*alpha),
-                beta: *beta,
-                gamma: *gamma,
-                activation: activation_to_proto(*activation),
-                activation_gamma: *activation_gamma,
-                allow_unstable: *allow_unstable,
-            })
-        }
-        IntegratorSpec::NsGeneralizedAlpha(a) => Scheme::NsGeneralizedAlpha(alpha(a)),
-        IntegratorSpec::NsKhAlpha(a) => Scheme::NsKhAlpha(alpha(a)),
-        IntegratorSpec::NewmarkPositionContact(p) => Scheme::NewmarkPositionContact(pc(p)),
-        IntegratorSpec::HhtPositionContact(p) => Scheme::HhtPositionContact(pc(p)),
-        IntegratorSpec::Soi2GeneralizedAlpha(g) => {
-            let Soi2GeneralizedAlphaSpec {
-                rho_inf,
-                alpha_m,
-                alpha_f,
-                beta,
-                gamma,
-                additive,
-                start,
-                newton_tolerance,
-                newton_max_iterations,
-                newton,
-                consistency_tolerance,
-            } = g;
-            Scheme::Soi2GeneralizedAlpha(pb::Soi2GeneralizedAlpha {
-                rho_inf: *rho_inf,
-                alpha_m: *alpha_m,
-                alpha_f: *alpha_f,
-                beta: *beta,
-                gamma: *gamma,
-                additive: *additive,
-                start: start_to_proto(*start),
-                newton_tolerance: Some(*newton_tolerance),
-                newton_max_iterations: Some(u64_of(*newton_max_iterations)),
-                consistency_tolerance: Some(*consistency_tolerance),
-                newton: newton_to_proto(*newton),
-            })
-        }
-        IntegratorSpec::Soi2Hht(h) => Scheme::Soi2Hht(hht_soi2(h)),
-        IntegratorSpec::HhtI3(h) => Scheme::HhtI3(hht_soi2(h)),
-        IntegratorSpec::Wfem(w) => {
-            let WfemSpec {} = w;
-            Scheme::Wfem(pb::Wfem {})
-        }
-    };
-    pb::IntegratorSpec {
-        scheme: Some(scheme),
-    }
-}
-
-fn time_to_proto(t: &TimeSpec) -> pb::TimeSpec {
-    let TimeSpec {
-        h,
-        t_end,
-        steps,
-        pattern,
-        adjust,
-    } = t;
-    pb::TimeSpec {
-        h: Some(*h),
-        t_end: *t_end,
-        steps: *steps,
-        pattern: pattern.clone().unwrap_or_default(),
-        adjust: *adjust,
-    }
-}
-
-fn contact_solver_to_proto(c: &ContactSolverSpec) -> pb::ContactSolverSpec {
-    let ContactSolverSpec {
-        kind,
-        tolerance,
-        max_iterations,
-    } = c;
-    pb::ContactSolverSpec {
-        kind: match kind {
-            LcpSolverKind::Auto => pb::LcpSolver::Auto,
-            LcpSolverKind::Lemke => pb::LcpSolver::Lemke,
-            LcpSolverKind::Pgs => pb::LcpSolver::Pgs,
-            LcpSolverKind::Enumeration => pb::LcpSolver::Enum,
-        } as i32,
-        tolerance: Some(*tolerance),
-        max_iterations: Some(u64_of(*max_iterations)),
-    }
-}
-
-fn output_to_proto(o: &OutputSpec) -> pb::OutputSpec {
-    let OutputSpec { every, probes } = o;
-    pb::OutputSpec {
-        every: Some(*every),
-        probes: probes.iter().copied().map(u64_of).collect(),
-    }
-}
-
-fn analysis_to_proto(a: &AnalysisSpec) -> pb::AnalysisSpec {
-    use pb::analysis_spec::Kind;
-    let kind = match a {
-        AnalysisSpec::NonsmoothModes(m) => {
-            let ModalSpec {
-                cells,
-                gap,
-                gaps,
-                max_period_steps,
-                min_period_steps,
-                phases,
-                length,
-                young,
-                density,
-                area,
-                stability_periods,
-                all_candidates,
-            } = m;
-            Kind::NonsmoothModes(pb::NonsmoothModes {
-                cells: Some(u64_of(*cells)),
-                gap: *gap,
-                gaps: gaps.clone().unwrap_or_default(),
-                max_period_steps: max_period_steps.map(u64_of),
-                min_period_steps: min_period_steps.map(u64_of),
-                phases: Some(u64_of(*phases)),
-                length: Some(*length),
-                young: Some(*young),
-                density: Some(*density),
-                area: Some(*area),
-                stability_periods: Some(u64_of(*stability_periods)),
-                all_candidates: Some(*all_candidates),
-            })
-        }
-        AnalysisSpec::ForcedResponse(f) => {
-            let ForcedResponseSpec {
-                cells,
-                length,
-                young,
-                density,
-                area,
-                gap,
-                excitation,
-                amplitude,
-                omegas,
-                damping,
-                transient_periods,
-                average_periods,
-                backbone,
-            } = f;
-            Kind::ForcedResponse(pb::ForcedResponse {
-                cells: Some(u64_of(*cells)),
-                length: Some(*length),
-                young: Some(*young),
-                density: Some(*density),
-                area: Some(*area),
-                gap: Some(*gap),
-                excitation: match excitation {
-                    Excitation::Wall => pb::Excitation::Wall,
-                    Excitation::Force => pb::Excitation::Force,
-                } as i32,
-                amplitude: Some(*amplitude),
-                omegas: omegas.clone().unwrap_or_default(),
-                damping: damping.clone(),
-                transient_periods: Some(u64_of(*transient_periods)),
-                average_periods: Some(u64_of(*average_periods)),
-                backbone: Some(*backbone),
-            })
-        }
-    };
-    pb::AnalysisSpec { kind: Some(kind) }
-}
-
 /// The capabilities description → proto.
 pub fn capabilities_to_proto(
     c: &signorini_core::capabilities::Capabilities,
@@ -1253,10 +741,18 @@ pub fn capabilities_to_proto(
             })
             .collect(),
     };
+    let signorini_core::capabilities::Capabilities {
+        models,
+        integrators,
+        analyses,
+        contact_solvers,
+        sections,
+    } = c;
     pb::CapabilitiesResponse {
-        models: c.models.iter().map(comp).collect(),
-        integrators: c.integrators.iter().map(comp).collect(),
-        contact_solvers: c.contact_solvers.iter().map(comp).collect(),
-        sections: c.sections.iter().map(comp).collect(),
+        models: models.iter().map(comp).collect(),
+        integrators: integrators.iter().map(comp).collect(),
+        contact_solvers: contact_solvers.iter().map(comp).collect(),
+        sections: sections.iter().map(comp).collect(),
+        analyses: analyses.iter().map(comp).collect(),
     }
 }

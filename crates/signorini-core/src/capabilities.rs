@@ -1,17 +1,16 @@
-//! What the service can run, as data: every scene, scheme and contact solver with its
+//! What the service can run, as data: every scene, scheme, analysis and contact solver with its
 //! parameters, their defaults and valid ranges (gRPC `Capabilities`, `GET /v1/capabilities`,
 //! `signorini capabilities`).
 //!
-//! Defaults are not restated here: they are read from the spec types' own `Default` values
-//! (serialized), so they cannot drift from what a run uses. Ranges and descriptions are the
-//! ones the builders check (`scenes.rs`, `job.rs`, `soi2`).
+//! Nothing here is written by hand: the description is read from the JSON Schema of the spec
+//! ([`crate::spec::json_schema`]), itself generated from the spec types. Each variant of a tagged
+//! section (`scene`, `scheme`, `kind`) is a component, each of its fields a parameter with the
+//! field's doc comment, its serde default and the range the schema states (closed bounds and
+//! enumerated values; the doc comment says the rest).
 
-use crate::scenes::{BarSpec, BouncingBall, Chain};
-use crate::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
-use crate::soi2::run::{HhtSoi2Spec, Soi2GeneralizedAlphaSpec};
-use crate::spec::{ContactSolverSpec, LinearSpec, MoreauJeanSpec, NsNewmarkSpec, OutputSpec};
+use crate::spec::json_schema;
 use serde::Serialize;
-use serde_json::Value;
+use serde_json::{Map, Value};
 
 /// One parameter of a scene, scheme or section.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -20,7 +19,8 @@ pub struct Parameter {
     pub name: String,
     /// Value type (`float`, `integer`, `bool`, `string`, `[float]`, …).
     pub kind: String,
-    /// Default value as JSON text, or a phrase when the default is computed.
+    /// Default value as JSON text, or `unset` when the field has no default (optional, or
+    /// computed from other fields: see the description).
     pub default: String,
     /// Valid range or values.
     pub range: String,
@@ -28,7 +28,7 @@ pub struct Parameter {
     pub description: String,
 }
 
-/// A scene, a scheme, a solver or a spec section.
+/// A scene, a scheme, an analysis, a solver or a spec section.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Component {
     /// Name as written in specs (`scene = …`, `scheme = …`, `kind = …`, or the section).
@@ -46,599 +46,259 @@ pub struct Capabilities {
     pub models: Vec<Component>,
     /// `[integrator] scheme = …`.
     pub integrators: Vec<Component>,
+    /// `[analysis] kind = …`.
+    pub analyses: Vec<Component>,
     /// `[contact_solver] kind = …`.
     pub contact_solvers: Vec<Component>,
     /// `[time]`, `[contact_solver]`, `[output]`.
     pub sections: Vec<Component>,
 }
 
-/// (name, kind, range, description)
-type Row = (&'static str, &'static str, &'static str, &'static str);
-
-/// The values serde fills in for a spec section given as `{}` (its documented defaults), or `{}`
-/// when the section has required fields.
-fn serde_defaults<T: Serialize + serde::de::DeserializeOwned>() -> Value {
-    serde_json::from_value::<T>(Value::Object(serde_json::Map::new()))
-        .ok()
-        .and_then(|t| serde_json::to_value(t).ok())
-        .unwrap_or_else(|| Value::Object(serde_json::Map::new()))
-}
-
-fn component<T: Serialize>(
-    name: &str,
-    description: &str,
-    defaults: &T,
-    rows: &[Row],
-    unset: &str,
-) -> Component {
-    let defaults = serde_json::to_value(defaults).unwrap_or(Value::Null);
-    Component {
-        name: name.into(),
-        description: description.into(),
-        parameters: rows
-            .iter()
-            .map(|&(n, kind, range, description)| Parameter {
-                name: n.into(),
-                kind: kind.into(),
-                default: defaults
-                    .get(n)
-                    .filter(|v| !v.is_null())
-                    .map_or_else(|| unset.to_string(), |v| v.to_string()),
-                range: range.into(),
-                description: description.into(),
+/// The description of everything a job spec can name, read from the spec's JSON Schema.
+pub fn capabilities() -> Capabilities {
+    let schema = json_schema();
+    let defs = schema
+        .get("$defs")
+        .and_then(Value::as_object)
+        .cloned()
+        .unwrap_or_default();
+    let walk = Walk { defs: &defs };
+    let sections = ["time", "contact_solver", "output"]
+        .iter()
+        .filter_map(|&name| {
+            let section = walk.resolve(schema.get("properties")?.get(name)?);
+            Some(walk.component(name, &section, None))
+        })
+        .collect();
+    Capabilities {
+        models: walk.variants("ModelSpec", "scene"),
+        integrators: walk.variants("IntegratorSpec", "scheme"),
+        analyses: walk.variants("AnalysisSpec", "kind"),
+        contact_solvers: walk
+            .enum_values("LcpSolverKind")
+            .into_iter()
+            .map(|(name, description)| Component {
+                name,
+                description,
+                parameters: Vec::new(),
             })
             .collect(),
+        sections,
     }
 }
 
-const BAR_ROWS: &[Row] = &[
-    (
-        "elements",
-        "integer",
-        "1 … 10⁷",
-        "number of linear finite elements",
-    ),
-    ("length", "float", "> 0", "bar length L"),
-    ("young", "float", "> 0", "Young's modulus E"),
-    ("density", "float", "> 0", "density ρ"),
-    ("area", "float", "> 0", "cross-section A"),
-    (
-        "mass_matrix",
-        "string",
-        "lumped | consistent",
-        "mass matrix of the elements",
-    ),
-    (
-        "left",
-        "string",
-        "fixed | free",
-        "boundary condition of the left end",
-    ),
-    (
-        "gap",
-        "float",
-        "any",
-        "distance from the right end to the obstacle at rest",
-    ),
-    (
-        "restitution",
-        "float",
-        "[0, 1]",
-        "Newton restitution at the right end",
-    ),
-    (
-        "initial_velocity",
-        "float",
-        "finite",
-        "uniform initial velocity toward the obstacle",
-    ),
-    (
-        "initial_displacement",
-        "float",
-        "finite",
-        "uniform initial displacement toward the obstacle",
-    ),
-    (
-        "body_force",
-        "float",
-        "finite",
-        "force per unit length toward the obstacle",
-    ),
-    (
-        "rayleigh_mass",
-        "float",
-        "≥ 0",
-        "Rayleigh damping C = a M + b K: a",
-    ),
-    ("rayleigh_stiffness", "float", "≥ 0", "Rayleigh damping: b"),
-    (
-        "harmonic_force",
-        "{amplitude, omega}",
-        "finite",
-        "distributed force amplitude·sin(omega t)",
-    ),
-    (
-        "wall_motion",
-        "{amplitude, omega}",
-        "finite",
-        "obstacle motion amplitude·sin(omega t)",
-    ),
-];
+/// Reads components and parameters out of the schema's definitions.
+struct Walk<'a> {
+    defs: &'a Map<String, Value>,
+}
 
-/// The index-set parameters every velocity-level scheme of the linear family takes.
-const INDEX_SET_ROWS: [Row; 2] = [
-    (
-        "activation",
-        "string",
-        "gap_and_velocity | predicted_gap",
-        "index-set rule: (24) of Acary 2016, or Siconos' g + γhU ≤ 0",
-    ),
-    (
-        "activation_gamma",
-        "float",
-        "> 0",
-        "γ of the predicted-gap rule",
-    ),
-];
+/// One line of a doc comment's text.
+fn text(v: Option<&Value>) -> String {
+    v.and_then(Value::as_str)
+        .unwrap_or_default()
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ")
+}
 
-/// The escape hatch of the α-family and the baselines.
-const ALLOW_UNSTABLE_ROW: Row = (
-    "allow_unstable",
-    "bool",
-    "",
-    "accept parameters outside the stability conditions",
-);
+/// A bound as written in a range: integers without a decimal point.
+fn number(v: &Value) -> String {
+    match v.as_f64() {
+        Some(x) if x.fract() == 0.0 && x.abs() < 1e15 => format!("{}", x as i64),
+        Some(x) => format!("{x}"),
+        None => v.to_string(),
+    }
+}
 
-const ALPHA_ROWS: [Row; 5] = [
-    (
-        "rho_inf",
-        "float",
-        "[0, 1]",
-        "spectral radius at infinity (sets α_m, α_f, β, γ by (27))",
-    ),
-    (
-        "alpha_m",
-        "float",
-        "α_m ≤ α_f ≤ ½",
-        "α_m (instead of rho_inf)",
-    ),
-    ("alpha_f", "float", "≤ ½", "α_f"),
-    ("beta", "float", "stability conditions", "β"),
-    ("gamma", "float", "stability conditions", "γ"),
-];
+impl Walk<'_> {
+    /// `schema` with a `$ref` replaced by its definition (its own keywords kept over the
+    /// definition's), and `anyOf: [X, null]` (an optional field) by X.
+    fn resolve(&self, schema: &Value) -> Value {
+        let Some(obj) = schema.as_object() else {
+            return schema.clone();
+        };
+        let mut out = Map::new();
+        if let Some(target) = obj
+            .get("$ref")
+            .and_then(Value::as_str)
+            .and_then(|r| r.strip_prefix("#/$defs/"))
+            .and_then(|name| self.defs.get(name))
+            && let Some(def) = self.resolve(target).as_object()
+        {
+            out.extend(def.clone());
+        }
+        if let Some(options) = obj.get("anyOf").and_then(Value::as_array) {
+            let non_null: Vec<&Value> = options
+                .iter()
+                .filter(|o| o.get("type").and_then(Value::as_str) != Some("null"))
+                .collect();
+            if let [one] = non_null.as_slice()
+                && let Some(inner) = self.resolve(one).as_object()
+            {
+                out.extend(inner.clone());
+            }
+        }
+        for (k, v) in obj {
+            if k != "$ref" && k != "anyOf" {
+                out.insert(k.clone(), v.clone());
+            }
+        }
+        Value::Object(out)
+    }
 
-const POSITION_ROWS: &[Row] = &[
-    ("alpha", "float", "[0, 1/3]", "HHT α (0: Newmark)"),
-    ("beta", "float", "stability conditions", "β"),
-    ("gamma", "float", "≥ ½", "γ"),
-    ALLOW_UNSTABLE_ROW,
-];
-
-const SOI2_NEWTON_ROWS: [Row; 5] = [
-    (
-        "start",
-        "string",
-        "a0 | lunk_simeon",
-        "start value of a_α: a₀ or (8)",
-    ),
-    (
-        "newton_tolerance",
-        "float",
-        "> 0",
-        "Newton convergence ‖Δx‖∞ ≤ tol·(1 + ‖x‖∞)",
-    ),
-    (
-        "newton_max_iterations",
-        "integer",
-        "≥ 1",
-        "Newton iterations per step",
-    ),
-    (
-        "newton",
-        "string",
-        "simplified | full",
-        "step Newton: Jacobian kept across iterations and steps while the increments contract, or rebuilt at every iterate",
-    ),
-    (
-        "consistency_tolerance",
-        "float",
-        "> 0",
-        "largest constraint residual accepted in the initial values",
-    ),
-];
-
-/// The description of everything a job spec can name.
-pub fn capabilities() -> Capabilities {
-    let models = vec![
-        component(
-            "bouncing_ball",
-            "a point mass falling onto the ground q = 0 (1 dof, 1 contact)",
-            &BouncingBall::default(),
-            &[
-                ("mass", "float", "> 0", "mass m"),
-                ("gravity", "float", "≥ 0", "gravity acceleration"),
-                ("q0", "float", "≥ 0", "initial height"),
-                ("v0", "float", "finite", "initial velocity"),
-                ("restitution", "float", "[0, 1]", "Newton restitution e"),
-            ],
-            "",
-        ),
-        component(
-            "bar",
-            "elastic bar of linear finite elements, right end against an obstacle",
-            &BarSpec::default(),
-            BAR_ROWS,
-            "scene default",
-        ),
-        component(
-            "dep_bar",
-            "Doyen–Ern–Piperno bouncing bar (Yoong et al. 2018, Table 1); same fields as bar",
-            &BarSpec::default(),
-            BAR_ROWS,
-            "Table 1 value",
-        ),
-        component(
-            "chain",
-            "point masses joined by springs, one unilateral contact per mass against a wall",
-            &Chain::default(),
-            &[
-                ("masses", "[float]", "each > 0, ≥ 1 entry", "the masses"),
-                (
-                    "stiffness",
-                    "float",
-                    "≥ 0",
-                    "spring stiffness between neighbours",
-                ),
-                (
-                    "positions",
-                    "[float]",
-                    "one per mass",
-                    "initial absolute positions",
-                ),
-                (
-                    "velocities",
-                    "[float]",
-                    "one per mass",
-                    "initial velocities",
-                ),
-                ("wall", "float", "finite", "wall position"),
-                ("restitution", "float", "[0, 1]", "Newton restitution"),
-                (
-                    "force",
-                    "[float]",
-                    "one per mass",
-                    "constant force on each mass",
-                ),
-            ],
-            "none",
-        ),
-        component(
-            "linear",
-            "M q̈ + C q̇ + K q = F(t) + G λ, g = g_matrix·q + g_offset ≥ 0 (dense rows or *_triplets)",
-            &LinearSpec::default(),
-            &[
-                (
-                    "mass",
-                    "[[float]]",
-                    "symmetric positive definite",
-                    "M as dense rows (or mass_triplets)",
-                ),
-                (
-                    "stiffness",
-                    "[[float]]",
-                    "symmetric positive semidefinite",
-                    "K (or stiffness_triplets)",
-                ),
-                (
-                    "damping",
-                    "[[float]]",
-                    "symmetric positive semidefinite",
-                    "C (or damping_triplets)",
-                ),
-                ("force", "[float]", "n entries", "constant force"),
-                (
-                    "harmonic_force",
-                    "[{shape, omega, phase}]",
-                    "shape: n entries",
-                    "harmonic force terms",
-                ),
-                (
-                    "g_matrix",
-                    "[[float]]",
-                    "rows of n entries",
-                    "Gᵀ, one row per contact",
-                ),
-                ("g_offset", "[float]", "one per contact", "gap offsets w"),
-                (
-                    "restitution",
-                    "[float]",
-                    "each in [0, 1], one per contact",
-                    "Newton restitution per contact",
-                ),
-                ("q0", "[float]", "n entries", "initial positions"),
-                ("v0", "[float]", "n entries", "initial velocities"),
-            ],
-            "zero / none",
-        ),
-        component(
-            "pendulum",
-            "pendulum (16) of Jay & Negrut 2008, Fig. 3 (SOI2 schemes)",
-            &Pendulum::default(),
-            &[
-                ("mass", "float", "> 0", "m"),
-                ("length", "float", "> 0", "L"),
-                ("stiffness", "float", "≥ 0", "torsional spring k"),
-                ("damping", "float", "≥ 0", "damper c"),
-                ("gravity", "float", "finite", "g"),
-                ("theta0", "float", "finite", "θ(0)"),
-                ("omega0", "float", "finite", "θ'(0)"),
-                ("y0", "[float]", "3 entries", "y₀ override"),
-                ("z0", "[float]", "3 entries", "z₀ override"),
-            ],
-            "from θ(0), θ'(0)",
-        ),
-        component(
-            "slider_crank",
-            "rigid slider-crank under gravity (SOI2 schemes)",
-            &SliderCrank::default(),
-            &[
-                ("crank_length", "float", "> 0", "crank length r"),
-                ("crank_mass", "float", "> 0", "crank mass"),
-                ("rod_length", "float", "≥ crank_length", "rod length l"),
-                ("rod_mass", "float", "> 0", "rod mass"),
-                ("slider_mass", "float", "> 0", "slider mass"),
-                ("gravity", "float", "finite", "g"),
-                ("crank_angle", "float", "finite", "initial crank angle θ₀"),
-                ("crank_speed", "float", "finite", "initial crank speed θ'₀"),
-            ],
-            "",
-        ),
-        component(
-            "jay_negrut_test",
-            "test problem (15) of Jay & Negrut 2008 with its exact solution (summary has `errors`)",
-            &JayNegrutTest::default(),
-            &[
-                ("y0", "[float]", "2 entries", "y₀ override"),
-                ("z0", "[float]", "2 entries", "z₀ override"),
-            ],
-            "the paper's values",
-        ),
-    ];
-    let with_index_set = |head: &[Row], unstable: bool| -> Vec<Row> {
-        let tail = unstable.then_some(ALLOW_UNSTABLE_ROW);
-        head.iter()
-            .copied()
-            .chain(INDEX_SET_ROWS)
-            .chain(tail)
+    /// The components of a tagged enum definition (`oneOf` of objects whose `tag` is a const).
+    fn variants(&self, def: &str, tag: &str) -> Vec<Component> {
+        let Some(options) = self
+            .defs
+            .get(def)
+            .and_then(|d| d.get("oneOf"))
+            .and_then(Value::as_array)
+        else {
+            return Vec::new();
+        };
+        options
+            .iter()
+            .filter_map(|v| {
+                let v = self.resolve(v);
+                let name = v.get("properties")?.get(tag)?.get("const")?.as_str()?;
+                Some(self.component(name, &v, Some(tag)))
+            })
             .collect()
-    };
-    let mj_rows = with_index_set(
-        &[(
-            "theta",
-            "float",
-            "[0, 1]",
-            "θ of the force average and the position update",
-        )],
-        false,
-    );
-    let newmark_rows = with_index_set(
-        &[
-            ("beta", "float", "stability: 2β ≥ γ ≥ ½", "Newmark β"),
-            ("gamma", "float", "≥ ½", "Newmark γ"),
-        ],
-        true,
-    );
-    let hht_alpha_rows = with_index_set(
-        &[
-            ("alpha", "float", "[0, 1/3]", "HHT α"),
-            ("beta", "float", "default (1 + α)²/4", "β"),
-            ("gamma", "float", "default ½ + α", "γ"),
-        ],
-        true,
-    );
-    let alpha_rows = with_index_set(&ALPHA_ROWS, true);
-    let soi2_ga_rows: Vec<Row> = [
-        (
-            "rho_inf",
-            "float",
-            "[0, 1]",
-            "spectral radius at infinity (sets α_m, α_f, β, γ)",
-        ),
-        (
-            "alpha_m",
-            "float",
-            "≠ 1, |α_m/(1−α_m)| ≤ 1",
-            "α_m (instead of rho_inf)",
-        ),
-        ("alpha_f", "float", "≠ 1", "α_f"),
-        ("beta", "float", "≠ 0", "β"),
-        ("gamma", "float", "≠ 0", "γ"),
-        (
-            "additive",
-            "bool",
-            "true only for additive forces",
-            "additive-force form of (13d)",
-        ),
-    ]
-    .into_iter()
-    .chain(SOI2_NEWTON_ROWS)
-    .collect();
-    let hht_rows: Vec<Row> = [("alpha", "float", "[−1/3, 0]", "HHT α")]
-        .into_iter()
-        .chain(SOI2_NEWTON_ROWS)
-        .collect();
-    let integrators = vec![
-        component(
-            "moreau_jean",
-            "Moreau–Jean θ-scheme, Acary 2016 (21)–(24)",
-            &MoreauJeanSpec::default(),
-            &mj_rows,
-            "1 (predicted_gap only)",
-        ),
-        component(
-            "moreau_jean_variant",
-            "Moreau–Jean variant (29): q_{k+1} = q_k + h v_{k+1/2}",
-            &MoreauJeanSpec::default(),
-            &mj_rows,
-            "1 (predicted_gap only)",
-        ),
-        component(
-            "ns_newmark",
-            "nonsmooth Newmark, Acary 2016 (25)–(27) with α_m = α_f = 0",
-            &serde_defaults::<NsNewmarkSpec>(),
-            &newmark_rows,
-            "none",
-        ),
-        component(
-            "ns_hht",
-            "nonsmooth HHT, Acary 2016 (α_m = 0, α_f = α)",
-            &serde_json::json!({}),
-            &hht_alpha_rows,
-            "none (alpha required; beta, gamma derived: see range)",
-        ),
-        component(
-            "ns_generalized_alpha",
-            "nonsmooth generalized-α, Acary 2016 (25)–(27)",
-            &serde_json::json!({}),
-            &alpha_rows,
-            "from rho_inf",
-        ),
-        component(
-            "ns_kh_alpha",
-            "Krenk–Høgsberg generalized-α variant (30), Acary 2016",
-            &serde_json::json!({}),
-            &alpha_rows,
-            "from rho_inf",
-        ),
-        component(
-            "newmark_position_contact",
-            "baseline: smooth Newmark with a position-level contact multiplier",
-            &serde_json::json!({}),
-            POSITION_ROWS,
-            "none (beta ¼, gamma ½ when unset)",
-        ),
-        component(
-            "hht_position_contact",
-            "baseline: smooth HHT with a position-level contact multiplier",
-            &serde_json::json!({}),
-            POSITION_ROWS,
-            "none (alpha required; beta, gamma as for ns_hht)",
-        ),
-        component(
-            "wfem",
-            "wave finite elements (Yoong et al. 2018), Δt = Δx/c, for the bar and dep_bar scenes",
-            &serde_json::json!({}),
-            &[],
-            "",
-        ),
-        component(
-            "soi2_generalized_alpha",
-            "generalized-α-SOI2, Jay & Negrut 2008 (13), Newton iterations",
-            &Soi2GeneralizedAlphaSpec::default(),
-            &soi2_ga_rows,
-            "rho_inf = 0.2 unless alpha_m/alpha_f given",
-        ),
-        component(
-            "soi2_hht",
-            "HHT-SOI2, Jay & Negrut 2008 (17)",
-            &HhtSoi2Spec::default(),
-            &hht_rows,
-            "",
-        ),
-        component(
-            "hht_i3",
-            "HHT-I3 (index 3, position constraints only): baseline of HHT-SOI2",
-            &HhtSoi2Spec::default(),
-            &hht_rows,
-            "",
-        ),
-    ];
-    let solver = |name: &str, description: &str| Component {
-        name: name.into(),
-        description: description.into(),
-        parameters: Vec::new(),
-    };
-    let contact_solvers = vec![
-        solver(
-            "auto",
-            "enumeration up to 3 unknowns, Lemke up to 200, projected Gauss–Seidel above",
-        ),
-        solver(
-            "lemke",
-            "Lemke's complementary pivoting (exact up to round-off)",
-        ),
-        solver("pgs", "projected Gauss–Seidel (large symmetric problems)"),
-        solver(
-            "enum",
-            "enumeration of index sets (tiny problems, reference)",
-        ),
-    ];
-    let sections = vec![
-        component(
-            "time",
-            "step size and duration (t_end or steps)",
-            &serde_json::json!({}),
-            &[
-                ("h", "float", "> 0", "step size (required)"),
-                ("t_end", "float", "≥ 0", "final time (or steps)"),
-                ("steps", "integer", "≥ 0", "number of steps (or t_end)"),
-                (
-                    "pattern",
-                    "[float]",
-                    "each > 0",
-                    "relative step sizes repeated (variable-step schemes)",
-                ),
-                (
-                    "adjust",
-                    "bool",
-                    "",
-                    "step-size adjusting formulas (14) (variable-step schemes)",
-                ),
-            ],
-            "required / unset",
-        ),
-        component(
-            "contact_solver",
-            "LCP solver settings",
-            &ContactSolverSpec::default(),
-            &[
-                ("kind", "string", "auto | lemke | pgs | enum", "solver"),
-                (
-                    "tolerance",
-                    "float",
-                    "> 0",
-                    "largest complementarity error accepted",
-                ),
-                ("max_iterations", "integer", "≥ 1", "pivot or sweep budget"),
-            ],
-            "",
-        ),
-        component(
-            "output",
-            "what to record",
-            &OutputSpec::default(),
-            &[
-                (
-                    "every",
-                    "integer",
-                    "≥ 1",
-                    "record every k-th step (the last always)",
-                ),
-                (
-                    "probes",
-                    "[integer]",
-                    "dof indices < n",
-                    "dofs whose q_j, v_j are recorded",
-                ),
-            ],
-            "",
-        ),
-    ];
-    Capabilities {
-        models,
-        integrators,
-        contact_solvers,
-        sections,
+    }
+
+    /// The (value, description) pairs of a unit-enum definition.
+    fn enum_values(&self, def: &str) -> Vec<(String, String)> {
+        let Some(d) = self.defs.get(def) else {
+            return Vec::new();
+        };
+        Self::values(d)
+    }
+
+    fn values(d: &Value) -> Vec<(String, String)> {
+        if let Some(options) = d.get("oneOf").and_then(Value::as_array) {
+            return options
+                .iter()
+                .filter_map(|o| {
+                    let value = o.get("const")?.as_str()?.to_string();
+                    Some((value, text(o.get("description"))))
+                })
+                .collect();
+        }
+        d.get("enum")
+            .and_then(Value::as_array)
+            .map(|e| {
+                e.iter()
+                    .filter_map(|v| Some((v.as_str()?.to_string(), String::new())))
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+
+    /// A component: the object schema's description and its properties but the tag.
+    fn component(&self, name: &str, schema: &Value, tag: Option<&str>) -> Component {
+        let parameters = schema
+            .get("properties")
+            .and_then(Value::as_object)
+            .map(|props| {
+                props
+                    .iter()
+                    .filter(|(k, _)| Some(k.as_str()) != tag)
+                    .map(|(k, p)| self.parameter(k, p))
+                    .collect()
+            })
+            .unwrap_or_default();
+        Component {
+            name: name.into(),
+            description: text(schema.get("description")),
+            parameters,
+        }
+    }
+
+    fn parameter(&self, name: &str, property: &Value) -> Parameter {
+        let p = self.resolve(property);
+        Parameter {
+            name: name.into(),
+            kind: self.kind(&p),
+            default: p
+                .get("default")
+                .filter(|v| !v.is_null())
+                .map_or_else(|| "unset".to_string(), Value::to_string),
+            range: self.range(&p),
+            description: text(p.get("description")),
+        }
+    }
+
+    /// The JSON type of a schema, nulls left out.
+    fn json_type(p: &Value) -> Option<String> {
+        match p.get("type") {
+            Some(Value::String(t)) => Some(t.clone()),
+            Some(Value::Array(ts)) => ts
+                .iter()
+                .filter_map(Value::as_str)
+                .find(|t| *t != "null")
+                .map(String::from),
+            _ if p.get("oneOf").is_some() || p.get("enum").is_some() => Some("string".into()),
+            _ => None,
+        }
+    }
+
+    /// `float`, `integer`, `bool`, `string`, `[float]`, `[[integer, integer, float]]`, `{a, b}`.
+    fn kind(&self, p: &Value) -> String {
+        match Self::json_type(p).as_deref() {
+            Some("number") => "float".into(),
+            Some("integer") => "integer".into(),
+            Some("boolean") => "bool".into(),
+            Some("string") => "string".into(),
+            Some("array") => {
+                if let Some(items) = p.get("prefixItems").and_then(Value::as_array) {
+                    let kinds: Vec<String> =
+                        items.iter().map(|i| self.kind(&self.resolve(i))).collect();
+                    format!("[{}]", kinds.join(", "))
+                } else {
+                    let items = p.get("items").map(|i| self.resolve(i));
+                    format!("[{}]", items.map_or_else(String::new, |i| self.kind(&i)))
+                }
+            }
+            Some("object") => {
+                let fields: Vec<&str> = p
+                    .get("properties")
+                    .and_then(Value::as_object)
+                    .map(|o| o.keys().map(String::as_str).collect())
+                    .unwrap_or_default();
+                format!("{{{}}}", fields.join(", "))
+            }
+            _ => "any".into(),
+        }
+    }
+
+    /// The range the schema states: enumerated values, closed or open bounds; otherwise what
+    /// the type allows.
+    fn range(&self, p: &Value) -> String {
+        let values = Self::values(p);
+        if !values.is_empty() {
+            return values
+                .iter()
+                .map(|(v, _)| v.as_str())
+                .collect::<Vec<_>>()
+                .join(" | ");
+        }
+        let lower = p
+            .get("exclusiveMinimum")
+            .map(|v| ("(", "> ", number(v)))
+            .or_else(|| p.get("minimum").map(|v| ("[", "≥ ", number(v))));
+        let upper = p.get("maximum").map(number);
+        match (lower, upper) {
+            (Some((bracket, _, lo)), Some(hi)) => format!("{bracket}{lo}, {hi}]"),
+            (Some((_, op, lo)), None) => format!("{op}{lo}"),
+            (None, Some(hi)) => format!("≤ {hi}"),
+            (None, None) => match Self::json_type(p).as_deref() {
+                Some("number") => "finite".into(),
+                Some("boolean") => String::new(),
+                Some("array") => "list".into(),
+                Some("object") => "table".into(),
+                _ => "any".into(),
+            },
+        }
     }
 }
 
@@ -647,7 +307,8 @@ mod tests {
     use super::*;
     use crate::spec::{IntegratorSpec, ModelSpec};
 
-    /// Every scene and scheme name pinned in DESIGN.md §7 that the spec types accept is described.
+    /// Every scene and scheme name of the public spec contract that the spec types accept is
+    /// described.
     #[test]
     fn every_accepted_scene_and_scheme_is_described() {
         let caps = capabilities();
@@ -702,15 +363,15 @@ mod tests {
         for (name, spec) in [
             (
                 "soi2_generalized_alpha",
-                serde_json::to_value(crate::soi2::run::Soi2GeneralizedAlphaSpec::default()),
+                serde_json::to_value(crate::spec::Soi2GeneralizedAlphaSpec::default()),
             ),
             (
                 "soi2_hht",
-                serde_json::to_value(crate::soi2::run::HhtSoi2Spec::default()),
+                serde_json::to_value(crate::spec::HhtSoi2Spec::default()),
             ),
             (
                 "hht_i3",
-                serde_json::to_value(crate::soi2::run::HhtSoi2Spec::default()),
+                serde_json::to_value(crate::spec::HhtSoi2Spec::default()),
             ),
         ] {
             let c = caps
@@ -748,5 +409,50 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Read from the schema, the description misses nothing the spec types say: every component
+    /// and parameter has its doc comment, every analysis and section is listed, and the shared
+    /// groups appear in each scheme that flattens them.
+    #[test]
+    fn generated_from_the_spec_types() {
+        let caps = capabilities();
+        let names = |cs: &[Component]| cs.iter().map(|c| c.name.clone()).collect::<Vec<_>>();
+        assert_eq!(
+            names(&caps.analyses),
+            ["nonsmooth_modes", "forced_response"]
+        );
+        assert_eq!(names(&caps.sections), ["time", "contact_solver", "output"]);
+        assert_eq!(
+            names(&caps.contact_solvers),
+            ["auto", "lemke", "pgs", "enum"]
+        );
+        for c in caps
+            .models
+            .iter()
+            .chain(&caps.integrators)
+            .chain(&caps.analyses)
+            .chain(&caps.sections)
+            .chain(&caps.contact_solvers)
+        {
+            assert!(!c.description.is_empty(), "{} has no description", c.name);
+            for p in &c.parameters {
+                assert!(!p.description.is_empty(), "{}.{}", c.name, p.name);
+            }
+        }
+        for scheme in ["moreau_jean", "ns_newmark", "ns_hht", "ns_kh_alpha"] {
+            let c = caps
+                .integrators
+                .iter()
+                .find(|c| c.name == scheme)
+                .expect(scheme);
+            let gamma = c.parameters.iter().find(|p| p.name == "activation_gamma");
+            assert_eq!(gamma.map(|p| p.range.as_str()), Some("> 0"), "{scheme}");
+        }
+        let every = &caps.sections[2].parameters[0];
+        assert_eq!(
+            (every.name.as_str(), every.default.as_str()),
+            ("every", "1")
+        );
     }
 }

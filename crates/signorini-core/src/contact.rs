@@ -5,10 +5,11 @@
 use crate::band::BandCholesky;
 use crate::lcp::{self, Lcp, LcpError, LcpOptions};
 use crate::model::Contact;
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Which contacts enter the LCP of a step.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Activation {
     /// Acary 2016 (24): `g_α(q_k + h v_k) ≤ 0 and U_k^α ≤ 0`.

@@ -3,7 +3,7 @@
 //! summary and any tables or figures the job makes.
 
 use crate::band::SymBand;
-use crate::contact::{Activation, IndexSetRule};
+use crate::contact::IndexSetRule;
 use crate::integrators::alpha::{AlphaParams, AlphaScheme, NonsmoothAlpha, ParamError};
 use crate::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
 use crate::integrators::position_contact::{PositionContact, PositionContactParams};
@@ -13,11 +13,13 @@ use crate::model::{Contact, Forcing, HarmonicLoad, LinearModel, ModelError};
 use crate::observer::Observer;
 use crate::outcome::{LinearSummary, RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader};
 use crate::scenes::Bar;
+use crate::soi2::run::Soi2Job;
 use crate::spec::{
-    IntegratorSpec, JobSpec, LinearSpec, ModelSpec, MoreauJeanSpec, SpecError, TimeSpec,
+    IntegratorSpec, JobSpec, LinearSpec, ModelSpec, MoreauJeanSpec, NsAlphaSpec,
+    PositionContactSpec, Probes, SchemeFamily, SpecError, mismatch,
 };
-use crate::spec::{NsAlphaSpec, PositionContactSpec};
 use crate::trace::EnergyTrace;
+use crate::wfem::job::WaveJob;
 
 /// Size of a job, for the service's limits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -40,8 +42,8 @@ pub struct Job {
 #[derive(Debug, Clone)]
 enum JobKind {
     Linear(Box<LinearJob>),
-    Soi2(Box<crate::soi2::run::Soi2Job>),
-    Wave(Box<crate::wfem::job::WaveJob>),
+    Soi2(Box<Soi2Job>),
+    Wave(Box<WaveJob>),
 }
 
 #[derive(Debug, Clone)]
@@ -61,33 +63,14 @@ enum LinearSchemeChoice {
     PositionContact(PositionContactParams),
 }
 
-impl Job {
-    /// Validates `spec` and builds the job. Every error names the offending field.
-    pub fn from_spec(spec: &JobSpec) -> Result<Job, SpecError> {
-        if let Some(job) = crate::wfem::job::WaveJob::from_spec(spec)? {
-            return Ok(Job {
-                spec: spec.clone(),
-                kind: JobKind::Wave(Box::new(job)),
-            });
-        }
-        if let Some(job) = crate::soi2::run::job_from_spec(spec)? {
-            return Ok(Job {
-                spec: spec.clone(),
-                kind: JobKind::Soi2(Box::new(job)),
-            });
-        }
-        let model_spec = spec
-            .model
-            .as_ref()
-            .ok_or_else(|| SpecError::new("model", "missing section"))?;
-        let time = spec
-            .time
-            .as_ref()
-            .ok_or_else(|| SpecError::new("time", "missing section"))?;
+impl LinearJob {
+    /// The job of a linear scene `model` under a linear scheme.
+    fn from_spec(model_spec: &ModelSpec, spec: &JobSpec) -> Result<LinearJob, SpecError> {
+        let time = spec.time_section()?;
         let model = build_model(model_spec)?;
-        let (h, steps) = fixed_steps(time)?;
-        let lcp = lcp_options(spec)?;
-        let output = output_options(spec, model.dofs())?;
+        let steps = time.steps(false)?;
+        let lcp = spec.contact_solver.options()?;
+        let output = spec.output.options(Probes::Dofs(model.dofs()))?;
         let scheme = match &spec.integrator {
             IntegratorSpec::NsNewmark(_)
             | IntegratorSpec::NsHht(_)
@@ -107,31 +90,46 @@ impl Job {
             IntegratorSpec::MoreauJeanVariant(p) => {
                 LinearSchemeChoice::MoreauJean(moreau_jean_params(p, true)?)
             }
-            IntegratorSpec::Wfem(_) => {
-                return Err(SpecError::new(
-                    "model.scene",
-                    "scheme \"wfem\" runs the scenes \"bar\" and \"dep_bar\"",
-                ));
-            }
-            IntegratorSpec::Soi2GeneralizedAlpha(_)
+            IntegratorSpec::Wfem(_)
+            | IntegratorSpec::Soi2GeneralizedAlpha(_)
             | IntegratorSpec::Soi2Hht(_)
             | IntegratorSpec::HhtI3(_) => {
-                return Err(crate::soi2::run::mismatch(
-                    model_spec.scene(),
-                    spec.integrator.scheme(),
-                ));
+                return Err(mismatch(model_spec, spec.integrator.scheme()));
             }
+        };
+        Ok(LinearJob {
+            model,
+            scheme,
+            h: steps.h,
+            steps: steps.count(),
+            lcp,
+            output,
+        })
+    }
+}
+
+impl Job {
+    /// Validates `spec` and builds the job. Every error names the offending field. The job's
+    /// kind follows from the sections: an `[analysis]`, or the pair (scene, scheme family).
+    pub fn from_spec(spec: &JobSpec) -> Result<Job, SpecError> {
+        let model = spec.model.as_ref();
+        let kind = match (&spec.analysis, model, spec.integrator.family()) {
+            (Some(analysis), _, _) => JobKind::Wave(Box::new(WaveJob::analysis(analysis)?)),
+            (None, None, _) => return Err(SpecError::new("model", "missing section")),
+            (None, Some(m), SchemeFamily::Wave) => {
+                JobKind::Wave(Box::new(WaveJob::integrate(m, spec)?))
+            }
+            (None, Some(m), SchemeFamily::Soi2) if m.is_constrained() => {
+                JobKind::Soi2(Box::new(Soi2Job::from_spec(m, spec)?))
+            }
+            (None, Some(m), SchemeFamily::Linear) if !m.is_constrained() => {
+                JobKind::Linear(Box::new(LinearJob::from_spec(m, spec)?))
+            }
+            (None, Some(m), _) => return Err(mismatch(m, spec.integrator.scheme())),
         };
         Ok(Job {
             spec: spec.clone(),
-            kind: JobKind::Linear(Box::new(LinearJob {
-                model,
-                scheme,
-                h,
-                steps,
-                lcp,
-                output,
-            })),
+            kind,
         })
     }
 
@@ -270,7 +268,7 @@ pub fn build_model(spec: &ModelSpec) -> Result<LinearModel, SpecError> {
         ModelSpec::Chain(c) => c.build(),
         ModelSpec::Linear(l) => build_linear(l),
         ModelSpec::Pendulum(_) | ModelSpec::SliderCrank(_) | ModelSpec::JayNegrutTest(_) => {
-            return Err(crate::soi2::run::mismatch(spec.scene(), "a linear scheme"));
+            return Err(mismatch(spec, "a linear scheme"));
         }
     };
     result.map_err(|e| SpecError::new(format!("model.{}", e.field()), e.reason()))
@@ -395,111 +393,6 @@ fn build_linear(l: &LinearSpec) -> Result<LinearModel, ModelError> {
     })
 }
 
-/// Constant step size and number of steps from `[time]`.
-pub fn fixed_steps(time: &TimeSpec) -> Result<(f64, u64), SpecError> {
-    if !time.h.is_finite() || time.h <= 0.0 {
-        return Err(SpecError::new(
-            "time.h",
-            format!("must be a finite number > 0, got {}", time.h),
-        ));
-    }
-    if time.pattern.is_some() {
-        return Err(SpecError::new(
-            "time.pattern",
-            "variable step sizes are supported by the SOI2 schemes only",
-        ));
-    }
-    if time.adjust.is_some() {
-        return Err(SpecError::new(
-            "time.adjust",
-            "the adjusting formulas belong to the SOI2 schemes only",
-        ));
-    }
-    let steps = match (time.t_end, time.steps) {
-        (Some(_), Some(_)) => {
-            return Err(SpecError::new(
-                "time.steps",
-                "give t_end or steps, not both",
-            ));
-        }
-        (None, None) => return Err(SpecError::new("time.t_end", "missing: give t_end or steps")),
-        (None, Some(n)) if n > MAX_STEPS => {
-            return Err(SpecError::new(
-                "time.steps",
-                format!("{n} steps: more than 2⁵³, where the step times k·h stop being exact"),
-            ));
-        }
-        (None, Some(n)) => n,
-        (Some(t), None) => {
-            if !t.is_finite() || t < 0.0 {
-                return Err(SpecError::new(
-                    "time.t_end",
-                    format!("must be a finite number ≥ 0, got {t}"),
-                ));
-            }
-            // Round to the nearest step when t_end is a multiple of h up to round-off.
-            let ratio = t / time.h;
-            if ratio > MAX_STEPS as f64 {
-                return Err(SpecError::new(
-                    "time.t_end",
-                    format!(
-                        "t_end / h = {ratio:.3e} steps: more than 2⁵³, where the step times k·h stop being exact"
-                    ),
-                ));
-            }
-            let nearest = ratio.round();
-            if (ratio - nearest).abs() <= 1e-9 * ratio.max(1.0) {
-                nearest as u64
-            } else {
-                ratio.ceil() as u64
-            }
-        }
-    };
-    Ok((time.h, steps))
-}
-
-/// Most steps a job may ask for: 2⁵³, beyond which k·h is no longer exact in f64 (the service
-/// has its own, much lower, configurable limit).
-pub const MAX_STEPS: u64 = 1 << 53;
-
-fn lcp_options(spec: &JobSpec) -> Result<LcpOptions, SpecError> {
-    let c = &spec.contact_solver;
-    if !c.tolerance.is_finite() || c.tolerance <= 0.0 {
-        return Err(SpecError::new(
-            "contact_solver.tolerance",
-            format!("must be > 0, got {}", c.tolerance),
-        ));
-    }
-    if c.max_iterations == 0 {
-        return Err(SpecError::new(
-            "contact_solver.max_iterations",
-            "must be ≥ 1",
-        ));
-    }
-    Ok(LcpOptions {
-        kind: c.kind,
-        tolerance: c.tolerance,
-        max_iterations: c.max_iterations,
-    })
-}
-
-fn output_options(spec: &JobSpec, dofs: usize) -> Result<OutputOptions, SpecError> {
-    let o = &spec.output;
-    if o.every == 0 {
-        return Err(SpecError::new("output.every", "must be ≥ 1"));
-    }
-    if let Some(&j) = o.probes.iter().find(|&&j| j >= dofs) {
-        return Err(SpecError::new(
-            "output.probes",
-            format!("dof {j} does not exist (the model has {dofs} dofs)"),
-        ));
-    }
-    Ok(OutputOptions {
-        every: o.every,
-        probes: o.probes.clone(),
-    })
-}
-
 fn moreau_jean_params(p: &MoreauJeanSpec, variant: bool) -> Result<MoreauJeanParams, SpecError> {
     if !p.theta.is_finite() || !(0.0..=1.0).contains(&p.theta) {
         return Err(SpecError::new(
@@ -507,56 +400,17 @@ fn moreau_jean_params(p: &MoreauJeanSpec, variant: bool) -> Result<MoreauJeanPar
             format!("must be in [0, 1], got {}", p.theta),
         ));
     }
-    let gamma = match (p.activation, p.activation_gamma) {
-        (Activation::GapAndVelocity, Some(_)) => {
-            return Err(SpecError::new(
-                "integrator.activation_gamma",
-                "only used with activation = \"predicted_gap\"",
-            ));
-        }
-        (_, Some(g)) if !g.is_finite() || g <= 0.0 => {
-            return Err(SpecError::new(
-                "integrator.activation_gamma",
-                format!("must be > 0, got {g}"),
-            ));
-        }
-        (_, g) => g.unwrap_or(1.0),
-    };
     Ok(MoreauJeanParams {
         theta: p.theta,
         variant,
-        index_set: IndexSetRule {
-            activation: p.activation,
-            gamma,
-        },
+        index_set: p.index_set.rule()?,
     })
 }
-/// The index-set rule of an α-family spec (same fields and checks as `moreau_jean`).
-fn alpha_index_set(
-    activation: Activation,
-    activation_gamma: Option<f64>,
-) -> Result<IndexSetRule, SpecError> {
-    let gamma = match (activation, activation_gamma) {
-        (Activation::GapAndVelocity, Some(_)) => {
-            return Err(SpecError::new(
-                "integrator.activation_gamma",
-                "only used with activation = \"predicted_gap\"",
-            ));
-        }
-        (_, Some(g)) if !g.is_finite() || g <= 0.0 => {
-            return Err(SpecError::new(
-                "integrator.activation_gamma",
-                format!("must be > 0, got {g}"),
-            ));
-        }
-        (_, g) => g.unwrap_or(1.0),
-    };
-    Ok(IndexSetRule { activation, gamma })
-}
-
-/// Maps a parameter error of the α-family to a spec error on `integrator.<field>`.
-fn alpha_check(p: &AlphaParams, allow_unstable: bool) -> Result<(), SpecError> {
-    match p.validate() {
+/// The outcome of a scheme's parameter check (`validate`), with `allow_unstable`: a stability
+/// condition may be waived, any other error (a parameter outside its domain) may not. Errors
+/// name `integrator.<field>`.
+fn stability_checked(check: Result<(), ParamError>, allow_unstable: bool) -> Result<(), SpecError> {
+    match check {
         Ok(()) => Ok(()),
         Err(ParamError {
             stability: true, ..
@@ -577,6 +431,7 @@ fn alpha_check(p: &AlphaParams, allow_unstable: bool) -> Result<(), SpecError> {
 
 /// Parameters of `ns_generalized_alpha` / `ns_kh_alpha` from ρ∞ (26)–(27) or given directly.
 fn ns_alpha_from_spec(p: &NsAlphaSpec, scheme: AlphaScheme) -> Result<AlphaParams, SpecError> {
+    let p = &p.coefficients;
     let direct = [
         ("alpha_m", p.alpha_m),
         ("alpha_f", p.alpha_f),
@@ -627,11 +482,10 @@ fn ns_alpha_from_spec(p: &NsAlphaSpec, scheme: AlphaScheme) -> Result<AlphaParam
 
 /// Validated parameters of an `ns_*` integrator spec.
 fn alpha_params(spec: &IntegratorSpec) -> Result<AlphaParams, SpecError> {
-    let (mut params, activation, activation_gamma, allow_unstable) = match spec {
+    let (mut params, index_set, allow_unstable) = match spec {
         IntegratorSpec::NsNewmark(p) => (
             AlphaParams::newmark(p.beta, p.gamma),
-            p.activation,
-            p.activation_gamma,
+            p.index_set,
             p.allow_unstable,
         ),
         IntegratorSpec::NsHht(p) => {
@@ -639,27 +493,24 @@ fn alpha_params(spec: &IntegratorSpec) -> Result<AlphaParams, SpecError> {
             let beta = p.beta.unwrap_or(0.25 * (1.0 + p.alpha) * (1.0 + p.alpha));
             (
                 AlphaParams::hht_with(p.alpha, beta, gamma),
-                p.activation,
-                p.activation_gamma,
+                p.index_set,
                 p.allow_unstable,
             )
         }
         IntegratorSpec::NsGeneralizedAlpha(p) => (
             ns_alpha_from_spec(p, AlphaScheme::GeneralizedAlpha)?,
-            p.activation,
-            p.activation_gamma,
+            p.index_set,
             p.allow_unstable,
         ),
         IntegratorSpec::NsKhAlpha(p) => (
             ns_alpha_from_spec(p, AlphaScheme::KrenkHogsberg)?,
-            p.activation,
-            p.activation_gamma,
+            p.index_set,
             p.allow_unstable,
         ),
         other => unreachable!("alpha_params called for {}", other.scheme()),
     };
-    params.index_set = alpha_index_set(activation, activation_gamma)?;
-    alpha_check(&params, allow_unstable)?;
+    params.index_set = index_set.rule()?;
+    stability_checked(params.validate(), allow_unstable)?;
     Ok(params)
 }
 
@@ -693,21 +544,6 @@ fn position_contact_params(
             }
         }
     };
-    match params.validate() {
-        Ok(()) => Ok(params),
-        Err(ParamError {
-            stability: true, ..
-        }) if p.allow_unstable => Ok(params),
-        Err(e) => {
-            let hint = if e.stability {
-                " (set allow_unstable = true to run it anyway)"
-            } else {
-                ""
-            };
-            Err(SpecError::new(
-                format!("integrator.{}", e.field),
-                format!("{}{hint}", e.reason),
-            ))
-        }
-    }
+    stability_checked(params.validate(), p.allow_unstable)?;
+    Ok(params)
 }

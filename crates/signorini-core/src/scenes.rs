@@ -5,21 +5,26 @@ use crate::band::SymBand;
 use crate::model::{
     Contact, Forcing, Harmonic, HarmonicLoad, LinearModel, ModelError, check_range, check_vector,
 };
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// A point mass falling under gravity onto the ground q = 0 (1 dof, gap g = q).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct BouncingBall {
     /// Mass (> 0), default 1.
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub mass: f64,
     /// Gravity acceleration (≥ 0, pulls toward the ground), default 9.81.
+    #[schemars(range(min = 0.0))]
     pub gravity: f64,
     /// Initial height (≥ 0), default 1.
+    #[schemars(range(min = 0.0))]
     pub q0: f64,
     /// Initial velocity, default 0.
     pub v0: f64,
     /// Restitution in [0, 1], default 0.9.
+    #[schemars(range(min = 0.0, max = 1.0))]
     pub restitution: f64,
 }
 
@@ -70,7 +75,7 @@ impl BouncingBall {
 }
 
 /// Mass matrix of the bar elements.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum MassMatrix {
     /// Diagonal, ρ A h_e / 2 per element end.
@@ -81,7 +86,7 @@ pub enum MassMatrix {
 }
 
 /// Boundary condition of the bar's left end.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum LeftEnd {
     /// u(0) = 0 (the node is removed).
@@ -92,7 +97,7 @@ pub enum LeftEnd {
 }
 
 /// `amplitude · sin(omega · t)`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct HarmonicSpec {
     /// Amplitude.
@@ -335,25 +340,48 @@ impl Bar {
 
 /// The `[model]` section of the `bar` and `dep_bar` scenes: every field optional, missing ones
 /// taken from the scene's defaults ([`Bar::default`] or [`Bar::doyen_ern_piperno`]).
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
-#[allow(missing_docs)]
 pub struct BarSpec {
+    /// Number of linear finite elements (1 … 10⁷).
+    #[schemars(range(min = 1, max = 10_000_000))]
     pub elements: Option<usize>,
+    /// Bar length L > 0.
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub length: Option<f64>,
+    /// Young's modulus E > 0.
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub young: Option<f64>,
+    /// Density ρ > 0.
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub density: Option<f64>,
+    /// Cross-section A > 0.
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub area: Option<f64>,
+    /// Mass matrix of the elements: `lumped` or `consistent`.
     pub mass_matrix: Option<MassMatrix>,
+    /// Boundary condition of the left end: `fixed` or `free`.
     pub left: Option<LeftEnd>,
+    /// Distance from the right end to the obstacle at rest (any sign; positive displacement moves toward it).
     pub gap: Option<f64>,
+    /// Newton restitution at the right end, in [0, 1].
+    #[schemars(range(min = 0.0, max = 1.0))]
     pub restitution: Option<f64>,
+    /// Uniform initial velocity toward the obstacle.
     pub initial_velocity: Option<f64>,
+    /// Uniform initial displacement toward the obstacle.
     pub initial_displacement: Option<f64>,
+    /// Force per unit length toward the obstacle.
     pub body_force: Option<f64>,
+    /// Rayleigh damping C = a M + b K: a ≥ 0.
+    #[schemars(range(min = 0.0))]
     pub rayleigh_mass: Option<f64>,
+    /// Rayleigh damping C = a M + b K: b ≥ 0.
+    #[schemars(range(min = 0.0))]
     pub rayleigh_stiffness: Option<f64>,
+    /// Distributed force `amplitude · sin(omega t)` per unit length.
     pub harmonic_force: Option<HarmonicSpec>,
+    /// Obstacle motion `amplitude · sin(omega t)`.
     pub wall_motion: Option<HarmonicSpec>,
 }
 
@@ -385,12 +413,13 @@ impl BarSpec {
 
 /// Point masses joined by springs along a line, each facing a wall:
 /// `g_i = positions[i] + q_i − wall ≥ 0` (several simultaneous contacts).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct Chain {
     /// Masses (> 0), default [1, 1, 1].
     pub masses: Vec<f64>,
     /// Stiffness of the springs between neighbours (≥ 0), at rest initially; default 100.
+    #[schemars(range(min = 0.0))]
     pub stiffness: f64,
     /// Initial positions (absolute), default [1, 1.5, 2].
     pub positions: Vec<f64>,
@@ -399,6 +428,7 @@ pub struct Chain {
     /// Wall position, default 0.
     pub wall: f64,
     /// Restitution in [0, 1], default 0.5.
+    #[schemars(range(min = 0.0, max = 1.0))]
     pub restitution: f64,
     /// Constant force on each mass (optional).
     pub force: Option<Vec<f64>>,

@@ -3,11 +3,11 @@
 //! task and cancellation. Their figures are tested in `crates/signorini-figures/tests/figures.rs`.
 
 use signorini_core::job::{Job, run};
-use signorini_core::modal::forced::{ForcedResponseJob, ForcedResponseSpec, respond};
+use signorini_core::modal::forced::{ForcedResponseJob, respond};
 use signorini_core::modal::main_asymptote;
 use signorini_core::observer::{Observer, Progress, StepRecord};
 use signorini_core::outcome::RunError;
-use signorini_core::spec::JobSpec;
+use signorini_core::spec::{ForcedResponseSpec, JobSpec};
 use std::ops::ControlFlow;
 
 fn forced(excitation: &str, gap: f64, amplitude: f64) -> ForcedResponseJob {

@@ -141,7 +141,9 @@ fn print_table(name: &str, diffs: &[(String, f64, f64)]) {
 fn check_agreement(name: &'static str) {
     let f = load(name);
     match &f.spec.integrator {
-        IntegratorSpec::MoreauJean(p) => assert_eq!(p.activation, Activation::PredictedGap),
+        IntegratorSpec::MoreauJean(p) => {
+            assert_eq!(p.index_set.activation, Activation::PredictedGap)
+        }
         other => panic!("{name}: unexpected scheme {}", other.scheme()),
     }
     let rec = run_spec(&f.spec);
@@ -215,9 +217,12 @@ fn default_index_set_differs_as_documented() {
         let mut spec = f.spec.clone();
         let (h, gamma) = match &mut spec.integrator {
             IntegratorSpec::MoreauJean(p) => {
-                let gamma = p.activation_gamma.expect("the sidecar records Siconos' γ");
-                p.activation = Activation::GapAndVelocity;
-                p.activation_gamma = None;
+                let gamma = p
+                    .index_set
+                    .activation_gamma
+                    .expect("the sidecar records Siconos' γ");
+                p.index_set.activation = Activation::GapAndVelocity;
+                p.index_set.activation_gamma = None;
                 (spec.time.as_ref().expect("time").h, gamma)
             }
             other => panic!("{name}: unexpected scheme {}", other.scheme()),

@@ -18,6 +18,7 @@ pub use enumeration::{ENUMERATION_MAX, solve_enumeration};
 pub use lemke::solve_lemke;
 pub use pgs::solve_pgs;
 
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
@@ -114,7 +115,7 @@ pub enum LcpError {
 }
 
 /// Which solver to use.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum LcpSolverKind {
     /// Enumeration up to 3 unknowns, Lemke up to 200, projected Gauss–Seidel above.

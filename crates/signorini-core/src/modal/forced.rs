@@ -12,94 +12,12 @@ use crate::outcome::{
     SummaryHeader, Table,
 };
 use crate::scenes::HarmonicSpec;
-use crate::spec::SpecError;
+pub use crate::spec::Excitation;
+use crate::spec::{ForcedResponseSpec, SpecError};
 use crate::wfem::{WaveBar, step};
-use serde::{Deserialize, Serialize};
 use std::ops::ControlFlow;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-
-/// How the bar is driven.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Excitation {
-    /// Harmonically moving wall (f0 = 0, w0 ≠ 0).
-    #[default]
-    Wall,
-    /// Harmonic distributed force (f0 ≠ 0, w0 = 0).
-    Force,
-}
-
-fn d_cells() -> usize {
-    100
-}
-fn d_one() -> f64 {
-    1.0
-}
-fn d_gap() -> f64 {
-    1e-3
-}
-fn d_amp() -> f64 {
-    2e-3
-}
-fn d_damping() -> Vec<f64> {
-    vec![0.02, 0.05, 0.1]
-}
-fn d_transient() -> usize {
-    150
-}
-fn d_average() -> usize {
-    20
-}
-
-/// `kind = "forced_response"`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ForcedResponseSpec {
-    /// Cells N ≥ 2 (default 100).
-    #[serde(default = "d_cells")]
-    pub cells: usize,
-    /// Length (default 1).
-    #[serde(default = "d_one")]
-    pub length: f64,
-    /// Young's modulus (default 1).
-    #[serde(default = "d_one")]
-    pub young: f64,
-    /// Density (default 1).
-    #[serde(default = "d_one")]
-    pub density: f64,
-    /// Section (default 1).
-    #[serde(default = "d_one")]
-    pub area: f64,
-    /// Gap g0 (default 10⁻³).
-    #[serde(default = "d_gap")]
-    pub gap: f64,
-    /// `wall` (default) or `force`.
-    #[serde(default)]
-    pub excitation: Excitation,
-    /// w0 (wall) or f0 per unit length (force); default 2·10⁻³.
-    #[serde(default = "d_amp")]
-    pub amplitude: f64,
-    /// Forcing frequencies as multiples of ω₁ (default 29 values from 0.8 to 2.2).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub omegas: Option<Vec<f64>>,
-    /// Viscous damping values γ (1/s), default [0.02, 0.05, 0.1].
-    #[serde(default = "d_damping")]
-    pub damping: Vec<f64>,
-    /// Forcing periods skipped before averaging (default 150).
-    #[serde(default = "d_transient")]
-    pub transient_periods: usize,
-    /// Forcing periods averaged (default 20).
-    #[serde(default = "d_average")]
-    pub average_periods: usize,
-    /// Overlay the backbone of the same bar on the figure (default true).
-    #[serde(default = "d_true")]
-    pub backbone: bool,
-}
-
-fn d_true() -> bool {
-    true
-}
 
 /// A validated forced-response sweep.
 #[derive(Debug, Clone, PartialEq)]

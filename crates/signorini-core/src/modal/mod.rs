@@ -17,76 +17,13 @@ use crate::outcome::{
     Chart, GapScan, ModePoint, ModesSummary, RunError, RunOutput, RunSummary, StabilityRun,
     SummaryBody, SummaryHeader, Table,
 };
-use crate::spec::SpecError;
+use crate::spec::{ModalSpec, SpecError};
 use crate::wfem::{EndCondition, WaveBar};
-pub use forced::{ForcedResponseJob, ForcedResponseSpec};
+pub use forced::ForcedResponseJob;
 use kernel::{SignedPermutation, kernel_dim_closed_form};
 use orbit::{Orbit, admissible_orbit};
-use serde::{Deserialize, Serialize};
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-
-/// `[analysis]`: a job kind that is not a time integration.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
-pub enum AnalysisSpec {
-    /// Backbone curves of the nonsmooth modes.
-    NonsmoothModes(ModalSpec),
-    /// Forced-response sweep over forcing frequency.
-    ForcedResponse(ForcedResponseSpec),
-}
-
-fn default_cells() -> usize {
-    100
-}
-fn one_f() -> f64 {
-    1.0
-}
-fn one_u() -> usize {
-    1
-}
-
-/// `kind = "nonsmooth_modes"`: the unit-free bar of §6 (fixed left end) and the scan ranges.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ModalSpec {
-    /// Cells N ≥ 2 (default 100).
-    #[serde(default = "default_cells")]
-    pub cells: usize,
-    /// Gap g0 (any sign). Give `gap` or `gaps`; default `gaps = [1e-3, 0, −1e-3]`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub gap: Option<f64>,
-    /// Several gaps, one backbone each.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub gaps: Option<Vec<f64>>,
-    /// Longest period scanned, in steps (default 4N: down to ω₁).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub max_period_steps: Option<usize>,
-    /// Shortest period scanned, in steps (default 2: every period).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub min_period_steps: Option<usize>,
-    /// Contact phases per period: 1 ((9), default) or 2 ((18), equal contact durations).
-    #[serde(default = "one_u")]
-    pub phases: usize,
-    /// Length L (default 1).
-    #[serde(default = "one_f")]
-    pub length: f64,
-    /// Young's modulus E (default 1).
-    #[serde(default = "one_f")]
-    pub young: f64,
-    /// Density ρ (default 1).
-    #[serde(default = "one_f")]
-    pub density: f64,
-    /// Section S (default 1).
-    #[serde(default = "one_f")]
-    pub area: f64,
-    /// Periods of the stability run of the first-mode orbit (0 = none, default 0; §6.5 uses 1000).
-    #[serde(default)]
-    pub stability_periods: usize,
-    /// Also list the potential (non-admissible) points with a kernel in `backbone.csv`.
-    #[serde(default)]
-    pub all_candidates: bool,
-}
 
 /// A validated modal analysis.
 #[derive(Debug, Clone, PartialEq)]

@@ -2,7 +2,8 @@
 //! scene's `[model]` parameters in the job spec and the [`ConstrainedModel`].
 
 use super::{ConstrainedModel, Dims, ExactValues, InitialValues, Scalar};
-use crate::spec::SpecError;
+use crate::spec::error::SpecError;
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
@@ -52,7 +53,7 @@ fn check_override(field: &str, v: &Option<Vec<f64>>, n: usize) -> Result<(), Spe
 ///
 /// The initial values default to the paper's (`y₀ = (1, 1)`, `z₀ = (1, −2)`, `λ₀ = ψ₀ = 1`);
 /// they can be overridden (to test the consistency check).
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct JayNegrutTest {
     /// y₀ override (2 entries).
@@ -134,16 +135,20 @@ impl ConstrainedModel for JayNegrutTest {
 /// `scene = "pendulum"`: the pendulum (16) of Fig. 3, y = (x, y, θ), a torsional spring k and
 /// damper c at the pin. Defaults are Fig. 3's: m = 5, L = 2, k = 3000, c = 100, g = 9.81,
 /// θ(0) = 3π/2, θ'(0) = 10; (x, y) and their velocities follow from the constraints.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct Pendulum {
     /// m > 0.
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub mass: f64,
     /// L > 0.
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub length: f64,
     /// Spring stiffness k ≥ 0 (rest angle 3π/2).
+    #[schemars(range(min = 0.0))]
     pub stiffness: f64,
     /// Damping coefficient c ≥ 0.
+    #[schemars(range(min = 0.0))]
     pub damping: f64,
     /// Gravitational acceleration g.
     pub gravity: f64,
@@ -288,18 +293,22 @@ impl ConstrainedModel for Pendulum {
 /// quantity of the paper's Figs. 6–7), crank tip pinned to the rod (3–4), rod end pinned to the
 /// slider (5–6), the slider moves on y = 0 (7). Crank and rod are uniform bars (I = mL²/12).
 /// One degree of freedom; consistent initial conditions follow from the crank angle and speed.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields, default)]
 pub struct SliderCrank {
     /// Crank length r > 0 (default 0.2 m).
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub crank_length: f64,
     /// Crank mass (default 1 kg).
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub crank_mass: f64,
     /// Rod length l ≥ r (default 0.5 m).
     pub rod_length: f64,
     /// Rod mass (default 1.5 kg).
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub rod_mass: f64,
     /// Slider mass (default 1 kg).
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
     pub slider_mass: f64,
     /// Gravitational acceleration (default 9.81).
     pub gravity: f64,

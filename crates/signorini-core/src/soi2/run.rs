@@ -10,69 +10,23 @@ use super::{
     ConstrainedModel, GlobalErrors, Soi2Error, check_consistency, check_constraint_rank,
     constraint_residuals, dist2, kinetic_energy,
 };
+use crate::integrators::OutputOptions;
 use crate::observer::{Columns, Observer, Progress, StepRecord};
 use crate::outcome::Soi2Summary;
-use crate::spec::{IntegratorSpec, JobSpec, ModelSpec, SpecError, TimeSpec};
-use serde::{Deserialize, Serialize};
+use crate::spec::{
+    IntegratorSpec, JobSpec, ModelSpec, NewtonSpec, Probes, Soi2GeneralizedAlphaSpec,
+    Soi2NewtonSpec, SpecError, StartSpec, mismatch,
+};
 use std::ops::ControlFlow;
 
 // ---------------------------------------------------------------------------------------------
-// Integrator specs
-
-fn default_newton_tolerance() -> f64 {
-    1e-10
-}
-fn default_newton_max_iterations() -> usize {
-    25
-}
-fn default_consistency_tolerance() -> f64 {
-    1e-8
-}
-fn default_hht_alpha() -> f64 {
-    -0.2
-}
-
-/// Start value of a_α in specs: `a0` (default) or `lunk_simeon` ((8)).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum StartSpec {
-    /// a_α := a₀.
-    #[default]
-    A0,
-    /// a_α from (8).
-    LunkSimeon,
-}
+// Integrator specs (the types are in `crate::spec::integrator`)
 
 impl From<StartSpec> for StartValue {
     fn from(s: StartSpec) -> Self {
         match s {
             StartSpec::A0 => StartValue::A0,
             StartSpec::LunkSimeon => StartValue::LunkSimeon,
-        }
-    }
-}
-
-/// How the Newton iterations of each step (the nonlinear system (13), (17) or HHT-I3's) get
-/// their Jacobian, in specs: `newton = "simplified"` (default) or `"full"`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum NewtonSpec {
-    /// [`NewtonStrategy::Simplified`]: the AD Jacobian and its LU factorisation are kept across
-    /// iterations and steps of one size while the increments contract (by ≤ ½ per iteration),
-    /// rebuilt otherwise. Fewer Jacobians, more (cheap) iterations.
-    #[default]
-    Simplified,
-    /// [`NewtonStrategy::Full`]: a fresh AD Jacobian at every iterate (quadratic convergence;
-    /// the iteration counts comparable with the paper's).
-    Full,
-}
-
-impl NewtonSpec {
-    /// The name written in specs and summaries.
-    pub fn name(self) -> &'static str {
-        match self {
-            NewtonSpec::Simplified => "simplified",
-            NewtonSpec::Full => "full",
         }
     }
 }
@@ -95,104 +49,6 @@ impl From<NewtonStrategy> for NewtonSpec {
     }
 }
 
-/// `scheme = "soi2_generalized_alpha"`: generalized-α-SOI2 (13). Coefficients from `rho_inf`
-/// (default 0.2, the paper's experiments) or given as `alpha_m`, `alpha_f` (and optionally
-/// `beta`, `gamma`, which default to (1 − α)²/4 and ½ − α with α = α_m − α_f).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Soi2GeneralizedAlphaSpec {
-    /// ρ∞ ∈ [0, 1].
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub rho_inf: Option<f64>,
-    /// α_m ≠ 1 (with r = |α_m/(1−α_m)| ≤ 1).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub alpha_m: Option<f64>,
-    /// α_f ≠ 1.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub alpha_f: Option<f64>,
-    /// β ≠ 0.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub beta: Option<f64>,
-    /// γ ≠ 0.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub gamma: Option<f64>,
-    /// Use the additive-force form of (13d): default = when the model's forces are additive;
-    /// `true` is refused for a model whose forces are not.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub additive: Option<bool>,
-    /// Start value of a_α.
-    #[serde(default)]
-    pub start: StartSpec,
-    /// Newton convergence: ‖Δx‖∞ ≤ tol·(1 + ‖x‖∞), default 1e-10.
-    #[serde(default = "default_newton_tolerance")]
-    pub newton_tolerance: f64,
-    /// Newton iterations per step, default 25.
-    #[serde(default = "default_newton_max_iterations")]
-    pub newton_max_iterations: usize,
-    /// Step Newton strategy: `simplified` (default) or `full`.
-    #[serde(default)]
-    pub newton: NewtonSpec,
-    /// Largest constraint residual accepted in the initial values, default 1e-8.
-    #[serde(default = "default_consistency_tolerance")]
-    pub consistency_tolerance: f64,
-}
-
-impl Default for Soi2GeneralizedAlphaSpec {
-    fn default() -> Self {
-        Self {
-            rho_inf: None,
-            alpha_m: None,
-            alpha_f: None,
-            beta: None,
-            gamma: None,
-            additive: None,
-            start: StartSpec::A0,
-            newton_tolerance: default_newton_tolerance(),
-            newton_max_iterations: default_newton_max_iterations(),
-            newton: NewtonSpec::Simplified,
-            consistency_tolerance: default_consistency_tolerance(),
-        }
-    }
-}
-
-/// `scheme = "soi2_hht"` (HHT-SOI2 (17)) and `scheme = "hht_i3"` (the index-3 baseline):
-/// HHT-α with α ∈ [−⅓, 0] (default −0.2).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct HhtSoi2Spec {
-    /// α ∈ [−⅓, 0].
-    #[serde(default = "default_hht_alpha")]
-    pub alpha: f64,
-    /// Start value of a_α.
-    #[serde(default)]
-    pub start: StartSpec,
-    /// Newton convergence: ‖Δx‖∞ ≤ tol·(1 + ‖x‖∞), default 1e-10.
-    #[serde(default = "default_newton_tolerance")]
-    pub newton_tolerance: f64,
-    /// Newton iterations per step, default 25.
-    #[serde(default = "default_newton_max_iterations")]
-    pub newton_max_iterations: usize,
-    /// Step Newton strategy: `simplified` (default) or `full`.
-    #[serde(default)]
-    pub newton: NewtonSpec,
-    /// Largest constraint residual accepted in the initial values, default 1e-8.
-    #[serde(default = "default_consistency_tolerance")]
-    pub consistency_tolerance: f64,
-}
-
-impl Default for HhtSoi2Spec {
-    fn default() -> Self {
-        Self {
-            alpha: default_hht_alpha(),
-            start: StartSpec::A0,
-            newton_tolerance: default_newton_tolerance(),
-            newton_max_iterations: default_newton_max_iterations(),
-            newton: NewtonSpec::Simplified,
-            consistency_tolerance: default_consistency_tolerance(),
-        }
-    }
-}
-
 // ---------------------------------------------------------------------------------------------
 // Step sizes
 
@@ -208,14 +64,7 @@ pub struct Schedule {
     pub end: End,
 }
 
-/// End of a run.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum End {
-    /// At this time.
-    Time(f64),
-    /// After this many steps.
-    Steps(u64),
-}
+pub use crate::spec::End;
 
 impl Schedule {
     /// The step sizes in order, generated one by one (a run never holds them all).
@@ -586,74 +435,31 @@ pub struct Soi2Job {
     pub output: Soi2Output,
 }
 
-const SOI2_SCHEMES: &str = "soi2_generalized_alpha, soi2_hht or hht_i3";
-const SOI2_SCENES: &str = "pendulum, slider_crank or jay_negrut_test";
-
-fn soi2_model(spec: &ModelSpec) -> Option<Soi2Model> {
-    match spec {
-        ModelSpec::Pendulum(p) => Some(Soi2Model::Pendulum(p.clone())),
-        ModelSpec::SliderCrank(s) => Some(Soi2Model::SliderCrank(s.clone())),
-        ModelSpec::JayNegrutTest(j) => Some(Soi2Model::JayNegrutTest(j.clone())),
-        _ => None,
-    }
-}
-
-fn is_soi2_scheme(spec: &IntegratorSpec) -> bool {
-    matches!(
-        spec,
-        IntegratorSpec::Soi2GeneralizedAlpha(_)
-            | IntegratorSpec::Soi2Hht(_)
-            | IntegratorSpec::HhtI3(_)
-    )
-}
-
-/// The error for a scene and a scheme that do not go together.
-pub fn mismatch(scene: &str, scheme: &str) -> SpecError {
-    if matches!(scene, "pendulum" | "slider_crank" | "jay_negrut_test") {
-        SpecError::new(
-            "integrator.scheme",
-            format!(
-                "scene `{scene}` is a nonlinear constrained model: it needs {SOI2_SCHEMES}, got `{scheme}`"
-            ),
-        )
-    } else {
-        SpecError::new(
-            "integrator.scheme",
-            format!(
-                "scheme `{scheme}` integrates nonlinear constrained models ({SOI2_SCENES}), not scene `{scene}`"
-            ),
-        )
-    }
-}
-
-fn newton_options(tol: f64, max_it: usize) -> Result<NewtonOptions, SpecError> {
-    if !(tol.is_finite() && tol > 0.0) {
-        return Err(SpecError::new(
-            "integrator.newton_tolerance",
-            format!("must be a finite number > 0, got {tol}"),
-        ));
-    }
-    if max_it == 0 {
+/// The validated Newton group: (options, strategy, consistency tolerance); errors name the field.
+fn newton_settings(n: &Soi2NewtonSpec) -> Result<(NewtonOptions, NewtonStrategy, f64), SpecError> {
+    let finite_positive = |field: &str, x: f64| {
+        if x.is_finite() && x > 0.0 {
+            Ok(())
+        } else {
+            Err(SpecError::new(
+                format!("integrator.{field}"),
+                format!("must be a finite number > 0, got {x}"),
+            ))
+        }
+    };
+    finite_positive("consistency_tolerance", n.consistency_tolerance)?;
+    finite_positive("newton_tolerance", n.newton_tolerance)?;
+    if n.newton_max_iterations == 0 {
         return Err(SpecError::new(
             "integrator.newton_max_iterations",
             "must be ≥ 1",
         ));
     }
-    Ok(NewtonOptions {
-        tolerance: tol,
-        max_iterations: max_it,
-    })
-}
-
-fn check_tolerance(tol: f64) -> Result<(), SpecError> {
-    if tol.is_finite() && tol > 0.0 {
-        Ok(())
-    } else {
-        Err(SpecError::new(
-            "integrator.consistency_tolerance",
-            format!("must be a finite number > 0, got {tol}"),
-        ))
-    }
+    let options = NewtonOptions {
+        tolerance: n.newton_tolerance,
+        max_iterations: n.newton_max_iterations,
+    };
+    Ok((options, n.newton.into(), n.consistency_tolerance))
 }
 
 /// Checks generalized-α coefficients against Theorem 1's hypotheses; errors name the field.
@@ -709,6 +515,7 @@ pub fn check_coefficients(c: &Coefficients) -> Result<(), SpecError> {
 }
 
 fn generalized_alpha_coefficients(p: &Soi2GeneralizedAlphaSpec) -> Result<Coefficients, SpecError> {
+    let p = &p.coefficients;
     let explicit =
         p.alpha_m.is_some() || p.alpha_f.is_some() || p.beta.is_some() || p.gamma.is_some();
     let c = match (p.rho_inf, explicit) {
@@ -748,65 +555,6 @@ fn generalized_alpha_coefficients(p: &Soi2GeneralizedAlphaSpec) -> Result<Coeffi
     Ok(c)
 }
 
-fn schedule(time: &TimeSpec) -> Result<(Schedule, bool), SpecError> {
-    if !(time.h.is_finite() && time.h > 0.0) {
-        return Err(SpecError::new(
-            "time.h",
-            format!("must be a finite number > 0, got {}", time.h),
-        ));
-    }
-    let pattern = time.pattern.clone().unwrap_or_else(|| vec![1.0]);
-    if pattern.is_empty() {
-        return Err(SpecError::new(
-            "time.pattern",
-            "must have at least one relative step size",
-        ));
-    }
-    if let Some(p) = pattern.iter().find(|p| !(p.is_finite() && **p > 0.0)) {
-        return Err(SpecError::new(
-            "time.pattern",
-            format!("relative step sizes must be finite and > 0, got {p}"),
-        ));
-    }
-    let end = match (time.t_end, time.steps) {
-        (Some(_), Some(_)) => {
-            return Err(SpecError::new(
-                "time.steps",
-                "give t_end or steps, not both",
-            ));
-        }
-        (None, None) => return Err(SpecError::new("time.t_end", "missing: give t_end or steps")),
-        (None, Some(n)) => End::Steps(n),
-        (Some(t), None) => {
-            if !(t.is_finite() && t >= 0.0) {
-                return Err(SpecError::new(
-                    "time.t_end",
-                    format!("must be a finite number ≥ 0, got {t}"),
-                ));
-            }
-            End::Time(t)
-        }
-    };
-    let schedule = Schedule {
-        h: time.h,
-        pattern,
-        end,
-    };
-    // Checked before anything counts or generates the steps.
-    let estimate = schedule.estimated_steps();
-    if estimate > crate::job::MAX_STEPS as f64 {
-        let field = match end {
-            End::Steps(_) => "time.steps",
-            End::Time(_) => "time.t_end",
-        };
-        return Err(SpecError::new(
-            field,
-            format!("{estimate:.3e} steps: more than 2⁵³, where the step times stop being exact"),
-        ));
-    }
-    Ok((schedule, time.adjust.unwrap_or(true)))
-}
-
 fn check_model<M: ConstrainedModel>(model: &M, tol: f64) -> Result<(), SpecError> {
     let iv = model.initial();
     check_constraint_rank(model, iv.t, &iv.y, &iv.z)
@@ -814,151 +562,128 @@ fn check_model<M: ConstrainedModel>(model: &M, tol: f64) -> Result<(), SpecError
     check_consistency(model, tol).map_err(|e| SpecError::new("model", e.to_string()))
 }
 
-/// Builds a SOI2 job when the spec asks for one: `Ok(None)` when neither the scene nor the
-/// scheme is a SOI2 one, an error naming `integrator.scheme` when only one of them is.
-/// Checks the model's parameters, the rank of (g_y; k_z) and the consistency of the initial
-/// values here, once.
-pub fn job_from_spec(spec: &JobSpec) -> Result<Option<Soi2Job>, SpecError> {
-    let model_spec = spec.model.as_ref();
-    let model = model_spec.and_then(soi2_model);
-    let soi2_scheme = is_soi2_scheme(&spec.integrator);
-    let model = match (model, soi2_scheme) {
-        // A missing model is reported by the linear path ("model: missing section").
-        (None, false) | (None, true) if model_spec.is_none() => return Ok(None),
-        (None, false) => return Ok(None),
-        (Some(m), true) => m,
-        (Some(_), false) | (None, true) => {
-            let scene = model_spec.map(|m| m.scene()).unwrap_or("(none)");
-            return Err(mismatch(scene, spec.integrator.scheme()));
-        }
-    };
-    let time = spec
-        .time
-        .as_ref()
-        .ok_or_else(|| SpecError::new("time", "missing section"))?;
-    let (schedule, adjust) = schedule(time)?;
-    let (is_additive, has_nonholonomic, n) = match &model {
-        Soi2Model::Pendulum(p) => {
-            p.validate()?;
-            (p.additive(), false, p.dims().n)
-        }
-        Soi2Model::SliderCrank(s) => {
-            s.validate()?;
-            (s.additive(), false, s.dims().n)
-        }
-        Soi2Model::JayNegrutTest(j) => {
-            j.validate()?;
-            (j.additive(), true, j.dims().n)
-        }
-    };
-    let (method, start, strategy, consistency) = match &spec.integrator {
-        IntegratorSpec::Soi2GeneralizedAlpha(p) => {
-            let coefficients = generalized_alpha_coefficients(p)?;
-            let formulation = match p.additive {
-                Some(true) if !is_additive => {
+impl Soi2Job {
+    /// Builds the SOI2 job of a nonlinear constrained scene `model` (the dispatch in
+    /// [`crate::job::Job::from_spec`] has matched it with a SOI2 scheme; any other pair is refused
+    /// naming `integrator.scheme`). Checks the model's parameters, the rank of (g_y; k_z) and the
+    /// consistency of the initial values here, once.
+    pub fn from_spec(model_spec: &ModelSpec, spec: &JobSpec) -> Result<Soi2Job, SpecError> {
+        let model = match model_spec {
+            ModelSpec::Pendulum(p) => Soi2Model::Pendulum(p.clone()),
+            ModelSpec::SliderCrank(s) => Soi2Model::SliderCrank(s.clone()),
+            ModelSpec::JayNegrutTest(j) => Soi2Model::JayNegrutTest(j.clone()),
+            _ => return Err(mismatch(model_spec, spec.integrator.scheme())),
+        };
+        let steps = spec.time_section()?.steps(true)?;
+        let schedule = Schedule {
+            h: steps.h,
+            pattern: steps.pattern,
+            end: steps.end,
+        };
+        let adjust = steps.adjust;
+        let (is_additive, has_nonholonomic, n) = match &model {
+            Soi2Model::Pendulum(p) => {
+                p.validate()?;
+                (p.additive(), false, p.dims().n)
+            }
+            Soi2Model::SliderCrank(s) => {
+                s.validate()?;
+                (s.additive(), false, s.dims().n)
+            }
+            Soi2Model::JayNegrutTest(j) => {
+                j.validate()?;
+                (j.additive(), true, j.dims().n)
+            }
+        };
+        let (method, start, strategy, consistency) = match &spec.integrator {
+            IntegratorSpec::Soi2GeneralizedAlpha(p) => {
+                let coefficients = generalized_alpha_coefficients(p)?;
+                let formulation = match p.additive {
+                    Some(true) if !is_additive => {
+                        return Err(SpecError::new(
+                            "integrator.additive",
+                            "the model's forces are not of the form f₀ − g_yᵀλ − k_zᵀψ: use the general (13d)",
+                        ));
+                    }
+                    Some(true) => Formulation::Additive,
+                    Some(false) => Formulation::General,
+                    None if is_additive => Formulation::Additive,
+                    None => Formulation::General,
+                };
+                let (newton, strategy, consistency) = newton_settings(&p.solve)?;
+                (
+                    Method {
+                        formulation,
+                        coefficients,
+                        newton,
+                    },
+                    p.start.into(),
+                    strategy,
+                    consistency,
+                )
+            }
+            IntegratorSpec::Soi2Hht(p) | IntegratorSpec::HhtI3(p) => {
+                let formulation = if matches!(spec.integrator, IntegratorSpec::Soi2Hht(_)) {
+                    Formulation::HhtSoi2
+                } else {
+                    Formulation::HhtI3
+                };
+                if !(p.alpha.is_finite() && (-1.0 / 3.0..=0.0).contains(&p.alpha)) {
                     return Err(SpecError::new(
-                        "integrator.additive",
-                        "the model's forces are not of the form f₀ − g_yᵀλ − k_zᵀψ: use the general (13d)",
+                        "integrator.alpha",
+                        format!("must be in [−1/3, 0], got {}", p.alpha),
                     ));
                 }
-                Some(true) => Formulation::Additive,
-                Some(false) => Formulation::General,
-                None if is_additive => Formulation::Additive,
-                None => Formulation::General,
-            };
-            check_tolerance(p.consistency_tolerance)?;
-            let newton = newton_options(p.newton_tolerance, p.newton_max_iterations)?;
-            (
-                Method {
-                    formulation,
-                    coefficients,
-                    newton,
-                },
-                p.start.into(),
-                p.newton.into(),
-                p.consistency_tolerance,
-            )
-        }
-        IntegratorSpec::Soi2Hht(p) | IntegratorSpec::HhtI3(p) => {
-            let formulation = if matches!(spec.integrator, IntegratorSpec::Soi2Hht(_)) {
-                Formulation::HhtSoi2
-            } else {
-                Formulation::HhtI3
-            };
-            if !(p.alpha.is_finite() && (-1.0 / 3.0..=0.0).contains(&p.alpha)) {
-                return Err(SpecError::new(
-                    "integrator.alpha",
-                    format!("must be in [−1/3, 0], got {}", p.alpha),
-                ));
+                if has_nonholonomic {
+                    return Err(SpecError::new(
+                        "integrator.scheme",
+                        format!(
+                            "`{}` handles holonomic constraints only; this scene has nonholonomic ones: use soi2_generalized_alpha",
+                            spec.integrator.scheme()
+                        ),
+                    ));
+                }
+                if !is_additive {
+                    return Err(SpecError::new(
+                        "integrator.scheme",
+                        format!(
+                            "`{}` needs forces f₀ − g_yᵀλ; use soi2_generalized_alpha",
+                            spec.integrator.scheme()
+                        ),
+                    ));
+                }
+                let (newton, strategy, consistency) = newton_settings(&p.solve)?;
+                (
+                    Method {
+                        formulation,
+                        coefficients: Coefficients::hht(p.alpha),
+                        newton,
+                    },
+                    p.start.into(),
+                    strategy,
+                    consistency,
+                )
             }
-            if has_nonholonomic {
-                return Err(SpecError::new(
-                    "integrator.scheme",
-                    format!(
-                        "`{}` handles holonomic constraints only; this scene has nonholonomic ones: use soi2_generalized_alpha",
-                        spec.integrator.scheme()
-                    ),
-                ));
-            }
-            if !is_additive {
-                return Err(SpecError::new(
-                    "integrator.scheme",
-                    format!(
-                        "`{}` needs forces f₀ − g_yᵀλ; use soi2_generalized_alpha",
-                        spec.integrator.scheme()
-                    ),
-                ));
-            }
-            check_tolerance(p.consistency_tolerance)?;
-            let newton = newton_options(p.newton_tolerance, p.newton_max_iterations)?;
-            (
-                Method {
-                    formulation,
-                    coefficients: Coefficients::hht(p.alpha),
-                    newton,
-                },
-                p.start.into(),
-                p.newton.into(),
-                p.consistency_tolerance,
-            )
+            _ => return Err(mismatch(model_spec, spec.integrator.scheme())),
+        };
+        match &model {
+            Soi2Model::Pendulum(p) => check_model(p, consistency)?,
+            Soi2Model::SliderCrank(s) => check_model(s, consistency)?,
+            Soi2Model::JayNegrutTest(j) => check_model(j, consistency)?,
         }
-        _ => {
-            return Err(mismatch(
-                model_spec.map(|m| m.scene()).unwrap_or("(none)"),
-                spec.integrator.scheme(),
-            ));
-        }
-    };
-    match &model {
-        Soi2Model::Pendulum(p) => check_model(p, consistency)?,
-        Soi2Model::SliderCrank(s) => check_model(s, consistency)?,
-        Soi2Model::JayNegrutTest(j) => check_model(j, consistency)?,
+        let OutputOptions { every, probes } = spec.output.options(Probes::Dofs(n))?;
+        let output = Soi2Output { every, probes };
+        Ok(Soi2Job {
+            model,
+            method,
+            start,
+            newton: strategy,
+            schedule,
+            adjust,
+            output,
+        })
     }
-    if spec.output.every == 0 {
-        return Err(SpecError::new("output.every", "must be ≥ 1"));
-    }
-    if let Some(&j) = spec.output.probes.iter().find(|&&j| j >= n) {
-        return Err(SpecError::new(
-            "output.probes",
-            format!("coordinate {j} does not exist (the model has {n})"),
-        ));
-    }
-    let output = Soi2Output {
-        every: spec.output.every,
-        probes: spec.output.probes.clone(),
-    };
-    Ok(Some(Soi2Job {
-        model,
-        method,
-        start,
-        newton: strategy,
-        schedule,
-        adjust,
-        output,
-    }))
-}
 
-impl Soi2Job {
     /// Number of steps ([`StepSizes::count`]: exact up to 10⁷).
     pub fn steps(&self) -> u64 {
         self.schedule.count()

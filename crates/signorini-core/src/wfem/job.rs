@@ -1,14 +1,14 @@
 //! Jobs on wave finite elements: time integration (`scheme = "wfem"`), nonsmooth modal analysis
-//! and forced-response sweeps (`[analysis]`). [`crate::job`] dispatches here.
+//! and forced-response sweeps (`[analysis]`). [`crate::job::Job::from_spec`] dispatches here.
 
 use super::{WaveBar, WaveState, step};
 use crate::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS};
 use crate::integrators::StepError;
-use crate::modal::{self, AnalysisSpec, ForcedResponseJob, ModalJob};
+use crate::modal::{self, ForcedResponseJob, ModalJob};
 use crate::observer::{Columns, Observer, Progress, StepRecord};
 use crate::outcome::{RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader, WaveSummary};
 use crate::scenes::Bar;
-use crate::spec::{IntegratorSpec, JobSpec, ModelSpec, SpecError};
+use crate::spec::{AnalysisSpec, JobSpec, ModelSpec, Probes, SpecError};
 use std::ops::ControlFlow;
 
 /// A validated job on wave finite elements.
@@ -30,25 +30,18 @@ pub enum WaveJob {
 }
 
 impl WaveJob {
-    /// The wave job of `spec`, if it is one (`[analysis]` present, or `scheme = "wfem"`).
-    pub fn from_spec(spec: &JobSpec) -> Result<Option<WaveJob>, SpecError> {
-        if let Some(analysis) = &spec.analysis {
-            return match analysis {
-                AnalysisSpec::NonsmoothModes(m) => {
-                    Ok(Some(WaveJob::Modes(Box::new(ModalJob::from_spec(m)?))))
-                }
-                AnalysisSpec::ForcedResponse(f) => Ok(Some(WaveJob::Forced(Box::new(
-                    ForcedResponseJob::from_spec(f)?,
-                )))),
-            };
-        }
-        if !matches!(spec.integrator, IntegratorSpec::Wfem(_)) {
-            return Ok(None);
-        }
-        let model = spec
-            .model
-            .as_ref()
-            .ok_or_else(|| SpecError::new("model", "missing section"))?;
+    /// The job of an `[analysis]` section.
+    pub fn analysis(analysis: &AnalysisSpec) -> Result<WaveJob, SpecError> {
+        Ok(match analysis {
+            AnalysisSpec::NonsmoothModes(m) => WaveJob::Modes(Box::new(ModalJob::from_spec(m)?)),
+            AnalysisSpec::ForcedResponse(f) => {
+                WaveJob::Forced(Box::new(ForcedResponseJob::from_spec(f)?))
+            }
+        })
+    }
+
+    /// Time integration (`scheme = "wfem"`) of the `bar` or `dep_bar` scene `model`.
+    pub fn integrate(model: &ModelSpec, spec: &JobSpec) -> Result<WaveJob, SpecError> {
         let bar = match model {
             ModelSpec::Bar(b) => b.resolve(Bar::default()),
             ModelSpec::DepBar(b) => b.resolve(Bar::doyen_ern_piperno(100)),
@@ -68,10 +61,7 @@ impl WaveJob {
                 SpecError::new(format!("model.{field}"), e.to_string())
             }
         })?;
-        let time = spec
-            .time
-            .as_ref()
-            .ok_or_else(|| SpecError::new("time", "missing section"))?;
+        let time = spec.time_section()?;
         let dt = bar.dt();
         if !(time.h.is_finite() && (time.h - dt).abs() <= 1e-6 * dt) {
             return Err(SpecError::new(
@@ -82,21 +72,15 @@ impl WaveJob {
                 ),
             ));
         }
-        let (_, steps) = crate::job::fixed_steps(time)?;
-        if spec.output.every == 0 {
-            return Err(SpecError::new("output.every", "must be ≥ 1"));
-        }
-        if !spec.output.probes.is_empty() {
-            return Err(SpecError::new(
-                "output.probes",
-                "wave finite elements record the contact end; probes are not supported",
-            ));
-        }
-        Ok(Some(WaveJob::Integrate {
+        let steps = time.steps(false)?.count();
+        let output = spec.output.options(Probes::Unsupported(
+            "wave finite elements record the contact end; probes are not supported",
+        ))?;
+        Ok(WaveJob::Integrate {
             bar,
             steps,
-            every: spec.output.every,
-        }))
+            every: output.every,
+        })
     }
 
     /// (degrees of freedom, steps or tasks) for the service's limits.
