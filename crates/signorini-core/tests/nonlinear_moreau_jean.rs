@@ -146,8 +146,10 @@ impl LagrangianSystem for Pendulum {
 }
 
 /// A double pendulum in absolute angles (point masses m1, m2 on massless rods l1, l2): M(q)
-/// depends on q and F = −∇V − c has a velocity Jacobian that is not symmetric.
+/// depends on q and F = −∇V − c has a velocity Jacobian that is not symmetric. `wall`:
+/// (d, e), a vertical wall at x = −d that the lower mass hits, gap d + l1 sin φ1 + l2 sin φ2.
 struct DoublePendulum {
+    wall: Option<(f64, f64)>,
     m1: f64,
     m2: f64,
     l1: f64,
@@ -161,7 +163,7 @@ impl LagrangianSystem for DoublePendulum {
         2
     }
     fn contacts(&self) -> usize {
-        0
+        usize::from(self.wall.is_some())
     }
     fn initial(&self) -> (Vec<f64>, Vec<f64>) {
         (self.q0.to_vec(), vec![0.0, 0.0])
@@ -199,11 +201,21 @@ impl LagrangianSystem for DoublePendulum {
         -(self.m1 + self.m2) * self.g * self.l1 * q[0].cos()
             - self.m2 * self.g * self.l2 * q[1].cos()
     }
-    fn gaps(&self, _: f64, _: &[f64], _: &mut [f64]) {}
-    fn gap_jacobian(&self, _: f64, _: &[f64], _: &mut [f64]) {}
-    fn gap_rates(&self, _: f64, _: &[f64], _: &mut [f64]) {}
+    fn gaps(&self, _: f64, q: &[f64], out: &mut [f64]) {
+        if let Some((d, _)) = self.wall {
+            out[0] = d + self.l1 * q[0].sin() + self.l2 * q[1].sin();
+        }
+    }
+    fn gap_jacobian(&self, _: f64, q: &[f64], out: &mut [f64]) {
+        if self.wall.is_some() {
+            out.copy_from_slice(&[self.l1 * q[0].cos(), self.l2 * q[1].cos()]);
+        }
+    }
+    fn gap_rates(&self, _: f64, _: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+    }
     fn restitution(&self, _: usize) -> f64 {
-        0.0
+        self.wall.map_or(0.0, |(_, e)| e)
     }
 }
 
@@ -477,6 +489,7 @@ fn energy_error_of_theta_one_half_shrinks_as_h_squared() {
     };
     let single = Pendulum::new(2.5, None);
     let double = DoublePendulum {
+        wall: None,
         m1: 1.0,
         m2: 0.5,
         l1: 1.0,
@@ -547,6 +560,35 @@ fn contact_work_of_a_rocking_block_is_never_positive() {
             stats.work_contact_total < 0.0 || e == 1.0,
             "e {e}: {}",
             stats.work_contact_total
+        );
+    }
+}
+
+#[test]
+fn contact_work_of_a_double_pendulum_against_a_wall_is_never_positive() {
+    // M(q), a velocity Jacobian that is not symmetric and a nonlinear gap together.
+    for e in [0.0, 0.5, 1.0] {
+        let system = DoublePendulum {
+            wall: Some((0.5, e)),
+            m1: 1.0,
+            m2: 0.5,
+            l1: 1.0,
+            l2: 0.7,
+            g: 9.81,
+            q0: [1.5, 2.0],
+        };
+        let (rec, stats) = run(&system, params(0.5), 1e-3, 3000).expect("run");
+        assert!(stats.impacts >= 1, "e {e}: no impact");
+        let scale = stats.energy_max.abs().max(1.0);
+        for (k, w) in col(&rec, "work_contact").iter().enumerate() {
+            assert!(*w <= 1e-12 * scale, "e {e} step {k}: work_contact {w}");
+        }
+        let deepest = col(&rec, "gap_0")
+            .iter()
+            .fold(f64::INFINITY, |d, &g| d.min(g));
+        assert!(
+            deepest > -0.05,
+            "e {e}: the lower mass goes {deepest} through the wall"
         );
     }
 }

@@ -269,10 +269,14 @@ impl NonlinearStepReport {
     }
 }
 
-/// The values of one step kept for the next (they are the start of the next step).
+/// The values at the end of one step kept for the next (they are the start of the next step),
+/// with the state they belong to: a state changed between steps is evaluated afresh.
 #[derive(Debug, Clone)]
 struct EndOfStep {
     step: u64,
+    t: f64,
+    q: Vec<f64>,
+    v: Vec<f64>,
     forces: Vec<f64>,
     applied: Vec<f64>,
     gaps: Vec<f64>,
@@ -319,6 +323,8 @@ struct Scratch {
     /// Columns (W^i)⁻¹ H_αᵀ of the active contacts, n each.
     columns: Vec<f64>,
     delassus: Vec<f64>,
+    /// max_i |W_ij| per column j of the iteration matrix.
+    column_max: Vec<f64>,
 }
 
 impl NonlinearMoreauJean {
@@ -383,6 +389,7 @@ impl NonlinearMoreauJean {
                 rhs: Vec::with_capacity(m),
                 columns: Vec::with_capacity(m * n),
                 delassus: Vec::with_capacity(m * m),
+                column_max: Vec::with_capacity(n),
             },
         })
     }
@@ -419,10 +426,17 @@ impl NonlinearMoreauJean {
 
         // The start of the step: F_k, f_k, g(q_k, t_k) and E_k (kept from the last step).
         let start = match self.last.take() {
-            Some(e) if e.step == state.step => e,
+            Some(e)
+                if e.step == state.step && e.t == state.t && e.q == state.q && e.v == state.v =>
+            {
+                e
+            }
             _ => {
                 let mut e = EndOfStep {
                     step: state.step,
+                    t: t_k,
+                    q: state.q.clone(),
+                    v: state.v.clone(),
                     forces: vec![0.0; n],
                     applied: vec![0.0; n],
                     gaps: vec![0.0; m],
@@ -475,8 +489,10 @@ impl NonlinearMoreauJean {
                 let r = i * n + j;
                 s.mass[r] - cv * s.dfdv[r] - cq * s.dfdq[r]
             });
+            s.column_max.clear();
+            s.column_max.extend(w.column_iter().map(|c| c.amax()));
             let lu = w.lu();
-            if singular(&lu.u()) {
+            if singular(&lu.u(), &s.column_max) {
                 return Err(NonlinearStepError::Singular {
                     step,
                     t: t_next,
@@ -685,6 +701,9 @@ impl NonlinearMoreauJean {
 
         let mut end = start;
         end.step = step;
+        end.t = t_next;
+        end.q.copy_from_slice(&s.q);
+        end.v.copy_from_slice(&s.v);
         end.forces.copy_from_slice(&s.forces);
         end.applied.copy_from_slice(&s.applied);
         end.gaps.copy_from_slice(&report.gap);
@@ -717,12 +736,15 @@ fn kinetic(mass: &[f64], v: &[f64]) -> f64 {
         .sum::<f64>()
 }
 
-/// An LU factor whose pivots are not all above n ε max|U| (or not finite).
-fn singular(u: &DMatrix<f64>) -> bool {
+/// Is W singular to working precision? Its LU factor U has a pivot |U_jj| ≤ n ε max_i |W_ij|
+/// (relative to its own column of W, so that scaling a coordinate, e.g. a mass of 1e-7 next to
+/// one of 1e3, does not make W look singular), or a pivot that is not finite.
+fn singular(u: &DMatrix<f64>, column_max: &[f64]) -> bool {
     let n = u.nrows();
-    let big = u.iter().fold(0.0f64, |b, x| b.max(x.abs()));
-    let floor = n as f64 * f64::EPSILON * big;
-    !big.is_finite() || (0..n).any(|i| u[(i, i)].abs() <= floor)
+    (0..n).any(|j| {
+        let p = u[(j, j)].abs();
+        !p.is_finite() || p <= n as f64 * f64::EPSILON * column_max[j]
+    })
 }
 
 /// What a nonlinear run measured over all its steps (recorded or not).
