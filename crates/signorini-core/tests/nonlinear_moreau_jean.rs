@@ -679,6 +679,19 @@ fn the_observer_stops_a_run_and_bad_parameters_are_refused() {
         &mut StopAfter(5),
     );
     assert_eq!(stop, Err(NonlinearRunStop::Stopped { step: 5 }));
+    let probe = OutputOptions {
+        every: 1,
+        probes: vec![1],
+    };
+    let stop = run_nonlinear(
+        &ball,
+        &mut scheme,
+        &mut state,
+        100,
+        &probe,
+        &mut StopAfter(5),
+    );
+    assert_eq!(stop, Err(NonlinearRunStop::Probe { probe: 1, dofs: 1 }));
     for (p, h, field) in [
         (params(1.5), 1e-3, "theta"),
         (params(0.5), 0.0, "h"),

@@ -792,6 +792,14 @@ pub enum NonlinearRunStop {
         /// Steps done.
         step: u64,
     },
+    /// A probe names a coordinate the system does not have.
+    #[error("output.probes: coordinate {probe} does not exist (the system has {dofs})")]
+    Probe {
+        /// The probe.
+        probe: usize,
+        /// Coordinates of the system.
+        dofs: usize,
+    },
 }
 
 /// Column names of a nonlinear run: [`NONLINEAR_ENERGY_COLUMNS`], [`NONLINEAR_RUN_COLUMNS`],
@@ -812,7 +820,7 @@ pub fn nonlinear_columns(contacts: usize, probes: &[usize]) -> Columns {
 }
 
 /// Runs `steps` steps of `scheme` on `system` from `state`, recording per `output` (every
-/// `output.every`-th step and the last; probes must be < [`LagrangianSystem::dofs`]).
+/// `output.every`-th step and the last; a probe ≥ [`LagrangianSystem::dofs`] is refused).
 pub fn run_nonlinear<S: LagrangianSystem + ?Sized>(
     system: &S,
     scheme: &mut NonlinearMoreauJean,
@@ -821,7 +829,10 @@ pub fn run_nonlinear<S: LagrangianSystem + ?Sized>(
     output: &OutputOptions,
     observer: &mut dyn Observer,
 ) -> Result<NonlinearRunStats, NonlinearRunStop> {
-    let m = system.contacts();
+    let (n, m) = (system.dofs(), system.contacts());
+    if let Some(&probe) = output.probes.iter().find(|&&j| j >= n) {
+        return Err(NonlinearRunStop::Probe { probe, dofs: n });
+    }
     let columns = nonlinear_columns(m, &output.probes);
     observer.start(&columns);
     let every = output.every.max(1);
