@@ -12,7 +12,9 @@
 //! forces, part of the energy) and f the applied non-conservative forces (their work is
 //! `work_ext`). [`LagrangianSystem`] is the interface an integrator needs: values and exact
 //! Jacobians, no finite differences. The user models of `scene = "lagrangian"` implement it
-//! from compiled expressions; a test can implement it by hand.
+//! from compiled expressions; a test can implement it by hand. [`moreau_jean`] runs it.
+
+pub mod moreau_jean;
 
 /// A nonlinear mechanical system with unilateral contacts, as the nonlinear Moreau–Jean
 /// time-stepping sees it. Matrices are row-major slices; sizes are [`Self::dofs`] = n and

@@ -1,0 +1,919 @@
+//! The nonlinear Moreau–Jean time-stepping of Siconos' `MoreauJeanOSI` for a
+//! [`LagrangianSystem`] with unilateral contacts (Acary & Brogliato 2008, ch. 10; Jean 1999,
+//! "The non-smooth contact dynamics method"); for a linear system it is the scheme of Acary
+//! 2016, (21)–(24), step for step.
+//!
+//! One step from (t_k, q_k, v_k) to t_{k+1} = t_k + h, with θ ∈ [0, 1]:
+//!
+//! ```text
+//! q_{k+1} = q_k + h v_{k+θ},     v_{k+θ} = (1 − θ) v_k + θ v_{k+1}                         (21b)
+//! R(v_{k+1}) = M(q_{k+1})(v_{k+1} − v_k) − h[(1 − θ) F(t_k, q_k, v_k)
+//!              + θ F(t_{k+1}, q_{k+1}, v_{k+1})] − H(q_{k+1})ᵀ P_{k+1} = 0                 (21a)
+//! U = H(q) v + ∂g/∂t,   0 ≤ U^α_{k+1} + e_α U^α_k ⊥ P^α_{k+1} ≥ 0 on the index set        (21c)–(21d)
+//! ```
+//!
+//! with F = −∇V − c + f the smooth forces and H = ∂g/∂q the gap Jacobian. Newton's method on
+//! v_{k+1} (iterates v^i, q^i = q_k + h((1 − θ) v_k + θ v^i), starting from v^0 = v_k) solves at
+//! each iterate the linearised problem, as `MoreauJeanOSI` does:
+//!
+//! ```text
+//! W^i = M(q^i) − hθ ∂F/∂v(t_{k+1}, q^i, v^i) − h²θ² ∂F/∂q(t_{k+1}, q^i, v^i)
+//! v_free = v^i − (W^i)⁻¹ R_free(v^i),   R_free(v) = M(q^i)(v − v_k) − h[(1 − θ) F_k + θ F(t_{k+1}, q^i, v^i)]
+//! W_c = H (W^i)⁻¹ Hᵀ  (Delassus operator, H = H(q^i), active contacts only)
+//! 0 ≤ W_c P + H v_free + ∂g/∂t(t_{k+1}) + e ∘ U_k ⊥ P ≥ 0,   v^{i+1} = v_free + (W^i)⁻¹ Hᵀ P
+//! ```
+//!
+//! The iteration matrix neglects, as Siconos does, the derivative of the mass matrix along the
+//! step, hθ ∂M/∂q·(v^i − v_k), and the curvature of the gaps, hθ ∂(HᵀP)/∂q: W is exact for
+//! constant M and affine gaps, and Newton converges linearly (not quadratically) otherwise. W is
+//! factorised once per iterate by LU with partial pivoting (it is not symmetric when ∂F/∂v is
+//! not). Newton stops when the residual at the new iterate, `R(v^{i+1})` with M, F and H all at
+//! q^{i+1}, is below `tolerance` relative to the size of its terms (|M Δv| + h|F_θ| + |HᵀP|); for
+//! a linear system that is after one iterate.
+//!
+//! The index set is decided at every iterate with the gaps linearised at the iterate q^i
+//! (rule (24) of Acary 2016, or Siconos' predicted gap, [`IndexSetRule`]):
+//!
+//! ```text
+//! (24):          g(q^i, t_{k+1}) + H(q^i)(q_k + h v_k − q^i) ≤ 0   and   U_k ≤ 0
+//! predicted gap: g(q_k, t_k) + γ h U_k ≤ 0
+//! ```
+//!
+//! with U_k = H(q^i) v_k + ∂g/∂t(q^i, t_k), the local velocity of the start of the step seen
+//! through the same Jacobian as U_{k+1} (so that the contact work below has the sign of Lemma
+//! 1); the sign test reads `U_k ≤` the round-off level of the previous step's LCP, as in
+//! [`crate::contact::IndexSet`]. Within a step the index set only grows: a contact that entered
+//! it at an iterate stays for the later ones. Without that, a lasting contact whose U_k is near
+//! zero can enter and leave at alternate iterates and Newton cycles between two active sets
+//! (seen on the rocking block); Siconos avoids it by fixing the index set before the Newton loop.
+//!
+//! Accuracy: for a constant M and θ = ½ the smooth part is the trapezoidal rule, second order
+//! (the energy error over a fixed time shrinks as h²); with M(q) the term M(q_{k+1})(v_{k+1} − v_k)
+//! is a first-order approximation of ∫ M(q) dv, and the scheme is first order, as Siconos'.
+//!
+//! Energy (Acary 2016, Lemma 1, extended to M(q) and V(q, t)): `kinetic` = ½ vᵀM(q)v,
+//! `potential` = V(q, t), `energy` = kinetic + potential,
+//! `work_ext` = h [(1 − θ) f_k + θ f_{k+1}] · v_{k+θ} (the applied forces f, trapezoidal in time,
+//! against the velocity of (21b)), `work_contact` = P · H v_{k+θ} (= U_{k+θ}ᵀP on a fixed
+//! obstacle, with the H of the last LCP: for θ = ½ and an impact,
+//! ½(U_{k+1} + U_k)P = ½(1 − e)U_k P ≤ 0), and `energy_error` = ΔE − work_ext − work_contact.
+//! For the linear scheme this is Lemma 1's balance with the numerical dissipation
+//! (½ − θ)‖Δv‖²_M left in; for a nonlinear system it is the scheme's energy error, which for
+//! θ = ½ shrinks as h² over a fixed time.
+
+use super::LagrangianSystem;
+use crate::contact::{Activation, IndexSetRule, LcpStats};
+use crate::integrators::OutputOptions;
+use crate::lcp::{self, Lcp, LcpError, LcpOptions};
+use crate::observer::{Columns, Observer, Progress, StepRecord};
+use nalgebra::{DMatrix, DVector};
+use std::ops::ControlFlow;
+use thiserror::Error;
+
+/// Names of the per-step energy columns of a nonlinear run, in output order.
+pub const NONLINEAR_ENERGY_COLUMNS: [&str; 6] = [
+    "kinetic",
+    "potential",
+    "energy",
+    "work_ext",
+    "work_contact",
+    "energy_error",
+];
+
+/// Names of the columns that follow [`NONLINEAR_ENERGY_COLUMNS`]: the cumulative works and the
+/// step's Newton iterations.
+pub const NONLINEAR_RUN_COLUMNS: [&str; 3] =
+    ["work_ext_total", "work_contact_total", "newton_iterations"];
+
+/// Newton's settings. Defaults: tolerance 1e-10, 20 iterations.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NewtonOptions {
+    /// Largest residual accepted, relative to the size of the residual's terms (> 0).
+    pub tolerance: f64,
+    /// Largest number of iterates (≥ 1); one LU factorisation and one LCP each.
+    pub max_iterations: usize,
+}
+
+impl Default for NewtonOptions {
+    fn default() -> Self {
+        Self {
+            tolerance: 1e-10,
+            max_iterations: 20,
+        }
+    }
+}
+
+/// Parameters of the nonlinear Moreau–Jean scheme.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NonlinearMoreauJeanParams {
+    /// θ ∈ [0, 1], default ½ (see [`crate::integrators::moreau_jean::MoreauJeanParams`]).
+    pub theta: f64,
+    /// Index-set rule, (24) by default.
+    pub index_set: IndexSetRule,
+    /// Newton's settings.
+    pub newton: NewtonOptions,
+}
+
+impl Default for NonlinearMoreauJeanParams {
+    /// θ = ½, rule (24), [`NewtonOptions::default`].
+    fn default() -> Self {
+        Self {
+            theta: 0.5,
+            index_set: IndexSetRule::default(),
+            newton: NewtonOptions::default(),
+        }
+    }
+}
+
+/// A parameter of the scheme is out of range.
+#[derive(Debug, Clone, PartialEq, Error)]
+#[error("{field}: {reason}")]
+pub struct ParamError {
+    /// The parameter.
+    pub field: &'static str,
+    /// What is wrong with it.
+    pub reason: String,
+}
+
+/// Why a step failed. `step` and `t` are those of the state the step was to reach.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum NonlinearStepError {
+    /// Newton's method did not reach its tolerance.
+    #[error(
+        "step {step} (t = {t}): Newton did not converge in {iterations} iterations (relative residual {residual:e}, tolerance {tolerance:e})"
+    )]
+    NewtonNotConverged {
+        /// Step number.
+        step: u64,
+        /// Time t_{k+1}.
+        t: f64,
+        /// Iterations done.
+        iterations: usize,
+        /// Relative residual of the last iterate.
+        residual: f64,
+        /// Tolerance asked.
+        tolerance: f64,
+    },
+    /// The iteration matrix W = M − hθ ∂F/∂v − h²θ² ∂F/∂q is singular.
+    #[error(
+        "step {step} (t = {t}): the iteration matrix is singular (Newton iteration {iteration})"
+    )]
+    Singular {
+        /// Step number.
+        step: u64,
+        /// Time t_{k+1}.
+        t: f64,
+        /// Newton iteration (from 1).
+        iteration: usize,
+    },
+    /// A value of the system or of the state is NaN or infinite.
+    #[error("step {step} (t = {t}): {what} is not finite")]
+    NotFinite {
+        /// Step number.
+        step: u64,
+        /// Time t_{k+1}.
+        t: f64,
+        /// Which value.
+        what: &'static str,
+    },
+    /// The impulse LCP could not be solved to tolerance.
+    #[error("step {step} (t = {t}): contact LCP failed: {source}")]
+    Lcp {
+        /// Step number.
+        step: u64,
+        /// Time t_{k+1}.
+        t: f64,
+        /// The solver's error.
+        source: LcpError,
+    },
+}
+
+/// State of a nonlinear system at t_k.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NonlinearState {
+    /// Step number k.
+    pub step: u64,
+    /// Time t_k.
+    pub t: f64,
+    /// Positions q_k.
+    pub q: Vec<f64>,
+    /// Velocities v_k.
+    pub v: Vec<f64>,
+}
+
+impl NonlinearState {
+    /// The system's initial state at t = 0.
+    pub fn initial<S: LagrangianSystem + ?Sized>(system: &S) -> Self {
+        let (q, v) = system.initial();
+        Self {
+            step: 0,
+            t: 0.0,
+            q,
+            v,
+        }
+    }
+}
+
+/// What one step produced besides the new state.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct NonlinearStepReport {
+    /// ½ vᵀM(q)v at t_{k+1}.
+    pub kinetic: f64,
+    /// V(q, t) at t_{k+1}.
+    pub potential: f64,
+    /// Discrete work of the applied forces over the step.
+    pub work_ext: f64,
+    /// Discrete work of the contact impulses over the step.
+    pub work_contact: f64,
+    /// ΔE − work_ext − work_contact.
+    pub energy_error: f64,
+    /// Gap g_α(q_{k+1}, t_{k+1}).
+    pub gap: Vec<f64>,
+    /// Local velocity U_{k+1} = H(q_{k+1}) v_{k+1} + ∂g/∂t.
+    pub local_velocity: Vec<f64>,
+    /// Impulse P_{k+1}.
+    pub impulse: Vec<f64>,
+    /// The last LCP of the step.
+    pub lcp: LcpStats,
+    /// Newton iterates of the step.
+    pub newton_iterations: usize,
+}
+
+impl NonlinearStepReport {
+    /// Mechanical energy kinetic + potential.
+    pub fn energy(&self) -> f64 {
+        self.kinetic + self.potential
+    }
+
+    /// A report of the state `state` (no step taken: works zero).
+    pub fn of_state<S: LagrangianSystem + ?Sized>(system: &S, state: &NonlinearState) -> Self {
+        let (n, m) = (system.dofs(), system.contacts());
+        let mut mass = vec![0.0; n * n];
+        system.mass(&state.q, &mut mass);
+        let mut report = Self {
+            kinetic: kinetic(&mass, &state.v),
+            potential: system.potential(state.t, &state.q),
+            gap: vec![0.0; m],
+            local_velocity: vec![0.0; m],
+            impulse: vec![0.0; m],
+            ..Default::default()
+        };
+        let mut jac = vec![0.0; m * n];
+        system.gaps(state.t, &state.q, &mut report.gap);
+        system.gap_jacobian(state.t, &state.q, &mut jac);
+        system.gap_rates(state.t, &state.q, &mut report.local_velocity);
+        for (a, u) in report.local_velocity.iter_mut().enumerate() {
+            *u += dot(&jac[a * n..(a + 1) * n], &state.v);
+        }
+        report
+    }
+}
+
+/// The values at the end of one step kept for the next (they are the start of the next step),
+/// with the state they belong to: a state changed between steps is evaluated afresh.
+#[derive(Debug, Clone)]
+struct EndOfStep {
+    step: u64,
+    t: f64,
+    q: Vec<f64>,
+    v: Vec<f64>,
+    forces: Vec<f64>,
+    applied: Vec<f64>,
+    gaps: Vec<f64>,
+    energy: f64,
+}
+
+/// The nonlinear Moreau–Jean scheme for one system and one step size. Holds its parameters and
+/// scratch buffers; the state comes in explicitly.
+#[derive(Debug, Clone)]
+pub struct NonlinearMoreauJean {
+    params: NonlinearMoreauJeanParams,
+    h: f64,
+    lcp: LcpOptions,
+    n: usize,
+    m: usize,
+    last: Option<EndOfStep>,
+    /// Step whose end state `roundoff` belongs to (`u64::MAX`: none yet).
+    roundoff_step: u64,
+    /// Round-off level of U^α at the end of that step (zero when inactive).
+    roundoff: Vec<f64>,
+    s: Scratch,
+}
+
+#[derive(Debug, Clone)]
+struct Scratch {
+    mass: Vec<f64>,
+    dfdq: Vec<f64>,
+    dfdv: Vec<f64>,
+    forces: Vec<f64>,
+    applied: Vec<f64>,
+    jac: Vec<f64>,
+    gaps: Vec<f64>,
+    rates_next: Vec<f64>,
+    rates_k: Vec<f64>,
+    q: Vec<f64>,
+    v: Vec<f64>,
+    dv: Vec<f64>,
+    residual: Vec<f64>,
+    predicted: Vec<f64>,
+    active: Vec<usize>,
+    /// Contacts that entered the index set at an earlier iterate of the step.
+    member: Vec<bool>,
+    rhs: Vec<f64>,
+    /// Columns (W^i)⁻¹ H_αᵀ of the active contacts, n each.
+    columns: Vec<f64>,
+    delassus: Vec<f64>,
+    /// max_i |W_ij| per column j of the iteration matrix.
+    column_max: Vec<f64>,
+}
+
+impl NonlinearMoreauJean {
+    /// Prepares the scheme for `system` with step `h`.
+    pub fn new<S: LagrangianSystem + ?Sized>(
+        system: &S,
+        params: NonlinearMoreauJeanParams,
+        h: f64,
+        lcp: LcpOptions,
+    ) -> Result<Self, ParamError> {
+        let bad = |field, reason: &str| {
+            Err(ParamError {
+                field,
+                reason: reason.to_string(),
+            })
+        };
+        if !(h > 0.0 && h.is_finite()) {
+            return bad("h", "must be positive and finite");
+        }
+        if !(0.0..=1.0).contains(&params.theta) {
+            return bad("theta", "must be in [0, 1]");
+        }
+        if params.index_set.activation == Activation::PredictedGap
+            && !(params.index_set.gamma.is_finite() && params.index_set.gamma >= 0.0)
+        {
+            return bad("gamma", "must be finite and ≥ 0");
+        }
+        if !(params.newton.tolerance > 0.0 && params.newton.tolerance.is_finite()) {
+            return bad("newton.tolerance", "must be positive and finite");
+        }
+        if params.newton.max_iterations == 0 {
+            return bad("newton.max_iterations", "must be at least 1");
+        }
+        let (n, m) = (system.dofs(), system.contacts());
+        let z = |k| vec![0.0; k];
+        Ok(Self {
+            params,
+            h,
+            lcp,
+            n,
+            m,
+            last: None,
+            roundoff_step: u64::MAX,
+            roundoff: z(m),
+            s: Scratch {
+                mass: z(n * n),
+                dfdq: z(n * n),
+                dfdv: z(n * n),
+                forces: z(n),
+                applied: z(n),
+                jac: z(m * n),
+                gaps: z(m),
+                rates_next: z(m),
+                rates_k: z(m),
+                q: z(n),
+                v: z(n),
+                dv: z(n),
+                residual: z(n),
+                predicted: z(n),
+                active: Vec::with_capacity(m),
+                member: vec![false; m],
+                rhs: Vec::with_capacity(m),
+                columns: Vec::with_capacity(m * n),
+                delassus: Vec::with_capacity(m * m),
+                column_max: Vec::with_capacity(n),
+            },
+        })
+    }
+
+    /// Step size h.
+    pub fn step_size(&self) -> f64 {
+        self.h
+    }
+
+    /// Advances `state` by one step, writing the step's terms into `report` (sized by
+    /// [`NonlinearStepReport::of_state`]).
+    pub fn step<S: LagrangianSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        state: &mut NonlinearState,
+        report: &mut NonlinearStepReport,
+    ) -> Result<(), NonlinearStepError> {
+        let (h, theta, n, m) = (self.h, self.params.theta, self.n, self.m);
+        let t_k = state.t;
+        let step = state.step + 1;
+        let t_next = (step as f64) * h;
+        let not_finite = |what| NonlinearStepError::NotFinite {
+            step,
+            t: t_next,
+            what,
+        };
+        let check = |x: &[f64], what| {
+            if x.iter().all(|a| a.is_finite()) {
+                Ok(())
+            } else {
+                Err(not_finite(what))
+            }
+        };
+
+        // The start of the step: F_k, f_k, g(q_k, t_k) and E_k (kept from the last step).
+        let start = match self.last.take() {
+            Some(e)
+                if e.step == state.step && e.t == state.t && e.q == state.q && e.v == state.v =>
+            {
+                e
+            }
+            _ => {
+                let mut e = EndOfStep {
+                    step: state.step,
+                    t: t_k,
+                    q: state.q.clone(),
+                    v: state.v.clone(),
+                    forces: vec![0.0; n],
+                    applied: vec![0.0; n],
+                    gaps: vec![0.0; m],
+                    energy: 0.0,
+                };
+                system.forces(t_k, &state.q, &state.v, &mut e.forces);
+                check(&e.forces, "F(t, q, v)")?;
+                system.applied_forces(t_k, &state.q, &state.v, &mut e.applied);
+                check(&e.applied, "the applied forces f(t, q, v)")?;
+                system.gaps(t_k, &state.q, &mut e.gaps);
+                check(&e.gaps, "a gap g(q, t)")?;
+                system.mass(&state.q, &mut self.s.mass);
+                e.energy = kinetic(&self.s.mass, &state.v) + system.potential(t_k, &state.q);
+                if !e.energy.is_finite() {
+                    return Err(not_finite("the energy"));
+                }
+                e
+            }
+        };
+
+        let s = &mut self.s;
+        let params = &self.params;
+        // Iterate 0: v^0 = v_k, q^0 = q_k + h v_k.
+        s.dv.fill(0.0);
+        position(&state.q, &state.v, &s.dv, h, theta, &mut s.q);
+        s.v.copy_from_slice(&state.v);
+        system.mass(&s.q, &mut s.mass);
+        check(&s.mass, "M(q)")?;
+        system.forces(t_next, &s.q, &s.v, &mut s.forces);
+        check(&s.forces, "F(t, q, v)")?;
+        // q_k + h v_k, the point (24) predicts the gaps at.
+        for ((p, q), v) in s.predicted.iter_mut().zip(&state.q).zip(&state.v) {
+            *p = q + h * v;
+        }
+
+        s.member.fill(false);
+        let mut iterations = 0;
+        let mut residual = f64::INFINITY;
+        let mut work_contact = 0.0;
+        report.impulse.fill(0.0);
+        report.lcp = LcpStats::default();
+        while iterations < params.newton.max_iterations {
+            iterations += 1;
+            // W^i and its LU factors.
+            system.force_jacobians(t_next, &s.q, &s.v, &mut s.dfdq, &mut s.dfdv);
+            check(&s.dfdq, "∂F/∂q")?;
+            check(&s.dfdv, "∂F/∂v")?;
+            let (cv, cq) = (h * theta, h * h * theta * theta);
+            let w = DMatrix::from_fn(n, n, |i, j| {
+                let r = i * n + j;
+                s.mass[r] - cv * s.dfdv[r] - cq * s.dfdq[r]
+            });
+            s.column_max.clear();
+            s.column_max.extend(w.column_iter().map(|c| c.amax()));
+            let lu = w.lu();
+            if singular(&lu.u(), &s.column_max) {
+                return Err(NonlinearStepError::Singular {
+                    step,
+                    t: t_next,
+                    iteration: iterations,
+                });
+            }
+            let solve = |b: &mut [f64]| {
+                let mut x = DVector::from_column_slice(b);
+                lu.solve_mut(&mut x);
+                b.copy_from_slice(x.as_slice());
+            };
+
+            // Free velocity: Δv_free = Δv^i − W⁻¹ R_free(v^i).
+            for i in 0..n {
+                let md = dot(&s.mass[i * n..(i + 1) * n], &s.dv);
+                let f_theta = (1.0 - theta) * start.forces[i] + theta * s.forces[i];
+                s.residual[i] = md - h * f_theta;
+            }
+            solve(&mut s.residual);
+            for (d, r) in s.dv.iter_mut().zip(&s.residual) {
+                *d -= r;
+            }
+            check(&s.dv, "the free velocity")?;
+
+            // Index set and impulse LCP with the gaps linearised at q^i.
+            report.impulse.fill(0.0);
+            report.lcp = LcpStats::default();
+            s.active.clear();
+            s.rhs.clear();
+            if m > 0 {
+                system.gap_jacobian(t_next, &s.q, &mut s.jac);
+                check(&s.jac, "the gap Jacobian")?;
+                system.gaps(t_next, &s.q, &mut s.gaps);
+                check(&s.gaps, "a gap g(q, t)")?;
+                system.gap_rates(t_next, &s.q, &mut s.rates_next);
+                system.gap_rates(t_k, &s.q, &mut s.rates_k);
+                check(&s.rates_next, "∂g/∂t")?;
+                check(&s.rates_k, "∂g/∂t")?;
+                for a in 0..m {
+                    let row = &s.jac[a * n..(a + 1) * n];
+                    let u_k = dot(row, &state.v) + s.rates_k[a];
+                    let active = s.member[a]
+                        || match params.index_set.activation {
+                            Activation::GapAndVelocity => {
+                                let u_tol = if self.roundoff_step == state.step {
+                                    self.roundoff[a]
+                                } else {
+                                    0.0
+                                };
+                                let shift: f64 =
+                                    (0..n).map(|i| row[i] * (s.predicted[i] - s.q[i])).sum();
+                                s.gaps[a] + shift <= 0.0 && u_k <= u_tol
+                            }
+                            Activation::PredictedGap => {
+                                start.gaps[a] + params.index_set.gamma * h * u_k <= 0.0
+                            }
+                        };
+                    if active {
+                        s.member[a] = true;
+                        s.active.push(a);
+                        let u_free = dot(row, &state.v) + dot(row, &s.dv) + s.rates_next[a];
+                        s.rhs.push(u_free + system.restitution(a) * u_k);
+                    }
+                }
+            }
+            if !s.active.is_empty() {
+                let k = s.active.len();
+                s.columns.clear();
+                for &a in &s.active {
+                    let start_col = s.columns.len();
+                    s.columns.extend_from_slice(&s.jac[a * n..(a + 1) * n]);
+                    solve(&mut s.columns[start_col..]);
+                }
+                s.delassus.clear();
+                for &a in &s.active {
+                    let row = &s.jac[a * n..(a + 1) * n];
+                    for c in 0..k {
+                        s.delassus.push(dot(row, &s.columns[c * n..(c + 1) * n]));
+                    }
+                }
+                check(&s.delassus, "the Delassus operator")?;
+                let sol = lcp::solve(
+                    Lcp {
+                        m: &s.delassus,
+                        q: &s.rhs,
+                    },
+                    &self.lcp,
+                )
+                .map_err(|source| NonlinearStepError::Lcp {
+                    step,
+                    t: t_next,
+                    source,
+                })?;
+                for (r, &a) in s.active.iter().enumerate() {
+                    let p = sol.z[r];
+                    report.impulse[a] = p;
+                    if p != 0.0 {
+                        for (d, c) in s.dv.iter_mut().zip(&s.columns[r * n..(r + 1) * n]) {
+                            *d += p * c;
+                        }
+                    }
+                }
+                report.lcp = LcpStats {
+                    size: k,
+                    iterations: sol.iterations,
+                    error: sol.error,
+                };
+            }
+            // Contact work with the H of this LCP, against v_{k+θ} = v_k + θ Δv.
+            work_contact = 0.0;
+            for &a in &s.active {
+                let p = report.impulse[a];
+                if p != 0.0 {
+                    let row = &s.jac[a * n..(a + 1) * n];
+                    let u: f64 = (0..n)
+                        .map(|i| row[i] * (state.v[i] + theta * s.dv[i]))
+                        .sum();
+                    work_contact += p * u;
+                }
+            }
+
+            // The new iterate and its residual R(v^{i+1}) with M, F, H at q^{i+1}.
+            position(&state.q, &state.v, &s.dv, h, theta, &mut s.q);
+            for ((v, vk), d) in s.v.iter_mut().zip(&state.v).zip(&s.dv) {
+                *v = vk + d;
+            }
+            system.mass(&s.q, &mut s.mass);
+            check(&s.mass, "M(q)")?;
+            system.forces(t_next, &s.q, &s.v, &mut s.forces);
+            check(&s.forces, "F(t, q, v)")?;
+            if m > 0 {
+                system.gap_jacobian(t_next, &s.q, &mut s.jac);
+                check(&s.jac, "the gap Jacobian")?;
+            }
+            let (mut r_max, mut scale) = (0.0f64, 0.0f64);
+            for i in 0..n {
+                let md = dot(&s.mass[i * n..(i + 1) * n], &s.dv);
+                let (fk, f1) = ((1.0 - theta) * start.forces[i], theta * s.forces[i]);
+                let (mut hp, mut hp_abs) = (0.0, 0.0);
+                for &a in &s.active {
+                    let t = s.jac[a * n + i] * report.impulse[a];
+                    hp += t;
+                    hp_abs += t.abs();
+                }
+                let r = md - h * (fk + f1) - hp;
+                r_max = r_max.max(r.abs());
+                scale = scale.max(md.abs() + h * (fk.abs() + f1.abs()) + hp_abs);
+            }
+            residual = if r_max == 0.0 { 0.0 } else { r_max / scale };
+            if !residual.is_finite() {
+                return Err(not_finite("the Newton residual"));
+            }
+            if residual <= params.newton.tolerance {
+                break;
+            }
+        }
+        if residual > params.newton.tolerance {
+            return Err(NonlinearStepError::NewtonNotConverged {
+                step,
+                t: t_next,
+                iterations,
+                residual,
+                tolerance: params.newton.tolerance,
+            });
+        }
+
+        // Round-off level of the LCP's local velocities, for the sign test of the next step.
+        self.roundoff.fill(0.0);
+        let k = s.active.len();
+        for (r, &a) in s.active.iter().enumerate() {
+            let wp: f64 = s
+                .active
+                .iter()
+                .enumerate()
+                .map(|(c, &b)| (s.delassus[r * k + c] * report.impulse[b]).abs())
+                .sum();
+            self.roundoff[a] = 64.0 * f64::EPSILON * (s.rhs[r].abs() + wp);
+        }
+        self.roundoff_step = step;
+
+        // The end of the step: applied forces and works, energy, gaps and local velocities.
+        system.applied_forces(t_next, &s.q, &s.v, &mut s.applied);
+        check(&s.applied, "the applied forces f(t, q, v)")?;
+        let mut work_ext = 0.0;
+        for i in 0..n {
+            let f_theta = (1.0 - theta) * start.applied[i] + theta * s.applied[i];
+            work_ext += f_theta * (state.v[i] + theta * s.dv[i]);
+        }
+        work_ext *= h;
+        report.kinetic = kinetic(&s.mass, &s.v);
+        report.potential = system.potential(t_next, &s.q);
+        let energy = report.energy();
+        if !energy.is_finite() {
+            return Err(not_finite("the energy"));
+        }
+        report.work_ext = work_ext;
+        report.work_contact = work_contact;
+        report.energy_error = (energy - start.energy) - work_ext - work_contact;
+        report.newton_iterations = iterations;
+        system.gaps(t_next, &s.q, &mut report.gap);
+        check(&report.gap, "a gap g(q, t)")?;
+        system.gap_rates(t_next, &s.q, &mut report.local_velocity);
+        for (a, u) in report.local_velocity.iter_mut().enumerate() {
+            *u += dot(&s.jac[a * n..(a + 1) * n], &s.v);
+        }
+
+        let mut end = start;
+        end.step = step;
+        end.t = t_next;
+        end.q.copy_from_slice(&s.q);
+        end.v.copy_from_slice(&s.v);
+        end.forces.copy_from_slice(&s.forces);
+        end.applied.copy_from_slice(&s.applied);
+        end.gaps.copy_from_slice(&report.gap);
+        end.energy = energy;
+        self.last = Some(end);
+        state.q.copy_from_slice(&s.q);
+        state.v.copy_from_slice(&s.v);
+        state.t = t_next;
+        state.step = step;
+        Ok(())
+    }
+}
+
+/// q = q_k + h (v_k + θ Δv), in the same floating-point order as the linear scheme.
+fn position(q_k: &[f64], v_k: &[f64], dv: &[f64], h: f64, theta: f64, out: &mut [f64]) {
+    for (((o, q), v), d) in out.iter_mut().zip(q_k).zip(v_k).zip(dv) {
+        *o = q + h * (v + theta * d);
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// ½ vᵀ M v, M row-major.
+fn kinetic(mass: &[f64], v: &[f64]) -> f64 {
+    let n = v.len();
+    0.5 * (0..n)
+        .map(|i| v[i] * dot(&mass[i * n..(i + 1) * n], v))
+        .sum::<f64>()
+}
+
+/// Is W singular to working precision? Its LU factor U has a pivot |U_jj| ≤ n ε max_i |W_ij|
+/// (relative to its own column of W, so that scaling a coordinate, e.g. a mass of 1e-7 next to
+/// one of 1e3, does not make W look singular), or a pivot that is not finite.
+fn singular(u: &DMatrix<f64>, column_max: &[f64]) -> bool {
+    let n = u.nrows();
+    (0..n).any(|j| {
+        let p = u[(j, j)].abs();
+        !p.is_finite() || p <= n as f64 * f64::EPSILON * column_max[j]
+    })
+}
+
+/// What a nonlinear run measured over all its steps (recorded or not).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct NonlinearRunStats {
+    /// Steps done.
+    pub steps: u64,
+    /// Final time.
+    pub t_end: f64,
+    /// Mechanical energy at t₀.
+    pub energy_initial: f64,
+    /// Mechanical energy at the end.
+    pub energy_final: f64,
+    /// Largest mechanical energy seen.
+    pub energy_max: f64,
+    /// max_k |energy_error|.
+    pub max_abs_energy_error: f64,
+    /// Impacts: (step, contact) pairs whose impulse became positive after a step without.
+    pub impacts: u64,
+    /// Largest LCP complementarity error.
+    pub lcp_max_error: f64,
+    /// Steps that solved a non-empty LCP.
+    pub lcp_solves: u64,
+    /// Largest LCP (active contacts).
+    pub lcp_max_size: usize,
+    /// Largest number of Newton iterates in a step.
+    pub newton_iterations_max: usize,
+    /// Newton iterates per step, on average.
+    pub newton_iterations_mean: f64,
+    /// Cumulative work of the applied forces at the end.
+    pub work_ext_total: f64,
+    /// Cumulative work of the contact impulses at the end.
+    pub work_contact_total: f64,
+}
+
+/// Why a nonlinear run ended early.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum NonlinearRunStop {
+    /// A step failed.
+    #[error(transparent)]
+    Step(#[from] NonlinearStepError),
+    /// The observer asked to stop (cancellation) after `step` steps.
+    #[error("stopped by the observer after {step} steps")]
+    Stopped {
+        /// Steps done.
+        step: u64,
+    },
+    /// A probe names a coordinate the system does not have.
+    #[error("output.probes: coordinate {probe} does not exist (the system has {dofs})")]
+    Probe {
+        /// The probe.
+        probe: usize,
+        /// Coordinates of the system.
+        dofs: usize,
+    },
+}
+
+/// Column names of a nonlinear run: [`NONLINEAR_ENERGY_COLUMNS`], [`NONLINEAR_RUN_COLUMNS`],
+/// then `gap_α, u_α, p_α` per contact, then `q_j, v_j` per probe.
+pub fn nonlinear_columns(contacts: usize, probes: &[usize]) -> Columns {
+    let mut names: Vec<String> = NONLINEAR_ENERGY_COLUMNS
+        .iter()
+        .chain(&NONLINEAR_RUN_COLUMNS)
+        .map(|s| s.to_string())
+        .collect();
+    for a in 0..contacts {
+        names.extend([format!("gap_{a}"), format!("u_{a}"), format!("p_{a}")]);
+    }
+    for j in probes {
+        names.extend([format!("q_{j}"), format!("v_{j}")]);
+    }
+    Columns::new(names)
+}
+
+/// Runs `steps` steps of `scheme` on `system` from `state`, recording per `output` (every
+/// `output.every`-th step and the last; a probe ≥ [`LagrangianSystem::dofs`] is refused).
+pub fn run_nonlinear<S: LagrangianSystem + ?Sized>(
+    system: &S,
+    scheme: &mut NonlinearMoreauJean,
+    state: &mut NonlinearState,
+    steps: u64,
+    output: &OutputOptions,
+    observer: &mut dyn Observer,
+) -> Result<NonlinearRunStats, NonlinearRunStop> {
+    let (n, m) = (system.dofs(), system.contacts());
+    if let Some(&probe) = output.probes.iter().find(|&&j| j >= n) {
+        return Err(NonlinearRunStop::Probe { probe, dofs: n });
+    }
+    let columns = nonlinear_columns(m, &output.probes);
+    observer.start(&columns);
+    let every = output.every.max(1);
+    let mut report = NonlinearStepReport::of_state(system, state);
+    let e0 = report.energy();
+    let mut stats = NonlinearRunStats {
+        t_end: state.t,
+        energy_initial: e0,
+        energy_final: e0,
+        energy_max: e0,
+        ..Default::default()
+    };
+    let mut row = Vec::with_capacity(columns.len());
+    let mut previous_impulse = vec![0.0; m];
+    let mut newton_total = 0u64;
+    let record = |report: &NonlinearStepReport,
+                  stats: &NonlinearRunStats,
+                  state: &NonlinearState,
+                  row: &mut Vec<f64>| {
+        row.clear();
+        row.extend([
+            report.kinetic,
+            report.potential,
+            report.energy(),
+            report.work_ext,
+            report.work_contact,
+            report.energy_error,
+            stats.work_ext_total,
+            stats.work_contact_total,
+            report.newton_iterations as f64,
+        ]);
+        for a in 0..m {
+            row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
+        }
+        for &j in &output.probes {
+            row.extend([state.q[j], state.v[j]]);
+        }
+    };
+    record(&report, &stats, state, &mut row);
+    let observed = |observer: &mut dyn Observer, state: &NonlinearState, row: &[f64]| {
+        observer.observe(&StepRecord {
+            step: state.step,
+            t: state.t,
+            values: row,
+        })
+    };
+    if observed(observer, state, &row).is_break() {
+        return Err(NonlinearRunStop::Stopped { step: 0 });
+    }
+    for k in 1..=steps {
+        scheme.step(system, state, &mut report)?;
+        stats.steps = k;
+        stats.t_end = state.t;
+        stats.work_ext_total += report.work_ext;
+        stats.work_contact_total += report.work_contact;
+        stats.max_abs_energy_error = stats.max_abs_energy_error.max(report.energy_error.abs());
+        stats.energy_final = report.energy();
+        stats.energy_max = stats.energy_max.max(report.energy());
+        stats.lcp_max_error = stats.lcp_max_error.max(report.lcp.error);
+        stats.lcp_solves += u64::from(report.lcp.size > 0);
+        stats.lcp_max_size = stats.lcp_max_size.max(report.lcp.size);
+        stats.newton_iterations_max = stats.newton_iterations_max.max(report.newton_iterations);
+        newton_total += report.newton_iterations as u64;
+        stats.newton_iterations_mean = newton_total as f64 / k as f64;
+        for (p_old, &p) in previous_impulse.iter_mut().zip(&report.impulse) {
+            stats.impacts += u64::from(p > 0.0 && *p_old <= 0.0);
+            *p_old = p;
+        }
+        if k % every == 0 || k == steps {
+            record(&report, &stats, state, &mut row);
+            if observed(observer, state, &row).is_break() {
+                return Err(NonlinearRunStop::Stopped { step: k });
+            }
+        }
+        if let ControlFlow::Break(()) = observer.progress(Progress {
+            done: k,
+            total: steps,
+            t: state.t,
+        }) {
+            return Err(NonlinearRunStop::Stopped { step: k });
+        }
+    }
+    Ok(stats)
+}
