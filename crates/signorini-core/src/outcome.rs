@@ -4,6 +4,7 @@
 
 use crate::band::BandError;
 use crate::integrators::{RunStop, StepError};
+use crate::nonlinear::moreau_jean::{NonlinearRunStats, NonlinearRunStop, NonlinearStepError};
 use crate::soi2::{GlobalErrors, Soi2Error};
 use serde::Serialize;
 use serde_json::{Map, Value};
@@ -151,6 +152,28 @@ pub enum RunError {
     /// A SOI2 run failed (Newton, singular matrix, inconsistent start).
     #[error(transparent)]
     Soi2(Soi2Error),
+    /// A step of the nonlinear Moreau–Jean time-stepping failed (Newton, singular iteration
+    /// matrix, a value that is not finite, the LCP), with its step and t.
+    #[error(transparent)]
+    Nonlinear(NonlinearStepError),
+    /// A probe names a coordinate the model does not have.
+    #[error("output.probes: coordinate {probe} does not exist (the model has {dofs})")]
+    Probe {
+        /// The probe.
+        probe: usize,
+        /// Coordinates of the model.
+        dofs: usize,
+    },
+}
+
+impl From<NonlinearRunStop> for RunError {
+    fn from(s: NonlinearRunStop) -> Self {
+        match s {
+            NonlinearRunStop::Step(e) => RunError::Nonlinear(e),
+            NonlinearRunStop::Stopped { step } => RunError::Stopped { step },
+            NonlinearRunStop::Probe { probe, dofs } => RunError::Probe { probe, dofs },
+        }
+    }
 }
 
 impl From<RunStop> for RunError {
@@ -256,6 +279,9 @@ pub enum SummaryBody {
     /// A bar under WFEM.
     #[serde(rename = "time_integration")]
     Wave(WaveSummary),
+    /// A nonlinear Lagrangian model with contacts under the nonlinear Moreau–Jean scheme.
+    #[serde(rename = "time_integration")]
+    Nonlinear(NonlinearSummary),
     /// Backbones of the nonsmooth modes.
     NonsmoothModes(ModesSummary),
     /// A forced-response sweep.
@@ -269,9 +295,25 @@ impl SummaryBody {
             SummaryBody::Linear(s) => Some(s.steps),
             SummaryBody::Soi2(s) => Some(s.steps),
             SummaryBody::Wave(s) => Some(s.steps),
+            SummaryBody::Nonlinear(s) => Some(s.stats.steps),
             SummaryBody::NonsmoothModes(_) | SummaryBody::ForcedResponse(_) => None,
         }
     }
+}
+
+/// Summary of a nonlinear Moreau–Jean run: the model's size and step, then what the run
+/// measured ([`NonlinearRunStats`], its fields flat).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NonlinearSummary {
+    /// Generalized coordinates.
+    pub dofs: usize,
+    /// Contacts.
+    pub contacts: usize,
+    /// Step size.
+    pub h: f64,
+    /// Steps, energies, the largest energy error, impacts, LCP and Newton figures, works.
+    #[serde(flatten)]
+    pub stats: NonlinearRunStats,
 }
 
 /// Summary of a linear-scheme run.

@@ -747,8 +747,9 @@ fn singular(u: &DMatrix<f64>, column_max: &[f64]) -> bool {
     })
 }
 
-/// What a nonlinear run measured over all its steps (recorded or not).
-#[derive(Debug, Clone, PartialEq, Default)]
+/// What a nonlinear run measured over all its steps (recorded or not); its fields are those of
+/// `summary.json`.
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
 pub struct NonlinearRunStats {
     /// Steps done.
     pub steps: u64,
