@@ -3,7 +3,7 @@
 //! here knows the job kinds.
 
 use crate::band::BandError;
-use crate::integrators::{RunStop, StepError};
+use crate::integrators::{LinearRunStats, RunStop, StepError};
 use crate::nonlinear::moreau_jean::{NonlinearRunStats, NonlinearRunStop, NonlinearStepError};
 use crate::soi2::{GlobalErrors, Soi2Error};
 use serde::Serialize;
@@ -292,7 +292,7 @@ impl SummaryBody {
     /// Steps integrated (none for an analysis).
     pub fn steps(&self) -> Option<u64> {
         match self {
-            SummaryBody::Linear(s) => Some(s.steps),
+            SummaryBody::Linear(s) => Some(s.stats.steps),
             SummaryBody::Soi2(s) => Some(s.steps),
             SummaryBody::Wave(s) => Some(s.steps),
             SummaryBody::Nonlinear(s) => Some(s.stats.steps),
@@ -316,7 +316,8 @@ pub struct NonlinearSummary {
     pub stats: NonlinearRunStats,
 }
 
-/// Summary of a linear-scheme run.
+/// Summary of a linear-scheme run: the model's size and step, then what the run measured
+/// ([`LinearRunStats`], its fields flat).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LinearSummary {
     /// Degrees of freedom.
@@ -325,32 +326,9 @@ pub struct LinearSummary {
     pub contacts: usize,
     /// Step size.
     pub h: f64,
-    /// Steps done.
-    pub steps: u64,
-    /// Final time.
-    pub t_end: f64,
-    /// max |balance_residual| over the steps.
-    pub max_abs_balance_residual: f64,
-    /// Energy at t = 0.
-    pub energy_initial: f64,
-    /// Energy at the end.
-    pub energy_final: f64,
-    /// Largest energy.
-    pub energy_max: f64,
-    /// Largest algorithmic energy H.
-    pub algorithmic_energy_max: f64,
-    /// Steps with an impact.
-    pub impacts: u64,
-    /// Largest LCP error.
-    pub lcp_max_error: f64,
-    /// LCP solves.
-    pub lcp_solves: u64,
-    /// Cumulative work of the external forces.
-    pub work_ext_total: f64,
-    /// Cumulative work of the damping forces.
-    pub work_damping_total: f64,
-    /// Cumulative work of the contact impulses.
-    pub work_contact_total: f64,
+    /// Steps, energies, the largest balance residual, impacts, LCP figures, works.
+    #[serde(flatten)]
+    pub stats: LinearRunStats,
 }
 
 /// Summary of a SOI2 run.

@@ -125,8 +125,9 @@ pub struct OutputOptions {
     pub probes: Vec<usize>,
 }
 
-/// What a linear run measured over all its steps (recorded or not).
-#[derive(Debug, Clone, PartialEq, Default)]
+/// What a linear run measured over all its steps (recorded or not); its fields are those of
+/// `summary.json`.
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
 pub struct LinearRunStats {
     /// Steps done.
     pub steps: u64,
