@@ -8,6 +8,7 @@ use crate::integrators::alpha::{AlphaParams, AlphaScheme, NonsmoothAlpha, ParamE
 use crate::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
 use crate::integrators::position_contact::{PositionContact, PositionContactParams};
 use crate::integrators::{LinearScheme, LinearState, OutputOptions, run_linear};
+use crate::lagrangian::UserModel;
 use crate::lcp::LcpOptions;
 use crate::model::{Contact, Forcing, HarmonicLoad, LinearModel, ModelError};
 use crate::observer::Observer;
@@ -15,7 +16,7 @@ use crate::outcome::{LinearSummary, RunError, RunOutput, RunSummary, SummaryBody
 use crate::scenes::Bar;
 use crate::soi2::run::Soi2Job;
 use crate::spec::{
-    IntegratorSpec, JobSpec, LinearSpec, ModelSpec, MoreauJeanSpec, NsAlphaSpec,
+    IntegratorSpec, JobSpec, LagrangianSpec, LinearSpec, ModelSpec, MoreauJeanSpec, NsAlphaSpec,
     PositionContactSpec, Probes, SchemeFamily, SpecError, mismatch,
 };
 use crate::trace::EnergyTrace;
@@ -108,6 +109,31 @@ impl LinearJob {
     }
 }
 
+/// A `lagrangian` model under a scheme of the linear family: only `moreau_jean` (the nonlinear
+/// Moreau–Jean time-stepping of Acary & Brogliato 2008, ch. 10) can take it, with contacts and
+/// without joints. The model is compiled and checked first, so a bad model is reported before
+/// the scheme.
+fn lagrangian_moreau_jean(
+    m: &ModelSpec,
+    l: &LagrangianSpec,
+    spec: &JobSpec,
+) -> Result<JobKind, SpecError> {
+    let model = UserModel::new(l)?;
+    if !matches!(spec.integrator, IntegratorSpec::MoreauJean(_)) {
+        return Err(mismatch(m, spec.integrator.scheme()));
+    }
+    if model.joints() > 0 && !l.contacts.is_empty() {
+        return Err(SpecError::new(
+            "model.constraints",
+            "joints and contacts together are not supported yet: moreau_jean takes contacts, the SOI2 schemes take joints",
+        ));
+    }
+    Err(SpecError::new(
+        "integrator.scheme",
+        "the nonlinear Moreau–Jean time-stepping of lagrangian models is not available in this build: use soi2_generalized_alpha, soi2_hht or hht_i3 for a model with joints and no contacts",
+    ))
+}
+
 impl Job {
     /// Validates `spec` and builds the job. Every error names the offending field. The job's
     /// kind follows from the sections: an `[analysis]`, or the pair (scene, scheme family).
@@ -118,6 +144,12 @@ impl Job {
             (None, None, _) => return Err(SpecError::new("model", "missing section")),
             (None, Some(m), SchemeFamily::Wave) => {
                 JobKind::Wave(Box::new(WaveJob::integrate(m, spec)?))
+            }
+            (None, Some(m @ ModelSpec::Lagrangian(_)), SchemeFamily::Soi2) => {
+                JobKind::Soi2(Box::new(Soi2Job::from_spec(m, spec)?))
+            }
+            (None, Some(m @ ModelSpec::Lagrangian(l)), SchemeFamily::Linear) => {
+                lagrangian_moreau_jean(m, l, spec)?
             }
             (None, Some(m), SchemeFamily::Soi2) if m.is_constrained() => {
                 JobKind::Soi2(Box::new(Soi2Job::from_spec(m, spec)?))
@@ -267,7 +299,10 @@ pub fn build_model(spec: &ModelSpec) -> Result<LinearModel, SpecError> {
         ModelSpec::DepBar(b) => b.resolve(Bar::doyen_ern_piperno(100)).build(),
         ModelSpec::Chain(c) => c.build(),
         ModelSpec::Linear(l) => build_linear(l),
-        ModelSpec::Pendulum(_) | ModelSpec::SliderCrank(_) | ModelSpec::JayNegrutTest(_) => {
+        ModelSpec::Pendulum(_)
+        | ModelSpec::SliderCrank(_)
+        | ModelSpec::JayNegrutTest(_)
+        | ModelSpec::Lagrangian(_) => {
             return Err(mismatch(spec, "a linear scheme"));
         }
     };

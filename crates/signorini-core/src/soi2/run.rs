@@ -11,6 +11,7 @@ use super::{
     constraint_residuals, dist2, kinetic_energy,
 };
 use crate::integrators::OutputOptions;
+use crate::lagrangian::UserModel;
 use crate::observer::{Columns, Observer, Progress, StepRecord};
 use crate::outcome::Soi2Summary;
 use crate::spec::{
@@ -414,6 +415,8 @@ pub enum Soi2Model {
     SliderCrank(SliderCrank),
     /// (15).
     JayNegrutTest(JayNegrutTest),
+    /// A compiled `lagrangian` model (joints, no contacts).
+    User(Box<UserModel>),
 }
 
 /// A validated SOI2 job.
@@ -572,6 +575,18 @@ impl Soi2Job {
             ModelSpec::Pendulum(p) => Soi2Model::Pendulum(p.clone()),
             ModelSpec::SliderCrank(s) => Soi2Model::SliderCrank(s.clone()),
             ModelSpec::JayNegrutTest(j) => Soi2Model::JayNegrutTest(j.clone()),
+            ModelSpec::Lagrangian(l) => {
+                if !l.contacts.is_empty() {
+                    return Err(SpecError::new(
+                        "integrator.scheme",
+                        format!(
+                            "`{}` takes joints, not contacts: a lagrangian model with contacts runs with moreau_jean",
+                            spec.integrator.scheme()
+                        ),
+                    ));
+                }
+                Soi2Model::User(Box::new(UserModel::new(l)?))
+            }
             _ => return Err(mismatch(model_spec, spec.integrator.scheme())),
         };
         let steps = spec.time_section()?.steps(true)?;
@@ -594,6 +609,7 @@ impl Soi2Job {
                 j.validate()?;
                 (j.additive(), true, j.dims().n)
             }
+            Soi2Model::User(u) => (u.additive(), false, u.dims().n),
         };
         let (method, start, strategy, consistency) = match &spec.integrator {
             IntegratorSpec::Soi2GeneralizedAlpha(p) => {
@@ -670,6 +686,7 @@ impl Soi2Job {
             Soi2Model::Pendulum(p) => check_model(p, consistency)?,
             Soi2Model::SliderCrank(s) => check_model(s, consistency)?,
             Soi2Model::JayNegrutTest(j) => check_model(j, consistency)?,
+            Soi2Model::User(u) => check_model(u.as_ref(), consistency)?,
         }
         let OutputOptions { every, probes } = spec.output.options(Probes::Dofs(n))?;
         let output = Soi2Output { every, probes };
@@ -695,6 +712,7 @@ impl Soi2Job {
             Soi2Model::Pendulum(p) => p.dims().n,
             Soi2Model::SliderCrank(s) => s.dims().n,
             Soi2Model::JayNegrutTest(j) => j.dims().n,
+            Soi2Model::User(u) => u.dims().n,
         }
     }
 
@@ -704,6 +722,7 @@ impl Soi2Job {
             Soi2Model::Pendulum(p) => p.dims(),
             Soi2Model::SliderCrank(s) => s.dims(),
             Soi2Model::JayNegrutTest(j) => j.dims(),
+            Soi2Model::User(u) => u.dims(),
         };
         columns(d, &self.output.probes).len()
     }
@@ -734,6 +753,16 @@ impl Soi2Job {
             )?,
             Soi2Model::JayNegrutTest(j) => integrate_with(
                 j,
+                &self.method,
+                self.newton,
+                self.start,
+                sizes,
+                self.adjust,
+                &self.output,
+                observer,
+            )?,
+            Soi2Model::User(u) => integrate_with(
+                u.as_ref(),
                 &self.method,
                 self.newton,
                 self.start,
