@@ -565,6 +565,24 @@ fn check_model<M: ConstrainedModel>(model: &M, tol: f64) -> Result<(), SpecError
     check_consistency(model, tol).map_err(|e| SpecError::new("model", e.to_string()))
 }
 
+/// [`check_model`] for a user model, naming the spec field at fault: dependent joints
+/// (`model.constraints`), initial positions or velocities that violate them (`model.q0`,
+/// `model.v0`).
+fn check_user_model(model: &UserModel, tol: f64) -> Result<(), SpecError> {
+    let iv = model.initial();
+    check_constraint_rank(model, iv.t, &iv.y, &iv.z)
+        .map_err(|e| SpecError::new("model.constraints", e.to_string()))?;
+    check_consistency(model, tol).map_err(|e| {
+        let field = match &e {
+            Soi2Error::InconsistentInitialConditions {
+                level: "velocity", ..
+            } => "model.v0",
+            _ => "model.q0",
+        };
+        SpecError::new(field, e.to_string())
+    })
+}
+
 impl Soi2Job {
     /// Builds the SOI2 job of a nonlinear constrained scene `model` (the dispatch in
     /// [`crate::job::Job::from_spec`] has matched it with a SOI2 scheme; any other pair is refused
@@ -576,6 +594,8 @@ impl Soi2Job {
             ModelSpec::SliderCrank(s) => Soi2Model::SliderCrank(s.clone()),
             ModelSpec::JayNegrutTest(j) => Soi2Model::JayNegrutTest(j.clone()),
             ModelSpec::Lagrangian(l) => {
+                // The model first: its errors are reported whatever the scheme.
+                let user = UserModel::new(l)?;
                 if !l.contacts.is_empty() {
                     return Err(SpecError::new(
                         "integrator.scheme",
@@ -585,7 +605,7 @@ impl Soi2Job {
                         ),
                     ));
                 }
-                Soi2Model::User(Box::new(UserModel::new(l)?))
+                Soi2Model::User(Box::new(user))
             }
             _ => return Err(mismatch(model_spec, spec.integrator.scheme())),
         };
@@ -686,7 +706,7 @@ impl Soi2Job {
             Soi2Model::Pendulum(p) => check_model(p, consistency)?,
             Soi2Model::SliderCrank(s) => check_model(s, consistency)?,
             Soi2Model::JayNegrutTest(j) => check_model(j, consistency)?,
-            Soi2Model::User(u) => check_model(u.as_ref(), consistency)?,
+            Soi2Model::User(u) => check_user_model(u, consistency)?,
         }
         let OutputOptions { every, probes } = spec.output.options(Probes::Dofs(n))?;
         let output = Soi2Output { every, probes };
