@@ -200,7 +200,13 @@ pub struct Soi2Stats {
     pub errors: Option<GlobalErrors>,
 }
 
-/// Column names of a SOI2 run.
+/// Column names of a SOI2 run: the step h; the energies `kinetic` ½zᵀMz, `potential` V,
+/// `energy` = kinetic + potential; `work_damping` (trapezoidal work of the damping forces, the
+/// only non-conservative forces of a SOI2 model, over the step) and its running sum; `work_ext`,
+/// the same work under the name the nonlinear models share (the applied non-conservative forces
+/// `forces` of a `lagrangian` model); `energy_error` = E(t) − E(0) − Σ work_ext, the scheme's
+/// energy error (it shrinks with h); the constraint residuals, Newton's iterations, λ, ψ and
+/// the probes.
 pub fn columns(dims: super::Dims, probes: &[usize]) -> Columns {
     let mut names: Vec<String> = [
         "h",
@@ -209,6 +215,8 @@ pub fn columns(dims: super::Dims, probes: &[usize]) -> Columns {
         "energy",
         "work_damping",
         "work_damping_total",
+        "work_ext",
+        "energy_error",
         "position_residual",
         "velocity_residual",
         "nonholonomic_residual",
@@ -281,6 +289,7 @@ pub fn integrate_with<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized>(
         energy_final: k0 + p0,
         ..Default::default()
     };
+    let e0 = k0 + p0;
     let mut row = Vec::with_capacity(cols.len());
     let mut fd0 = vec![0.0; n];
     let mut fd1 = vec![0.0; n];
@@ -302,6 +311,8 @@ pub fn integrate_with<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized>(
             kin + pot,
             wd,
             wdt,
+            wd,
+            kin + pot - e0 - wdt,
             res[0],
             res[1],
             res[2],
