@@ -52,10 +52,13 @@ pub struct LagrangianSpec {
     /// Initial velocities q̇(0), n entries (zero when absent).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub v0: Option<Vec<f64>>,
-    /// Bilateral holonomic joints g(q, t) = 0; each must hold at q0 to 1e-8 relative to ‖q0‖∞.
+    /// Bilateral holonomic joints g(q, t) = 0, each `{ expr = "..." }`; each must hold at q0 to
+    /// 1e-8 relative to ‖q0‖∞. Run by the SOI2 schemes.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub constraints: Vec<JointSpec>,
-    /// Unilateral contacts: gap(q, t) ≥ 0 with Newton's impact law.
+    /// Unilateral contacts, each `{ gap = "...", restitution = e }`: gap(q, t) ≥ 0 with Newton's
+    /// impact law, e ∈ [0, 1] (default 0); `friction` μ with its `tangent` (Coulomb friction is
+    /// not implemented yet: μ > 0 is refused). Run by `moreau_jean`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub contacts: Vec<UserContactSpec>,
 }
