@@ -630,3 +630,21 @@ fn coriolis_forces_from_a_configuration_dependent_mass_conserve_energy_and_momen
         "momentum drift {d1:e}, {d2:e}: order {order}"
     );
 }
+
+/// A force that turns NaN during the run (sqrt(0.5 − t) past t = 0.5) fails the job with the
+/// step and its time, without a panic or a hang.
+#[test]
+fn a_nan_during_the_run_fails_the_job_with_step_and_time() {
+    let mut v = serde_json::to_value(example("pendulum_lagrangian")).expect("json");
+    v["model"]["forces"][2] = json!("-c*theta_dot*sqrt(0.5 - t)");
+    v["time"] = json!({"h": 0.01, "t_end": 1.0});
+    let spec: JobSpec = serde_json::from_value(v).expect("spec");
+    let job = Job::from_spec(&spec).expect("valid at t = 0");
+    let err = run(&job, 1, &mut Recorder::default()).expect_err("NaN past t = 0.5");
+    let msg = err.to_string();
+    // t₅₀ = 0.5 + round-off: the first step whose force is NaN.
+    assert!(
+        msg.contains("step 50 (t = 0.5") && msg.contains("NaN"),
+        "{msg}"
+    );
+}
