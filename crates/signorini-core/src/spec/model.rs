@@ -33,8 +33,10 @@ pub enum ModelSpec {
 }
 
 impl ModelSpec {
-    /// Whether the scene is a nonlinear constrained model (integrated by the SOI2 schemes) rather
-    /// than a linear one (Moreau–Jean, the α-family, WFEM for the bars).
+    /// Whether the scene is a built-in nonlinear constrained model (integrated by the SOI2
+    /// schemes) rather than a linear one (Moreau–Jean, the α-family, WFEM for the bars). A
+    /// `lagrangian` model is neither: [`crate::job::Job::from_spec`] sends it to the SOI2 schemes
+    /// (joints) or to Moreau–Jean (contacts) by its contents.
     pub fn is_constrained(&self) -> bool {
         matches!(
             self,
