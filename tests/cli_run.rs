@@ -431,3 +431,40 @@ fn schema_command_prints_the_spec_schema() {
         serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
     assert_eq!(written, schema);
 }
+
+/// `scene = "lagrangian"` from the CLI: the user-model examples run (the energy columns of the
+/// SOI2 schemes, the joints at round-off), and a misspelt name is refused naming its field.
+#[test]
+fn lagrangian_examples_run_and_a_bad_expression_is_refused() {
+    let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples");
+    for name in ["pendulum_lagrangian", "double_pendulum_cartesian"] {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join(name);
+        let status = signorini()
+            .args(["run", "--quiet", "--out"])
+            .arg(&out)
+            .arg(examples.join(format!("{name}.toml")))
+            .status()
+            .unwrap();
+        assert!(status.success(), "{name} failed");
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        assert_eq!(summary["scene"], "lagrangian", "{name}");
+        assert!(
+            summary["max_position_residual"].as_f64().unwrap() < 1e-12,
+            "{name}"
+        );
+        let csv = std::fs::read_to_string(out.join("steps.csv")).unwrap();
+        let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+        for c in ["kinetic", "potential", "energy", "lambda_1"] {
+            assert!(header.contains(&c), "{name}: no column {c} in {header:?}");
+        }
+    }
+    let text = std::fs::read_to_string(examples.join("pendulum_lagrangian.toml")).unwrap();
+    assert_refused(
+        &text.replace("\"m*g*y + k/2", "\"m*gg*y + k/2"),
+        "model.potential",
+        "unknown name 'gg' at 2 (did you mean 'g'?)",
+    );
+}

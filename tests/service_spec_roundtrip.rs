@@ -2,6 +2,8 @@
 //! `spec_file::parse`, converted to `signorini.v1.JobSpec`, encoded to bytes and decoded (the wire),
 //! and converted back, gives an equal `JobSpec`. A new example using a field the proto does not
 //! carry fails here. A few extra specs cover the schemes and enum values no example uses.
+//! Sections newer than the typed messages (`scene = "lagrangian"`) go over gRPC in the JSON
+//! spelling of `SubmitJobRequest` only: their examples are skipped here.
 
 #[path = "common/to_proto.rs"]
 mod to_proto;
@@ -39,6 +41,14 @@ fn every_example_round_trips_through_the_typed_proto() {
     for path in &files {
         let text = std::fs::read_to_string(path).expect("reading an example");
         let spec = parse(&text, Format::Toml).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        if spec
+            .model
+            .as_ref()
+            .is_some_and(|m| m.scene() == "lagrangian")
+        {
+            // Out of the typed message's scope: `lagrangian` models go as JSON.
+            continue;
+        }
         let back = round_trip(&spec);
         assert_eq!(back, spec, "{} through the typed proto", path.display());
         if let Some(m) = &spec.model {
@@ -317,6 +327,8 @@ mod random {
             )
     }
 
+    /// Every scene the typed message carries. `lagrangian` is left out: it has no typed message
+    /// (it travels in the JSON spelling of `SubmitJobRequest`), so it has no round trip here.
     fn model() -> impl Strategy<Value = ModelSpec> {
         prop_oneof![
             (x(), x(), x(), x(), x()).prop_map(|(mass, gravity, q0, v0, restitution)| {

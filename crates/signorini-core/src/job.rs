@@ -8,14 +8,22 @@ use crate::integrators::alpha::{AlphaParams, AlphaScheme, NonsmoothAlpha, ParamE
 use crate::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
 use crate::integrators::position_contact::{PositionContact, PositionContactParams};
 use crate::integrators::{LinearScheme, LinearState, OutputOptions, run_linear};
+use crate::lagrangian::UserModel;
 use crate::lcp::LcpOptions;
 use crate::model::{Contact, Forcing, HarmonicLoad, LinearModel, ModelError};
+use crate::nonlinear::LagrangianSystem;
+use crate::nonlinear::moreau_jean::{
+    NewtonOptions, NonlinearMoreauJean, NonlinearMoreauJeanParams, NonlinearState,
+    nonlinear_columns, run_nonlinear,
+};
 use crate::observer::Observer;
-use crate::outcome::{LinearSummary, RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader};
+use crate::outcome::{
+    LinearSummary, NonlinearSummary, RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader,
+};
 use crate::scenes::Bar;
 use crate::soi2::run::Soi2Job;
 use crate::spec::{
-    IntegratorSpec, JobSpec, LinearSpec, ModelSpec, MoreauJeanSpec, NsAlphaSpec,
+    IntegratorSpec, JobSpec, LagrangianSpec, LinearSpec, ModelSpec, MoreauJeanSpec, NsAlphaSpec,
     PositionContactSpec, Probes, SchemeFamily, SpecError, mismatch,
 };
 use crate::trace::EnergyTrace;
@@ -44,6 +52,18 @@ enum JobKind {
     Linear(Box<LinearJob>),
     Soi2(Box<Soi2Job>),
     Wave(Box<WaveJob>),
+    Nonlinear(Box<NonlinearJob>),
+}
+
+/// A `lagrangian` model with contacts under the nonlinear Moreau–Jean time-stepping.
+#[derive(Debug, Clone)]
+struct NonlinearJob {
+    model: UserModel,
+    /// The scheme, built (and its parameters checked) at validation; each run clones it.
+    scheme: NonlinearMoreauJean,
+    h: f64,
+    steps: u64,
+    output: OutputOptions,
 }
 
 #[derive(Debug, Clone)]
@@ -108,6 +128,62 @@ impl LinearJob {
     }
 }
 
+/// A `lagrangian` model under a scheme of the linear family: only `moreau_jean` (the nonlinear
+/// Moreau–Jean time-stepping of Acary & Brogliato 2008, ch. 10) can take it, with contacts and
+/// without joints. The model is compiled and checked first, so a bad model is reported before
+/// the scheme.
+fn lagrangian_moreau_jean(
+    m: &ModelSpec,
+    l: &LagrangianSpec,
+    spec: &JobSpec,
+) -> Result<JobKind, SpecError> {
+    let model = UserModel::new(l)?;
+    if !matches!(spec.integrator, IntegratorSpec::MoreauJean(_)) {
+        return Err(mismatch(m, spec.integrator.scheme()));
+    }
+    if model.joints() > 0 && !l.contacts.is_empty() {
+        return Err(SpecError::new(
+            "model.constraints",
+            "joints and contacts together are not supported yet: moreau_jean takes contacts, the SOI2 schemes take joints",
+        ));
+    }
+    if model.joints() > 0 {
+        return Err(SpecError::new(
+            "integrator.scheme",
+            "moreau_jean does not take joints: use soi2_generalized_alpha, soi2_hht or hht_i3 for a model with joints",
+        ));
+    }
+    let IntegratorSpec::MoreauJean(p) = &spec.integrator else {
+        return Err(mismatch(m, spec.integrator.scheme()));
+    };
+    let params = NonlinearMoreauJeanParams {
+        theta: moreau_jean_params(p, false)?.theta,
+        index_set: p.index_set.rule()?,
+        newton: NewtonOptions::default(),
+    };
+    let steps = spec.time_section()?.steps(false)?;
+    let lcp = spec.contact_solver.options()?;
+    let output = spec
+        .output
+        .options(Probes::Dofs(LagrangianSystem::dofs(&model)))?;
+    // The scheme checks its own parameters once more against the model's sizes.
+    let scheme = NonlinearMoreauJean::new(&model, params, steps.h, lcp).map_err(|e| {
+        let field = match e.field {
+            "h" => "time.h".to_string(),
+            "gamma" => "integrator.activation_gamma".to_string(),
+            other => format!("integrator.{other}"),
+        };
+        SpecError::new(field, e.reason)
+    })?;
+    Ok(JobKind::Nonlinear(Box::new(NonlinearJob {
+        model,
+        scheme,
+        h: steps.h,
+        steps: steps.count(),
+        output,
+    })))
+}
+
 impl Job {
     /// Validates `spec` and builds the job. Every error names the offending field. The job's
     /// kind follows from the sections: an `[analysis]`, or the pair (scene, scheme family).
@@ -118,6 +194,12 @@ impl Job {
             (None, None, _) => return Err(SpecError::new("model", "missing section")),
             (None, Some(m), SchemeFamily::Wave) => {
                 JobKind::Wave(Box::new(WaveJob::integrate(m, spec)?))
+            }
+            (None, Some(m @ ModelSpec::Lagrangian(_)), SchemeFamily::Soi2) => {
+                JobKind::Soi2(Box::new(Soi2Job::from_spec(m, spec)?))
+            }
+            (None, Some(m @ ModelSpec::Lagrangian(l)), SchemeFamily::Linear) => {
+                lagrangian_moreau_jean(m, l, spec)?
             }
             (None, Some(m), SchemeFamily::Soi2) if m.is_constrained() => {
                 JobKind::Soi2(Box::new(Soi2Job::from_spec(m, spec)?))
@@ -167,6 +249,17 @@ impl Job {
                     output_bytes: recorded.saturating_mul(columns as u64 * 8),
                 }
             }
+            JobKind::Nonlinear(j) => {
+                let recorded = j.steps / j.output.every.max(1) + 2;
+                let contacts = LagrangianSystem::contacts(&j.model);
+                // The run's columns, plus step and t.
+                let columns = nonlinear_columns(contacts, &j.output.probes).len() + 2;
+                JobSize {
+                    dofs: LagrangianSystem::dofs(&j.model) as u64,
+                    steps: j.steps,
+                    output_bytes: recorded.saturating_mul(columns as u64 * 8),
+                }
+            }
         }
     }
 }
@@ -183,9 +276,38 @@ pub fn run(job: &Job, threads: usize, observer: &mut dyn Observer) -> Result<Run
         JobKind::Linear(j) => run_linear_job(job, j, &mut trace),
         JobKind::Soi2(j) => run_soi2_job(job, j, &mut trace),
         JobKind::Wave(j) => j.run(header(job), threads, &mut trace),
+        JobKind::Nonlinear(j) => run_nonlinear_job(job, j, &mut trace),
     }?;
     output.charts.extend(trace.charts());
     Ok(output)
+}
+
+fn run_nonlinear_job(
+    job: &Job,
+    j: &NonlinearJob,
+    observer: &mut dyn Observer,
+) -> Result<RunOutput, RunError> {
+    let mut scheme = j.scheme.clone();
+    let mut state = NonlinearState::initial(&j.model);
+    let stats = run_nonlinear(
+        &j.model,
+        &mut scheme,
+        &mut state,
+        j.steps,
+        &j.output,
+        observer,
+    )?;
+    let body = SummaryBody::Nonlinear(NonlinearSummary {
+        dofs: LagrangianSystem::dofs(&j.model),
+        contacts: LagrangianSystem::contacts(&j.model),
+        h: j.h,
+        stats,
+    });
+    Ok(RunOutput {
+        summary: RunSummary::new(header(job), body),
+        tables: Vec::new(),
+        charts: Vec::new(),
+    })
 }
 
 fn run_soi2_job(
@@ -255,7 +377,10 @@ pub fn build_model(spec: &ModelSpec) -> Result<LinearModel, SpecError> {
         ModelSpec::DepBar(b) => b.resolve(Bar::doyen_ern_piperno(100)).build(),
         ModelSpec::Chain(c) => c.build(),
         ModelSpec::Linear(l) => build_linear(l),
-        ModelSpec::Pendulum(_) | ModelSpec::SliderCrank(_) | ModelSpec::JayNegrutTest(_) => {
+        ModelSpec::Pendulum(_)
+        | ModelSpec::SliderCrank(_)
+        | ModelSpec::JayNegrutTest(_)
+        | ModelSpec::Lagrangian(_) => {
             return Err(mismatch(spec, "a linear scheme"));
         }
     };

@@ -13,6 +13,7 @@ pub mod energy;
 pub mod expr;
 pub mod integrators;
 pub mod job;
+pub mod lagrangian;
 pub mod lcp;
 pub mod modal;
 pub mod model;

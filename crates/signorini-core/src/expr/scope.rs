@@ -2,13 +2,14 @@
 
 use super::parse::{Tok, tokenize};
 use super::{Expr, ExprError, reserved_names};
+use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 /// A parameter's definition in the spec: a number, or an expression of other parameters
 /// (`I = "m*(w^2+hgt^2)/12"`). In a spec it is written as either (untagged):
 /// `parameters = { m = 1.0, I = "m*w^2/12" }`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(untagged)]
 pub enum Param {
     /// A number.

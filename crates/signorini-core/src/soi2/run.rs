@@ -11,6 +11,7 @@ use super::{
     constraint_residuals, dist2, kinetic_energy,
 };
 use crate::integrators::OutputOptions;
+use crate::lagrangian::UserModel;
 use crate::observer::{Columns, Observer, Progress, StepRecord};
 use crate::outcome::Soi2Summary;
 use crate::spec::{
@@ -199,7 +200,13 @@ pub struct Soi2Stats {
     pub errors: Option<GlobalErrors>,
 }
 
-/// Column names of a SOI2 run.
+/// Column names of a SOI2 run: the step h; the energies `kinetic` ½zᵀMz, `potential` V,
+/// `energy` = kinetic + potential; `work_damping` (trapezoidal work of the damping forces, the
+/// only non-conservative forces of a SOI2 model, over the step) and its running sum; `work_ext`,
+/// the same work under the name the nonlinear models share (the applied non-conservative forces
+/// `forces` of a `lagrangian` model); `energy_error` = E(t) − E(0) − Σ work_ext, the scheme's
+/// energy error (it shrinks with h); the constraint residuals, Newton's iterations, λ, ψ and
+/// the probes.
 pub fn columns(dims: super::Dims, probes: &[usize]) -> Columns {
     let mut names: Vec<String> = [
         "h",
@@ -208,6 +215,8 @@ pub fn columns(dims: super::Dims, probes: &[usize]) -> Columns {
         "energy",
         "work_damping",
         "work_damping_total",
+        "work_ext",
+        "energy_error",
         "position_residual",
         "velocity_residual",
         "nonholonomic_residual",
@@ -280,6 +289,7 @@ pub fn integrate_with<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized>(
         energy_final: k0 + p0,
         ..Default::default()
     };
+    let e0 = k0 + p0;
     let mut row = Vec::with_capacity(cols.len());
     let mut fd0 = vec![0.0; n];
     let mut fd1 = vec![0.0; n];
@@ -301,6 +311,8 @@ pub fn integrate_with<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized>(
             kin + pot,
             wd,
             wdt,
+            wd,
+            kin + pot - e0 - wdt,
             res[0],
             res[1],
             res[2],
@@ -414,6 +426,8 @@ pub enum Soi2Model {
     SliderCrank(SliderCrank),
     /// (15).
     JayNegrutTest(JayNegrutTest),
+    /// A compiled `lagrangian` model (joints, no contacts).
+    User(Box<UserModel>),
 }
 
 /// A validated SOI2 job.
@@ -562,6 +576,24 @@ fn check_model<M: ConstrainedModel>(model: &M, tol: f64) -> Result<(), SpecError
     check_consistency(model, tol).map_err(|e| SpecError::new("model", e.to_string()))
 }
 
+/// [`check_model`] for a user model, naming the spec field at fault: dependent joints
+/// (`model.constraints`), initial positions or velocities that violate them (`model.q0`,
+/// `model.v0`).
+fn check_user_model(model: &UserModel, tol: f64) -> Result<(), SpecError> {
+    let iv = model.initial();
+    check_constraint_rank(model, iv.t, &iv.y, &iv.z)
+        .map_err(|e| SpecError::new("model.constraints", e.to_string()))?;
+    check_consistency(model, tol).map_err(|e| {
+        let field = match &e {
+            Soi2Error::InconsistentInitialConditions {
+                level: "velocity", ..
+            } => "model.v0",
+            _ => "model.q0",
+        };
+        SpecError::new(field, e.to_string())
+    })
+}
+
 impl Soi2Job {
     /// Builds the SOI2 job of a nonlinear constrained scene `model` (the dispatch in
     /// [`crate::job::Job::from_spec`] has matched it with a SOI2 scheme; any other pair is refused
@@ -572,6 +604,20 @@ impl Soi2Job {
             ModelSpec::Pendulum(p) => Soi2Model::Pendulum(p.clone()),
             ModelSpec::SliderCrank(s) => Soi2Model::SliderCrank(s.clone()),
             ModelSpec::JayNegrutTest(j) => Soi2Model::JayNegrutTest(j.clone()),
+            ModelSpec::Lagrangian(l) => {
+                // The model first: its errors are reported whatever the scheme.
+                let user = UserModel::new(l)?;
+                if !l.contacts.is_empty() {
+                    return Err(SpecError::new(
+                        "integrator.scheme",
+                        format!(
+                            "`{}` takes joints, not contacts: a lagrangian model with contacts runs with moreau_jean",
+                            spec.integrator.scheme()
+                        ),
+                    ));
+                }
+                Soi2Model::User(Box::new(user))
+            }
             _ => return Err(mismatch(model_spec, spec.integrator.scheme())),
         };
         let steps = spec.time_section()?.steps(true)?;
@@ -594,6 +640,7 @@ impl Soi2Job {
                 j.validate()?;
                 (j.additive(), true, j.dims().n)
             }
+            Soi2Model::User(u) => (u.additive(), false, u.dims().n),
         };
         let (method, start, strategy, consistency) = match &spec.integrator {
             IntegratorSpec::Soi2GeneralizedAlpha(p) => {
@@ -670,6 +717,7 @@ impl Soi2Job {
             Soi2Model::Pendulum(p) => check_model(p, consistency)?,
             Soi2Model::SliderCrank(s) => check_model(s, consistency)?,
             Soi2Model::JayNegrutTest(j) => check_model(j, consistency)?,
+            Soi2Model::User(u) => check_user_model(u, consistency)?,
         }
         let OutputOptions { every, probes } = spec.output.options(Probes::Dofs(n))?;
         let output = Soi2Output { every, probes };
@@ -695,6 +743,7 @@ impl Soi2Job {
             Soi2Model::Pendulum(p) => p.dims().n,
             Soi2Model::SliderCrank(s) => s.dims().n,
             Soi2Model::JayNegrutTest(j) => j.dims().n,
+            Soi2Model::User(u) => u.dims().n,
         }
     }
 
@@ -704,6 +753,7 @@ impl Soi2Job {
             Soi2Model::Pendulum(p) => p.dims(),
             Soi2Model::SliderCrank(s) => s.dims(),
             Soi2Model::JayNegrutTest(j) => j.dims(),
+            Soi2Model::User(u) => u.dims(),
         };
         columns(d, &self.output.probes).len()
     }
@@ -734,6 +784,16 @@ impl Soi2Job {
             )?,
             Soi2Model::JayNegrutTest(j) => integrate_with(
                 j,
+                &self.method,
+                self.newton,
+                self.start,
+                sizes,
+                self.adjust,
+                &self.output,
+                observer,
+            )?,
+            Soi2Model::User(u) => integrate_with(
+                u.as_ref(),
                 &self.method,
                 self.newton,
                 self.start,

@@ -10,6 +10,7 @@
 pub mod analysis;
 pub mod error;
 pub mod integrator;
+pub mod lagrangian;
 pub mod model;
 
 pub use analysis::{AnalysisSpec, Excitation, ForcedResponseSpec, ModalSpec};
@@ -19,6 +20,7 @@ pub use integrator::{
     NsAlphaSpec, NsHhtSpec, NsNewmarkSpec, PositionContactSpec, SchemeFamily,
     Soi2GeneralizedAlphaSpec, Soi2NewtonSpec, StartSpec, WfemSpec,
 };
+pub use lagrangian::{JointSpec, LagrangianSpec, Term, UserContactSpec};
 pub use model::{HarmonicForceSpec, LinearSpec, ModelSpec};
 
 use crate::integrators::OutputOptions;
@@ -333,13 +335,20 @@ impl OutputSpec {
 }
 
 const SOI2_SCHEMES: &str = "soi2_generalized_alpha, soi2_hht or hht_i3";
-const SOI2_SCENES: &str = "pendulum, slider_crank or jay_negrut_test";
+const SOI2_SCENES: &str = "pendulum, slider_crank, jay_negrut_test or lagrangian";
 
 /// The error for a scene and a scheme that do not go together (a linear scheme on a nonlinear
 /// constrained scene, or a SOI2 scheme on a linear one).
 pub fn mismatch(model: &ModelSpec, scheme: &str) -> SpecError {
     let scene = model.scene();
-    if model.is_constrained() {
+    if let ModelSpec::Lagrangian(_) = model {
+        SpecError::new(
+            "integrator.scheme",
+            format!(
+                "scene `lagrangian` runs with {SOI2_SCHEMES} (joints, no contacts) or moreau_jean (contacts), got `{scheme}`"
+            ),
+        )
+    } else if model.is_constrained() {
         SpecError::new(
             "integrator.scheme",
             format!(

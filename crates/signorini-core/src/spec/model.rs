@@ -1,6 +1,7 @@
 //! `[model]`: the scenes. The linear scenes' parameter structs live in [`crate::scenes`], the
 //! nonlinear constrained ones in [`crate::soi2::models`]; the raw-matrix `linear` scene here.
 
+use super::lagrangian::LagrangianSpec;
 use crate::scenes::{BarSpec, BouncingBall, Chain};
 use crate::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
 use schemars::JsonSchema;
@@ -26,11 +27,16 @@ pub enum ModelSpec {
     SliderCrank(SliderCrank),
     /// The test problem (15) of Jay & Negrut 2008, with its exact solution (SOI2 schemes).
     JayNegrutTest(JayNegrutTest),
+    /// Your own nonlinear mechanical system, written as expressions (joints with the SOI2
+    /// schemes, contacts with moreau_jean).
+    Lagrangian(LagrangianSpec),
 }
 
 impl ModelSpec {
-    /// Whether the scene is a nonlinear constrained model (integrated by the SOI2 schemes) rather
-    /// than a linear one (Moreau–Jean, the α-family, WFEM for the bars).
+    /// Whether the scene is a built-in nonlinear constrained model (integrated by the SOI2
+    /// schemes) rather than a linear one (Moreau–Jean, the α-family, WFEM for the bars). A
+    /// `lagrangian` model is neither: [`crate::job::Job::from_spec`] sends it to the SOI2 schemes
+    /// (joints) or to Moreau–Jean (contacts) by its contents.
     pub fn is_constrained(&self) -> bool {
         matches!(
             self,
@@ -49,6 +55,7 @@ impl ModelSpec {
             ModelSpec::Pendulum(_) => "pendulum",
             ModelSpec::SliderCrank(_) => "slider_crank",
             ModelSpec::JayNegrutTest(_) => "jay_negrut_test",
+            ModelSpec::Lagrangian(_) => "lagrangian",
         }
     }
 }

@@ -1,0 +1,650 @@
+//! User models (`scene = "lagrangian"`): the pendulum (16) written in the model language runs
+//! the built-in scene's trajectory under the SOI2 schemes, every Jacobian the language produces
+//! matches central differences on random points of every example model, and every bad input is
+//! refused with its field named.
+
+// Only the core library must stay pure (clippy.toml): a test may read fixtures and print.
+#![allow(clippy::disallowed_macros, clippy::disallowed_methods)]
+
+use serde_json::{Value, json};
+use signorini_core::job::{Job, run};
+use signorini_core::lagrangian::UserModel;
+use signorini_core::nonlinear::LagrangianSystem;
+use signorini_core::observer::Recorder;
+use signorini_core::soi2::ConstrainedModel;
+use signorini_core::spec::{JobSpec, LagrangianSpec, ModelSpec};
+use std::path::{Path, PathBuf};
+
+fn examples() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples")
+}
+
+fn example(name: &str) -> JobSpec {
+    let text = std::fs::read_to_string(examples().join(format!("{name}.toml"))).expect("example");
+    toml::from_str(&text).expect("example parses")
+}
+
+/// Every example whose scene is `lagrangian`, by file name.
+fn lagrangian_examples() -> Vec<(String, LagrangianSpec)> {
+    let mut files: Vec<_> = std::fs::read_dir(examples())
+        .expect("examples/")
+        .map(|e| e.expect("dir entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    files.sort();
+    files
+        .iter()
+        .filter_map(|p| {
+            let s: JobSpec = toml::from_str(&std::fs::read_to_string(p).expect("read"))
+                .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+            match s.model {
+                Some(ModelSpec::Lagrangian(l)) => Some((p.display().to_string(), l)),
+                _ => None,
+            }
+        })
+        .collect()
+}
+
+fn recorded(spec: &JobSpec) -> Recorder {
+    let job = Job::from_spec(spec).expect("valid");
+    let mut rec = Recorder::default();
+    run(&job, 1, &mut rec).expect("runs");
+    rec
+}
+
+/// The pendulum example with the built-in `pendulum` scene in its place: the same parameters
+/// and the same initial values (the y0, z0 overrides).
+fn builtin_twin(spec: &JobSpec) -> JobSpec {
+    let Some(ModelSpec::Lagrangian(l)) = &spec.model else {
+        panic!("a lagrangian example")
+    };
+    let p = |name: &str| match l.parameters[name] {
+        signorini_core::expr::Param::Value(v) => v,
+        signorini_core::expr::Param::Expr(_) => panic!("a number"),
+    };
+    let v0 = l.v0.clone().expect("v0");
+    let mut twin: Value = serde_json::to_value(spec).expect("serializes");
+    twin["model"] = json!({
+        "scene": "pendulum",
+        "mass": p("m"), "length": p("L"), "stiffness": p("k"), "damping": p("c"),
+        "gravity": p("g"), "theta0": l.q0[2], "omega0": v0[2],
+        "y0": l.q0, "z0": v0,
+    });
+    serde_json::from_value(twin).expect("twin spec")
+}
+
+/// The pendulum (16) as a `lagrangian` model against the built-in scene, with each SOI2 scheme:
+/// every recorded value of the trajectory, the energies, the works and the multipliers agree to
+/// 1e-10 relative to the column's largest magnitude (the residual columns are round-off on both
+/// sides and Newton's iteration counts are compared in total).
+#[test]
+fn pendulum_written_as_a_lagrangian_model_runs_the_builtin_trajectory() {
+    let base = example("pendulum_lagrangian");
+    for scheme in [
+        json!({"scheme": "soi2_generalized_alpha", "rho_inf": 0.2, "newton_tolerance": 1e-10}),
+        json!({"scheme": "soi2_hht", "alpha": -0.2, "newton_tolerance": 1e-10}),
+        json!({"scheme": "hht_i3", "alpha": -0.1, "newton_tolerance": 1e-10}),
+    ] {
+        let mut v = serde_json::to_value(&base).expect("serializes");
+        v["integrator"] = scheme.clone();
+        v["output"] = json!({"every": 1, "probes": [0, 1, 2]});
+        let user: JobSpec = serde_json::from_value(v).expect("spec");
+        let builtin = builtin_twin(&user);
+        let (a, b) = (recorded(&user), recorded(&builtin));
+        assert_eq!(a.columns, b.columns);
+        assert_eq!(a.steps, b.steps);
+        assert!(a.steps.len() > 1000, "{scheme}: every step recorded");
+        for name in a.columns.names() {
+            if name.ends_with("_residual") || name == "newton_iterations" {
+                continue;
+            }
+            let (ca, cb) = (a.column(name).expect("col"), b.column(name).expect("col"));
+            let scale = cb.iter().fold(0.0_f64, |m, x| m.max(x.abs())).max(1e-300);
+            for (k, (x, y)) in ca.iter().zip(&cb).enumerate() {
+                assert!(
+                    (x - y).abs() <= 1e-10 * scale,
+                    "{scheme}: {name} at record {k}: {x} vs {y} (scale {scale})"
+                );
+            }
+        }
+        let iterations = |r: &Recorder| {
+            r.column("newton_iterations")
+                .expect("col")
+                .iter()
+                .sum::<f64>()
+        };
+        assert_eq!(iterations(&a), iterations(&b), "{scheme}");
+    }
+}
+
+/// A small deterministic generator (xorshift64*), uniform in [−1, 1).
+struct Random(u64);
+
+impl Random {
+    fn next(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        let r = self.0.wrapping_mul(0x2545_f491_4f6c_dd1d);
+        (r >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    }
+}
+
+/// Central difference of `f` (m outputs) along `dir`: (f(x + εd) − f(x − εd)) / 2ε.
+fn central(m: usize, eps: f64, f: &mut dyn FnMut(f64, &mut [f64])) -> Vec<f64> {
+    let (mut plus, mut minus) = (vec![0.0; m], vec![0.0; m]);
+    f(eps, &mut plus);
+    f(-eps, &mut minus);
+    plus.iter()
+        .zip(&minus)
+        .map(|(p, q)| (p - q) / (2.0 * eps))
+        .collect()
+}
+
+/// `exact` against `fd` (same layout): max error ≤ 1e-7 relative to the larger max-norm (1 at
+/// least, for Jacobians that are exactly zero).
+fn assert_close(what: &str, model: &str, exact: &[f64], fd: &[f64]) {
+    let norm = |v: &[f64]| v.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+    let scale = norm(exact).max(norm(fd)).max(1.0);
+    let err = exact
+        .iter()
+        .zip(fd)
+        .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(
+        err <= 1e-7 * scale,
+        "{model}: {what}: error {err:e} (scale {scale:e})\nexact {exact:?}\nfd    {fd:?}"
+    );
+}
+
+/// Every Jacobian of every example model (∂F/∂q, ∂F/∂q̇, the Coriolis vector from M, g_y and
+/// g_t + g_y q̇ of the joints, the gap Jacobian and ∂g/∂t) against central differences at random
+/// points near (q0, v0).
+#[test]
+fn every_jacobian_matches_central_differences_on_every_example() {
+    let models = lagrangian_examples();
+    assert!(
+        models.len() >= 2,
+        "{:?}",
+        models.iter().map(|m| &m.0).collect::<Vec<_>>()
+    );
+    let mut rng = Random(0x9e37_79b9_7f4a_7c15);
+    for (name, spec) in &models {
+        let model = UserModel::new(spec).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let n = LagrangianSystem::dofs(&model);
+        let (m, joints) = (model.contacts(), model.joints());
+        let eps = 1e-6;
+        for _ in 0..5 {
+            let (q0, v0) = LagrangianSystem::initial(&model);
+            let q: Vec<f64> = q0.iter().map(|x| x + 0.1 * rng.next()).collect();
+            let v: Vec<f64> = v0.iter().map(|x| x + rng.next()).collect();
+            let t = rng.next().abs();
+            let shifted = |x: &[f64], k: usize, s: f64| {
+                let mut y = x.to_vec();
+                y[k] += s;
+                y
+            };
+            // ∂F/∂q, ∂F/∂v, column by column.
+            let (mut dq, mut dv) = (vec![0.0; n * n], vec![0.0; n * n]);
+            model.force_jacobians(t, &q, &v, &mut dq, &mut dv);
+            let (mut fdq, mut fdv) = (vec![0.0; n * n], vec![0.0; n * n]);
+            for k in 0..n {
+                let col = central(n, eps, &mut |s, out| {
+                    model.forces(t, &shifted(&q, k, s), &v, out)
+                });
+                let colv = central(n, eps, &mut |s, out| {
+                    model.forces(t, &q, &shifted(&v, k, s), out)
+                });
+                for i in 0..n {
+                    fdq[i * n + k] = col[i];
+                    fdv[i * n + k] = colv[i];
+                }
+            }
+            assert_close("dF/dq", name, &dq, &fdq);
+            assert_close("dF/dv", name, &dv, &fdv);
+            // Coriolis: Ṁv − ½∇(vᵀMv) from differences of M.
+            let mut c = vec![0.0; n];
+            model.coriolis(&q, &v, &mut c);
+            let mdot = central(n * n, eps, &mut |s, out| {
+                let qs: Vec<f64> = q.iter().zip(&v).map(|(x, w)| x + s * w).collect();
+                LagrangianSystem::mass(&model, &qs, out)
+            });
+            let quad = |mm: &[f64]| -> f64 {
+                (0..n)
+                    .flat_map(|i| (0..n).map(move |j| (i, j)))
+                    .map(|(i, j)| v[i] * mm[i * n + j] * v[j])
+                    .sum()
+            };
+            let fd_c: Vec<f64> = (0..n)
+                .map(|i| {
+                    let mdot_v: f64 = (0..n).map(|j| mdot[i * n + j] * v[j]).sum();
+                    let grad = central(1, eps, &mut |s, out| {
+                        let mut mm = vec![0.0; n * n];
+                        LagrangianSystem::mass(&model, &shifted(&q, i, s), &mut mm);
+                        out[0] = quad(&mm);
+                    })[0];
+                    mdot_v - 0.5 * grad
+                })
+                .collect();
+            assert_close("Coriolis", name, &c, &fd_c);
+            // Joints: g_y and g_t + g_y v.
+            let mut gy = vec![0.0; joints * n];
+            ConstrainedModel::g_y(&model, t, &q, &mut gy);
+            let mut fd_gy = vec![0.0; joints * n];
+            for k in 0..n {
+                let col = central(joints, eps, &mut |s, out| {
+                    ConstrainedModel::g(&model, t, &shifted(&q, k, s), out)
+                });
+                for r in 0..joints {
+                    fd_gy[r * n + k] = col[r];
+                }
+            }
+            assert_close("g_y", name, &gy, &fd_gy);
+            let mut gdot = vec![0.0; joints];
+            ConstrainedModel::g_dot(&model, t, &q, &v, &mut gdot);
+            let fd_gdot = central(joints, eps, &mut |s, out| {
+                let qs: Vec<f64> = q.iter().zip(&v).map(|(x, w)| x + s * w).collect();
+                ConstrainedModel::g(&model, t + s, &qs, out)
+            });
+            assert_close("g_t + g_y v", name, &gdot, &fd_gdot);
+            // Gaps: ∇g and ∂g/∂t.
+            let mut gj = vec![0.0; m * n];
+            model.gap_jacobian(t, &q, &mut gj);
+            let mut fd_gj = vec![0.0; m * n];
+            for k in 0..n {
+                let col = central(m, eps, &mut |s, out| model.gaps(t, &shifted(&q, k, s), out));
+                for r in 0..m {
+                    fd_gj[r * n + k] = col[r];
+                }
+            }
+            assert_close("gap Jacobian", name, &gj, &fd_gj);
+            let mut rates = vec![0.0; m];
+            model.gap_rates(t, &q, &mut rates);
+            let fd_rates = central(m, eps, &mut |s, out| model.gaps(t + s, &q, out));
+            assert_close("dg/dt", name, &rates, &fd_rates);
+        }
+    }
+}
+
+/// A small valid model (a block on a floor with a joint keeping x = 0.1·phi, and one contact):
+/// the base the bad-input cases modify.
+fn base() -> Value {
+    json!({
+        "model": {
+            "scene": "lagrangian",
+            "coordinates": ["x", "y", "phi"],
+            "parameters": {"m": 1.0, "w": 0.2, "hgt": 0.4, "g": 9.81, "I": "m*(w^2+hgt^2)/12"},
+            "mass": [["m", 0, 0], [0, "m", 0], [0, 0, "I"]],
+            "potential": "m*g*y",
+            "forces": ["0", "0", "-0.01*phi_dot"],
+            "q0": [0.0, 0.2, 0.0],
+            "v0": [0.1, 0.0, 1.0],
+            "constraints": [{"expr": "x - 0.1*phi"}],
+            "contacts": [{"gap": "y - hgt/2*cos(phi) - w/2*sin(phi)", "restitution": 0.5}]
+        },
+        "integrator": {"scheme": "soi2_generalized_alpha"},
+        "time": {"h": 0.001, "t_end": 0.01}
+    })
+}
+
+fn refused(spec: Value) -> signorini_core::spec::SpecError {
+    let s: JobSpec = serde_json::from_value(spec).expect("the spec parses");
+    Job::from_spec(&s).expect_err("must be refused")
+}
+
+/// Item 2 of the issue, case by case: the field named and the reason.
+#[test]
+fn bad_models_are_refused_with_the_field_named() {
+    type Edit = fn(&mut Value);
+    let cases: Vec<(&str, Edit, &str, &str)> = vec![
+        (
+            "unknown name",
+            |s| s["model"]["contacts"][0]["gap"] = json!("y - hgh/2"),
+            "model.contacts[0].gap",
+            "unknown name 'hgh' at 4 (did you mean 'hgt'?)",
+        ),
+        (
+            "unknown function",
+            |s| s["model"]["forces"][2] = json!("-0.01*sni(phi)"),
+            "model.forces[2]",
+            "did you mean 'sin'?",
+        ),
+        (
+            "syntax",
+            |s| s["model"]["potential"] = json!("m*g*(y"),
+            "model.potential",
+            "never closed",
+        ),
+        (
+            "mass rows",
+            |s| s["model"]["mass"] = json!([["m", 0, 0], [0, "m", 0]]),
+            "model.mass",
+            "needs 3 rows",
+        ),
+        (
+            "mass columns",
+            |s| s["model"]["mass"][1] = json!([0, "m"]),
+            "model.mass[1]",
+            "needs 3 entries",
+        ),
+        (
+            "q0 size",
+            |s| s["model"]["q0"] = json!([0.0, 0.2]),
+            "model.q0",
+            "needs 3 entries",
+        ),
+        (
+            "v0 size",
+            |s| s["model"]["v0"] = json!([0.0]),
+            "model.v0",
+            "needs 3 entries",
+        ),
+        (
+            "forces size",
+            |s| s["model"]["forces"] = json!(["0"]),
+            "model.forces",
+            "needs 3 entries",
+        ),
+        (
+            "not symmetric",
+            |s| {
+                s["model"]["mass"][0][1] = json!("0.1*m");
+                s["model"]["mass"][1][0] = json!("0.2*m");
+            },
+            "model.mass[1][0]",
+            "not symmetric",
+        ),
+        (
+            "not positive definite",
+            |s| s["model"]["mass"][2][2] = json!("-I"),
+            "model.mass",
+            "not positive definite",
+        ),
+        (
+            "singular mass",
+            |s| s["model"]["mass"][0][0] = json!("m*x"),
+            "model.mass",
+            "not positive definite",
+        ),
+        (
+            "mass uses a velocity",
+            |s| s["model"]["mass"][0][0] = json!("m + x_dot"),
+            "model.mass[0][0]",
+            "velocity 'x_dot'",
+        ),
+        (
+            "mass uses t",
+            |s| s["model"]["mass"][0][0] = json!("m*(1 + t)"),
+            "model.mass[0][0]",
+            "uses the time t",
+        ),
+        (
+            "gap uses a velocity",
+            |s| s["model"]["contacts"][0]["gap"] = json!("y - y_dot"),
+            "model.contacts[0].gap",
+            "velocity 'y_dot'",
+        ),
+        (
+            "NaN at q0",
+            |s| s["model"]["potential"] = json!("m*g*log(y - 1)"),
+            "model.potential",
+            "NaN at q0",
+        ),
+        (
+            "infinite at q0",
+            |s| s["model"]["forces"][0] = json!("1/x"),
+            "model.forces[0]",
+            "inf at q0",
+        ),
+        (
+            "joint violated",
+            |s| s["model"]["constraints"][0]["expr"] = json!("x - 0.1*phi - 1e-3"),
+            "model.constraints[0].expr",
+            "violated at q0",
+        ),
+        (
+            "friction without tangent",
+            |s| s["model"]["contacts"][0]["friction"] = json!(0.5),
+            "model.contacts[0].friction",
+            "needs a `tangent`",
+        ),
+        (
+            "friction with tangent",
+            |s| {
+                s["model"]["contacts"][0]["friction"] = json!(0.5);
+                s["model"]["contacts"][0]["tangent"] = json!("x");
+            },
+            "model.contacts[0].friction",
+            "not implemented yet",
+        ),
+        (
+            "bad tangent",
+            |s| s["model"]["contacts"][0]["tangent"] = json!("xx"),
+            "model.contacts[0].tangent",
+            "unknown name 'xx'",
+        ),
+        (
+            "restitution",
+            |s| s["model"]["contacts"][0]["restitution"] = json!(1.5),
+            "model.contacts[0].restitution",
+            "[0, 1]",
+        ),
+        (
+            "duplicate coordinates",
+            |s| s["model"]["coordinates"] = json!(["x", "x", "phi"]),
+            "model.coordinates",
+            "clashes with coordinate 'x'",
+        ),
+        (
+            "no coordinates",
+            |s| s["model"]["coordinates"] = json!([]),
+            "model.coordinates",
+            "at least one",
+        ),
+        (
+            "coordinate named like a velocity",
+            |s| s["model"]["coordinates"] = json!(["x", "x_dot", "phi"]),
+            "model.coordinates",
+            "clashes",
+        ),
+        (
+            "parameter cycle",
+            |s| {
+                s["model"]["parameters"]["a"] = json!("b + 1");
+                s["model"]["parameters"]["b"] = json!("2*a");
+            },
+            "model.parameters.a",
+            "cycle: a -> b -> a",
+        ),
+        (
+            "parameter shadows a coordinate",
+            |s| s["model"]["parameters"]["phi"] = json!(1.0),
+            "model.parameters.phi",
+            "clashes with coordinate 'phi'",
+        ),
+        (
+            "parameter shadows a function",
+            |s| s["model"]["parameters"]["sin"] = json!(1.0),
+            "model.parameters.sin",
+            "the function sin",
+        ),
+        (
+            "parameter uses a coordinate",
+            |s| s["model"]["parameters"]["I"] = json!("m*x"),
+            "model.parameters.I",
+            "uses the variable 'x'",
+        ),
+        (
+            "parameter unknown name",
+            |s| s["model"]["parameters"]["I"] = json!("m*ww^2"),
+            "model.parameters.I",
+            "unknown name 'ww' at 2",
+        ),
+        (
+            "velocities violate a joint",
+            |s| {
+                s["model"]["contacts"] = json!([]);
+                s["model"]["v0"] = json!([0.0, 0.0, 1.0]);
+            },
+            "model.v0",
+            "velocity constraint residual",
+        ),
+        (
+            "dependent joints",
+            |s| {
+                s["model"]["contacts"] = json!([]);
+                s["model"]["constraints"] =
+                    json!([{"expr": "x - 0.1*phi"}, {"expr": "2*x - 0.2*phi"}]);
+            },
+            "model.constraints",
+            "singular constraint Jacobian",
+        ),
+        (
+            "contacts under SOI2",
+            |_| {},
+            "integrator.scheme",
+            "moreau_jean",
+        ),
+        (
+            "a linear scheme",
+            |s| {
+                s["model"]["contacts"] = json!([]);
+                s["integrator"] = json!({"scheme": "ns_hht", "alpha": -0.1});
+            },
+            "integrator.scheme",
+            "scene `lagrangian` runs with",
+        ),
+        (
+            "joints and contacts",
+            |s| s["integrator"] = json!({"scheme": "moreau_jean"}),
+            "model.constraints",
+            "joints and contacts together are not supported yet",
+        ),
+    ];
+    for (what, edit, field, reason) in cases {
+        let mut s = base();
+        edit(&mut s);
+        let e = refused(s);
+        assert_eq!(e.field, field, "{what}: {e}");
+        assert!(e.reason.contains(reason), "{what}: {e}");
+    }
+    // The base without its contact is a valid SOI2 job.
+    let mut s = base();
+    s["model"]["contacts"] = json!([]);
+    s["integrator"] = json!({"scheme": "soi2_generalized_alpha"});
+    let spec: JobSpec = serde_json::from_value(s).expect("spec");
+    Job::from_spec(&spec).expect("valid");
+}
+
+/// The double pendulum in Cartesian coordinates: no applied forces, so the energy changes only
+/// by the scheme's numerical dissipation; the rods keep their lengths.
+#[test]
+fn double_pendulum_keeps_its_joints_and_nearly_its_energy() {
+    let mut spec = example("double_pendulum_cartesian");
+    spec.time.as_mut().expect("time").t_end = Some(1.0);
+    let rec = recorded(&spec);
+    let e = rec.column("energy").expect("energy");
+    let drift = e.iter().fold(0.0_f64, |m, x| m.max((x - e[0]).abs()));
+    // m g L = 9.81: the energy scale.
+    assert!(drift < 1e-3 * 9.81, "energy drift {drift}");
+    for c in ["position_residual", "velocity_residual"] {
+        let r = rec.column(c).expect(c);
+        assert!(r.iter().all(|x| *x < 1e-9), "{c}: {r:?}");
+    }
+}
+
+/// `energy_error` = E(t) − E(0) − Σ work_ext on a conservative model (the double pendulum) shrinks
+/// as h² under the second-order generalized-α-SOI2 without dissipation (ρ∞ = 1): the observed
+/// order over h and h/2, from the largest |energy_error| over t ∈ [0, 0.5].
+#[test]
+fn energy_error_of_a_conservative_model_shrinks_as_h_squared() {
+    let error = |h: f64| {
+        let mut v = serde_json::to_value(example("double_pendulum_cartesian")).expect("json");
+        v["integrator"] =
+            json!({"scheme": "soi2_generalized_alpha", "rho_inf": 1.0, "newton_tolerance": 1e-12});
+        v["time"] = json!({"h": h, "t_end": 0.5});
+        v["output"] = json!({"every": 1});
+        let rec = recorded(&serde_json::from_value(v).expect("spec"));
+        let w = rec.column("work_ext").expect("work_ext");
+        assert!(w.iter().all(|x| *x == 0.0), "no applied force");
+        rec.column("energy_error")
+            .expect("energy_error")
+            .iter()
+            .fold(0.0_f64, |m, x| m.max(x.abs()))
+    };
+    let (e1, e2) = (error(4e-3), error(2e-3));
+    let order = (e1 / e2).log2();
+    println!("energy_error: {e1:e} at h = 4e-3, {e2:e} at h = 2e-3, order {order:.2}");
+    assert!((1.8..2.3).contains(&order), "order {order}");
+}
+
+/// A pendulum on a cart, M(q) = [[M + m, m L cos θ], [m L cos θ, m L²]], no joints: the Coriolis
+/// vector the program derives from M is the one that conserves the energy — `energy_error`
+/// shrinks as h² (a wrong sign or factor in c would leave an O(1) drift), and the momentum of
+/// the cart–pendulum along x, (M + m) ẋ + m L cos θ θ̇ (x is cyclic), drifts only by the
+/// scheme's O(h²) error.
+#[test]
+fn coriolis_forces_from_a_configuration_dependent_mass_conserve_energy_and_momentum() {
+    let run_with = |h: f64| {
+        let spec = json!({
+            "model": {
+                "scene": "lagrangian",
+                "coordinates": ["x", "th"],
+                "parameters": {"M": 2.0, "m": 0.5, "L": 0.8, "g": 9.81},
+                "mass": [["M + m", "m*L*cos(th)"], ["m*L*cos(th)", "m*L^2"]],
+                "potential": "-m*g*L*cos(th)",
+                "q0": [0.0, 1.2],
+                "v0": [0.3, -0.5]
+            },
+            "integrator": {"scheme": "soi2_generalized_alpha", "rho_inf": 1.0, "newton_tolerance": 1e-12},
+            "time": {"h": h, "t_end": 1.0},
+            "output": {"every": 1, "probes": [0, 1]}
+        });
+        recorded(&serde_json::from_value(spec).expect("spec"))
+    };
+    let max_abs = |v: &[f64]| v.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+    let (a, b) = (run_with(1e-2), run_with(5e-3));
+    let (e1, e2) = (
+        max_abs(&a.column("energy_error").expect("col")),
+        max_abs(&b.column("energy_error").expect("col")),
+    );
+    let order = (e1 / e2).log2();
+    assert!(
+        (1.8..2.3).contains(&order),
+        "energy_error {e1:e}, {e2:e}: order {order}"
+    );
+    let drift = |r: &Recorder| {
+        let (th, xd, thd) = (
+            r.column("y_1").expect("θ"),
+            r.column("z_0").expect("ẋ"),
+            r.column("z_1").expect("θ̇"),
+        );
+        let p: Vec<f64> = (0..th.len())
+            .map(|k| 2.5 * xd[k] + 0.5 * 0.8 * th[k].cos() * thd[k])
+            .collect();
+        p.iter().fold(0.0_f64, |m, x| m.max((x - p[0]).abs()))
+    };
+    let (d1, d2) = (drift(&a), drift(&b));
+    let order = (d1 / d2).log2();
+    assert!(
+        (1.8..2.3).contains(&order),
+        "momentum drift {d1:e}, {d2:e}: order {order}"
+    );
+}
+
+/// A force that turns NaN during the run (sqrt(0.5 − t) past t = 0.5) fails the job with the
+/// step and its time, without a panic or a hang.
+#[test]
+fn a_nan_during_the_run_fails_the_job_with_step_and_time() {
+    let mut v = serde_json::to_value(example("pendulum_lagrangian")).expect("json");
+    v["model"]["forces"][2] = json!("-c*theta_dot*sqrt(0.5 - t)");
+    v["time"] = json!({"h": 0.01, "t_end": 1.0});
+    let spec: JobSpec = serde_json::from_value(v).expect("spec");
+    let job = Job::from_spec(&spec).expect("valid at t = 0");
+    let err = run(&job, 1, &mut Recorder::default()).expect_err("NaN past t = 0.5");
+    let msg = err.to_string();
+    // t₅₀ = 0.5 + round-off: the first step whose force is NaN.
+    assert!(
+        msg.contains("step 50 (t = 0.5") && msg.contains("NaN"),
+        "{msg}"
+    );
+}
