@@ -284,3 +284,44 @@ fn solve_frictionless(
         error,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// proj_{K_μ} is the Euclidean projection: the image is in K_μ, the projection is
+        /// idempotent, and x − proj(x) is orthogonal to proj(x) and in the polar cone
+        /// (Moreau's decomposition).
+        #[test]
+        fn cone_projection_is_moreau_decomposition(
+            mu in 0.0f64..3.0,
+            n in -5.0f64..5.0,
+            t in -5.0f64..5.0,
+        ) {
+            let y = project_cone(mu, [n, t]);
+            prop_assert!(y[1].abs() <= mu * y[0] + 1e-12 && y[0] >= 0.0);
+            let yy = project_cone(mu, y);
+            prop_assert!((yy[0] - y[0]).abs() <= 1e-12 && (yy[1] - y[1]).abs() <= 1e-12);
+            let d = [n - y[0], t - y[1]];
+            prop_assert!((d[0] * y[0] + d[1] * y[1]).abs() <= 1e-10);
+            // Polar of K_μ: μ|d_t| ≤ −d_n.
+            prop_assert!(mu * d[1].abs() <= -d[0] + 1e-10);
+        }
+    }
+
+    #[test]
+    fn contact_residual_vanishes_exactly_on_the_law() {
+        // Sliding: P on the edge, U_n = 0, U_t > 0 opposite to P_t.
+        assert_eq!(contact_residual(0.5, [2.0, -1.0], [0.0, 3.0]), 0.0);
+        // Sticking inside the cone, U = 0.
+        assert_eq!(contact_residual(0.5, [2.0, 0.3], [0.0, 0.0]), 0.0);
+        // Separation: P = 0, U_n > 0, any U_t.
+        assert_eq!(contact_residual(0.5, [0.0, 0.0], [1.0, -4.0]), 0.0);
+        // Friction pushing along the sliding velocity is not a solution.
+        assert!(contact_residual(0.5, [2.0, 1.0], [0.0, 3.0]) > 0.1);
+        // Penetrating velocity with an impulse is not a solution.
+        assert!(contact_residual(0.5, [2.0, 0.0], [-1.0, 0.0]) > 0.1);
+    }
+}
