@@ -361,3 +361,69 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, .. ProptestConfig::default() })]
+
+    /// Problems built backwards from a known solution (as `scripts/lcp_corpus.py` does for
+    /// LCPs): per contact a random case of the law — separating `P = 0, U_n > 0`, sticking
+    /// `U = 0, |P_t| ≤ μ P_n`, sliding either way `U_n = 0, P_t = −μ P_n sign(U_t)` — and
+    /// `q = U − W P`. With μ_max κ(W) ≤ 1/2 the solution is unique (see `condition`), so both
+    /// solvers must return the known P (and U) to 1e-9 relative.
+    #[test]
+    fn both_solvers_recover_a_known_solution(
+        m in 1usize..=4,
+        g in prop::collection::vec(-1.0f64..1.0, 64),
+        masses in prop::collection::vec(0.2f64..5.0, 8),
+        cases in prop::collection::vec(0usize..4, 4),
+        sizes in prop::collection::vec(0.1f64..2.0, 8),
+        inside in prop::collection::vec(-1.0f64..1.0, 4),
+        mu in prop::collection::vec(0.0f64..1.0, 4),
+    ) {
+        let n = 2 * m;
+        let w = delassus(m, &g[..n * n], &masses[..n]);
+        let kappa = condition(n, &w);
+        let mu: Vec<f64> = mu[..m].iter().map(|x| x * 0.5 / kappa).collect();
+        let mut p = vec![0.0; n];
+        let mut u = vec![0.0; n];
+        for c in 0..m {
+            let (a, b) = (sizes[2 * c], sizes[2 * c + 1]);
+            match cases[c] {
+                0 => {
+                    u[2 * c] = a;
+                    u[2 * c + 1] = 2.0 * b - 2.0;
+                }
+                1 => {
+                    p[2 * c] = a;
+                    p[2 * c + 1] = mu[c] * a * inside[c];
+                }
+                k => {
+                    let s = if k == 2 { 1.0 } else { -1.0 };
+                    p[2 * c] = a;
+                    p[2 * c + 1] = -s * mu[c] * a;
+                    u[2 * c + 1] = s * b;
+                }
+            }
+        }
+        let q: Vec<f64> = (0..n)
+            .map(|i| u[i] - (0..n).map(|j| w[i * n + j] * p[j]).sum::<f64>())
+            .collect();
+        let problem = FrictionProblem { w: &w, q: &q, mu: &mu };
+        prop_assert!(problem.error(&p) <= 1e-14, "the built solution has error {}", problem.error(&p));
+        let opts = LcpOptions { kind: LcpSolverKind::Lemke, tolerance: 1e-11, max_iterations: 1_000_000 };
+        let scale = p.iter().chain(&u).fold(1.0f64, |a, b| a.max(b.abs()));
+        for (name, s) in [
+            ("lemke", solve_friction_lemke(problem, &opts)),
+            ("nsgs", solve_friction_nsgs(problem, &opts)),
+        ] {
+            let s = s.map_err(|e| TestCaseError::fail(format!("{name}: {e}")))?;
+            let us = problem.local_velocity(&s.p);
+            for i in 0..n {
+                prop_assert!((s.p[i] - p[i]).abs() <= 1e-9 * scale * kappa,
+                    "{}: P[{}] = {} but the solution is {}", name, i, s.p[i], p[i]);
+                prop_assert!((us[i] - u[i]).abs() <= 1e-9 * scale * kappa,
+                    "{}: U[{}] = {} but the solution is {}", name, i, us[i], u[i]);
+            }
+        }
+    }
+}
