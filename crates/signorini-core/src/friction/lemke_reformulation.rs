@@ -1,7 +1,7 @@
 //! The planar friction problem as one LCP, solved by Lemke's method.
 //!
 //! The tangential impulse is split `P_t = β⁺ − β⁻` and the slack `λ = |U_t|` is added, per
-//! contact (Stewart & Trinkle 1996, planar case; Glocker 2001; Acary & Brogliato 2008, §13.3):
+//! contact (Stewart & Trinkle 1996, planar case; Glocker 2001; Acary & Brogliato 2008, ch. 13):
 //!
 //! ```text
 //! 0 ≤ U_n          ⊥ P_n ≥ 0

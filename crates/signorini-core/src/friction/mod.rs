@@ -10,14 +10,14 @@
 //! with W the 2m×2m Delassus operator, rows and columns ordered `(n_1, t_1, n_2, t_2, …)`, and q
 //! the free local velocity, whose normal rows already hold the Newton-law term `e U_n,k`
 //! (Moreau 1988; Acary & Brogliato 2008, *Numerical Methods for Nonsmooth Dynamical Systems*,
-//! §10.1 and ch. 12–13). Each contact obeys Signorini in the normal direction and Coulomb's law
+//! ch. 12–13). Each contact obeys Signorini in the normal direction and Coulomb's law
 //! in the tangent:
 //!
 //! ```text
 //! 0 ≤ U_n ⊥ P_n ≥ 0,   |P_t| ≤ μ P_n,   U_t ≠ 0 ⇒ P_t = −μ P_n sign(U_t)   (U_t = 0: sticking)
 //! ```
 //!
-//! Equivalently (De Saxcé & Feng 1991; Acary & Brogliato 2008, §13.1) with the cone
+//! Equivalently (De Saxcé & Feng 1991; Acary & Brogliato 2008, ch. 13) with the cone
 //! `K_μ = {(p_n, p_t) : |p_t| ≤ μ p_n}` and the modified velocity `Û = (U_n + μ|U_t|, U_t)`:
 //! `K_μ ∋ P ⊥ Û ∈ K_μ*`, i.e. `P = proj_{K_μ}(P − Û)`. Every solve reports its error as that
 //! natural map,

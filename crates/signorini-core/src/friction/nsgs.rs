@@ -1,5 +1,5 @@
 //! Nonsmooth Gauss–Seidel over contacts (Jean & Moreau 1987; Jean 1999, *The non-smooth contact
-//! dynamics method*, §5; Acary & Brogliato 2008, §13.4).
+//! dynamics method*; Acary & Brogliato 2008, ch. 13).
 //!
 //! A sweep visits the contacts in order; at contact a, with the others frozen, the local
 //! problem is the 2×2 friction problem `U_a = W_aa P_a + r_a`, `r_a = q_a + Σ_{b≠a} W_ab P_b`,
