@@ -11,6 +11,7 @@ pub mod capabilities;
 pub mod contact;
 pub mod energy;
 pub mod expr;
+pub mod friction;
 pub mod integrators;
 pub mod job;
 pub mod lagrangian;
