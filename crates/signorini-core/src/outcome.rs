@@ -294,7 +294,7 @@ impl SummaryBody {
         match self {
             SummaryBody::Linear(s) => Some(s.stats.steps),
             SummaryBody::Soi2(s) => Some(s.steps),
-            SummaryBody::Wave(s) => Some(s.steps),
+            SummaryBody::Wave(s) => Some(s.stats.steps),
             SummaryBody::Nonlinear(s) => Some(s.stats.steps),
             SummaryBody::NonsmoothModes(_) | SummaryBody::ForcedResponse(_) => None,
         }
@@ -393,7 +393,8 @@ pub struct Soi2Summary {
     pub errors: Option<GlobalErrors>,
 }
 
-/// Summary of a WFEM run.
+/// Summary of a WFEM run: the bar's size and step, then what the run measured
+/// ([`WaveRunStats`], its fields flat).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct WaveSummary {
     /// Cells.
@@ -404,6 +405,14 @@ pub struct WaveSummary {
     pub contacts: usize,
     /// Step size.
     pub h: f64,
+    /// Steps, energies, the largest balance residual, works, closures, steps in contact.
+    #[serde(flatten)]
+    pub stats: WaveRunStats,
+}
+
+/// What a WFEM run measured over all its steps; its fields are those of `summary.json`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+pub struct WaveRunStats {
     /// Steps done.
     pub steps: u64,
     /// Final time.
@@ -414,15 +423,15 @@ pub struct WaveSummary {
     pub energy_final: f64,
     /// max |balance_residual| over the records.
     pub max_abs_balance_residual: f64,
-    /// Cumulative work of the external forces.
+    /// Cumulative works.
     pub work_ext_total: f64,
-    /// Cumulative work of the damping forces.
+    /// See `work_ext_total`.
     pub work_damping_total: f64,
-    /// Cumulative work of the contact.
+    /// See `work_ext_total`.
     pub work_contact_total: f64,
-    /// Gap closures.
+    /// Number of gap closures (free → contact switches).
     pub closures: u64,
-    /// Steps in contact.
+    /// Steps spent in contact.
     pub contact_steps: u64,
 }
 

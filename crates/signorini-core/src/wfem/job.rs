@@ -6,7 +6,9 @@ use crate::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS};
 use crate::integrators::StepError;
 use crate::modal::{self, ForcedResponseJob, ModalJob};
 use crate::observer::{Columns, Observer, Progress, StepRecord};
-use crate::outcome::{RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader, WaveSummary};
+use crate::outcome::{
+    RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader, WaveRunStats, WaveSummary,
+};
 use crate::scenes::Bar;
 use crate::spec::{AnalysisSpec, JobSpec, ModelSpec, Probes, SpecError};
 use std::ops::ControlFlow;
@@ -129,31 +131,6 @@ pub fn wave_columns() -> Columns {
     Columns::new(names)
 }
 
-/// What a WFEM run measured over all its steps.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct WaveRunStats {
-    /// Steps done.
-    pub steps: u64,
-    /// Final time.
-    pub t_end: f64,
-    /// Cell energy at t = 0.
-    pub energy_initial: f64,
-    /// Cell energy at the end.
-    pub energy_final: f64,
-    /// max |balance_residual| over the records.
-    pub max_abs_balance_residual: f64,
-    /// Cumulative works.
-    pub work_ext_total: f64,
-    /// See `work_ext_total`.
-    pub work_damping_total: f64,
-    /// See `work_ext_total`.
-    pub work_contact_total: f64,
-    /// Number of gap closures (free → contact switches).
-    pub closures: u64,
-    /// Steps spent in contact.
-    pub contact_steps: u64,
-}
-
 impl WaveRunStats {
     fn summary(&self, bar: &WaveBar) -> WaveSummary {
         WaveSummary {
@@ -161,16 +138,7 @@ impl WaveRunStats {
             dofs: 2 * bar.cells,
             contacts: 1,
             h: bar.dt(),
-            steps: self.steps,
-            t_end: self.t_end,
-            energy_initial: self.energy_initial,
-            energy_final: self.energy_final,
-            max_abs_balance_residual: self.max_abs_balance_residual,
-            work_ext_total: self.work_ext_total,
-            work_damping_total: self.work_damping_total,
-            work_contact_total: self.work_contact_total,
-            closures: self.closures,
-            contact_steps: self.contact_steps,
+            stats: self.clone(),
         }
     }
 }
