@@ -1,4 +1,5 @@
-//! Built-in scenes: builders that produce a [`LinearModel`] (DESIGN.md §2). Their parameter
+//! Built-in scenes: builders that produce a [`LinearModel`], the smallest model each scene needs
+//! (a 1D bar is 1D, no dof is added that no output or constraint uses). Their parameter
 //! structs are the `[model]` section of the job spec (one domain type, serde at the edges).
 
 use crate::band::SymBand;

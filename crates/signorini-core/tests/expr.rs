@@ -17,7 +17,7 @@ fn params(v: &[(&str, f64)]) -> Vec<(String, Param)> {
         .collect()
 }
 
-/// The block of DESIGN §10: coordinates x, y, phi (indices 0–2), velocities 3–5, t = 6.
+/// The rocking block of the user-model language (README, "Your own models"): coordinates x, y, phi (indices 0–2), velocities 3–5, t = 6.
 fn block() -> Scope {
     Scope::lagrangian(
         &strings(&["x", "y", "phi"]),
@@ -383,7 +383,7 @@ fn common_subexpressions_are_computed_once() {
 }
 
 /// Expressions over the block's scope (x, y, phi, x_dot, y_dot, phi_dot, t) sampled where every
-/// function is smooth: the examples of DESIGN §10 and one of each function and operator.
+/// function is smooth: the examples of the user-model language and one of each function and operator.
 const CORPUS: &[&str] = &[
     "m*(w^2+hgt^2)/12",
     "y - hgt/2*cos(phi) - w/2*sin(phi)",
