@@ -156,9 +156,13 @@ fn lagrangian_moreau_jean(
     let IntegratorSpec::MoreauJean(p) = &spec.integrator else {
         return Err(mismatch(m, spec.integrator.scheme()));
     };
+    // The same θ and index-set checks as the linear scheme.
+    let MoreauJeanParams {
+        theta, index_set, ..
+    } = moreau_jean_params(p, false)?;
     let params = NonlinearMoreauJeanParams {
-        theta: moreau_jean_params(p, false)?.theta,
-        index_set: p.index_set.rule()?,
+        theta,
+        index_set,
         newton: NewtonOptions::default(),
     };
     let steps = spec.time_section()?.steps(false)?;
