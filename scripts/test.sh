@@ -5,3 +5,7 @@ cd "$(dirname "$0")/.."
 cargo --version
 scripts/check_core_purity.sh
 cargo test --workspace
+# The Python client (clients/python), installed as a user would, against the binary just built.
+python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore "./clients/python[test]"
+target_dir=$(cargo metadata --format-version 1 --no-deps | python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
+SIGNORINI_BIN="$target_dir/debug/signorini" python3 -m pytest -q -p no:cacheprovider clients/python

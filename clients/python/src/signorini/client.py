@@ -1,0 +1,374 @@
+"""The gRPC client of the Signorini service, with live frames over zenoh (or gRPC) and results
+as numpy arrays."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import queue
+import threading
+import time
+import tomllib
+from dataclasses import dataclass, field
+from typing import Any, Iterator, Mapping
+
+import grpc
+import numpy as np
+
+from .v1 import service_pb2, service_pb2_grpc, spec_pb2
+
+#: Job states by their proto value, spelled as the HTTP API spells them.
+STATES = {
+    service_pb2.JOB_STATE_UNSPECIFIED: "unspecified",
+    service_pb2.JOB_STATE_QUEUED: "queued",
+    service_pb2.JOB_STATE_RUNNING: "running",
+    service_pb2.JOB_STATE_SUCCEEDED: "succeeded",
+    service_pb2.JOB_STATE_FAILED: "failed",
+    service_pb2.JOB_STATE_CANCELLED: "cancelled",
+}
+TERMINAL = {"succeeded", "failed", "cancelled"}
+
+
+class SignoriniError(Exception):
+    """A call the service refused or could not answer."""
+
+    def __init__(self, message: str, code: grpc.StatusCode | None = None):
+        super().__init__(message)
+        self.code = code
+
+
+class SpecError(SignoriniError):
+    """A spec the service refused: `field` names the offending field (`model.restitution`)."""
+
+    def __init__(self, field_name: str, reason: str, code: grpc.StatusCode):
+        super().__init__(f"{field_name}: {reason}" if field_name else reason, code)
+        self.field = field_name
+        self.reason = reason
+
+
+def _raise(err: grpc.RpcError) -> None:
+    """Re-raises a gRPC error as a SpecError (INVALID_ARGUMENT) or a SignoriniError."""
+    code = err.code()
+    details = err.details() or ""
+    if code == grpc.StatusCode.INVALID_ARGUMENT:
+        trailing = dict(err.trailing_metadata() or ())
+        field_name = trailing.get("x-error-field", "")
+        reason = details
+        if field_name and details.startswith(f"{field_name}: "):
+            reason = details[len(field_name) + 2 :]
+        raise SpecError(field_name, reason, code) from None
+    raise SignoriniError(f"{code.name}: {details}", code) from None
+
+
+def state_name(status: service_pb2.JobStatus) -> str:
+    """`succeeded`, `running`, … of a JobStatus."""
+    return STATES.get(status.state, "unspecified")
+
+
+def _spec_request(spec: Any) -> service_pb2.SubmitJobRequest:
+    """A typed JobSpec is sent typed; a dict, or a .toml/.json file, as the service's JSON spelling."""
+    if isinstance(spec, spec_pb2.JobSpec):
+        return service_pb2.SubmitJobRequest(typed=spec)
+    if isinstance(spec, (str, pathlib.Path)):
+        path = pathlib.Path(spec)
+        text = path.read_text(encoding="utf-8")
+        if path.suffix == ".toml":
+            spec = tomllib.loads(text)
+        elif path.suffix == ".json":
+            spec = json.loads(text)
+        else:
+            raise ValueError(f"{path}: a spec file ends in .toml or .json")
+    if isinstance(spec, Mapping):
+        return service_pb2.SubmitJobRequest(json=json.dumps(spec, allow_nan=False))
+    raise TypeError(f"a spec is a JobSpec message, a dict or a .toml/.json path, not {type(spec).__name__}")
+
+
+@dataclass
+class Frame:
+    """One frame of a job's stream: a status, or several recorded steps (`energy` or `state`)."""
+
+    kind: str
+    status: service_pb2.JobStatus | None = None
+    seq: int = 0
+    step: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.uint64))
+    t: np.ndarray = field(default_factory=lambda: np.empty(0))
+    columns: dict[str, np.ndarray] = field(default_factory=dict)
+    last: bool = False
+
+    @property
+    def state(self) -> str | None:
+        """The job state of a status frame."""
+        return state_name(self.status) if self.status is not None else None
+
+    @staticmethod
+    def of_steps(kind: str, f: service_pb2.StepFrame) -> "Frame":
+        names = list(f.columns)
+        values = np.asarray(f.values, dtype=np.float64).reshape(len(f.step), len(names))
+        return Frame(
+            kind=kind,
+            seq=f.seq,
+            step=np.asarray(f.step, dtype=np.uint64),
+            t=np.asarray(f.t, dtype=np.float64),
+            columns={c: values[:, i].copy() for i, c in enumerate(names)},
+            last=f.last,
+        )
+
+
+@dataclass
+class Result:
+    """A finished job: `columns` maps every recorded column (with `step` and `t`) to a numpy
+    array; `summary` is summary.json; `tables` maps a table name to its columns; `figures` a
+    figure name to its SVG text."""
+
+    id: str
+    state: str
+    summary: dict
+    columns: dict[str, np.ndarray]
+    tables: dict[str, dict[str, np.ndarray]]
+    figures: dict[str, str]
+    status: service_pb2.JobStatus
+
+    def __getitem__(self, column: str) -> np.ndarray:
+        return self.columns[column]
+
+
+class Watch:
+    """The frames of one job, from the moment this object exists until the job ends.
+
+    Subscribes on construction, so `w = client.watch(id)` before `client.submit(spec, id=id)`
+    sees every frame. Iterate it (it ends after the terminal status) or use it as a context
+    manager; `via` is `"zenoh"` or `"grpc"`."""
+
+    def __init__(self, client: "Client", job_id: str, via: str, timeout: float | None):
+        self._queue: queue.Queue = queue.Queue()
+        self._timeout = timeout
+        self._closers: list = []
+        self.job_id = job_id
+        self.via = via
+        if via == "zenoh":
+            self._open_zenoh(client, job_id)
+        elif via == "grpc":
+            self._open_grpc(client, job_id)
+        else:
+            raise ValueError(f"via: 'zenoh' or 'grpc', not {via!r}")
+
+    def _open_zenoh(self, client: "Client", job_id: str) -> None:
+        session = client._zenoh_session()
+        prefix = f"signorini/v1/jobs/{job_id}/"
+
+        def on_sample(sample) -> None:
+            key = str(sample.key_expr)
+            payload = sample.payload.to_bytes()
+            kind = key[len(prefix) :] if key.startswith(prefix) else ""
+            if kind == "status":
+                self._queue.put(Frame("status", status=service_pb2.JobStatus.FromString(payload)))
+            elif kind in ("energy", "state"):
+                self._queue.put(Frame.of_steps(kind, service_pb2.StepFrame.FromString(payload)))
+
+        sub = session.declare_subscriber(prefix + "*", on_sample)
+        self._closers.append(sub.undeclare)
+        # A job that ended before the subscription sends nothing more: ask for its status.
+        for reply in session.get(prefix + "status", timeout=5.0):
+            if reply.ok is not None:
+                status = service_pb2.JobStatus.FromString(reply.ok.payload.to_bytes())
+                if state_name(status) in TERMINAL:
+                    self._queue.put(Frame("status", status=status))
+
+    def _open_grpc(self, client: "Client", job_id: str) -> None:
+        call = client._stub.WatchJob(
+            service_pb2.WatchJobRequest(id=job_id), metadata=client._metadata
+        )
+        self._closers.append(call.cancel)
+        started = threading.Event()
+
+        def pump() -> None:
+            started.set()
+            try:
+                for w in call:
+                    which = w.WhichOneof("frame")
+                    if which == "status":
+                        self._queue.put(Frame("status", status=w.status))
+                    elif which in ("energy", "state"):
+                        self._queue.put(Frame.of_steps(which, getattr(w, which)))
+            except grpc.RpcError as e:
+                if e.code() != grpc.StatusCode.CANCELLED:
+                    self._queue.put(e)
+            self._queue.put(None)
+
+        threading.Thread(target=pump, daemon=True).start()
+        started.wait()
+
+    def __iter__(self) -> Iterator[Frame]:
+        try:
+            while True:
+                try:
+                    item = self._queue.get(timeout=self._timeout)
+                except queue.Empty:
+                    raise SignoriniError(f"no frame of job {self.job_id} for {self._timeout} s") from None
+                if item is None:
+                    return
+                if isinstance(item, grpc.RpcError):
+                    _raise(item)
+                yield item
+                if item.kind == "status" and item.state in TERMINAL:
+                    return
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        while self._closers:
+            self._closers.pop()()
+
+    def __enter__(self) -> "Watch":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class Client:
+    """A connection to `signorini serve`.
+
+    >>> c = Client("127.0.0.1:50051")
+    >>> job = c.submit("examples/bouncing_ball.toml")
+    >>> c.wait(job)
+    >>> r = c.result(job); r["energy"]        # numpy array
+
+    `token` is the service's bearer token (needed by submit and cancel when it has one);
+    `zenoh_connect` the service's zenoh endpoint (e.g. "tcp/127.0.0.1:7447") for `watch`.
+    """
+
+    def __init__(
+        self,
+        target: str = "127.0.0.1:50051",
+        *,
+        token: str | None = None,
+        zenoh_connect: str | list[str] | None = None,
+        max_message_mb: int = 1024,
+    ):
+        size = max_message_mb * 1024 * 1024
+        self._channel = grpc.insecure_channel(
+            target,
+            options=[
+                ("grpc.max_receive_message_length", size),
+                ("grpc.max_send_message_length", size),
+            ],
+        )
+        self._stub = service_pb2_grpc.SimulationStub(self._channel)
+        self._metadata = (("authorization", f"Bearer {token}"),) if token else ()
+        if isinstance(zenoh_connect, str):
+            zenoh_connect = [zenoh_connect]
+        self._zenoh_connect = zenoh_connect
+        self._zenoh = None
+
+    def _call(self, method: str, request):
+        try:
+            return getattr(self._stub, method)(request, metadata=self._metadata)
+        except grpc.RpcError as e:
+            _raise(e)
+
+    def submit(self, spec: Any, *, id: str | None = None) -> str:
+        """Queues a job and returns its id. `spec`: a `signorini.v1.spec_pb2.JobSpec` (sent
+        typed), a dict, or the path of a .toml/.json spec. Raises SpecError naming the field
+        of a bad spec."""
+        request = _spec_request(spec)
+        if id is not None:
+            request.id = id
+        return self._call("SubmitJob", request).id
+
+    def status(self, job_id: str) -> service_pb2.JobStatus:
+        """The job's status (`state_name(status)` spells its state)."""
+        return self._call("GetJob", service_pb2.GetJobRequest(id=job_id))
+
+    def cancel(self, job_id: str) -> service_pb2.JobStatus:
+        """Cancels a queued or running job."""
+        return self._call("CancelJob", service_pb2.CancelJobRequest(id=job_id))
+
+    def jobs(self) -> list[service_pb2.JobStatus]:
+        """Every job the service knows."""
+        return list(self._call("ListJobs", service_pb2.ListJobsRequest()).jobs)
+
+    def capabilities(self) -> service_pb2.CapabilitiesResponse:
+        """Models, integrators, contact solvers, analyses and their parameters."""
+        return self._call("Capabilities", service_pb2.CapabilitiesRequest())
+
+    def wait(self, job_id: str, timeout: float | None = None, poll: float = 0.05) -> service_pb2.JobStatus:
+        """Polls until the job ends; returns its final status."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            status = self.status(job_id)
+            if state_name(status) in TERMINAL:
+                return status
+            if deadline is not None and time.monotonic() > deadline:
+                raise SignoriniError(f"job {job_id} still {state_name(status)} after {timeout} s")
+            time.sleep(poll)
+
+    def result(self, job_id: str, columns: list[str] | None = None, every: int = 0) -> Result:
+        """The result of a finished job, as numpy arrays."""
+        r = self._call(
+            "GetResult", service_pb2.GetResultRequest(id=job_id, columns=columns or [], every=every)
+        )
+        cols: dict[str, np.ndarray] = {
+            "step": np.asarray(r.step, dtype=np.uint64),
+            "t": np.asarray(r.t, dtype=np.float64),
+        }
+        for s in r.series:
+            cols[s.column] = np.asarray(s.values, dtype=np.float64)
+        tables = {
+            tb.name: {
+                c: np.asarray([row.values[i] for row in tb.rows], dtype=np.float64)
+                for i, c in enumerate(tb.columns)
+            }
+            for tb in r.tables
+        }
+        return Result(
+            id=r.id,
+            state=state_name(r.status),
+            summary=json.loads(r.summary_json) if r.summary_json else {},
+            columns=cols,
+            tables=tables,
+            figures={f.name: f.svg for f in r.figures},
+            status=r.status,
+        )
+
+    def watch(self, job_id: str, *, via: str = "auto", timeout: float | None = 60.0) -> Watch:
+        """The job's live frames (see `Watch`). `via="auto"` uses zenoh when eclipse-zenoh is
+        installed and `zenoh_connect` was given, gRPC WatchJob otherwise."""
+        if via == "auto":
+            via = "zenoh" if self._zenoh_connect and _has_zenoh() else "grpc"
+        return Watch(self, job_id, via, timeout)
+
+    def _zenoh_session(self):
+        if self._zenoh is None:
+            if not self._zenoh_connect:
+                raise SignoriniError("watch via zenoh needs Client(..., zenoh_connect='tcp/HOST:7447')")
+            import zenoh
+
+            config = zenoh.Config()
+            config.insert_json5("mode", json.dumps("peer"))
+            config.insert_json5("connect/endpoints", json.dumps(self._zenoh_connect))
+            config.insert_json5("listen/endpoints", json.dumps([]))
+            config.insert_json5("scouting/multicast/enabled", "false")
+            self._zenoh = zenoh.open(config)
+        return self._zenoh
+
+    def close(self) -> None:
+        """Closes the gRPC channel and the zenoh session."""
+        if self._zenoh is not None:
+            self._zenoh.close()
+            self._zenoh = None
+        self._channel.close()
+
+    def __enter__(self) -> "Client":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _has_zenoh() -> bool:
+    try:
+        import zenoh  # noqa: F401
+    except ImportError:
+        return False
+    return True

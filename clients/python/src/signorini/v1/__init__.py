@@ -1,0 +1,1 @@
+"""Stubs generated from proto/signorini/v1 by generate_stubs.py (do not edit)."""

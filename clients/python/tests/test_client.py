@@ -1,0 +1,112 @@
+"""The Python client against the real service: typed and file submits, a watched job whose
+streamed energy equals the stored result bit for bit (over zenoh and over gRPC), a cancel, and a
+bad spec raising SpecError with the field's name."""
+
+import pathlib
+import uuid
+
+import numpy as np
+import pytest
+
+from signorini import Client, SignoriniError, SpecError, spec_pb2
+from conftest import REPO, TOKEN
+
+BALL = REPO / "examples" / "bouncing_ball.toml"
+
+
+def typed_ball(t_end: float = 2.0) -> spec_pb2.JobSpec:
+    """The bouncing ball of examples/bouncing_ball.toml as a typed message."""
+    return spec_pb2.JobSpec(
+        name="typed ball",
+        model=spec_pb2.ModelSpec(
+            bouncing_ball=spec_pb2.BouncingBall(mass=1.0, gravity=9.81, q0=1.0, v0=0.0, restitution=0.9)
+        ),
+        integrator=spec_pb2.IntegratorSpec(moreau_jean=spec_pb2.MoreauJean(theta=0.5)),
+        time=spec_pb2.TimeSpec(h=0.005, t_end=t_end),
+    )
+
+
+def test_typed_submit_runs_the_ball_and_keeps_the_energy_identity(client):
+    job = client.submit(typed_ball())
+    assert client.wait(job, timeout=60).state == 3  # JOB_STATE_SUCCEEDED
+    r = client.result(job)
+    assert r.state == "succeeded"
+    steps = round(2.0 / 0.005)
+    assert r["step"][-1] == steps and len(r["t"]) == steps + 1
+    # Moreau–Jean θ = ½ on a linear model: the energy balance closes at round-off at every step.
+    assert np.max(np.abs(r["balance_residual"])) < 1e-12
+    # Gravity is an external force: its work is m g (q0 − q), with q the gap of contact 0.
+    assert np.allclose(r["work_ext_total"], 9.81 * (1.0 - r["gap_0"]), rtol=0, atol=1e-12)
+    assert r["energy"][0] == 0.0 and r.summary["energy_final"] == r["energy"][-1]
+    assert r.summary["steps"] == steps
+
+
+def test_file_and_dict_submits_give_the_same_result(client):
+    a = client.submit(BALL)
+    b = client.submit({**__import__("tomllib").loads(BALL.read_text()), "name": "dict ball"})
+    for j in (a, b):
+        client.wait(j, timeout=120)
+    ra, rb = client.result(a, columns=["energy"]), client.result(b, columns=["energy"])
+    assert np.array_equal(ra["energy"], rb["energy"])
+    assert set(ra.columns) == {"step", "t", "energy"}
+
+
+@pytest.mark.parametrize("via", ["zenoh"])
+def test_watched_energy_equals_the_stored_result_bit_for_bit(client, via):
+    job_id = f"py-watch-{via}-{uuid.uuid4().hex[:8]}"
+    watch = client.watch(job_id, via=via)  # subscribed before the job exists
+    client.submit(BALL, id=job_id)
+    streamed: dict[int, float] = {}
+    states = []
+    for frame in watch:
+        if frame.kind == "energy":
+            streamed.update(zip(frame.step.tolist(), frame.columns["energy"].tolist()))
+        elif frame.kind == "status":
+            states.append(frame.state)
+    assert states[-1] == "succeeded"
+    r = client.result(job_id)
+    stored = dict(zip(r["step"].tolist(), r["energy"].tolist()))
+    assert len(streamed) == len(stored) == 2001
+    # bit for bit: compare the float64 bit patterns
+    keys = sorted(stored)
+    a = np.array([streamed[k] for k in keys]).view(np.uint64)
+    b = np.array([stored[k] for k in keys]).view(np.uint64)
+    assert np.array_equal(a, b)
+
+
+def test_cancel_stops_a_long_job(client):
+    spec = typed_ball(t_end=1.0e5)  # 2·10⁷ steps: far longer than the test
+    spec.output.every = 1000
+    job = client.submit(spec)
+    client.cancel(job)
+    assert client.wait(job, timeout=60).state == 5  # JOB_STATE_CANCELLED
+
+
+def test_a_bad_spec_raises_spec_error_naming_the_field(client):
+    spec = __import__("tomllib").loads(BALL.read_text())
+    spec["model"]["restitution"] = 1.5
+    with pytest.raises(SpecError) as e:
+        client.submit(spec)
+    assert e.value.field == "model.restitution"
+    assert "1.5" in str(e.value) or "[0, 1]" in str(e.value)
+
+
+def test_submit_without_the_token_is_refused(server):
+    with Client(server.grpc) as anonymous:
+        with pytest.raises(SignoriniError) as e:
+            anonymous.submit(BALL)
+    assert e.value.code.name == "UNAUTHENTICATED"
+
+
+def test_committed_stubs_equal_freshly_generated_ones(tmp_path):
+    import sys
+
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
+    from generate_stubs import generate
+
+    generate(tmp_path)
+    committed = pathlib.Path(__file__).resolve().parents[1] / "src" / "signorini" / "v1"
+    for fresh in sorted((tmp_path / "signorini" / "v1").glob("*.py")):
+        assert fresh.read_text() == (committed / fresh.name).read_text(), (
+            f"{fresh.name} is stale: run python clients/python/generate_stubs.py"
+        )
