@@ -2,7 +2,12 @@
 # No system protoc is needed (build.rs compiles the .proto files with protox).
 #   docker build -t signorini .
 #   docker run -p 50051:50051 -p 8080:8080 -p 7447:7447 signorini
-FROM rust:1.95-slim-bookworm AS build
+# The base images are build arguments: the defaults are the official images; where no registry is
+# reachable, scripts/container/build-local-bases.sh makes local stand-ins and
+# scripts/container/smoke.sh passes them (see docs/ci.md).
+ARG RUST_IMAGE=rust:1.95-slim-bookworm
+ARG RUNTIME_IMAGE=debian:bookworm-slim
+FROM ${RUST_IMAGE} AS build
 WORKDIR /src
 # 1. Dependencies only: manifests and stub sources, so this layer is reused until Cargo.lock changes.
 COPY Cargo.toml Cargo.lock ./
@@ -21,7 +26,7 @@ RUN touch src/main.rs src/lib.rs crates/signorini-core/src/lib.rs crates/signori
  && cargo build --release --locked --bin signorini \
  && install -D target/release/signorini /out/signorini
 
-FROM debian:bookworm-slim
+FROM ${RUNTIME_IMAGE}
 LABEL org.opencontainers.image.title="signorini" \
       org.opencontainers.image.description="Nonsmooth contact dynamics as a service: gRPC + HTTP API, live zenoh streams" \
       org.opencontainers.image.licenses="Apache-2.0" \

@@ -8,9 +8,14 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match signorini::cli::dispatch(cli) {
         Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
-        }
+        // `signorini check` ends with its own status (1 a bound failed, 2 a bad spec), its
+        // verdict lines already printed.
+        Err(e) => match e.downcast_ref::<signorini::cli::check::CheckExit>() {
+            Some(exit) => ExitCode::from(exit.0),
+            None => {
+                eprintln!("error: {e:#}");
+                ExitCode::FAILURE
+            }
+        },
     }
 }

@@ -1,5 +1,6 @@
 //! Command-line interface: argument definitions and dispatch to one module per command.
 
+pub mod check;
 pub mod client;
 mod compare;
 mod run;
@@ -42,6 +43,8 @@ pub enum Command {
     Schema(schema::SchemaArgs),
     /// Compare finished runs (result directories): a figure per column, a table of summaries.
     Compare(compare::CompareArgs),
+    /// The CI gate: run specs and check their [check] bounds (exit 0 hold, 1 fail, 2 bad spec).
+    Check(check::CheckArgs),
 }
 
 /// Runs the chosen subcommand.
@@ -57,5 +60,6 @@ pub fn dispatch(cli: Cli) -> Result<()> {
         Command::Capabilities(args) => client::capabilities(args),
         Command::Schema(args) => schema::schema(args),
         Command::Compare(args) => compare::compare(args),
+        Command::Check(args) => check::check(args),
     }
 }

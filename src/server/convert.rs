@@ -54,6 +54,8 @@ pub fn job_spec(p: pb::JobSpec) -> Result<JobSpec, SpecError> {
             .unwrap_or_default(),
         output: output.map(output_spec).transpose()?.unwrap_or_default(),
         analysis: analysis.map(analysis_spec).transpose()?,
+        // Read by `signorini check` only: the service ignores it, the typed spec has none.
+        check: None,
     })
 }
 

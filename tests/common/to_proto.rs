@@ -31,6 +31,8 @@ pub fn job_spec_to_proto(s: &JobSpec) -> pb::JobSpec {
         contact_solver,
         output,
         analysis,
+        // Read by `signorini check` only, not carried by the typed spec.
+        check: _,
     } = s;
     pb::JobSpec {
         name: name.clone(),

@@ -192,6 +192,15 @@ impl Job {
     /// Validates `spec` and builds the job. Every error names the offending field. The job's
     /// kind follows from the sections: an `[analysis]`, or the pair (scene, scheme family).
     pub fn from_spec(spec: &JobSpec) -> Result<Job, SpecError> {
+        if let Some(check) = &spec.check {
+            check.validate()?;
+            if check.min_order.is_some() {
+                return Err(SpecError::new(
+                    "check.min_order",
+                    "an observed order needs a study of several step sizes; this spec is one run",
+                ));
+            }
+        }
         let model = spec.model.as_ref();
         let kind = match (&spec.analysis, model, spec.integrator.family()) {
             (Some(analysis), _, _) => JobKind::Wave(Box::new(WaveJob::analysis(analysis)?)),

@@ -8,6 +8,7 @@
 //! This module tree imports no job, run or analysis code (only plain parameter types).
 
 pub mod analysis;
+pub mod check;
 pub mod error;
 pub mod integrator;
 pub mod lagrangian;
@@ -56,6 +57,9 @@ pub struct JobSpec {
     /// A job that is not a time integration (`kind = "nonsmooth_modes"` or `"forced_response"`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub analysis: Option<AnalysisSpec>,
+    /// Bounds checked by `signorini check` (the CI gate); `run` and the service ignore them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub check: Option<check::CheckSpec>,
 }
 
 /// `[time]`: step size and duration (`t_end` or `steps`, not both).

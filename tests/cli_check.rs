@@ -1,0 +1,116 @@
+//! `signorini check`, the CI gate: exit 0 when every bound holds, 1 with a FAIL line when a bound
+//! is too tight, 2 on a bad spec; the JUnit report it writes parses and says the same.
+
+use quick_xml::Reader;
+use quick_xml::events::Event;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn check(specs: &[PathBuf], junit: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_signorini"))
+        .arg("check")
+        .args(specs)
+        .arg("--junit")
+        .arg(junit)
+        .output()
+        .expect("running signorini check")
+}
+
+fn example(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples")
+        .join(name)
+}
+
+/// The bouncing ball of examples/ with its `[check]` bounds replaced by `bounds`.
+fn ball_with(dir: &Path, name: &str, bounds: &str) -> PathBuf {
+    let text = std::fs::read_to_string(example("bouncing_ball.toml")).expect("reading the example");
+    let base = text.split("\n[check]").next().expect("text before [check]");
+    let base = base.replace("t_end = 10.0", "t_end = 2.0");
+    let path = dir.join(name);
+    std::fs::write(&path, format!("{base}\n[check]\n{bounds}\n")).expect("writing a spec");
+    path
+}
+
+/// (test cases, failures, errors) per `<testcase>` of a JUnit file, read back with an XML parser.
+fn junit_counts(path: &Path) -> (usize, usize, usize) {
+    let xml = std::fs::read_to_string(path).expect("reading the JUnit file");
+    let mut reader = Reader::from_str(&xml);
+    let (mut cases, mut failures, mut errors) = (0, 0, 0);
+    loop {
+        match reader.read_event().expect("well-formed XML") {
+            Event::Start(e) | Event::Empty(e) => match e.name().as_ref() {
+                b"testcase" => cases += 1,
+                b"failure" => failures += 1,
+                b"error" => errors += 1,
+                _ => {}
+            },
+            Event::Eof => break,
+            _ => {}
+        }
+    }
+    (cases, failures, errors)
+}
+
+#[test]
+fn bounds_that_hold_exit_zero_with_pass_lines() {
+    let dir = tempfile::tempdir().unwrap();
+    let junit = dir.path().join("report.xml");
+    let specs = [
+        example("bouncing_ball.toml"),
+        example("chain.toml"),
+        example("jay_negrut_test.toml"),
+    ];
+    let out = check(&specs, &junit);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "stdout: {stdout}");
+    // One line per bound: ball 2, chain 2, Jay–Negrut 1.
+    assert_eq!(
+        stdout.lines().filter(|l| l.starts_with("PASS ")).count(),
+        5,
+        "{stdout}"
+    );
+    assert!(stdout.contains("max_balance_residual = "), "{stdout}");
+    assert_eq!(junit_counts(&junit), (5, 0, 0));
+}
+
+#[test]
+fn a_bound_too_tight_exits_one_with_a_fail_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let junit = dir.path().join("report.xml");
+    // Moreau–Jean θ = ½ closes the balance at ~2e-15, not 1e-20.
+    let tight = ball_with(dir.path(), "tight.toml", "max_balance_residual = 1e-20");
+    let out = check(&[tight], &junit);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "stdout: {stdout}");
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("FAIL "))
+        .unwrap_or_else(|| panic!("no FAIL line: {stdout}"));
+    assert!(
+        line.contains("max_balance_residual") && line.contains("1.000e-20"),
+        "{line}"
+    );
+    assert_eq!(junit_counts(&junit), (1, 1, 0));
+}
+
+#[test]
+fn a_bad_spec_exits_two_naming_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let junit = dir.path().join("report.xml");
+    let negative = ball_with(dir.path(), "negative.toml", "max_balance_residual = -1.0");
+    let unmeasurable = ball_with(dir.path(), "nonlinear_only.toml", "max_energy_error = 1e-3");
+    let fine = ball_with(dir.path(), "fine.toml", "max_balance_residual = 1e-12");
+    let out = check(&[fine, negative, unmeasurable], &junit);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(2), "stdout: {stdout}");
+    assert!(
+        stdout.contains("ERROR ") && stdout.contains("check.max_balance_residual"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("check.max_energy_error: this run reports no energy_error"),
+        "{stdout}"
+    );
+    assert_eq!(junit_counts(&junit), (3, 0, 2));
+}
