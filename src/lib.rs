@@ -12,3 +12,4 @@ pub mod spec_file;
 pub mod status;
 pub mod store;
 pub mod stream;
+pub mod study;

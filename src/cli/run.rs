@@ -1,11 +1,13 @@
 //! `signorini run SPEC --out DIR`: validate a spec, run it in-process, write the results.
 
-use crate::output::{CsvSteps, clear_results, finish_run, write_run_files};
+use crate::output::{
+    CsvSteps, clear_results, finish_run, write_atomic, write_figure, write_run_files,
+};
 use crate::spec_file::{self, Format};
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use signorini_core::job;
+use signorini_core::job::{self, Job};
 use signorini_core::observer::{Columns, Observer, Progress, StepRecord};
 use signorini_core::outcome::RunOutput;
 use std::ops::ControlFlow;
@@ -69,8 +71,13 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     let text = std::fs::read_to_string(&args.spec)
         .with_context(|| format!("reading {}", args.spec.display()))?;
-    let job = spec_file::load(&text, Format::of_path(&args.spec))
+    let spec = spec_file::parse(&text, Format::of_path(&args.spec))
         .map_err(|e| anyhow!("invalid spec {}: {e}", args.spec.display()))?;
+    if spec.study.is_some() {
+        return run_study(&args, &spec);
+    }
+    let job =
+        Job::from_spec(&spec).map_err(|e| anyhow!("invalid spec {}: {e}", args.spec.display()))?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
 
@@ -108,6 +115,32 @@ pub fn run(args: RunArgs) -> Result<()> {
     write_run_files(&args.out, &run)?;
     if !args.quiet {
         println!("{}", serde_json::to_string_pretty(&run.summary)?);
+        println!("results in {}", args.out.display());
+    }
+    Ok(())
+}
+
+/// `signorini run STUDY.toml`: the study's runs on every core, then `study.csv`,
+/// `work_precision.svg` and `summary.json` (with the observed orders) in DIR.
+fn run_study(args: &RunArgs, spec: &signorini_core::spec::JobSpec) -> Result<()> {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let quiet = args.quiet;
+    let report = crate::study::run_study(spec, args.spec.parent(), threads, &|line| {
+        if !quiet {
+            eprintln!("{line}");
+        }
+    })
+    .map_err(|e| anyhow!("study {}: {e:#}", args.spec.display()))?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    write_atomic(&args.out.join("study.csv"), &report.csv())?;
+    for figure in signorini_figures::render(&[report.chart()]) {
+        write_figure(&args.out, &figure)?;
+    }
+    let summary = serde_json::to_string_pretty(&report.summary())?;
+    write_atomic(&args.out.join("summary.json"), &summary)?;
+    if !quiet {
+        println!("{summary}");
         println!("results in {}", args.out.display());
     }
     Ok(())

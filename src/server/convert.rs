@@ -56,6 +56,8 @@ pub fn job_spec(p: pb::JobSpec) -> Result<JobSpec, SpecError> {
         analysis: analysis.map(analysis_spec).transpose()?,
         // Read by `signorini check` only: the service ignores it, the typed spec has none.
         check: None,
+        // Studies travel as the JSON spelling only.
+        study: None,
     })
 }
 

@@ -33,6 +33,8 @@ pub fn job_spec_to_proto(s: &JobSpec) -> pb::JobSpec {
         analysis,
         // Read by `signorini check` only, not carried by the typed spec.
         check: _,
+        // Studies travel as the JSON spelling only.
+        study: _,
     } = s;
     pb::JobSpec {
         name: name.clone(),

@@ -201,6 +201,13 @@ impl Job {
                 ));
             }
         }
+        if spec.study.is_some() {
+            return Err(SpecError::new(
+                "study",
+                "a study is several runs: run it with `signorini run STUDY.toml` (the service \
+                 does not take studies yet)",
+            ));
+        }
         let model = spec.model.as_ref();
         let kind = match (&spec.analysis, model, spec.integrator.family()) {
             (Some(analysis), _, _) => JobKind::Wave(Box::new(WaveJob::analysis(analysis)?)),

@@ -24,5 +24,6 @@ pub mod outcome;
 pub mod scenes;
 pub mod soi2;
 pub mod spec;
+pub mod study;
 pub mod trace;
 pub mod wfem;

@@ -35,6 +35,8 @@ pub enum Chart {
     SpaceTime(SpaceTime),
     /// `forced_response`: mean energies of a sweep over the backbone of the same bar.
     ForcedResponse(ForcedChart),
+    /// `work_precision`: a study's error against CPU time, log–log, a curve per scheme.
+    WorkPrecision(WorkPrecisionChart),
 }
 
 impl Chart {
@@ -46,8 +48,27 @@ impl Chart {
             Chart::Backbone(_) => "backbone",
             Chart::SpaceTime(s) => &s.name,
             Chart::ForcedResponse(_) => "forced_response",
+            Chart::WorkPrecision(_) => "work_precision",
         }
     }
+}
+
+/// A study's work–precision diagram.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorkPrecisionChart {
+    /// Title (names the reference and the norm).
+    pub title: String,
+    /// One curve per scheme (and values of the grid's other axes).
+    pub curves: Vec<WorkPrecisionCurve>,
+}
+
+/// One curve of a [`WorkPrecisionChart`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorkPrecisionCurve {
+    /// Legend label.
+    pub label: String,
+    /// (CPU seconds, error) per run, by increasing CPU time.
+    pub points: Vec<(f64, f64)>,
 }
 
 /// Envelopes of some columns of a run's records against t.

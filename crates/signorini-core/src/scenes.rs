@@ -29,6 +29,47 @@ pub struct BouncingBall {
     pub restitution: f64,
 }
 
+impl BouncingBall {
+    /// The exact motion (height, velocity) at t: free flights under gravity between impacts,
+    /// each impact reversing the velocity times the restitution e (Newton's law). With e < 1
+    /// the impacts accumulate at a finite time, after which the ball rests on the ground.
+    pub fn exact_motion(&self, t: f64) -> (f64, f64) {
+        let (g, e) = (self.gravity, self.restitution);
+        let flight = |q: f64, v: f64, s: f64| (q + v * s - 0.5 * g * s * s, v - g * s);
+        // First landing: q0 + v0 s − g s²/2 = 0, the positive root.
+        let landing = if g > 0.0 {
+            (self.v0 + (self.v0 * self.v0 + 2.0 * g * self.q0).sqrt()) / g
+        } else if self.v0 < 0.0 {
+            -self.q0 / self.v0
+        } else {
+            f64::INFINITY
+        };
+        if t < landing {
+            return flight(self.q0, self.v0, t);
+        }
+        let mut start = landing;
+        let mut u = -e * (self.v0 - g * landing);
+        if g == 0.0 {
+            return (u * (t - start), u);
+        }
+        if e < 1.0 && t >= start + 2.0 * u / (g * (1.0 - e)) {
+            return (0.0, 0.0);
+        }
+        loop {
+            let duration = 2.0 * u / g;
+            if t < start + duration || duration <= 0.0 {
+                return if duration <= 0.0 {
+                    (0.0, 0.0)
+                } else {
+                    flight(0.0, u, t - start)
+                };
+            }
+            start += duration;
+            u *= e;
+        }
+    }
+}
+
 impl Default for BouncingBall {
     fn default() -> Self {
         Self {

@@ -17,6 +17,7 @@
 
 pub mod modal;
 pub mod plot;
+pub mod study;
 pub mod trace;
 
 pub use plot::{Curve, line_chart};
@@ -40,6 +41,7 @@ pub fn render(charts: &[Chart]) -> Vec<Figure> {
             Chart::Backbone(points) => modal::backbone_figure(points),
             Chart::SpaceTime(st) => modal::space_time_figure(st),
             Chart::ForcedResponse(f) => modal::forced_figure(f),
+            Chart::WorkPrecision(w) => study::work_precision_figure(w),
         })
         .collect()
 }

@@ -75,9 +75,28 @@ fn tick_label(v: f64, step: f64) -> String {
     format!("{v:.decimals$}")
 }
 
+/// The label of a tick at log₁₀ value `v`: `1e-3` at a whole decade, the value itself
+/// (`4.0e-4`) between decades.
+fn log_tick_label(v: f64, step: f64) -> String {
+    if (v - v.round()).abs() < 1e-9 {
+        format!("1e{}", tick_label(v.round(), step.max(1.0)))
+    } else {
+        format!("{:.1e}", 10f64.powf(v))
+    }
+}
+
 /// The plot area's box, light grid lines at round ticks on both axes, the tick labels and the
 /// axis labels; `log_y` labels y as 1eN.
 pub(crate) fn frame(s: &mut String, ax: &Axes, xlabel: &str, ylabel: &str, log_y: bool) {
+    frame_with(s, ax, xlabel, ylabel, false, log_y);
+}
+
+/// [`frame`] for log₁₀ data on both axes (ticks labelled 1eN).
+pub(crate) fn frame_log_log(s: &mut String, ax: &Axes, xlabel: &str, ylabel: &str) {
+    frame_with(s, ax, xlabel, ylabel, true, true);
+}
+
+fn frame_with(s: &mut String, ax: &Axes, xlabel: &str, ylabel: &str, log_x: bool, log_y: bool) {
     let _ = write!(
         s,
         r#"<rect x="{ML}" y="{MT}" width="{}" height="{}" fill="none" stroke="black"/>"#,
@@ -86,19 +105,23 @@ pub(crate) fn frame(s: &mut String, ax: &Axes, xlabel: &str, ylabel: &str, log_y
     );
     let (xs, xstep) = ticks(ax.x);
     for x in xs {
+        let label = if log_x {
+            log_tick_label(x, xstep)
+        } else {
+            tick_label(x, xstep)
+        };
         let _ = write!(
             s,
-            r##"<line x1="{0:.1}" x2="{0:.1}" y1="{MT}" y2="{1}" stroke="#e4e4e4"/><text x="{0:.1}" y="{2}" text-anchor="middle">{3}</text>"##,
+            r##"<line x1="{0:.1}" x2="{0:.1}" y1="{MT}" y2="{1}" stroke="#e4e4e4"/><text x="{0:.1}" y="{2}" text-anchor="middle">{label}</text>"##,
             ax.px(x),
             H - MB,
             H - MB + 16.0,
-            tick_label(x, xstep)
         );
     }
     let (ys, ystep) = ticks(ax.y);
     for y in ys {
         let label = if log_y {
-            format!("1e{}", tick_label(y, ystep))
+            log_tick_label(y, ystep)
         } else {
             tick_label(y, ystep)
         };
@@ -254,7 +277,7 @@ pub struct Curve {
 }
 
 /// Escapes text for SVG.
-fn escape(s: &str) -> String {
+pub(crate) fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")

@@ -13,6 +13,7 @@ pub mod error;
 pub mod integrator;
 pub mod lagrangian;
 pub mod model;
+pub mod study;
 
 pub use analysis::{AnalysisSpec, Excitation, ForcedResponseSpec, ModalSpec};
 pub use error::SpecError;
@@ -60,6 +61,10 @@ pub struct JobSpec {
     /// Bounds checked by `signorini check` (the CI gate); `run` and the service ignore them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub check: Option<check::CheckSpec>,
+    /// A study: runs of the `base` spec over schemes and a grid, compared with a reference
+    /// (`signorini run STUDY.toml`); the other sections then stay empty.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub study: Option<study::StudySpec>,
 }
 
 /// `[time]`: step size and duration (`t_end` or `steps`, not both).
