@@ -196,11 +196,11 @@ impl From<Soi2Error> for RunError {
 
 /// `summary.json`: which job ran ([`SummaryHeader`]), what it measured ([`SummaryBody`], one
 /// struct per job kind) and, once the caller attached it, how long it took ([`Timing`]). It
-/// serialises flat, in that order: `name`, `scene`, `scheme`, `kind`, the kind's fields, `wall_s`,
+/// serialises flat, in that order: `name`, `scene`, `scheme` (or `analysis`), `kind`, the kind's fields, `wall_s`,
 /// `steps_per_s`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RunSummary {
-    /// Name, scene, scheme.
+    /// Name, scene, scheme or analysis.
     #[serde(flatten)]
     pub header: SummaryHeader,
     /// What the run measured.
@@ -252,8 +252,12 @@ pub struct SummaryHeader {
     /// The scene of `[model]` (none for an `[analysis]`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub scene: Option<String>,
-    /// The integrator scheme.
-    pub scheme: String,
+    /// The integrator scheme of a time integration (none for an `[analysis]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scheme: Option<String>,
+    /// The analysis of an `[analysis]` job, e.g. `nonsmooth_modes` (none for a time integration).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub analysis: Option<String>,
 }
 
 /// Wall time of a run.
@@ -513,7 +517,8 @@ mod tests {
             SummaryHeader {
                 name: None,
                 scene: None,
-                scheme: "moreau_jean".into(),
+                scheme: Some("moreau_jean".into()),
+                analysis: None,
             },
             SummaryBody::NonsmoothModes(ModesSummary {
                 cells: 4,
