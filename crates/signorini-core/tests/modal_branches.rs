@@ -15,7 +15,7 @@ use signorini_core::modal::{
 use signorini_core::observer::{Observer, StepRecord};
 use signorini_core::outcome::Chart;
 use signorini_core::spec::JobSpec;
-use signorini_core::wfem::{EndCondition, WaveBar};
+use signorini_core::wfem::{EndCondition, WaveBar, WaveState, step};
 use std::f64::consts::PI;
 use std::ops::ControlFlow;
 
@@ -251,4 +251,46 @@ fn the_job_shows_and_runs_an_orbit_of_the_first_main_branch() {
             .iter()
             .all(|r| r[z] >= 0.0 && r[g] >= 0.0 && r[z] < r[col("p")])
     );
+}
+
+/// The paper's §6 remark ("admissible solutions are only found when h = 1") does not hold for
+/// the discrete problem: most of the first main branch has h ≥ 2, and each of those orbits is
+/// reproduced by Algorithm 2 itself (the switching integration, not the kernel): the state
+/// returns to itself after T steps, with exactly p contact steps.
+#[test]
+fn main_branch_orbits_with_h_at_least_2_are_orbits_of_algorithm_2() {
+    let n = 100;
+    for gap in [1e-3, -1e-3] {
+        let bar = WaveBar::unit(n, gap);
+        let pts = branch(&bar, 1);
+        let high: Vec<_> = pts.iter().filter(|pt| pt.kernel_dim >= 2).collect();
+        assert!(
+            high.len() * 2 > pts.len(),
+            "g0 = {gap}: {} of {} with h ≥ 2",
+            high.len(),
+            pts.len()
+        );
+        for pt in high {
+            let full = examine(&bar, pt.m, pt.p, 0).expect("kernel");
+            let orbit = full.orbit.expect("admissible");
+            let mut state = WaveState::from_ring(orbit.ring.clone(), 0.0, orbit.u[0]);
+            let mut contact = 0;
+            for _ in 0..pt.m + pt.p {
+                contact += usize::from(step(&bar, &mut state).contact);
+            }
+            let scale = orbit.ring.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+            let err = state
+                .ring()
+                .iter()
+                .zip(&orbit.ring)
+                .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+            assert_eq!(contact, pt.p, "g0 = {gap}, ({}, {})", pt.m, pt.p);
+            assert!(
+                err <= 1e-12 * scale,
+                "g0 = {gap}, ({}, {}): {err:e}",
+                pt.m,
+                pt.p
+            );
+        }
+    }
 }

@@ -409,7 +409,7 @@ pub fn backbone_panel_figure(panel: &BackbonePanel) -> Figure {
     draw_backbone_points(&mut s, &ax, pts);
     draw_main_branches(&mut s, &ax, pts);
     // Marked points: a ring and the label's letter (the text before its colon) at the point,
-    // the whole labels listed in the plot area's lower right corner.
+    // the whole labels listed at the right, under the legend's seven lines.
     let marked: Vec<_> = panel
         .marked
         .iter()
@@ -421,7 +421,7 @@ pub fn backbone_panel_figure(panel: &BackbonePanel) -> Figure {
             s,
             r#"<rect x="{:.1}" y="{:.1}" width="{w:.1}" height="{h:.1}" fill="white" fill-opacity="0.85" stroke="silver"/>"#,
             W - MR - 4.0 - w,
-            H - MB - 4.0 - h
+            MT + 118.0
         );
     }
     for (i, m) in marked.iter().enumerate() {
@@ -440,8 +440,8 @@ pub fn backbone_panel_figure(panel: &BackbonePanel) -> Figure {
         let _ = write!(
             s,
             r#"<text x="{:.1}" y="{:.1}" text-anchor="end" font-size="11">{}</text>"#,
-            W - MR - 6.0,
-            H - MB - 8.0 - 14.0 * (marked.len() - 1 - i) as f64,
+            W - MR - 8.0,
+            MT + 132.0 + 14.0 * i as f64,
             m.label
         );
     }

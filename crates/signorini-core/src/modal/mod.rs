@@ -186,7 +186,9 @@ impl OrbitClass {
 pub fn main_branch(cells: usize, m: usize, p: usize) -> Option<usize> {
     let t2 = 2 * (m + p);
     let rhs = 4 * cells + m;
-    rhs.is_multiple_of(t2).then_some(rhs / t2).filter(|&k| k >= 1)
+    rhs.is_multiple_of(t2)
+        .then_some(rhs / t2)
+        .filter(|&k| k >= 1)
 }
 
 /// Energy of the grazing first linear mode (11): `u = A sin(πx/2L) cos ω₁t` with A = |g0|
@@ -548,7 +550,7 @@ pub fn run_modes(
         if job.stability_periods > 0 && bar.gap > 0.0 && stability.is_none() {
             let st = orbit::stability(bar, &orbit, job.stability_periods, 1e-6);
             label = format!(
-                "{label}; perturbed by 1e-6: orbital distance {:.0e} after {} T",
+                "{label}; 1e-6 perturbation → distance {:.0e} after {} T",
                 st.relative_deviation, st.periods
             );
             stability = Some(StabilityRun {
