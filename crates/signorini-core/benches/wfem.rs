@@ -13,7 +13,7 @@
 
 use nalgebra::DMatrix;
 use signorini_core::modal::kernel::{dense_kernel_dim, dense_matrix, kernel_dim_closed_form};
-use signorini_core::modal::{examine, scan};
+use signorini_core::modal::{examine, scan_with};
 use signorini_core::wfem::{EndCondition, WaveBar, flux_form_step, step};
 use std::hint::black_box;
 use std::ops::ControlFlow;
@@ -64,14 +64,16 @@ fn main() {
         "closed-form kernel dims, N = 1000, all {PAIRS_1000} pairs m+p ≤ 4000: {:.3} s ({with_kernel} pairs with a kernel)",
         t.elapsed().as_secs_f64()
     );
-    // 1b. The backbone scans.
+    // 1b. The backbone scans, as the job runs them (no orbit shapes kept).
     let mut scan_times = Vec::new();
     for gap in [1e-3, 0.0, -1e-3] {
         let bar = WaveBar::unit(n, gap);
         for th in [1, threads] {
             let t = Instant::now();
-            let pts = scan(&bar, (2, 4000), 1, false, th, &|| ControlFlow::Continue(()))
-                .unwrap_or_default();
+            let pts = scan_with(&bar, (2, 4000), 1, false, false, th, &|| {
+                ControlFlow::Continue(())
+            })
+            .unwrap_or_default();
             let s = t.elapsed().as_secs_f64();
             println!(
                 "backbone scan N = 1000, m+p ≤ 4000, g0 = {gap:+e}, {th} thread(s): {s:.2} s, {} admissible points",

@@ -385,7 +385,11 @@ fn header(job: &Job) -> SummaryHeader {
     SummaryHeader {
         name: job.spec.name.clone(),
         scene: job.spec.model.as_ref().map(|m| m.scene().to_string()),
-        scheme: job.spec.integrator.scheme().to_string(),
+        scheme: match job.spec.analysis {
+            Some(_) => None,
+            None => Some(job.spec.integrator.scheme().to_string()),
+        },
+        analysis: job.spec.analysis.as_ref().map(|a| a.kind().to_string()),
     }
 }
 

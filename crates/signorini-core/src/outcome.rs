@@ -35,6 +35,10 @@ pub enum Chart {
     SpaceTime(SpaceTime),
     /// `forced_response`: mean energies of a sweep over the backbone of the same bar.
     ForcedResponse(ForcedChart),
+    /// `backbone_mode_K`: the frequency–energy plot of one nonsmooth mode over [ω_K, Ω_K].
+    BackbonePanel(BackbonePanel),
+    /// `contact_end`: u(L, t) and the contact force over one period of the shown orbits.
+    ContactEnd(Vec<EndHistory>),
     /// `work_precision`: a study's error against CPU time, log–log, a curve per scheme.
     WorkPrecision(WorkPrecisionChart),
 }
@@ -48,6 +52,8 @@ impl Chart {
             Chart::Backbone(_) => "backbone",
             Chart::SpaceTime(s) => &s.name,
             Chart::ForcedResponse(_) => "forced_response",
+            Chart::BackbonePanel(b) => &b.name,
+            Chart::ContactEnd(_) => "contact_end",
             Chart::WorkPrecision(_) => "work_precision",
         }
     }
@@ -100,6 +106,51 @@ pub struct ModePoint {
     pub omega_over_omega1: f64,
     /// Energy / E_lin.
     pub energy_normalized: f64,
+    /// k of the main branch the point lies on, if any.
+    pub branch: Option<usize>,
+}
+
+/// The frequency–energy plot of the K-th nonsmooth mode (Figs. 5 and 6: K = 1, 2).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BackbonePanel {
+    /// Figure name, `backbone_mode_K`.
+    pub name: String,
+    /// K.
+    pub mode: usize,
+    /// The admissible points with ω in the panel's range, every gap.
+    pub points: Vec<ModePoint>,
+    /// Points to mark and label (the shown orbits, with their stability when run).
+    pub marked: Vec<MarkedPoint>,
+}
+
+/// A labelled point of a backbone figure.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MarkedPoint {
+    /// The point.
+    pub point: ModePoint,
+    /// Its label, e.g. `a: stable over 1000 T`.
+    pub label: String,
+}
+
+/// One period of a shown orbit at the contact end (Fig. 8).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EndHistory {
+    /// Gap g0.
+    pub gap: f64,
+    /// Free-phase and contact-phase steps.
+    pub m: usize,
+    /// Contact-phase steps.
+    pub p: usize,
+    /// ω/ω₁.
+    pub omega_over_omega1: f64,
+    /// Energy / E_lin.
+    pub energy_normalized: f64,
+    /// Period T.
+    pub period: f64,
+    /// u(L, t_n), n = 0..=T/Δt.
+    pub u: Vec<f64>,
+    /// Contact force r(t_n) = S a_N (52) in contact, 0 in the free phases, n = 0..T/Δt.
+    pub force: Vec<f64>,
 }
 
 /// Displacement u(x, t) of a periodic orbit over one period, sampled on a grid.
@@ -217,11 +268,11 @@ impl From<Soi2Error> for RunError {
 
 /// `summary.json`: which job ran ([`SummaryHeader`]), what it measured ([`SummaryBody`], one
 /// struct per job kind) and, once the caller attached it, how long it took ([`Timing`]). It
-/// serialises flat, in that order: `name`, `scene`, `scheme`, `kind`, the kind's fields, `wall_s`,
+/// serialises flat, in that order: `name`, `scene`, `scheme` (or `analysis`), `kind`, the kind's fields, `wall_s`,
 /// `steps_per_s`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RunSummary {
-    /// Name, scene, scheme.
+    /// Name, scene, scheme or analysis.
     #[serde(flatten)]
     pub header: SummaryHeader,
     /// What the run measured.
@@ -273,8 +324,12 @@ pub struct SummaryHeader {
     /// The scene of `[model]` (none for an `[analysis]`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub scene: Option<String>,
-    /// The integrator scheme.
-    pub scheme: String,
+    /// The integrator scheme of a time integration (none for an `[analysis]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scheme: Option<String>,
+    /// The analysis of an `[analysis]` job, e.g. `nonsmooth_modes` (none for a time integration).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub analysis: Option<String>,
 }
 
 /// Wall time of a run.
@@ -534,7 +589,8 @@ mod tests {
             SummaryHeader {
                 name: None,
                 scene: None,
-                scheme: "moreau_jean".into(),
+                scheme: Some("moreau_jean".into()),
+                analysis: None,
             },
             SummaryBody::NonsmoothModes(ModesSummary {
                 cells: 4,

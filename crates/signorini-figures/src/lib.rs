@@ -41,6 +41,8 @@ pub fn render(charts: &[Chart]) -> Vec<Figure> {
             Chart::Backbone(points) => modal::backbone_figure(points),
             Chart::SpaceTime(st) => modal::space_time_figure(st),
             Chart::ForcedResponse(f) => modal::forced_figure(f),
+            Chart::BackbonePanel(b) => modal::backbone_panel_figure(b),
+            Chart::ContactEnd(ends) => modal::contact_end_figure(ends),
             Chart::WorkPrecision(w) => study::work_precision_figure(w),
         })
         .collect()

@@ -4,10 +4,10 @@
 
 use crate::Figure;
 use crate::plot::{
-    Axes, H, MB, ML, MR, MT, W, frame, header, polyline, vline, with_legend_room, y_range,
+    Axes, H, MB, ML, MR, MT, W, frame, header, legend, polyline, vline, with_legend_room, y_range,
 };
 use signorini_core::modal::main_asymptote;
-use signorini_core::outcome::{ForcedChart, ModePoint, SpaceTime};
+use signorini_core::outcome::{BackbonePanel, EndHistory, ForcedChart, ModePoint, SpaceTime};
 use std::fmt::Write;
 
 fn gap_color(g: f64) -> &'static str {
@@ -20,8 +20,9 @@ fn gap_color(g: f64) -> &'static str {
     }
 }
 
+/// Admissible points off the main branches, faint (Fig. 17's "clouds").
 fn draw_backbone_points(s: &mut String, ax: &Axes, points: &[ModePoint]) {
-    for pt in points {
+    for pt in points.iter().filter(|p| p.branch.is_none()) {
         let e = pt.energy_normalized;
         if e.is_nan() || e <= 0.0 {
             continue;
@@ -32,12 +33,74 @@ fn draw_backbone_points(s: &mut String, ax: &Axes, points: &[ModePoint]) {
         }
         let _ = write!(
             s,
-            r#"<circle cx="{:.1}" cy="{:.1}" r="1.8" fill="{}"/>"#,
+            r#"<circle cx="{:.1}" cy="{:.1}" r="1.3" fill="{}" fill-opacity="0.22"/>"#,
             ax.px(x),
             ax.py(y),
             gap_color(pt.gap)
         );
     }
+}
+
+/// Each main branch k of each gap as a line through its points in increasing ω (a single
+/// point, as at g0 = 0, as a dot), labelled `k = K` at its highest-energy end.
+fn draw_main_branches(s: &mut String, ax: &Axes, points: &[ModePoint]) {
+    let mut keys: Vec<(u64, usize)> = points
+        .iter()
+        .filter_map(|p| p.branch.map(|k| (p.gap.to_bits(), k)))
+        .collect();
+    keys.sort_unstable();
+    keys.dedup();
+    for (gap_bits, k) in keys {
+        let gap = f64::from_bits(gap_bits);
+        let mut branch: Vec<(f64, f64)> = points
+            .iter()
+            .filter(|p| p.gap.to_bits() == gap_bits && p.branch == Some(k))
+            .filter(|p| p.energy_normalized > 0.0)
+            .map(|p| (p.omega_over_omega1, p.energy_normalized.log10()))
+            .filter(|&(x, y)| x >= ax.x.0 && x <= ax.x.1 && y >= ax.y.0 && y <= ax.y.1)
+            .collect();
+        branch.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let color = gap_color(gap);
+        if branch.len() == 1 {
+            let (x, y) = branch[0];
+            let _ = write!(
+                s,
+                r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{color}"/>"#,
+                ax.px(x),
+                ax.py(y)
+            );
+        } else {
+            polyline_width(s, ax, branch.iter().copied(), color, 2.2);
+        }
+        if let Some(&(x, y)) = branch.iter().max_by(|a, b| a.1.total_cmp(&b.1)) {
+            let anchor = if gap < 0.0 { "start" } else { "end" };
+            let dx = if gap < 0.0 { 5.0 } else { -5.0 };
+            let _ = write!(
+                s,
+                r#"<text x="{:.1}" y="{:.1}" text-anchor="{anchor}" font-size="11" fill="{color}">k = {k}</text>"#,
+                ax.px(x) + dx,
+                ax.py(y) + 4.0
+            );
+        }
+    }
+}
+
+/// A solid curve of the given width (the main branches stand out of [`polyline`]'s 1.4 px).
+fn polyline_width(
+    s: &mut String,
+    ax: &Axes,
+    points: impl Iterator<Item = (f64, f64)>,
+    color: &str,
+    width: f64,
+) {
+    let pts: Vec<String> = points
+        .map(|(x, y)| format!("{:.1},{:.1}", ax.px(x), ax.py(y)))
+        .collect();
+    let _ = write!(
+        s,
+        r#"<polyline points="{}" fill="none" stroke="{color}" stroke-width="{width}"/>"#,
+        pts.join(" ")
+    );
 }
 
 /// Unicode subscript digits of `k`.
@@ -77,16 +140,16 @@ fn legend_and_lines(s: &mut String, ax: &Axes) {
         );
     }
     let items = [
-        ("#1f77b4", "g₀ &gt; 0 (hardening)"),
+        ("#1f77b4", "g₀ &gt; 0 (hardening); line: main branch k"),
         ("#2ca02c", "g₀ = 0"),
-        ("#d62728", "g₀ &lt; 0 (softening)"),
+        ("#d62728", "g₀ &lt; 0 (softening); faint: other orbits"),
         ("#888", "ωₖ = (2k−1)ω₁ (fixed–free)"),
         ("#bbb", "Ωₖ = 2kω₁ (fixed–fixed)"),
         ("#8c564b", "g₀ = 0 asymptotes ω₁(ωₖ/ω₁+1)²/(ωₖ/ω₁+2)"),
     ];
     let _ = write!(
         s,
-        r#"<rect x="{}" y="{}" width="290" height="{}" fill="white" fill-opacity="0.85" stroke="silver"/>"#,
+        r#"<rect x="{}" y="{}" width="300" height="{}" fill="white" fill-opacity="0.85" stroke="silver"/>"#,
         ML + 4.0,
         MT + 2.0,
         15.0 * items.len() as f64 + 4.0
@@ -104,8 +167,9 @@ fn legend_and_lines(s: &mut String, ax: &Axes) {
     }
 }
 
-/// Frequency–energy plot (Figs. 5–6): admissible points of every gap, log₁₀ of the normalised
-/// energy against ω/ω₁, with ω_k, Ω_k and the main-branch asymptotes.
+/// Frequency–energy plot (Figs. 5–6, 17): the main branches of every gap as labelled lines, the
+/// other admissible points faint, log₁₀ of the normalised energy against ω/ω₁, with ω_k, Ω_k
+/// and the main-branch asymptotes.
 pub fn backbone_figure(pts: &[ModePoint]) -> Figure {
     let hi = pts
         .iter()
@@ -128,6 +192,7 @@ pub fn backbone_figure(pts: &[ModePoint]) -> Figure {
     frame(&mut s, &ax, "ω / ω₁", "energy / E_lin (log₁₀)", true);
     legend_and_lines(&mut s, &ax);
     draw_backbone_points(&mut s, &ax, pts);
+    draw_main_branches(&mut s, &ax, pts);
     s.push_str("</svg>");
     Figure {
         name: "backbone".into(),
@@ -239,6 +304,7 @@ pub fn forced_figure(chart: &ForcedChart) -> Figure {
     frame(&mut s, &ax, "ω / ω₁", "mean energy / E_lin (log₁₀)", true);
     legend_and_lines(&mut s, &ax);
     draw_backbone_points(&mut s, &ax, bb);
+    draw_main_branches(&mut s, &ax, bb);
     for (i, g) in dampings.iter().enumerate() {
         let color = palette[i % palette.len()];
         polyline(
@@ -264,6 +330,293 @@ pub fn forced_figure(chart: &ForcedChart) -> Figure {
     s.push_str("</svg>");
     Figure {
         name: "forced_response".into(),
+        svg: s,
+    }
+}
+
+/// Subharmonic frequency (15) of §6.2, `(2k(n + 1) − 1)/(n + 1)` ω₁, and its asymptote (16),
+/// `(n + 1)(ω_k/ω₁ + 1)²/((ω_k/ω₁)(n + 1) + n + 2)` ω₁, as multiples of ω₁.
+pub fn subharmonic(k: usize, n: usize) -> (f64, f64) {
+    let (k, n) = (k as f64, n as f64);
+    let r = 2.0 * k - 1.0;
+    (
+        (2.0 * k * (n + 1.0) - 1.0) / (n + 1.0),
+        (n + 1.0) * (r + 1.0) * (r + 1.0) / (r * (n + 1.0) + n + 2.0),
+    )
+}
+
+/// The frequency–energy plot of one nonsmooth mode K over [ω_K, Ω_K] (Fig. 5 for K = 1, Fig. 6
+/// for K = 2): the main branch K of each gap as a labelled line, the other admissible orbits
+/// faint, ω_K, Ω_K and the asymptote of §6.1, the subharmonics (15) and their asymptotes (16) of
+/// §6.2 that fall in the range (n ≤ 6, as the paper's six), and the marked points (the shown
+/// orbits, with the stability run's result).
+pub fn backbone_panel_figure(panel: &BackbonePanel) -> Figure {
+    let k = panel.mode;
+    let x = ((2 * k) as f64 - 1.1, (2 * k) as f64 + 0.1);
+    let pts = &panel.points;
+    let y = y_range(
+        pts.iter()
+            .filter(|p| p.energy_normalized > 0.0)
+            .map(|p| p.energy_normalized.log10()),
+    );
+    let ax = Axes {
+        x,
+        y: with_legend_room(y, 7),
+    };
+    let mut s = String::new();
+    header(
+        &mut s,
+        &format!(
+            "Nonsmooth mode {k}: frequency–energy over [ω{0}, Ω{0}]",
+            sub(k)
+        ),
+    );
+    frame(&mut s, &ax, "ω / ω₁", "energy / E_lin (log₁₀)", true);
+    let top = |s: &mut String, xv: f64, row: f64, color: &str, text: &str| {
+        if xv > ax.x.0 && xv < ax.x.1 {
+            let _ = write!(
+                s,
+                r#"<text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="10" fill="{color}">{text}</text>"#,
+                ax.px(xv),
+                MT - 3.0 - 11.0 * row
+            );
+        }
+    };
+    for j in 1..=8 {
+        for n in 1..=6 {
+            let (w, a) = subharmonic(j, n);
+            if w > x.0 && w < x.1 {
+                vline(&mut s, &ax, w, "#c7c7c7", "3 3");
+            }
+            if a > x.0 && a < x.1 {
+                vline(&mut s, &ax, a, "#d2b48c", "2 4");
+            }
+        }
+    }
+    let (wk, big_wk, asym) = ((2 * k - 1) as f64, (2 * k) as f64, main_asymptote(k));
+    vline(&mut s, &ax, wk, "#555", "6 3");
+    vline(&mut s, &ax, big_wk, "#555", "2 2");
+    vline(&mut s, &ax, asym, "#8c564b", "6 2 1 2");
+    top(&mut s, wk, 0.0, "#333", &format!("ω{}", sub(k)));
+    top(&mut s, big_wk, 0.0, "#333", &format!("Ω{}", sub(k)));
+    top(
+        &mut s,
+        asym,
+        0.0,
+        "#8c564b",
+        &format!("{}/{}", 4 * k * k, 2 * k + 1),
+    );
+    draw_backbone_points(&mut s, &ax, pts);
+    draw_main_branches(&mut s, &ax, pts);
+    // Marked points: a ring and the label's letter (the text before its colon) at the point,
+    // the whole labels listed at the right, under the legend's seven lines.
+    let marked: Vec<_> = panel
+        .marked
+        .iter()
+        .filter(|m| m.point.energy_normalized > 0.0)
+        .collect();
+    if let Some(chars) = marked.iter().map(|m| m.label.chars().count()).max() {
+        let (w, h) = (6.2 * chars as f64 + 10.0, 14.0 * marked.len() as f64 + 6.0);
+        let _ = write!(
+            s,
+            r#"<rect x="{:.1}" y="{:.1}" width="{w:.1}" height="{h:.1}" fill="white" fill-opacity="0.85" stroke="silver"/>"#,
+            W - MR - 4.0 - w,
+            MT + 118.0
+        );
+    }
+    for (i, m) in marked.iter().enumerate() {
+        let p = m.point;
+        let (px, py) = (
+            ax.px(p.omega_over_omega1),
+            ax.py(p.energy_normalized.log10()),
+        );
+        let letter = m.label.split(':').next().unwrap_or("");
+        let _ = write!(
+            s,
+            r#"<circle cx="{px:.1}" cy="{py:.1}" r="5" fill="none" stroke="black" stroke-width="1.5"/><text x="{:.1}" y="{:.1}" font-size="12" font-weight="bold">{letter}</text>"#,
+            px - 3.0,
+            py + 18.0
+        );
+        let _ = write!(
+            s,
+            r#"<text x="{:.1}" y="{:.1}" text-anchor="end" font-size="11">{}</text>"#,
+            W - MR - 8.0,
+            MT + 132.0 + 14.0 * i as f64,
+            m.label
+        );
+    }
+    let items: Vec<(&str, &str, String)> = vec![
+        ("#1f77b4", "", "g₀ &gt; 0, main branch (hardening)".into()),
+        ("#2ca02c", "", "g₀ = 0 (on the asymptote)".into()),
+        ("#d62728", "", "g₀ &lt; 0, main branch (softening)".into()),
+        (
+            "#555",
+            "6 3",
+            format!("ω{0} (fixed–free), Ω{0} (fixed–fixed) (10)", sub(k)),
+        ),
+        (
+            "#8c564b",
+            "6 2 1 2",
+            "asymptote ω₁(ωₖ/ω₁+1)²/(ωₖ/ω₁+2) (§6.1)".into(),
+        ),
+        ("#c7c7c7", "3 3", "subharmonics (15), n ≤ 6".into()),
+        (
+            "#d2b48c",
+            "2 4",
+            "their asymptotes (16); dots: other orbits".into(),
+        ),
+    ];
+    legend(&mut s, &items, 330.0);
+    s.push_str("</svg>");
+    Figure {
+        name: panel.name.clone(),
+        svg: s,
+    }
+}
+
+/// A small plot area inside the canvas, for the stacked panels of [`contact_end_figure`].
+struct Panel {
+    x0: f64,
+    y0: f64,
+    w: f64,
+    h: f64,
+    y: (f64, f64),
+}
+
+impl Panel {
+    fn px(&self, t: f64) -> f64 {
+        self.x0 + t * self.w
+    }
+    fn py(&self, v: f64) -> f64 {
+        self.y0 + self.h - (v - self.y.0) / (self.y.1 - self.y.0) * self.h
+    }
+    /// Box, zero line, y extremes as labels, a title above.
+    fn frame(&self, s: &mut String, title: &str) {
+        let _ = write!(
+            s,
+            r#"<rect x="{:.1}" y="{:.1}" width="{:.1}" height="{:.1}" fill="none" stroke="black"/>"#,
+            self.x0, self.y0, self.w, self.h
+        );
+        if self.y.0 < 0.0 && self.y.1 > 0.0 {
+            let _ = write!(
+                s,
+                r##"<line x1="{:.1}" x2="{:.1}" y1="{2:.1}" y2="{2:.1}" stroke="#bbb"/>"##,
+                self.x0,
+                self.x0 + self.w,
+                self.py(0.0)
+            );
+        }
+        for v in [self.y.0, self.y.1] {
+            let _ = write!(
+                s,
+                r#"<text x="{:.1}" y="{:.1}" text-anchor="end" font-size="10">{v:.2e}</text>"#,
+                self.x0 - 3.0,
+                self.py(v) + 4.0
+            );
+        }
+        let _ = write!(
+            s,
+            r#"<text x="{:.1}" y="{:.1}" font-size="11">{title}</text>"#,
+            self.x0 + 4.0,
+            self.y0 - 4.0
+        );
+    }
+    fn curve(&self, s: &mut String, values: &[f64], steps: usize, color: &str) {
+        let pts: Vec<String> = values
+            .iter()
+            .enumerate()
+            .map(|(n, &v)| format!("{:.1},{:.1}", self.px(n as f64 / steps as f64), self.py(v)))
+            .collect();
+        let _ = write!(
+            s,
+            r#"<polyline points="{}" fill="none" stroke="{color}" stroke-width="1.6"/>"#,
+            pts.join(" ")
+        );
+    }
+}
+
+/// u(L, t) and the contact force r(t) over one period of the shown orbit of each gap (Fig. 8:
+/// unstressed "a", grazing "b", prestressed "c"), t/T on the abscissa; the dashed line is u = g0.
+pub fn contact_end_figure(ends: &[EndHistory]) -> Figure {
+    let rows = ends.len().max(1) as f64;
+    let (top, bottom, gapx) = (MT + 8.0, 12.0, 80.0);
+    let row_h = (H - top - bottom) / rows;
+    let col_w = (W - ML - MR - gapx) / 2.0;
+    let mut s = String::new();
+    header(
+        &mut s,
+        "Shown orbits over one period: u(L, t) (left), contact force r(t) = S a_N (right)",
+    );
+    for (i, e) in ends.iter().enumerate() {
+        let steps = e.u.len().saturating_sub(1).max(1);
+        let color = gap_color(e.gap);
+        let bounds = |v: &[f64], extra: f64| {
+            let (lo, hi) = v
+                .iter()
+                .fold((extra, extra), |(a, b), &x| (a.min(x), b.max(x)));
+            let pad = 0.08 * (hi - lo).max(1e-300);
+            (lo - pad, hi + pad)
+        };
+        let y0 = top + i as f64 * row_h + 8.0;
+        let h = row_h - 36.0;
+        let left = Panel {
+            x0: ML,
+            y0,
+            w: col_w,
+            h,
+            y: bounds(&e.u, e.gap),
+        };
+        let letter = if e.gap > 0.0 {
+            "a"
+        } else if e.gap < 0.0 {
+            "c"
+        } else {
+            "b"
+        };
+        left.frame(
+            &mut s,
+            &format!(
+                "{letter}: g₀ = {:e}, (m, p) = ({}, {}); u(L, t)",
+                e.gap, e.m, e.p
+            ),
+        );
+        let _ = write!(
+            s,
+            r##"<line x1="{:.1}" x2="{:.1}" y1="{2:.1}" y2="{2:.1}" stroke="#444" stroke-dasharray="5 3"/>"##,
+            left.x0,
+            left.x0 + left.w,
+            left.py(e.gap)
+        );
+        left.curve(&mut s, &e.u, steps, color);
+        let right = Panel {
+            x0: ML + col_w + gapx,
+            y0,
+            w: col_w,
+            h,
+            y: bounds(&e.force, 0.0),
+        };
+        right.frame(
+            &mut s,
+            &format!(
+                "ω/ω₁ = {:.4}, E/E_lin = {:.4}; r(t) ≤ 0",
+                e.omega_over_omega1, e.energy_normalized
+            ),
+        );
+        right.curve(&mut s, &e.force, steps, color);
+        for p in [&left, &right] {
+            for (f, text) in [(0.0, "0"), (0.5, "t/T = 0.5"), (1.0, "1")] {
+                let _ = write!(
+                    s,
+                    r#"<text x="{:.1}" y="{:.1}" text-anchor="middle" font-size="10">{text}</text>"#,
+                    p.px(f),
+                    p.y0 + p.h + 12.0
+                );
+            }
+        }
+    }
+    s.push_str("</svg>");
+    Figure {
+        name: "contact_end".into(),
         svg: s,
     }
 }

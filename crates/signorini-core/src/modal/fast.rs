@@ -25,7 +25,7 @@
 //! exit decides this (it assumes u(0) = u(T) up to round-off, which holds for every kernel
 //! vector by the discrete conservation law (27)).
 
-use super::orbit::{ADMISSIBILITY_TOLERANCE, Orbit};
+use super::orbit::{ADMISSIBILITY_TOLERANCE, Orbit, grazing, has_wall_force};
 use super::{BackbonePoint, candidate_phases, examine, point};
 use crate::scenes::LeftEnd;
 use crate::wfem::WaveBar;
@@ -250,9 +250,11 @@ fn admissible(bar: &WaveBar, m: usize, p: usize, h: usize, s: &mut Scratch) -> O
         }
         opens |= ui < g0 - tol_u;
     }
-    if !opens || s.y[m..].iter().any(|&r| r > tol_a) {
+    if !opens || s.y[m..].iter().any(|&r| r > tol_a) || !has_wall_force(&s.y[m..], tol_a) {
         return None;
     }
+    let zero_force_steps = s.y[m..].iter().filter(|r| r.abs() <= tol_a).count();
+    let grazing_steps = grazing(&s.u[..=m], g0, tol_u);
     let ring: Vec<f64> = (0..n2).map(|k| s.y[((n - 1 + n2 - k) % n2) % t]).collect();
     let max_abs = ring.iter().fold(0.0f64, |a, x| a.max(x.abs()));
     if max_abs >= bar.young {
@@ -266,5 +268,7 @@ fn admissible(bar: &WaveBar, m: usize, p: usize, h: usize, s: &mut Scratch) -> O
         kernel_dim: h,
         energy,
         u: s.u.clone(),
+        zero_force_steps,
+        grazing_steps,
     })
 }

@@ -5,7 +5,7 @@
 //! energy averaged over `average_periods` periods. Tasks run in parallel on the threads the
 //! caller grants.
 
-use super::{mode_points, scan};
+use super::{mode_points, scan_with};
 use crate::observer::{Observer, Progress};
 use crate::outcome::{
     Chart, ForcedChart, ForcedPoint, ForcedSummary, RunError, RunOutput, RunSummary, SummaryBody,
@@ -269,7 +269,7 @@ pub fn run_forced(
         .collect();
     let backbone = if job.backbone {
         let n = job.cells;
-        scan(&job.bar, (2 * n, 4 * n), 1, false, threads, &|| {
+        scan_with(&job.bar, (2 * n, 4 * n), 1, false, false, threads, &|| {
             ControlFlow::Continue(())
         })
         .unwrap_or_default()

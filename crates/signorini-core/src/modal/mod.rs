@@ -14,8 +14,8 @@ pub mod orbit;
 
 use crate::observer::{Observer, Progress};
 use crate::outcome::{
-    Chart, GapScan, ModePoint, ModesSummary, RunError, RunOutput, RunSummary, StabilityRun,
-    SummaryBody, SummaryHeader, Table,
+    BackbonePanel, Chart, EndHistory, GapScan, MarkedPoint, ModePoint, ModesSummary, RunError,
+    RunOutput, RunSummary, StabilityRun, SummaryBody, SummaryHeader, Table,
 };
 use crate::spec::{ModalSpec, SpecError};
 use crate::wfem::{EndCondition, WaveBar};
@@ -136,8 +136,15 @@ pub struct BackbonePoint {
     pub k: usize,
     /// dim ker S_T.
     pub kernel_dim: usize,
-    /// The orbit, when admissible.
+    /// What the table keeps of the admissible orbit (`None`: not admissible).
+    pub admissible: Option<OrbitClass>,
+    /// The admissible orbit's shape (ring state, u(L, t)), when the scan keeps shapes: [`scan`]
+    /// and [`examine`] keep them, the job's scan ([`scan_with`] without shapes) does not, and
+    /// recomputes the shown orbits with [`examine`].
     pub orbit: Option<Orbit>,
+    /// k of the main branch (2k − 1) m + 2k p = 4N the admissible one-contact-phase orbit lies
+    /// on ([`main_branch`]), if any.
+    pub branch: Option<usize>,
     /// Period T = (m + p [+ k + p]) Δt.
     pub period: f64,
     /// Total contact duration per period.
@@ -146,6 +153,42 @@ pub struct BackbonePoint {
     pub omega_over_omega1: f64,
     /// Energy / E_lin (11) (for g0 = 0, with 10⁻³ L in place of |g0|).
     pub energy_normalized: f64,
+}
+
+/// What a backbone row says of an admissible orbit; kept for every point, while the orbit's
+/// shape (O(N + T) values) is kept only for the points a job shows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OrbitClass {
+    /// Cell energy (conserved).
+    pub energy: f64,
+    /// Contact steps with a zero force (52) to round-off ([`Orbit::zero_force_steps`]).
+    pub zero_force_steps: usize,
+    /// Grazing instants inside the free phases ([`Orbit::grazing_steps`]).
+    pub grazing_steps: usize,
+}
+
+impl OrbitClass {
+    /// The class of an admissible orbit.
+    pub fn of(orbit: &Orbit) -> Self {
+        OrbitClass {
+            energy: orbit.energy,
+            zero_force_steps: orbit.zero_force_steps,
+            grazing_steps: orbit.grazing_steps,
+        }
+    }
+}
+
+/// The main branch k ≥ 1 a one-contact-phase candidate (m, p) lies on: (2k − 1) m + 2k p = 4N,
+/// i.e. 2k (m + p) = 4N + m. Along that line T = m + p runs over (4N/2k, 4N/(2k − 1)), so
+/// ω ∈ (ω_k, Ω_k) (10); at g0 = 0 it meets the asymptote ω₁(ω_k/ω₁ + 1)²/(ω_k/ω₁ + 2) (§6.1) at
+/// T = 4N(2k + 1)/(2k)². The relation is that of the piecewise-linear main-branch orbits (one
+/// free phase, one contact phase, §6.1, Fig. 8).
+pub fn main_branch(cells: usize, m: usize, p: usize) -> Option<usize> {
+    let t2 = 2 * (m + p);
+    let rhs = 4 * cells + m;
+    rhs.is_multiple_of(t2)
+        .then_some(rhs / t2)
+        .filter(|&k| k >= 1)
 }
 
 /// Energy of the grazing first linear mode (11): `u = A sin(πx/2L) cos ω₁t` with A = |g0|
@@ -207,13 +250,20 @@ pub(crate) fn point(
     let e_norm = orbit
         .as_ref()
         .map_or(f64::NAN, |o| o.energy / linear_grazing_energy(bar));
+    let admissible = orbit.as_ref().map(OrbitClass::of);
     BackbonePoint {
         gap: bar.gap,
         m,
         p,
         k,
         kernel_dim: h,
+        admissible,
         orbit,
+        branch: if k == 0 && admissible.is_some() {
+            main_branch(bar.cells, m, p)
+        } else {
+            None
+        },
         period,
         contact_duration: contact,
         omega_over_omega1: 2.0 * std::f64::consts::PI / period / omega1,
@@ -225,12 +275,35 @@ pub(crate) fn point(
 /// m + p = T for one contact phase, (m, p, k) with m + 2p + k = T, m ≤ k for two. Runs the
 /// periods on `threads` threads; `on_period` is called after each period (progress) and stops
 /// the scan when it returns `Break`. Returns the points with a nontrivial kernel (admissible only
-/// unless `all_candidates`), sorted by (period, m, p).
+/// unless `all_candidates`), sorted by (period, m, p), each with its orbit's shape.
 pub fn scan(
     bar: &WaveBar,
     periods: (usize, usize),
     phases: usize,
     all_candidates: bool,
+    threads: usize,
+    on_period: &(dyn Fn() -> ControlFlow<()> + Sync),
+) -> Result<Vec<BackbonePoint>, u64> {
+    scan_with(
+        bar,
+        periods,
+        phases,
+        all_candidates,
+        true,
+        threads,
+        on_period,
+    )
+}
+
+/// [`scan`], keeping each admissible orbit's shape (its ring of 2N values and u(L, t) over T + 1
+/// steps) only when `keep_shapes`: without, a point holds its [`OrbitClass`] alone, so a scan
+/// of N = 1000 to T = 4000 holds kilobytes per thousand orbits instead of 48 MB.
+pub fn scan_with(
+    bar: &WaveBar,
+    periods: (usize, usize),
+    phases: usize,
+    all_candidates: bool,
+    keep_shapes: bool,
     threads: usize,
     on_period: &(dyn Fn() -> ControlFlow<()> + Sync),
 ) -> Result<Vec<BackbonePoint>, u64> {
@@ -252,13 +325,20 @@ pub fn scan(
                         if t > t_max {
                             break;
                         }
+                        let mut keep = |mut pt: BackbonePoint| {
+                            if all_candidates || pt.admissible.is_some() {
+                                if !keep_shapes {
+                                    pt.orbit = None;
+                                }
+                                out.push(pt);
+                            }
+                        };
                         if phases == 1 {
                             for p in 1..t {
                                 if let Some(pt) =
                                     fast::examine_one_contact(bar, t - p, p, &mut scratch)
-                                    && (all_candidates || pt.orbit.is_some())
                                 {
-                                    out.push(pt);
+                                    keep(pt);
                                 }
                             }
                         } else {
@@ -269,10 +349,8 @@ pub fn scan(
                                     if k == 0 {
                                         continue;
                                     }
-                                    if let Some(pt) = examine(bar, m, p, k)
-                                        && (all_candidates || pt.orbit.is_some())
-                                    {
-                                        out.push(pt);
+                                    if let Some(pt) = examine(bar, m, p, k) {
+                                        keep(pt);
                                     }
                                 }
                             }
@@ -315,8 +393,11 @@ pub fn main_asymptote(k: usize) -> f64 {
     (r + 1.0) * (r + 1.0) / (r + 2.0)
 }
 
-/// Columns of `backbone.csv`.
-pub const BACKBONE_COLUMNS: [&str; 12] = [
+/// Columns of `backbone.csv`. The last three classify an admissible orbit: `branch` (k of the
+/// main branch it lies on, [`main_branch`]; NaN, i.e. empty, off the main branches and for two
+/// contact phases), `zero_force_steps` and `grazing_steps` ([`OrbitClass`]; NaN when not
+/// admissible).
+pub const BACKBONE_COLUMNS: [&str; 15] = [
     "gap",
     "m",
     "p",
@@ -329,34 +410,41 @@ pub const BACKBONE_COLUMNS: [&str; 12] = [
     "period",
     "contact_duration",
     "phases",
+    "branch",
+    "zero_force_steps",
+    "grazing_steps",
 ];
 
 /// One row of `backbone.csv` ([`BACKBONE_COLUMNS`]).
 pub fn backbone_row(pt: &BackbonePoint) -> Vec<f64> {
+    let class = pt.admissible.as_ref();
     vec![
         pt.gap,
         pt.m as f64,
         pt.p as f64,
         pt.k as f64,
         pt.kernel_dim as f64,
-        if pt.orbit.is_some() { 1.0 } else { 0.0 },
+        if class.is_some() { 1.0 } else { 0.0 },
         pt.omega_over_omega1,
-        pt.orbit.as_ref().map_or(f64::NAN, |o| o.energy),
+        class.map_or(f64::NAN, |c| c.energy),
         pt.energy_normalized,
         pt.period,
         pt.contact_duration,
         if pt.k > 0 { 2.0 } else { 1.0 },
+        pt.branch.map_or(f64::NAN, |k| k as f64),
+        class.map_or(f64::NAN, |c| c.zero_force_steps as f64),
+        class.map_or(f64::NAN, |c| c.grazing_steps as f64),
     ]
 }
 
-/// The orbit of the first main mode with the median energy among the admissible points with
-/// ω/ω₁ ∈ (1, 2) and one contact phase (the "point a" of Fig. 5), if any.
+/// The point of the first main branch (m + 2p = 4N, [`main_branch`]) with the median energy
+/// among its admissible points (the "point a" of Fig. 5 for g0 > 0, "c" for g0 < 0; the grazing
+/// (2N, N) for g0 = 0), if any. It is the orbit a job shows (Figs. 8, 9) and runs for stability
+/// (§6.5, Fig. 21).
 pub fn first_mode_orbit(points: &[BackbonePoint]) -> Option<&BackbonePoint> {
     let mut first: Vec<&BackbonePoint> = points
         .iter()
-        .filter(|p| {
-            p.orbit.is_some() && p.k == 0 && p.omega_over_omega1 > 1.0 && p.omega_over_omega1 < 2.0
-        })
+        .filter(|p| p.admissible.is_some() && p.branch == Some(1))
         .collect();
     first.sort_by(|a, b| a.energy_normalized.total_cmp(&b.energy_normalized));
     first.get(first.len() / 2).copied()
@@ -395,11 +483,12 @@ pub fn run_modes(
                         ControlFlow::Continue(())
                     }
                 };
-                scan(
+                scan_with(
                     bar,
                     job.period_steps,
                     job.phases,
                     job.all_candidates,
+                    false,
                     threads,
                     &on_period,
                 )
@@ -426,7 +515,7 @@ pub fn run_modes(
             Ok(Ok(points)) if !cancelled => points,
             Ok(_) => return Err(RunError::Stopped { step: done_before }),
         };
-        let admissible = points.iter().filter(|p| p.orbit.is_some()).count();
+        let admissible = points.iter().filter(|p| p.admissible.is_some()).count();
         per_gap.push(GapScan {
             gap,
             admissible,
@@ -438,26 +527,50 @@ pub fn run_modes(
     let mut charts = vec![Chart::Backbone(mode_points(
         all_points.iter().flat_map(|(_, p)| p),
     ))];
+    // The shown orbit of each gap lies on the first main branch; its shape is computed again
+    // here (the scan kept none).
     let mut stability = None;
+    let mut ends = Vec::new();
+    let mut marked = Vec::new();
     for (bar, points) in &all_points {
-        if let Some(pt) = first_mode_orbit(points)
-            && let Some(orbit) = &pt.orbit
-        {
-            let name = format!("orbit_gap_{}", gap_label(bar.gap));
-            charts.push(Chart::SpaceTime(orbit::space_time(&name, bar, orbit)));
-            if job.stability_periods > 0 && bar.gap > 0.0 && stability.is_none() {
-                let st = orbit::stability(bar, orbit, job.stability_periods, 1e-6);
-                stability = Some(StabilityRun {
-                    gap: bar.gap,
-                    m: pt.m,
-                    p: pt.p,
-                    periods: st.periods,
-                    perturbation: st.perturbation,
-                    relative_deviation: st.relative_deviation,
-                    orbit_drift: st.orbit_drift,
-                });
-            }
+        let Some(pt) = first_mode_orbit(points) else {
+            continue;
+        };
+        let Some(orbit) = examine(bar, pt.m, pt.p, pt.k).and_then(|shown| shown.orbit) else {
+            continue;
+        };
+        let name = format!("orbit_gap_{}", gap_label(bar.gap));
+        charts.push(Chart::SpaceTime(orbit::space_time(&name, bar, &orbit)));
+        ends.push(end_history(bar, pt, &orbit));
+        let letter = point_letter(bar.gap);
+        let mut label = format!(
+            "{letter}: g₀ = {:e}, (m, p) = ({}, {})",
+            bar.gap, pt.m, pt.p
+        );
+        if job.stability_periods > 0 && bar.gap > 0.0 && stability.is_none() {
+            let st = orbit::stability(bar, &orbit, job.stability_periods, 1e-6);
+            label = format!(
+                "{label}; 1e-6 perturbation → distance {:.0e} after {} T",
+                st.relative_deviation, st.periods
+            );
+            stability = Some(StabilityRun {
+                gap: bar.gap,
+                m: pt.m,
+                p: pt.p,
+                periods: st.periods,
+                perturbation: st.perturbation,
+                relative_deviation: st.relative_deviation,
+                orbit_drift: st.orbit_drift,
+            });
         }
+        marked.push(MarkedPoint {
+            point: mode_point(pt),
+            label,
+        });
+    }
+    charts.extend(mode_panels(all_points.iter().flat_map(|(_, p)| p), &marked));
+    if !ends.is_empty() {
+        charts.push(Chart::ContactEnd(ends));
     }
     let body = SummaryBody::NonsmoothModes(ModesSummary {
         cells: job.cells,
@@ -478,15 +591,82 @@ pub fn run_modes(
     })
 }
 
+/// Modes drawn one panel each (Figs. 5 and 6 draw K = 1, 2), when the scan reached them.
+pub const PANEL_MODES: usize = 4;
+
+/// One [`BackbonePanel`] per mode K ≤ [`PANEL_MODES`] whose main branch has admissible points:
+/// the admissible points with ω/ω₁ ∈ [2K − 1.1, 2K + 0.1] (ω_K = (2K − 1)ω₁, Ω_K = 2Kω₁, (10)).
+fn mode_panels<'a>(
+    points: impl Iterator<Item = &'a BackbonePoint> + Clone,
+    marked: &[MarkedPoint],
+) -> Vec<Chart> {
+    (1..=PANEL_MODES)
+        .filter(|&k| points.clone().any(|p| p.branch == Some(k)))
+        .map(|k| {
+            let (lo, hi) = ((2 * k) as f64 - 1.1, (2 * k) as f64 + 0.1);
+            let inside = |w: f64| w >= lo && w <= hi;
+            Chart::BackbonePanel(BackbonePanel {
+                name: format!("backbone_mode_{k}"),
+                mode: k,
+                points: mode_points(points.clone().filter(|p| inside(p.omega_over_omega1))),
+                marked: marked
+                    .iter()
+                    .filter(|m| inside(m.point.omega_over_omega1))
+                    .cloned()
+                    .collect(),
+            })
+        })
+        .collect()
+}
+
+/// The letters of Fig. 5 and 8: "a" unstressed (g0 > 0), "b" grazing, "c" prestressed.
+fn point_letter(g: f64) -> &'static str {
+    if g > 0.0 {
+        "a"
+    } else if g < 0.0 {
+        "c"
+    } else {
+        "b"
+    }
+}
+
+/// u(L, t) and the contact force (52) over one period of an admissible orbit (Fig. 8).
+fn end_history(bar: &WaveBar, pt: &BackbonePoint, orbit: &Orbit) -> EndHistory {
+    let traj = orbit::trajectory(bar, &orbit.phases, &orbit.ring);
+    let mut force = Vec::with_capacity(traj.a_end.len());
+    for &(end, steps) in &orbit.phases {
+        let n = force.len();
+        force.extend(traj.a_end[n..n + steps].iter().map(|&a| match end {
+            EndCondition::Contact => bar.area * a,
+            EndCondition::Free => 0.0,
+        }));
+    }
+    EndHistory {
+        gap: bar.gap,
+        m: pt.m,
+        p: pt.p,
+        omega_over_omega1: pt.omega_over_omega1,
+        energy_normalized: pt.energy_normalized,
+        period: pt.period,
+        u: traj.u,
+        force,
+    }
+}
+
+fn mode_point(p: &BackbonePoint) -> ModePoint {
+    ModePoint {
+        gap: p.gap,
+        omega_over_omega1: p.omega_over_omega1,
+        energy_normalized: p.energy_normalized,
+        branch: p.branch,
+    }
+}
+
 /// The admissible points of a scan, for the backbone figures.
 pub(crate) fn mode_points<'a>(points: impl Iterator<Item = &'a BackbonePoint>) -> Vec<ModePoint> {
     points
-        .filter(|p| p.orbit.is_some())
-        .map(|p| ModePoint {
-            gap: p.gap,
-            omega_over_omega1: p.omega_over_omega1,
-            energy_normalized: p.energy_normalized,
-        })
+        .filter(|p| p.admissible.is_some())
+        .map(mode_point)
         .collect()
 }
 

@@ -47,6 +47,11 @@ pub struct Orbit {
     pub energy: f64,
     /// Contact-end displacement over the period, n = 0..=T.
     pub u: Vec<f64>,
+    /// Contact steps whose force (52) is zero to round-off (|r| ≤ 10⁻⁹ max|a_N|).
+    pub zero_force_steps: usize,
+    /// Free steps strictly inside a free phase where the end touches the wall
+    /// (u = g0 to round-off): the grazing instants of §6.2.
+    pub grazing_steps: usize,
 }
 
 impl Orbit {
@@ -77,7 +82,10 @@ pub const ADMISSIBILITY_TOLERANCE: f64 = 1e-9;
 /// conditions hold and COND1 (u ≤ g0 in the free phases, and a grazing end leaves: a_N ≥ 0),
 /// COND2 (contact force (52) r = S a_N ≤ 0 in the contact phases) and COND3 (ε > −1) hold.
 /// A free step from a closed gap needs a strictly tensile (52) r > 0, as in Algorithm 2, so the
-/// split of a period into free and contact steps is the one Algorithm 2 reproduces.
+/// split of a period into free and contact steps is the one Algorithm 2 reproduces. An orbit
+/// whose contact phases carry no force at all (r = 0 to round-off at every contact step: a free
+/// vibration of the bar that only touches the wall, A_f^T Q⁽⁰⁾ = Q⁽⁰⁾, whose free/contact split
+/// round-off decides) is not a nonsmooth mode and is rejected ([`has_wall_force`]).
 pub fn admissible_orbit(
     bar: &WaveBar,
     phases: &[(EndCondition, usize)],
@@ -178,6 +186,15 @@ pub fn admissible_orbit(
             return None;
         }
     }
+    let contact_forces = || contact_ranges.iter().flat_map(|&(a, b)| a_end[a..b].iter());
+    if !has_wall_force(contact_forces(), tol_a) {
+        return None;
+    }
+    let zero_force_steps = contact_forces().filter(|r| r.abs() <= tol_a).count();
+    let grazing_steps = free_ranges
+        .iter()
+        .map(|&(a, b)| grazing(&u[a..=b], g0, tol_u))
+        .sum();
     let mut ring = vec![0.0; basis[0].len()];
     for (x, a) in basis.iter().zip(&alpha) {
         for (r, xi) in ring.iter_mut().zip(x) {
@@ -197,7 +214,27 @@ pub fn admissible_orbit(
         kernel_dim: h,
         energy,
         u,
+        zero_force_steps,
+        grazing_steps,
     })
+}
+
+/// Some contact step carries a strictly compressive force (52), r < −`tol` (a nonsmooth mode,
+/// not a free vibration that touches the wall).
+pub fn has_wall_force<'a>(contact_forces: impl IntoIterator<Item = &'a f64>, tol: f64) -> bool {
+    contact_forces.into_iter().any(|&r| r < -tol)
+}
+
+/// Grazing instants of one free phase `u[0..=m]` (u(0) and u(m) are the opening and the
+/// closure): the steps strictly inside with u ≥ g0 − `tol`.
+pub fn grazing(free_u: &[f64], g0: f64, tol: f64) -> usize {
+    let inner = free_u.len().saturating_sub(1);
+    free_u
+        .iter()
+        .take(inner)
+        .skip(1)
+        .filter(|&&u| u >= g0 - tol)
+        .count()
 }
 
 /// Result of a stability run (§6.5).

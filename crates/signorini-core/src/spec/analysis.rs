@@ -14,6 +14,16 @@ pub enum AnalysisSpec {
     ForcedResponse(ForcedResponseSpec),
 }
 
+impl AnalysisSpec {
+    /// The analysis' `kind`, as spelled in the spec (`nonsmooth_modes`, `forced_response`).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            AnalysisSpec::NonsmoothModes(_) => "nonsmooth_modes",
+            AnalysisSpec::ForcedResponse(_) => "forced_response",
+        }
+    }
+}
+
 fn default_cells() -> usize {
     100
 }
