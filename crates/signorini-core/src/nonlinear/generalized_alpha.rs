@@ -919,6 +919,12 @@ pub fn run_ns_alpha<S: JointedSystem + ?Sized>(
     observer.start(&columns);
     let every = output.every.max(1);
     let mut report = NsAlphaStepReport::of_state(system, state);
+    if nb > 0 {
+        // The multipliers of the start, from the consistent accelerations.
+        if let Some((_, lambda)) = scheme.consistent(system, state.t, &state.q, &state.v) {
+            report.lambda = lambda;
+        }
+    }
     let e0 = report.base.energy();
     let mut stats = NsAlphaRunStats {
         base: NonlinearRunStats {
