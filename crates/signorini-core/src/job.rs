@@ -12,6 +12,10 @@ use crate::lagrangian::UserModel;
 use crate::lcp::LcpOptions;
 use crate::model::{Contact, Forcing, HarmonicLoad, LinearModel, ModelError};
 use crate::nonlinear::LagrangianSystem;
+use crate::nonlinear::generalized_alpha::{
+    JointedSystem, NonsmoothGeneralizedAlpha, NsAlphaParams, NsAlphaSummary, ns_alpha_columns,
+    run_ns_alpha,
+};
 use crate::nonlinear::moreau_jean::{
     NewtonOptions, NonlinearMoreauJean, NonlinearMoreauJeanParams, NonlinearState,
     nonlinear_columns, run_nonlinear,
@@ -53,6 +57,19 @@ enum JobKind {
     Soi2(Box<Soi2Job>),
     Wave(Box<WaveJob>),
     Nonlinear(Box<NonlinearJob>),
+    NsAlpha(Box<NsAlphaJob>),
+}
+
+/// A `lagrangian` model (joints, contacts, both or neither) under the nonsmooth generalized-α
+/// scheme of `nonlinear::generalized_alpha`.
+#[derive(Debug, Clone)]
+struct NsAlphaJob {
+    model: UserModel,
+    /// The scheme, built (and its parameters checked) at validation; each run clones it.
+    scheme: NonsmoothGeneralizedAlpha,
+    h: f64,
+    steps: u64,
+    output: OutputOptions,
 }
 
 /// A `lagrangian` model with contacts under the nonlinear Moreau–Jean time-stepping.
@@ -128,9 +145,9 @@ impl LinearJob {
     }
 }
 
-/// A `lagrangian` model under a scheme of the linear family: only `moreau_jean` (the nonlinear
-/// Moreau–Jean time-stepping of Acary & Brogliato 2008, ch. 10) can take it, with contacts and
-/// without joints. The model is compiled and checked first, so a bad model is reported before
+/// A `lagrangian` model under a scheme of the linear family other than `ns_generalized_alpha`
+/// (`lagrangian_ns_alpha`): only `moreau_jean` (the nonlinear Moreau–Jean time-stepping of
+/// Acary & Brogliato 2008, ch. 10) can take it, with contacts and without joints. The model is compiled and checked first, so a bad model is reported before
 /// the scheme.
 fn lagrangian_moreau_jean(
     m: &ModelSpec,
@@ -144,13 +161,13 @@ fn lagrangian_moreau_jean(
     if model.joints() > 0 && !l.contacts.is_empty() {
         return Err(SpecError::new(
             "model.constraints",
-            "joints and contacts together are not supported yet: moreau_jean takes contacts, the SOI2 schemes take joints",
+            "joints and contacts together are not supported yet under moreau_jean: ns_generalized_alpha takes both",
         ));
     }
     if model.joints() > 0 {
         return Err(SpecError::new(
             "integrator.scheme",
-            "moreau_jean does not take joints: use soi2_generalized_alpha, soi2_hht or hht_i3 for a model with joints",
+            "moreau_jean does not take joints: use soi2_generalized_alpha, soi2_hht, hht_i3 or ns_generalized_alpha for a model with joints",
         ));
     }
     let IntegratorSpec::MoreauJean(p) = &spec.integrator else {
@@ -188,6 +205,94 @@ fn lagrangian_moreau_jean(
     })))
 }
 
+/// A `lagrangian` model under `ns_generalized_alpha`: the coefficients and their checks are the
+/// linear member's (`rho_inf`, or `alpha_m`, `alpha_f`, `beta`, `gamma`; `allow_unstable`); the
+/// index set is the scheme's own (the predicted gap), so `activation` is refused. The start must
+/// satisfy the joints at velocity level, with independent joints.
+fn lagrangian_ns_alpha(l: &LagrangianSpec, spec: &JobSpec) -> Result<JobKind, SpecError> {
+    let model = UserModel::new(l)?;
+    let IntegratorSpec::NsGeneralizedAlpha(p) = &spec.integrator else {
+        return Err(SpecError::new(
+            "integrator.scheme",
+            "only ns_generalized_alpha runs here",
+        ));
+    };
+    if p.index_set != Default::default() {
+        return Err(SpecError::new(
+            "integrator.activation",
+            "a lagrangian model under ns_generalized_alpha takes the contacts whose predicted gap g(q̃_(k+1)) is ≤ 0 (Chen et al. 2013): leave activation and activation_gamma out",
+        ));
+    }
+    let alpha = alpha_params(&spec.integrator)?;
+    let params = NsAlphaParams {
+        alpha_m: alpha.alpha_m,
+        alpha_f: alpha.alpha_f,
+        beta: alpha.beta,
+        gamma: alpha.gamma,
+        newton: NewtonOptions::default(),
+    };
+    check_joint_start(&model)?;
+    let steps = spec.time_section()?.steps(false)?;
+    let lcp = spec.contact_solver.options()?;
+    let output = spec
+        .output
+        .options(Probes::Dofs(LagrangianSystem::dofs(&model)))?;
+    let scheme = NonsmoothGeneralizedAlpha::new(&model, params, steps.h, lcp).map_err(|e| {
+        let field = match e.field {
+            "h" => "time.h".to_string(),
+            other => format!("integrator.{other}"),
+        };
+        SpecError::new(field, e.reason)
+    })?;
+    Ok(JobKind::NsAlpha(Box::new(NsAlphaJob {
+        model,
+        scheme,
+        h: steps.h,
+        steps: steps.count(),
+        output,
+    })))
+}
+
+/// The joints of a user model at its start: G(q0) of full row rank (`model.constraints`), and
+/// G(q0) v0 + g_t = 0 to [`crate::lagrangian::JOINT_TOLERANCE`] relative to max(1, ‖G‖‖v0‖)
+/// (`model.v0`).
+fn check_joint_start(model: &UserModel) -> Result<(), SpecError> {
+    let (n, nb) = (LagrangianSystem::dofs(model), JointedSystem::joints(model));
+    if nb == 0 {
+        return Ok(());
+    }
+    let (q0, v0) = LagrangianSystem::initial(model);
+    let mut g = vec![0.0; nb * n];
+    model.joint_jacobian(0.0, &q0, &mut g);
+    let gm = nalgebra::DMatrix::from_row_slice(nb, n, &g);
+    let sv = gm.singular_values();
+    let (smax, smin) = (sv.max(), sv.min());
+    // A NaN in g_q fails the comparison, hence the check, too.
+    let independent = nb <= n && smin > 1e-10 * smax;
+    if !independent {
+        return Err(SpecError::new(
+            "model.constraints",
+            format!(
+                "the joints are not independent at q0 (singular values of g_q from {smax:e} down to {smin:e}): ns_generalized_alpha needs g_q of full row rank"
+            ),
+        ));
+    }
+    let mut r = vec![0.0; nb];
+    model.joint_rates(0.0, &q0, &v0, &mut r);
+    let size = smax * v0.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+    let worst = r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if worst > crate::lagrangian::JOINT_TOLERANCE * size {
+        return Err(SpecError::new(
+            "model.v0",
+            format!(
+                "the joints are violated at velocity level: |g_q v0 + g_t| = {worst:e} (tolerance {:e})",
+                crate::lagrangian::JOINT_TOLERANCE * size
+            ),
+        ));
+    }
+    Ok(())
+}
+
 impl Job {
     /// Validates `spec` and builds the job. Every error names the offending field. The job's
     /// kind follows from the sections: an `[analysis]`, or the pair (scene, scheme family).
@@ -217,6 +322,11 @@ impl Job {
             }
             (None, Some(m @ ModelSpec::Lagrangian(_)), SchemeFamily::Soi2) => {
                 JobKind::Soi2(Box::new(Soi2Job::from_spec(m, spec)?))
+            }
+            (None, Some(ModelSpec::Lagrangian(l)), SchemeFamily::Linear)
+                if matches!(spec.integrator, IntegratorSpec::NsGeneralizedAlpha(_)) =>
+            {
+                lagrangian_ns_alpha(l, spec)?
             }
             (None, Some(m @ ModelSpec::Lagrangian(l)), SchemeFamily::Linear) => {
                 lagrangian_moreau_jean(m, l, spec)?
@@ -280,6 +390,21 @@ impl Job {
                     output_bytes: recorded.saturating_mul(columns as u64 * 8),
                 }
             }
+            JobKind::NsAlpha(j) => {
+                let recorded = j.steps / j.output.every.max(1) + 2;
+                let columns = ns_alpha_columns(
+                    LagrangianSystem::contacts(&j.model),
+                    JointedSystem::joints(&j.model),
+                    &j.output.probes,
+                )
+                .len()
+                    + 2;
+                JobSize {
+                    dofs: LagrangianSystem::dofs(&j.model) as u64,
+                    steps: j.steps,
+                    output_bytes: recorded.saturating_mul(columns as u64 * 8),
+                }
+            }
         }
     }
 }
@@ -297,6 +422,7 @@ pub fn run(job: &Job, threads: usize, observer: &mut dyn Observer) -> Result<Run
         JobKind::Soi2(j) => run_soi2_job(job, j, &mut trace),
         JobKind::Wave(j) => j.run(header(job), threads, &mut trace),
         JobKind::Nonlinear(j) => run_nonlinear_job(job, j, &mut trace),
+        JobKind::NsAlpha(j) => run_ns_alpha_job(job, j, &mut trace),
     }?;
     output.charts.extend(trace.charts());
     Ok(output)
@@ -323,6 +449,40 @@ fn run_nonlinear_job(
         h: j.h,
         stats,
     });
+    Ok(RunOutput {
+        summary: RunSummary::new(header(job), body),
+        tables: Vec::new(),
+        charts: Vec::new(),
+    })
+}
+
+fn run_ns_alpha_job(
+    job: &Job,
+    j: &NsAlphaJob,
+    observer: &mut dyn Observer,
+) -> Result<RunOutput, RunError> {
+    let mut scheme = j.scheme.clone();
+    let mut state = NonlinearState::initial(&j.model);
+    let stats = run_ns_alpha(
+        &j.model,
+        &mut scheme,
+        &mut state,
+        j.steps,
+        &j.output,
+        observer,
+    )?;
+    let p = scheme.params();
+    let body = SummaryBody::NsAlpha(Box::new(NsAlphaSummary {
+        dofs: LagrangianSystem::dofs(&j.model),
+        contacts: LagrangianSystem::contacts(&j.model),
+        joints: JointedSystem::joints(&j.model),
+        h: j.h,
+        alpha_m: p.alpha_m,
+        alpha_f: p.alpha_f,
+        beta: p.beta,
+        gamma: p.gamma,
+        stats,
+    }));
     Ok(RunOutput {
         summary: RunSummary::new(header(job), body),
         tables: Vec::new(),

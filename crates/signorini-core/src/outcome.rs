@@ -4,6 +4,7 @@
 
 use crate::band::BandError;
 use crate::integrators::{LinearRunStats, RunStop, StepError};
+use crate::nonlinear::generalized_alpha::NsAlphaSummary;
 use crate::nonlinear::moreau_jean::{NonlinearRunStats, NonlinearRunStop, NonlinearStepError};
 use crate::soi2::{GlobalErrors, Soi2Error};
 use serde::Serialize;
@@ -358,6 +359,10 @@ pub enum SummaryBody {
     /// A nonlinear Lagrangian model with contacts under the nonlinear Moreau–Jean scheme.
     #[serde(rename = "time_integration")]
     Nonlinear(NonlinearSummary),
+    /// A nonlinear Lagrangian model with joints and contacts under the nonsmooth
+    /// generalized-α scheme.
+    #[serde(rename = "time_integration")]
+    NsAlpha(Box<NsAlphaSummary>),
     /// Backbones of the nonsmooth modes.
     NonsmoothModes(ModesSummary),
     /// A forced-response sweep.
@@ -372,6 +377,7 @@ impl SummaryBody {
             SummaryBody::Soi2(s) => Some(s.steps),
             SummaryBody::Wave(s) => Some(s.stats.steps),
             SummaryBody::Nonlinear(s) => Some(s.stats.steps),
+            SummaryBody::NsAlpha(s) => Some(s.stats.base.steps),
             SummaryBody::NonsmoothModes(_) | SummaryBody::ForcedResponse(_) => None,
         }
     }

@@ -12,8 +12,11 @@
 //! forces, part of the energy) and f the applied non-conservative forces (their work is
 //! `work_ext`). [`LagrangianSystem`] is the interface an integrator needs: values and exact
 //! Jacobians, no finite differences. The user models of `scene = "lagrangian"` implement it
-//! from compiled expressions; a test can implement it by hand. [`moreau_jean`] runs it.
+//! from compiled expressions; a test can implement it by hand. [`moreau_jean`] runs it;
+//! [`generalized_alpha`] (the nonsmooth generalized-α scheme) runs it with bilateral joints too
+//! ([`generalized_alpha::JointedSystem`]).
 
+pub mod generalized_alpha;
 pub mod moreau_jean;
 
 /// A nonlinear mechanical system with unilateral contacts, as the nonlinear Moreau–Jean

@@ -1,0 +1,1025 @@
+//! The nonsmooth generalized-α scheme for nonlinear Lagrangian systems with bilateral joints
+//! and unilateral contacts: Chen, Acary, Virlez & Brüls 2013, "A nonsmooth generalized-α scheme
+//! for flexible multibody systems with unilateral constraints" (IJNME 96:487–511,
+//! doi:10.1002/nme.4568), with the simultaneous enforcement of the constraints at position and
+//! velocity levels of Brüls, Acary & Cardona 2014 (CMAME 281:131–161,
+//! doi:10.1016/j.cma.2014.07.025), in its decoupled three-stage form. The papers were not at
+//! hand when this was written: their equations are cited by what they do, not by number. For a
+//! linear system without joints the smooth stage is Acary 2016, (25a), (25e)–(25g).
+//!
+//! The velocity is split into a smooth part, integrated by the generalized-α method of Chung &
+//! Hulbert with Newton iterations on the nonlinear equations of motion, and an impulsive
+//! correction; the positions get a correction of their own that removes the drift of the
+//! joints and the penetration of the contacts. One step from (t_k, q_k, v_k, a_k, q̈_k):
+//!
+//! ```text
+//! smooth stage (generalized-α, joints at acceleration level, Newton on (q̈, λ)):
+//!   (1 − α_m) a_{k+1} + α_m a_k = (1 − α_f) q̈_{k+1} + α_f q̈_k
+//!   q̃ = q_k + h v_k + h²(½ − β) a_k + h² β a_{k+1}
+//!   ṽ = v_k + h(1 − γ) a_k + h γ a_{k+1}
+//!   M(q̃) q̈_{k+1} = F(t_{k+1}, q̃, ṽ) − G(q̃)ᵀ λ_{k+1},    G q̈_{k+1} + κ(t_{k+1}, q̃, ṽ) = 0
+//! position stage (Newton on ν, a mixed LCP per iterate):
+//!   q_{k+1} = q̃ + M(q̃)⁻¹ C(q̃)ᵀ ν,    g(q_{k+1}, t_{k+1}) = 0 (ν_B free),
+//!   0 ≤ g_α(q_{k+1}, t_{k+1}) ⊥ ν_α ≥ 0 on the index set I = {α : g_α(q̃, t_{k+1}) ≤ 0}
+//! velocity stage (one mixed LCP):
+//!   v_{k+1} = ṽ + M(q_{k+1})⁻¹ C(q_{k+1})ᵀ Λ,    G v_{k+1} + g_t = 0 (Λ_B free),
+//!   0 ≤ U^α_{k+1} + e_α U^α_k ⊥ Λ_α ≥ 0 on I (Newton's impact law)
+//! ```
+//!
+//! F = −∇V − c + f are the smooth forces, G = ∂g/∂q the joint Jacobian, κ = d/dt(G v + g_t) at
+//! q̈ = 0 (the joints' curvature term, so that the smooth stage keeps g̈ = 0), H_α = ∇g_α the
+//! gap Jacobians, C = [G; H_I] the rows of the joints and the contacts of the index set, and
+//! U = H v + ∂g/∂t the contacts' local velocities; U_k is U at the start of the step seen
+//! through H(q_{k+1}), as in the nonlinear Moreau–Jean scheme. The smooth contact forces are
+//! not part of the smooth stage: a lasting contact is held by the two corrections, step after
+//! step (the first-order part of the scheme, which Chen et al. 2013 remove with an
+//! acceleration-level complementarity in the smooth stage). The joint multipliers λ are
+//! reported with the sign of the SOI2 schemes (M q̈ = F − Gᵀλ), so that the `lambda_j` columns
+//! of both agree.
+//!
+//! Coefficients from ρ∞ (Chung & Hulbert 1993; Acary 2016, (26)–(27)): α_m = (2ρ∞ − 1)/(ρ∞ + 1),
+//! α_f = ρ∞/(ρ∞ + 1), γ = ½ + α_f − α_m, β = ¼(γ + ½)². Between impacts the scheme is the
+//! generalized-α method on the index-1 form of the joints followed by a projection onto
+//! g = 0 and G v + g_t = 0, whose corrections are of the size of the local drift, O(h³): second
+//! order in q, v and λ (measured in `tests/nonlinear_ns_alpha.rs`).
+//!
+//! Newton's iteration matrices neglect the derivatives of M(q̃) and G(q̃) along the step (as the
+//! nonlinear Moreau–Jean scheme does): S = [M − hγ' ∂F/∂v − h²β' ∂F/∂q, Gᵀ; G, 0] with
+//! γ' = γ(1 − α_f)/(1 − α_m), β' = β(1 − α_f)/(1 − α_m), so the smooth stage converges linearly
+//! at a rate O(h). The position stage uses the exact derivative of g(q̃ + M̃⁻¹C̃ᵀν) in ν,
+//! C(q^i) M̃⁻¹ C̃ᵀ (quadratic convergence). The mixed LCPs eliminate the joint rows by their
+//! Schur complement (the joints must be independent) and hand the contact rows to `lcp::solve`.
+//!
+//! Energy (as for the nonlinear Moreau–Jean scheme): `kinetic` = ½ vᵀM(q)v, `potential` =
+//! V(q, t), `work_ext` = ½(f_k + f_{k+1})·(q_{k+1} − q_k) (the applied forces, trapezoidal
+//! against the displacement, so that a position correction is counted with the rest of the
+//! step), `work_contact` = Σ_{α∈I} Λ_α H_α(q_{k+1})·½(ṽ + v_{k+1}) — the change of kinetic
+//! energy the contact impulses make, exactly (for a fixed obstacle ½(U_{k+1} + Ũ)Λ, ≤ 0 at an
+//! impact since U_{k+1} = −e U_k) — `work_friction` = 0 (frictionless) and `energy_error` =
+//! ΔE − work_ext − work_contact: the error of the smooth stage, of the position correction and
+//! of the joint projection. Without contacts it shrinks as h² over a fixed time.
+
+use super::LagrangianSystem;
+use super::moreau_jean::{
+    NewtonOptions, NonlinearRunStats, NonlinearRunStop, NonlinearState, NonlinearStepError,
+    NonlinearStepReport, ParamError,
+};
+use crate::contact::LcpStats;
+use crate::integrators::OutputOptions;
+use crate::lagrangian::UserModel;
+use crate::lcp::{self, Lcp, LcpError, LcpOptions};
+use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::soi2::{ConstrainedModel, Dual64};
+use nalgebra::{DMatrix, DVector};
+use std::ops::ControlFlow;
+
+/// A [`LagrangianSystem`] with bilateral holonomic joints g(q, t) = 0 (nb of them). The
+/// defaults describe a system without joints.
+pub trait JointedSystem: LagrangianSystem {
+    /// Number of joints nb.
+    fn joints(&self) -> usize {
+        0
+    }
+
+    /// g(q, t), nb entries.
+    fn joint_values(&self, t: f64, q: &[f64], out: &mut [f64]) {
+        let _ = (t, q, out);
+    }
+
+    /// G = ∂g/∂q, nb×n row-major.
+    fn joint_jacobian(&self, t: f64, q: &[f64], out: &mut [f64]) {
+        let _ = (t, q, out);
+    }
+
+    /// G v + g_t, nb entries.
+    fn joint_rates(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
+        let _ = (t, q, v, out);
+    }
+
+    /// κ = d/dt(G v + g_t) with q̈ = 0, i.e. g_qq(v, v) + 2 g_qt v + g_tt, nb entries.
+    fn joint_curvature(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
+        let _ = (t, q, v, out);
+    }
+}
+
+/// The joints of a user model from its symbolic tapes; κ is the derivative of the tape of
+/// G v + g_t along (t, q, v) → (1, v, 0), by one forward-mode dual evaluation.
+impl JointedSystem for UserModel {
+    fn joints(&self) -> usize {
+        UserModel::joints(self)
+    }
+
+    fn joint_values(&self, t: f64, q: &[f64], out: &mut [f64]) {
+        ConstrainedModel::g(self, t, q, out);
+    }
+
+    fn joint_jacobian(&self, t: f64, q: &[f64], out: &mut [f64]) {
+        ConstrainedModel::g_y(self, t, q, out);
+    }
+
+    fn joint_rates(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
+        ConstrainedModel::g_dot(self, t, q, v, out);
+    }
+
+    fn joint_curvature(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
+        let td = Dual64::new(t, 1.0);
+        let qd: Vec<Dual64> = q.iter().zip(v).map(|(&x, &w)| Dual64::new(x, w)).collect();
+        let vd: Vec<Dual64> = v.iter().map(|&w| Dual64::from(w)).collect();
+        let mut rd = vec![Dual64::from(0.0); out.len()];
+        ConstrainedModel::g_dot(self, td, &qd, &vd, &mut rd);
+        for (o, r) in out.iter_mut().zip(&rd) {
+            *o = r.eps;
+        }
+    }
+}
+
+/// Parameters of the scheme.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NsAlphaParams {
+    /// α_m < 1.
+    pub alpha_m: f64,
+    /// α_f < 1.
+    pub alpha_f: f64,
+    /// β > 0.
+    pub beta: f64,
+    /// γ > 0.
+    pub gamma: f64,
+    /// Newton's settings, for the smooth stage (relative residual) and the position stage
+    /// (constraint violation relative to the constraints' scale).
+    pub newton: NewtonOptions,
+}
+
+impl NsAlphaParams {
+    /// Chung–Hulbert coefficients from the spectral radius at infinity ρ∞ ∈ [0, 1] (Acary 2016,
+    /// (26)–(27)), default Newton settings.
+    pub fn from_rho_inf(rho_inf: f64) -> Self {
+        let alpha_m = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0);
+        let alpha_f = rho_inf / (rho_inf + 1.0);
+        let gamma = 0.5 + alpha_f - alpha_m;
+        Self {
+            alpha_m,
+            alpha_f,
+            beta: 0.25 * (gamma + 0.5) * (gamma + 0.5),
+            gamma,
+            newton: NewtonOptions::default(),
+        }
+    }
+}
+
+/// What one step produced besides the new state.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct NsAlphaStepReport {
+    /// Energies, works, gaps g(q_{k+1}), local velocities U_{k+1}, contact impulses Λ, the
+    /// velocity stage's LCP and the smooth stage's Newton iterations, as the nonlinear
+    /// Moreau–Jean scheme reports them.
+    pub base: NonlinearStepReport,
+    /// Joint multipliers λ_{k+1} of the smooth stage (M q̈ = F − Gᵀλ).
+    pub lambda: Vec<f64>,
+    /// Joint impulses Λ_B of the velocity stage (the O(h³) velocity projection).
+    pub joint_impulse: Vec<f64>,
+    /// U_k = H(q_{k+1}) v_k + ∂g/∂t(q_{k+1}, t_k) of the contacts in the index set, the local
+    /// velocity the impact law multiplies by −e (0 outside the index set).
+    pub local_velocity_before: Vec<f64>,
+    /// Whether each contact was in the index set.
+    pub in_index_set: Vec<bool>,
+    /// max |g(q_{k+1}, t_{k+1})| over the joints.
+    pub position_residual: f64,
+    /// max |G v_{k+1} + g_t| over the joints.
+    pub velocity_residual: f64,
+    /// max(0, −min_α g_α(q_{k+1}, t_{k+1})).
+    pub penetration: f64,
+    /// Newton iterates of the position stage (0 when nothing was corrected).
+    pub position_iterations: usize,
+}
+
+impl NsAlphaStepReport {
+    /// A report of `state` (no step taken).
+    pub fn of_state<S: JointedSystem + ?Sized>(system: &S, state: &NonlinearState) -> Self {
+        let (m, nb) = (system.contacts(), system.joints());
+        let base = NonlinearStepReport::of_state(system, state);
+        let mut g = vec![0.0; nb];
+        system.joint_values(state.t, &state.q, &mut g);
+        let mut r = vec![0.0; nb];
+        system.joint_rates(state.t, &state.q, &state.v, &mut r);
+        Self {
+            penetration: base.gap.iter().fold(0.0f64, |p, &x| p.max(-x)),
+            base,
+            lambda: vec![0.0; nb],
+            joint_impulse: vec![0.0; nb],
+            local_velocity_before: vec![0.0; m],
+            in_index_set: vec![false; m],
+            position_residual: amax(&g),
+            velocity_residual: amax(&r),
+            position_iterations: 0,
+        }
+    }
+}
+
+/// The end of a step, kept as the start of the next.
+#[derive(Debug, Clone)]
+struct Memory {
+    step: u64,
+    t: f64,
+    q: Vec<f64>,
+    v: Vec<f64>,
+    /// Pseudo-acceleration a_k.
+    a: Vec<f64>,
+    /// Acceleration q̈_k of the smooth stage.
+    acc: Vec<f64>,
+    lambda: Vec<f64>,
+    applied: Vec<f64>,
+    energy: f64,
+}
+
+/// The nonsmooth generalized-α scheme for one system and one step size.
+#[derive(Debug, Clone)]
+pub struct NonsmoothGeneralizedAlpha {
+    params: NsAlphaParams,
+    h: f64,
+    lcp: LcpOptions,
+    n: usize,
+    m: usize,
+    nb: usize,
+    last: Option<Memory>,
+}
+
+/// Why a mixed LCP failed.
+enum MixedError {
+    Singular,
+    Lcp(LcpError),
+}
+
+/// A row-major matrix as an nalgebra matrix.
+fn mat(rows: usize, cols: usize, data: &[f64]) -> DMatrix<f64> {
+    DMatrix::from_row_slice(rows, cols, data)
+}
+
+fn amax(x: &[f64]) -> f64 {
+    x.iter().fold(0.0f64, |m, v| m.max(v.abs()))
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// ½ vᵀ M v, M row-major.
+fn kinetic(mass: &[f64], v: &[f64]) -> f64 {
+    let n = v.len();
+    0.5 * (0..n)
+        .map(|i| v[i] * dot(&mass[i * n..(i + 1) * n], v))
+        .sum::<f64>()
+}
+
+/// LU factors of `w`, or `None` when a pivot is ≤ n ε times the largest entry of its column of
+/// `w` (singular to working precision) or not finite.
+fn factor(w: DMatrix<f64>) -> Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>> {
+    let n = w.nrows();
+    let column_max: Vec<f64> = w.column_iter().map(|c| c.amax()).collect();
+    let lu = w.lu();
+    let u = lu.u();
+    let singular = (0..n).any(|j| {
+        let p = u[(j, j)].abs();
+        !p.is_finite() || p <= n as f64 * f64::EPSILON * column_max[j]
+    });
+    (!singular).then_some(lu)
+}
+
+/// Solves `0 ≤ D z + b ⊥ z_I ≥ 0` with the first `nb` rows equalities (z_B free): the joint
+/// rows are eliminated by their Schur complement and the rest is an LCP.
+fn mixed_lcp(
+    d: &DMatrix<f64>,
+    b: &[f64],
+    nb: usize,
+    options: &LcpOptions,
+) -> Result<(Vec<f64>, LcpStats), MixedError> {
+    let k = b.len();
+    let nu = k - nb;
+    if nb == 0 {
+        let data: Vec<f64> = (0..k * k).map(|r| d[(r / k, r % k)]).collect();
+        let sol = lcp::solve(Lcp { m: &data, q: b }, options).map_err(MixedError::Lcp)?;
+        let stats = LcpStats {
+            size: k,
+            iterations: sol.iterations,
+            error: sol.error,
+        };
+        return Ok((sol.z, stats));
+    }
+    let lu = factor(d.view((0, 0), (nb, nb)).into_owned()).ok_or(MixedError::Singular)?;
+    let b_b = DVector::from_column_slice(&b[..nb]);
+    let y = lu.solve(&b_b).ok_or(MixedError::Singular)?;
+    if nu == 0 {
+        return Ok(((-y).as_slice().to_vec(), LcpStats::default()));
+    }
+    let d_bi = d.view((0, nb), (nb, nu)).into_owned();
+    let x = lu.solve(&d_bi).ok_or(MixedError::Singular)?;
+    let d_ib = d.view((nb, 0), (nu, nb));
+    let schur = d.view((nb, nb), (nu, nu)) - d_ib * &x;
+    let q_i = DVector::from_column_slice(&b[nb..]) - d_ib * &y;
+    let data: Vec<f64> = (0..nu * nu).map(|r| schur[(r / nu, r % nu)]).collect();
+    let sol = lcp::solve(
+        Lcp {
+            m: &data,
+            q: q_i.as_slice(),
+        },
+        options,
+    )
+    .map_err(MixedError::Lcp)?;
+    let z_i = DVector::from_column_slice(&sol.z);
+    let z_b = -(y + x * &z_i);
+    let mut z = z_b.as_slice().to_vec();
+    z.extend_from_slice(&sol.z);
+    Ok((
+        z,
+        LcpStats {
+            size: nu,
+            iterations: sol.iterations,
+            error: sol.error,
+        },
+    ))
+}
+
+impl NonsmoothGeneralizedAlpha {
+    /// Prepares the scheme for `system` with step `h`. Errors name the parameter.
+    pub fn new<S: JointedSystem + ?Sized>(
+        system: &S,
+        params: NsAlphaParams,
+        h: f64,
+        lcp: LcpOptions,
+    ) -> Result<Self, ParamError> {
+        let bad = |field, reason: String| Err(ParamError { field, reason });
+        if !(h.is_finite() && h > 0.0) {
+            return bad("h", format!("must be a finite number > 0, got {h}"));
+        }
+        for (field, x) in [
+            ("alpha_m", params.alpha_m),
+            ("alpha_f", params.alpha_f),
+            ("beta", params.beta),
+            ("gamma", params.gamma),
+        ] {
+            if !x.is_finite() {
+                return bad(field, format!("must be finite, got {x}"));
+            }
+        }
+        if params.alpha_m >= 1.0 {
+            return bad("alpha_m", format!("must be < 1, got {}", params.alpha_m));
+        }
+        if params.alpha_f >= 1.0 {
+            return bad(
+                "alpha_f",
+                format!(
+                    "must be < 1 (α_f = 1 leaves q̈_(k+1) undetermined), got {}",
+                    params.alpha_f
+                ),
+            );
+        }
+        if params.beta <= 0.0 {
+            return bad("beta", format!("must be > 0, got {}", params.beta));
+        }
+        if params.gamma <= 0.0 {
+            return bad("gamma", format!("must be > 0, got {}", params.gamma));
+        }
+        let newton = params.newton;
+        if !(newton.tolerance.is_finite() && newton.tolerance > 0.0) {
+            return bad(
+                "newton_tolerance",
+                format!("must be a finite number > 0, got {}", newton.tolerance),
+            );
+        }
+        if newton.max_iterations == 0 {
+            return bad("newton_max_iterations", "must be ≥ 1".to_string());
+        }
+        Ok(Self {
+            params,
+            h,
+            lcp,
+            n: system.dofs(),
+            m: system.contacts(),
+            nb: system.joints(),
+            last: None,
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &NsAlphaParams {
+        &self.params
+    }
+
+    /// q̈ and λ at (t, q, v) from the smooth equations with the joints at acceleration level:
+    /// `[M Gᵀ; G 0][q̈; λ] = [F; −κ]` (the consistent start, a_0 = q̈_0).
+    fn consistent<S: JointedSystem + ?Sized>(
+        &self,
+        system: &S,
+        t: f64,
+        q: &[f64],
+        v: &[f64],
+    ) -> Option<(Vec<f64>, Vec<f64>)> {
+        let (n, nb) = (self.n, self.nb);
+        let mut mass = vec![0.0; n * n];
+        system.mass(q, &mut mass);
+        let mut f = vec![0.0; n];
+        system.forces(t, q, v, &mut f);
+        let mut g = vec![0.0; nb * n];
+        system.joint_jacobian(t, q, &mut g);
+        let mut kappa = vec![0.0; nb];
+        system.joint_curvature(t, q, v, &mut kappa);
+        let k = DMatrix::from_fn(n + nb, n + nb, |i, j| match (i < n, j < n) {
+            (true, true) => mass[i * n + j],
+            (true, false) => g[(j - n) * n + i],
+            (false, true) => g[(i - n) * n + j],
+            (false, false) => 0.0,
+        });
+        let rhs = DVector::from_fn(n + nb, |i, _| if i < n { f[i] } else { -kappa[i - n] });
+        let x = factor(k)?.solve(&rhs)?;
+        if x.iter().any(|x| !x.is_finite()) {
+            return None;
+        }
+        Some((x.as_slice()[..n].to_vec(), x.as_slice()[n..].to_vec()))
+    }
+
+    /// Advances `state` by one step, writing the step's terms into `report` (sized by
+    /// [`NsAlphaStepReport::of_state`]).
+    pub fn step<S: JointedSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        state: &mut NonlinearState,
+        report: &mut NsAlphaStepReport,
+    ) -> Result<(), NonlinearStepError> {
+        let (h, n, m, nb) = (self.h, self.n, self.m, self.nb);
+        let NsAlphaParams {
+            alpha_m,
+            alpha_f,
+            beta,
+            gamma,
+            newton,
+        } = self.params;
+        let t_k = state.t;
+        let step = state.step + 1;
+        let t1 = (step as f64) * h;
+        let not_finite = |what| NonlinearStepError::NotFinite { step, t: t1, what };
+        let check = |x: &[f64], what| {
+            if x.iter().all(|a| a.is_finite()) {
+                Ok(())
+            } else {
+                Err(not_finite(what))
+            }
+        };
+        let singular = |iteration| NonlinearStepError::Singular {
+            step,
+            t: t1,
+            iteration,
+        };
+        let lcp_error = |source| NonlinearStepError::Lcp {
+            step,
+            t: t1,
+            source,
+        };
+
+        // The start of the step, kept from the last one or made consistent afresh.
+        let start = match self.last.take() {
+            Some(e)
+                if e.step == state.step && e.t == state.t && e.q == state.q && e.v == state.v =>
+            {
+                e
+            }
+            _ => {
+                let (acc, lambda) = self
+                    .consistent(system, t_k, &state.q, &state.v)
+                    .ok_or_else(|| singular(0))?;
+                let mut applied = vec![0.0; n];
+                system.applied_forces(t_k, &state.q, &state.v, &mut applied);
+                check(&applied, "the applied forces f(t, q, v)")?;
+                let mut mass = vec![0.0; n * n];
+                system.mass(&state.q, &mut mass);
+                let energy = kinetic(&mass, &state.v) + system.potential(t_k, &state.q);
+                if !energy.is_finite() {
+                    return Err(not_finite("the energy"));
+                }
+                Memory {
+                    step: state.step,
+                    t: t_k,
+                    q: state.q.clone(),
+                    v: state.v.clone(),
+                    a: acc.clone(),
+                    acc,
+                    lambda,
+                    applied,
+                    energy,
+                }
+            }
+        };
+
+        // Smooth stage: Newton on (q̈_{k+1}, λ_{k+1}).
+        let c_a = (1.0 - alpha_f) / (1.0 - alpha_m);
+        let (bp, gp) = (h * h * beta * c_a, h * gamma * c_a);
+        let mut acc = start.acc.clone();
+        let mut lambda = start.lambda.clone();
+        let mut a1 = vec![0.0; n];
+        let mut qt = vec![0.0; n];
+        let mut vt = vec![0.0; n];
+        let mut mass = vec![0.0; n * n];
+        let mut f = vec![0.0; n];
+        let mut gj = vec![0.0; nb * n];
+        let mut kappa = vec![0.0; nb];
+        let (mut dfdq, mut dfdv) = (vec![0.0; n * n], vec![0.0; n * n]);
+        let mut iterations = 0;
+        loop {
+            for i in 0..n {
+                a1[i] = ((1.0 - alpha_f) * acc[i] + alpha_f * start.acc[i] - alpha_m * start.a[i])
+                    / (1.0 - alpha_m);
+                qt[i] = start.q[i]
+                    + h * start.v[i]
+                    + h * h * ((0.5 - beta) * start.a[i] + beta * a1[i]);
+                vt[i] = start.v[i] + h * ((1.0 - gamma) * start.a[i] + gamma * a1[i]);
+            }
+            system.mass(&qt, &mut mass);
+            check(&mass, "M(q)")?;
+            system.forces(t1, &qt, &vt, &mut f);
+            check(&f, "F(t, q, v)")?;
+            system.joint_jacobian(t1, &qt, &mut gj);
+            system.joint_curvature(t1, &qt, &vt, &mut kappa);
+            check(&gj, "the joint Jacobian")?;
+            check(&kappa, "the joints' curvature term")?;
+            let mut r = vec![0.0; n + nb];
+            let (mut r1, mut s1, mut r2, mut s2) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+            for i in 0..n {
+                let ma = dot(&mass[i * n..(i + 1) * n], &acc);
+                let (mut gl, mut gl_abs) = (0.0, 0.0);
+                for (j, &l) in lambda.iter().enumerate() {
+                    let x = gj[j * n + i] * l;
+                    gl += x;
+                    gl_abs += x.abs();
+                }
+                r[i] = ma + gl - f[i];
+                r1 = r1.max(r[i].abs());
+                s1 = s1.max(ma.abs() + gl_abs + f[i].abs());
+            }
+            for j in 0..nb {
+                let ga = dot(&gj[j * n..(j + 1) * n], &acc);
+                r[n + j] = ga + kappa[j];
+                r2 = r2.max(r[n + j].abs());
+                s2 = s2.max(ga.abs() + kappa[j].abs());
+            }
+            let rel = |r: f64, s: f64| if r == 0.0 { 0.0 } else { r / s };
+            let residual = rel(r1, s1).max(rel(r2, s2));
+            if !residual.is_finite() {
+                return Err(not_finite("the Newton residual"));
+            }
+            if residual <= newton.tolerance {
+                break;
+            }
+            if iterations == newton.max_iterations {
+                return Err(NonlinearStepError::NewtonNotConverged {
+                    step,
+                    t: t1,
+                    iterations,
+                    residual,
+                    tolerance: newton.tolerance,
+                });
+            }
+            iterations += 1;
+            system.force_jacobians(t1, &qt, &vt, &mut dfdq, &mut dfdv);
+            check(&dfdq, "∂F/∂q")?;
+            check(&dfdv, "∂F/∂v")?;
+            let s = DMatrix::from_fn(n + nb, n + nb, |i, j| match (i < n, j < n) {
+                (true, true) => {
+                    let x = i * n + j;
+                    mass[x] - gp * dfdv[x] - bp * dfdq[x]
+                }
+                (true, false) => gj[(j - n) * n + i],
+                (false, true) => gj[(i - n) * n + j],
+                (false, false) => 0.0,
+            });
+            let lu = factor(s).ok_or_else(|| singular(iterations))?;
+            let dx = lu
+                .solve(&DVector::from_column_slice(&r))
+                .ok_or_else(|| singular(iterations))?;
+            for i in 0..n {
+                acc[i] -= dx[i];
+            }
+            for j in 0..nb {
+                lambda[j] -= dx[n + j];
+            }
+        }
+        let mass_t = mass.clone();
+
+        // Index set: contacts whose predicted gap g(q̃, t_{k+1}) is ≤ 0.
+        let mut gaps = vec![0.0; m];
+        system.gaps(t1, &qt, &mut gaps);
+        check(&gaps, "a gap g(q, t)")?;
+        let mut active: Vec<usize> = (0..m).filter(|&a| gaps[a] <= 0.0).collect();
+        let mut hj = vec![0.0; m * n];
+
+        // Position stage: q = q̃ + M(q̃)⁻¹ C(q̃)ᵀ ν.
+        let mut q = qt.clone();
+        let mut position_iterations = 0;
+        let m_lu = factor(mat(n, n, &mass_t)).ok_or_else(|| singular(0))?;
+        let mut gb = vec![0.0; nb];
+        loop {
+            let k = nb + active.len();
+            if k == 0 {
+                break;
+            }
+            // C̃ rows and Y = M̃⁻¹ C̃ᵀ (n×k).
+            system.gap_jacobian(t1, &qt, &mut hj);
+            check(&hj, "the gap Jacobian")?;
+            let rows_t = constraint_rows(&gj, &hj, &active, n);
+            let ct = mat(k, n, &rows_t);
+            let y = m_lu.solve(&ct.transpose()).ok_or_else(|| singular(0))?;
+            let scale = (0..k)
+                .map(|r| {
+                    (0..n)
+                        .map(|j| ct[(r, j)].abs() * (qt[j].abs() + (qt[j] - start.q[j]).abs()))
+                        .sum::<f64>()
+                })
+                .fold(0.0f64, f64::max);
+            let tol = newton.tolerance * scale;
+            let mut nu = DVector::zeros(k);
+            q.copy_from_slice(&qt);
+            let mut h_q = vec![0.0; m * n];
+            let mut g_q = vec![0.0; nb * n];
+            let mut iter = 0;
+            loop {
+                system.joint_values(t1, &q, &mut gb);
+                system.gaps(t1, &q, &mut gaps);
+                check(&gb, "a joint g(q, t)")?;
+                check(&gaps, "a gap g(q, t)")?;
+                let mut c = Vec::with_capacity(k);
+                c.extend_from_slice(&gb);
+                c.extend(active.iter().map(|&a| gaps[a]));
+                let violation = (0..k)
+                    .map(|r| {
+                        if r < nb || nu[r] > 0.0 {
+                            c[r].abs()
+                        } else {
+                            (-c[r]).max(0.0)
+                        }
+                    })
+                    .fold(0.0f64, f64::max);
+                // With joints, one iterate at least: the drift of the smooth stage is then
+                // removed to round-off rather than left below the tolerance.
+                if violation <= tol && (iter > 0 || nb == 0) {
+                    break;
+                }
+                if iter == newton.max_iterations {
+                    return Err(NonlinearStepError::NewtonNotConverged {
+                        step,
+                        t: t1,
+                        iterations: iter,
+                        residual: violation / scale,
+                        tolerance: newton.tolerance,
+                    });
+                }
+                iter += 1;
+                system.joint_jacobian(t1, &q, &mut g_q);
+                system.gap_jacobian(t1, &q, &mut h_q);
+                check(&g_q, "the joint Jacobian")?;
+                check(&h_q, "the gap Jacobian")?;
+                let rows = mat(k, n, &constraint_rows(&g_q, &h_q, &active, n));
+                let d = &rows * &y;
+                let b = DVector::from_vec(c) - &d * &nu;
+                let (z, _) = mixed_lcp(&d, b.as_slice(), nb, &self.lcp).map_err(|e| match e {
+                    MixedError::Singular => singular(iter),
+                    MixedError::Lcp(source) => lcp_error(source),
+                })?;
+                let nu_new = DVector::from_vec(z);
+                let dq = &y * (&nu_new - &nu);
+                nu = nu_new;
+                let q_new = DVector::from_column_slice(&qt) + &y * &nu;
+                q.copy_from_slice(q_new.as_slice());
+                check(&q, "the corrected positions")?;
+                let size = q.iter().fold(0.0f64, |s, x| s.max(x.abs()));
+                if dq.amax() <= 4.0 * f64::EPSILON * size {
+                    // The correction is at round-off: nothing more to gain.
+                    system.gaps(t1, &q, &mut gaps);
+                    break;
+                }
+            }
+            position_iterations += iter;
+            // A contact outside the index set that the correction pushed into its obstacle
+            // joins it, and the stage starts again.
+            system.gaps(t1, &q, &mut gaps);
+            let joined: Vec<usize> = (0..m)
+                .filter(|a| !active.contains(a) && gaps[*a] < -tol)
+                .collect();
+            if joined.is_empty() {
+                break;
+            }
+            active.extend(joined);
+            active.sort_unstable();
+        }
+
+        // Velocity stage at q_{k+1}: v = ṽ + M⁻¹ Cᵀ Λ.
+        system.mass(&q, &mut mass);
+        check(&mass, "M(q)")?;
+        system.joint_jacobian(t1, &q, &mut gj);
+        system.gap_jacobian(t1, &q, &mut hj);
+        check(&gj, "the joint Jacobian")?;
+        check(&hj, "the gap Jacobian")?;
+        let mut rates1 = vec![0.0; m];
+        let mut rates0 = vec![0.0; m];
+        system.gap_rates(t1, &q, &mut rates1);
+        system.gap_rates(t_k, &q, &mut rates0);
+        check(&rates1, "∂g/∂t")?;
+        check(&rates0, "∂g/∂t")?;
+        let mut v = vt.clone();
+        let k = nb + active.len();
+        report.base.impulse.fill(0.0);
+        report.base.lcp = LcpStats::default();
+        report.joint_impulse.fill(0.0);
+        report.local_velocity_before.fill(0.0);
+        report.in_index_set.fill(false);
+        let mut work_contact = 0.0;
+        if k > 0 {
+            let rows = mat(k, n, &constraint_rows(&gj, &hj, &active, n));
+            let m_lu = factor(mat(n, n, &mass)).ok_or_else(|| singular(0))?;
+            let y = m_lu.solve(&rows.transpose()).ok_or_else(|| singular(0))?;
+            let d = &rows * &y;
+            let mut b = vec![0.0; k];
+            let mut joint_rate = vec![0.0; nb];
+            system.joint_rates(t1, &q, &vt, &mut joint_rate);
+            b[..nb].copy_from_slice(&joint_rate);
+            for (r, &a) in active.iter().enumerate() {
+                let row = &hj[a * n..(a + 1) * n];
+                let u_k = dot(row, &start.v) + rates0[a];
+                report.local_velocity_before[a] = u_k;
+                report.in_index_set[a] = true;
+                b[nb + r] = dot(row, &vt) + rates1[a] + system.restitution(a) * u_k;
+            }
+            let (z, stats) = mixed_lcp(&d, &b, nb, &self.lcp).map_err(|e| match e {
+                MixedError::Singular => singular(0),
+                MixedError::Lcp(source) => lcp_error(source),
+            })?;
+            let dv = &y * DVector::from_column_slice(&z);
+            for (vi, d) in v.iter_mut().zip(dv.iter()) {
+                *vi += d;
+            }
+            check(&v, "the velocities")?;
+            report.joint_impulse.copy_from_slice(&z[..nb]);
+            for (r, &a) in active.iter().enumerate() {
+                let p = z[nb + r];
+                report.base.impulse[a] = p;
+                if p != 0.0 {
+                    let row = &hj[a * n..(a + 1) * n];
+                    work_contact += p * 0.5 * (dot(row, &vt) + dot(row, &v));
+                }
+            }
+            report.base.lcp = stats;
+        }
+
+        // The end of the step.
+        let mut applied = vec![0.0; n];
+        system.applied_forces(t1, &q, &v, &mut applied);
+        check(&applied, "the applied forces f(t, q, v)")?;
+        let work_ext: f64 = (0..n)
+            .map(|i| 0.5 * (start.applied[i] + applied[i]) * (q[i] - start.q[i]))
+            .sum();
+        let base = &mut report.base;
+        base.kinetic = kinetic(&mass, &v);
+        base.potential = system.potential(t1, &q);
+        let energy = base.energy();
+        if !energy.is_finite() {
+            return Err(not_finite("the energy"));
+        }
+        base.work_ext = work_ext;
+        base.work_contact = work_contact;
+        base.energy_error = (energy - start.energy) - work_ext - work_contact;
+        base.newton_iterations = iterations;
+        system.gaps(t1, &q, &mut base.gap);
+        check(&base.gap, "a gap g(q, t)")?;
+        for (a, u) in base.local_velocity.iter_mut().enumerate() {
+            *u = dot(&hj[a * n..(a + 1) * n], &v) + rates1[a];
+        }
+        report.penetration = base.gap.iter().fold(0.0f64, |p, &x| p.max(-x));
+        system.joint_values(t1, &q, &mut gb);
+        report.position_residual = amax(&gb);
+        let mut jr = vec![0.0; nb];
+        system.joint_rates(t1, &q, &v, &mut jr);
+        report.velocity_residual = amax(&jr);
+        report.lambda.copy_from_slice(&lambda);
+        report.position_iterations = position_iterations;
+
+        self.last = Some(Memory {
+            step,
+            t: t1,
+            q: q.clone(),
+            v: v.clone(),
+            a: a1,
+            acc,
+            lambda,
+            applied,
+            energy,
+        });
+        state.q.copy_from_slice(&q);
+        state.v.copy_from_slice(&v);
+        state.t = t1;
+        state.step = step;
+        Ok(())
+    }
+}
+
+/// The rows C = [G; H_I] (joints, then the contacts of `active`), row-major.
+fn constraint_rows(g: &[f64], h: &[f64], active: &[usize], n: usize) -> Vec<f64> {
+    let mut rows = g.to_vec();
+    for &a in active {
+        rows.extend_from_slice(&h[a * n..(a + 1) * n]);
+    }
+    rows
+}
+
+/// What a run of the scheme measured over all its steps; its fields are those of
+/// `summary.json`.
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
+pub struct NsAlphaRunStats {
+    /// Steps, energies, impacts, LCP (velocity stage) and Newton (smooth stage) figures, works,
+    /// as for the nonlinear Moreau–Jean scheme.
+    #[serde(flatten)]
+    pub base: NonlinearRunStats,
+    /// max_k ‖g(q_k, t_k)‖∞ over the joints.
+    pub max_position_residual: f64,
+    /// max_k ‖G v_k + g_t‖∞ over the joints.
+    pub max_velocity_residual: f64,
+    /// max_k max(0, −min_α g_α(q_k, t_k)).
+    pub max_penetration: f64,
+    /// Largest number of Newton iterates of a position stage.
+    pub position_iterations_max: usize,
+}
+
+/// Summary of a run of the scheme (`summary.json`): the model's sizes, the step and the
+/// coefficients, then what the run measured ([`NsAlphaRunStats`], its fields flat).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct NsAlphaSummary {
+    /// Generalized coordinates.
+    pub dofs: usize,
+    /// Contacts.
+    pub contacts: usize,
+    /// Joints.
+    pub joints: usize,
+    /// Step size.
+    pub h: f64,
+    /// α_m.
+    pub alpha_m: f64,
+    /// α_f.
+    pub alpha_f: f64,
+    /// β.
+    pub beta: f64,
+    /// γ.
+    pub gamma: f64,
+    /// What the run measured.
+    #[serde(flatten)]
+    pub stats: NsAlphaRunStats,
+}
+
+/// Column names of a run of the scheme: `kinetic, potential, energy, work_ext, work_contact,
+/// work_friction, energy_error, work_ext_total, work_contact_total, newton_iterations,
+/// position_iterations`, then `gap_α, u_α, p_α` per contact, `lambda_j` per joint,
+/// `position_residual, velocity_residual`, then `q_j, v_j` per probe.
+pub fn ns_alpha_columns(contacts: usize, joints: usize, probes: &[usize]) -> Columns {
+    let mut names: Vec<String> = [
+        "kinetic",
+        "potential",
+        "energy",
+        "work_ext",
+        "work_contact",
+        "work_friction",
+        "energy_error",
+        "work_ext_total",
+        "work_contact_total",
+        "newton_iterations",
+        "position_iterations",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    for a in 0..contacts {
+        names.extend([format!("gap_{a}"), format!("u_{a}"), format!("p_{a}")]);
+    }
+    names.extend((0..joints).map(|j| format!("lambda_{j}")));
+    names.extend(["position_residual".into(), "velocity_residual".into()]);
+    for j in probes {
+        names.extend([format!("q_{j}"), format!("v_{j}")]);
+    }
+    Columns::new(names)
+}
+
+/// Runs `steps` steps of `scheme` on `system` from `state`, recording per `output` (every
+/// `output.every`-th step and the last; a probe ≥ the number of coordinates is refused).
+pub fn run_ns_alpha<S: JointedSystem + ?Sized>(
+    system: &S,
+    scheme: &mut NonsmoothGeneralizedAlpha,
+    state: &mut NonlinearState,
+    steps: u64,
+    output: &OutputOptions,
+    observer: &mut dyn Observer,
+) -> Result<NsAlphaRunStats, NonlinearRunStop> {
+    let (n, m, nb) = (system.dofs(), system.contacts(), system.joints());
+    if let Some(&probe) = output.probes.iter().find(|&&j| j >= n) {
+        return Err(NonlinearRunStop::Probe { probe, dofs: n });
+    }
+    let columns = ns_alpha_columns(m, nb, &output.probes);
+    observer.start(&columns);
+    let every = output.every.max(1);
+    let mut report = NsAlphaStepReport::of_state(system, state);
+    if nb > 0 {
+        // The multipliers of the start, from the consistent accelerations.
+        if let Some((_, lambda)) = scheme.consistent(system, state.t, &state.q, &state.v) {
+            report.lambda = lambda;
+        }
+    }
+    let e0 = report.base.energy();
+    let mut stats = NsAlphaRunStats {
+        base: NonlinearRunStats {
+            t_end: state.t,
+            energy_initial: e0,
+            energy_final: e0,
+            energy_max: e0,
+            ..Default::default()
+        },
+        max_position_residual: report.position_residual,
+        max_velocity_residual: report.velocity_residual,
+        max_penetration: report.penetration,
+        ..Default::default()
+    };
+    let mut row = Vec::with_capacity(columns.len());
+    let record = |r: &NsAlphaStepReport,
+                  stats: &NsAlphaRunStats,
+                  state: &NonlinearState,
+                  row: &mut Vec<f64>| {
+        let b = &r.base;
+        row.clear();
+        row.extend([
+            b.kinetic,
+            b.potential,
+            b.energy(),
+            b.work_ext,
+            b.work_contact,
+            0.0,
+            b.energy_error,
+            stats.base.work_ext_total,
+            stats.base.work_contact_total,
+            b.newton_iterations as f64,
+            r.position_iterations as f64,
+        ]);
+        for a in 0..m {
+            row.extend([b.gap[a], b.local_velocity[a], b.impulse[a]]);
+        }
+        row.extend_from_slice(&r.lambda);
+        row.extend([r.position_residual, r.velocity_residual]);
+        for &j in &output.probes {
+            row.extend([state.q[j], state.v[j]]);
+        }
+    };
+    let observed = |observer: &mut dyn Observer, state: &NonlinearState, row: &[f64]| {
+        observer.observe(&StepRecord {
+            step: state.step,
+            t: state.t,
+            values: row,
+        })
+    };
+    record(&report, &stats, state, &mut row);
+    if observed(observer, state, &row).is_break() {
+        return Err(NonlinearRunStop::Stopped { step: 0 });
+    }
+    let mut previous_impulse = vec![0.0; m];
+    let mut newton_total = 0u64;
+    for k in 1..=steps {
+        scheme.step(system, state, &mut report)?;
+        let b = &mut stats.base;
+        b.steps = k;
+        b.t_end = state.t;
+        b.work_ext_total += report.base.work_ext;
+        b.work_contact_total += report.base.work_contact;
+        b.max_abs_energy_error = b.max_abs_energy_error.max(report.base.energy_error.abs());
+        b.energy_final = report.base.energy();
+        b.energy_max = b.energy_max.max(report.base.energy());
+        b.lcp_max_error = b.lcp_max_error.max(report.base.lcp.error);
+        b.lcp_solves += u64::from(report.base.lcp.size > 0);
+        b.lcp_max_size = b.lcp_max_size.max(report.base.lcp.size);
+        b.newton_iterations_max = b.newton_iterations_max.max(report.base.newton_iterations);
+        newton_total += report.base.newton_iterations as u64;
+        b.newton_iterations_mean = newton_total as f64 / k as f64;
+        for (p_old, &p) in previous_impulse.iter_mut().zip(&report.base.impulse) {
+            b.impacts += u64::from(p > 0.0 && *p_old <= 0.0);
+            *p_old = p;
+        }
+        stats.max_position_residual = stats.max_position_residual.max(report.position_residual);
+        stats.max_velocity_residual = stats.max_velocity_residual.max(report.velocity_residual);
+        stats.max_penetration = stats.max_penetration.max(report.penetration);
+        stats.position_iterations_max = stats
+            .position_iterations_max
+            .max(report.position_iterations);
+        if k % every == 0 || k == steps {
+            record(&report, &stats, state, &mut row);
+            if observed(observer, state, &row).is_break() {
+                return Err(NonlinearRunStop::Stopped { step: k });
+            }
+        }
+        if let ControlFlow::Break(()) = observer.progress(Progress {
+            done: k,
+            total: steps,
+            t: state.t,
+        }) {
+            return Err(NonlinearRunStop::Stopped { step: k });
+        }
+    }
+    Ok(stats)
+}
