@@ -17,7 +17,7 @@ use crate::nonlinear::generalized_alpha::{
     run_ns_alpha,
 };
 use crate::nonlinear::moreau_jean::{
-    NewtonOptions, NonlinearMoreauJean, NonlinearMoreauJeanParams, NonlinearState,
+    NewtonOptions, NonlinearMoreauJean, NonlinearMoreauJeanParams, NonlinearState, has_friction,
     nonlinear_columns, run_nonlinear,
 };
 use crate::observer::Observer;
@@ -383,7 +383,8 @@ impl Job {
                 let recorded = j.steps / j.output.every.max(1) + 2;
                 let contacts = LagrangianSystem::contacts(&j.model);
                 // The run's columns, plus step and t.
-                let columns = nonlinear_columns(contacts, &j.output.probes).len() + 2;
+                let friction = has_friction(&j.model);
+                let columns = nonlinear_columns(contacts, friction, &j.output.probes).len() + 2;
                 JobSize {
                     dofs: LagrangianSystem::dofs(&j.model) as u64,
                     steps: j.steps,

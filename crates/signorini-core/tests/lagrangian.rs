@@ -408,13 +408,28 @@ fn bad_models_are_refused_with_the_field_named() {
             "needs a `tangent`",
         ),
         (
-            "friction with tangent",
+            "negative friction",
             |s| {
-                s["model"]["contacts"][0]["friction"] = json!(0.5);
+                s["model"]["contacts"][0]["friction"] = json!(-0.5);
                 s["model"]["contacts"][0]["tangent"] = json!("x");
             },
             "model.contacts[0].friction",
-            "not implemented yet",
+            "finite number ≥ 0",
+        ),
+        (
+            "tangent NaN at q0",
+            |s| {
+                s["model"]["contacts"][0]["friction"] = json!(0.5);
+                s["model"]["contacts"][0]["tangent"] = json!("log(-1 - y)");
+            },
+            "model.contacts[0].tangent",
+            "NaN at q0",
+        ),
+        (
+            "tangent uses a velocity",
+            |s| s["model"]["contacts"][0]["tangent"] = json!("x + x_dot"),
+            "model.contacts[0].tangent",
+            "velocity 'x_dot'",
         ),
         (
             "bad tangent",

@@ -213,7 +213,8 @@ pub const AUTO_FRICTION_LEMKE_MAX: usize = lcp::AUTO_LEMKE_MAX / 4;
 ///
 /// - `Lemke`: the LCP reformulation ([`solve_friction_lemke`]);
 /// - `Pgs`: the nonsmooth Gauss–Seidel ([`solve_friction_nsgs`]);
-/// - `Auto`: Lemke up to [`AUTO_FRICTION_LEMKE_MAX`] contacts, Gauss–Seidel above;
+/// - `Auto`: Lemke up to [`AUTO_FRICTION_LEMKE_MAX`] contacts, falling back to Gauss–Seidel
+///   when Lemke does not reach the tolerance (a singular W); Gauss–Seidel above;
 /// - `Enumeration`: refused ([`FrictionError::UnsupportedSolver`]); enumeration of the 4m-sized
 ///   reformulation would be 2^{4m} index sets and is not offered.
 ///
@@ -239,7 +240,13 @@ pub fn solve_friction(
     match options.kind {
         LcpSolverKind::Lemke => solve_friction_lemke(problem, options),
         LcpSolverKind::Auto if m <= AUTO_FRICTION_LEMKE_MAX => {
-            solve_friction_lemke(problem, options)
+            solve_friction_lemke(problem, options).or_else(|lemke| {
+                // Lemke ends on a PSD W, but on a singular one (more contact rows than
+                // coordinates: both corners of a rocking block with friction) its pivots can
+                // leave the error above tolerance; NSGS then gets the problem, and if it fails
+                // too, Lemke's error is the one reported.
+                solve_friction_nsgs(problem, options).map_err(|_| lemke)
+            })
         }
         _ => solve_friction_nsgs(problem, options),
     }

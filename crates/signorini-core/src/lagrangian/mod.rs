@@ -26,8 +26,10 @@
 //!   entries is caught; structurally equal expressions pass at once); M positive definite at q0
 //!   (Cholesky);
 //! * each joint holds at q0: |g_i(q0)| ≤ [`JOINT_TOLERANCE`] · ‖q0‖∞ (absolute when q0 = 0);
-//! * restitution in [0, 1]; a friction coefficient μ > 0 without `tangent` is refused, and μ > 0
-//!   with a tangent too (Coulomb friction is not implemented yet).
+//! * restitution in [0, 1]; friction μ finite and ≥ 0, and μ > 0 needs a `tangent` (the
+//!   tangential relative position τ(q, t), checked like a gap: no velocities, known names,
+//!   finite at q0); its gradient, the tangent row, is an exact symbolic derivative like the
+//!   gap's.
 
 use crate::expr::{Expr, Number, Param, Scope, ScopeError, Tape};
 use crate::nonlinear::LagrangianSystem;
@@ -51,6 +53,8 @@ pub struct UserModel {
     q0: Vec<f64>,
     v0: Vec<f64>,
     restitution: Vec<f64>,
+    /// Coulomb μ per contact (0 without friction).
+    friction: Vec<f64>,
     /// M(q), n×n row-major, mirrored from the upper triangle.
     mass: Tape,
     /// V(q, t).
@@ -75,6 +79,10 @@ pub struct UserModel {
     gap_jacobian: Tape,
     /// ∂gap/∂t, one per contact.
     gap_rates: Tape,
+    /// ∇_q τ, contacts×n (zero rows for contacts without a tangent).
+    tangent_jacobian: Tape,
+    /// ∂τ/∂t, one per contact (zero without a tangent).
+    tangent_rates: Tape,
 }
 
 /// What an expression may depend on.
@@ -294,6 +302,8 @@ impl UserModel {
         }
         let mut gaps = Vec::with_capacity(spec.contacts.len());
         let mut restitution = Vec::with_capacity(spec.contacts.len());
+        let mut friction = Vec::with_capacity(spec.contacts.len());
+        let mut tangents = Vec::with_capacity(spec.contacts.len());
         for (i, c) in spec.contacts.iter().enumerate() {
             let field = |f: &str| format!("model.contacts[{i}].{f}");
             gaps.push(p.parse(&field("gap"), &c.gap, Allowed::PositionsAndTime)?);
@@ -304,30 +314,25 @@ impl UserModel {
                 ));
             }
             restitution.push(c.restitution);
-            if let Some(tangent) = &c.tangent {
-                p.parse(&field("tangent"), tangent, Allowed::PositionsAndTime)?;
+            let tangent = match &c.tangent {
+                Some(src) => Some(p.parse(&field("tangent"), src, Allowed::PositionsAndTime)?),
+                None => None,
+            };
+            let mu = c.friction.unwrap_or(0.0);
+            if !(mu.is_finite() && mu >= 0.0) {
+                return Err(SpecError::new(
+                    field("friction"),
+                    format!("must be a finite number ≥ 0, got {mu}"),
+                ));
             }
-            match (c.friction, &c.tangent) {
-                (Some(mu), _) if !(mu.is_finite() && mu >= 0.0) => {
-                    return Err(SpecError::new(
-                        field("friction"),
-                        format!("must be a finite number ≥ 0, got {mu}"),
-                    ));
-                }
-                (Some(mu), None) if mu > 0.0 => {
-                    return Err(SpecError::new(
-                        field("friction"),
-                        "a friction coefficient needs a `tangent` (the tangential relative position)",
-                    ));
-                }
-                (Some(mu), Some(_)) if mu > 0.0 => {
-                    return Err(SpecError::new(
-                        field("friction"),
-                        "Coulomb friction is not implemented yet: leave `friction` out or set it to 0",
-                    ));
-                }
-                _ => {}
+            if mu > 0.0 && tangent.is_none() {
+                return Err(SpecError::new(
+                    field("friction"),
+                    "a friction coefficient needs a `tangent` (the tangential relative position; `tangent` is required when friction > 0)",
+                ));
             }
+            friction.push(mu);
+            tangents.push(tangent);
         }
 
         // Exact derivatives, built symbolically.
@@ -371,6 +376,20 @@ impl UserModel {
             .collect();
         let gap_jacobian: Vec<Expr> = gaps.iter().flat_map(|g| g.gradient(&q)).collect();
         let gap_rates: Vec<Expr> = gaps.iter().map(|g| g.derivative(2 * n)).collect();
+        let tangent_jacobian: Vec<Expr> = tangents
+            .iter()
+            .flat_map(|t| match t {
+                Some(t) => t.gradient(&q),
+                None => vec![Expr::constant(0.0); n],
+            })
+            .collect();
+        let tangent_rates: Vec<Expr> = tangents
+            .iter()
+            .map(|t| match t {
+                Some(t) => t.derivative(2 * n),
+                None => Expr::constant(0.0),
+            })
+            .collect();
         Ok(UserModel {
             n,
             joints: joints.len(),
@@ -378,6 +397,7 @@ impl UserModel {
             q0: spec.q0.clone(),
             v0,
             restitution,
+            friction,
             mass: Tape::compile(&mass),
             potential: potential.compile(),
             forces: Tape::compile(&forces),
@@ -390,6 +410,8 @@ impl UserModel {
             gaps: Tape::compile(&gaps),
             gap_jacobian: Tape::compile(&gap_jacobian),
             gap_rates: Tape::compile(&gap_rates),
+            tangent_jacobian: Tape::compile(&tangent_jacobian),
+            tangent_rates: Tape::compile(&tangent_rates),
         })
     }
 
@@ -534,5 +556,17 @@ impl LagrangianSystem for UserModel {
 
     fn restitution(&self, alpha: usize) -> f64 {
         self.restitution[alpha]
+    }
+
+    fn friction(&self, alpha: usize) -> f64 {
+        self.friction[alpha]
+    }
+
+    fn tangent_jacobian(&self, t: f64, q: &[f64], out: &mut [f64]) {
+        self.eval(&self.tangent_jacobian, t, q, None, out);
+    }
+
+    fn tangent_rates(&self, t: f64, q: &[f64], out: &mut [f64]) {
+        self.eval(&self.tangent_rates, t, q, None, out);
     }
 }

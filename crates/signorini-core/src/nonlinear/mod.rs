@@ -4,11 +4,12 @@
 //! process:
 //!
 //! ```text
-//! M(q) dv = F(t, q, v) dt + Σ_α ∇g_α(q, t) dP_α,     F = −∇V(q, t) − c(q, v) + f(t, q, v),
+//! M(q) dv = F(t, q, v) dt + Σ_α (∇g_α dP_α + ∇τ_α dP_t,α),   F = −∇V(q, t) − c(q, v) + f(t, q, v),
 //! c(q, v) = Ṁ(q) v − ½ ∇_q(vᵀ M(q) v),               g_α(q, t) ≥ 0 with Newton's impact law,
 //! ```
 //!
-//! where c is the Coriolis/centrifugal vector derived from M, V the potential (conservative
+//! with Coulomb's law on the tangential impulse P_t,α of a contact with friction μ_α (τ_α its
+//! tangential relative position, [`LagrangianSystem::tangent_jacobian`]), where c is the Coriolis/centrifugal vector derived from M, V the potential (conservative
 //! forces, part of the energy) and f the applied non-conservative forces (their work is
 //! `work_ext`). [`LagrangianSystem`] is the interface an integrator needs: values and exact
 //! Jacobians, no finite differences. The user models of `scene = "lagrangian"` implement it
@@ -61,4 +62,22 @@ pub trait LagrangianSystem {
 
     /// Newton restitution coefficient e_α ∈ [0, 1] of contact α.
     fn restitution(&self, alpha: usize) -> f64;
+
+    /// Coulomb friction coefficient μ_α ≥ 0 of contact α. A system without friction keeps the
+    /// default, 0 for every contact, and then needs no tangent.
+    fn friction(&self, _alpha: usize) -> f64 {
+        0.0
+    }
+
+    /// Tangent Jacobian, m×n: row α is ∇_q τ_α(q, t)ᵀ, the gradient of the tangential relative
+    /// position τ_α (the tangent direction in generalized coordinates); the scheme reads the
+    /// rows of the contacts with μ_α > 0 only. Default: zero rows (no contact has friction).
+    fn tangent_jacobian(&self, _t: f64, _q: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+    }
+
+    /// ∂τ_α/∂t (q, t), m entries: 0 for a fixed obstacle (the default).
+    fn tangent_rates(&self, _t: f64, _q: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+    }
 }

@@ -60,9 +60,48 @@
 //! For the linear scheme this is Lemma 1's balance with the numerical dissipation
 //! (½ − θ)‖Δv‖²_M left in; for a nonlinear system it is the scheme's energy error, which for
 //! θ = ½ shrinks as h² over a fixed time.
+//!
+//! Coulomb friction (planar: one tangent per contact; Moreau 1988; Jean 1999; Acary & Brogliato
+//! 2008, ch. 12–13). A contact α with μ_α > 0 has a tangential relative position τ_α(q, t),
+//! tangent row T_α = ∇_q τ_αᵀ and tangential local velocity U_t = T v + ∂τ/∂t. When some
+//! contact of the index set has μ > 0, the iterate's one-step problem has the rows (H_α, T_α)
+//! of every active contact, in the order (n_1, t_1, n_2, t_2, …): Delassus operator
+//! `[H; T](W^i)⁻¹[H; T]ᵀ` (2k×2k), free local velocity `(U_free + e U_k, T v_free + ∂τ/∂t)`,
+//! and [`crate::friction::solve_friction`] gives (P_n, P_t) with Signorini and Newton's law in
+//! the normal rows and Coulomb's law on U_t,{k+1} in the tangent rows; the impulse adds
+//! `(W^i)⁻¹(Hᵀ P_n + Tᵀ P_t)` to Δv and `Tᵀ P_t` joins `Hᵀ P` in Newton's residual. Without
+//! friction on the index set the step is the frictionless one, operation for operation.
+//!
+//! `work_friction` = Σ_α P_t,α (θ U_t,{k+1} + (1 − θ) U_t,k): the friction impulse against the
+//! tangential local velocity of the step as the scheme writes it, U_t,{k+1} = T(q^i) v_{k+1} +
+//! ∂τ/∂t the velocity of the last solve (on which Coulomb's law holds) and U_t,k the one at the
+//! end of the previous step. Derivation: multiplying (21a) by v_{k+θ} turns each impulse term
+//! into its work; the normal term gives `work_contact` = P_n · H v_{k+θ}, and the tangent term,
+//! new with friction, P_t · T v_{k+θ} = P_t (θ T v_{k+1} + (1 − θ) T v_k). For a constant T (a
+//! linear system, a fixed obstacle) T v_k is U_t,k and this is the definition above, so that
+//! `energy_error` = ΔE − work_ext − work_contact − work_friction closes (at round-off for a
+//! linear system, with Lemma 1's numerical dissipation (½ − θ)‖Δv‖²_M left in). For a T(q) the
+//! two differ by (1 − θ) P_t (T(q^i) − T(q_k)) v_k = O(h²) per step, which stays in
+//! `energy_error` (the scheme's error): with T(q^i) v_k a sticking pivot that turns (the
+//! rocking block) would show a spurious ±O(h²) friction work although nothing slides.
+//! Sign: Coulomb's law on U_t,{k+1} makes P_t U_t,{k+1} = −μ P_n |U_t,{k+1}| ≤ 0 (0 when
+//! sticking); the term (1 − θ) P_t U_t,k is ≤ 0 unless the friction impulse points along the
+//! start velocity, which needs U_t to change sign within the step. So work_friction ≤ 0 for
+//! θ = 1 always, and for θ < 1 on every step without a reversal of the sliding direction; a
+//! reversing step is reported as computed.
+//!
+//! Lasting contacts with friction: the sign test of (24) already reads U_k ≤ its round-off
+//! level u_ro; with friction the gap test reads g(q_k + h v_k) ≤ t_{k+1} u_ro as well. A
+//! sliding or sticking block whose U_n is zero only up to round-off drifts off the plane by up
+//! to h u_ro per step, so by at most t u_ro since t = 0 (seen: a block sliding on a slope
+//! drifts by 4e-18 in 80 steps, always upwards); without the tolerance the contact leaves the
+//! index set for one step, and with it the friction (the block then gains g μ cos α h). A
+//! contact that separates has U_k > u_ro and still leaves. A frictionless system keeps the
+//! strict test (its results are unchanged).
 
 use super::LagrangianSystem;
 use crate::contact::{Activation, IndexSetRule, LcpStats};
+use crate::friction::{self, FrictionError, FrictionProblem};
 use crate::integrators::OutputOptions;
 use crate::lcp::{self, Lcp, LcpError, LcpOptions};
 use crate::observer::{Columns, Observer, Progress, StepRecord};
@@ -84,6 +123,10 @@ pub const NONLINEAR_ENERGY_COLUMNS: [&str; 6] = [
 /// step's Newton iterations.
 pub const NONLINEAR_RUN_COLUMNS: [&str; 3] =
     ["work_ext_total", "work_contact_total", "newton_iterations"];
+
+/// The friction columns of a run whose model has friction (μ > 0 on some contact), after the
+/// run columns: the step's friction work and its cumulative sum.
+pub const FRICTION_COLUMNS: [&str; 2] = ["work_friction", "work_friction_total"];
 
 /// Newton's settings. Defaults: tolerance 1e-10, 20 iterations.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -186,6 +229,17 @@ pub enum NonlinearStepError {
         /// The solver's error.
         source: LcpError,
     },
+    /// The friction problem of the step (some contact of the index set has μ > 0) could not
+    /// be solved to tolerance.
+    #[error("step {step} (t = {t}): contact friction problem failed: {source}")]
+    Friction {
+        /// Step number.
+        step: u64,
+        /// Time t_{k+1}.
+        t: f64,
+        /// The solver's error.
+        source: FrictionError,
+    },
 }
 
 /// State of a nonlinear system at t_k.
@@ -225,7 +279,9 @@ pub struct NonlinearStepReport {
     pub work_ext: f64,
     /// Discrete work of the contact impulses over the step.
     pub work_contact: f64,
-    /// ΔE − work_ext − work_contact.
+    /// Discrete work of the friction impulses over the step, `Σ P_t,α T_α(q) v_{k+θ}`.
+    pub work_friction: f64,
+    /// ΔE − work_ext − work_contact − work_friction.
     pub energy_error: f64,
     /// Gap g_α(q_{k+1}, t_{k+1}).
     pub gap: Vec<f64>,
@@ -233,7 +289,12 @@ pub struct NonlinearStepReport {
     pub local_velocity: Vec<f64>,
     /// Impulse P_{k+1}.
     pub impulse: Vec<f64>,
-    /// The last LCP of the step.
+    /// Tangential impulse P_t,{k+1} (zero for contacts without friction).
+    pub tangent_impulse: Vec<f64>,
+    /// Tangential local velocity U_t,{k+1} = T(q_{k+1}) v_{k+1} + ∂τ/∂t (zero when the system
+    /// has no friction).
+    pub tangent_velocity: Vec<f64>,
+    /// The last LCP (or friction problem) of the step.
     pub lcp: LcpStats,
     /// Newton iterates of the step.
     pub newton_iterations: usize,
@@ -256,6 +317,8 @@ impl NonlinearStepReport {
             gap: vec![0.0; m],
             local_velocity: vec![0.0; m],
             impulse: vec![0.0; m],
+            tangent_impulse: vec![0.0; m],
+            tangent_velocity: vec![0.0; m],
             ..Default::default()
         };
         let mut jac = vec![0.0; m * n];
@@ -264,6 +327,13 @@ impl NonlinearStepReport {
         system.gap_rates(state.t, &state.q, &mut report.local_velocity);
         for (a, u) in report.local_velocity.iter_mut().enumerate() {
             *u += dot(&jac[a * n..(a + 1) * n], &state.v);
+        }
+        if has_friction(system) {
+            system.tangent_jacobian(state.t, &state.q, &mut jac);
+            system.tangent_rates(state.t, &state.q, &mut report.tangent_velocity);
+            for (a, u) in report.tangent_velocity.iter_mut().enumerate() {
+                *u += dot(&jac[a * n..(a + 1) * n], &state.v);
+            }
         }
         report
     }
@@ -280,6 +350,8 @@ struct EndOfStep {
     forces: Vec<f64>,
     applied: Vec<f64>,
     gaps: Vec<f64>,
+    /// Tangential local velocities U_t,k (friction only; empty otherwise).
+    tangent_velocity: Vec<f64>,
     energy: f64,
 }
 
@@ -292,6 +364,10 @@ pub struct NonlinearMoreauJean {
     lcp: LcpOptions,
     n: usize,
     m: usize,
+    /// μ_α per contact.
+    mu: Vec<f64>,
+    /// Whether some contact has μ > 0 (the tangent rows are then formed where needed).
+    friction: bool,
     last: Option<EndOfStep>,
     /// Step whose end state `roundoff` belongs to (`u64::MAX`: none yet).
     roundoff_step: u64,
@@ -320,9 +396,23 @@ struct Scratch {
     /// Contacts that entered the index set at an earlier iterate of the step.
     member: Vec<bool>,
     rhs: Vec<f64>,
-    /// Columns (W^i)⁻¹ H_αᵀ of the active contacts, n each.
+    /// Tangent Jacobian, m×n (friction only).
+    tjac: Vec<f64>,
+    /// ∂τ/∂t at t_{k+1}, m entries (friction only).
+    trates: Vec<f64>,
+    /// Whether the current iterate solved a friction problem (rows H_α and T_α) rather than
+    /// the frictionless LCP (rows H_α).
+    friction_step: bool,
+    /// Columns (W^i)⁻¹ H_αᵀ of the active contacts, n each; with friction (W^i)⁻¹ H_αᵀ,
+    /// (W^i)⁻¹ T_αᵀ per contact, in the order (n_1, t_1, n_2, t_2, …).
     columns: Vec<f64>,
+    /// The Delassus operator on the same rows, row-major.
     delassus: Vec<f64>,
+    /// Free local velocity of the friction problem, μ of its contacts, and the impulses of
+    /// the last solve (in the order of `columns`).
+    friction_q: Vec<f64>,
+    friction_mu: Vec<f64>,
+    solution: Vec<f64>,
     /// max_i |W_ij| per column j of the iteration matrix.
     column_max: Vec<f64>,
 }
@@ -360,12 +450,17 @@ impl NonlinearMoreauJean {
         }
         let (n, m) = (system.dofs(), system.contacts());
         let z = |k| vec![0.0; k];
+        let mu: Vec<f64> = (0..m).map(|a| system.friction(a)).collect();
+        let friction = mu.iter().any(|&x| x > 0.0);
+        let fm = if friction { m } else { 0 };
         Ok(Self {
             params,
             h,
             lcp,
             n,
             m,
+            mu,
+            friction,
             last: None,
             roundoff_step: u64::MAX,
             roundoff: z(m),
@@ -387,8 +482,14 @@ impl NonlinearMoreauJean {
                 active: Vec::with_capacity(m),
                 member: vec![false; m],
                 rhs: Vec::with_capacity(m),
+                tjac: z(fm * n),
+                trates: z(fm),
+                friction_step: false,
                 columns: Vec::with_capacity(m * n),
                 delassus: Vec::with_capacity(m * m),
+                friction_q: Vec::with_capacity(2 * fm),
+                friction_mu: Vec::with_capacity(fm),
+                solution: Vec::with_capacity(2 * m),
                 column_max: Vec::with_capacity(n),
             },
         })
@@ -440,6 +541,7 @@ impl NonlinearMoreauJean {
                     forces: vec![0.0; n],
                     applied: vec![0.0; n],
                     gaps: vec![0.0; m],
+                    tangent_velocity: Vec::new(),
                     energy: 0.0,
                 };
                 system.forces(t_k, &state.q, &state.v, &mut e.forces);
@@ -450,6 +552,16 @@ impl NonlinearMoreauJean {
                 check(&e.gaps, "a gap g(q, t)")?;
                 system.mass(&state.q, &mut self.s.mass);
                 e.energy = kinetic(&self.s.mass, &state.v) + system.potential(t_k, &state.q);
+                if self.friction {
+                    e.tangent_velocity = vec![0.0; m];
+                    system.tangent_jacobian(t_k, &state.q, &mut self.s.tjac);
+                    check(&self.s.tjac, "the tangent Jacobian")?;
+                    system.tangent_rates(t_k, &state.q, &mut e.tangent_velocity);
+                    for (a, u) in e.tangent_velocity.iter_mut().enumerate() {
+                        *u += dot(&self.s.tjac[a * n..(a + 1) * n], &state.v);
+                    }
+                    check(&e.tangent_velocity, "a tangential velocity")?;
+                }
                 if !e.energy.is_finite() {
                     return Err(not_finite("the energy"));
                 }
@@ -476,7 +588,9 @@ impl NonlinearMoreauJean {
         let mut iterations = 0;
         let mut residual = f64::INFINITY;
         let mut work_contact = 0.0;
+        let mut work_friction = 0.0;
         report.impulse.fill(0.0);
+        report.tangent_impulse.fill(0.0);
         report.lcp = LcpStats::default();
         while iterations < params.newton.max_iterations {
             iterations += 1;
@@ -519,7 +633,9 @@ impl NonlinearMoreauJean {
 
             // Index set and impulse LCP with the gaps linearised at q^i.
             report.impulse.fill(0.0);
+            report.tangent_impulse.fill(0.0);
             report.lcp = LcpStats::default();
+            s.friction_step = false;
             s.active.clear();
             s.rhs.clear();
             if m > 0 {
@@ -544,7 +660,13 @@ impl NonlinearMoreauJean {
                                 };
                                 let shift: f64 =
                                     (0..n).map(|i| row[i] * (s.predicted[i] - s.q[i])).sum();
-                                s.gaps[a] + shift <= 0.0 && u_k <= u_tol
+                                // With friction, a lasting contact keeps its place when its
+                                // predicted gap is within t × the velocity round-off (the
+                                // drift that round-off in U can have put into q): dropping it
+                                // for one step would drop its friction too (module
+                                // documentation).
+                                let gap_tol = if self.friction { t_next * u_tol } else { 0.0 };
+                                s.gaps[a] + shift <= gap_tol && u_k <= u_tol
                             }
                             Activation::PredictedGap => {
                                 start.gaps[a] + params.index_set.gamma * h * u_k <= 0.0
@@ -560,49 +682,105 @@ impl NonlinearMoreauJean {
             }
             if !s.active.is_empty() {
                 let k = s.active.len();
+                // With friction on some active contact, the rows of the one-step problem are
+                // (H_α, T_α) per contact, in the order (n_1, t_1, n_2, t_2, …); otherwise H_α.
+                let friction_step = self.friction && s.active.iter().any(|&a| self.mu[a] > 0.0);
+                s.friction_step = friction_step;
+                if friction_step {
+                    system.tangent_jacobian(t_next, &s.q, &mut s.tjac);
+                    check(&s.tjac, "the tangent Jacobian")?;
+                    system.tangent_rates(t_next, &s.q, &mut s.trates);
+                    check(&s.trates, "∂τ/∂t")?;
+                }
+                let rows = if friction_step { 2 } else { 1 };
+                let kk = rows * k;
                 s.columns.clear();
                 for &a in &s.active {
-                    let start_col = s.columns.len();
-                    s.columns.extend_from_slice(&s.jac[a * n..(a + 1) * n]);
-                    solve(&mut s.columns[start_col..]);
+                    for r in 0..rows {
+                        let src = if r == 0 { &s.jac } else { &s.tjac };
+                        let start_col = s.columns.len();
+                        s.columns.extend_from_slice(&src[a * n..(a + 1) * n]);
+                        solve(&mut s.columns[start_col..]);
+                    }
                 }
                 s.delassus.clear();
                 for &a in &s.active {
-                    let row = &s.jac[a * n..(a + 1) * n];
-                    for c in 0..k {
-                        s.delassus.push(dot(row, &s.columns[c * n..(c + 1) * n]));
+                    for r in 0..rows {
+                        let src = if r == 0 { &s.jac } else { &s.tjac };
+                        let row = &src[a * n..(a + 1) * n];
+                        for c in 0..kk {
+                            s.delassus.push(dot(row, &s.columns[c * n..(c + 1) * n]));
+                        }
                     }
                 }
                 check(&s.delassus, "the Delassus operator")?;
-                let sol = lcp::solve(
-                    Lcp {
-                        m: &s.delassus,
-                        q: &s.rhs,
-                    },
-                    &self.lcp,
-                )
-                .map_err(|source| NonlinearStepError::Lcp {
-                    step,
-                    t: t_next,
-                    source,
-                })?;
-                for (r, &a) in s.active.iter().enumerate() {
-                    let p = sol.z[r];
-                    report.impulse[a] = p;
+                s.solution.clear();
+                let (iterations, error) = if friction_step {
+                    // Free local velocity: normal rows U_free + e U_k, tangent rows
+                    // T(q^i)(v_k + Δv_free) + ∂τ/∂t(t_{k+1}).
+                    s.friction_q.clear();
+                    s.friction_mu.clear();
+                    for (r, &a) in s.active.iter().enumerate() {
+                        let row = &s.tjac[a * n..(a + 1) * n];
+                        s.friction_q.push(s.rhs[r]);
+                        s.friction_q
+                            .push(dot(row, &state.v) + dot(row, &s.dv) + s.trates[a]);
+                        s.friction_mu.push(self.mu[a]);
+                    }
+                    let sol = friction::solve_friction(
+                        FrictionProblem {
+                            w: &s.delassus,
+                            q: &s.friction_q,
+                            mu: &s.friction_mu,
+                        },
+                        &self.lcp,
+                    )
+                    .map_err(|source| NonlinearStepError::Friction {
+                        step,
+                        t: t_next,
+                        source,
+                    })?;
+                    s.solution.extend_from_slice(&sol.p);
+                    (sol.iterations, sol.error)
+                } else {
+                    let sol = lcp::solve(
+                        Lcp {
+                            m: &s.delassus,
+                            q: &s.rhs,
+                        },
+                        &self.lcp,
+                    )
+                    .map_err(|source| NonlinearStepError::Lcp {
+                        step,
+                        t: t_next,
+                        source,
+                    })?;
+                    s.solution.extend_from_slice(&sol.z);
+                    (sol.iterations, sol.error)
+                };
+                for (c, &p) in s.solution.iter().enumerate() {
+                    let a = s.active[c / rows];
+                    if c % rows == 0 {
+                        report.impulse[a] = p;
+                    } else {
+                        report.tangent_impulse[a] = p;
+                    }
                     if p != 0.0 {
-                        for (d, c) in s.dv.iter_mut().zip(&s.columns[r * n..(r + 1) * n]) {
-                            *d += p * c;
+                        for (d, col) in s.dv.iter_mut().zip(&s.columns[c * n..(c + 1) * n]) {
+                            *d += p * col;
                         }
                     }
                 }
                 report.lcp = LcpStats {
                     size: k,
-                    iterations: sol.iterations,
-                    error: sol.error,
+                    iterations,
+                    error,
                 };
             }
-            // Contact work with the H of this LCP, against v_{k+θ} = v_k + θ Δv.
+            // Contact and friction works with the H and T of this solve, against
+            // v_{k+θ} = v_k + θ Δv.
             work_contact = 0.0;
+            work_friction = 0.0;
             for &a in &s.active {
                 let p = report.impulse[a];
                 if p != 0.0 {
@@ -611,6 +789,15 @@ impl NonlinearMoreauJean {
                         .map(|i| row[i] * (state.v[i] + theta * s.dv[i]))
                         .sum();
                     work_contact += p * u;
+                }
+                let pt = report.tangent_impulse[a];
+                if s.friction_step && pt != 0.0 {
+                    // θ U_t,{k+1} (the velocity of this solve, on which Coulomb's law holds)
+                    // + (1 − θ) U_t,k (the end of the last step).
+                    let row = &s.tjac[a * n..(a + 1) * n];
+                    let u_next = dot(row, &state.v) + dot(row, &s.dv) + s.trates[a];
+                    work_friction +=
+                        pt * (theta * u_next + (1.0 - theta) * start.tangent_velocity[a]);
                 }
             }
 
@@ -627,6 +814,10 @@ impl NonlinearMoreauJean {
                 system.gap_jacobian(t_next, &s.q, &mut s.jac);
                 check(&s.jac, "the gap Jacobian")?;
             }
+            if s.friction_step {
+                system.tangent_jacobian(t_next, &s.q, &mut s.tjac);
+                check(&s.tjac, "the tangent Jacobian")?;
+            }
             let (mut r_max, mut scale) = (0.0f64, 0.0f64);
             for i in 0..n {
                 let md = dot(&s.mass[i * n..(i + 1) * n], &s.dv);
@@ -636,6 +827,11 @@ impl NonlinearMoreauJean {
                     let t = s.jac[a * n + i] * report.impulse[a];
                     hp += t;
                     hp_abs += t.abs();
+                    if s.friction_step {
+                        let t = s.tjac[a * n + i] * report.tangent_impulse[a];
+                        hp += t;
+                        hp_abs += t.abs();
+                    }
                 }
                 let r = md - h * (fk + f1) - hp;
                 r_max = r_max.max(r.abs());
@@ -659,17 +855,26 @@ impl NonlinearMoreauJean {
             });
         }
 
-        // Round-off level of the LCP's local velocities, for the sign test of the next step.
+        // Round-off level of the LCP's local velocities (normal rows), for the sign test of the
+        // next step. With friction the solver couples each normal row to its tangent row (the
+        // Lemke tableau of the reformulation pivots on both), so the level counts both rows.
         self.roundoff.fill(0.0);
-        let k = s.active.len();
+        let rows = if s.friction_step { 2 } else { 1 };
+        let kk = rows * s.active.len();
         for (r, &a) in s.active.iter().enumerate() {
-            let wp: f64 = s
-                .active
-                .iter()
-                .enumerate()
-                .map(|(c, &b)| (s.delassus[r * k + c] * report.impulse[b]).abs())
-                .sum();
-            self.roundoff[a] = 64.0 * f64::EPSILON * (s.rhs[r].abs() + wp);
+            let mut level = 0.0;
+            for row in rows * r..rows * (r + 1) {
+                let wp: f64 = (0..kk)
+                    .map(|c| (s.delassus[row * kk + c] * s.solution[c]).abs())
+                    .sum();
+                let b = if rows == 1 {
+                    s.rhs[r]
+                } else {
+                    s.friction_q[row]
+                };
+                level += b.abs() + wp;
+            }
+            self.roundoff[a] = 64.0 * f64::EPSILON * level;
         }
         self.roundoff_step = step;
 
@@ -690,13 +895,22 @@ impl NonlinearMoreauJean {
         }
         report.work_ext = work_ext;
         report.work_contact = work_contact;
-        report.energy_error = (energy - start.energy) - work_ext - work_contact;
+        report.work_friction = work_friction;
+        report.energy_error = (energy - start.energy) - work_ext - work_contact - work_friction;
         report.newton_iterations = iterations;
         system.gaps(t_next, &s.q, &mut report.gap);
         check(&report.gap, "a gap g(q, t)")?;
         system.gap_rates(t_next, &s.q, &mut report.local_velocity);
         for (a, u) in report.local_velocity.iter_mut().enumerate() {
             *u += dot(&s.jac[a * n..(a + 1) * n], &s.v);
+        }
+        if self.friction {
+            system.tangent_jacobian(t_next, &s.q, &mut s.tjac);
+            check(&s.tjac, "the tangent Jacobian")?;
+            system.tangent_rates(t_next, &s.q, &mut report.tangent_velocity);
+            for (a, u) in report.tangent_velocity.iter_mut().enumerate() {
+                *u += dot(&s.tjac[a * n..(a + 1) * n], &s.v);
+            }
         }
 
         let mut end = start;
@@ -707,6 +921,10 @@ impl NonlinearMoreauJean {
         end.forces.copy_from_slice(&s.forces);
         end.applied.copy_from_slice(&s.applied);
         end.gaps.copy_from_slice(&report.gap);
+        if self.friction {
+            end.tangent_velocity
+                .copy_from_slice(&report.tangent_velocity);
+        }
         end.energy = energy;
         self.last = Some(end);
         state.q.copy_from_slice(&s.q);
@@ -722,6 +940,11 @@ fn position(q_k: &[f64], v_k: &[f64], dv: &[f64], h: f64, theta: f64, out: &mut 
     for (((o, q), v), d) in out.iter_mut().zip(q_k).zip(v_k).zip(dv) {
         *o = q + h * (v + theta * d);
     }
+}
+
+/// Whether some contact of `system` has μ > 0.
+pub fn has_friction<S: LagrangianSystem + ?Sized>(system: &S) -> bool {
+    (0..system.contacts()).any(|a| system.friction(a) > 0.0)
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -779,6 +1002,13 @@ pub struct NonlinearRunStats {
     pub work_ext_total: f64,
     /// Cumulative work of the contact impulses at the end.
     pub work_contact_total: f64,
+    /// Cumulative work of the friction impulses at the end (only for a system with friction).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub work_friction_total: Option<f64>,
+    /// Largest friction work of one step, max_k work_friction (≤ 0 when friction never does
+    /// positive work; only for a system with friction).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub work_friction_max: Option<f64>,
 }
 
 /// Why a nonlinear run ended early.
@@ -804,15 +1034,23 @@ pub enum NonlinearRunStop {
 }
 
 /// Column names of a nonlinear run: [`NONLINEAR_ENERGY_COLUMNS`], [`NONLINEAR_RUN_COLUMNS`],
-/// then `gap_α, u_α, p_α` per contact, then `q_j, v_j` per probe.
-pub fn nonlinear_columns(contacts: usize, probes: &[usize]) -> Columns {
+/// with friction [`FRICTION_COLUMNS`], then `gap_α, u_α, p_α` per contact (with friction also
+/// `pt_α, ut_α`: tangential impulse and velocity), then `q_j, v_j` per probe. A system without
+/// friction has exactly the frictionless columns.
+pub fn nonlinear_columns(contacts: usize, friction: bool, probes: &[usize]) -> Columns {
     let mut names: Vec<String> = NONLINEAR_ENERGY_COLUMNS
         .iter()
         .chain(&NONLINEAR_RUN_COLUMNS)
         .map(|s| s.to_string())
         .collect();
+    if friction {
+        names.extend(FRICTION_COLUMNS.iter().map(|s| s.to_string()));
+    }
     for a in 0..contacts {
         names.extend([format!("gap_{a}"), format!("u_{a}"), format!("p_{a}")]);
+        if friction {
+            names.extend([format!("pt_{a}"), format!("ut_{a}")]);
+        }
     }
     for j in probes {
         names.extend([format!("q_{j}"), format!("v_{j}")]);
@@ -834,7 +1072,8 @@ pub fn run_nonlinear<S: LagrangianSystem + ?Sized>(
     if let Some(&probe) = output.probes.iter().find(|&&j| j >= n) {
         return Err(NonlinearRunStop::Probe { probe, dofs: n });
     }
-    let columns = nonlinear_columns(m, &output.probes);
+    let friction = has_friction(system);
+    let columns = nonlinear_columns(m, friction, &output.probes);
     observer.start(&columns);
     let every = output.every.max(1);
     let mut report = NonlinearStepReport::of_state(system, state);
@@ -844,14 +1083,17 @@ pub fn run_nonlinear<S: LagrangianSystem + ?Sized>(
         energy_initial: e0,
         energy_final: e0,
         energy_max: e0,
+        work_friction_total: friction.then_some(0.0),
         ..Default::default()
     };
     let mut row = Vec::with_capacity(columns.len());
     let mut previous_impulse = vec![0.0; m];
     let mut newton_total = 0u64;
+    let mut work_friction_total = 0.0;
     let record = |report: &NonlinearStepReport,
                   stats: &NonlinearRunStats,
                   state: &NonlinearState,
+                  work_friction_total: f64,
                   row: &mut Vec<f64>| {
         row.clear();
         row.extend([
@@ -865,14 +1107,20 @@ pub fn run_nonlinear<S: LagrangianSystem + ?Sized>(
             stats.work_contact_total,
             report.newton_iterations as f64,
         ]);
+        if friction {
+            row.extend([report.work_friction, work_friction_total]);
+        }
         for a in 0..m {
             row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
+            if friction {
+                row.extend([report.tangent_impulse[a], report.tangent_velocity[a]]);
+            }
         }
         for &j in &output.probes {
             row.extend([state.q[j], state.v[j]]);
         }
     };
-    record(&report, &stats, state, &mut row);
+    record(&report, &stats, state, 0.0, &mut row);
     let observed = |observer: &mut dyn Observer, state: &NonlinearState, row: &[f64]| {
         observer.observe(&StepRecord {
             step: state.step,
@@ -889,6 +1137,15 @@ pub fn run_nonlinear<S: LagrangianSystem + ?Sized>(
         stats.t_end = state.t;
         stats.work_ext_total += report.work_ext;
         stats.work_contact_total += report.work_contact;
+        if friction {
+            work_friction_total += report.work_friction;
+            stats.work_friction_total = Some(work_friction_total);
+            stats.work_friction_max = Some(
+                stats
+                    .work_friction_max
+                    .map_or(report.work_friction, |w| w.max(report.work_friction)),
+            );
+        }
         stats.max_abs_energy_error = stats.max_abs_energy_error.max(report.energy_error.abs());
         stats.energy_final = report.energy();
         stats.energy_max = stats.energy_max.max(report.energy());
@@ -903,7 +1160,7 @@ pub fn run_nonlinear<S: LagrangianSystem + ?Sized>(
             *p_old = p;
         }
         if k % every == 0 || k == steps {
-            record(&report, &stats, state, &mut row);
+            record(&report, &stats, state, work_friction_total, &mut row);
             if observed(observer, state, &row).is_break() {
                 return Err(NonlinearRunStop::Stopped { step: k });
             }

@@ -57,8 +57,8 @@ pub struct LagrangianSpec {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub constraints: Vec<JointSpec>,
     /// Unilateral contacts, each `{ gap = "...", restitution = e }`: gap(q, t) ≥ 0 with Newton's
-    /// impact law, e ∈ [0, 1] (default 0); `friction` μ with its `tangent` (Coulomb friction is
-    /// not implemented yet: μ > 0 is refused). Run by `moreau_jean`.
+    /// impact law, e ∈ [0, 1] (default 0); `friction` μ with its `tangent` (planar Coulomb
+    /// friction). Run by `moreau_jean`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub contacts: Vec<UserContactSpec>,
 }
@@ -83,11 +83,13 @@ pub struct UserContactSpec {
     #[schemars(range(min = 0.0, max = 1.0))]
     pub restitution: f64,
     /// Coulomb friction coefficient μ ≥ 0 (default 0: frictionless); μ > 0 needs `tangent`.
-    /// Friction is not implemented yet: a μ > 0 is refused.
+    /// The step then solves the planar friction problem (`contact_solver.kind`: lemke on the
+    /// LCP reformulation, pgs the nonsmooth Gauss–Seidel, auto by size).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 0.0))]
     pub friction: Option<f64>,
-    /// The tangential relative position (no velocities); its gradient is the tangent direction.
+    /// The tangential relative position τ(q, t) (no velocities); its gradient is the tangent
+    /// direction, and U_t = ∇τ·q̇ + ∂τ/∂t the tangential velocity that friction opposes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tangent: Option<String>,
 }
