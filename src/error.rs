@@ -60,6 +60,12 @@ pub enum ApiError {
         /// Path asked for.
         path: String,
     },
+    /// A reply would be larger than one message may be.
+    #[error("{reason}")]
+    TooLarge {
+        /// Why, and what to do instead.
+        reason: String,
+    },
     /// Missing or wrong bearer token on a mutating call.
     #[error("missing or invalid bearer token")]
     Unauthenticated,
@@ -84,6 +90,7 @@ impl ApiError {
             ApiError::NoRoute { .. } => ("path".into(), self.to_string()),
             ApiError::Unauthenticated => ("authorization".into(), self.to_string()),
             ApiError::QueueFull { .. } => ("queue".into(), self.to_string()),
+            ApiError::TooLarge { .. } => ("columns".into(), self.to_string()),
             ApiError::Unavailable | ApiError::Internal(_) => (String::new(), self.to_string()),
         }
     }

@@ -193,6 +193,7 @@ async fn http_job_streams_every_step_over_zenoh_bit_for_bit() {
             id: id.into(),
             columns: vec!["energy".into()],
             every: 1000,
+            ..Default::default()
         })
         .await
         .expect("GetResult with a cut")

@@ -1,8 +1,8 @@
 //! Client commands: `submit`, `status`, `watch`, `result`, `cancel`, `capabilities`.
 //! They talk gRPC to a running `signorini serve`; `watch` subscribes to the job's zenoh keys.
 
-use crate::output::{FinishedRun, clear_results, write_run_files, write_steps};
-use crate::proto::encode::{result_from_proto, status_from_proto};
+use crate::output::{CsvSteps, FinishedRun, clear_results, write_run_files};
+use crate::proto::encode::{status_from_proto, tables_from_proto};
 use crate::proto::v1 as pb;
 use crate::proto::v1::simulation_client::SimulationClient;
 use crate::server::json::{FrameJson, StatusJson};
@@ -14,6 +14,9 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use prost::Message;
 use serde_json::json;
+use signorini_core::observer::{Columns, Observer, StepRecord};
+use signorini_figures::Figure;
+use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 use tonic::transport::Channel;
@@ -212,38 +215,144 @@ pub fn capabilities(args: CapabilitiesArgs) -> Result<()> {
     })
 }
 
-/// `result`: prints summary.json, or writes the run's files to `--out`.
+/// `result`: prints summary.json; with `--out DIR` writes the run's files there, as `run` does;
+/// with `--column`/`--every` and no `--out` prints the cut series as CSV (the lines of
+/// `steps.csv`). The result comes through `StreamResult` and goes to its file or stdout as it
+/// arrives, so a result of any size needs a few MiB here. A failed or cancelled job's recorded
+/// rows come too, with a warning on stderr that they are partial.
 pub fn result(args: ResultArgs) -> Result<()> {
-    let r = runtime()?.block_on(async {
+    use pb::result_chunk::Part;
+    let cut_asked = !args.columns.is_empty() || args.every > 1;
+    runtime()?.block_on(async {
         let mut c = client(&args.conn).await?;
-        c.get_result(pb::GetResultRequest {
-            id: args.id.clone(),
-            columns: args.columns.clone(),
-            every: args.every,
-        })
-        .await
-        .map_err(status_error)
-        .map(tonic::Response::into_inner)
-    })?;
-    let r = result_from_proto(r)?;
-    let Some(dir) = args.out else {
-        println!("{}", serde_json::to_string_pretty(&r.summary)?);
-        return Ok(());
-    };
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    clear_results(&dir)?;
-    // The files `signorini run` writes, by the same writers.
-    write_steps(&dir, &r.columns, &r.steps, &r.t, &r.values)?;
-    write_run_files(
-        &dir,
-        &FinishedRun {
-            summary: r.summary,
-            tables: r.tables,
-            figures: r.figures,
-        },
-    )?;
-    println!("results of {} in {}", args.id, dir.display());
+        let mut stream = c
+            .stream_result(pb::GetResultRequest {
+                id: args.id.clone(),
+                columns: args.columns.clone(),
+                every: args.every,
+                from_step: None,
+                to_step: None,
+            })
+            .await
+            .map_err(status_error)?
+            .into_inner();
+        let header = match stream.message().await.map_err(status_error)? {
+            Some(pb::ResultChunk {
+                part: Some(Part::Header(h)),
+            }) => h,
+            _ => return Err(anyhow!("the server sent no result header")),
+        };
+        let summary: serde_json::Map<String, serde_json::Value> =
+            serde_json::from_str(&header.summary_json).context("summary from the server")?;
+        if header.partial {
+            let state = header
+                .status
+                .clone()
+                .map(status_from_proto)
+                .transpose()?
+                .map_or("stopped", |v| v.state.as_str());
+            eprintln!(
+                "warning: job {} is {state}: {} rows it recorded before it stopped (a partial result)",
+                args.id, header.rows
+            );
+        }
+        let columns = Columns::new(header.columns.clone());
+        let Some(dir) = &args.out else {
+            if !cut_asked {
+                println!("{}", serde_json::to_string_pretty(&summary)?);
+                return Ok(());
+            }
+            let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+            let printed: Result<()> = async {
+                writeln!(out, "step,t{}", header.columns.iter().map(|c| format!(",{c}")).collect::<String>())?;
+                while let Some(msg) = stream.message().await.map_err(status_error)? {
+                    if let Some(Part::Rows(rows)) = msg.part {
+                        write_rows(&mut out, &rows, columns.names().len())?;
+                    }
+                }
+                out.flush()?;
+                Ok(())
+            }
+            .await;
+            return quiet_on_broken_pipe(printed);
+        };
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        clear_results(dir)?;
+        // The files `signorini run` writes, by the same writers.
+        let mut csv = CsvSteps::create(dir)?;
+        let mut started = false;
+        let mut figures = Vec::new();
+        let n = header.columns.len();
+        while let Some(msg) = stream.message().await.map_err(status_error)? {
+            match msg.part {
+                Some(Part::Figure(pb::Figure { name, svg })) => figures.push(Figure { name, svg }),
+                Some(Part::Rows(rows)) => {
+                    if !started {
+                        csv.start(&columns);
+                        started = true;
+                    }
+                    if rows.t.len() != rows.step.len() || rows.values.len() != rows.step.len() * n {
+                        csv.discard();
+                        return Err(anyhow!("the server sent a malformed chunk of rows"));
+                    }
+                    for (i, (&step, &t)) in rows.step.iter().zip(&rows.t).enumerate() {
+                        let record = StepRecord {
+                            step,
+                            t,
+                            values: &rows.values[i * n..(i + 1) * n],
+                        };
+                        if csv.observe(&record).is_break() {
+                            break;
+                        }
+                    }
+                }
+                Some(Part::Header(_)) | None => {}
+            }
+        }
+        if !started && n > 0 {
+            // A series with columns and no row (a cut that keeps none) still gets its header.
+            csv.start(&columns);
+        }
+        csv.finish()?;
+        write_run_files(
+            dir,
+            &FinishedRun {
+                summary,
+                tables: tables_from_proto(header.tables),
+                figures,
+            },
+        )?;
+        println!("results of {} in {}", args.id, dir.display());
+        Ok(())
+    })
+}
+
+/// Writes rows of a `StreamResult` as CSV lines (the format of `steps.csv`).
+fn write_rows(out: &mut impl Write, rows: &pb::ResultRows, n: usize) -> Result<()> {
+    if rows.t.len() != rows.step.len() || rows.values.len() != rows.step.len() * n {
+        return Err(anyhow!("the server sent a malformed chunk of rows"));
+    }
+    for (i, (&step, &t)) in rows.step.iter().zip(&rows.t).enumerate() {
+        write!(out, "{step},{t:?}")?;
+        for v in &rows.values[i * n..(i + 1) * n] {
+            write!(out, ",{v:?}")?;
+        }
+        writeln!(out)?;
+    }
     Ok(())
+}
+
+/// A reader that closed our stdout (`| head`) ends the command quietly and successfully.
+fn quiet_on_broken_pipe(r: Result<()>) -> Result<()> {
+    match r {
+        Err(e)
+            if e.downcast_ref::<std::io::Error>()
+                .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe) =>
+        {
+            Ok(())
+        }
+        other => other,
+    }
 }
 
 /// `watch`: follows a job's zenoh keys until it ends.

@@ -15,7 +15,7 @@ use crate::config::Limits;
 use crate::error::ApiError;
 use crate::output::finish_run;
 use crate::status::{JobState, JobView};
-use crate::store::{Store, StoredResult};
+use crate::store::{ChunkMeta, SeriesChunk, Store, StoredResult};
 use events::{EventSink, JobEvent, StreamStats};
 use ids::{new_id, now_ms};
 use observer::ServiceObserver;
@@ -299,21 +299,35 @@ impl Engine {
         lock(&self.inner.live).get(id).map(|l| l.ended.subscribe())
     }
 
-    /// The result of a succeeded job.
-    pub fn result(&self, id: &str) -> Result<(JobView, StoredResult), ApiError> {
+    /// The result of a finished job without its series: a succeeded job's, or the partial one
+    /// a failed or cancelled run left (`partial` set). The series is read with
+    /// [`Engine::series`], chunk by chunk.
+    pub fn result_head(&self, id: &str) -> Result<(JobView, StoredResult), ApiError> {
         let view = self.status(id)?;
-        if view.state != JobState::Succeeded {
-            return Err(ApiError::NoResult {
-                id: id.into(),
-                state: view.state.as_str(),
-            });
+        let no_result = || ApiError::NoResult {
+            id: id.into(),
+            state: view.state.as_str(),
+        };
+        if !view.state.is_terminal() {
+            return Err(no_result());
         }
-        let result = self
-            .inner
-            .store
-            .result(id)?
-            .ok_or_else(|| ApiError::Internal(format!("result of {id} missing")))?;
-        Ok((view, result))
+        match self.inner.store.result_head(id)? {
+            Some(head) => Ok((view, head)),
+            None if view.state == JobState::Succeeded => {
+                Err(ApiError::Internal(format!("result of {id} missing")))
+            }
+            None => Err(no_result()),
+        }
+    }
+
+    /// The stored series of a job whose result has `columns` value columns.
+    pub fn series(&self, id: &str, columns: usize) -> Result<Series, ApiError> {
+        Ok(Series {
+            inner: self.inner.clone(),
+            id: id.to_string(),
+            columns,
+            chunks: self.inner.store.series_index(id)?,
+        })
     }
 
     /// Jobs per state (from the store).
@@ -350,6 +364,32 @@ impl Engine {
         for t in threads {
             let _ = t.join();
         }
+    }
+}
+
+/// A job's stored series: its chunk index, and its chunks read one at a time (blocking: call
+/// from a blocking context).
+pub struct Series {
+    inner: Arc<Inner>,
+    id: String,
+    columns: usize,
+    chunks: Vec<ChunkMeta>,
+}
+
+impl Series {
+    /// The chunks, in order.
+    pub fn chunks(&self) -> &[ChunkMeta] {
+        &self.chunks
+    }
+
+    /// Rows in all.
+    pub fn rows(&self) -> u64 {
+        self.chunks.last().map_or(0, |c| c.first_row + c.rows)
+    }
+
+    /// One chunk's rows.
+    pub fn read(&self, meta: &ChunkMeta) -> Result<SeriesChunk, ApiError> {
+        Ok(self.inner.store.read_chunk(&self.id, meta, self.columns)?)
     }
 }
 
@@ -410,7 +450,12 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     let started = now_ms();
     live.started_ms.store(started, Ordering::Relaxed);
     live.running.store(true, Ordering::Release);
-    if let Err(e) = inner.store.set_running(&live.id, started) {
+    // A job run again after a restart starts its series afresh.
+    if let Err(e) = inner
+        .store
+        .set_running(&live.id, started)
+        .and_then(|()| inner.store.clear_series(&live.id))
+    {
         tracing::error!(id = %live.id, "store: {e}");
     }
     inner.sink.send(JobEvent::Status(live.view()));
@@ -427,16 +472,35 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     // The last batch goes out after the result is stored: whoever saw it can fetch the result.
     let last_batch = observer.last_batch();
     observer.count_steps();
-    let recorded = observer.into_recorded();
-
+    let columns = match observer.finish_series() {
+        Ok(columns) => columns,
+        Err(e) => {
+            tracing::error!(id = %live.id, "store: {e}");
+            let view = JobView {
+                error: Some(("store".into(), e.to_string())),
+                ..live.ended_view(JobState::Failed)
+            };
+            end_job(inner, live, view, None, last_batch);
+            return;
+        }
+    };
+    // What a failed or cancelled run recorded is kept, marked partial.
+    let partial = || {
+        (!columns.is_empty()).then(|| StoredResult {
+            partial: true,
+            columns: columns.clone(),
+            ..StoredResult::default()
+        })
+    };
     let (state, error, result) = match outcome {
         Ok(Ok(output)) => {
             let run = finish_run(output, wall);
             let result = StoredResult {
                 summary: run.summary,
+                columns: columns.clone(),
                 tables: run.tables,
                 figures: run.figures,
-                ..recorded
+                ..StoredResult::default()
             };
             (JobState::Succeeded, None, Some(result))
         }
@@ -445,18 +509,35 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
             tracing::info!(id = %live.id, "interrupted by shutdown");
             return;
         }
-        Ok(Err(RunError::Stopped { .. })) => (JobState::Cancelled, None, None),
-        Ok(Err(e)) => (JobState::Failed, Some(("run".into(), e.to_string())), None),
+        Ok(Err(RunError::Stopped { .. })) => (JobState::Cancelled, None, partial()),
+        Ok(Err(e)) => (
+            JobState::Failed,
+            Some(("run".into(), e.to_string())),
+            partial(),
+        ),
         Err(panic) => {
             tracing::error!(id = %live.id, "the run panicked: {panic}");
             let reason = format!("internal error (a bug: please report it with the spec): {panic}");
-            (JobState::Failed, Some(("run".into(), reason)), None)
+            (JobState::Failed, Some(("run".into(), reason)), partial())
         }
     };
-    let mut view = JobView {
+    tracing::info!(id = %live.id, wall_s = wall.as_secs_f64(), "run over");
+    let view = JobView {
         error,
         ..live.ended_view(state)
     };
+    end_job(inner, live, view, result, last_batch);
+}
+
+/// Stores a job's end (and its result), then tells the world: the last step batch, the final
+/// status, the end of the job's events.
+fn end_job(
+    inner: &Inner,
+    live: &Arc<LiveJob>,
+    mut view: JobView,
+    result: Option<StoredResult>,
+    last_batch: JobEvent,
+) {
     if let Err(e) = inner.store.finish(&view, result.as_ref()) {
         tracing::error!(id = %live.id, "store: {e}");
         view.state = JobState::Failed;
@@ -464,7 +545,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     }
     lock(&inner.live).remove(&live.id);
     inner.sink.send(last_batch);
-    tracing::info!(id = %live.id, state = view.state.as_str(), wall_s = wall.as_secs_f64(), "finished");
+    tracing::info!(id = %live.id, state = view.state.as_str(), "finished");
     inner.sink.send(JobEvent::Status(view));
     inner.sink.send(JobEvent::Closed(live.id.clone()));
     live.ended.send_replace(true);

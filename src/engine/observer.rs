@@ -1,10 +1,14 @@
 //! The engine's [`Observer`] of a run: records every step for the store, batches them into
 //! [`StepBatch`] events, tracks progress and checks for cancellation after every step.
+//!
+//! Recorded rows are held until they fill a chunk of the store ([`crate::store::chunk_rows`],
+//! about 1 MiB) and then appended to the store, so a run of any length holds at most one chunk
+//! of its series in memory, and a run that fails or is cancelled leaves the rows it recorded.
 
 use super::events::{ColumnGroup, JobEvent, StepBatch};
 use super::ids::now_ns;
 use super::{Inner, LiveJob};
-use crate::store::StoredResult;
+use crate::store::{SeriesChunk, StoreError, chunk_rows};
 use signorini_core::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS};
 use signorini_core::observer::{Columns, Observer, Progress, StepRecord};
 use std::ops::ControlFlow;
@@ -22,8 +26,17 @@ const STATUS_EVERY: Duration = Duration::from_millis(200);
 pub(super) struct ServiceObserver<'a> {
     inner: &'a Inner,
     live: &'a LiveJob,
-    /// The recorded series (the rest of the result comes with the run's output).
-    rec: StoredResult,
+    /// Column names (set by `start`).
+    columns: Vec<String>,
+    /// Recorded rows not yet in the store.
+    rec: SeriesChunk,
+    /// Rows per stored chunk.
+    chunk_rows: usize,
+    /// Chunks stored, and rows in them.
+    chunks: u64,
+    stored_rows: u64,
+    /// Why storing a chunk failed (the run is stopped).
+    store_error: Option<StoreError>,
     energy_idx: Vec<usize>,
     state_idx: Vec<usize>,
     batch_from: usize,
@@ -38,7 +51,12 @@ impl<'a> ServiceObserver<'a> {
         Self {
             inner,
             live,
-            rec: StoredResult::default(),
+            columns: Vec::new(),
+            rec: SeriesChunk::default(),
+            chunk_rows: chunk_rows(0),
+            chunks: 0,
+            stored_rows: 0,
+            store_error: None,
             energy_idx: Vec::new(),
             state_idx: Vec::new(),
             batch_from: 0,
@@ -51,13 +69,13 @@ impl<'a> ServiceObserver<'a> {
 
     /// The columns `idx` of the pending steps.
     fn group(&self, idx: &[usize]) -> ColumnGroup {
-        let n = self.rec.columns.len();
+        let n = self.columns.len();
         let mut values = Vec::with_capacity((self.rec.steps.len() - self.batch_from) * idx.len());
         for row in self.rec.values[self.batch_from * n..].chunks_exact(n.max(1)) {
             values.extend(idx.iter().map(|&c| row[c]));
         }
         ColumnGroup {
-            columns: idx.iter().map(|&c| self.rec.columns[c].clone()).collect(),
+            columns: idx.iter().map(|&c| self.columns[c].clone()).collect(),
             values,
         }
     }
@@ -102,21 +120,44 @@ impl<'a> ServiceObserver<'a> {
         self.uncounted = 0;
     }
 
-    /// The recorded series, in a result without summary, tables or figures.
-    pub(super) fn into_recorded(self) -> StoredResult {
-        self.rec
+    /// Appends the recorded rows not yet stored as the series' next chunk.
+    fn store_chunk(&mut self) -> Result<(), StoreError> {
+        if self.rec.steps.is_empty() {
+            return Ok(());
+        }
+        self.inner
+            .store
+            .append_chunk(&self.live.id, self.chunks, self.stored_rows, &self.rec)?;
+        self.chunks += 1;
+        self.stored_rows += self.rec.steps.len() as u64;
+        self.rec.steps.clear();
+        self.rec.t.clear();
+        self.rec.values.clear();
+        self.batch_from = 0;
+        Ok(())
+    }
+
+    /// Stores the last recorded rows and returns the column names (empty for a run that
+    /// recorded no series), or why the series could not be stored.
+    pub(super) fn finish_series(&mut self) -> Result<Vec<String>, StoreError> {
+        if let Some(e) = self.store_error.take() {
+            return Err(e);
+        }
+        self.store_chunk()?;
+        Ok(std::mem::take(&mut self.columns))
     }
 }
 
 impl Observer for ServiceObserver<'_> {
     fn start(&mut self, columns: &Columns) {
-        self.rec.columns = columns.names().to_vec();
+        self.columns = columns.names().to_vec();
+        self.chunk_rows = chunk_rows(self.columns.len());
         let energy: Vec<&str> = ENERGY_COLUMNS
             .iter()
             .chain(CUMULATIVE_COLUMNS.iter())
             .copied()
             .collect();
-        for (i, c) in self.rec.columns.iter().enumerate() {
+        for (i, c) in self.columns.iter().enumerate() {
             if energy.contains(&c.as_str()) {
                 self.energy_idx.push(i)
             } else {
@@ -134,6 +175,14 @@ impl Observer for ServiceObserver<'_> {
         let pending = self.rec.steps.len() - self.batch_from;
         if pending >= FRAME_STEPS || stamp.saturating_sub(self.batch_stamps[0]) >= FRAME_NS {
             self.flush();
+        }
+        if self.rec.steps.len() >= self.chunk_rows {
+            // The pending frame goes out first: frames are cut from the rows held here.
+            self.flush();
+            if let Err(e) = self.store_chunk() {
+                self.store_error = Some(e);
+                return ControlFlow::Break(());
+            }
         }
         ControlFlow::Continue(())
     }

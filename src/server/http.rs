@@ -4,12 +4,14 @@
 
 use super::AppState;
 use super::json::{FrameJson, StatusJson};
+use super::results::{self, Cut, CutRequest, write_csv, write_json, write_npz};
 use crate::engine::events::JobEvent;
 use crate::error::ApiError;
 use crate::spec_file::{self, Format};
 use crate::status::JobView;
 use crate::store::StoredResult;
-use axum::extract::rejection::StringRejection;
+use axum::body::{Body, Bytes};
+use axum::extract::rejection::{QueryRejection, StringRejection};
 use axum::extract::{DefaultBodyLimit, Path, Query, State};
 use axum::http::{HeaderMap, Method, StatusCode, Uri, header};
 use axum::response::sse::{Event, KeepAlive, Sse};
@@ -17,9 +19,10 @@ use axum::response::{Html, IntoResponse, Response};
 use axum::routing::get;
 use axum::{Json, Router};
 use serde::Deserialize;
-use serde_json::{Map, Value, json};
+use serde_json::{Value, json};
 use std::convert::Infallible;
 use std::fmt::Write as _;
+use std::io::{self, Write};
 use std::time::Duration;
 use tokio_stream::StreamExt;
 
@@ -36,6 +39,7 @@ impl IntoResponse for ApiError {
             ApiError::Body { .. } => StatusCode::BAD_REQUEST,
             ApiError::AlreadyExists { .. } | ApiError::NoResult { .. } => StatusCode::CONFLICT,
             ApiError::QueueFull { .. } => StatusCode::TOO_MANY_REQUESTS,
+            ApiError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::Unauthenticated => StatusCode::UNAUTHORIZED,
             ApiError::Unavailable => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
@@ -160,62 +164,207 @@ async fn cancel_job(
     Ok(status_body(&state.cancel_and_wait(&id).await?))
 }
 
-/// `{"id", "summary", "columns", "steps": {"step": […], "t": […], column: […]}, "tables",
-/// "figures": [name…]}` — figure names only; `GET /v1/jobs/{id}/figures/{name}` serves the SVG.
-pub fn result_json(view: &JobView, r: &StoredResult) -> Value {
-    let mut steps = Map::new();
-    steps.insert("step".into(), json!(r.steps));
-    steps.insert("t".into(), json!(r.t));
-    for (c, name) in r.columns.iter().enumerate() {
-        steps.insert(name.clone(), json!(r.column(c)));
-    }
-    let mut columns = vec!["step".to_string(), "t".to_string()];
-    columns.extend(r.columns.iter().cloned());
-    json!({
-        "id": view.id,
-        "state": view.state.as_str(),
-        "summary": r.summary,
-        "columns": columns,
-        "steps": steps,
-        "tables": r.tables.iter().map(|t| json!({ "name": t.name, "columns": t.columns, "rows": t.rows })).collect::<Vec<_>>(),
-        "figures": r.figures.iter().map(|f| f.name.as_str()).collect::<Vec<_>>(),
-    })
-}
-
-/// A finished job's stored result, read off the async executor.
+/// A finished job's result without its series, read off the async executor.
 async fn load_result(state: &AppState, id: String) -> Result<(JobView, StoredResult), ApiError> {
     let engine = state.engine.clone();
-    tokio::task::spawn_blocking(move || engine.result(&id))
+    tokio::task::spawn_blocking(move || engine.result_head(&id))
         .await
         .map_err(|e| ApiError::Internal(e.to_string()))?
 }
 
-/// `?columns=a,b&every=N` of `GET /v1/jobs/{id}/result`.
+/// `?format=json|csv|npz&columns=a,b&every=N&from=S&to=S` of `GET /v1/jobs/{id}/result`.
 #[derive(Debug, Deserialize)]
 struct ResultQuery {
+    /// Body format (json by default).
+    #[serde(default)]
+    format: Option<String>,
     /// Comma-separated column names (all when absent).
     #[serde(default)]
     columns: Option<String>,
-    /// Every N-th recorded row, and the last.
+    /// Every N-th row of the range, and its last.
     #[serde(default)]
     every: Option<u64>,
+    /// First step number kept.
+    #[serde(default)]
+    from: Option<u64>,
+    /// Last step number kept.
+    #[serde(default)]
+    to: Option<u64>,
 }
 
+impl From<QueryRejection> for ApiError {
+    fn from(r: QueryRejection) -> Self {
+        // "Failed to deserialize query string: every: invalid digit found in string"
+        let text = r.body_text();
+        let detail = text.split_once(": ").map_or(text.as_str(), |(_, d)| d);
+        let (field, reason) = match detail.split_once(": ") {
+            Some((f, reason))
+                if !f.is_empty() && f.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_') =>
+            {
+                (f.to_string(), reason.to_string())
+            }
+            _ => ("query".to_string(), detail.to_string()),
+        };
+        ApiError::Invalid(signorini_core::spec::SpecError::new(field, reason))
+    }
+}
+
+/// Whether `Accept-Encoding` admits gzip (`gzip` listed without `q=0`).
+fn accepts_gzip(headers: &HeaderMap) -> bool {
+    headers
+        .get_all(header::ACCEPT_ENCODING)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(','))
+        .any(|item| {
+            let mut parts = item.split(';').map(str::trim);
+            parts.next().is_some_and(|c| c.eq_ignore_ascii_case("gzip"))
+                && parts.all(|p| {
+                    p.strip_prefix("q=")
+                        .is_none_or(|q| q.parse::<f64>().map_or(true, |q| q > 0.0))
+                })
+        })
+}
+
+/// Pieces of a streamed body: about this many bytes each.
+const PIECE: usize = 64 << 10;
+
+/// A writer that hands its bytes to the response body in pieces of [`PIECE`] bytes, waiting
+/// while the body's small channel is full (the client reads slower than the store is read).
+struct Pieces {
+    tx: tokio::sync::mpsc::Sender<io::Result<Bytes>>,
+    buf: Vec<u8>,
+}
+
+impl Pieces {
+    fn send(&mut self) -> io::Result<()> {
+        if self.buf.is_empty() {
+            return Ok(());
+        }
+        let piece = Bytes::from(std::mem::replace(&mut self.buf, Vec::with_capacity(PIECE)));
+        self.tx
+            .blocking_send(Ok(piece))
+            .map_err(|_| io::Error::new(io::ErrorKind::BrokenPipe, "the client went away"))
+    }
+}
+
+impl Write for Pieces {
+    fn write(&mut self, bytes: &[u8]) -> io::Result<usize> {
+        self.buf.extend_from_slice(bytes);
+        if self.buf.len() >= PIECE {
+            self.send()?;
+        }
+        Ok(bytes.len())
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.send()
+    }
+}
+
+/// A response body that `write` makes on a blocking thread (it reads the store), sent as it is
+/// made through a channel of four pieces, gzip-compressed when `gzip`: whatever the body's size,
+/// the server holds a few pieces of it. An error after the first bytes aborts the body (the
+/// client sees a truncated transfer, never a silently short one).
+fn streamed_body(
+    gzip: bool,
+    write: impl FnOnce(&mut dyn Write) -> io::Result<()> + Send + 'static,
+) -> Body {
+    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    let errors = tx.clone();
+    tokio::task::spawn_blocking(move || {
+        let mut out = Pieces {
+            tx,
+            buf: Vec::with_capacity(PIECE),
+        };
+        let done = if gzip {
+            let gz = flate2::write::GzEncoder::new(&mut out, flate2::Compression::fast());
+            let mut w = io::BufWriter::with_capacity(PIECE, gz);
+            write(&mut w)
+                .and_then(|()| w.into_inner().map_err(|e| e.into_error()))
+                .and_then(|gz| gz.finish().map(drop))
+        } else {
+            write(&mut out)
+        };
+        match done.and_then(|()| out.flush()) {
+            Ok(()) => {}
+            Err(e) if e.kind() == io::ErrorKind::BrokenPipe => {}
+            Err(e) => {
+                tracing::error!("streaming a result: {e}");
+                let _ = errors.blocking_send(Err(e));
+            }
+        }
+    });
+    Body::from_stream(tokio_stream::wrappers::ReceiverStream::new(rx))
+}
+
+/// `GET /v1/jobs/{id}/result`: the stored result, streamed from the store as JSON (default), CSV
+/// or NPZ, cut to `columns`, the steps `from..=to` and every `every`-th row of them (plus the
+/// last), gzip-compressed when the client accepts it. A failed or cancelled job's rows are
+/// served too, with `"partial": true` (header `x-signorini-partial: true`).
 async fn get_result(
     State(state): State<AppState>,
     Path(id): Path<String>,
-    Query(q): Query<ResultQuery>,
-) -> Result<Json<Value>, ApiError> {
-    let (view, result) = load_result(&state, id).await?;
-    let columns: Vec<String> = q
-        .columns
-        .iter()
-        .flat_map(|c| c.split(','))
-        .filter(|c| !c.is_empty())
-        .map(str::to_string)
-        .collect();
-    let result = result.select(&columns, q.every.unwrap_or(1))?;
-    Ok(Json(result_json(&view, &result)))
+    headers: HeaderMap,
+    query: Result<Query<ResultQuery>, QueryRejection>,
+) -> Result<Response, ApiError> {
+    let Query(q) = query?;
+    let format = results::Format::parse(q.format.as_deref().unwrap_or("json"))?;
+    let req = CutRequest {
+        columns: q
+            .columns
+            .iter()
+            .flat_map(|c| c.split(','))
+            .filter(|c| !c.is_empty())
+            .map(str::to_string)
+            .collect(),
+        every: q.every.unwrap_or(1),
+        from: q.from,
+        to: q.to,
+    };
+    let engine = state.engine.clone();
+    let (view, head, series, cut) = tokio::task::spawn_blocking(move || {
+        let (view, head) = engine.result_head(&id)?;
+        let series = engine.series(&id, head.columns.len())?;
+        let cut = Cut::new(&head, &series, &req)?;
+        Ok::<_, ApiError>((view, head, series, cut))
+    })
+    .await
+    .map_err(|e| ApiError::Internal(e.to_string()))??;
+    let gzip = accepts_gzip(&headers);
+    let (partial, rows, file) = (head.partial, cut.rows(), format!("{}.npz", view.id));
+    let body = streamed_body(gzip, move |w| match format {
+        results::Format::Json => write_json(w, &view, &head, &cut, &series),
+        results::Format::Csv => write_csv(w, &cut, &series),
+        results::Format::Npz => write_npz(w, &cut, &series),
+    });
+    let mut resp = Response::new(body);
+    let h = resp.headers_mut();
+    h.insert(
+        header::CONTENT_TYPE,
+        header::HeaderValue::from_static(format.content_type()),
+    );
+    h.insert(
+        header::VARY,
+        header::HeaderValue::from_static("accept-encoding"),
+    );
+    if gzip {
+        h.insert(
+            header::CONTENT_ENCODING,
+            header::HeaderValue::from_static("gzip"),
+        );
+    }
+    h.insert(
+        "x-signorini-partial",
+        header::HeaderValue::from_static(if partial { "true" } else { "false" }),
+    );
+    h.insert("x-signorini-rows", header::HeaderValue::from(rows));
+    if format == results::Format::Npz
+        && let Ok(v) = header::HeaderValue::from_str(&format!("attachment; filename=\"{file}\""))
+    {
+        h.insert(header::CONTENT_DISPOSITION, v);
+    }
+    Ok(resp)
 }
 
 /// `{"id", "figures": [name…]}`: the figures of a succeeded job, without its step series.

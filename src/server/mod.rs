@@ -5,6 +5,7 @@ pub mod convert;
 pub mod grpc;
 pub mod http;
 pub mod json;
+pub mod results;
 
 use crate::config::ServeConfig;
 use crate::engine::Engine;

@@ -195,6 +195,37 @@ impl TestServer {
         (status, bytes.to_vec())
     }
 
+    /// The server's process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// `GET path` with extra request headers: status, response headers and raw body.
+    pub async fn http_get_with(
+        &self,
+        path: &str,
+        headers: &[(&str, &str)],
+    ) -> (u16, hyper::HeaderMap, Vec<u8>) {
+        let client: Client<_, Full<Bytes>> = Client::builder(TokioExecutor::new()).build_http();
+        let mut req = hyper::Request::builder()
+            .method("GET")
+            .uri(format!("http://{}{path}", self.http));
+        for (k, v) in headers {
+            req = req.header(*k, *v);
+        }
+        let req = req.body(Full::new(Bytes::new())).expect("request");
+        let resp = client.request(req).await.expect("HTTP request");
+        let status = resp.status().as_u16();
+        let head = resp.headers().clone();
+        let bytes = resp
+            .into_body()
+            .collect()
+            .await
+            .expect("HTTP body")
+            .to_bytes();
+        (status, head, bytes.to_vec())
+    }
+
     /// `GET path`: status, `content-type` and raw body.
     pub async fn http_get_typed(&self, path: &str) -> (u16, String, Vec<u8>) {
         let client: Client<_, Full<Bytes>> = Client::builder(TokioExecutor::new()).build_http();
