@@ -36,6 +36,14 @@ pub enum ApiError {
         /// Its state.
         state: &'static str,
     },
+    /// The job is queued or running: it cannot be removed yet.
+    #[error("job {id} is {state}: cancel it before removing it")]
+    Unfinished {
+        /// The job.
+        id: String,
+        /// Its state.
+        state: &'static str,
+    },
     /// The job succeeded but made no figure of this name.
     #[error("job {id} has no figure {name:?}")]
     NoFigure {
@@ -66,6 +74,14 @@ pub enum ApiError {
         /// Why, and what to do instead.
         reason: String,
     },
+    /// The route exists, the method does not.
+    #[error("{method} is not allowed on {path}")]
+    MethodNotAllowed {
+        /// HTTP method.
+        method: String,
+        /// Path asked for.
+        path: String,
+    },
     /// Missing or wrong bearer token on a mutating call.
     #[error("missing or invalid bearer token")]
     Unauthenticated,
@@ -84,10 +100,12 @@ impl ApiError {
             ApiError::Invalid(e) => (e.field.clone(), e.reason.clone()),
             ApiError::NotFound { .. }
             | ApiError::AlreadyExists { .. }
-            | ApiError::NoResult { .. } => ("id".into(), self.to_string()),
+            | ApiError::NoResult { .. }
+            | ApiError::Unfinished { .. } => ("id".into(), self.to_string()),
             ApiError::NoFigure { .. } => ("figure".into(), self.to_string()),
             ApiError::Body { .. } => ("body".into(), self.to_string()),
             ApiError::NoRoute { .. } => ("path".into(), self.to_string()),
+            ApiError::MethodNotAllowed { .. } => ("method".into(), self.to_string()),
             ApiError::Unauthenticated => ("authorization".into(), self.to_string()),
             ApiError::QueueFull { .. } => ("queue".into(), self.to_string()),
             ApiError::TooLarge { .. } => ("columns".into(), self.to_string()),

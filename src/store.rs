@@ -30,6 +30,22 @@ pub enum StoreError {
     /// SQLite said no.
     #[error("store: {0}")]
     Sql(#[from] rusqlite::Error),
+    /// Another process holds the store's lock.
+    #[error(
+        "store {path} is in use by another signorini serve (it holds the file's lock): stop that server or give another --store"
+    )]
+    Locked {
+        /// The store file.
+        path: String,
+    },
+    /// The lock file could not be opened or locked.
+    #[error("store {path}: {reason}")]
+    Lock {
+        /// The store file.
+        path: String,
+        /// Why.
+        reason: String,
+    },
     /// A stored value does not decode.
     #[error("store: corrupt {what} of job {id}")]
     Corrupt {
@@ -119,6 +135,9 @@ pub struct SeriesChunk {
     pub t: Vec<f64>,
     /// Values, row-major, one row of the result's columns per step.
     pub values: Vec<f64>,
+    /// The live batches these rows went out in: (seq, first row, end row) in the series (empty
+    /// for a series stored before batches were recorded).
+    pub batches: Vec<(u64, u64, u64)>,
 }
 
 const SCHEMA: &str = "
@@ -158,6 +177,7 @@ CREATE TABLE IF NOT EXISTS result_chunks (
     steps BLOB NOT NULL,
     t BLOB NOT NULL,
     vals BLOB NOT NULL,
+    batches BLOB NOT NULL DEFAULT x'',
     PRIMARY KEY (id, chunk)
 );
 ";
@@ -178,6 +198,15 @@ fn migrate(conn: &mut Connection) -> Result<(), StoreError> {
     }
     if !have.iter().any(|c| c == "partial") {
         conn.execute_batch("ALTER TABLE results ADD COLUMN partial INTEGER NOT NULL DEFAULT 0")?;
+    }
+    let chunk_columns: Vec<String> = conn
+        .prepare("SELECT name FROM pragma_table_info('result_chunks')")?
+        .query_map([], |r| r.get::<_, String>(0))?
+        .collect::<Result<Vec<_>, _>>()?;
+    if !chunk_columns.iter().any(|c| c == "batches") {
+        conn.execute_batch(
+            "ALTER TABLE result_chunks ADD COLUMN batches BLOB NOT NULL DEFAULT x''",
+        )?;
     }
     let old: Vec<String> = conn
         .prepare("SELECT id FROM results WHERE length(steps) > 0 OR length(vals) > 0")?
@@ -242,9 +271,12 @@ fn append_series(
             id,
             chunk + k as u64,
             first_row + start as u64,
-            &steps[start..end],
-            &t[start..end],
-            &values[start * n..end * n],
+            &SeriesChunk {
+                steps: steps[start..end].to_vec(),
+                t: t[start..end].to_vec(),
+                values: values[start * n..end * n].to_vec(),
+                batches: Vec::new(),
+            },
         )?;
     }
     Ok(())
@@ -255,26 +287,30 @@ fn insert_chunk(
     id: &str,
     chunk: u64,
     first_row: u64,
-    steps: &[u64],
-    t: &[f64],
-    values: &[f64],
+    rows: &SeriesChunk,
 ) -> Result<(), StoreError> {
-    let (Some(&first), Some(&last)) = (steps.first(), steps.last()) else {
+    let (Some(&first), Some(&last)) = (rows.steps.first(), rows.steps.last()) else {
         return Ok(());
     };
+    let batches: Vec<u64> = rows
+        .batches
+        .iter()
+        .flat_map(|&(seq, start, end)| [seq, start, end])
+        .collect();
     conn.execute(
-        "INSERT OR REPLACE INTO result_chunks (id, chunk, first_row, rows, step_first, step_last, steps, t, vals)
-         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
+        "INSERT OR REPLACE INTO result_chunks (id, chunk, first_row, rows, step_first, step_last, steps, t, vals, batches)
+         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
         params![
             id,
             chunk as i64,
             first_row as i64,
-            steps.len() as i64,
+            rows.steps.len() as i64,
             first as i64,
             last as i64,
-            u64s_to_blob(steps),
-            f64s_to_blob(t),
-            f64s_to_blob(values),
+            u64s_to_blob(&rows.steps),
+            f64s_to_blob(&rows.t),
+            f64s_to_blob(&rows.values),
+            u64s_to_blob(&batches),
         ],
     )?;
     Ok(())
@@ -322,6 +358,10 @@ struct FigureJson {
 
 const JOB_COLUMNS: &str = "id, name, spec_json, state, created_ms, started_ms, finished_ms, error_field, error_reason, done, total, t";
 
+/// [`JOB_COLUMNS`] without the spec (an empty string in its place): a list never reads specs,
+/// which may be megabytes each.
+const LIST_COLUMNS: &str = "id, name, '', state, created_ms, started_ms, finished_ms, error_field, error_reason, done, total, t";
+
 /// A job's status and its spec (JSON) from a `SELECT {JOB_COLUMNS}` row.
 fn row_to_job(r: &rusqlite::Row<'_>) -> rusqlite::Result<((JobView, String), String)> {
     let state: String = r.get(3)?;
@@ -358,6 +398,43 @@ fn finish_row(
         id: view.id.clone(),
     })?;
     Ok((view, spec_json))
+}
+
+/// The OS lock a server holds on its store file for as long as it runs (an exclusive
+/// `flock`, released by the OS when the process ends, even by SIGKILL), so two servers never
+/// run the same store's jobs. SQLite's own locks are per transaction and do not prevent that.
+#[derive(Debug)]
+pub struct StoreLock {
+    _file: std::fs::File,
+}
+
+impl StoreLock {
+    /// Takes the lock of the store at `path` (creating the file if it does not exist); an error
+    /// naming the file when another process holds it. `:memory:` needs no lock (`None`).
+    pub fn take(path: &Path) -> Result<Option<StoreLock>, StoreError> {
+        if path.as_os_str() == ":memory:" {
+            return Ok(None);
+        }
+        let shown = path.display().to_string();
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(path)
+            .map_err(|e| StoreError::Lock {
+                path: shown.clone(),
+                reason: e.to_string(),
+            })?;
+        match file.try_lock() {
+            Ok(()) => Ok(Some(StoreLock { _file: file })),
+            Err(std::fs::TryLockError::WouldBlock) => Err(StoreError::Locked { path: shown }),
+            Err(std::fs::TryLockError::Error(e)) => Err(StoreError::Lock {
+                path: shown,
+                reason: e.to_string(),
+            }),
+        }
+    }
 }
 
 impl Store {
@@ -414,15 +491,7 @@ impl Store {
         first_row: u64,
         rows: &SeriesChunk,
     ) -> Result<(), StoreError> {
-        insert_chunk(
-            &self.conn(),
-            id,
-            chunk,
-            first_row,
-            &rows.steps,
-            &rows.t,
-            &rows.values,
-        )
+        insert_chunk(&self.conn(), id, chunk, first_row, rows)
     }
 
     /// Ends a job: its final state, error, progress and (for a success, or the partial series
@@ -514,13 +583,40 @@ impl Store {
         Ok(row.map(finish_row).transpose()?.map(|(view, _)| view))
     }
 
-    /// Every job's status, oldest first.
-    pub fn list(&self) -> Result<Vec<JobView>, StoreError> {
-        Ok(self
-            .list_with_specs()?
-            .into_iter()
-            .map(|(view, _)| view)
-            .collect())
+    /// One page of jobs, newest first: at most `limit`, only those in `state` if given, only
+    /// those older than the job numbered `before` if given. Each comes with its number (the
+    /// store's insertion order), which the next page takes as `before`.
+    pub fn list_page(
+        &self,
+        state: Option<JobState>,
+        before: Option<i64>,
+        limit: usize,
+    ) -> Result<Vec<(i64, JobView)>, StoreError> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(&format!(
+            "SELECT {LIST_COLUMNS}, seq FROM jobs WHERE (?1 IS NULL OR state = ?1) AND (?2 IS NULL OR seq < ?2)
+             ORDER BY seq DESC LIMIT ?3"
+        ))?;
+        let rows = stmt
+            .query_map(
+                params![state.map(JobState::as_str), before, limit as i64],
+                |r| Ok((r.get::<_, i64>(12)?, row_to_job(r)?)),
+            )?
+            .collect::<Result<Vec<_>, _>>()?;
+        rows.into_iter()
+            .map(|(seq, row)| Ok((seq, finish_row(row)?.0)))
+            .collect()
+    }
+
+    /// Removes a job, its result and its series. False when there was no such job.
+    pub fn delete(&self, id: &str) -> Result<bool, StoreError> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        tx.execute("DELETE FROM result_chunks WHERE id = ?1", [id])?;
+        tx.execute("DELETE FROM results WHERE id = ?1", [id])?;
+        let n = tx.execute("DELETE FROM jobs WHERE id = ?1", [id])?;
+        tx.commit()?;
+        Ok(n == 1)
     }
 
     /// Every job's status and spec (JSON), oldest first.
@@ -663,14 +759,15 @@ impl Store {
         meta: &ChunkMeta,
         columns: usize,
     ) -> Result<SeriesChunk, StoreError> {
-        let (steps, t, vals) = self.conn().query_row(
-            "SELECT steps, t, vals FROM result_chunks WHERE id = ?1 AND chunk = ?2",
+        let (steps, t, vals, batches) = self.conn().query_row(
+            "SELECT steps, t, vals, batches FROM result_chunks WHERE id = ?1 AND chunk = ?2",
             params![id, meta.chunk as i64],
             |r| {
                 Ok((
                     r.get::<_, Vec<u8>>(0)?,
                     r.get::<_, Vec<u8>>(1)?,
                     r.get::<_, Vec<u8>>(2)?,
+                    r.get::<_, Vec<u8>>(3)?,
                 ))
             },
         )?;
@@ -681,11 +778,22 @@ impl Store {
         let steps = decode_u64s(&steps).ok_or_else(|| corrupt("steps"))?;
         let t = decode_f64s(&t).ok_or_else(|| corrupt("t"))?;
         let values = decode_f64s(&vals).ok_or_else(|| corrupt("values"))?;
+        let batches = decode_u64s(&batches)
+            .filter(|b| b.len() % 3 == 0)
+            .ok_or_else(|| corrupt("batches"))?
+            .chunks_exact(3)
+            .map(|b| (b[0], b[1], b[2]))
+            .collect();
         let rows = meta.rows as usize;
         if steps.len() != rows || t.len() != rows || values.len() != rows * columns {
             return Err(corrupt("series"));
         }
-        Ok(SeriesChunk { steps, t, values })
+        Ok(SeriesChunk {
+            steps,
+            t,
+            values,
+            batches,
+        })
     }
 
     /// A job's whole result, its series read chunk by chunk into memory: for tests and small
@@ -780,6 +888,24 @@ mod tests {
             what: "missing",
             id: id.into(),
         }
+    }
+
+    /// A second lock on the same store file is refused while the first is held, and granted
+    /// once it is released.
+    #[test]
+    fn a_store_is_locked_by_one_holder_at_a_time() -> Result<(), StoreError> {
+        let dir = tmp()?;
+        let path = dir.path().join("s.db");
+        let first = StoreLock::take(&path)?;
+        assert!(first.is_some());
+        match StoreLock::take(&path) {
+            Err(StoreError::Locked { path: p }) => assert!(p.ends_with("s.db")),
+            other => panic!("expected Locked, got {other:?}"),
+        }
+        drop(first);
+        assert!(StoreLock::take(&path)?.is_some());
+        assert!(StoreLock::take(Path::new(":memory:"))?.is_none());
+        Ok(())
     }
 
     #[test]

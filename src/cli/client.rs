@@ -16,9 +16,9 @@ use prost::Message;
 use serde_json::json;
 use signorini_core::observer::{Columns, Observer, StepRecord};
 use signorini_figures::Figure;
-use std::io::Write;
+use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 use tonic::transport::Channel;
 
 /// Where the server is.
@@ -45,6 +45,19 @@ pub struct SubmitArgs {
     /// Choose the job id (1–64 of A-Z a-z 0-9 _ -).
     #[arg(long)]
     pub id: Option<String>,
+    /// Wait until the job ends and print its final status (exit status 1 unless it succeeded).
+    #[arg(long, conflicts_with = "watch")]
+    pub wait: bool,
+    /// Follow the job live after submitting it, as `watch` does.
+    #[arg(long)]
+    pub watch: bool,
+    /// zenoh endpoint for `--watch`.
+    #[arg(
+        long,
+        env = "SIGNORINI_ZENOH_CONNECT",
+        default_value = "tcp/127.0.0.1:7447"
+    )]
+    pub zenoh: String,
     #[command(flatten)]
     pub conn: Connection,
 }
@@ -54,6 +67,25 @@ pub struct SubmitArgs {
 pub struct IdArgs {
     /// Job id.
     pub id: String,
+    #[command(flatten)]
+    pub conn: Connection,
+}
+
+/// `signorini list`.
+#[derive(Debug, Args)]
+pub struct ListArgs {
+    /// Only jobs in this state (queued, running, succeeded, failed, cancelled).
+    #[arg(long)]
+    pub state: Option<String>,
+    /// Most jobs to show (the server's default page is 100, its largest 1000).
+    #[arg(long, default_value_t = 0)]
+    pub limit: u32,
+    /// Start after the page that printed this token (newest first).
+    #[arg(long, default_value = "")]
+    pub page_token: String,
+    /// Print the page as JSON (`{"jobs": [status…], "next_page_token"}`).
+    #[arg(long)]
+    pub json: bool,
     #[command(flatten)]
     pub conn: Connection,
 }
@@ -144,26 +176,74 @@ fn print_status(s: pb::JobStatus) -> Result<()> {
     Ok(())
 }
 
-/// `submit`: prints the id.
+/// `submit`: prints the id; with `--wait`, then the final status; with `--watch`, then what
+/// `watch` prints.
 pub fn submit(args: SubmitArgs) -> Result<()> {
     let text = std::fs::read_to_string(&args.spec)
         .with_context(|| format!("reading {}", args.spec.display()))?;
     let spec = spec_file::parse(&text, Format::of_path(&args.spec))
         .map_err(|e| anyhow!("invalid spec {}: {e}", args.spec.display()))?;
     let json = serde_json::to_string(&spec)?;
-    runtime()?.block_on(async {
+    let id = runtime()?.block_on(async {
         let mut c = client(&args.conn).await?;
         let req = pb::SubmitJobRequest {
             spec: Some(pb::submit_job_request::Spec::Json(json)),
-            id: args.id,
+            id: args.id.clone(),
         };
         let resp = c
             .submit_job(with_token(&args.conn, req)?)
             .await
             .map_err(status_error)?;
-        println!("{}", resp.into_inner().id);
-        Ok(())
-    })
+        let id = resp.into_inner().id;
+        println!("{id}");
+        if !args.wait {
+            return Ok(id);
+        }
+        let mut frames = c
+            .watch_job(pb::WatchJobRequest {
+                id: id.clone(),
+                from_seq: None,
+            })
+            .await
+            .map_err(status_error)?
+            .into_inner();
+        while let Some(frame) = frames.message().await.map_err(status_error)? {
+            if let Some(pb::watch_frame::Frame::Status(s)) = frame.frame {
+                let view = status_from_proto(s)?;
+                if view.state.is_terminal() {
+                    println!(
+                        "{}",
+                        serde_json::to_string_pretty(&StatusJson::from(&view))?
+                    );
+                    return ended_ok(&view).map(|()| id);
+                }
+            }
+        }
+        Err(anyhow!(
+            "the server closed the stream of job {id} before it ended"
+        ))
+    })?;
+    if args.watch {
+        return watch(WatchArgs {
+            id,
+            zenoh: args.zenoh,
+            json: false,
+        });
+    }
+    Ok(())
+}
+
+/// Ok for a succeeded job; an error with the state (and the reason of a failure) otherwise.
+fn ended_ok(view: &JobView) -> Result<()> {
+    match (&view.state, &view.error) {
+        (crate::status::JobState::Succeeded, _) => Ok(()),
+        (state, Some((field, reason))) => Err(anyhow!(
+            "job {} {}: {field}: {reason}",
+            view.id,
+            state.as_str()
+        )),
+        (state, None) => Err(anyhow!("job {} {}", view.id, state.as_str())),
+    }
 }
 
 /// `status`: prints the status as JSON.
@@ -211,6 +291,84 @@ pub fn capabilities(args: CapabilitiesArgs) -> Result<()> {
             "sections": caps.sections.iter().map(comp).collect::<Vec<_>>(),
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
+        Ok(())
+    })
+}
+
+/// `list`: one page of jobs, newest first: `ID STATE PROGRESS NAME` per line (or JSON), and the
+/// token of the next page on stderr when there is one.
+pub fn list(args: ListArgs) -> Result<()> {
+    let state = match args.state.as_deref() {
+        None => pb::JobState::Unspecified,
+        Some(s) => match crate::status::JobState::parse(s) {
+            Some(st) => crate::proto::encode::state_to_proto(st),
+            None => {
+                return Err(anyhow!(
+                    "--state {s:?} is not one of queued, running, succeeded, failed, cancelled"
+                ));
+            }
+        },
+    };
+    let page = runtime()?.block_on(async {
+        let mut c = client(&args.conn).await?;
+        c.list_jobs(pb::ListJobsRequest {
+            limit: args.limit,
+            page_token: args.page_token.clone(),
+            state: state as i32,
+        })
+        .await
+        .map_err(status_error)
+        .map(tonic::Response::into_inner)
+    })?;
+    let jobs = page
+        .jobs
+        .into_iter()
+        .map(status_from_proto)
+        .collect::<Result<Vec<_>>>()?;
+    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+    let printed: Result<()> = (|| {
+        if args.json {
+            let jobs: Vec<StatusJson> = jobs.iter().map(StatusJson::from).collect();
+            let next = (!page.next_page_token.is_empty()).then_some(&page.next_page_token);
+            writeln!(
+                out,
+                "{}",
+                serde_json::to_string_pretty(&json!({ "jobs": jobs, "next_page_token": next }))?
+            )?;
+        } else {
+            for j in &jobs {
+                writeln!(
+                    out,
+                    "{}\t{}\t{:.1}%\t{}",
+                    j.id,
+                    j.state.as_str(),
+                    100.0 * j.fraction(),
+                    j.name.as_deref().unwrap_or("")
+                )?;
+            }
+        }
+        out.flush()?;
+        Ok(())
+    })();
+    quiet_on_broken_pipe(printed)?;
+    if !args.json && !page.next_page_token.is_empty() {
+        eprintln!("more: signorini list --page-token {}", page.next_page_token);
+    }
+    Ok(())
+}
+
+/// `delete`: removes a finished job and its result from the server.
+pub fn delete(args: IdArgs) -> Result<()> {
+    runtime()?.block_on(async {
+        let mut c = client(&args.conn).await?;
+        let req = with_token(
+            &args.conn,
+            pb::DeleteJobRequest {
+                id: args.id.clone(),
+            },
+        )?;
+        c.delete_job(req).await.map_err(status_error)?;
+        println!("removed {}", args.id);
         Ok(())
     })
 }
@@ -346,8 +504,10 @@ fn write_rows(out: &mut impl Write, rows: &pb::ResultRows, n: usize) -> Result<(
 fn quiet_on_broken_pipe(r: Result<()>) -> Result<()> {
     match r {
         Err(e)
-            if e.downcast_ref::<std::io::Error>()
-                .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe) =>
+            if e.chain().any(|c| {
+                c.downcast_ref::<std::io::Error>()
+                    .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+            }) =>
         {
             Ok(())
         }
@@ -366,7 +526,8 @@ pub fn watch(args: WatchArgs) -> Result<()> {
         .await?;
         let outcome = watch_session(&session, &args).await;
         let _ = session.close().await;
-        outcome
+        // `watch … | head`: the reader has what it wanted.
+        quiet_on_broken_pipe(outcome)
     })
 }
 
@@ -392,33 +553,153 @@ fn decode_status(bytes: &[u8]) -> Result<JobView> {
     status_from_proto(pb::JobStatus::decode(bytes)?)
 }
 
+/// How `watch` shows a job: JSON lines (`--json`), a progress bar on a terminal, or one plain
+/// line per status change and at most one a second otherwise (a log, a pipe).
+enum Shown {
+    Json,
+    Bar(ProgressBar),
+    Lines {
+        last: Option<Instant>,
+        state: Option<crate::status::JobState>,
+        terms: String,
+    },
+}
+
+impl Shown {
+    fn new(json: bool) -> Shown {
+        if json {
+            return Shown::Json;
+        }
+        if !std::io::stdout().is_terminal() {
+            return Shown::Lines {
+                last: None,
+                state: None,
+                terms: String::new(),
+            };
+        }
+        let bar = ProgressBar::new(1);
+        bar.set_style(
+            ProgressStyle::with_template("{bar:40} {pos}/{len} steps {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        Shown::Bar(bar)
+    }
+
+    /// Shows a status; true when it is final.
+    fn status(&mut self, s: &JobView) -> Result<bool> {
+        match self {
+            Shown::Json => {
+                let line = json!({ "kind": "status", "status": StatusJson::from(s) });
+                writeln!(std::io::stdout().lock(), "{line}")?;
+            }
+            Shown::Bar(bar) => {
+                bar.set_length(s.total.max(1));
+                bar.set_position(s.done);
+            }
+            Shown::Lines { last, state, terms } => {
+                let changed = *state != Some(s.state);
+                if changed || last.is_none_or(|t| t.elapsed() >= Duration::from_secs(1)) {
+                    writeln!(
+                        std::io::stdout().lock(),
+                        "{} {} step {}/{} ({:.1}%) t={:.6e}{}{terms}",
+                        s.id,
+                        s.state.as_str(),
+                        s.done,
+                        s.total,
+                        100.0 * s.fraction(),
+                        s.t,
+                        if terms.is_empty() { "" } else { " " },
+                    )?;
+                    *last = Some(Instant::now());
+                    *state = Some(s.state);
+                }
+            }
+        }
+        Ok(s.state.is_terminal())
+    }
+
+    /// Shows a step frame of `kind` (`energy` or `state`).
+    fn frame(&mut self, kind: &str, f: &pb::StepFrame) -> Result<()> {
+        if let Shown::Json = self {
+            let json = FrameJson {
+                kind,
+                id: &f.id,
+                seq: f.seq,
+                columns: &f.columns,
+                step: &f.step,
+                t: &f.t,
+                rows: FrameJson::rows(&f.values, f.columns.len()),
+                last: f.last,
+            };
+            writeln!(
+                std::io::stdout().lock(),
+                "{}",
+                serde_json::to_string(&json)?
+            )?;
+            return Ok(());
+        }
+        let n = f.columns.len().max(1);
+        let (Some(row), Some(&step), "energy") = (f.values.chunks(n).last(), f.step.last(), kind)
+        else {
+            return Ok(());
+        };
+        let text: Vec<String> = f
+            .columns
+            .iter()
+            .zip(row)
+            .filter(|(c, _)| {
+                matches!(
+                    c.as_str(),
+                    "kinetic" | "strain" | "energy" | "balance_residual"
+                )
+            })
+            .map(|(c, v)| format!("{c}={v:.6e}"))
+            .collect();
+        match self {
+            Shown::Bar(bar) => {
+                bar.set_position(step);
+                bar.set_message(text.join(" "));
+            }
+            Shown::Lines { last, terms, .. } => {
+                *terms = text.join(" ");
+                if last.is_none_or(|t| t.elapsed() >= Duration::from_secs(1)) {
+                    let t = f.t.last().copied().unwrap_or_default();
+                    writeln!(
+                        std::io::stdout().lock(),
+                        "{} running step {step} t={t:.6e} {terms}",
+                        f.id
+                    )?;
+                    *last = Some(Instant::now());
+                }
+            }
+            Shown::Json => {}
+        }
+        Ok(())
+    }
+
+    /// The end: the bar goes, and (but for JSON lines) the final status is printed in full.
+    fn end(&self, s: &JobView) -> Result<()> {
+        match self {
+            Shown::Json => return Ok(()),
+            Shown::Bar(bar) => bar.finish_and_clear(),
+            Shown::Lines { .. } => {}
+        }
+        writeln!(
+            std::io::stdout().lock(),
+            "{}",
+            serde_json::to_string_pretty(&StatusJson::from(s))?
+        )?;
+        Ok(())
+    }
+}
+
 async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()> {
     let key = format!("signorini/v1/jobs/{}/*", args.id);
     let sub = session
         .declare_subscriber(key)
         .await
         .map_err(|e| anyhow!("zenoh subscribe: {e}"))?;
-    let bar = if args.json {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(1)
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} steps {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    let report = |s: &JobView| -> bool {
-        if args.json {
-            println!(
-                "{}",
-                json!({ "kind": "status", "status": StatusJson::from(s) })
-            );
-        } else {
-            bar.set_length(s.total.max(1));
-            bar.set_position(s.done);
-        }
-        s.state.is_terminal()
-    };
+    let mut shown = Shown::new(args.json);
     // The latest status (the query also makes sure our subscription is known to the server).
     let mut tries = 0;
     let current = loop {
@@ -432,26 +713,19 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
             Err(e) => return Err(e),
         }
     };
-    if report(&current) {
-        bar.finish_and_clear();
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&StatusJson::from(&current))?
-        );
-        return Ok(());
+    if shown.status(&current)? {
+        return shown.end(&current);
     }
-    let mut last_status;
-    loop {
+    let last_status = loop {
         let sample = match tokio::time::timeout(Duration::from_secs(2), sub.recv_async()).await {
             Ok(Ok(s)) => s,
             Ok(Err(e)) => return Err(anyhow!("zenoh: {e}")),
             Err(_) => {
                 // Quiet for a while: ask (a final status may have been missed).
                 if let Some(s) = query_status(session, &args.id).await?
-                    && report(&s)
+                    && shown.status(&s)?
                 {
-                    last_status = s;
-                    break;
+                    break s;
                 }
                 continue;
             }
@@ -460,10 +734,8 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
         let bytes = sample.payload().to_bytes();
         if key.ends_with("/status") {
             let s = decode_status(&bytes)?;
-            let done = report(&s);
-            last_status = s;
-            if done {
-                break;
+            if shown.status(&s)? {
+                break s;
             }
         } else {
             let f = pb::StepFrame::decode(&*bytes)?;
@@ -472,45 +744,8 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
             } else {
                 "state"
             };
-            if args.json {
-                let json = FrameJson {
-                    kind,
-                    id: &f.id,
-                    seq: f.seq,
-                    columns: &f.columns,
-                    step: &f.step,
-                    t: &f.t,
-                    rows: FrameJson::rows(&f.values, f.columns.len()),
-                    last: f.last,
-                };
-                println!("{}", serde_json::to_string(&json)?);
-            } else if kind == "energy" {
-                let n = f.columns.len().max(1);
-                if let (Some(row), Some(step)) = (f.values.chunks(n).last(), f.step.last()) {
-                    bar.set_position(*step);
-                    let terms: Vec<String> = f
-                        .columns
-                        .iter()
-                        .zip(row)
-                        .filter(|(c, _)| {
-                            matches!(
-                                c.as_str(),
-                                "kinetic" | "strain" | "energy" | "balance_residual"
-                            )
-                        })
-                        .map(|(c, v)| format!("{c}={v:.6e}"))
-                        .collect();
-                    bar.set_message(terms.join(" "));
-                }
-            }
+            shown.frame(kind, &f)?;
         }
-    }
-    bar.finish_and_clear();
-    if !args.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&StatusJson::from(&last_status))?
-        );
-    }
-    Ok(())
+    };
+    shown.end(&last_status)
 }

@@ -8,6 +8,7 @@
 //! `GetJob` and is sent as a status event about every 200 ms.
 
 pub mod events;
+mod history;
 pub mod ids;
 mod observer;
 
@@ -29,7 +30,23 @@ use std::thread::JoinHandle;
 use std::time::Instant;
 use tokio::sync::watch;
 
+pub use history::History;
 pub use ids::check_id;
+
+/// The rows of a running job not yet in the store, and the batches they went out in: filled by
+/// the job's observer, copied by readers of the job's history under the same lock (a chunk is
+/// stored and cleared from here in one step, so a reader sees every row exactly once).
+#[derive(Debug, Default)]
+struct Recent {
+    /// The run's columns (known once it starts).
+    columns: Vec<String>,
+    /// Chunks stored so far.
+    chunks: u64,
+    /// Index in the series of the first row held here (the rows stored so far).
+    first_row: u64,
+    /// The rows, with the batches (seq, start, end) sent from them.
+    rows: SeriesChunk,
+}
 
 /// A queued or running job.
 struct LiveJob {
@@ -44,6 +61,7 @@ struct LiveJob {
     total: AtomicU64,
     t_bits: AtomicU64,
     ended: watch::Sender<bool>,
+    recent: Mutex<Recent>,
 }
 
 impl LiveJob {
@@ -142,6 +160,77 @@ fn check_limits(job: &Job, limits: &Limits) -> Result<(), SpecError> {
     Ok(())
 }
 
+/// Longest job `name`, and longest key of a map in a spec (a parameter's name), in bytes.
+pub const MAX_NAME_BYTES: usize = 256;
+/// Longest other text of a spec (an expression, a coordinate's name), in bytes.
+pub const MAX_TEXT_BYTES: usize = 16 << 10;
+
+/// Checks every text of a spec (its JSON tree) against [`MAX_NAME_BYTES`] and
+/// [`MAX_TEXT_BYTES`]; the error names the field (`name`, `model.potential`, …).
+fn check_text(value: &serde_json::Value, path: &str) -> Result<(), SpecError> {
+    use serde_json::Value;
+    let join = |key: &str| {
+        if path.is_empty() {
+            key.to_string()
+        } else {
+            format!("{path}.{key}")
+        }
+    };
+    match value {
+        Value::String(text) => {
+            let limit = if path == "name" {
+                MAX_NAME_BYTES
+            } else {
+                MAX_TEXT_BYTES
+            };
+            if text.len() > limit {
+                return Err(SpecError::new(
+                    path,
+                    format!(
+                        "{} bytes of text, more than the {limit} this server takes",
+                        text.len()
+                    ),
+                ));
+            }
+        }
+        Value::Array(items) => {
+            for (i, item) in items.iter().enumerate() {
+                check_text(item, &format!("{path}[{i}]"))?;
+            }
+        }
+        Value::Object(map) => {
+            for (key, item) in map {
+                if key.len() > MAX_NAME_BYTES {
+                    return Err(SpecError::new(
+                        path,
+                        format!(
+                            "a key of {} bytes, more than the {MAX_NAME_BYTES} this server takes",
+                            key.len()
+                        ),
+                    ));
+                }
+                check_text(item, &join(key))?;
+            }
+        }
+        Value::Null | Value::Bool(_) | Value::Number(_) => {}
+    }
+    Ok(())
+}
+
+/// Jobs in a page of the list when the client names no limit, and the most it may ask for.
+pub const DEFAULT_PAGE: usize = 100;
+/// The most jobs in one page (a larger `limit` is taken as this).
+pub const MAX_PAGE: usize = 1000;
+
+/// One page of the job list, newest first.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JobPage {
+    /// The jobs.
+    pub jobs: Vec<JobView>,
+    /// The token of the next page, when there are older jobs.
+    pub next_page_token: Option<String>,
+}
+
 impl Engine {
     /// Opens the engine on `store`: re-queues the jobs a previous process left unfinished and
     /// starts `workers` threads.
@@ -215,10 +304,12 @@ impl Engine {
         if let Some(id) = &id {
             check_id(id)?;
         }
+        let spec_value =
+            serde_json::to_value(spec).map_err(|e| ApiError::Internal(e.to_string()))?;
+        check_text(&spec_value, "")?;
         let job = Job::from_spec(spec)?;
         check_limits(&job, &self.inner.limits)?;
-        let spec_json =
-            serde_json::to_string(spec).map_err(|e| ApiError::Internal(e.to_string()))?;
+        let spec_json = spec_value.to_string();
         let id = id.unwrap_or_else(new_id);
         let created_ms = now_ms();
         let live = Arc::new(new_live(id.clone(), spec.name.clone(), job, created_ms));
@@ -258,14 +349,62 @@ impl Engine {
         self.status(id).ok()
     }
 
-    /// Every job, oldest first, with live progress.
-    pub fn list(&self) -> Result<Vec<JobView>, ApiError> {
-        let stored = self.inner.store.list()?;
+    /// One page of jobs, newest first, with live progress: at most `limit` (0: [`DEFAULT_PAGE`];
+    /// more than [`MAX_PAGE`]: that many), only those in `state` if given, after the page whose
+    /// `next_page_token` is `page_token` (empty: the first page).
+    pub fn list(
+        &self,
+        state: Option<JobState>,
+        page_token: &str,
+        limit: usize,
+    ) -> Result<JobPage, ApiError> {
+        let before = if page_token.is_empty() {
+            None
+        } else {
+            Some(
+                page_token
+                    .parse::<i64>()
+                    .ok()
+                    .filter(|&seq| seq > 0)
+                    .ok_or_else(|| {
+                        SpecError::new("page_token", "not a token this server gave out")
+                    })?,
+            )
+        };
+        let limit = match limit {
+            0 => DEFAULT_PAGE,
+            n => n.min(MAX_PAGE),
+        };
+        let mut rows = self.inner.store.list_page(state, before, limit + 1)?;
+        let more = rows.len() > limit;
+        rows.truncate(limit);
+        let next_page_token = more
+            .then(|| rows.last().map(|(seq, _)| seq.to_string()))
+            .flatten();
         let live = lock(&self.inner.live);
-        Ok(stored
-            .into_iter()
-            .map(|v| live.get(&v.id).map_or(v, |l| l.view()))
-            .collect())
+        Ok(JobPage {
+            jobs: rows
+                .into_iter()
+                .map(|(_, v)| live.get(&v.id).map_or(v, |l| l.view()))
+                .collect(),
+            next_page_token,
+        })
+    }
+
+    /// Removes a finished job and its result from the store; a queued or running job must be
+    /// cancelled first.
+    pub fn delete(&self, id: &str) -> Result<(), ApiError> {
+        if let Some(live) = lock(&self.inner.live).get(id) {
+            return Err(ApiError::Unfinished {
+                id: id.into(),
+                state: live.view().state.as_str(),
+            });
+        }
+        if !self.inner.store.delete(id)? {
+            return Err(ApiError::NotFound { id: id.into() });
+        }
+        tracing::info!(%id, "purged");
+        Ok(())
     }
 
     /// Cancels a job. A queued job ends at once; a running one stops at the end of its current
@@ -407,6 +546,7 @@ fn new_live(id: String, name: Option<String>, job: Job, created_ms: u64) -> Live
         total: AtomicU64::new(total),
         t_bits: AtomicU64::new(0),
         ended: watch::channel(false).0,
+        recent: Mutex::new(Recent::default()),
     }
 }
 

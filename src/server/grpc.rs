@@ -7,7 +7,9 @@ use super::convert;
 use super::results::{Cut, CutRequest};
 use crate::engine::events::JobEvent;
 use crate::error::ApiError;
-use crate::proto::encode::{result_to_proto, status_to_proto, step_frames, tables_to_proto};
+use crate::proto::encode::{
+    result_to_proto, state_from_proto, status_to_proto, step_frames, tables_to_proto,
+};
 use crate::proto::v1 as pb;
 use crate::proto::v1::simulation_server::Simulation;
 use crate::spec_file::{self, Format};
@@ -44,13 +46,14 @@ pub fn to_status(e: ApiError) -> Status {
         ApiError::NotFound { .. } | ApiError::NoFigure { .. } | ApiError::NoRoute { .. } => {
             Code::NotFound
         }
+        ApiError::MethodNotAllowed { .. } => Code::Unimplemented,
         ApiError::Body {
             too_large: true, ..
         } => Code::ResourceExhausted,
         ApiError::Body { .. } => Code::InvalidArgument,
         ApiError::AlreadyExists { .. } => Code::AlreadyExists,
         ApiError::QueueFull { .. } | ApiError::TooLarge { .. } => Code::ResourceExhausted,
-        ApiError::NoResult { .. } => Code::FailedPrecondition,
+        ApiError::NoResult { .. } | ApiError::Unfinished { .. } => Code::FailedPrecondition,
         ApiError::Unauthenticated => Code::Unauthenticated,
         ApiError::Unavailable => Code::Unavailable,
         ApiError::Internal(_) => Code::Internal,
@@ -212,11 +215,44 @@ impl Simulation for SimulationService {
         &self,
         req: Request<pb::ListJobsRequest>,
     ) -> Result<Response<pb::ListJobsResponse>, Status> {
-        let pb::ListJobsRequest {} = req.into_inner();
-        let jobs = self.state.engine.list().map_err(to_status)?;
+        let pb::ListJobsRequest {
+            limit,
+            page_token,
+            state,
+        } = req.into_inner();
+        let state = match (state, state_from_proto(state)) {
+            (0, _) => None,
+            (_, Some(s)) => Some(s),
+            (n, None) => {
+                return Err(to_status(ApiError::Invalid(
+                    signorini_core::spec::SpecError::new("state", format!("unknown state {n}")),
+                )));
+            }
+        };
+        let page = self
+            .state
+            .engine
+            .list(state, &page_token, limit as usize)
+            .map_err(to_status)?;
         Ok(Response::new(pb::ListJobsResponse {
-            jobs: jobs.iter().map(status_to_proto).collect(),
+            jobs: page.jobs.iter().map(status_to_proto).collect(),
+            next_page_token: page.next_page_token.unwrap_or_default(),
         }))
+    }
+
+    async fn delete_job(
+        &self,
+        req: Request<pb::DeleteJobRequest>,
+    ) -> Result<Response<pb::DeleteJobResponse>, Status> {
+        self.authorize(&req)?;
+        let pb::DeleteJobRequest { id } = req.into_inner();
+        let engine = self.state.engine.clone();
+        let gone = id.clone();
+        tokio::task::spawn_blocking(move || engine.delete(&gone))
+            .await
+            .map_err(|e| Status::internal(e.to_string()))?
+            .map_err(to_status)?;
+        Ok(Response::new(pb::DeleteJobResponse { id }))
     }
 
     async fn cancel_job(
@@ -235,7 +271,14 @@ impl Simulation for SimulationService {
         &self,
         req: Request<pb::WatchJobRequest>,
     ) -> Result<Response<Self::WatchJobStream>, Status> {
-        let pb::WatchJobRequest { id } = req.into_inner();
+        let pb::WatchJobRequest { id, from_seq } = req.into_inner();
+        if let Some(from_seq) = from_seq {
+            let frames = self
+                .state
+                .replay(&id, from_seq, watch_frames)
+                .map_err(to_status)?;
+            return Ok(Response::new(Box::pin(frames.map(Ok))));
+        }
         let (current, frames) = self.state.follow(&id, watch_frames).map_err(to_status)?;
         let first = tokio_stream::iter([Ok(pb::WatchFrame {
             frame: Some(pb::watch_frame::Frame::Status(status_to_proto(&current))),

@@ -8,7 +8,7 @@ use super::results::{self, Cut, CutRequest, write_csv, write_json, write_npz};
 use crate::engine::events::JobEvent;
 use crate::error::ApiError;
 use crate::spec_file::{self, Format};
-use crate::status::JobView;
+use crate::status::{JobState, JobView};
 use crate::store::StoredResult;
 use axum::body::{Body, Bytes};
 use axum::extract::rejection::{QueryRejection, StringRejection};
@@ -33,11 +33,14 @@ impl IntoResponse for ApiError {
             ApiError::NotFound { .. } | ApiError::NoFigure { .. } | ApiError::NoRoute { .. } => {
                 StatusCode::NOT_FOUND
             }
+            ApiError::MethodNotAllowed { .. } => StatusCode::METHOD_NOT_ALLOWED,
             ApiError::Body {
                 too_large: true, ..
             } => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::Body { .. } => StatusCode::BAD_REQUEST,
-            ApiError::AlreadyExists { .. } | ApiError::NoResult { .. } => StatusCode::CONFLICT,
+            ApiError::AlreadyExists { .. }
+            | ApiError::NoResult { .. }
+            | ApiError::Unfinished { .. } => StatusCode::CONFLICT,
             ApiError::QueueFull { .. } => StatusCode::TOO_MANY_REQUESTS,
             ApiError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::Unauthenticated => StatusCode::UNAUTHORIZED,
@@ -77,6 +80,7 @@ pub fn router(state: AppState) -> Router {
         .route("/metrics", get(metrics))
         .route("/jobs/{id}", get(live_page))
         .fallback(no_route)
+        .method_not_allowed_fallback(no_method)
         .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
         .with_state(state)
 }
@@ -117,13 +121,21 @@ async fn no_route(method: Method, uri: Uri) -> ApiError {
     }
 }
 
+async fn no_method(method: Method, uri: Uri) -> ApiError {
+    ApiError::MethodNotAllowed {
+        method: method.to_string(),
+        path: uri.path().to_string(),
+    }
+}
+
 async fn submit_job(
     State(state): State<AppState>,
     headers: HeaderMap,
-    Query(q): Query<SubmitQuery>,
+    query: Result<Query<SubmitQuery>, QueryRejection>,
     body: Result<String, StringRejection>,
 ) -> Result<(StatusCode, Json<Value>), ApiError> {
     authorize(&state, &headers)?;
+    let Query(q) = query?;
     let body = body?;
     // Parsing and validation (a factorisation of M and K) run off the async executor.
     let engine = state.engine.clone();
@@ -136,11 +148,41 @@ async fn submit_job(
     Ok((StatusCode::CREATED, Json(json!({ "id": id }))))
 }
 
-/// `{"jobs": [status…]}`, oldest first.
-async fn list_jobs(State(state): State<AppState>) -> Result<Json<Value>, ApiError> {
-    let jobs = state.engine.list()?;
-    let jobs: Vec<StatusJson> = jobs.iter().map(StatusJson::from).collect();
-    Ok(Json(json!({ "jobs": jobs })))
+/// `?limit=N&state=S&page_token=T` of `GET /v1/jobs`.
+#[derive(Debug, Deserialize)]
+struct ListQuery {
+    #[serde(default)]
+    limit: Option<usize>,
+    #[serde(default)]
+    state: Option<String>,
+    #[serde(default)]
+    page_token: Option<String>,
+}
+
+/// `{"jobs": [status…], "next_page_token": T or null}`: one page, newest first.
+async fn list_jobs(
+    State(state): State<AppState>,
+    query: Result<Query<ListQuery>, QueryRejection>,
+) -> Result<Json<Value>, ApiError> {
+    let Query(q) = query?;
+    let filter = match q.state.as_deref() {
+        None | Some("") => None,
+        Some(s) => Some(JobState::parse(s).ok_or_else(|| {
+            signorini_core::spec::SpecError::new(
+                "state",
+                format!("{s:?} is not one of queued, running, succeeded, failed, cancelled"),
+            )
+        })?),
+    };
+    let page = state.engine.list(
+        filter,
+        q.page_token.as_deref().unwrap_or(""),
+        q.limit.unwrap_or(0),
+    )?;
+    let jobs: Vec<StatusJson> = page.jobs.iter().map(StatusJson::from).collect();
+    Ok(Json(
+        json!({ "jobs": jobs, "next_page_token": page.next_page_token }),
+    ))
 }
 
 /// Answers a status as [`StatusJson`].
@@ -155,12 +197,32 @@ async fn get_job(
     Ok(status_body(&state.engine.status(&id)?))
 }
 
+/// `?purge=true` of `DELETE /v1/jobs/{id}`.
+#[derive(Debug, Deserialize)]
+struct DeleteQuery {
+    #[serde(default)]
+    purge: bool,
+}
+
+/// `DELETE /v1/jobs/{id}` cancels the job (and answers its status); with `?purge=true` it
+/// removes a finished job and its result instead (`{"id", "purged": true}`; 409 while the job
+/// is queued or running).
 async fn cancel_job(
     State(state): State<AppState>,
     headers: HeaderMap,
     Path(id): Path<String>,
+    query: Result<Query<DeleteQuery>, QueryRejection>,
 ) -> Result<Response, ApiError> {
     authorize(&state, &headers)?;
+    let Query(q) = query?;
+    if q.purge {
+        let engine = state.engine.clone();
+        let gone = id.clone();
+        tokio::task::spawn_blocking(move || engine.delete(&gone))
+            .await
+            .map_err(|e| ApiError::Internal(e.to_string()))??;
+        return Ok(Json(json!({ "id": id, "purged": true })).into_response());
+    }
     Ok(status_body(&state.cancel_and_wait(&id).await?))
 }
 
@@ -478,8 +540,10 @@ fn sse_events(event: &JobEvent) -> Vec<Event> {
         JobEvent::Status(v) => Event::default()
             .event("status")
             .json_data(StatusJson::from(v)),
-        JobEvent::Steps(b) if !b.energy.columns.is_empty() => {
-            Event::default().event("energy").json_data(FrameJson {
+        JobEvent::Steps(b) if !b.energy.columns.is_empty() => Event::default()
+            .event("energy")
+            .id(b.seq.to_string())
+            .json_data(FrameJson {
                 kind: "energy",
                 id: &b.id,
                 seq: b.seq,
@@ -488,27 +552,49 @@ fn sse_events(event: &JobEvent) -> Vec<Event> {
                 t: &b.t,
                 rows: FrameJson::rows(&b.energy.values, b.energy.columns.len()),
                 last: b.last,
-            })
-        }
+            }),
         JobEvent::Steps(_) | JobEvent::Closed(_) => return Vec::new(),
     };
     event.into_iter().collect()
 }
 
+/// `?from_seq=N` of `GET /v1/jobs/{id}/events`.
+#[derive(Debug, Deserialize)]
+struct EventsQuery {
+    #[serde(default)]
+    from_seq: Option<u64>,
+}
+
 /// Server-sent events of one job: its current status, then its status and energy events as
-/// they are published; the stream ends after the job's final status.
+/// they are published; the stream ends after the job's final status. Energy events carry
+/// `id:` = their `seq`. With `?from_seq=N`, or a `Last-Event-ID: N` header (a reconnecting
+/// `EventSource`: from N + 1), the job's stored energy frames from that seq come first, then
+/// the live ones, none twice.
 async fn job_events(
     State(state): State<AppState>,
     Path(id): Path<String>,
+    headers: HeaderMap,
+    query: Result<Query<EventsQuery>, QueryRejection>,
 ) -> Result<Sse<impl tokio_stream::Stream<Item = Result<Event, Infallible>>>, ApiError> {
-    let (current, events) = state.follow(&id, sse_events)?;
-    let first = sse_events(&JobEvent::Status(current));
-    let rest: std::pin::Pin<Box<dyn tokio_stream::Stream<Item = Event> + Send>> = match events {
-        None => Box::pin(tokio_stream::empty()),
-        Some(events) => Box::pin(events),
-    };
-    let stream = tokio_stream::iter(first).chain(rest).map(Ok);
-    Ok(Sse::new(stream).keep_alive(KeepAlive::new().interval(Duration::from_secs(10))))
+    let Query(q) = query?;
+    let resume = headers
+        .get("last-event-id")
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.trim().parse::<u64>().ok())
+        .map(|seq| seq + 1);
+    let stream: std::pin::Pin<Box<dyn tokio_stream::Stream<Item = Event> + Send>> =
+        match resume.or(q.from_seq) {
+            Some(from_seq) => Box::pin(state.replay(&id, from_seq, sse_events)?),
+            None => {
+                let (current, events) = state.follow(&id, sse_events)?;
+                let first = sse_events(&JobEvent::Status(current));
+                match events {
+                    None => Box::pin(tokio_stream::iter(first)),
+                    Some(events) => Box::pin(tokio_stream::iter(first).chain(events)),
+                }
+            }
+        };
+    Ok(Sse::new(stream.map(Ok)).keep_alive(KeepAlive::new().interval(Duration::from_secs(10))))
 }
 
 async fn live_page(Path(id): Path<String>) -> Result<Html<String>, ApiError> {
