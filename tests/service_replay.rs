@@ -205,3 +205,65 @@ async fn sse_events_carry_their_seq_and_resume_after_the_last_event_id() {
     .await;
     assert_eq!(resumed, (42..ids.len() as u64).collect::<Vec<_>>());
 }
+
+/// The frames a zenoh `get` on `key` answers (the server's history queryable), in `seq` order
+/// (zenoh's default consolidation delivers distinct keys in no set order).
+async fn zenoh_history(session: &zenoh::Session, key: &str) -> Vec<pb::StepFrame> {
+    use prost::Message;
+    let replies = session.get(key).await.expect("zenoh get");
+    let mut frames = Vec::new();
+    while let Ok(reply) = replies.recv_async().await {
+        let sample = reply.result().expect("a frame, not an error");
+        frames.push(pb::StepFrame::decode(&*sample.payload().to_bytes()).expect("a StepFrame"));
+    }
+    frames.sort_by_key(|f| f.seq);
+    frames
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_zenoh_late_joiner_gets_the_recorded_frames_from_the_store() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&dir.path().join("s.db"), &Options::default());
+    let mut client = server.grpc().await;
+    let id = submit_json(&mut client, ball_json(1e-3, 30_000, 1), Some("late"))
+        .await
+        .expect("submit");
+    wait_terminal(&mut client, &id).await;
+    let session = server.zenoh_session().await;
+    common::zenoh_barrier(&session, &id).await;
+    let all = |key: String| format!("{key}/*");
+    let energy = zenoh_history(&session, &all(signorini::stream::energy_key(&id))).await;
+    let state = zenoh_history(&session, &all(signorini::stream::state_key(&id))).await;
+    assert!(energy.len() > 100 && energy.len() < signorini::stream::HISTORY_FRAMES);
+    let mut got = rows_of(&energy, 0);
+    got.extend(rows_of(&state, 0));
+    assert_eq!(
+        got,
+        stored(&mut client, &id).await,
+        "the stored frames, bit for bit"
+    );
+    let later = zenoh_history(
+        &session,
+        &format!("{}/*?from_seq=100", signorini::stream::energy_key(&id)),
+    )
+    .await;
+    assert_eq!(later.len(), energy.len() - 100);
+    assert_eq!(later[0], energy[100]);
+    let one = zenoh_history(
+        &session,
+        &format!("{}/7", signorini::stream::energy_key(&id)),
+    )
+    .await;
+    assert_eq!(one, [energy[7].clone()]);
+    // An unknown job: an error reply, not silence.
+    let replies = session
+        .get(format!(
+            "{}/*",
+            signorini::stream::energy_key("no-such-job")
+        ))
+        .await
+        .expect("zenoh get");
+    let reply = replies.recv_async().await.expect("a reply");
+    assert!(reply.result().is_err());
+    let _ = session.close().await;
+}

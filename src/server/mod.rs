@@ -241,6 +241,13 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
         let engine = engine.clone();
         stream::serve_status_queryable(session.clone(), move |id| engine.find(id)).await?;
     }
+    {
+        let engine = engine.clone();
+        stream::serve_history_queryable(session.clone(), move |id| {
+            engine.history(id).ok().map(|(_, h)| h)
+        })
+        .await?;
+    }
     let state = AppState {
         engine: engine.clone(),
         token: cfg.token.as_deref().map(Arc::from),
