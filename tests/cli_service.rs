@@ -175,3 +175,107 @@ async fn submit_wait_prints_the_final_status_and_fails_unless_it_succeeded() {
     assert_eq!(status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("job stopped cancelled"), "{stderr}");
 }
+
+/// The attack: a stranger on zenoh publishes `JobStatus{SUCCEEDED}` on a running job's
+/// status key. `watch` used to print it and exit 0; now the final status is checked with the
+/// server's gRPC API and the mismatch is an error. The stranger here is the peer `watch`
+/// connects to (it answers the status query and publishes the fake end); the job is real and
+/// runs on.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn watch_reports_a_spoofed_final_status_as_an_error() {
+    use prost::Message;
+    use signorini::proto::v1 as pb;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&dir.path().join("s.db"), &Options::default());
+    let mut client = server.grpc().await;
+    let id = submit_json(
+        &mut client,
+        ball_json(1e-6, 50_000_000, 1000),
+        Some("target"),
+    )
+    .await
+    .expect("submit");
+    wait_running(&mut client, &id, 1).await;
+
+    let endpoint = format!("tcp/127.0.0.1:{}", common::free_port());
+    let stranger = signorini::stream::open_session(&signorini::stream::ZenohOptions {
+        listen: vec![endpoint.clone()],
+        connect: Vec::new(),
+    })
+    .await
+    .expect("the stranger's zenoh peer");
+    let status = |state: pb::JobState| {
+        pb::JobStatus {
+            id: id.clone(),
+            state: state as i32,
+            ..Default::default()
+        }
+        .encode_to_vec()
+    };
+    let queryable = stranger
+        .declare_queryable(signorini::stream::status_key(&id))
+        .await
+        .expect("queryable");
+    let running = status(pb::JobState::Running);
+    let answering = tokio::spawn(async move {
+        while let Ok(q) = queryable.recv_async().await {
+            let key = q.key_expr().clone();
+            let _ = q.reply(key, running.clone()).await;
+        }
+    });
+    let mut child = ChildGuard(
+        signorini()
+            .args(["watch", &id, "--json", "--zenoh", &endpoint])
+            .args(["--server", &server.grpc_url])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("signorini watch"),
+    );
+    let mut lines = BufReader::new(child.0.stdout.take().expect("stdout"));
+    let mut first = String::new();
+    lines.read_line(&mut first).expect("a first line");
+    assert!(first.contains("\"running\""), "{first}");
+    std::thread::spawn(move || std::io::copy(&mut lines, &mut std::io::sink()));
+    let exit = {
+        let start = Instant::now();
+        loop {
+            stranger
+                .put(
+                    signorini::stream::status_key(&id),
+                    status(pb::JobState::Succeeded),
+                )
+                .await
+                .expect("put");
+            if let Some(s) = child.0.try_wait().expect("try_wait") {
+                break s;
+            }
+            assert!(
+                start.elapsed() < PATIENCE,
+                "watch never saw the spoofed status"
+            );
+            tokio::time::sleep(Duration::from_millis(200)).await;
+        }
+    };
+    let mut stderr = String::new();
+    child
+        .0
+        .stderr
+        .take()
+        .expect("stderr")
+        .read_to_string(&mut stderr)
+        .expect("stderr");
+    assert_eq!(exit.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("that status was not the server's"),
+        "{stderr}"
+    );
+    let s = client
+        .get_job(pb::GetJobRequest { id: id.clone() })
+        .await
+        .expect("GetJob")
+        .into_inner();
+    assert_eq!(s.state, pb::JobState::Running as i32, "the job runs on");
+    answering.abort();
+    let _ = stranger.close().await;
+}

@@ -124,6 +124,9 @@ pub struct WatchArgs {
     /// One JSON object per frame on stdout instead of a progress bar.
     #[arg(long)]
     pub json: bool,
+    /// The server whose gRPC API confirms the final status seen over zenoh.
+    #[command(flatten)]
+    pub conn: Connection,
 }
 
 /// `signorini capabilities`.
@@ -228,6 +231,7 @@ pub fn submit(args: SubmitArgs) -> Result<()> {
             id,
             zenoh: args.zenoh,
             json: false,
+            conn: args.conn,
         });
     }
     Ok(())
@@ -526,8 +530,13 @@ pub fn watch(args: WatchArgs) -> Result<()> {
         .await?;
         let outcome = watch_session(&session, &args).await;
         let _ = session.close().await;
+        let ended = async {
+            let (shown, last) = outcome?;
+            confirm(&args.conn, &last).await?;
+            shown.end(&last)
+        };
         // `watch … | head`: the reader has what it wanted.
-        quiet_on_broken_pipe(outcome)
+        quiet_on_broken_pipe(ended.await)
     })
 }
 
@@ -693,7 +702,40 @@ impl Shown {
     }
 }
 
-async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()> {
+/// Checks a final status seen over zenoh against the server's gRPC API, which only the server
+/// answers: a different state is an error (a frame published by someone else, or stale). When
+/// the API cannot be reached the status stands, with a warning that it is unconfirmed.
+async fn confirm(conn: &Connection, seen: &JobView) -> Result<()> {
+    let asked = async {
+        let mut c = client(conn).await?;
+        let s = c
+            .get_job(pb::GetJobRequest {
+                id: seen.id.clone(),
+            })
+            .await
+            .map_err(status_error)?;
+        status_from_proto(s.into_inner())
+    };
+    match asked.await {
+        Ok(server) if server.state == seen.state => Ok(()),
+        Ok(server) => Err(anyhow!(
+            "zenoh said job {} is {}, but the server at {} says {}: that status was not the server's",
+            seen.id,
+            seen.state.as_str(),
+            conn.server,
+            server.state.as_str()
+        )),
+        Err(e) => {
+            eprintln!(
+                "warning: the final status of job {} is unconfirmed (no answer from {}: {e:#})",
+                seen.id, conn.server
+            );
+            Ok(())
+        }
+    }
+}
+
+async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<(Shown, JobView)> {
     let key = format!("signorini/v1/jobs/{}/*", args.id);
     let sub = session
         .declare_subscriber(key)
@@ -714,7 +756,7 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
         }
     };
     if shown.status(&current)? {
-        return shown.end(&current);
+        return Ok((shown, current));
     }
     let last_status = loop {
         let sample = match tokio::time::timeout(Duration::from_secs(2), sub.recv_async()).await {
@@ -747,5 +789,5 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
             shown.frame(kind, &f)?;
         }
     };
-    shown.end(&last_status)
+    Ok((shown, last_status))
 }
