@@ -79,6 +79,7 @@ pub fn router(state: AppState) -> Router {
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
         .route("/jobs/{id}", get(live_page))
+        .route("/", get(index_page))
         .fallback(no_route)
         .method_not_allowed_fallback(no_method)
         .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
@@ -597,7 +598,17 @@ async fn job_events(
     Ok(Sse::new(stream.map(Ok)).keep_alive(KeepAlive::new().interval(Duration::from_secs(10))))
 }
 
-async fn live_page(Path(id): Path<String>) -> Result<Html<String>, ApiError> {
+/// The live page of a job (404 for an unknown one).
+async fn live_page(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Html<String>, ApiError> {
     crate::engine::check_id(&id)?;
+    state.engine.status(&id)?;
     Ok(Html(include_str!("live.html").replace("{{JOB_ID}}", &id)))
+}
+
+/// The index page: the newest jobs, linked to their live pages.
+async fn index_page() -> Html<&'static str> {
+    Html(include_str!("index.html"))
 }
