@@ -36,6 +36,14 @@ pub enum ApiError {
         /// Its state.
         state: &'static str,
     },
+    /// The job is queued or running: it cannot be removed yet.
+    #[error("job {id} is {state}: cancel it before removing it")]
+    Unfinished {
+        /// The job.
+        id: String,
+        /// Its state.
+        state: &'static str,
+    },
     /// The job succeeded but made no figure of this name.
     #[error("job {id} has no figure {name:?}")]
     NoFigure {
@@ -60,6 +68,20 @@ pub enum ApiError {
         /// Path asked for.
         path: String,
     },
+    /// A reply would be larger than one message may be.
+    #[error("{reason}")]
+    TooLarge {
+        /// Why, and what to do instead.
+        reason: String,
+    },
+    /// The route exists, the method does not.
+    #[error("{method} is not allowed on {path}")]
+    MethodNotAllowed {
+        /// HTTP method.
+        method: String,
+        /// Path asked for.
+        path: String,
+    },
     /// Missing or wrong bearer token on a mutating call.
     #[error("missing or invalid bearer token")]
     Unauthenticated,
@@ -78,12 +100,15 @@ impl ApiError {
             ApiError::Invalid(e) => (e.field.clone(), e.reason.clone()),
             ApiError::NotFound { .. }
             | ApiError::AlreadyExists { .. }
-            | ApiError::NoResult { .. } => ("id".into(), self.to_string()),
+            | ApiError::NoResult { .. }
+            | ApiError::Unfinished { .. } => ("id".into(), self.to_string()),
             ApiError::NoFigure { .. } => ("figure".into(), self.to_string()),
             ApiError::Body { .. } => ("body".into(), self.to_string()),
             ApiError::NoRoute { .. } => ("path".into(), self.to_string()),
+            ApiError::MethodNotAllowed { .. } => ("method".into(), self.to_string()),
             ApiError::Unauthenticated => ("authorization".into(), self.to_string()),
             ApiError::QueueFull { .. } => ("queue".into(), self.to_string()),
+            ApiError::TooLarge { .. } => ("columns".into(), self.to_string()),
             ApiError::Unavailable | ApiError::Internal(_) => (String::new(), self.to_string()),
         }
     }

@@ -169,7 +169,7 @@ pub fn write_atomic(path: &Path, text: &str) -> Result<()> {
 }
 
 /// Writes a finished run's tables (`NAME.csv`), figures (`NAME.svg`) and, last, `summary.json`
-/// to `dir` (the step series is written by [`CsvSteps`] or [`write_steps`]). Names that are not
+/// to `dir` (the step series is written by [`CsvSteps`]). Names that are not
 /// plain file stems are refused, so no name (they may come from a server) reaches outside `dir`.
 pub fn write_run_files(dir: &Path, run: &FinishedRun) -> Result<()> {
     for t in &run.tables {
@@ -213,40 +213,4 @@ fn write_table(dir: &Path, table: &Table) -> Result<()> {
 /// Writes a figure as SVG.
 pub fn write_figure(dir: &Path, figure: &Figure) -> Result<()> {
     write_atomic(&dir.join(format!("{}.svg", figure.name)), &figure.svg)
-}
-
-/// Writes a recorded series as `steps.csv` through [`CsvSteps`] (the same bytes `signorini run`
-/// writes as the run goes): `values` row-major, one row of `columns.len()` values per step. A
-/// series with no column and no step (an analysis) leaves no steps.csv.
-pub fn write_steps(
-    dir: &Path,
-    columns: &[String],
-    steps: &[u64],
-    t: &[f64],
-    values: &[f64],
-) -> Result<()> {
-    let n = columns.len();
-    if t.len() != steps.len() || values.len() != steps.len() * n {
-        return Err(anyhow!(
-            "a series of {} steps with {} times and {} values for {n} columns",
-            steps.len(),
-            t.len(),
-            values.len()
-        ));
-    }
-    let mut csv = CsvSteps::create(dir)?;
-    if !(columns.is_empty() && steps.is_empty()) {
-        csv.start(&Columns::new(columns.to_vec()));
-        for (i, (&step, &t)) in steps.iter().zip(t).enumerate() {
-            let record = StepRecord {
-                step,
-                t,
-                values: &values[i * n..(i + 1) * n],
-            };
-            if csv.observe(&record).is_break() {
-                break;
-            }
-        }
-    }
-    csv.finish()
 }

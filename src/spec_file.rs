@@ -53,12 +53,39 @@ fn parse_tracked(text: &str, format: Format) -> Result<JobSpec, SpecError> {
     match format {
         Format::Json => {
             let de = &mut serde_json::Deserializer::from_str(text);
-            serde_path_to_error::deserialize(de)
-                .map_err(|e| located(e.path().to_string(), e.inner().to_string()))
+            serde_path_to_error::deserialize(de).map_err(|e| {
+                let inner = e.inner();
+                if inner.is_syntax() || inner.is_eof() {
+                    // Not JSON: where the text breaks, not the field serde was reading.
+                    let message = inner.to_string();
+                    let message = message
+                        .rsplit_once(" at line ")
+                        .map_or(message.as_str(), |(m, _)| m);
+                    return SpecError::new(
+                        "spec",
+                        format!(
+                            "malformed JSON at line {}, column {}: {message}",
+                            inner.line(),
+                            inner.column()
+                        ),
+                    );
+                }
+                located(e.path().to_string(), inner.to_string())
+            })
         }
         Format::Toml => {
-            let de = toml::Deserializer::parse(text)
-                .map_err(|e| SpecError::new("spec", e.message().to_string()))?;
+            let de = toml::Deserializer::parse(text).map_err(|e| {
+                let at = e.span().map(|span| {
+                    let before = &text[..span.start.min(text.len())];
+                    let line = before.matches('\n').count() + 1;
+                    let column = before.chars().rev().take_while(|&c| c != '\n').count() + 1;
+                    format!(" at line {line}, column {column}")
+                });
+                SpecError::new(
+                    "spec",
+                    format!("malformed TOML{}: {}", at.unwrap_or_default(), e.message()),
+                )
+            })?;
             serde_path_to_error::deserialize(de)
                 .map_err(|e| located(e.path().to_string(), e.inner().message().to_string()))
         }
@@ -174,6 +201,40 @@ fn located(path: String, message: String) -> SpecError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Text that is not JSON (or TOML) is reported where it breaks, by line and column, under
+    /// the field `spec` (it used to name whatever field serde was in, e.g. `model.?`).
+    #[test]
+    fn malformed_text_is_located_by_line_and_column() {
+        let e = parse(
+            "{\"model\": {\"scene\": \"bouncing_ball\",\n  \"mass\": 1.0,,}}",
+            Format::Json,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "spec", "{e}");
+        assert!(
+            e.reason
+                .starts_with("malformed JSON at line 2, column 15: "),
+            "{e}"
+        );
+        let e = parse("{\"model\": {", Format::Json).unwrap_err();
+        assert_eq!(e.field, "spec", "{e}");
+        assert!(
+            e.reason
+                .starts_with("malformed JSON at line 1, column 11: "),
+            "{e}"
+        );
+        let e = parse(
+            "[model]\nscene = \"bouncing_ball\"\nmass = = 1\n",
+            Format::Toml,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "spec", "{e}");
+        assert!(
+            e.reason.starts_with("malformed TOML at line 3, column 8"),
+            "{e}"
+        );
+    }
 
     #[test]
     fn unknown_field_and_scene_are_named() {

@@ -4,15 +4,21 @@
 //! A job's row is written when it is accepted, updated when it starts, and completed in one
 //! transaction with its result, so a crash (SIGKILL) leaves every finished result whole and every
 //! unfinished job marked `queued` or `running`; [`Store::recover`] turns the latter back into
-//! `queued` at start-up. Series are stored as little-endian f64 blobs: what is read back is what
-//! was computed, bit for bit. Figures (SVG text) are kept as a JSON list in `figures_json`; a
+//! `queued` at start-up. Figures (SVG text) are kept as a JSON list in `figures_json`; a
 //! database made before that column existed gets it (empty lists) when it is opened.
+//!
+//! The recorded series of a job is a sequence of chunks (table `result_chunks`, one row per
+//! chunk of about [`CHUNK_BYTES`], little-endian `u64`/`f64` blobs: what is read back is what was
+//! computed, bit for bit). The engine appends chunks while the job runs, so neither the run nor a
+//! reader ever holds a whole series: a reader takes the chunk index ([`Store::series_index`]) and
+//! reads one chunk at a time ([`Store::read_chunk`]). A failed or cancelled run keeps the chunks
+//! it wrote, marked `partial`. A database of the earlier layout (one blob per job in `results`)
+//! is rewritten into chunks, one job per transaction, when it is opened.
 
 use crate::status::{JobState, JobView};
 use rusqlite::{Connection, OptionalExtension, params};
 use serde_json::{Map, Value};
 use signorini_core::outcome::Table;
-use signorini_core::spec::SpecError;
 use signorini_figures::Figure;
 use std::path::Path;
 use std::sync::Mutex;
@@ -24,6 +30,22 @@ pub enum StoreError {
     /// SQLite said no.
     #[error("store: {0}")]
     Sql(#[from] rusqlite::Error),
+    /// Another process holds the store's lock.
+    #[error(
+        "store {path} is in use by another signorini serve (it holds the file's lock): stop that server or give another --store"
+    )]
+    Locked {
+        /// The store file.
+        path: String,
+    },
+    /// The lock file could not be opened or locked.
+    #[error("store {path}: {reason}")]
+    Lock {
+        /// The store file.
+        path: String,
+        /// Why.
+        reason: String,
+    },
     /// A stored value does not decode.
     #[error("store: corrupt {what} of job {id}")]
     Corrupt {
@@ -37,6 +59,8 @@ pub enum StoreError {
 /// A finished job's result.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct StoredResult {
+    /// True for the steps a failed or cancelled run recorded before it stopped (no summary).
+    pub partial: bool,
     /// summary.json.
     pub summary: Map<String, Value>,
     /// Columns besides `step` and `t`.
@@ -61,45 +85,6 @@ impl StoredResult {
         by(name).or_else(|| by(stem))
     }
 
-    /// The series cut down to `columns` (all when empty, in the stored order otherwise as
-    /// asked) and to every `every`-th record plus the last (all when `every` ≤ 1). Values are
-    /// copied, never recomputed: what is left is bit-identical to the stored result.
-    pub fn select(mut self, columns: &[String], every: u64) -> Result<Self, SpecError> {
-        let at: Vec<usize> = if columns.is_empty() {
-            (0..self.columns.len()).collect()
-        } else {
-            columns
-                .iter()
-                .map(|name| {
-                    self.columns.iter().position(|c| c == name).ok_or_else(|| {
-                        SpecError::new(
-                            "columns",
-                            format!(
-                                "no column {name:?} (the result has {})",
-                                self.columns.join(", ")
-                            ),
-                        )
-                    })
-                })
-                .collect::<Result<_, _>>()?
-        };
-        let n = self.columns.len();
-        let rows = self.steps.len();
-        let every = every.max(1) as usize;
-        let keep: Vec<usize> = (0..rows)
-            .filter(|&i| i % every == 0 || i + 1 == rows)
-            .collect();
-        let mut values = Vec::with_capacity(keep.len() * at.len());
-        for &i in &keep {
-            values.extend(at.iter().map(|&c| self.values[i * n + c]));
-        }
-        self.columns = at.iter().map(|&c| self.columns[c].clone()).collect();
-        self.steps = keep.iter().map(|&i| self.steps[i]).collect();
-        self.t = keep.iter().map(|&i| self.t[i]).collect();
-        self.values = values;
-        Ok(self)
-    }
-
     /// The values of column `c`.
     pub fn column(&self, c: usize) -> Vec<f64> {
         let n = self.columns.len();
@@ -115,6 +100,44 @@ impl StoredResult {
 /// The SQLite store (one connection behind a mutex: calls are short).
 pub struct Store {
     conn: Mutex<Connection>,
+}
+
+/// Target size of one stored chunk of a series (its rows are [`chunk_rows`]).
+pub const CHUNK_BYTES: usize = 1 << 20;
+
+/// Rows per stored chunk for `columns` value columns (besides `step` and `t`): about
+/// [`CHUNK_BYTES`], at least one.
+pub fn chunk_rows(columns: usize) -> usize {
+    (CHUNK_BYTES / (8 * (columns + 2))).max(1)
+}
+
+/// Where one stored chunk sits in its series.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ChunkMeta {
+    /// Chunk number (0, 1, …).
+    pub chunk: u64,
+    /// Index of its first row in the series.
+    pub first_row: u64,
+    /// Its rows.
+    pub rows: u64,
+    /// Step number of its first and last rows.
+    pub step_first: u64,
+    /// Step number of its last row.
+    pub step_last: u64,
+}
+
+/// Consecutive rows of a series, as stored.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SeriesChunk {
+    /// Step numbers.
+    pub steps: Vec<u64>,
+    /// Times.
+    pub t: Vec<f64>,
+    /// Values, row-major, one row of the result's columns per step.
+    pub values: Vec<f64>,
+    /// The live batches these rows went out in: (seq, first row, end row) in the series (empty
+    /// for a series stored before batches were recorded).
+    pub batches: Vec<(u64, u64, u64)>,
 }
 
 const SCHEMA: &str = "
@@ -141,24 +164,164 @@ CREATE TABLE IF NOT EXISTS results (
     t BLOB NOT NULL,
     vals BLOB NOT NULL,
     tables_json TEXT NOT NULL,
-    figures_json TEXT NOT NULL DEFAULT '[]'
+    figures_json TEXT NOT NULL DEFAULT '[]',
+    partial INTEGER NOT NULL DEFAULT 0
+);
+CREATE TABLE IF NOT EXISTS result_chunks (
+    id TEXT NOT NULL,
+    chunk INTEGER NOT NULL,
+    first_row INTEGER NOT NULL,
+    rows INTEGER NOT NULL,
+    step_first INTEGER NOT NULL,
+    step_last INTEGER NOT NULL,
+    steps BLOB NOT NULL,
+    t BLOB NOT NULL,
+    vals BLOB NOT NULL,
+    batches BLOB NOT NULL DEFAULT x'',
+    PRIMARY KEY (id, chunk)
 );
 ";
 
-/// Brings a database made by an older schema up to [`SCHEMA`]: `results.figures_json` came later.
-fn migrate(conn: &Connection) -> Result<(), StoreError> {
-    let has_figures = conn
+/// Brings a database made by an older schema up to [`SCHEMA`]: `results.figures_json` and
+/// `results.partial` came later, and series stored as one blob per job (in `results.steps`,
+/// `t`, `vals`) move to `result_chunks`, one job per transaction (the old blob is emptied in the
+/// same transaction, so an interrupted migration resumes at the next open).
+fn migrate(conn: &mut Connection) -> Result<(), StoreError> {
+    let have: Vec<String> = conn
         .prepare("SELECT name FROM pragma_table_info('results')")?
         .query_map([], |r| r.get::<_, String>(0))?
-        .collect::<Result<Vec<_>, _>>()?
-        .iter()
-        .any(|c| c == "figures_json");
-    if !has_figures {
+        .collect::<Result<Vec<_>, _>>()?;
+    if !have.iter().any(|c| c == "figures_json") {
         conn.execute_batch(
             "ALTER TABLE results ADD COLUMN figures_json TEXT NOT NULL DEFAULT '[]'",
         )?;
     }
+    if !have.iter().any(|c| c == "partial") {
+        conn.execute_batch("ALTER TABLE results ADD COLUMN partial INTEGER NOT NULL DEFAULT 0")?;
+    }
+    let chunk_columns: Vec<String> = conn
+        .prepare("SELECT name FROM pragma_table_info('result_chunks')")?
+        .query_map([], |r| r.get::<_, String>(0))?
+        .collect::<Result<Vec<_>, _>>()?;
+    if !chunk_columns.iter().any(|c| c == "batches") {
+        conn.execute_batch(
+            "ALTER TABLE result_chunks ADD COLUMN batches BLOB NOT NULL DEFAULT x''",
+        )?;
+    }
+    let old: Vec<String> = conn
+        .prepare("SELECT id FROM results WHERE length(steps) > 0 OR length(vals) > 0")?
+        .query_map([], |r| r.get::<_, String>(0))?
+        .collect::<Result<Vec<_>, _>>()?;
+    for id in old {
+        let tx = conn.transaction()?;
+        let (columns, steps, t, vals) = tx.query_row(
+            "SELECT columns_json, steps, t, vals FROM results WHERE id = ?1",
+            [&id],
+            |r| {
+                Ok((
+                    r.get::<_, String>(0)?,
+                    r.get::<_, Vec<u8>>(1)?,
+                    r.get::<_, Vec<u8>>(2)?,
+                    r.get::<_, Vec<u8>>(3)?,
+                ))
+            },
+        )?;
+        let corrupt = |what| StoreError::Corrupt {
+            what,
+            id: id.clone(),
+        };
+        let columns: Vec<String> =
+            serde_json::from_str(&columns).map_err(|_| corrupt("columns"))?;
+        let steps = decode_u64s(&steps).ok_or_else(|| corrupt("steps"))?;
+        let t = decode_f64s(&t).ok_or_else(|| corrupt("t"))?;
+        let values = decode_f64s(&vals).ok_or_else(|| corrupt("values"))?;
+        if t.len() != steps.len() || values.len() != steps.len() * columns.len() {
+            return Err(corrupt("series"));
+        }
+        tx.execute("DELETE FROM result_chunks WHERE id = ?1", [&id])?;
+        append_series(&tx, &id, 0, 0, columns.len(), &steps, &t, &values)?;
+        tx.execute(
+            "UPDATE results SET steps = x'', t = x'', vals = x'' WHERE id = ?1",
+            [&id],
+        )?;
+        tx.commit()?;
+        tracing::info!(%id, rows = steps.len(), "store: series moved to chunks");
+    }
     Ok(())
+}
+
+/// Writes `steps`/`t`/`values` (row-major, `n` columns) as chunks of [`chunk_rows`] rows,
+/// numbered from `chunk`, the first row being row `first_row` of the series.
+#[allow(clippy::too_many_arguments)]
+fn append_series(
+    conn: &Connection,
+    id: &str,
+    chunk: u64,
+    first_row: u64,
+    n: usize,
+    steps: &[u64],
+    t: &[f64],
+    values: &[f64],
+) -> Result<(), StoreError> {
+    let per = chunk_rows(n);
+    for (k, start) in (0..steps.len()).step_by(per).enumerate() {
+        let end = (start + per).min(steps.len());
+        insert_chunk(
+            conn,
+            id,
+            chunk + k as u64,
+            first_row + start as u64,
+            &SeriesChunk {
+                steps: steps[start..end].to_vec(),
+                t: t[start..end].to_vec(),
+                values: values[start * n..end * n].to_vec(),
+                batches: Vec::new(),
+            },
+        )?;
+    }
+    Ok(())
+}
+
+fn insert_chunk(
+    conn: &Connection,
+    id: &str,
+    chunk: u64,
+    first_row: u64,
+    rows: &SeriesChunk,
+) -> Result<(), StoreError> {
+    let (Some(&first), Some(&last)) = (rows.steps.first(), rows.steps.last()) else {
+        return Ok(());
+    };
+    let batches: Vec<u64> = rows
+        .batches
+        .iter()
+        .flat_map(|&(seq, start, end)| [seq, start, end])
+        .collect();
+    conn.execute(
+        "INSERT OR REPLACE INTO result_chunks (id, chunk, first_row, rows, step_first, step_last, steps, t, vals, batches)
+         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+        params![
+            id,
+            chunk as i64,
+            first_row as i64,
+            rows.steps.len() as i64,
+            first as i64,
+            last as i64,
+            u64s_to_blob(&rows.steps),
+            f64s_to_blob(&rows.t),
+            f64s_to_blob(&rows.values),
+            u64s_to_blob(&batches),
+        ],
+    )?;
+    Ok(())
+}
+
+fn decode_u64s(b: &[u8]) -> Option<Vec<u64>> {
+    Some(blob_to_8(b)?.map(u64::from_le_bytes).collect())
+}
+
+fn decode_f64s(b: &[u8]) -> Option<Vec<f64>> {
+    Some(blob_to_8(b)?.map(f64::from_le_bytes).collect())
 }
 
 fn f64s_to_blob(v: &[f64]) -> Vec<u8> {
@@ -194,6 +357,10 @@ struct FigureJson {
 }
 
 const JOB_COLUMNS: &str = "id, name, spec_json, state, created_ms, started_ms, finished_ms, error_field, error_reason, done, total, t";
+
+/// [`JOB_COLUMNS`] without the spec (an empty string in its place): a list never reads specs,
+/// which may be megabytes each.
+const LIST_COLUMNS: &str = "id, name, '', state, created_ms, started_ms, finished_ms, error_field, error_reason, done, total, t";
 
 /// A job's status and its spec (JSON) from a `SELECT {JOB_COLUMNS}` row.
 fn row_to_job(r: &rusqlite::Row<'_>) -> rusqlite::Result<((JobView, String), String)> {
@@ -233,16 +400,53 @@ fn finish_row(
     Ok((view, spec_json))
 }
 
+/// The OS lock a server holds on its store file for as long as it runs (an exclusive
+/// `flock`, released by the OS when the process ends, even by SIGKILL), so two servers never
+/// run the same store's jobs. SQLite's own locks are per transaction and do not prevent that.
+#[derive(Debug)]
+pub struct StoreLock {
+    _file: std::fs::File,
+}
+
+impl StoreLock {
+    /// Takes the lock of the store at `path` (creating the file if it does not exist); an error
+    /// naming the file when another process holds it. `:memory:` needs no lock (`None`).
+    pub fn take(path: &Path) -> Result<Option<StoreLock>, StoreError> {
+        if path.as_os_str() == ":memory:" {
+            return Ok(None);
+        }
+        let shown = path.display().to_string();
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(path)
+            .map_err(|e| StoreError::Lock {
+                path: shown.clone(),
+                reason: e.to_string(),
+            })?;
+        match file.try_lock() {
+            Ok(()) => Ok(Some(StoreLock { _file: file })),
+            Err(std::fs::TryLockError::WouldBlock) => Err(StoreError::Locked { path: shown }),
+            Err(std::fs::TryLockError::Error(e)) => Err(StoreError::Lock {
+                path: shown,
+                reason: e.to_string(),
+            }),
+        }
+    }
+}
+
 impl Store {
     /// Opens (or creates) the store at `path` in WAL mode. `:memory:` gives a throwaway store.
     pub fn open(path: &Path) -> Result<Store, StoreError> {
-        let conn = Connection::open(path)?;
+        let mut conn = Connection::open(path)?;
         // WAL + synchronous=NORMAL: a committed transaction survives a process crash.
         conn.pragma_update(None, "journal_mode", "WAL")?;
         conn.pragma_update(None, "synchronous", "NORMAL")?;
         conn.busy_timeout(std::time::Duration::from_secs(5))?;
         conn.execute_batch(SCHEMA)?;
-        migrate(&conn)?;
+        migrate(&mut conn)?;
         Ok(Store {
             conn: Mutex::new(conn),
         })
@@ -271,8 +475,28 @@ impl Store {
         Ok(())
     }
 
-    /// Ends a job: its final state, error, progress and (for a success) its result, in one
-    /// transaction.
+    /// Forgets the recorded series of a job (a job about to run again after a restart).
+    pub fn clear_series(&self, id: &str) -> Result<(), StoreError> {
+        self.conn()
+            .execute("DELETE FROM result_chunks WHERE id = ?1", [id])?;
+        Ok(())
+    }
+
+    /// Stores chunk number `chunk` of a running job's series, whose first row is row
+    /// `first_row` of the series.
+    pub fn append_chunk(
+        &self,
+        id: &str,
+        chunk: u64,
+        first_row: u64,
+        rows: &SeriesChunk,
+    ) -> Result<(), StoreError> {
+        insert_chunk(&self.conn(), id, chunk, first_row, rows)
+    }
+
+    /// Ends a job: its final state, error, progress and (for a success, or the partial series
+    /// of a failed or cancelled run) its result, in one transaction. The series chunks the run
+    /// appended stay; rows in `result` itself, if any, are appended after them.
     pub fn finish(&self, row: &JobView, result: Option<&StoredResult>) -> Result<(), StoreError> {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
@@ -295,19 +519,34 @@ impl Store {
                 })
                 .collect();
             tx.execute(
-                "INSERT OR REPLACE INTO results (id, summary_json, columns_json, steps, t, vals, tables_json, figures_json)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
+                "INSERT OR REPLACE INTO results (id, summary_json, columns_json, steps, t, vals, tables_json, figures_json, partial)
+                 VALUES (?1, ?2, ?3, x'', x'', x'', ?4, ?5, ?6)",
                 params![
                     row.id,
                     serde_json::to_string(&r.summary).unwrap_or_else(|_| "{}".into()),
                     serde_json::to_string(&r.columns).unwrap_or_else(|_| "[]".into()),
-                    u64s_to_blob(&r.steps),
-                    f64s_to_blob(&r.t),
-                    f64s_to_blob(&r.values),
                     serde_json::to_string(&tables).unwrap_or_else(|_| "[]".into()),
                     serde_json::to_string(&figures).unwrap_or_else(|_| "[]".into()),
+                    r.partial,
                 ],
             )?;
+            if !r.steps.is_empty() {
+                let (chunk, first_row) = tx.query_row(
+                    "SELECT COUNT(*), COALESCE(SUM(rows), 0) FROM result_chunks WHERE id = ?1",
+                    [&row.id],
+                    |q| Ok((q.get::<_, i64>(0)? as u64, q.get::<_, i64>(1)? as u64)),
+                )?;
+                append_series(
+                    &tx,
+                    &row.id,
+                    chunk,
+                    first_row,
+                    r.columns.len(),
+                    &r.steps,
+                    &r.t,
+                    &r.values,
+                )?;
+            }
         }
         let (field, reason) = match &row.error {
             Some((f, r)) => (Some(f.as_str()), Some(r.as_str())),
@@ -344,13 +583,40 @@ impl Store {
         Ok(row.map(finish_row).transpose()?.map(|(view, _)| view))
     }
 
-    /// Every job's status, oldest first.
-    pub fn list(&self) -> Result<Vec<JobView>, StoreError> {
-        Ok(self
-            .list_with_specs()?
-            .into_iter()
-            .map(|(view, _)| view)
-            .collect())
+    /// One page of jobs, newest first: at most `limit`, only those in `state` if given, only
+    /// those older than the job numbered `before` if given. Each comes with its number (the
+    /// store's insertion order), which the next page takes as `before`.
+    pub fn list_page(
+        &self,
+        state: Option<JobState>,
+        before: Option<i64>,
+        limit: usize,
+    ) -> Result<Vec<(i64, JobView)>, StoreError> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(&format!(
+            "SELECT {LIST_COLUMNS}, seq FROM jobs WHERE (?1 IS NULL OR state = ?1) AND (?2 IS NULL OR seq < ?2)
+             ORDER BY seq DESC LIMIT ?3"
+        ))?;
+        let rows = stmt
+            .query_map(
+                params![state.map(JobState::as_str), before, limit as i64],
+                |r| Ok((r.get::<_, i64>(12)?, row_to_job(r)?)),
+            )?
+            .collect::<Result<Vec<_>, _>>()?;
+        rows.into_iter()
+            .map(|(seq, row)| Ok((seq, finish_row(row)?.0)))
+            .collect()
+    }
+
+    /// Removes a job, its result and its series. False when there was no such job.
+    pub fn delete(&self, id: &str) -> Result<bool, StoreError> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        tx.execute("DELETE FROM result_chunks WHERE id = ?1", [id])?;
+        tx.execute("DELETE FROM results WHERE id = ?1", [id])?;
+        let n = tx.execute("DELETE FROM jobs WHERE id = ?1", [id])?;
+        tx.commit()?;
+        Ok(n == 1)
     }
 
     /// Every job's status and spec (JSON), oldest first.
@@ -399,27 +665,26 @@ impl Store {
             .collect())
     }
 
-    /// The result of a succeeded job.
-    pub fn result(&self, id: &str) -> Result<Option<StoredResult>, StoreError> {
+    /// A job's result without its series (`steps`, `t`, `values` empty): summary, columns,
+    /// tables, figures and whether it is partial. `None` when the job has no result.
+    pub fn result_head(&self, id: &str) -> Result<Option<StoredResult>, StoreError> {
         let conn = self.conn();
         let raw = conn
             .query_row(
-                "SELECT summary_json, columns_json, steps, t, vals, tables_json, figures_json FROM results WHERE id = ?1",
+                "SELECT summary_json, columns_json, tables_json, figures_json, partial FROM results WHERE id = ?1",
                 [id],
                 |r| {
                     Ok((
                         r.get::<_, String>(0)?,
                         r.get::<_, String>(1)?,
-                        r.get::<_, Vec<u8>>(2)?,
-                        r.get::<_, Vec<u8>>(3)?,
-                        r.get::<_, Vec<u8>>(4)?,
-                        r.get::<_, String>(5)?,
-                        r.get::<_, String>(6)?,
+                        r.get::<_, String>(2)?,
+                        r.get::<_, String>(3)?,
+                        r.get::<_, bool>(4)?,
                     ))
                 },
             )
             .optional()?;
-        let Some((summary, columns, steps, t, vals, tables, figures)) = raw else {
+        let Some((summary, columns, tables, figures, partial)) = raw else {
             return Ok(None);
         };
         let corrupt = |what| StoreError::Corrupt {
@@ -434,27 +699,10 @@ impl Store {
             serde_json::from_str(&tables).map_err(|_| corrupt("tables"))?;
         let figures: Vec<FigureJson> =
             serde_json::from_str(&figures).map_err(|_| corrupt("figures"))?;
-        let steps: Vec<u64> = blob_to_8(&steps)
-            .ok_or_else(|| corrupt("steps"))?
-            .map(u64::from_le_bytes)
-            .collect();
-        let t: Vec<f64> = blob_to_8(&t)
-            .ok_or_else(|| corrupt("t"))?
-            .map(f64::from_le_bytes)
-            .collect();
-        let values: Vec<f64> = blob_to_8(&vals)
-            .ok_or_else(|| corrupt("values"))?
-            .map(f64::from_le_bytes)
-            .collect();
-        if t.len() != steps.len() || values.len() != steps.len() * columns.len() {
-            return Err(corrupt("series"));
-        }
         Ok(Some(StoredResult {
+            partial,
             summary,
             columns,
-            steps,
-            t,
-            values,
             tables: tables
                 .into_iter()
                 .map(|t| Table {
@@ -470,7 +718,98 @@ impl Store {
                     svg: f.svg,
                 })
                 .collect(),
+            ..StoredResult::default()
         }))
+    }
+
+    /// The chunks of a job's series, in order (no values read).
+    pub fn series_index(&self, id: &str) -> Result<Vec<ChunkMeta>, StoreError> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(
+            "SELECT chunk, first_row, rows, step_first, step_last FROM result_chunks WHERE id = ?1 ORDER BY chunk",
+        )?;
+        let rows = stmt
+            .query_map([id], |r| {
+                Ok(ChunkMeta {
+                    chunk: r.get::<_, i64>(0)? as u64,
+                    first_row: r.get::<_, i64>(1)? as u64,
+                    rows: r.get::<_, i64>(2)? as u64,
+                    step_first: r.get::<_, i64>(3)? as u64,
+                    step_last: r.get::<_, i64>(4)? as u64,
+                })
+            })?
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut next = 0;
+        for c in &rows {
+            if c.first_row != next {
+                return Err(StoreError::Corrupt {
+                    what: "chunk index",
+                    id: id.into(),
+                });
+            }
+            next += c.rows;
+        }
+        Ok(rows)
+    }
+
+    /// One chunk of a job's series with `columns` value columns, checked against its index.
+    pub fn read_chunk(
+        &self,
+        id: &str,
+        meta: &ChunkMeta,
+        columns: usize,
+    ) -> Result<SeriesChunk, StoreError> {
+        let (steps, t, vals, batches) = self.conn().query_row(
+            "SELECT steps, t, vals, batches FROM result_chunks WHERE id = ?1 AND chunk = ?2",
+            params![id, meta.chunk as i64],
+            |r| {
+                Ok((
+                    r.get::<_, Vec<u8>>(0)?,
+                    r.get::<_, Vec<u8>>(1)?,
+                    r.get::<_, Vec<u8>>(2)?,
+                    r.get::<_, Vec<u8>>(3)?,
+                ))
+            },
+        )?;
+        let corrupt = |what| StoreError::Corrupt {
+            what,
+            id: id.to_string(),
+        };
+        let steps = decode_u64s(&steps).ok_or_else(|| corrupt("steps"))?;
+        let t = decode_f64s(&t).ok_or_else(|| corrupt("t"))?;
+        let values = decode_f64s(&vals).ok_or_else(|| corrupt("values"))?;
+        let batches = decode_u64s(&batches)
+            .filter(|b| b.len() % 3 == 0)
+            .ok_or_else(|| corrupt("batches"))?
+            .chunks_exact(3)
+            .map(|b| (b[0], b[1], b[2]))
+            .collect();
+        let rows = meta.rows as usize;
+        if steps.len() != rows || t.len() != rows || values.len() != rows * columns {
+            return Err(corrupt("series"));
+        }
+        Ok(SeriesChunk {
+            steps,
+            t,
+            values,
+            batches,
+        })
+    }
+
+    /// A job's whole result, its series read chunk by chunk into memory: for tests and small
+    /// results only (the servers stream series with [`Store::series_index`] and
+    /// [`Store::read_chunk`]).
+    pub fn result(&self, id: &str) -> Result<Option<StoredResult>, StoreError> {
+        let Some(mut r) = self.result_head(id)? else {
+            return Ok(None);
+        };
+        for meta in self.series_index(id)? {
+            let c = self.read_chunk(id, &meta, r.columns.len())?;
+            r.steps.extend(c.steps);
+            r.t.extend(c.t);
+            r.values.extend(c.values);
+        }
+        Ok(Some(r))
     }
 }
 
@@ -549,6 +888,24 @@ mod tests {
             what: "missing",
             id: id.into(),
         }
+    }
+
+    /// A second lock on the same store file is refused while the first is held, and granted
+    /// once it is released.
+    #[test]
+    fn a_store_is_locked_by_one_holder_at_a_time() -> Result<(), StoreError> {
+        let dir = tmp()?;
+        let path = dir.path().join("s.db");
+        let first = StoreLock::take(&path)?;
+        assert!(first.is_some());
+        match StoreLock::take(&path) {
+            Err(StoreError::Locked { path: p }) => assert!(p.ends_with("s.db")),
+            other => panic!("expected Locked, got {other:?}"),
+        }
+        drop(first);
+        assert!(StoreLock::take(&path)?.is_some());
+        assert!(StoreLock::take(Path::new(":memory:"))?.is_none());
+        Ok(())
     }
 
     #[test]

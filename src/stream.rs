@@ -21,6 +21,16 @@
 //! A queryable on `signorini/v1/jobs/*/status` answers the latest status of a job, for late
 //! joiners (`signorini watch`) and as a barrier: once a query from a session is answered, the
 //! subscribers it declared before are known here.
+//!
+//! Late joiners get the frames they missed from the store: queryables on
+//! `signorini/v1/jobs/*/energy/*` and `…/state/*` answer a `get` of `…/{id}/energy/*` with the
+//! job's recorded frames, one reply per frame keyed `…/{id}/energy/{seq}` (distinct keys, so
+//! zenoh's default consolidation keeps them all, in no set order: sort by `seq`; `…/energy/7`
+//! gets frame 7 only), from
+//! `?from_seq=N` on and at most [`HISTORY_FRAMES`] per query (ask again from the last `seq` + 1):
+//! the very frames that went live (same `seq`, same rows). Chosen over zenoh-ext's advanced
+//! publisher cache, which keeps a window of recent samples in memory per publisher: the store
+//! already holds every frame of every job, finished ones included, at no memory cost.
 
 use crate::engine::events::{self, EventQueue, EventSink, JobEvent, StreamStats};
 use crate::proto::encode::{status_to_proto, step_frames};
@@ -229,6 +239,80 @@ async fn handle(
 async fn put(publisher: &Publisher<'static>, bytes: Vec<u8>, stats: &StreamStats) -> Result<()> {
     publisher.put(bytes).await.map_err(|e| anyhow!("{e}"))?;
     stats.frames_published.fetch_add(1, Ordering::Relaxed);
+    Ok(())
+}
+
+/// Most frames one history query answers.
+pub const HISTORY_FRAMES: usize = 512;
+
+/// Answers `signorini/v1/jobs/{id}/energy` and `…/state` queries (`?from_seq=N`, default 0)
+/// with up to [`HISTORY_FRAMES`] recorded frames of that key from seq N on, read from
+/// `history(id)` (blocking) as the frames are sent; an error reply for an unknown job.
+pub async fn serve_history_queryable<F>(session: Session, history: F) -> Result<()>
+where
+    F: Fn(&str) -> Option<crate::engine::History> + Send + Sync + 'static,
+{
+    let history = Arc::new(history);
+    for kind in ["energy", "state"] {
+        let queryable = session
+            .declare_queryable(format!("signorini/v1/jobs/*/{kind}/*"))
+            .await
+            .map_err(|e| anyhow!("declaring queryable: {e}"))?;
+        let history = history.clone();
+        tokio::spawn(async move {
+            while let Ok(query) = queryable.recv_async().await {
+                let history = history.clone();
+                tokio::spawn(async move {
+                    let asked = query.key_expr().clone();
+                    let from_seq = query
+                        .parameters()
+                        .get("from_seq")
+                        .and_then(|v| v.parse::<u64>().ok())
+                        .unwrap_or(0);
+                    let Some(id) = id_of_key(asked.as_str()).map(str::to_string) else {
+                        return;
+                    };
+                    let base = format!("signorini/v1/jobs/{id}/{kind}");
+                    let (tx, mut rx) = tokio::sync::mpsc::channel(4);
+                    let reader = tokio::task::spawn_blocking(move || {
+                        let Some(h) = history(&id) else {
+                            return false;
+                        };
+                        let mut left = HISTORY_FRAMES;
+                        let _ = h.replay(from_seq, |b| {
+                            left -= 1;
+                            tx.blocking_send(b).is_ok() && left > 0
+                        });
+                        true
+                    });
+                    while let Some(batch) = rx.recv().await {
+                        let (energy, state) = step_frames(&batch);
+                        let frame = if kind == "energy" { energy } else { state };
+                        let Some(frame) = frame else { continue };
+                        let Ok(key) =
+                            zenoh::key_expr::KeyExpr::try_from(format!("{base}/{}", frame.seq))
+                        else {
+                            continue;
+                        };
+                        if !asked.intersects(&key) {
+                            continue;
+                        }
+                        let sent = query
+                            .reply(key, frame.encode_to_vec())
+                            .encoding(Encoding::APPLICATION_PROTOBUF)
+                            .await;
+                        if let Err(e) = sent {
+                            tracing::debug!("history query reply: {e}");
+                            return;
+                        }
+                    }
+                    if let Ok(false) = reader.await {
+                        let _ = query.reply_err(format!("no job at {asked}")).await;
+                    }
+                });
+            }
+        });
+    }
     Ok(())
 }
 

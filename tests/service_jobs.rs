@@ -42,7 +42,7 @@ async fn twenty_jobs_on_two_workers_all_finish() {
         assert_eq!(s.state, pb::JobState::Succeeded as i32, "{s:?}");
     }
     let listed = client
-        .list_jobs(pb::ListJobsRequest {})
+        .list_jobs(pb::ListJobsRequest::default())
         .await
         .expect("ListJobs")
         .into_inner()
@@ -247,7 +247,7 @@ async fn invalid_specs_name_the_field_and_the_server_keeps_serving() {
         pb::JobState::Succeeded as i32
     );
     let listed = client
-        .list_jobs(pb::ListJobsRequest {})
+        .list_jobs(pb::ListJobsRequest::default())
         .await
         .expect("ListJobs")
         .into_inner()

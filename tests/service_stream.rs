@@ -193,6 +193,7 @@ async fn http_job_streams_every_step_over_zenoh_bit_for_bit() {
             id: id.into(),
             columns: vec!["energy".into()],
             every: 1000,
+            ..Default::default()
         })
         .await
         .expect("GetResult with a cut")
@@ -220,6 +221,12 @@ async fn http_job_streams_every_step_over_zenoh_bit_for_bit() {
         .await;
     assert_eq!(code, 200);
     assert!(String::from_utf8_lossy(&page).contains("EventSource"));
+    // An unknown job's page is a 404 (it answered 200 and spun forever); `/` lists the jobs.
+    let (code, body) = server.http("GET", "/jobs/no-such-job", None, None).await;
+    assert_eq!((code, body["error"]["field"].as_str()), (404, Some("id")));
+    let (code, ctype, index) = server.http_get_typed("/").await;
+    assert_eq!((code, ctype.as_str()), (200, "text/html; charset=utf-8"));
+    assert!(String::from_utf8_lossy(&index).contains("/v1/jobs?limit=50"));
     drop(sub);
     session.close().await.expect("close zenoh");
 }

@@ -118,7 +118,10 @@ async fn grpc_watch_job_frames_equal_get_result_and_end_with_the_final_state() {
         .await
         .expect("submit");
     let mut stream = client
-        .watch_job(pb::WatchJobRequest { id: id.clone() })
+        .watch_job(pb::WatchJobRequest {
+            id: id.clone(),
+            ..Default::default()
+        })
         .await
         .expect("WatchJob")
         .into_inner();

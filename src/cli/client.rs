@@ -1,8 +1,8 @@
 //! Client commands: `submit`, `status`, `watch`, `result`, `cancel`, `capabilities`.
 //! They talk gRPC to a running `signorini serve`; `watch` subscribes to the job's zenoh keys.
 
-use crate::output::{FinishedRun, clear_results, write_run_files, write_steps};
-use crate::proto::encode::{result_from_proto, status_from_proto};
+use crate::output::{CsvSteps, FinishedRun, clear_results, write_run_files};
+use crate::proto::encode::{status_from_proto, tables_from_proto};
 use crate::proto::v1 as pb;
 use crate::proto::v1::simulation_client::SimulationClient;
 use crate::server::json::{FrameJson, StatusJson};
@@ -14,8 +14,11 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use prost::Message;
 use serde_json::json;
+use signorini_core::observer::{Columns, Observer, StepRecord};
+use signorini_figures::Figure;
+use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 use tonic::transport::Channel;
 
 /// Where the server is.
@@ -42,6 +45,19 @@ pub struct SubmitArgs {
     /// Choose the job id (1–64 of A-Z a-z 0-9 _ -).
     #[arg(long)]
     pub id: Option<String>,
+    /// Wait until the job ends and print its final status (exit status 1 unless it succeeded).
+    #[arg(long, conflicts_with = "watch")]
+    pub wait: bool,
+    /// Follow the job live after submitting it, as `watch` does.
+    #[arg(long)]
+    pub watch: bool,
+    /// zenoh endpoint for `--watch`.
+    #[arg(
+        long,
+        env = "SIGNORINI_ZENOH_CONNECT",
+        default_value = "tcp/127.0.0.1:7447"
+    )]
+    pub zenoh: String,
     #[command(flatten)]
     pub conn: Connection,
 }
@@ -51,6 +67,25 @@ pub struct SubmitArgs {
 pub struct IdArgs {
     /// Job id.
     pub id: String,
+    #[command(flatten)]
+    pub conn: Connection,
+}
+
+/// `signorini list`.
+#[derive(Debug, Args)]
+pub struct ListArgs {
+    /// Only jobs in this state (queued, running, succeeded, failed, cancelled).
+    #[arg(long)]
+    pub state: Option<String>,
+    /// Most jobs to show (the server's default page is 100, its largest 1000).
+    #[arg(long, default_value_t = 0)]
+    pub limit: u32,
+    /// Start after the page that printed this token (newest first).
+    #[arg(long, default_value = "")]
+    pub page_token: String,
+    /// Print the page as JSON (`{"jobs": [status…], "next_page_token"}`).
+    #[arg(long)]
+    pub json: bool,
     #[command(flatten)]
     pub conn: Connection,
 }
@@ -89,6 +124,9 @@ pub struct WatchArgs {
     /// One JSON object per frame on stdout instead of a progress bar.
     #[arg(long)]
     pub json: bool,
+    /// The server whose gRPC API confirms the final status seen over zenoh.
+    #[command(flatten)]
+    pub conn: Connection,
 }
 
 /// `signorini capabilities`.
@@ -141,26 +179,75 @@ fn print_status(s: pb::JobStatus) -> Result<()> {
     Ok(())
 }
 
-/// `submit`: prints the id.
+/// `submit`: prints the id; with `--wait`, then the final status; with `--watch`, then what
+/// `watch` prints.
 pub fn submit(args: SubmitArgs) -> Result<()> {
     let text = std::fs::read_to_string(&args.spec)
         .with_context(|| format!("reading {}", args.spec.display()))?;
     let spec = spec_file::parse(&text, Format::of_path(&args.spec))
         .map_err(|e| anyhow!("invalid spec {}: {e}", args.spec.display()))?;
     let json = serde_json::to_string(&spec)?;
-    runtime()?.block_on(async {
+    let id = runtime()?.block_on(async {
         let mut c = client(&args.conn).await?;
         let req = pb::SubmitJobRequest {
             spec: Some(pb::submit_job_request::Spec::Json(json)),
-            id: args.id,
+            id: args.id.clone(),
         };
         let resp = c
             .submit_job(with_token(&args.conn, req)?)
             .await
             .map_err(status_error)?;
-        println!("{}", resp.into_inner().id);
-        Ok(())
-    })
+        let id = resp.into_inner().id;
+        println!("{id}");
+        if !args.wait {
+            return Ok(id);
+        }
+        let mut frames = c
+            .watch_job(pb::WatchJobRequest {
+                id: id.clone(),
+                from_seq: None,
+            })
+            .await
+            .map_err(status_error)?
+            .into_inner();
+        while let Some(frame) = frames.message().await.map_err(status_error)? {
+            if let Some(pb::watch_frame::Frame::Status(s)) = frame.frame {
+                let view = status_from_proto(s)?;
+                if view.state.is_terminal() {
+                    println!(
+                        "{}",
+                        serde_json::to_string_pretty(&StatusJson::from(&view))?
+                    );
+                    return ended_ok(&view).map(|()| id);
+                }
+            }
+        }
+        Err(anyhow!(
+            "the server closed the stream of job {id} before it ended"
+        ))
+    })?;
+    if args.watch {
+        return watch(WatchArgs {
+            id,
+            zenoh: args.zenoh,
+            json: false,
+            conn: args.conn,
+        });
+    }
+    Ok(())
+}
+
+/// Ok for a succeeded job; an error with the state (and the reason of a failure) otherwise.
+fn ended_ok(view: &JobView) -> Result<()> {
+    match (&view.state, &view.error) {
+        (crate::status::JobState::Succeeded, _) => Ok(()),
+        (state, Some((field, reason))) => Err(anyhow!(
+            "job {} {}: {field}: {reason}",
+            view.id,
+            state.as_str()
+        )),
+        (state, None) => Err(anyhow!("job {} {}", view.id, state.as_str())),
+    }
 }
 
 /// `status`: prints the status as JSON.
@@ -212,38 +299,224 @@ pub fn capabilities(args: CapabilitiesArgs) -> Result<()> {
     })
 }
 
-/// `result`: prints summary.json, or writes the run's files to `--out`.
-pub fn result(args: ResultArgs) -> Result<()> {
-    let r = runtime()?.block_on(async {
+/// `list`: one page of jobs, newest first: `ID STATE PROGRESS NAME` per line (or JSON), and the
+/// token of the next page on stderr when there is one.
+pub fn list(args: ListArgs) -> Result<()> {
+    let state = match args.state.as_deref() {
+        None => pb::JobState::Unspecified,
+        Some(s) => match crate::status::JobState::parse(s) {
+            Some(st) => crate::proto::encode::state_to_proto(st),
+            None => {
+                return Err(anyhow!(
+                    "--state {s:?} is not one of queued, running, succeeded, failed, cancelled"
+                ));
+            }
+        },
+    };
+    let page = runtime()?.block_on(async {
         let mut c = client(&args.conn).await?;
-        c.get_result(pb::GetResultRequest {
-            id: args.id.clone(),
-            columns: args.columns.clone(),
-            every: args.every,
+        c.list_jobs(pb::ListJobsRequest {
+            limit: args.limit,
+            page_token: args.page_token.clone(),
+            state: state as i32,
         })
         .await
         .map_err(status_error)
         .map(tonic::Response::into_inner)
     })?;
-    let r = result_from_proto(r)?;
-    let Some(dir) = args.out else {
-        println!("{}", serde_json::to_string_pretty(&r.summary)?);
-        return Ok(());
-    };
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    clear_results(&dir)?;
-    // The files `signorini run` writes, by the same writers.
-    write_steps(&dir, &r.columns, &r.steps, &r.t, &r.values)?;
-    write_run_files(
-        &dir,
-        &FinishedRun {
-            summary: r.summary,
-            tables: r.tables,
-            figures: r.figures,
-        },
-    )?;
-    println!("results of {} in {}", args.id, dir.display());
+    let jobs = page
+        .jobs
+        .into_iter()
+        .map(status_from_proto)
+        .collect::<Result<Vec<_>>>()?;
+    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+    let printed: Result<()> = (|| {
+        if args.json {
+            let jobs: Vec<StatusJson> = jobs.iter().map(StatusJson::from).collect();
+            let next = (!page.next_page_token.is_empty()).then_some(&page.next_page_token);
+            writeln!(
+                out,
+                "{}",
+                serde_json::to_string_pretty(&json!({ "jobs": jobs, "next_page_token": next }))?
+            )?;
+        } else {
+            for j in &jobs {
+                writeln!(
+                    out,
+                    "{}\t{}\t{:.1}%\t{}",
+                    j.id,
+                    j.state.as_str(),
+                    100.0 * j.fraction(),
+                    j.name.as_deref().unwrap_or("")
+                )?;
+            }
+        }
+        out.flush()?;
+        Ok(())
+    })();
+    quiet_on_broken_pipe(printed)?;
+    if !args.json && !page.next_page_token.is_empty() {
+        eprintln!("more: signorini list --page-token {}", page.next_page_token);
+    }
     Ok(())
+}
+
+/// `delete`: removes a finished job and its result from the server.
+pub fn delete(args: IdArgs) -> Result<()> {
+    runtime()?.block_on(async {
+        let mut c = client(&args.conn).await?;
+        let req = with_token(
+            &args.conn,
+            pb::DeleteJobRequest {
+                id: args.id.clone(),
+            },
+        )?;
+        c.delete_job(req).await.map_err(status_error)?;
+        println!("removed {}", args.id);
+        Ok(())
+    })
+}
+
+/// `result`: prints summary.json; with `--out DIR` writes the run's files there, as `run` does;
+/// with `--column`/`--every` and no `--out` prints the cut series as CSV (the lines of
+/// `steps.csv`). The result comes through `StreamResult` and goes to its file or stdout as it
+/// arrives, so a result of any size needs a few MiB here. A failed or cancelled job's recorded
+/// rows come too, with a warning on stderr that they are partial.
+pub fn result(args: ResultArgs) -> Result<()> {
+    use pb::result_chunk::Part;
+    let cut_asked = !args.columns.is_empty() || args.every > 1;
+    runtime()?.block_on(async {
+        let mut c = client(&args.conn).await?;
+        let mut stream = c
+            .stream_result(pb::GetResultRequest {
+                id: args.id.clone(),
+                columns: args.columns.clone(),
+                every: args.every,
+                from_step: None,
+                to_step: None,
+            })
+            .await
+            .map_err(status_error)?
+            .into_inner();
+        let header = match stream.message().await.map_err(status_error)? {
+            Some(pb::ResultChunk {
+                part: Some(Part::Header(h)),
+            }) => h,
+            _ => return Err(anyhow!("the server sent no result header")),
+        };
+        let summary: serde_json::Map<String, serde_json::Value> =
+            serde_json::from_str(&header.summary_json).context("summary from the server")?;
+        if header.partial {
+            let state = header
+                .status
+                .clone()
+                .map(status_from_proto)
+                .transpose()?
+                .map_or("stopped", |v| v.state.as_str());
+            eprintln!(
+                "warning: job {} is {state}: {} rows it recorded before it stopped (a partial result)",
+                args.id, header.rows
+            );
+        }
+        let columns = Columns::new(header.columns.clone());
+        let Some(dir) = &args.out else {
+            if !cut_asked {
+                println!("{}", serde_json::to_string_pretty(&summary)?);
+                return Ok(());
+            }
+            let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+            let printed: Result<()> = async {
+                writeln!(out, "step,t{}", header.columns.iter().map(|c| format!(",{c}")).collect::<String>())?;
+                while let Some(msg) = stream.message().await.map_err(status_error)? {
+                    if let Some(Part::Rows(rows)) = msg.part {
+                        write_rows(&mut out, &rows, columns.names().len())?;
+                    }
+                }
+                out.flush()?;
+                Ok(())
+            }
+            .await;
+            return quiet_on_broken_pipe(printed);
+        };
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        clear_results(dir)?;
+        // The files `signorini run` writes, by the same writers.
+        let mut csv = CsvSteps::create(dir)?;
+        let mut started = false;
+        let mut figures = Vec::new();
+        let n = header.columns.len();
+        while let Some(msg) = stream.message().await.map_err(status_error)? {
+            match msg.part {
+                Some(Part::Figure(pb::Figure { name, svg })) => figures.push(Figure { name, svg }),
+                Some(Part::Rows(rows)) => {
+                    if !started {
+                        csv.start(&columns);
+                        started = true;
+                    }
+                    if rows.t.len() != rows.step.len() || rows.values.len() != rows.step.len() * n {
+                        csv.discard();
+                        return Err(anyhow!("the server sent a malformed chunk of rows"));
+                    }
+                    for (i, (&step, &t)) in rows.step.iter().zip(&rows.t).enumerate() {
+                        let record = StepRecord {
+                            step,
+                            t,
+                            values: &rows.values[i * n..(i + 1) * n],
+                        };
+                        if csv.observe(&record).is_break() {
+                            break;
+                        }
+                    }
+                }
+                Some(Part::Header(_)) | None => {}
+            }
+        }
+        if !started && n > 0 {
+            // A series with columns and no row (a cut that keeps none) still gets its header.
+            csv.start(&columns);
+        }
+        csv.finish()?;
+        write_run_files(
+            dir,
+            &FinishedRun {
+                summary,
+                tables: tables_from_proto(header.tables),
+                figures,
+            },
+        )?;
+        println!("results of {} in {}", args.id, dir.display());
+        Ok(())
+    })
+}
+
+/// Writes rows of a `StreamResult` as CSV lines (the format of `steps.csv`).
+fn write_rows(out: &mut impl Write, rows: &pb::ResultRows, n: usize) -> Result<()> {
+    if rows.t.len() != rows.step.len() || rows.values.len() != rows.step.len() * n {
+        return Err(anyhow!("the server sent a malformed chunk of rows"));
+    }
+    for (i, (&step, &t)) in rows.step.iter().zip(&rows.t).enumerate() {
+        write!(out, "{step},{t:?}")?;
+        for v in &rows.values[i * n..(i + 1) * n] {
+            write!(out, ",{v:?}")?;
+        }
+        writeln!(out)?;
+    }
+    Ok(())
+}
+
+/// A reader that closed our stdout (`| head`) ends the command quietly and successfully.
+fn quiet_on_broken_pipe(r: Result<()>) -> Result<()> {
+    match r {
+        Err(e)
+            if e.chain().any(|c| {
+                c.downcast_ref::<std::io::Error>()
+                    .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+            }) =>
+        {
+            Ok(())
+        }
+        other => other,
+    }
 }
 
 /// `watch`: follows a job's zenoh keys until it ends.
@@ -257,7 +530,13 @@ pub fn watch(args: WatchArgs) -> Result<()> {
         .await?;
         let outcome = watch_session(&session, &args).await;
         let _ = session.close().await;
-        outcome
+        let ended = async {
+            let (shown, last) = outcome?;
+            confirm(&args.conn, &last).await?;
+            shown.end(&last)
+        };
+        // `watch … | head`: the reader has what it wanted.
+        quiet_on_broken_pipe(ended.await)
     })
 }
 
@@ -283,33 +562,186 @@ fn decode_status(bytes: &[u8]) -> Result<JobView> {
     status_from_proto(pb::JobStatus::decode(bytes)?)
 }
 
-async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()> {
+/// How `watch` shows a job: JSON lines (`--json`), a progress bar on a terminal, or one plain
+/// line per status change and at most one a second otherwise (a log, a pipe).
+enum Shown {
+    Json,
+    Bar(ProgressBar),
+    Lines {
+        last: Option<Instant>,
+        state: Option<crate::status::JobState>,
+        terms: String,
+    },
+}
+
+impl Shown {
+    fn new(json: bool) -> Shown {
+        if json {
+            return Shown::Json;
+        }
+        if !std::io::stdout().is_terminal() {
+            return Shown::Lines {
+                last: None,
+                state: None,
+                terms: String::new(),
+            };
+        }
+        let bar = ProgressBar::new(1);
+        bar.set_style(
+            ProgressStyle::with_template("{bar:40} {pos}/{len} steps {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        Shown::Bar(bar)
+    }
+
+    /// Shows a status; true when it is final.
+    fn status(&mut self, s: &JobView) -> Result<bool> {
+        match self {
+            Shown::Json => {
+                let line = json!({ "kind": "status", "status": StatusJson::from(s) });
+                writeln!(std::io::stdout().lock(), "{line}")?;
+            }
+            Shown::Bar(bar) => {
+                bar.set_length(s.total.max(1));
+                bar.set_position(s.done);
+            }
+            Shown::Lines { last, state, terms } => {
+                let changed = *state != Some(s.state);
+                if changed || last.is_none_or(|t| t.elapsed() >= Duration::from_secs(1)) {
+                    writeln!(
+                        std::io::stdout().lock(),
+                        "{} {} step {}/{} ({:.1}%) t={:.6e}{}{terms}",
+                        s.id,
+                        s.state.as_str(),
+                        s.done,
+                        s.total,
+                        100.0 * s.fraction(),
+                        s.t,
+                        if terms.is_empty() { "" } else { " " },
+                    )?;
+                    *last = Some(Instant::now());
+                    *state = Some(s.state);
+                }
+            }
+        }
+        Ok(s.state.is_terminal())
+    }
+
+    /// Shows a step frame of `kind` (`energy` or `state`).
+    fn frame(&mut self, kind: &str, f: &pb::StepFrame) -> Result<()> {
+        if let Shown::Json = self {
+            let json = FrameJson {
+                kind,
+                id: &f.id,
+                seq: f.seq,
+                columns: &f.columns,
+                step: &f.step,
+                t: &f.t,
+                rows: FrameJson::rows(&f.values, f.columns.len()),
+                last: f.last,
+            };
+            writeln!(
+                std::io::stdout().lock(),
+                "{}",
+                serde_json::to_string(&json)?
+            )?;
+            return Ok(());
+        }
+        let n = f.columns.len().max(1);
+        let (Some(row), Some(&step), "energy") = (f.values.chunks(n).last(), f.step.last(), kind)
+        else {
+            return Ok(());
+        };
+        let text: Vec<String> = f
+            .columns
+            .iter()
+            .zip(row)
+            .filter(|(c, _)| {
+                matches!(
+                    c.as_str(),
+                    "kinetic" | "strain" | "energy" | "balance_residual"
+                )
+            })
+            .map(|(c, v)| format!("{c}={v:.6e}"))
+            .collect();
+        match self {
+            Shown::Bar(bar) => {
+                bar.set_position(step);
+                bar.set_message(text.join(" "));
+            }
+            Shown::Lines { last, terms, .. } => {
+                *terms = text.join(" ");
+                if last.is_none_or(|t| t.elapsed() >= Duration::from_secs(1)) {
+                    let t = f.t.last().copied().unwrap_or_default();
+                    writeln!(
+                        std::io::stdout().lock(),
+                        "{} running step {step} t={t:.6e} {terms}",
+                        f.id
+                    )?;
+                    *last = Some(Instant::now());
+                }
+            }
+            Shown::Json => {}
+        }
+        Ok(())
+    }
+
+    /// The end: the bar goes, and (but for JSON lines) the final status is printed in full.
+    fn end(&self, s: &JobView) -> Result<()> {
+        match self {
+            Shown::Json => return Ok(()),
+            Shown::Bar(bar) => bar.finish_and_clear(),
+            Shown::Lines { .. } => {}
+        }
+        writeln!(
+            std::io::stdout().lock(),
+            "{}",
+            serde_json::to_string_pretty(&StatusJson::from(s))?
+        )?;
+        Ok(())
+    }
+}
+
+/// Checks a final status seen over zenoh against the server's gRPC API, which only the server
+/// answers: a different state is an error (a frame published by someone else, or stale). When
+/// the API cannot be reached the status stands, with a warning that it is unconfirmed.
+async fn confirm(conn: &Connection, seen: &JobView) -> Result<()> {
+    let asked = async {
+        let mut c = client(conn).await?;
+        let s = c
+            .get_job(pb::GetJobRequest {
+                id: seen.id.clone(),
+            })
+            .await
+            .map_err(status_error)?;
+        status_from_proto(s.into_inner())
+    };
+    match asked.await {
+        Ok(server) if server.state == seen.state => Ok(()),
+        Ok(server) => Err(anyhow!(
+            "zenoh said job {} is {}, but the server at {} says {}: that status was not the server's",
+            seen.id,
+            seen.state.as_str(),
+            conn.server,
+            server.state.as_str()
+        )),
+        Err(e) => {
+            eprintln!(
+                "warning: the final status of job {} is unconfirmed (no answer from {}: {e:#})",
+                seen.id, conn.server
+            );
+            Ok(())
+        }
+    }
+}
+
+async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<(Shown, JobView)> {
     let key = format!("signorini/v1/jobs/{}/*", args.id);
     let sub = session
         .declare_subscriber(key)
         .await
         .map_err(|e| anyhow!("zenoh subscribe: {e}"))?;
-    let bar = if args.json {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(1)
-    };
-    bar.set_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} steps {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    let report = |s: &JobView| -> bool {
-        if args.json {
-            println!(
-                "{}",
-                json!({ "kind": "status", "status": StatusJson::from(s) })
-            );
-        } else {
-            bar.set_length(s.total.max(1));
-            bar.set_position(s.done);
-        }
-        s.state.is_terminal()
-    };
+    let mut shown = Shown::new(args.json);
     // The latest status (the query also makes sure our subscription is known to the server).
     let mut tries = 0;
     let current = loop {
@@ -323,26 +755,19 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
             Err(e) => return Err(e),
         }
     };
-    if report(&current) {
-        bar.finish_and_clear();
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&StatusJson::from(&current))?
-        );
-        return Ok(());
+    if shown.status(&current)? {
+        return Ok((shown, current));
     }
-    let mut last_status;
-    loop {
+    let last_status = loop {
         let sample = match tokio::time::timeout(Duration::from_secs(2), sub.recv_async()).await {
             Ok(Ok(s)) => s,
             Ok(Err(e)) => return Err(anyhow!("zenoh: {e}")),
             Err(_) => {
                 // Quiet for a while: ask (a final status may have been missed).
                 if let Some(s) = query_status(session, &args.id).await?
-                    && report(&s)
+                    && shown.status(&s)?
                 {
-                    last_status = s;
-                    break;
+                    break s;
                 }
                 continue;
             }
@@ -351,10 +776,8 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
         let bytes = sample.payload().to_bytes();
         if key.ends_with("/status") {
             let s = decode_status(&bytes)?;
-            let done = report(&s);
-            last_status = s;
-            if done {
-                break;
+            if shown.status(&s)? {
+                break s;
             }
         } else {
             let f = pb::StepFrame::decode(&*bytes)?;
@@ -363,45 +786,8 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<()>
             } else {
                 "state"
             };
-            if args.json {
-                let json = FrameJson {
-                    kind,
-                    id: &f.id,
-                    seq: f.seq,
-                    columns: &f.columns,
-                    step: &f.step,
-                    t: &f.t,
-                    rows: FrameJson::rows(&f.values, f.columns.len()),
-                    last: f.last,
-                };
-                println!("{}", serde_json::to_string(&json)?);
-            } else if kind == "energy" {
-                let n = f.columns.len().max(1);
-                if let (Some(row), Some(step)) = (f.values.chunks(n).last(), f.step.last()) {
-                    bar.set_position(*step);
-                    let terms: Vec<String> = f
-                        .columns
-                        .iter()
-                        .zip(row)
-                        .filter(|(c, _)| {
-                            matches!(
-                                c.as_str(),
-                                "kinetic" | "strain" | "energy" | "balance_residual"
-                            )
-                        })
-                        .map(|(c, v)| format!("{c}={v:.6e}"))
-                        .collect();
-                    bar.set_message(terms.join(" "));
-                }
-            }
+            shown.frame(kind, &f)?;
         }
-    }
-    bar.finish_and_clear();
-    if !args.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&StatusJson::from(&last_status))?
-        );
-    }
-    Ok(())
+    };
+    Ok((shown, last_status))
 }

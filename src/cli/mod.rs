@@ -37,6 +37,10 @@ pub enum Command {
     Result(client::ResultArgs),
     /// Cancel a queued or running job.
     Cancel(client::IdArgs),
+    /// List jobs, newest first, one page at a time (`--state`, `--limit`, `--page-token`).
+    List(client::ListArgs),
+    /// Remove a finished job and its result from the server.
+    Delete(client::IdArgs),
     /// List every scene, scheme and contact solver with parameters, defaults and ranges.
     Capabilities(client::CapabilitiesArgs),
     /// Print the JSON Schema of job specs (editors validate and complete spec files with it).
@@ -57,6 +61,8 @@ pub fn dispatch(cli: Cli) -> Result<()> {
         Command::Watch(args) => client::watch(args),
         Command::Result(args) => client::result(args),
         Command::Cancel(args) => client::cancel(args),
+        Command::List(args) => client::list(args),
+        Command::Delete(args) => client::delete(args),
         Command::Capabilities(args) => client::capabilities(args),
         Command::Schema(args) => schema::schema(args),
         Command::Compare(args) => compare::compare(args),

@@ -2,6 +2,7 @@
 
 use crate::config::{ServeArgs, ServeConfig};
 use anyhow::{Context, Result};
+use std::io::IsTerminal;
 
 /// Runs the command: a multi-threaded tokio runtime (zenoh needs it) for the listeners; jobs run
 /// on the engine's own threads.
@@ -9,6 +10,8 @@ pub fn run(args: ServeArgs) -> Result<()> {
     let _ = tracing_subscriber::fmt()
         .with_writer(std::io::stderr)
         .with_target(false)
+        // Colour codes only for a terminal: a log file or a journal gets plain text.
+        .with_ansi(std::io::stderr().is_terminal())
         .try_init();
     let cfg = ServeConfig::resolve(args)?;
     let runtime = tokio::runtime::Builder::new_multi_thread()

@@ -10,6 +10,7 @@
 //! job never waits on its subscribers.
 
 use crate::status::JobView;
+use signorini_core::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use tokio::sync::mpsc;
@@ -64,6 +65,18 @@ pub struct ColumnGroup {
     pub columns: Vec<String>,
     /// Values, row-major: `values[i * columns.len() + c]` is column `c` of step `i`.
     pub values: Vec<f64>,
+}
+
+/// The indices of the energy and work columns (`ENERGY_COLUMNS`, `CUMULATIVE_COLUMNS`) of a
+/// run's `columns`, and of the others: how a batch is split into [`StepBatch::energy`] and
+/// [`StepBatch::state`].
+pub fn split_columns(columns: &[String]) -> (Vec<usize>, Vec<usize>) {
+    let energy: Vec<&str> = ENERGY_COLUMNS
+        .iter()
+        .chain(CUMULATIVE_COLUMNS.iter())
+        .copied()
+        .collect();
+    (0..columns.len()).partition(|&i| energy.contains(&columns[i].as_str()))
 }
 
 /// An event in the channel, and whether it counts against [`QUEUED_FRAMES`].

@@ -8,6 +8,7 @@
 //! `GetJob` and is sent as a status event about every 200 ms.
 
 pub mod events;
+mod history;
 pub mod ids;
 mod observer;
 
@@ -15,7 +16,7 @@ use crate::config::Limits;
 use crate::error::ApiError;
 use crate::output::finish_run;
 use crate::status::{JobState, JobView};
-use crate::store::{Store, StoredResult};
+use crate::store::{ChunkMeta, SeriesChunk, Store, StoredResult};
 use events::{EventSink, JobEvent, StreamStats};
 use ids::{new_id, now_ms};
 use observer::ServiceObserver;
@@ -29,7 +30,23 @@ use std::thread::JoinHandle;
 use std::time::Instant;
 use tokio::sync::watch;
 
+pub use history::History;
 pub use ids::check_id;
+
+/// The rows of a running job not yet in the store, and the batches they went out in: filled by
+/// the job's observer, copied by readers of the job's history under the same lock (a chunk is
+/// stored and cleared from here in one step, so a reader sees every row exactly once).
+#[derive(Debug, Default)]
+struct Recent {
+    /// The run's columns (known once it starts).
+    columns: Vec<String>,
+    /// Chunks stored so far.
+    chunks: u64,
+    /// Index in the series of the first row held here (the rows stored so far).
+    first_row: u64,
+    /// The rows, with the batches (seq, start, end) sent from them.
+    rows: SeriesChunk,
+}
 
 /// A queued or running job.
 struct LiveJob {
@@ -44,6 +61,7 @@ struct LiveJob {
     total: AtomicU64,
     t_bits: AtomicU64,
     ended: watch::Sender<bool>,
+    recent: Mutex<Recent>,
 }
 
 impl LiveJob {
@@ -142,6 +160,77 @@ fn check_limits(job: &Job, limits: &Limits) -> Result<(), SpecError> {
     Ok(())
 }
 
+/// Longest job `name`, and longest key of a map in a spec (a parameter's name), in bytes.
+pub const MAX_NAME_BYTES: usize = 256;
+/// Longest other text of a spec (an expression, a coordinate's name), in bytes.
+pub const MAX_TEXT_BYTES: usize = 16 << 10;
+
+/// Checks every text of a spec (its JSON tree) against [`MAX_NAME_BYTES`] and
+/// [`MAX_TEXT_BYTES`]; the error names the field (`name`, `model.potential`, …).
+fn check_text(value: &serde_json::Value, path: &str) -> Result<(), SpecError> {
+    use serde_json::Value;
+    let join = |key: &str| {
+        if path.is_empty() {
+            key.to_string()
+        } else {
+            format!("{path}.{key}")
+        }
+    };
+    match value {
+        Value::String(text) => {
+            let limit = if path == "name" {
+                MAX_NAME_BYTES
+            } else {
+                MAX_TEXT_BYTES
+            };
+            if text.len() > limit {
+                return Err(SpecError::new(
+                    path,
+                    format!(
+                        "{} bytes of text, more than the {limit} this server takes",
+                        text.len()
+                    ),
+                ));
+            }
+        }
+        Value::Array(items) => {
+            for (i, item) in items.iter().enumerate() {
+                check_text(item, &format!("{path}[{i}]"))?;
+            }
+        }
+        Value::Object(map) => {
+            for (key, item) in map {
+                if key.len() > MAX_NAME_BYTES {
+                    return Err(SpecError::new(
+                        path,
+                        format!(
+                            "a key of {} bytes, more than the {MAX_NAME_BYTES} this server takes",
+                            key.len()
+                        ),
+                    ));
+                }
+                check_text(item, &join(key))?;
+            }
+        }
+        Value::Null | Value::Bool(_) | Value::Number(_) => {}
+    }
+    Ok(())
+}
+
+/// Jobs in a page of the list when the client names no limit, and the most it may ask for.
+pub const DEFAULT_PAGE: usize = 100;
+/// The most jobs in one page (a larger `limit` is taken as this).
+pub const MAX_PAGE: usize = 1000;
+
+/// One page of the job list, newest first.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JobPage {
+    /// The jobs.
+    pub jobs: Vec<JobView>,
+    /// The token of the next page, when there are older jobs.
+    pub next_page_token: Option<String>,
+}
+
 impl Engine {
     /// Opens the engine on `store`: re-queues the jobs a previous process left unfinished and
     /// starts `workers` threads.
@@ -215,10 +304,12 @@ impl Engine {
         if let Some(id) = &id {
             check_id(id)?;
         }
+        let spec_value =
+            serde_json::to_value(spec).map_err(|e| ApiError::Internal(e.to_string()))?;
+        check_text(&spec_value, "")?;
         let job = Job::from_spec(spec)?;
         check_limits(&job, &self.inner.limits)?;
-        let spec_json =
-            serde_json::to_string(spec).map_err(|e| ApiError::Internal(e.to_string()))?;
+        let spec_json = spec_value.to_string();
         let id = id.unwrap_or_else(new_id);
         let created_ms = now_ms();
         let live = Arc::new(new_live(id.clone(), spec.name.clone(), job, created_ms));
@@ -258,14 +349,62 @@ impl Engine {
         self.status(id).ok()
     }
 
-    /// Every job, oldest first, with live progress.
-    pub fn list(&self) -> Result<Vec<JobView>, ApiError> {
-        let stored = self.inner.store.list()?;
+    /// One page of jobs, newest first, with live progress: at most `limit` (0: [`DEFAULT_PAGE`];
+    /// more than [`MAX_PAGE`]: that many), only those in `state` if given, after the page whose
+    /// `next_page_token` is `page_token` (empty: the first page).
+    pub fn list(
+        &self,
+        state: Option<JobState>,
+        page_token: &str,
+        limit: usize,
+    ) -> Result<JobPage, ApiError> {
+        let before = if page_token.is_empty() {
+            None
+        } else {
+            Some(
+                page_token
+                    .parse::<i64>()
+                    .ok()
+                    .filter(|&seq| seq > 0)
+                    .ok_or_else(|| {
+                        SpecError::new("page_token", "not a token this server gave out")
+                    })?,
+            )
+        };
+        let limit = match limit {
+            0 => DEFAULT_PAGE,
+            n => n.min(MAX_PAGE),
+        };
+        let mut rows = self.inner.store.list_page(state, before, limit + 1)?;
+        let more = rows.len() > limit;
+        rows.truncate(limit);
+        let next_page_token = more
+            .then(|| rows.last().map(|(seq, _)| seq.to_string()))
+            .flatten();
         let live = lock(&self.inner.live);
-        Ok(stored
-            .into_iter()
-            .map(|v| live.get(&v.id).map_or(v, |l| l.view()))
-            .collect())
+        Ok(JobPage {
+            jobs: rows
+                .into_iter()
+                .map(|(_, v)| live.get(&v.id).map_or(v, |l| l.view()))
+                .collect(),
+            next_page_token,
+        })
+    }
+
+    /// Removes a finished job and its result from the store; a queued or running job must be
+    /// cancelled first.
+    pub fn delete(&self, id: &str) -> Result<(), ApiError> {
+        if let Some(live) = lock(&self.inner.live).get(id) {
+            return Err(ApiError::Unfinished {
+                id: id.into(),
+                state: live.view().state.as_str(),
+            });
+        }
+        if !self.inner.store.delete(id)? {
+            return Err(ApiError::NotFound { id: id.into() });
+        }
+        tracing::info!(%id, "purged");
+        Ok(())
     }
 
     /// Cancels a job. A queued job ends at once; a running one stops at the end of its current
@@ -299,21 +438,35 @@ impl Engine {
         lock(&self.inner.live).get(id).map(|l| l.ended.subscribe())
     }
 
-    /// The result of a succeeded job.
-    pub fn result(&self, id: &str) -> Result<(JobView, StoredResult), ApiError> {
+    /// The result of a finished job without its series: a succeeded job's, or the partial one
+    /// a failed or cancelled run left (`partial` set). The series is read with
+    /// [`Engine::series`], chunk by chunk.
+    pub fn result_head(&self, id: &str) -> Result<(JobView, StoredResult), ApiError> {
         let view = self.status(id)?;
-        if view.state != JobState::Succeeded {
-            return Err(ApiError::NoResult {
-                id: id.into(),
-                state: view.state.as_str(),
-            });
+        let no_result = || ApiError::NoResult {
+            id: id.into(),
+            state: view.state.as_str(),
+        };
+        if !view.state.is_terminal() {
+            return Err(no_result());
         }
-        let result = self
-            .inner
-            .store
-            .result(id)?
-            .ok_or_else(|| ApiError::Internal(format!("result of {id} missing")))?;
-        Ok((view, result))
+        match self.inner.store.result_head(id)? {
+            Some(head) => Ok((view, head)),
+            None if view.state == JobState::Succeeded => {
+                Err(ApiError::Internal(format!("result of {id} missing")))
+            }
+            None => Err(no_result()),
+        }
+    }
+
+    /// The stored series of a job whose result has `columns` value columns.
+    pub fn series(&self, id: &str, columns: usize) -> Result<Series, ApiError> {
+        Ok(Series {
+            inner: self.inner.clone(),
+            id: id.to_string(),
+            columns,
+            chunks: self.inner.store.series_index(id)?,
+        })
     }
 
     /// Jobs per state (from the store).
@@ -353,6 +506,32 @@ impl Engine {
     }
 }
 
+/// A job's stored series: its chunk index, and its chunks read one at a time (blocking: call
+/// from a blocking context).
+pub struct Series {
+    inner: Arc<Inner>,
+    id: String,
+    columns: usize,
+    chunks: Vec<ChunkMeta>,
+}
+
+impl Series {
+    /// The chunks, in order.
+    pub fn chunks(&self) -> &[ChunkMeta] {
+        &self.chunks
+    }
+
+    /// Rows in all.
+    pub fn rows(&self) -> u64 {
+        self.chunks.last().map_or(0, |c| c.first_row + c.rows)
+    }
+
+    /// One chunk's rows.
+    pub fn read(&self, meta: &ChunkMeta) -> Result<SeriesChunk, ApiError> {
+        Ok(self.inner.store.read_chunk(&self.id, meta, self.columns)?)
+    }
+}
+
 fn new_live(id: String, name: Option<String>, job: Job, created_ms: u64) -> LiveJob {
     let total = job.size().steps;
     LiveJob {
@@ -367,6 +546,7 @@ fn new_live(id: String, name: Option<String>, job: Job, created_ms: u64) -> Live
         total: AtomicU64::new(total),
         t_bits: AtomicU64::new(0),
         ended: watch::channel(false).0,
+        recent: Mutex::new(Recent::default()),
     }
 }
 
@@ -410,7 +590,12 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     let started = now_ms();
     live.started_ms.store(started, Ordering::Relaxed);
     live.running.store(true, Ordering::Release);
-    if let Err(e) = inner.store.set_running(&live.id, started) {
+    // A job run again after a restart starts its series afresh.
+    if let Err(e) = inner
+        .store
+        .set_running(&live.id, started)
+        .and_then(|()| inner.store.clear_series(&live.id))
+    {
         tracing::error!(id = %live.id, "store: {e}");
     }
     inner.sink.send(JobEvent::Status(live.view()));
@@ -427,16 +612,35 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     // The last batch goes out after the result is stored: whoever saw it can fetch the result.
     let last_batch = observer.last_batch();
     observer.count_steps();
-    let recorded = observer.into_recorded();
-
+    let columns = match observer.finish_series() {
+        Ok(columns) => columns,
+        Err(e) => {
+            tracing::error!(id = %live.id, "store: {e}");
+            let view = JobView {
+                error: Some(("store".into(), e.to_string())),
+                ..live.ended_view(JobState::Failed)
+            };
+            end_job(inner, live, view, None, last_batch);
+            return;
+        }
+    };
+    // What a failed or cancelled run recorded is kept, marked partial.
+    let partial = || {
+        (!columns.is_empty()).then(|| StoredResult {
+            partial: true,
+            columns: columns.clone(),
+            ..StoredResult::default()
+        })
+    };
     let (state, error, result) = match outcome {
         Ok(Ok(output)) => {
             let run = finish_run(output, wall);
             let result = StoredResult {
                 summary: run.summary,
+                columns: columns.clone(),
                 tables: run.tables,
                 figures: run.figures,
-                ..recorded
+                ..StoredResult::default()
             };
             (JobState::Succeeded, None, Some(result))
         }
@@ -445,18 +649,35 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
             tracing::info!(id = %live.id, "interrupted by shutdown");
             return;
         }
-        Ok(Err(RunError::Stopped { .. })) => (JobState::Cancelled, None, None),
-        Ok(Err(e)) => (JobState::Failed, Some(("run".into(), e.to_string())), None),
+        Ok(Err(RunError::Stopped { .. })) => (JobState::Cancelled, None, partial()),
+        Ok(Err(e)) => (
+            JobState::Failed,
+            Some(("run".into(), e.to_string())),
+            partial(),
+        ),
         Err(panic) => {
             tracing::error!(id = %live.id, "the run panicked: {panic}");
             let reason = format!("internal error (a bug: please report it with the spec): {panic}");
-            (JobState::Failed, Some(("run".into(), reason)), None)
+            (JobState::Failed, Some(("run".into(), reason)), partial())
         }
     };
-    let mut view = JobView {
+    tracing::info!(id = %live.id, wall_s = wall.as_secs_f64(), "run over");
+    let view = JobView {
         error,
         ..live.ended_view(state)
     };
+    end_job(inner, live, view, result, last_batch);
+}
+
+/// Stores a job's end (and its result), then tells the world: the last step batch, the final
+/// status, the end of the job's events.
+fn end_job(
+    inner: &Inner,
+    live: &Arc<LiveJob>,
+    mut view: JobView,
+    result: Option<StoredResult>,
+    last_batch: JobEvent,
+) {
     if let Err(e) = inner.store.finish(&view, result.as_ref()) {
         tracing::error!(id = %live.id, "store: {e}");
         view.state = JobState::Failed;
@@ -464,7 +685,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     }
     lock(&inner.live).remove(&live.id);
     inner.sink.send(last_batch);
-    tracing::info!(id = %live.id, state = view.state.as_str(), wall_s = wall.as_secs_f64(), "finished");
+    tracing::info!(id = %live.id, state = view.state.as_str(), "finished");
     inner.sink.send(JobEvent::Status(view));
     inner.sink.send(JobEvent::Closed(live.id.clone()));
     live.ended.send_replace(true);

@@ -1,11 +1,16 @@
 //! The engine's [`Observer`] of a run: records every step for the store, batches them into
 //! [`StepBatch`] events, tracks progress and checks for cancellation after every step.
+//!
+//! Recorded rows are held in the job's [`Recent`] buffer until they fill a chunk of the store
+//! ([`crate::store::chunk_rows`], about 1 MiB) and are then appended to the store, with where
+//! each batch sent over the wire begins and ends, so a run of any length holds at most one chunk
+//! of its series in memory, a run that fails or is cancelled leaves the rows it recorded, and the
+//! history of a job (stored chunks, then the buffer) replays exactly the batches that went live.
 
-use super::events::{ColumnGroup, JobEvent, StepBatch};
+use super::events::{ColumnGroup, JobEvent, StepBatch, split_columns};
 use super::ids::now_ns;
-use super::{Inner, LiveJob};
-use crate::store::StoredResult;
-use signorini_core::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS};
+use super::{Inner, LiveJob, Recent, lock};
+use crate::store::{StoreError, chunk_rows};
 use signorini_core::observer::{Columns, Observer, Progress, StepRecord};
 use std::ops::ControlFlow;
 use std::sync::atomic::Ordering;
@@ -22,10 +27,13 @@ const STATUS_EVERY: Duration = Duration::from_millis(200);
 pub(super) struct ServiceObserver<'a> {
     inner: &'a Inner,
     live: &'a LiveJob,
-    /// The recorded series (the rest of the result comes with the run's output).
-    rec: StoredResult,
+    /// Rows per stored chunk.
+    chunk_rows: usize,
+    /// Why storing a chunk failed (the run is stopped).
+    store_error: Option<StoreError>,
     energy_idx: Vec<usize>,
     state_idx: Vec<usize>,
+    /// First row of the batch being filled, in the recent rows.
     batch_from: usize,
     batch_stamps: Vec<u64>,
     seq: u64,
@@ -33,12 +41,27 @@ pub(super) struct ServiceObserver<'a> {
     uncounted: u64,
 }
 
+/// The columns `idx` of `rows` (row-major, `n` columns) from row `from` on.
+fn group(recent: &Recent, idx: &[usize], from: usize) -> ColumnGroup {
+    let n = recent.columns.len();
+    let rows = &recent.rows;
+    let mut values = Vec::with_capacity((rows.steps.len() - from) * idx.len());
+    for row in rows.values[from * n..].chunks_exact(n.max(1)) {
+        values.extend(idx.iter().map(|&c| row[c]));
+    }
+    ColumnGroup {
+        columns: idx.iter().map(|&c| recent.columns[c].clone()).collect(),
+        values,
+    }
+}
+
 impl<'a> ServiceObserver<'a> {
     pub(super) fn new(inner: &'a Inner, live: &'a LiveJob) -> Self {
         Self {
             inner,
             live,
-            rec: StoredResult::default(),
+            chunk_rows: chunk_rows(0),
+            store_error: None,
             energy_idx: Vec::new(),
             state_idx: Vec::new(),
             batch_from: 0,
@@ -49,47 +72,42 @@ impl<'a> ServiceObserver<'a> {
         }
     }
 
-    /// The columns `idx` of the pending steps.
-    fn group(&self, idx: &[usize]) -> ColumnGroup {
-        let n = self.rec.columns.len();
-        let mut values = Vec::with_capacity((self.rec.steps.len() - self.batch_from) * idx.len());
-        for row in self.rec.values[self.batch_from * n..].chunks_exact(n.max(1)) {
-            values.extend(idx.iter().map(|&c| row[c]));
+    /// The pending steps as one batch, its rows recorded in the history as batch `seq`.
+    fn batch(&self, recent: &mut Recent, last: bool) -> JobEvent {
+        let rows = self.batch_from..recent.rows.steps.len();
+        let start = recent.first_row + rows.start as u64;
+        let end = recent.first_row + rows.end as u64;
+        if end > start {
+            recent.rows.batches.push((self.seq, start, end));
         }
-        ColumnGroup {
-            columns: idx.iter().map(|&c| self.rec.columns[c].clone()).collect(),
-            values,
-        }
-    }
-
-    /// The pending steps as one batch.
-    fn batch(&self, last: bool) -> JobEvent {
-        let rows = self.batch_from..self.rec.steps.len();
         JobEvent::Steps(StepBatch {
             id: self.live.id.clone(),
             seq: self.seq,
-            step: self.rec.steps[rows.clone()].to_vec(),
-            t: self.rec.t[rows].to_vec(),
+            step: recent.rows.steps[rows.clone()].to_vec(),
+            t: recent.rows.t[rows].to_vec(),
             computed_unix_ns: self.batch_stamps.clone(),
-            energy: self.group(&self.energy_idx),
-            state: self.group(&self.state_idx),
+            energy: group(recent, &self.energy_idx, self.batch_from),
+            state: group(recent, &self.state_idx, self.batch_from),
             last,
         })
     }
 
     /// The pending steps as the run's last batch (to send with a blocking send).
-    pub(super) fn last_batch(&self) -> JobEvent {
-        self.batch(true)
+    pub(super) fn last_batch(&mut self) -> JobEvent {
+        let mut recent = lock(&self.live.recent);
+        let batch = self.batch(&mut recent, true);
+        self.batch_from = recent.rows.steps.len();
+        batch
     }
 
     /// Offers the pending steps as one batch (dropped if the stream lags).
-    fn flush(&mut self) {
-        if self.rec.steps.len() == self.batch_from {
+    fn flush(&mut self, recent: &mut Recent) {
+        if recent.rows.steps.len() == self.batch_from {
             return;
         }
-        self.inner.sink.offer(self.batch(false));
+        self.inner.sink.offer(self.batch(recent, false));
         self.seq += 1;
-        self.batch_from = self.rec.steps.len();
+        self.batch_from = recent.rows.steps.len();
         self.batch_stamps.clear();
     }
 
@@ -102,38 +120,66 @@ impl<'a> ServiceObserver<'a> {
         self.uncounted = 0;
     }
 
-    /// The recorded series, in a result without summary, tables or figures.
-    pub(super) fn into_recorded(self) -> StoredResult {
-        self.rec
+    /// Appends the recorded rows not yet stored (all in sent batches) as the series' next
+    /// chunk. Under the buffer's lock, so a reader of the history sees each row once.
+    fn store_chunk(&mut self, recent: &mut Recent) -> Result<(), StoreError> {
+        if recent.rows.steps.is_empty() {
+            return Ok(());
+        }
+        self.inner.store.append_chunk(
+            &self.live.id,
+            recent.chunks,
+            recent.first_row,
+            &recent.rows,
+        )?;
+        recent.chunks += 1;
+        recent.first_row += recent.rows.steps.len() as u64;
+        recent.rows.steps.clear();
+        recent.rows.t.clear();
+        recent.rows.values.clear();
+        recent.rows.batches.clear();
+        self.batch_from = 0;
+        Ok(())
+    }
+
+    /// Stores the last recorded rows and returns the column names (empty for a run that
+    /// recorded no series), or why the series could not be stored.
+    pub(super) fn finish_series(&mut self) -> Result<Vec<String>, StoreError> {
+        if let Some(e) = self.store_error.take() {
+            return Err(e);
+        }
+        let mut recent = lock(&self.live.recent);
+        self.store_chunk(&mut recent)?;
+        Ok(recent.columns.clone())
     }
 }
 
 impl Observer for ServiceObserver<'_> {
     fn start(&mut self, columns: &Columns) {
-        self.rec.columns = columns.names().to_vec();
-        let energy: Vec<&str> = ENERGY_COLUMNS
-            .iter()
-            .chain(CUMULATIVE_COLUMNS.iter())
-            .copied()
-            .collect();
-        for (i, c) in self.rec.columns.iter().enumerate() {
-            if energy.contains(&c.as_str()) {
-                self.energy_idx.push(i)
-            } else {
-                self.state_idx.push(i)
-            }
-        }
+        let mut recent = lock(&self.live.recent);
+        recent.columns = columns.names().to_vec();
+        self.chunk_rows = chunk_rows(recent.columns.len());
+        (self.energy_idx, self.state_idx) = split_columns(&recent.columns);
     }
 
     fn observe(&mut self, record: &StepRecord<'_>) -> ControlFlow<()> {
         let stamp = now_ns();
-        self.rec.steps.push(record.step);
-        self.rec.t.push(record.t);
-        self.rec.values.extend_from_slice(record.values);
+        let mut recent = lock(&self.live.recent);
+        recent.rows.steps.push(record.step);
+        recent.rows.t.push(record.t);
+        recent.rows.values.extend_from_slice(record.values);
         self.batch_stamps.push(stamp);
-        let pending = self.rec.steps.len() - self.batch_from;
+        let pending = recent.rows.steps.len() - self.batch_from;
         if pending >= FRAME_STEPS || stamp.saturating_sub(self.batch_stamps[0]) >= FRAME_NS {
-            self.flush();
+            self.flush(&mut recent);
+        }
+        if recent.rows.steps.len() >= self.chunk_rows {
+            // The pending frame goes out first: a chunk holds whole batches.
+            self.flush(&mut recent);
+            if let Err(e) = self.store_chunk(&mut recent) {
+                self.store_error = Some(e);
+                return ControlFlow::Break(());
+            }
         }
         ControlFlow::Continue(())
     }

@@ -6,9 +6,8 @@ use super::v1 as pb;
 use crate::engine::events::{ColumnGroup, StepBatch};
 use crate::status::{JobState, JobView};
 use crate::store::StoredResult;
-use anyhow::{Context, Result, anyhow};
+use anyhow::{Result, anyhow};
 use signorini_core::outcome::Table;
-use signorini_figures::Figure;
 
 /// A job state → proto.
 pub fn state_to_proto(s: JobState) -> pb::JobState {
@@ -128,9 +127,28 @@ pub fn step_frames(b: &StepBatch) -> (Option<pb::StepFrame>, Option<pb::StepFram
     (frame(energy), frame(state))
 }
 
+/// Tables → proto.
+pub fn tables_to_proto(tables: &[Table]) -> Vec<pb::Table> {
+    tables
+        .iter()
+        .map(|tb| pb::Table {
+            name: tb.name.clone(),
+            columns: tb.columns.clone(),
+            rows: tb
+                .rows
+                .iter()
+                .map(|row| pb::Row {
+                    values: row.clone(),
+                })
+                .collect(),
+        })
+        .collect()
+}
+
 /// A stored result → proto (column-major series).
 pub fn result_to_proto(view: &JobView, r: &StoredResult) -> pb::JobResult {
     let StoredResult {
+        partial: _,
         summary,
         columns,
         steps,
@@ -154,20 +172,7 @@ pub fn result_to_proto(view: &JobView, r: &StoredResult) -> pb::JobResult {
                 values: r.column(c),
             })
             .collect(),
-        tables: tables
-            .iter()
-            .map(|tb| pb::Table {
-                name: tb.name.clone(),
-                columns: tb.columns.clone(),
-                rows: tb
-                    .rows
-                    .iter()
-                    .map(|row| pb::Row {
-                        values: row.clone(),
-                    })
-                    .collect(),
-            })
-            .collect(),
+        tables: tables_to_proto(tables),
         figures: figures
             .iter()
             .map(|f| pb::Figure {
@@ -178,54 +183,20 @@ pub fn result_to_proto(view: &JobView, r: &StoredResult) -> pb::JobResult {
     }
 }
 
-/// A proto result → the stored form (row-major series), as a client writes it to files.
-pub fn result_from_proto(r: pb::JobResult) -> Result<StoredResult> {
-    let pb::JobResult {
-        id: _,
-        status: _,
-        summary_json,
-        columns,
-        step,
-        t,
-        series,
-        tables,
-        figures,
-    } = r;
-    let summary = serde_json::from_str(&summary_json).context("summary from the server")?;
-    let mut values = Vec::with_capacity(step.len() * series.len());
-    for i in 0..step.len() {
-        for s in &series {
-            let v = s
-                .values
-                .get(i)
-                .copied()
-                .ok_or_else(|| anyhow!("series {} is short", s.column))?;
-            values.push(v);
-        }
-    }
-    Ok(StoredResult {
-        summary,
-        columns,
-        steps: step,
-        t,
-        values,
-        tables: tables
-            .into_iter()
-            .map(
-                |pb::Table {
-                     name,
-                     columns,
-                     rows,
-                 }| Table {
-                    name,
-                    columns,
-                    rows: rows.into_iter().map(|row| row.values).collect(),
-                },
-            )
-            .collect(),
-        figures: figures
-            .into_iter()
-            .map(|pb::Figure { name, svg }| Figure { name, svg })
-            .collect(),
-    })
+/// Proto tables → tables.
+pub fn tables_from_proto(tables: Vec<pb::Table>) -> Vec<Table> {
+    tables
+        .into_iter()
+        .map(
+            |pb::Table {
+                 name,
+                 columns,
+                 rows,
+             }| Table {
+                name,
+                columns,
+                rows: rows.into_iter().map(|row| row.values).collect(),
+            },
+        )
+        .collect()
 }

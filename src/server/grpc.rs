@@ -4,12 +4,16 @@
 
 use super::AppState;
 use super::convert;
+use super::results::{Cut, CutRequest};
 use crate::engine::events::JobEvent;
 use crate::error::ApiError;
-use crate::proto::encode::{result_to_proto, status_to_proto, step_frames};
+use crate::proto::encode::{
+    result_to_proto, state_from_proto, status_to_proto, step_frames, tables_to_proto,
+};
 use crate::proto::v1 as pb;
 use crate::proto::v1::simulation_server::Simulation;
 use crate::spec_file::{self, Format};
+use crate::store::StoredResult;
 use std::pin::Pin;
 use tokio_stream::{Stream, StreamExt};
 use tonic::{Code, Request, Response, Status};
@@ -42,13 +46,14 @@ pub fn to_status(e: ApiError) -> Status {
         ApiError::NotFound { .. } | ApiError::NoFigure { .. } | ApiError::NoRoute { .. } => {
             Code::NotFound
         }
+        ApiError::MethodNotAllowed { .. } => Code::Unimplemented,
         ApiError::Body {
             too_large: true, ..
         } => Code::ResourceExhausted,
         ApiError::Body { .. } => Code::InvalidArgument,
         ApiError::AlreadyExists { .. } => Code::AlreadyExists,
-        ApiError::QueueFull { .. } => Code::ResourceExhausted,
-        ApiError::NoResult { .. } => Code::FailedPrecondition,
+        ApiError::QueueFull { .. } | ApiError::TooLarge { .. } => Code::ResourceExhausted,
+        ApiError::NoResult { .. } | ApiError::Unfinished { .. } => Code::FailedPrecondition,
         ApiError::Unauthenticated => Code::Unauthenticated,
         ApiError::Unavailable => Code::Unavailable,
         ApiError::Internal(_) => Code::Internal,
@@ -89,6 +94,82 @@ fn watch_frames(event: &JobEvent) -> Vec<pb::WatchFrame> {
         .map(|frame| pb::WatchFrame { frame: Some(frame) })
         .collect()
 }
+
+/// The largest series (8 bytes per value, `step` and `t` included) `GetResult` sends in its
+/// one message; larger cuts go through `StreamResult`.
+pub const UNARY_RESULT_BYTES: u64 = 64 << 20;
+
+/// The request's cut.
+fn cut_request(columns: Vec<String>, every: u64, from: Option<u64>, to: Option<u64>) -> CutRequest {
+    CutRequest {
+        columns,
+        every,
+        from,
+        to,
+    }
+}
+
+/// The messages of `StreamResult`, made on a blocking thread as the store is read and sent
+/// through a channel of four: the header, the figures, the rows of each stored chunk.
+fn stream_result(state: &AppState, id: String, req: CutRequest) -> ResultStream {
+    use pb::result_chunk::Part;
+    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    let engine = state.engine.clone();
+    tokio::task::spawn_blocking(move || {
+        let send = |part: Part| {
+            tx.blocking_send(Ok(pb::ResultChunk { part: Some(part) }))
+                .map_err(|_| std::io::Error::new(std::io::ErrorKind::BrokenPipe, "client gone"))
+        };
+        let opened = engine.result_head(&id).and_then(|(view, head)| {
+            let series = engine.series(&id, head.columns.len())?;
+            let cut = Cut::new(&head, &series, &req)?;
+            Ok((view, head, series, cut))
+        });
+        let (view, head, series, cut) = match opened {
+            Ok(o) => o,
+            Err(e) => {
+                let _ = tx.blocking_send(Err(to_status(e)));
+                return;
+            }
+        };
+        let header = pb::ResultHeader {
+            id: view.id.clone(),
+            status: Some(status_to_proto(&view)),
+            summary_json: serde_json::Value::Object(head.summary.clone()).to_string(),
+            columns: cut.names.clone(),
+            rows: cut.rows(),
+            partial: head.partial,
+            tables: tables_to_proto(&head.tables),
+        };
+        let sent = send(Part::Header(header))
+            .and_then(|()| {
+                head.figures.iter().try_for_each(|f| {
+                    send(Part::Figure(pb::Figure {
+                        name: f.name.clone(),
+                        svg: f.svg.clone(),
+                    }))
+                })
+            })
+            .and_then(|()| {
+                cut.for_each(&series, |rows| {
+                    send(Part::Rows(pb::ResultRows {
+                        first_row: rows.first_kept,
+                        step: rows.steps.clone(),
+                        t: rows.t.clone(),
+                        values: rows.values.clone(),
+                    }))
+                })
+            });
+        if let Err(e) = sent
+            && e.kind() != std::io::ErrorKind::BrokenPipe
+        {
+            let _ = tx.blocking_send(Err(Status::internal(e.to_string())));
+        }
+    });
+    Box::pin(tokio_stream::wrappers::ReceiverStream::new(rx))
+}
+
+type ResultStream = Pin<Box<dyn Stream<Item = Result<pb::ResultChunk, Status>> + Send + 'static>>;
 
 type FrameStream = Pin<Box<dyn Stream<Item = Result<pb::WatchFrame, Status>> + Send + 'static>>;
 
@@ -134,11 +215,44 @@ impl Simulation for SimulationService {
         &self,
         req: Request<pb::ListJobsRequest>,
     ) -> Result<Response<pb::ListJobsResponse>, Status> {
-        let pb::ListJobsRequest {} = req.into_inner();
-        let jobs = self.state.engine.list().map_err(to_status)?;
+        let pb::ListJobsRequest {
+            limit,
+            page_token,
+            state,
+        } = req.into_inner();
+        let state = match (state, state_from_proto(state)) {
+            (0, _) => None,
+            (_, Some(s)) => Some(s),
+            (n, None) => {
+                return Err(to_status(ApiError::Invalid(
+                    signorini_core::spec::SpecError::new("state", format!("unknown state {n}")),
+                )));
+            }
+        };
+        let page = self
+            .state
+            .engine
+            .list(state, &page_token, limit as usize)
+            .map_err(to_status)?;
         Ok(Response::new(pb::ListJobsResponse {
-            jobs: jobs.iter().map(status_to_proto).collect(),
+            jobs: page.jobs.iter().map(status_to_proto).collect(),
+            next_page_token: page.next_page_token.unwrap_or_default(),
         }))
+    }
+
+    async fn delete_job(
+        &self,
+        req: Request<pb::DeleteJobRequest>,
+    ) -> Result<Response<pb::DeleteJobResponse>, Status> {
+        self.authorize(&req)?;
+        let pb::DeleteJobRequest { id } = req.into_inner();
+        let engine = self.state.engine.clone();
+        let gone = id.clone();
+        tokio::task::spawn_blocking(move || engine.delete(&gone))
+            .await
+            .map_err(|e| Status::internal(e.to_string()))?
+            .map_err(to_status)?;
+        Ok(Response::new(pb::DeleteJobResponse { id }))
     }
 
     async fn cancel_job(
@@ -157,7 +271,14 @@ impl Simulation for SimulationService {
         &self,
         req: Request<pb::WatchJobRequest>,
     ) -> Result<Response<Self::WatchJobStream>, Status> {
-        let pb::WatchJobRequest { id } = req.into_inner();
+        let pb::WatchJobRequest { id, from_seq } = req.into_inner();
+        if let Some(from_seq) = from_seq {
+            let frames = self
+                .state
+                .replay(&id, from_seq, watch_frames)
+                .map_err(to_status)?;
+            return Ok(Response::new(Box::pin(frames.map(Ok))));
+        }
         let (current, frames) = self.state.follow(&id, watch_frames).map_err(to_status)?;
         let first = tokio_stream::iter([Ok(pb::WatchFrame {
             frame: Some(pb::watch_frame::Frame::Status(status_to_proto(&current))),
@@ -172,16 +293,76 @@ impl Simulation for SimulationService {
         &self,
         req: Request<pb::GetResultRequest>,
     ) -> Result<Response<pb::JobResult>, Status> {
-        let pb::GetResultRequest { id, columns, every } = req.into_inner();
+        let pb::GetResultRequest {
+            id,
+            columns,
+            every,
+            from_step,
+            to_step,
+        } = req.into_inner();
+        let req = cut_request(columns, every, from_step, to_step);
         let engine = self.state.engine.clone();
-        let (view, result) = tokio::task::spawn_blocking(move || {
-            let (view, result) = engine.result(&id)?;
-            Ok::<_, ApiError>((view, result.select(&columns, every)?))
+        let result = tokio::task::spawn_blocking(move || {
+            let (view, head) = engine.result_head(&id)?;
+            if head.partial {
+                // A client of this call takes what it gets for the whole run: partial rows only
+                // go out through StreamResult and HTTP, marked.
+                return Err(ApiError::NoResult {
+                    id,
+                    state: view.state.as_str(),
+                });
+            }
+            let series = engine.series(&id, head.columns.len())?;
+            let cut = Cut::new(&head, &series, &req)?;
+            let bytes = cut.rows() * (cut.names.len() as u64 + 2) * 8;
+            if bytes > UNARY_RESULT_BYTES {
+                return Err(ApiError::TooLarge {
+                    reason: format!(
+                        "the series asked for is {} MiB, more than the {} MiB GetResult sends in one message: use StreamResult, or fewer columns / a larger every",
+                        bytes >> 20,
+                        UNARY_RESULT_BYTES >> 20
+                    ),
+                });
+            }
+            let mut r = StoredResult {
+                columns: cut.names.clone(),
+                ..head
+            };
+            cut.for_each(&series, |rows| {
+                r.steps.extend_from_slice(&rows.steps);
+                r.t.extend_from_slice(&rows.t);
+                r.values.extend_from_slice(&rows.values);
+                Ok(())
+            })
+            .map_err(|e| ApiError::Internal(e.to_string()))?;
+            Ok(result_to_proto(&view, &r))
         })
         .await
         .map_err(|e| Status::internal(e.to_string()))?
         .map_err(to_status)?;
-        Ok(Response::new(result_to_proto(&view, &result)))
+        Ok(Response::new(result))
+    }
+
+    type StreamResultStream = ResultStream;
+
+    async fn stream_result(
+        &self,
+        req: Request<pb::GetResultRequest>,
+    ) -> Result<Response<Self::StreamResultStream>, Status> {
+        let pb::GetResultRequest {
+            id,
+            columns,
+            every,
+            from_step,
+            to_step,
+        } = req.into_inner();
+        // Errors before the first message (unknown job, no result, bad cut) end the call with
+        // their status as the stream's only item.
+        Ok(Response::new(stream_result(
+            &self.state,
+            id,
+            cut_request(columns, every, from_step, to_step),
+        )))
     }
 
     async fn capabilities(

@@ -4,12 +4,14 @@
 
 use super::AppState;
 use super::json::{FrameJson, StatusJson};
+use super::results::{self, Cut, CutRequest, write_csv, write_json, write_npz};
 use crate::engine::events::JobEvent;
 use crate::error::ApiError;
 use crate::spec_file::{self, Format};
-use crate::status::JobView;
+use crate::status::{JobState, JobView};
 use crate::store::StoredResult;
-use axum::extract::rejection::StringRejection;
+use axum::body::{Body, Bytes};
+use axum::extract::rejection::{QueryRejection, StringRejection};
 use axum::extract::{DefaultBodyLimit, Path, Query, State};
 use axum::http::{HeaderMap, Method, StatusCode, Uri, header};
 use axum::response::sse::{Event, KeepAlive, Sse};
@@ -17,9 +19,10 @@ use axum::response::{Html, IntoResponse, Response};
 use axum::routing::get;
 use axum::{Json, Router};
 use serde::Deserialize;
-use serde_json::{Map, Value, json};
+use serde_json::{Value, json};
 use std::convert::Infallible;
 use std::fmt::Write as _;
+use std::io::{self, Write};
 use std::time::Duration;
 use tokio_stream::StreamExt;
 
@@ -30,12 +33,16 @@ impl IntoResponse for ApiError {
             ApiError::NotFound { .. } | ApiError::NoFigure { .. } | ApiError::NoRoute { .. } => {
                 StatusCode::NOT_FOUND
             }
+            ApiError::MethodNotAllowed { .. } => StatusCode::METHOD_NOT_ALLOWED,
             ApiError::Body {
                 too_large: true, ..
             } => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::Body { .. } => StatusCode::BAD_REQUEST,
-            ApiError::AlreadyExists { .. } | ApiError::NoResult { .. } => StatusCode::CONFLICT,
+            ApiError::AlreadyExists { .. }
+            | ApiError::NoResult { .. }
+            | ApiError::Unfinished { .. } => StatusCode::CONFLICT,
             ApiError::QueueFull { .. } => StatusCode::TOO_MANY_REQUESTS,
+            ApiError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::Unauthenticated => StatusCode::UNAUTHORIZED,
             ApiError::Unavailable => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
@@ -72,7 +79,9 @@ pub fn router(state: AppState) -> Router {
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
         .route("/jobs/{id}", get(live_page))
+        .route("/", get(index_page))
         .fallback(no_route)
+        .method_not_allowed_fallback(no_method)
         .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
         .with_state(state)
 }
@@ -113,13 +122,21 @@ async fn no_route(method: Method, uri: Uri) -> ApiError {
     }
 }
 
+async fn no_method(method: Method, uri: Uri) -> ApiError {
+    ApiError::MethodNotAllowed {
+        method: method.to_string(),
+        path: uri.path().to_string(),
+    }
+}
+
 async fn submit_job(
     State(state): State<AppState>,
     headers: HeaderMap,
-    Query(q): Query<SubmitQuery>,
+    query: Result<Query<SubmitQuery>, QueryRejection>,
     body: Result<String, StringRejection>,
 ) -> Result<(StatusCode, Json<Value>), ApiError> {
     authorize(&state, &headers)?;
+    let Query(q) = query?;
     let body = body?;
     // Parsing and validation (a factorisation of M and K) run off the async executor.
     let engine = state.engine.clone();
@@ -132,11 +149,41 @@ async fn submit_job(
     Ok((StatusCode::CREATED, Json(json!({ "id": id }))))
 }
 
-/// `{"jobs": [status…]}`, oldest first.
-async fn list_jobs(State(state): State<AppState>) -> Result<Json<Value>, ApiError> {
-    let jobs = state.engine.list()?;
-    let jobs: Vec<StatusJson> = jobs.iter().map(StatusJson::from).collect();
-    Ok(Json(json!({ "jobs": jobs })))
+/// `?limit=N&state=S&page_token=T` of `GET /v1/jobs`.
+#[derive(Debug, Deserialize)]
+struct ListQuery {
+    #[serde(default)]
+    limit: Option<usize>,
+    #[serde(default)]
+    state: Option<String>,
+    #[serde(default)]
+    page_token: Option<String>,
+}
+
+/// `{"jobs": [status…], "next_page_token": T or null}`: one page, newest first.
+async fn list_jobs(
+    State(state): State<AppState>,
+    query: Result<Query<ListQuery>, QueryRejection>,
+) -> Result<Json<Value>, ApiError> {
+    let Query(q) = query?;
+    let filter = match q.state.as_deref() {
+        None | Some("") => None,
+        Some(s) => Some(JobState::parse(s).ok_or_else(|| {
+            signorini_core::spec::SpecError::new(
+                "state",
+                format!("{s:?} is not one of queued, running, succeeded, failed, cancelled"),
+            )
+        })?),
+    };
+    let page = state.engine.list(
+        filter,
+        q.page_token.as_deref().unwrap_or(""),
+        q.limit.unwrap_or(0),
+    )?;
+    let jobs: Vec<StatusJson> = page.jobs.iter().map(StatusJson::from).collect();
+    Ok(Json(
+        json!({ "jobs": jobs, "next_page_token": page.next_page_token }),
+    ))
 }
 
 /// Answers a status as [`StatusJson`].
@@ -151,71 +198,236 @@ async fn get_job(
     Ok(status_body(&state.engine.status(&id)?))
 }
 
+/// `?purge=true` of `DELETE /v1/jobs/{id}`.
+#[derive(Debug, Deserialize)]
+struct DeleteQuery {
+    #[serde(default)]
+    purge: bool,
+}
+
+/// `DELETE /v1/jobs/{id}` cancels the job (and answers its status); with `?purge=true` it
+/// removes a finished job and its result instead (`{"id", "purged": true}`; 409 while the job
+/// is queued or running).
 async fn cancel_job(
     State(state): State<AppState>,
     headers: HeaderMap,
     Path(id): Path<String>,
+    query: Result<Query<DeleteQuery>, QueryRejection>,
 ) -> Result<Response, ApiError> {
     authorize(&state, &headers)?;
+    let Query(q) = query?;
+    if q.purge {
+        let engine = state.engine.clone();
+        let gone = id.clone();
+        tokio::task::spawn_blocking(move || engine.delete(&gone))
+            .await
+            .map_err(|e| ApiError::Internal(e.to_string()))??;
+        return Ok(Json(json!({ "id": id, "purged": true })).into_response());
+    }
     Ok(status_body(&state.cancel_and_wait(&id).await?))
 }
 
-/// `{"id", "summary", "columns", "steps": {"step": […], "t": […], column: […]}, "tables",
-/// "figures": [name…]}` — figure names only; `GET /v1/jobs/{id}/figures/{name}` serves the SVG.
-pub fn result_json(view: &JobView, r: &StoredResult) -> Value {
-    let mut steps = Map::new();
-    steps.insert("step".into(), json!(r.steps));
-    steps.insert("t".into(), json!(r.t));
-    for (c, name) in r.columns.iter().enumerate() {
-        steps.insert(name.clone(), json!(r.column(c)));
-    }
-    let mut columns = vec!["step".to_string(), "t".to_string()];
-    columns.extend(r.columns.iter().cloned());
-    json!({
-        "id": view.id,
-        "state": view.state.as_str(),
-        "summary": r.summary,
-        "columns": columns,
-        "steps": steps,
-        "tables": r.tables.iter().map(|t| json!({ "name": t.name, "columns": t.columns, "rows": t.rows })).collect::<Vec<_>>(),
-        "figures": r.figures.iter().map(|f| f.name.as_str()).collect::<Vec<_>>(),
-    })
-}
-
-/// A finished job's stored result, read off the async executor.
+/// A finished job's result without its series, read off the async executor.
 async fn load_result(state: &AppState, id: String) -> Result<(JobView, StoredResult), ApiError> {
     let engine = state.engine.clone();
-    tokio::task::spawn_blocking(move || engine.result(&id))
+    tokio::task::spawn_blocking(move || engine.result_head(&id))
         .await
         .map_err(|e| ApiError::Internal(e.to_string()))?
 }
 
-/// `?columns=a,b&every=N` of `GET /v1/jobs/{id}/result`.
+/// `?format=json|csv|npz&columns=a,b&every=N&from=S&to=S` of `GET /v1/jobs/{id}/result`.
 #[derive(Debug, Deserialize)]
 struct ResultQuery {
+    /// Body format (json by default).
+    #[serde(default)]
+    format: Option<String>,
     /// Comma-separated column names (all when absent).
     #[serde(default)]
     columns: Option<String>,
-    /// Every N-th recorded row, and the last.
+    /// Every N-th row of the range, and its last.
     #[serde(default)]
     every: Option<u64>,
+    /// First step number kept.
+    #[serde(default)]
+    from: Option<u64>,
+    /// Last step number kept.
+    #[serde(default)]
+    to: Option<u64>,
 }
 
+impl From<QueryRejection> for ApiError {
+    fn from(r: QueryRejection) -> Self {
+        // "Failed to deserialize query string: every: invalid digit found in string"
+        let text = r.body_text();
+        let detail = text.split_once(": ").map_or(text.as_str(), |(_, d)| d);
+        let (field, reason) = match detail.split_once(": ") {
+            Some((f, reason))
+                if !f.is_empty() && f.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_') =>
+            {
+                (f.to_string(), reason.to_string())
+            }
+            _ => ("query".to_string(), detail.to_string()),
+        };
+        ApiError::Invalid(signorini_core::spec::SpecError::new(field, reason))
+    }
+}
+
+/// Whether `Accept-Encoding` admits gzip (`gzip` listed without `q=0`).
+fn accepts_gzip(headers: &HeaderMap) -> bool {
+    headers
+        .get_all(header::ACCEPT_ENCODING)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(','))
+        .any(|item| {
+            let mut parts = item.split(';').map(str::trim);
+            parts.next().is_some_and(|c| c.eq_ignore_ascii_case("gzip"))
+                && parts.all(|p| {
+                    p.strip_prefix("q=")
+                        .is_none_or(|q| q.parse::<f64>().map_or(true, |q| q > 0.0))
+                })
+        })
+}
+
+/// Pieces of a streamed body: about this many bytes each.
+const PIECE: usize = 64 << 10;
+
+/// A writer that hands its bytes to the response body in pieces of [`PIECE`] bytes, waiting
+/// while the body's small channel is full (the client reads slower than the store is read).
+struct Pieces {
+    tx: tokio::sync::mpsc::Sender<io::Result<Bytes>>,
+    buf: Vec<u8>,
+}
+
+impl Pieces {
+    fn send(&mut self) -> io::Result<()> {
+        if self.buf.is_empty() {
+            return Ok(());
+        }
+        let piece = Bytes::from(std::mem::replace(&mut self.buf, Vec::with_capacity(PIECE)));
+        self.tx
+            .blocking_send(Ok(piece))
+            .map_err(|_| io::Error::new(io::ErrorKind::BrokenPipe, "the client went away"))
+    }
+}
+
+impl Write for Pieces {
+    fn write(&mut self, bytes: &[u8]) -> io::Result<usize> {
+        self.buf.extend_from_slice(bytes);
+        if self.buf.len() >= PIECE {
+            self.send()?;
+        }
+        Ok(bytes.len())
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.send()
+    }
+}
+
+/// A response body that `write` makes on a blocking thread (it reads the store), sent as it is
+/// made through a channel of four pieces, gzip-compressed when `gzip`: whatever the body's size,
+/// the server holds a few pieces of it. An error after the first bytes aborts the body (the
+/// client sees a truncated transfer, never a silently short one).
+fn streamed_body(
+    gzip: bool,
+    write: impl FnOnce(&mut dyn Write) -> io::Result<()> + Send + 'static,
+) -> Body {
+    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    let errors = tx.clone();
+    tokio::task::spawn_blocking(move || {
+        let mut out = Pieces {
+            tx,
+            buf: Vec::with_capacity(PIECE),
+        };
+        let done = if gzip {
+            let gz = flate2::write::GzEncoder::new(&mut out, flate2::Compression::fast());
+            let mut w = io::BufWriter::with_capacity(PIECE, gz);
+            write(&mut w)
+                .and_then(|()| w.into_inner().map_err(|e| e.into_error()))
+                .and_then(|gz| gz.finish().map(drop))
+        } else {
+            write(&mut out)
+        };
+        match done.and_then(|()| out.flush()) {
+            Ok(()) => {}
+            Err(e) if e.kind() == io::ErrorKind::BrokenPipe => {}
+            Err(e) => {
+                tracing::error!("streaming a result: {e}");
+                let _ = errors.blocking_send(Err(e));
+            }
+        }
+    });
+    Body::from_stream(tokio_stream::wrappers::ReceiverStream::new(rx))
+}
+
+/// `GET /v1/jobs/{id}/result`: the stored result, streamed from the store as JSON (default), CSV
+/// or NPZ, cut to `columns`, the steps `from..=to` and every `every`-th row of them (plus the
+/// last), gzip-compressed when the client accepts it. A failed or cancelled job's rows are
+/// served too, with `"partial": true` (header `x-signorini-partial: true`).
 async fn get_result(
     State(state): State<AppState>,
     Path(id): Path<String>,
-    Query(q): Query<ResultQuery>,
-) -> Result<Json<Value>, ApiError> {
-    let (view, result) = load_result(&state, id).await?;
-    let columns: Vec<String> = q
-        .columns
-        .iter()
-        .flat_map(|c| c.split(','))
-        .filter(|c| !c.is_empty())
-        .map(str::to_string)
-        .collect();
-    let result = result.select(&columns, q.every.unwrap_or(1))?;
-    Ok(Json(result_json(&view, &result)))
+    headers: HeaderMap,
+    query: Result<Query<ResultQuery>, QueryRejection>,
+) -> Result<Response, ApiError> {
+    let Query(q) = query?;
+    let format = results::Format::parse(q.format.as_deref().unwrap_or("json"))?;
+    let req = CutRequest {
+        columns: q
+            .columns
+            .iter()
+            .flat_map(|c| c.split(','))
+            .filter(|c| !c.is_empty())
+            .map(str::to_string)
+            .collect(),
+        every: q.every.unwrap_or(1),
+        from: q.from,
+        to: q.to,
+    };
+    let engine = state.engine.clone();
+    let (view, head, series, cut) = tokio::task::spawn_blocking(move || {
+        let (view, head) = engine.result_head(&id)?;
+        let series = engine.series(&id, head.columns.len())?;
+        let cut = Cut::new(&head, &series, &req)?;
+        Ok::<_, ApiError>((view, head, series, cut))
+    })
+    .await
+    .map_err(|e| ApiError::Internal(e.to_string()))??;
+    let gzip = accepts_gzip(&headers);
+    let (partial, rows, file) = (head.partial, cut.rows(), format!("{}.npz", view.id));
+    let body = streamed_body(gzip, move |w| match format {
+        results::Format::Json => write_json(w, &view, &head, &cut, &series),
+        results::Format::Csv => write_csv(w, &cut, &series),
+        results::Format::Npz => write_npz(w, &cut, &series),
+    });
+    let mut resp = Response::new(body);
+    let h = resp.headers_mut();
+    h.insert(
+        header::CONTENT_TYPE,
+        header::HeaderValue::from_static(format.content_type()),
+    );
+    h.insert(
+        header::VARY,
+        header::HeaderValue::from_static("accept-encoding"),
+    );
+    if gzip {
+        h.insert(
+            header::CONTENT_ENCODING,
+            header::HeaderValue::from_static("gzip"),
+        );
+    }
+    h.insert(
+        "x-signorini-partial",
+        header::HeaderValue::from_static(if partial { "true" } else { "false" }),
+    );
+    h.insert("x-signorini-rows", header::HeaderValue::from(rows));
+    if format == results::Format::Npz
+        && let Ok(v) = header::HeaderValue::from_str(&format!("attachment; filename=\"{file}\""))
+    {
+        h.insert(header::CONTENT_DISPOSITION, v);
+    }
+    Ok(resp)
 }
 
 /// `{"id", "figures": [name…]}`: the figures of a succeeded job, without its step series.
@@ -329,8 +541,10 @@ fn sse_events(event: &JobEvent) -> Vec<Event> {
         JobEvent::Status(v) => Event::default()
             .event("status")
             .json_data(StatusJson::from(v)),
-        JobEvent::Steps(b) if !b.energy.columns.is_empty() => {
-            Event::default().event("energy").json_data(FrameJson {
+        JobEvent::Steps(b) if !b.energy.columns.is_empty() => Event::default()
+            .event("energy")
+            .id(b.seq.to_string())
+            .json_data(FrameJson {
                 kind: "energy",
                 id: &b.id,
                 seq: b.seq,
@@ -339,30 +553,62 @@ fn sse_events(event: &JobEvent) -> Vec<Event> {
                 t: &b.t,
                 rows: FrameJson::rows(&b.energy.values, b.energy.columns.len()),
                 last: b.last,
-            })
-        }
+            }),
         JobEvent::Steps(_) | JobEvent::Closed(_) => return Vec::new(),
     };
     event.into_iter().collect()
 }
 
+/// `?from_seq=N` of `GET /v1/jobs/{id}/events`.
+#[derive(Debug, Deserialize)]
+struct EventsQuery {
+    #[serde(default)]
+    from_seq: Option<u64>,
+}
+
 /// Server-sent events of one job: its current status, then its status and energy events as
-/// they are published; the stream ends after the job's final status.
+/// they are published; the stream ends after the job's final status. Energy events carry
+/// `id:` = their `seq`. With `?from_seq=N`, or a `Last-Event-ID: N` header (a reconnecting
+/// `EventSource`: from N + 1), the job's stored energy frames from that seq come first, then
+/// the live ones, none twice.
 async fn job_events(
     State(state): State<AppState>,
     Path(id): Path<String>,
+    headers: HeaderMap,
+    query: Result<Query<EventsQuery>, QueryRejection>,
 ) -> Result<Sse<impl tokio_stream::Stream<Item = Result<Event, Infallible>>>, ApiError> {
-    let (current, events) = state.follow(&id, sse_events)?;
-    let first = sse_events(&JobEvent::Status(current));
-    let rest: std::pin::Pin<Box<dyn tokio_stream::Stream<Item = Event> + Send>> = match events {
-        None => Box::pin(tokio_stream::empty()),
-        Some(events) => Box::pin(events),
-    };
-    let stream = tokio_stream::iter(first).chain(rest).map(Ok);
-    Ok(Sse::new(stream).keep_alive(KeepAlive::new().interval(Duration::from_secs(10))))
+    let Query(q) = query?;
+    let resume = headers
+        .get("last-event-id")
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.trim().parse::<u64>().ok())
+        .map(|seq| seq + 1);
+    let stream: std::pin::Pin<Box<dyn tokio_stream::Stream<Item = Event> + Send>> =
+        match resume.or(q.from_seq) {
+            Some(from_seq) => Box::pin(state.replay(&id, from_seq, sse_events)?),
+            None => {
+                let (current, events) = state.follow(&id, sse_events)?;
+                let first = sse_events(&JobEvent::Status(current));
+                match events {
+                    None => Box::pin(tokio_stream::iter(first)),
+                    Some(events) => Box::pin(tokio_stream::iter(first).chain(events)),
+                }
+            }
+        };
+    Ok(Sse::new(stream.map(Ok)).keep_alive(KeepAlive::new().interval(Duration::from_secs(10))))
 }
 
-async fn live_page(Path(id): Path<String>) -> Result<Html<String>, ApiError> {
+/// The live page of a job (404 for an unknown one).
+async fn live_page(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Html<String>, ApiError> {
     crate::engine::check_id(&id)?;
+    state.engine.status(&id)?;
     Ok(Html(include_str!("live.html").replace("{{JOB_ID}}", &id)))
+}
+
+/// The index page: the newest jobs, linked to their live pages.
+async fn index_page() -> Html<&'static str> {
+    Html(include_str!("index.html"))
 }

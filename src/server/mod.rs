@@ -5,6 +5,7 @@ pub mod convert;
 pub mod grpc;
 pub mod http;
 pub mod json;
+pub mod results;
 
 use crate::config::ServeConfig;
 use crate::engine::Engine;
@@ -12,7 +13,7 @@ use crate::engine::events::JobEvent;
 use crate::error::ApiError;
 use crate::proto::v1::simulation_server::SimulationServer;
 use crate::status::JobView;
-use crate::store::Store;
+use crate::store::{Store, StoreLock};
 use crate::stream::{self, Streamer, ZenohOptions};
 use anyhow::{Context, Result};
 use std::sync::{Arc, Mutex};
@@ -38,9 +39,11 @@ impl AppState {
         let Some(token) = &self.token else {
             return Ok(());
         };
+        // The scheme is case-insensitive (RFC 9110, 11.1): `Bearer`, `bearer`, `BEARER`.
         let given = header
-            .and_then(|h| h.strip_prefix("Bearer "))
-            .map(str::trim);
+            .and_then(|h| h.trim_start().split_once(' '))
+            .filter(|(scheme, _)| scheme.eq_ignore_ascii_case("bearer"))
+            .map(|(_, token)| token.trim());
         match given {
             Some(g) if constant_time_eq(g.as_bytes(), token.as_bytes()) => Ok(()),
             _ => Err(ApiError::Unauthenticated),
@@ -65,6 +68,93 @@ impl AppState {
         let events = BroadcastStream::new(rx)
             .filter_map(move |msg| msg.ok().filter(|event| event.job_id() == id));
         Ok((current, Some(until_terminal(events, encode))))
+    }
+
+    /// A job's history from batch `from_seq` on, then its live events, each encoded by
+    /// `encode`: the current status (unless the job is over), the stored batches (read one
+    /// chunk at a time), then the live status and step events, skipping batches already
+    /// replayed, up to and including the final status. The subscription is taken before the
+    /// history, so nothing falls between the two.
+    pub fn replay<T: Send + 'static>(
+        &self,
+        id: &str,
+        from_seq: u64,
+        encode: impl Fn(&JobEvent) -> Vec<T> + Send + 'static,
+    ) -> Result<impl Stream<Item = T> + Send + 'static, ApiError> {
+        let mut rx = self.events.subscribe();
+        let (view, history) = self.engine.history(id)?;
+        let engine = self.engine.clone();
+        let id = id.to_string();
+        let (tx, out) = tokio::sync::mpsc::channel(16);
+        tokio::spawn(async move {
+            let send_all = |items: Vec<T>| {
+                let tx = tx.clone();
+                async move {
+                    for item in items {
+                        tx.send(item).await.map_err(drop)?;
+                    }
+                    Ok::<_, ()>(())
+                }
+            };
+            let ended = history.ended();
+            if !ended
+                && send_all(encode(&JobEvent::Status(view.clone())))
+                    .await
+                    .is_err()
+            {
+                return;
+            }
+            let (btx, mut brx) = tokio::sync::mpsc::channel(4);
+            let reading = tokio::task::spawn_blocking(move || {
+                history.replay(from_seq, |b| btx.blocking_send(b).is_ok())
+            });
+            let mut last_seq = None;
+            while let Some(batch) = brx.recv().await {
+                last_seq = Some(batch.seq);
+                if send_all(encode(&JobEvent::Steps(batch))).await.is_err() {
+                    return;
+                }
+            }
+            if let Ok(Err(e)) = reading.await {
+                tracing::error!(%id, "replaying history: {e}");
+                return;
+            }
+            if ended {
+                let _ = send_all(encode(&JobEvent::Status(view))).await;
+                return;
+            }
+            loop {
+                let event = tokio::select! {
+                    e = rx.recv() => e,
+                    () = tx.closed() => return,
+                };
+                match event {
+                    Ok(event) if event.job_id() == id => {
+                        if let JobEvent::Steps(b) = &*event
+                            && last_seq.is_some_and(|l| b.seq <= l)
+                        {
+                            continue;
+                        }
+                        let done = matches!(&*event, JobEvent::Status(s) if s.state.is_terminal());
+                        if send_all(encode(&event)).await.is_err() || done {
+                            return;
+                        }
+                    }
+                    Ok(_) => {}
+                    Err(broadcast::error::RecvError::Lagged(_)) => {
+                        // Events were dropped for this slow reader: the end must not be.
+                        if let Ok(v) = engine.status(&id)
+                            && v.state.is_terminal()
+                        {
+                            let _ = send_all(encode(&JobEvent::Status(v))).await;
+                            return;
+                        }
+                    }
+                    Err(broadcast::error::RecvError::Closed) => return,
+                }
+            }
+        });
+        Ok(tokio_stream::wrappers::ReceiverStream::new(out))
     }
 
     /// Cancels a job and waits (up to 5 s) until a running one has stopped.
@@ -121,27 +211,8 @@ async fn shutdown_signal() {
 
 /// Runs the service until SIGINT/SIGTERM.
 pub async fn serve(cfg: ServeConfig) -> Result<()> {
-    let session = stream::open_session(&ZenohOptions {
-        listen: cfg.zenoh_listen.clone(),
-        connect: cfg.zenoh_connect.clone(),
-    })
-    .await?;
-    let (streamer, sink) = Streamer::start(session.clone());
-    let store = Store::open(&cfg.store)
-        .with_context(|| format!("opening store {}", cfg.store.display()))?;
-    let engine = Engine::start(store, cfg.limits, cfg.queue_limit, cfg.workers, sink)
-        .map_err(anyhow::Error::from)?;
-    {
-        let engine = engine.clone();
-        stream::serve_status_queryable(session.clone(), move |id| engine.find(id)).await?;
-    }
-    let state = AppState {
-        engine: engine.clone(),
-        token: cfg.token.as_deref().map(Arc::from),
-        events: streamer.sender(),
-        rate: Arc::new(Mutex::new((Instant::now(), 0))),
-    };
-
+    // What can fail without leaving anything behind comes first: the ports, then the zenoh
+    // peer, then the store's lock (which creates the file of a new store), then the store.
     let grpc_listener = tokio::net::TcpListener::bind(cfg.grpc_addr)
         .await
         .with_context(|| format!("binding {}", cfg.grpc_addr))?;
@@ -150,6 +221,39 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
         .with_context(|| format!("binding {}", cfg.http_addr))?;
     let grpc_addr = grpc_listener.local_addr()?;
     let http_addr = http_listener.local_addr()?;
+    let session = stream::open_session(&ZenohOptions {
+        listen: cfg.zenoh_listen.clone(),
+        connect: cfg.zenoh_connect.clone(),
+    })
+    .await?;
+    let opened = StoreLock::take(&cfg.store).and_then(|lock| Ok((lock, Store::open(&cfg.store)?)));
+    let (_lock, store) = match opened {
+        Ok(o) => o,
+        Err(e) => {
+            let _ = session.close().await;
+            return Err(e).with_context(|| format!("opening store {}", cfg.store.display()));
+        }
+    };
+    let (streamer, sink) = Streamer::start(session.clone());
+    let engine = Engine::start(store, cfg.limits, cfg.queue_limit, cfg.workers, sink)
+        .map_err(anyhow::Error::from)?;
+    {
+        let engine = engine.clone();
+        stream::serve_status_queryable(session.clone(), move |id| engine.find(id)).await?;
+    }
+    {
+        let engine = engine.clone();
+        stream::serve_history_queryable(session.clone(), move |id| {
+            engine.history(id).ok().map(|(_, h)| h)
+        })
+        .await?;
+    }
+    let state = AppState {
+        engine: engine.clone(),
+        token: cfg.token.as_deref().map(Arc::from),
+        events: streamer.sender(),
+        rate: Arc::new(Mutex::new((Instant::now(), 0))),
+    };
 
     let (health, health_service) = tonic_health::server::health_reporter();
     health

@@ -195,6 +195,50 @@ impl TestServer {
         (status, bytes.to_vec())
     }
 
+    /// The server's process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// `GET path` with extra request headers: status, response headers and raw body.
+    pub async fn http_get_with(
+        &self,
+        path: &str,
+        headers: &[(&str, &str)],
+    ) -> (u16, hyper::HeaderMap, Vec<u8>) {
+        self.request("GET", path, "", headers).await
+    }
+
+    /// Any request with exactly these headers: status, response headers and raw body.
+    pub async fn request(
+        &self,
+        method: &str,
+        path: &str,
+        body: &str,
+        headers: &[(&str, &str)],
+    ) -> (u16, hyper::HeaderMap, Vec<u8>) {
+        let client: Client<_, Full<Bytes>> = Client::builder(TokioExecutor::new()).build_http();
+        let mut req = hyper::Request::builder()
+            .method(method)
+            .uri(format!("http://{}{path}", self.http));
+        for (k, v) in headers {
+            req = req.header(*k, *v);
+        }
+        let req = req
+            .body(Full::new(Bytes::from(body.to_string())))
+            .expect("request");
+        let resp = client.request(req).await.expect("HTTP request");
+        let status = resp.status().as_u16();
+        let head = resp.headers().clone();
+        let bytes = resp
+            .into_body()
+            .collect()
+            .await
+            .expect("HTTP body")
+            .to_bytes();
+        (status, head, bytes.to_vec())
+    }
+
     /// `GET path`: status, `content-type` and raw body.
     pub async fn http_get_typed(&self, path: &str) -> (u16, String, Vec<u8>) {
         let client: Client<_, Full<Bytes>> = Client::builder(TokioExecutor::new()).build_http();
@@ -297,7 +341,10 @@ pub async fn collect_until_last(
 pub async fn wait_terminal(client: &mut SimulationClient<Channel>, id: &str) -> pb::JobStatus {
     let fut = async {
         let mut stream = client
-            .watch_job(pb::WatchJobRequest { id: id.to_string() })
+            .watch_job(pb::WatchJobRequest {
+                id: id.to_string(),
+                ..Default::default()
+            })
             .await
             .expect("WatchJob")
             .into_inner();
@@ -323,7 +370,10 @@ pub async fn wait_terminal(client: &mut SimulationClient<Channel>, id: &str) -> 
 pub async fn wait_running(client: &mut SimulationClient<Channel>, id: &str, steps: u64) {
     let fut = async {
         let mut stream = client
-            .watch_job(pb::WatchJobRequest { id: id.to_string() })
+            .watch_job(pb::WatchJobRequest {
+                id: id.to_string(),
+                ..Default::default()
+            })
             .await
             .expect("WatchJob")
             .into_inner();
@@ -431,18 +481,32 @@ pub fn stdout_lines(child: &mut Child) -> mpsc::Receiver<Option<String>> {
 pub struct SseEvent {
     pub event: String,
     pub data: Value,
+    /// The `id:` field, when the event has one.
+    pub id: Option<String>,
 }
 
 /// Reads `GET path` as server-sent events, handing each parsed event to `on_event` until it
 /// returns false; then the stream must end (the server closes it after a final status).
-pub async fn read_sse(addr: SocketAddr, path: &str, mut on_event: impl FnMut(SseEvent) -> bool) {
+pub async fn read_sse(addr: SocketAddr, path: &str, on_event: impl FnMut(SseEvent) -> bool) {
+    read_sse_with(addr, path, &[], on_event).await
+}
+
+/// [`read_sse`] with extra request headers (`Last-Event-ID`).
+pub async fn read_sse_with(
+    addr: SocketAddr,
+    path: &str,
+    headers: &[(&str, &str)],
+    mut on_event: impl FnMut(SseEvent) -> bool,
+) {
     let client: Client<_, Full<Bytes>> = Client::builder(TokioExecutor::new()).build_http();
-    let req = hyper::Request::builder()
+    let mut req = hyper::Request::builder()
         .method("GET")
         .uri(format!("http://{addr}{path}"))
-        .header("accept", "text/event-stream")
-        .body(Full::new(Bytes::new()))
-        .expect("request");
+        .header("accept", "text/event-stream");
+    for (k, v) in headers {
+        req = req.header(*k, *v);
+    }
+    let req = req.body(Full::new(Bytes::new())).expect("request");
     let resp = client.request(req).await.expect("SSE request");
     assert_eq!(resp.status().as_u16(), 200, "SSE status");
     let ctype = resp
@@ -468,9 +532,12 @@ pub async fn read_sse(addr: SocketAddr, path: &str, mut on_event: impl FnMut(Sse
             let block: String = buf.drain(..end + 2).collect();
             let mut event = String::from("message");
             let mut data = String::new();
+            let mut id = None;
             for line in block.lines() {
                 if let Some(e) = line.strip_prefix("event:") {
                     event = e.trim().to_string();
+                } else if let Some(i) = line.strip_prefix("id:") {
+                    id = Some(i.trim().to_string());
                 } else if let Some(d) = line.strip_prefix("data:") {
                     data.push_str(d.trim_start());
                 }
@@ -479,7 +546,7 @@ pub async fn read_sse(addr: SocketAddr, path: &str, mut on_event: impl FnMut(Sse
                 continue; // keep-alive comment
             }
             let data = serde_json::from_str(&data).expect("JSON event data");
-            if !on_event(SseEvent { event, data }) {
+            if !on_event(SseEvent { event, data, id }) {
                 // The server ends the stream after a job's final status: nothing but the end
                 // (or a keep-alive comment) may follow.
                 loop {

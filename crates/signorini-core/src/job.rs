@@ -315,7 +315,14 @@ impl Job {
         }
         let model = spec.model.as_ref();
         let kind = match (&spec.analysis, model, spec.integrator.family()) {
-            (Some(analysis), _, _) => JobKind::Wave(Box::new(WaveJob::analysis(analysis)?)),
+            // An analysis describes its own bar: a model next to it would be silently ignored.
+            (Some(_), Some(_), _) => {
+                return Err(SpecError::new(
+                    "analysis",
+                    "`model` and `analysis` together: an analysis describes its own bar, so give either `model` (with `time`) or `analysis`",
+                ));
+            }
+            (Some(analysis), None, _) => JobKind::Wave(Box::new(WaveJob::analysis(analysis)?)),
             (None, None, _) => return Err(SpecError::new("model", "missing section")),
             (None, Some(m), SchemeFamily::Wave) => {
                 JobKind::Wave(Box::new(WaveJob::integrate(m, spec)?))
