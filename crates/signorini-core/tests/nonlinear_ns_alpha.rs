@@ -337,3 +337,64 @@ fn bad_specs_name_their_field() {
     let e = refused(&serde_json::from_value(doc).expect("spec"));
     assert!(e.starts_with("model.constraints"), "{e}");
 }
+
+/// The joints' curvature term κ = d/dt(G v + g_t) at q̈ = 0 (one dual-number evaluation of the
+/// symbolic G v + g_t) against central differences of G v + g_t along (t, q, v) → (1, v, 0),
+/// and G against central differences of g, on the two joint examples at random points.
+#[test]
+fn joint_curvature_matches_central_differences() {
+    use signorini_core::lagrangian::UserModel;
+    use signorini_core::nonlinear::generalized_alpha::JointedSystem;
+    use signorini_core::spec::ModelSpec;
+    let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+    let mut random = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    for name in ["double_pendulum_cartesian", "slider_crank_clearance_joints"] {
+        let spec = example_with(name, NS_ALPHA, "h = 0.001\nt_end = 1.0", "every = 1");
+        let Some(ModelSpec::Lagrangian(l)) = spec.model else {
+            panic!("a lagrangian example")
+        };
+        let model = UserModel::new(&l).expect("valid");
+        let (n, nb) = (l.coordinates.len(), model.joints());
+        for _ in 0..20 {
+            let q: Vec<f64> = l.q0.iter().map(|x| x + 0.3 * random()).collect();
+            let v: Vec<f64> = (0..n).map(|_| 2.0 * random()).collect();
+            let t = random().abs();
+            let mut kappa = vec![0.0; nb];
+            model.joint_curvature(t, &q, &v, &mut kappa);
+            let eps = 1e-6;
+            let rate = |s: f64| {
+                let qs: Vec<f64> = q.iter().zip(&v).map(|(x, w)| x + s * w).collect();
+                let mut r = vec![0.0; nb];
+                model.joint_rates(t + s, &qs, &v, &mut r);
+                r
+            };
+            let (plus, minus) = (rate(eps), rate(-eps));
+            let mut g = vec![0.0; nb * n];
+            model.joint_jacobian(t, &q, &mut g);
+            for j in 0..nb {
+                let fd = (plus[j] - minus[j]) / (2.0 * eps);
+                assert!(
+                    (kappa[j] - fd).abs() <= 1e-7 * (1.0 + fd.abs()),
+                    "{name}: κ_{j} = {} against {fd}",
+                    kappa[j]
+                );
+                for i in 0..n {
+                    let mut qp = q.clone();
+                    let mut qm = q.clone();
+                    qp[i] += eps;
+                    qm[i] -= eps;
+                    let (mut gp, mut gm) = (vec![0.0; nb], vec![0.0; nb]);
+                    model.joint_values(t, &qp, &mut gp);
+                    model.joint_values(t, &qm, &mut gm);
+                    let fd = (gp[j] - gm[j]) / (2.0 * eps);
+                    assert!((g[j * n + i] - fd).abs() <= 1e-7 * (1.0 + fd.abs()));
+                }
+            }
+        }
+    }
+}
