@@ -4,6 +4,9 @@
 
 pub mod encode;
 
+/// The encoded file-descriptor set of `proto/signorini/v1` (gRPC server reflection).
+pub const FILE_DESCRIPTOR_SET: &[u8] = tonic::include_file_descriptor_set!("signorini_descriptor");
+
 /// `signorini.v1`.
 #[allow(missing_docs, clippy::all, clippy::pedantic)]
 pub mod v1 {

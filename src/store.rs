@@ -347,7 +347,31 @@ fn blob_to_8(b: &[u8]) -> Option<impl Iterator<Item = [u8; 8]> + '_> {
 struct TableJson {
     name: String,
     columns: Vec<String>,
+    /// JSON has no NaN: an empty cell (NaN, e.g. the `branch` of an orbit on no main branch)
+    /// is stored as null and read back as NaN.
+    #[serde(with = "nan_as_null")]
     rows: Vec<Vec<f64>>,
+}
+
+/// Table rows with NaN cells through JSON: NaN ↔ null.
+mod nan_as_null {
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(rows: &[Vec<f64>], s: S) -> Result<S::Ok, S::Error> {
+        let cells: Vec<Vec<Option<f64>>> = rows
+            .iter()
+            .map(|r| r.iter().map(|&x| (!x.is_nan()).then_some(x)).collect())
+            .collect();
+        cells.serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Vec<f64>>, D::Error> {
+        let cells = Vec::<Vec<Option<f64>>>::deserialize(d)?;
+        Ok(cells
+            .into_iter()
+            .map(|r| r.into_iter().map(|x| x.unwrap_or(f64::NAN)).collect())
+            .collect())
+    }
 }
 
 #[derive(serde::Serialize, serde::Deserialize)]

@@ -264,8 +264,23 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
     let stopped = |mut rx: tokio::sync::watch::Receiver<bool>| async move {
         let _ = rx.wait_for(|s| *s).await;
     };
+    // Server reflection, v1 and v1alpha (grpcurl asks v1 first; Python's grpcio-reflection
+    // client speaks v1alpha): tools discover the services and their messages.
+    let reflection = || {
+        tonic_reflection::server::Builder::configure()
+            .register_encoded_file_descriptor_set(crate::proto::FILE_DESCRIPTOR_SET)
+            .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
+    };
+    let reflection_v1 = reflection()
+        .build_v1()
+        .context("building the gRPC reflection service")?;
+    let reflection_v1alpha = reflection()
+        .build_v1alpha()
+        .context("building the gRPC reflection service (v1alpha)")?;
     let grpc = tonic::transport::Server::builder()
         .add_service(health_service)
+        .add_service(reflection_v1)
+        .add_service(reflection_v1alpha)
         .add_service(
             SimulationServer::new(grpc::SimulationService::new(state.clone()))
                 .max_encoding_message_size(crate::cli::client::MAX_MESSAGE)

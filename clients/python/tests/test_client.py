@@ -110,3 +110,21 @@ def test_committed_stubs_equal_freshly_generated_ones(tmp_path):
         assert fresh.read_text() == (committed / fresh.name).read_text(), (
             f"{fresh.name} is stale: run python clients/python/generate_stubs.py"
         )
+
+
+def test_server_reflection_lists_the_service_and_its_messages(server):
+    import grpc
+    from google.protobuf.descriptor_pool import DescriptorPool
+    from grpc_reflection.v1alpha.proto_reflection_descriptor_database import (
+        ProtoReflectionDescriptorDatabase,
+    )
+
+    with grpc.insecure_channel(server.grpc) as channel:
+        db = ProtoReflectionDescriptorDatabase(channel)
+        services = db.get_services()
+        assert "signorini.v1.Simulation" in services and "grpc.health.v1.Health" in services
+        simulation = DescriptorPool(db).FindServiceByName("signorini.v1.Simulation")
+        methods = {m.name for m in simulation.methods}
+        assert {"SubmitJob", "GetJob", "WatchJob", "GetResult", "Capabilities"} <= methods
+        submit = simulation.methods_by_name["SubmitJob"]
+        assert "typed" in submit.input_type.fields_by_name
