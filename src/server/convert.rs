@@ -264,6 +264,9 @@ fn linear(p: pb::LinearModel) -> Result<LinearSpec, SpecError> {
         restitution,
         q0: some_if_nonempty(q0),
         v0: some_if_nonempty(v0),
+        // Coulomb friction travels in the JSON spelling only (round-2 sections).
+        t_matrix: None,
+        friction: None,
     })
 }
 

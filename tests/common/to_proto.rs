@@ -244,7 +244,14 @@ fn linear_to_proto(l: &LinearSpec) -> pb::LinearModel {
         restitution,
         q0,
         v0,
+        t_matrix,
+        friction,
     } = l;
+    // Coulomb friction is a round-2 section: JSON only, like `lagrangian` models.
+    assert!(
+        t_matrix.is_none() && friction.is_none(),
+        "a linear model with friction has no typed proto message: send it as JSON"
+    );
     pb::LinearModel {
         mass: mass.as_deref().map(dense_to_proto),
         mass_triplets: triplets_to_proto(mass_triplets),

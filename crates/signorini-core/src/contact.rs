@@ -3,8 +3,9 @@
 //! `0 ≤ U_{k+1} + e ∘ U_k ⊥ P_{k+1} ≥ 0` on the index set (Acary 2016, (21c)–(21d), (25c)–(25d)).
 
 use crate::band::BandCholesky;
+use crate::friction::{self, FrictionError, FrictionProblem};
 use crate::lcp::{self, Lcp, LcpError, LcpOptions};
-use crate::model::Contact;
+use crate::model::{Contact, ContactFriction};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
@@ -57,10 +58,26 @@ impl IndexSetRule {
         h: f64,
         u_roundoff: f64,
     ) -> bool {
+        self.is_active_within_gap(c, q, v, t, h, u_roundoff, 0.0)
+    }
+
+    /// [`IndexSetRule::is_active_within`] with the gap test of (24) read as
+    /// `g(q_k + h v_k) ≤ g_roundoff` too (models with friction, [`IndexSet::friction`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn is_active_within_gap(
+        &self,
+        c: &Contact,
+        q: &[f64],
+        v: &[f64],
+        t: f64,
+        h: f64,
+        u_roundoff: f64,
+        g_roundoff: f64,
+    ) -> bool {
         let u = c.local_velocity(v, t);
         match self.activation {
             Activation::GapAndVelocity => {
-                c.project(q) + h * c.project(v) + c.w(t + h) <= 0.0 && u <= u_roundoff
+                c.project(q) + h * c.project(v) + c.w(t + h) <= g_roundoff && u <= u_roundoff
             }
             Activation::PredictedGap => c.gap(q, t) + self.gamma * h * u <= 0.0,
         }
@@ -81,6 +98,12 @@ pub struct IndexSet {
     roundoff_step: u64,
     /// Round-off level of U^α at the end of that step, per contact (zero when inactive).
     roundoff: Vec<f64>,
+    /// A model with friction: the gap test of (24) reads `g(q_k + h v_k) ≤ t_{k+1} u_ro` for a
+    /// contact of the last LCP (u_ro its velocity round-off level). A lasting contact whose
+    /// U_n is zero only to round-off drifts off the obstacle by up to h u_ro per step, by
+    /// t u_ro since t = 0; dropped for one step, it would lose its friction for that step
+    /// (see [`crate::nonlinear::moreau_jean`]). False (the strict test) without friction.
+    pub friction: bool,
 }
 
 impl IndexSet {
@@ -91,6 +114,7 @@ impl IndexSet {
             rhs: Vec::new(),
             roundoff_step: u64::MAX,
             roundoff: vec![0.0; contacts],
+            friction: false,
         }
     }
 
@@ -117,7 +141,8 @@ impl IndexSet {
             } else {
                 0.0
             };
-            if rule.is_active_within(c, q, v, t, h, u_tol) {
+            let g_tol = if self.friction { (t + h) * u_tol } else { 0.0 };
+            if rule.is_active_within_gap(c, q, v, t, h, u_tol, g_tol) {
                 self.active.push(a);
                 let u_k = c.local_velocity(v, t);
                 self.rhs.push(u_free(c) + c.restitution * u_k);
@@ -139,6 +164,16 @@ impl IndexSet {
                 .map(|&c| (w[a * m + c] * impulse[c]).abs())
                 .sum();
             self.roundoff[a] = 64.0 * f64::EPSILON * (self.rhs[r].abs() + wp);
+        }
+        self.roundoff_step = step;
+    }
+
+    /// Records given round-off levels of the local velocities of step `step`, one per active
+    /// contact in the order of `active` (the friction problem's, [`FrictionDelassus`]).
+    pub fn record_levels(&mut self, levels: &[f64], step: u64) {
+        self.roundoff.fill(0.0);
+        for (&a, &l) in self.active.iter().zip(levels) {
+            self.roundoff[a] = l;
         }
         self.roundoff_step = step;
     }
@@ -234,6 +269,138 @@ impl Delassus {
                     *vi += p * ci;
                 }
             }
+        }
+        Ok(LcpStats {
+            size: k,
+            iterations: sol.iterations,
+            error: sol.error,
+        })
+    }
+}
+
+/// The Delassus operator of a model with friction, with the tangent rows: `Ŵ⁻¹[G T]` (dense
+/// columns) and `W = [G T]ᵀ Ŵ⁻¹ [G T]` (2m×2m, rows and columns in the order
+/// `(n_1, t_1, n_2, t_2, …)` of [`crate::friction`]), computed once per run.
+#[derive(Debug, Clone)]
+pub struct FrictionDelassus {
+    n: usize,
+    m: usize,
+    /// Column r of Ŵ⁻¹[G T] at `[r n, (r+1) n)`, r = 2α (normal) or 2α + 1 (tangent).
+    columns: Vec<f64>,
+    /// Row-major 2m×2m.
+    w: Vec<f64>,
+    /// Scratch: the problem on the index set and its μ.
+    sub_w: Vec<f64>,
+    sub_q: Vec<f64>,
+    sub_mu: Vec<f64>,
+}
+
+impl FrictionDelassus {
+    /// Precomputes Ŵ⁻¹[G T] and W from the factorised iteration matrix Ŵ.
+    pub fn new(factor: &BandCholesky, contacts: &[Contact], friction: &[ContactFriction]) -> Self {
+        let n = factor.n();
+        let m = contacts.len();
+        let mut columns = vec![0.0; 2 * m * n];
+        for (a, (c, f)) in contacts.iter().zip(friction).enumerate() {
+            for (r, row) in [&c.g, &f.t].into_iter().enumerate() {
+                let col = &mut columns[(2 * a + r) * n..(2 * a + r + 1) * n];
+                for &(i, coef) in row {
+                    col[i] += coef;
+                }
+                factor.solve_in_place(col);
+            }
+        }
+        let mut w = vec![0.0; 4 * m * m];
+        for (a, (c, f)) in contacts.iter().zip(friction).enumerate() {
+            for b in 0..2 * m {
+                let col = &columns[b * n..(b + 1) * n];
+                w[2 * a * 2 * m + b] = c.project(col);
+                w[(2 * a + 1) * 2 * m + b] = f.project(col);
+            }
+        }
+        Self {
+            n,
+            m,
+            columns,
+            w,
+            sub_w: Vec::new(),
+            sub_q: Vec::new(),
+            sub_mu: Vec::new(),
+        }
+    }
+
+    /// W, row-major 2m×2m.
+    pub fn matrix(&self) -> &[f64] {
+        &self.w
+    }
+
+    /// Solves the friction problem on the index set `active` with free local velocities
+    /// `b_n` (`U_free + e U_k`, the normal rows) and `b_t` (`T v_free`, the tangent rows), both
+    /// in the order of `active`, and friction coefficients `friction[α].mu`; writes P_n and P_t
+    /// (zero off the set) into `impulse` and `tangent_impulse`, adds `Ŵ⁻¹(G P_n + T P_t)` to
+    /// `v`, and writes into `levels` the round-off level of each active contact's normal local
+    /// velocity, `64 ε Σ_rows (|b| + Σ |W P|)` over its two rows (the solver couples them).
+    #[allow(clippy::too_many_arguments)]
+    pub fn apply_impulse(
+        &mut self,
+        active: &[usize],
+        b_n: &[f64],
+        b_t: &[f64],
+        friction: &[ContactFriction],
+        options: &LcpOptions,
+        impulse: &mut [f64],
+        tangent_impulse: &mut [f64],
+        v: &mut [f64],
+        levels: &mut Vec<f64>,
+    ) -> Result<LcpStats, FrictionError> {
+        impulse.fill(0.0);
+        tangent_impulse.fill(0.0);
+        levels.clear();
+        if active.is_empty() {
+            return Ok(LcpStats::default());
+        }
+        let (k, mm) = (active.len(), 2 * self.m);
+        self.sub_w.clear();
+        self.sub_q.clear();
+        self.sub_mu.clear();
+        for (r, &a) in active.iter().enumerate() {
+            for row in [2 * a, 2 * a + 1] {
+                for &c in active {
+                    self.sub_w
+                        .extend_from_slice(&self.w[row * mm + 2 * c..row * mm + 2 * c + 2]);
+                }
+            }
+            self.sub_q.extend([b_n[r], b_t[r]]);
+            self.sub_mu.push(friction[a].mu);
+        }
+        let sol = friction::solve_friction(
+            FrictionProblem {
+                w: &self.sub_w,
+                q: &self.sub_q,
+                mu: &self.sub_mu,
+            },
+            options,
+        )?;
+        let n = self.n;
+        for (r, &a) in active.iter().enumerate() {
+            let (pn, pt) = (sol.p[2 * r], sol.p[2 * r + 1]);
+            impulse[a] = pn;
+            tangent_impulse[a] = pt;
+            for (p, col) in [(pn, 2 * a), (pt, 2 * a + 1)] {
+                if p != 0.0 {
+                    for (vi, ci) in v.iter_mut().zip(&self.columns[col * n..(col + 1) * n]) {
+                        *vi += p * ci;
+                    }
+                }
+            }
+            let mut level = 0.0;
+            for row in [2 * r, 2 * r + 1] {
+                let wp: f64 = (0..2 * k)
+                    .map(|c| (self.sub_w[row * 2 * k + c] * sol.p[c]).abs())
+                    .sum();
+                level += self.sub_q[row].abs() + wp;
+            }
+            levels.push(64.0 * f64::EPSILON * level);
         }
         Ok(LcpStats {
             size: k,

@@ -10,7 +10,7 @@ use crate::integrators::position_contact::{PositionContact, PositionContactParam
 use crate::integrators::{LinearScheme, LinearState, OutputOptions, run_linear};
 use crate::lagrangian::UserModel;
 use crate::lcp::LcpOptions;
-use crate::model::{Contact, Forcing, HarmonicLoad, LinearModel, ModelError};
+use crate::model::{Contact, ContactFriction, Forcing, HarmonicLoad, LinearModel, ModelError};
 use crate::nonlinear::LagrangianSystem;
 use crate::nonlinear::generalized_alpha::{
     JointedSystem, NonsmoothGeneralizedAlpha, NsAlphaParams, NsAlphaSummary, ns_alpha_columns,
@@ -134,6 +134,15 @@ impl LinearJob {
                 return Err(mismatch(model_spec, spec.integrator.scheme()));
             }
         };
+        if model.has_friction() && !matches!(scheme, LinearSchemeChoice::MoreauJean(_)) {
+            return Err(SpecError::new(
+                "integrator.scheme",
+                format!(
+                    "{} does not take Coulomb friction (model.friction > 0): use moreau_jean or moreau_jean_variant",
+                    spec.integrator.scheme()
+                ),
+            ));
+        }
         Ok(LinearJob {
             model,
             scheme,
@@ -379,7 +388,13 @@ impl Job {
             }
             JobKind::Linear(j) => {
                 let recorded = j.steps / j.output.every.max(1) + 2;
-                let columns = 12 + 3 * j.model.contacts.len() + 2 * j.output.probes.len() + 2;
+                let per_contact = if j.model.has_friction() { 5 } else { 3 };
+                let friction = if j.model.has_friction() { 2 } else { 0 };
+                let columns = 12
+                    + friction
+                    + per_contact * j.model.contacts.len()
+                    + 2 * j.output.probes.len()
+                    + 2;
                 JobSize {
                     dofs: j.model.dofs() as u64,
                     steps: j.steps,
@@ -678,7 +693,7 @@ fn build_linear(l: &LinearSpec) -> Result<LinearModel, ModelError> {
         l.v0.clone().unwrap_or_else(|| vec![0.0; n]),
     );
     // Contact rows are validated by LinearModel with `contacts[α]`; the spec calls them g_matrix.
-    model.map_err(|e| match e {
+    let model = model.map_err(|e| match e {
         ModelError::OutOfRange {
             field,
             value,
@@ -695,7 +710,54 @@ fn build_linear(l: &LinearSpec) -> Result<LinearModel, ModelError> {
             }
         }
         other => other,
-    })
+    })?;
+    linear_friction(l, model, n, m)
+}
+
+/// The Coulomb friction of a `linear` model: `friction` (μ per contact, zero when absent) and
+/// `t_matrix` (one tangent row per contact), required when some μ > 0.
+fn linear_friction(
+    l: &LinearSpec,
+    model: LinearModel,
+    n: usize,
+    m: usize,
+) -> Result<LinearModel, ModelError> {
+    let mu = match (&l.friction, &l.t_matrix) {
+        (None, None) => return Ok(model),
+        (Some(mu), _) => mu.clone(),
+        (None, Some(_)) => vec![0.0; m],
+    };
+    crate::model::check_vector("friction", &mu, m)?;
+    let rows = match &l.t_matrix {
+        Some(rows) => {
+            crate::model::check_vector("t_matrix", &vec![0.0; rows.len()], m)?;
+            for (a, row) in rows.iter().enumerate() {
+                crate::model::check_vector(&format!("t_matrix[{a}]"), row, n)?;
+            }
+            rows.clone()
+        }
+        None if mu.iter().all(|&x| x == 0.0) => vec![vec![0.0; n]; m],
+        None => {
+            return Err(ModelError::Required {
+                field: "t_matrix".into(),
+                reason: "required when friction > 0 (one tangent row per contact)",
+            });
+        }
+    };
+    let friction = rows
+        .iter()
+        .zip(&mu)
+        .map(|(row, &mu)| ContactFriction {
+            t: row
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| **c != 0.0)
+                .map(|(i, &c)| (i, c))
+                .collect(),
+            mu,
+        })
+        .collect();
+    model.with_friction(friction)
 }
 
 fn moreau_jean_params(p: &MoreauJeanSpec, variant: bool) -> Result<MoreauJeanParams, SpecError> {

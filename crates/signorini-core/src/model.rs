@@ -106,6 +106,24 @@ impl Contact {
     }
 }
 
+/// Coulomb friction of contact α of a linear model (planar: one tangent per contact): its
+/// tangent row T_α, so that the tangential local velocity is U_t,α = T_α v (the obstacle does not
+/// move tangentially), and its coefficient μ_α ≥ 0.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactFriction {
+    /// Sparse tangent row T_α: (dof, coefficient).
+    pub t: Vec<(usize, f64)>,
+    /// Coulomb coefficient μ_α ≥ 0.
+    pub mu: f64,
+}
+
+impl ContactFriction {
+    /// T_α x.
+    pub fn project(&self, x: &[f64]) -> f64 {
+        self.t.iter().map(|&(i, c)| c * x[i]).sum()
+    }
+}
+
 /// Why a model is invalid. `field` names the offending input, relative to the model section.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum ModelError {
@@ -182,6 +200,14 @@ pub enum ModelError {
         /// n.
         dofs: usize,
     },
+    /// An input that another one makes necessary is missing.
+    #[error("{field}: {reason}")]
+    Required {
+        /// Which input.
+        field: String,
+        /// Why it is needed.
+        reason: &'static str,
+    },
     /// A contact refers to a dof that does not exist.
     #[error("{field}: dof {dof} does not exist (the model has {n} dofs)")]
     NoSuchDof {
@@ -205,6 +231,7 @@ impl ModelError {
             | ModelError::NotFinite { field }
             | ModelError::OutOfRange { field, .. }
             | ModelError::TooManyContacts { field, .. }
+            | ModelError::Required { field, .. }
             | ModelError::NoSuchDof { field, .. } => field,
         }
     }
@@ -301,6 +328,8 @@ pub struct LinearModel {
     pub force: Forcing,
     /// Unilateral contacts (columns of G, offsets w, restitutions).
     pub contacts: Vec<Contact>,
+    /// Coulomb friction, one per contact, or empty (frictionless model, the default).
+    pub friction: Vec<ContactFriction>,
     /// q(t₀).
     pub q0: Vec<f64>,
     /// v(t₀).
@@ -403,9 +432,55 @@ impl LinearModel {
             stiffness,
             force,
             contacts,
+            friction: Vec::new(),
             q0,
             v0,
         })
+    }
+
+    /// The model with Coulomb friction on its contacts: one [`ContactFriction`] per contact
+    /// (field `friction`), tangent rows on existing dofs with finite coefficients (field
+    /// `t_matrix[α]`), non-zero where μ > 0, and μ finite and ≥ 0 (field `friction[α]`).
+    pub fn with_friction(mut self, friction: Vec<ContactFriction>) -> Result<Self, ModelError> {
+        let n = self.dofs();
+        if friction.len() != self.contacts.len() {
+            return Err(ModelError::Dimension {
+                field: "friction".into(),
+                expected: self.contacts.len(),
+                found: friction.len(),
+            });
+        }
+        for (a, f) in friction.iter().enumerate() {
+            check_range(&format!("friction[{a}]"), f.mu, 0.0, f64::MAX, "[0, ∞)")?;
+            for &(i, coef) in &f.t {
+                if i >= n {
+                    return Err(ModelError::NoSuchDof {
+                        field: format!("t_matrix[{a}]"),
+                        dof: i,
+                        n,
+                    });
+                }
+                if !coef.is_finite() {
+                    return Err(ModelError::NotFinite {
+                        field: format!("t_matrix[{a}]"),
+                    });
+                }
+            }
+            if f.mu > 0.0 && f.t.iter().all(|&(_, coef)| coef == 0.0) {
+                return Err(ModelError::OutOfRange {
+                    field: format!("t_matrix[{a}]"),
+                    value: 0.0,
+                    range: "non-zero tangent rows where friction > 0",
+                });
+            }
+        }
+        self.friction = friction;
+        Ok(self)
+    }
+
+    /// Whether some contact has μ > 0.
+    pub fn has_friction(&self) -> bool {
+        self.friction.iter().any(|f| f.mu > 0.0)
     }
 
     /// Number of dofs n.

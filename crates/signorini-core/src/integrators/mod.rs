@@ -10,6 +10,7 @@ pub mod position_contact;
 
 use crate::contact::LcpStats;
 use crate::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS, EnergyTerms};
+use crate::friction::FrictionError;
 use crate::lcp::LcpError;
 use crate::model::LinearModel;
 use crate::observer::{Columns, Observer, Progress, StepRecord};
@@ -52,7 +53,14 @@ pub struct StepReport {
     pub local_velocity: Vec<f64>,
     /// Impulse P_{k+1} of each contact.
     pub impulse: Vec<f64>,
-    /// The step's LCP.
+    /// Tangential impulse P_t,{k+1} of each contact (models with friction; zero otherwise).
+    pub tangent_impulse: Vec<f64>,
+    /// Tangential local velocity U_t,{k+1} = T v_{k+1} of each contact (models with friction).
+    pub tangent_velocity: Vec<f64>,
+    /// Discrete work of the friction impulses over the step (models with friction), included
+    /// in `energy.balance_residual`.
+    pub work_friction: f64,
+    /// The step's LCP (or friction problem).
     pub lcp: LcpStats,
 }
 
@@ -63,15 +71,21 @@ impl StepReport {
             gap: vec![0.0; contacts],
             local_velocity: vec![0.0; contacts],
             impulse: vec![0.0; contacts],
+            tangent_impulse: vec![0.0; contacts],
+            tangent_velocity: vec![0.0; contacts],
             ..Default::default()
         }
     }
 
-    /// Fills gaps and local velocities from the state at t.
+    /// Fills gaps and local velocities (with friction also the tangential ones) from the
+    /// state at t.
     pub fn fill_contacts(&mut self, model: &LinearModel, q: &[f64], v: &[f64], t: f64) {
         for (a, c) in model.contacts.iter().enumerate() {
             self.gap[a] = c.gap(q, t);
             self.local_velocity[a] = c.local_velocity(v, t);
+        }
+        for (a, f) in model.friction.iter().enumerate() {
+            self.tangent_velocity[a] = f.project(v);
         }
     }
 }
@@ -88,6 +102,16 @@ pub enum StepError {
         t: f64,
         /// The solver's error.
         source: LcpError,
+    },
+    /// The friction problem of the step could not be solved to tolerance.
+    #[error("step {step} (t = {t}): contact friction problem failed: {source}")]
+    Friction {
+        /// Step number (of the state reached).
+        step: u64,
+        /// Time t_{k+1}.
+        t: f64,
+        /// The solver's error.
+        source: FrictionError,
     },
     /// The state became NaN or infinite.
     #[error("step {step} (t = {t}): the state is no longer finite")]
@@ -155,18 +179,36 @@ pub struct LinearRunStats {
     pub work_damping_total: f64,
     /// See `work_ext_total`.
     pub work_contact_total: f64,
+    /// Cumulative friction work at the end (models with friction only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub work_friction_total: Option<f64>,
+    /// Largest friction work of one step, max_k work_friction (models with friction only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub work_friction_max: Option<f64>,
 }
 
-/// Column names of a linear run: energy terms, cumulative works, then `gap_α, u_α, p_α` per
-/// contact, then `q_j, v_j` per probe.
-pub fn linear_columns(contacts: usize, probes: &[usize]) -> Columns {
+/// The friction columns of a linear run whose model has friction, after the cumulative works:
+/// the step's friction work and its cumulative sum.
+pub const FRICTION_COLUMNS: [&str; 2] = ["work_friction", "work_friction_total"];
+
+/// Column names of a linear run: energy terms, cumulative works, with friction
+/// [`FRICTION_COLUMNS`], then `gap_α, u_α, p_α` per contact (with friction also `pt_α, ut_α`,
+/// tangential impulse and velocity), then `q_j, v_j` per probe. A model without friction has
+/// exactly the frictionless columns.
+pub fn linear_columns(contacts: usize, friction: bool, probes: &[usize]) -> Columns {
     let mut names: Vec<String> = ENERGY_COLUMNS
         .iter()
         .chain(&CUMULATIVE_COLUMNS)
         .map(|s| s.to_string())
         .collect();
+    if friction {
+        names.extend(FRICTION_COLUMNS.iter().map(|s| s.to_string()));
+    }
     for a in 0..contacts {
         names.extend([format!("gap_{a}"), format!("u_{a}"), format!("p_{a}")]);
+        if friction {
+            names.extend([format!("pt_{a}"), format!("ut_{a}")]);
+        }
     }
     for j in probes {
         names.extend([format!("q_{j}"), format!("v_{j}")]);
@@ -198,7 +240,8 @@ pub fn run_linear(
     observer: &mut dyn Observer,
 ) -> Result<LinearRunStats, RunStop> {
     let m = model.contacts.len();
-    let columns = linear_columns(m, &output.probes);
+    let friction = model.has_friction();
+    let columns = linear_columns(m, friction, &output.probes);
     observer.start(&columns);
     let every = output.every.max(1);
     let mut report = StepReport::with_contacts(m);
@@ -217,6 +260,7 @@ pub fn run_linear(
         energy_final: e0,
         energy_max: e0,
         algorithmic_energy_max: report.energy.algorithmic_energy.abs(),
+        work_friction_total: friction.then_some(0.0),
         ..Default::default()
     };
     let mut row = Vec::with_capacity(columns.len());
@@ -230,8 +274,14 @@ pub fn run_linear(
                 stats.work_damping_total,
                 stats.work_contact_total,
             ]);
+            if let Some(total) = stats.work_friction_total {
+                row.extend([report.work_friction, total]);
+            }
             for a in 0..m {
                 row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
+                if friction {
+                    row.extend([report.tangent_impulse[a], report.tangent_velocity[a]]);
+                }
             }
             for &j in &output.probes {
                 row.extend([state.q[j], state.v[j]]);
@@ -263,6 +313,14 @@ pub fn run_linear(
         stats.work_ext_total += e.work_ext;
         stats.work_damping_total += e.work_damping;
         stats.work_contact_total += e.work_contact;
+        if let Some(total) = stats.work_friction_total.as_mut() {
+            *total += report.work_friction;
+            stats.work_friction_max = Some(
+                stats
+                    .work_friction_max
+                    .map_or(report.work_friction, |w| w.max(report.work_friction)),
+            );
+        }
         stats.max_abs_balance_residual =
             stats.max_abs_balance_residual.max(e.balance_residual.abs());
         stats.energy_final = e.energy();

@@ -20,10 +20,23 @@
 //! same derivation with (29b) gives v_{k+1/2} in place of the outer v_{k+θ} of the three works
 //! (`work_damping = −h v_{k+1/2}ᵀ C v_{k+θ}`) and `numerical_dissipation = (½ − θ)‖Δq‖²_K`,
 //! which is (91) of Corollary 1 with γ = 2β = θ.
+//!
+//! Coulomb friction (a model with [`LinearModel::friction`], planar: one tangent row T_α per
+//! contact; Moreau 1988, Jean 1999): when a contact of the index set has μ > 0, the impulse
+//! solves the friction problem of [`crate::friction`] on the rows (G_α, T_α) of the active
+//! contacts, Delassus operator `[G T]ᵀŴ⁻¹[G T]` (precomputed, [`FrictionDelassus`]), free local
+//! velocity `(U_free + e U_k, T v_free)`, and (21a) gains `T P_t` on its right-hand side.
+//! Multiplying it by the velocity of the works adds `work_friction = v_{k+θ}ᵀ T P_t`
+//! (variant: v_{k+1/2}) = Σ P_t,α (θ U_t,{k+1} + (1 − θ) U_t,k) to Lemma 1's balance, which keeps
+//! closing at round-off: `balance_residual` = ΔE − work_ext − work_damping − work_contact −
+//! work_friction − numerical_dissipation. Coulomb's law on U_t,{k+1} makes the θ part ≤ 0; the
+//! (1 − θ) part is ≤ 0 unless the sliding velocity reverses within the step (see
+//! [`crate::nonlinear::moreau_jean`]). Without friction on the index set the step is the
+//! frictionless one, operation for operation.
 
 use super::{LinearScheme, LinearState, StepError, StepReport};
 use crate::band::{BandCholesky, BandError, SymBand};
-use crate::contact::{Delassus, IndexSet, IndexSetRule};
+use crate::contact::{Delassus, FrictionDelassus, IndexSet, IndexSetRule};
 use crate::energy::EnergyTerms;
 use crate::lcp::LcpOptions;
 use crate::model::LinearModel;
@@ -58,6 +71,8 @@ pub struct MoreauJean {
     /// Cholesky factor of Ŵ.
     factor: BandCholesky,
     delassus: Delassus,
+    /// The Delassus operator with the tangent rows (models with friction).
+    friction: Option<FrictionDelassus>,
     has_damping: bool,
     /// Energy (kinetic, strain) at the state of the last step, keyed by step number.
     last_energy: Option<(u64, f64, f64)>,
@@ -78,6 +93,10 @@ struct Scratch {
     v_pos: Vec<f64>,
     dv: Vec<f64>,
     dq: Vec<f64>,
+    /// Free tangential velocities T v_free of the active contacts (friction).
+    rhs_t: Vec<f64>,
+    /// Round-off levels of the friction problem's normal velocities.
+    levels: Vec<f64>,
 }
 
 impl MoreauJean {
@@ -101,6 +120,11 @@ impl MoreauJean {
         ]);
         let factor = w_hat.cholesky()?;
         let delassus = Delassus::new(&factor, &model.contacts);
+        let friction = model
+            .has_friction()
+            .then(|| FrictionDelassus::new(&factor, &model.contacts, &model.friction));
+        let mut index_set = IndexSet::new(model.contacts.len());
+        index_set.friction = friction.is_some();
         let n = model.dofs();
         let z = vec![0.0; n];
         Ok(Self {
@@ -109,6 +133,7 @@ impl MoreauJean {
             lcp,
             factor,
             delassus,
+            friction,
             has_damping: !model.damping.is_zero(),
             last_energy: None,
             f_next: z.clone(),
@@ -122,8 +147,10 @@ impl MoreauJean {
                 v_pos: z.clone(),
                 dv: z.clone(),
                 dq: z,
+                rhs_t: Vec::new(),
+                levels: Vec::new(),
             },
-            index_set: IndexSet::new(model.contacts.len()),
+            index_set,
         })
     }
 }
@@ -194,22 +221,55 @@ impl LinearScheme for MoreauJean {
             h,
             |c| c.project(&state.v) + c.project(dv) + c.w_rate(t_next),
         );
-        report.lcp = self
-            .delassus
-            .apply_impulse(
-                &self.index_set.active,
-                &self.index_set.rhs,
-                &self.lcp,
-                &mut report.impulse,
-                &mut s.dv,
-            )
-            .map_err(|source| StepError::Lcp {
-                step,
-                t: t_next,
-                source,
-            })?;
-        self.index_set
-            .record_roundoff(self.delassus.matrix(), &report.impulse, step);
+        let friction = self.friction.as_mut().filter(|_| {
+            self.index_set
+                .active
+                .iter()
+                .any(|&a| model.friction[a].mu > 0.0)
+        });
+        if let Some(fd) = friction {
+            s.rhs_t.clear();
+            for &a in &self.index_set.active {
+                let f = &model.friction[a];
+                s.rhs_t.push(f.project(&state.v) + f.project(&s.dv));
+            }
+            report.lcp = fd
+                .apply_impulse(
+                    &self.index_set.active,
+                    &self.index_set.rhs,
+                    &s.rhs_t,
+                    &model.friction,
+                    &self.lcp,
+                    &mut report.impulse,
+                    &mut report.tangent_impulse,
+                    &mut s.dv,
+                    &mut s.levels,
+                )
+                .map_err(|source| StepError::Friction {
+                    step,
+                    t: t_next,
+                    source,
+                })?;
+            self.index_set.record_levels(&s.levels, step);
+        } else {
+            report.tangent_impulse.fill(0.0);
+            report.lcp = self
+                .delassus
+                .apply_impulse(
+                    &self.index_set.active,
+                    &self.index_set.rhs,
+                    &self.lcp,
+                    &mut report.impulse,
+                    &mut s.dv,
+                )
+                .map_err(|source| StepError::Lcp {
+                    step,
+                    t: t_next,
+                    source,
+                })?;
+            self.index_set
+                .record_roundoff(self.delassus.matrix(), &report.impulse, step);
+        }
 
         // Energy of the state the step starts from (cached from the previous step).
         let (kin_k, strain_k) = match self.last_energy {
@@ -245,6 +305,16 @@ impl LinearScheme for MoreauJean {
             .iter()
             .map(|&a| report.impulse[a] * model.contacts[a].project(&s.v_pos))
             .sum();
+        let work_friction: f64 = if self.friction.is_some() {
+            self.index_set
+                .active
+                .iter()
+                .map(|&a| report.tangent_impulse[a] * model.friction[a].project(&s.v_pos))
+                .sum()
+        } else {
+            0.0
+        };
+        report.work_friction = work_friction;
         let numerical_dissipation = match (theta == 0.5, variant) {
             (true, _) => 0.0,
             (false, true) => (0.5 - theta) * model.stiffness.quad(&s.dq, &s.dq),
@@ -270,6 +340,7 @@ impl LinearScheme for MoreauJean {
                 - work_ext
                 - work_damping
                 - work_contact
+                - work_friction
                 - numerical_dissipation,
         };
         report.fill_contacts(model, &state.q, &state.v, t_next);

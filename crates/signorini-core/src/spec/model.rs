@@ -111,6 +111,15 @@ pub struct LinearSpec {
     /// Restitution per contact.
     #[serde(default)]
     pub restitution: Vec<f64>,
+    /// Coulomb friction: the tangent rows T, one per contact, n entries each (the tangential
+    /// local velocity is U_t = T v). Required when some `friction` is > 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t_matrix: Option<Vec<Vec<f64>>>,
+    /// Coulomb friction coefficient μ ≥ 0 per contact (zero when absent). A model with μ > 0
+    /// runs with `moreau_jean` or `moreau_jean_variant`; the step solves the planar friction
+    /// problem (`contact_solver.kind`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<Vec<f64>>,
     /// Initial positions (zero when absent).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub q0: Option<Vec<f64>>,
