@@ -18,6 +18,7 @@ The TOML file uses the flag names with underscores, e.g.
   store = \"signorini.db\"
   zenoh_listen = [\"tcp/127.0.0.1:7447\"]
   zenoh_connect = []            # e.g. [\"tcp/zenohd:7447\"] to join a zenoh router
+  zenoh_config = \"deploy/zenoh/service.json5\"   # optional: mode, authentication, ACL
   workers = 4
   queue_limit = 256
   token = \"secret\"              # bearer token required by mutating calls (submit, cancel)
@@ -49,6 +50,10 @@ pub struct ServeArgs {
     /// zenoh router or peer endpoint(s) to connect to (none by default).
     #[arg(long, env = "SIGNORINI_ZENOH_CONNECT", value_delimiter = ',')]
     pub zenoh_connect: Vec<String>,
+    /// zenoh configuration file (JSON5) for the service's session: mode, authentication and
+    /// access control (deploy/zenoh/); --zenoh-listen/--zenoh-connect replace its endpoints.
+    #[arg(long, env = "SIGNORINI_ZENOH_CONFIG")]
+    pub zenoh_config: Option<PathBuf>,
     /// Worker threads [default: number of cores].
     #[arg(long, env = "SIGNORINI_WORKERS")]
     pub workers: Option<usize>,
@@ -78,6 +83,7 @@ struct FileConfig {
     store: Option<PathBuf>,
     zenoh_listen: Option<Vec<String>>,
     zenoh_connect: Option<Vec<String>>,
+    zenoh_config: Option<PathBuf>,
     workers: Option<usize>,
     queue_limit: Option<usize>,
     token: Option<String>,
@@ -110,6 +116,8 @@ pub struct ServeConfig {
     pub zenoh_listen: Vec<String>,
     /// zenoh connect endpoints.
     pub zenoh_connect: Vec<String>,
+    /// zenoh configuration file.
+    pub zenoh_config: Option<PathBuf>,
     /// Worker threads.
     pub workers: usize,
     /// Queue limit.
@@ -142,6 +150,7 @@ impl ServeConfig {
                 file.unwrap_or(default)
             }
         };
+        let zenoh_config = args.zenoh_config.or(file.zenoh_config);
         let cfg = ServeConfig {
             grpc_addr: args
                 .grpc_addr
@@ -155,12 +164,18 @@ impl ServeConfig {
                 .store
                 .or(file.store)
                 .unwrap_or_else(|| PathBuf::from("signorini.db")),
+            // A zenoh configuration file names its own endpoints.
             zenoh_listen: pick(
                 args.zenoh_listen,
                 file.zenoh_listen,
-                vec!["tcp/127.0.0.1:7447".into()],
+                if zenoh_config.is_some() {
+                    Vec::new()
+                } else {
+                    vec!["tcp/127.0.0.1:7447".into()]
+                },
             ),
             zenoh_connect: pick(args.zenoh_connect, file.zenoh_connect, Vec::new()),
+            zenoh_config,
             workers: args.workers.or(file.workers).unwrap_or(cores),
             queue_limit: args.queue_limit.or(file.queue_limit).unwrap_or(256),
             token: args.token.or(file.token).filter(|t| !t.is_empty()),

@@ -224,6 +224,7 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
     let session = stream::open_session(&ZenohOptions {
         listen: cfg.zenoh_listen.clone(),
         connect: cfg.zenoh_connect.clone(),
+        config: cfg.zenoh_config.clone(),
     })
     .await?;
     let opened = StoreLock::take(&cfg.store).and_then(|lock| Ok((lock, Store::open(&cfg.store)?)));
