@@ -25,6 +25,7 @@ The TOML file uses the flag names with underscores, e.g.
   max_dofs = 100000
   max_steps = 100000000
   max_output_mb = 1024
+  retain_days = 30              # remove finished jobs 30 days after they ended (default: keep)
 
 HTTP: POST /v1/jobs, GET /v1/jobs, GET /v1/jobs/{id}, GET /v1/jobs/{id}/result,
 GET /v1/jobs/{id}/figures, GET /v1/jobs/{id}/figures/{name} (SVG), DELETE /v1/jobs/{id},
@@ -69,6 +70,10 @@ pub struct ServeArgs {
     /// Most time steps per job [default: 100000000].
     #[arg(long, env = "SIGNORINI_MAX_STEPS")]
     pub max_steps: Option<u64>,
+    /// Remove finished jobs and their results this many days after they ended (fractions
+    /// allowed; kept forever by default).
+    #[arg(long, env = "SIGNORINI_RETAIN_DAYS")]
+    pub retain_days: Option<f64>,
     /// Largest estimated recorded output per job, in MiB [default: 1024].
     #[arg(long, env = "SIGNORINI_MAX_OUTPUT_MB")]
     pub max_output_mb: Option<u64>,
@@ -90,6 +95,7 @@ struct FileConfig {
     max_dofs: Option<u64>,
     max_steps: Option<u64>,
     max_output_mb: Option<u64>,
+    retain_days: Option<f64>,
 }
 
 /// Per-job limits.
@@ -126,6 +132,8 @@ pub struct ServeConfig {
     pub token: Option<String>,
     /// Per-job limits.
     pub limits: Limits,
+    /// How long finished jobs are kept (forever when `None`).
+    pub retain: Option<std::time::Duration>,
 }
 
 impl ServeConfig {
@@ -188,6 +196,15 @@ impl ServeConfig {
                     .unwrap_or(1024)
                     .saturating_mul(1 << 20),
             },
+            retain: None,
+        };
+        let cfg = match args.retain_days.or(file.retain_days) {
+            None => cfg,
+            Some(d) if d.is_finite() && d > 0.0 => ServeConfig {
+                retain: Some(std::time::Duration::from_secs_f64(d * 86_400.0)),
+                ..cfg
+            },
+            Some(d) => bail!("--retain-days must be a positive number of days, not {d}"),
         };
         if cfg.workers == 0 {
             bail!("workers must be at least 1");

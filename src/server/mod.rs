@@ -249,6 +249,22 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
         })
         .await?;
     }
+    if let Some(retain) = cfg.retain {
+        // Old finished jobs go at start and then every tenth of the retention (at most hourly).
+        let engine = engine.clone();
+        let every = (retain / 10).clamp(Duration::from_millis(200), Duration::from_secs(3600));
+        tokio::spawn(async move {
+            loop {
+                let e = engine.clone();
+                match tokio::task::spawn_blocking(move || e.expire(retain)).await {
+                    Ok(Ok(n)) if n > 0 => tracing::info!(removed = n, "retention"),
+                    Ok(Err(e)) => tracing::error!("retention: {e}"),
+                    _ => {}
+                }
+                tokio::time::sleep(every).await;
+            }
+        });
+    }
     let state = AppState {
         engine: engine.clone(),
         token: cfg.token.as_deref().map(Arc::from),

@@ -38,6 +38,8 @@ pub struct Options {
     pub max_steps: Option<u64>,
     /// A zenoh configuration file for the server's session (`--zenoh-config`).
     pub zenoh_config: Option<PathBuf>,
+    /// `--retain-days`.
+    pub retain_days: Option<f64>,
 }
 
 impl Default for Options {
@@ -48,6 +50,7 @@ impl Default for Options {
             token: None,
             max_steps: None,
             zenoh_config: None,
+            retain_days: None,
         }
     }
 }
@@ -98,6 +101,7 @@ impl TestServer {
             .env_remove("SIGNORINI_TOKEN")
             .env_remove("SIGNORINI_CONFIG")
             .env_remove("SIGNORINI_ZENOH_CONFIG")
+            .env_remove("SIGNORINI_RETAIN_DAYS")
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit());
         if let Some(t) = &opts.token {
@@ -108,6 +112,9 @@ impl TestServer {
         }
         if let Some(c) = &opts.zenoh_config {
             cmd.arg("--zenoh-config").arg(c);
+        }
+        if let Some(d) = opts.retain_days {
+            cmd.args(["--retain-days", &d.to_string()]);
         }
         let mut child = cmd.spawn().expect("starting signorini serve");
         let stdout = child.stdout.take().expect("piped stdout");
