@@ -27,11 +27,14 @@ The TOML file uses the flag names with underscores, e.g.
   max_output_mb = 1024
   retain_days = 30              # remove finished jobs 30 days after they ended (default: keep)
 
-HTTP: POST /v1/jobs, GET /v1/jobs, GET /v1/jobs/{id}, GET /v1/jobs/{id}/result,
-GET /v1/jobs/{id}/figures, GET /v1/jobs/{id}/figures/{name} (SVG), DELETE /v1/jobs/{id},
-GET /v1/capabilities, GET /healthz, GET /metrics, GET /jobs/{id} (live page).
+HTTP: POST /v1/jobs, GET /v1/jobs?limit=&state=&page_token=, GET /v1/jobs/{id},
+GET /v1/jobs/{id}/result?format=json|csv|npz&columns=&every=&from=&to= (streamed, gzip),
+GET /v1/jobs/{id}/events?from_seq= (SSE), GET /v1/jobs/{id}/figures, GET /v1/jobs/{id}/figures/{name}
+(SVG), DELETE /v1/jobs/{id}[?purge=true], GET /v1/capabilities, GET /healthz, GET /metrics,
+GET / (jobs), GET /jobs/{id} (live page).
 gRPC: signorini.v1.Simulation and grpc.health.v1.Health.
-zenoh: signorini/v1/jobs/{id}/status, …/state, …/energy (protobuf frames).")]
+zenoh: signorini/v1/jobs/{id}/status, …/state, …/energy (protobuf frames); get …/energy/* and
+…/state/* for the recorded frames.")]
 pub struct ServeArgs {
     /// TOML configuration file.
     #[arg(long, env = "SIGNORINI_CONFIG")]
