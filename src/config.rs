@@ -18,18 +18,23 @@ The TOML file uses the flag names with underscores, e.g.
   store = \"signorini.db\"
   zenoh_listen = [\"tcp/127.0.0.1:7447\"]
   zenoh_connect = []            # e.g. [\"tcp/zenohd:7447\"] to join a zenoh router
+  zenoh_config = \"deploy/zenoh/service.json5\"   # optional: mode, authentication, ACL
   workers = 4
   queue_limit = 256
   token = \"secret\"              # bearer token required by mutating calls (submit, cancel)
   max_dofs = 100000
   max_steps = 100000000
   max_output_mb = 1024
+  retain_days = 30              # remove finished jobs 30 days after they ended (default: keep)
 
-HTTP: POST /v1/jobs, GET /v1/jobs, GET /v1/jobs/{id}, GET /v1/jobs/{id}/result,
-GET /v1/jobs/{id}/figures, GET /v1/jobs/{id}/figures/{name} (SVG), DELETE /v1/jobs/{id},
-GET /v1/capabilities, GET /healthz, GET /metrics, GET /jobs/{id} (live page).
+HTTP: POST /v1/jobs, GET /v1/jobs?limit=&state=&page_token=, GET /v1/jobs/{id},
+GET /v1/jobs/{id}/result?format=json|csv|npz&columns=&every=&from=&to= (streamed, gzip),
+GET /v1/jobs/{id}/events?from_seq= (SSE), GET /v1/jobs/{id}/figures, GET /v1/jobs/{id}/figures/{name}
+(SVG), DELETE /v1/jobs/{id}[?purge=true], GET /v1/capabilities, GET /healthz, GET /metrics,
+GET / (jobs), GET /jobs/{id} (live page).
 gRPC: signorini.v1.Simulation and grpc.health.v1.Health.
-zenoh: signorini/v1/jobs/{id}/status, …/state, …/energy (protobuf frames).")]
+zenoh: signorini/v1/jobs/{id}/status, …/state, …/energy (protobuf frames); get …/energy/* and
+…/state/* for the recorded frames.")]
 pub struct ServeArgs {
     /// TOML configuration file.
     #[arg(long, env = "SIGNORINI_CONFIG")]
@@ -49,6 +54,10 @@ pub struct ServeArgs {
     /// zenoh router or peer endpoint(s) to connect to (none by default).
     #[arg(long, env = "SIGNORINI_ZENOH_CONNECT", value_delimiter = ',')]
     pub zenoh_connect: Vec<String>,
+    /// zenoh configuration file (JSON5) for the service's session: mode, authentication and
+    /// access control (deploy/zenoh/); --zenoh-listen/--zenoh-connect replace its endpoints.
+    #[arg(long, env = "SIGNORINI_ZENOH_CONFIG")]
+    pub zenoh_config: Option<PathBuf>,
     /// Worker threads [default: number of cores].
     #[arg(long, env = "SIGNORINI_WORKERS")]
     pub workers: Option<usize>,
@@ -64,6 +73,10 @@ pub struct ServeArgs {
     /// Most time steps per job [default: 100000000].
     #[arg(long, env = "SIGNORINI_MAX_STEPS")]
     pub max_steps: Option<u64>,
+    /// Remove finished jobs and their results this many days after they ended (fractions
+    /// allowed; kept forever by default).
+    #[arg(long, env = "SIGNORINI_RETAIN_DAYS")]
+    pub retain_days: Option<f64>,
     /// Largest estimated recorded output per job, in MiB [default: 1024].
     #[arg(long, env = "SIGNORINI_MAX_OUTPUT_MB")]
     pub max_output_mb: Option<u64>,
@@ -78,12 +91,14 @@ struct FileConfig {
     store: Option<PathBuf>,
     zenoh_listen: Option<Vec<String>>,
     zenoh_connect: Option<Vec<String>>,
+    zenoh_config: Option<PathBuf>,
     workers: Option<usize>,
     queue_limit: Option<usize>,
     token: Option<String>,
     max_dofs: Option<u64>,
     max_steps: Option<u64>,
     max_output_mb: Option<u64>,
+    retain_days: Option<f64>,
 }
 
 /// Per-job limits.
@@ -110,6 +125,8 @@ pub struct ServeConfig {
     pub zenoh_listen: Vec<String>,
     /// zenoh connect endpoints.
     pub zenoh_connect: Vec<String>,
+    /// zenoh configuration file.
+    pub zenoh_config: Option<PathBuf>,
     /// Worker threads.
     pub workers: usize,
     /// Queue limit.
@@ -118,6 +135,8 @@ pub struct ServeConfig {
     pub token: Option<String>,
     /// Per-job limits.
     pub limits: Limits,
+    /// How long finished jobs are kept (forever when `None`).
+    pub retain: Option<std::time::Duration>,
 }
 
 impl ServeConfig {
@@ -142,6 +161,7 @@ impl ServeConfig {
                 file.unwrap_or(default)
             }
         };
+        let zenoh_config = args.zenoh_config.or(file.zenoh_config);
         let cfg = ServeConfig {
             grpc_addr: args
                 .grpc_addr
@@ -155,12 +175,18 @@ impl ServeConfig {
                 .store
                 .or(file.store)
                 .unwrap_or_else(|| PathBuf::from("signorini.db")),
+            // A zenoh configuration file names its own endpoints.
             zenoh_listen: pick(
                 args.zenoh_listen,
                 file.zenoh_listen,
-                vec!["tcp/127.0.0.1:7447".into()],
+                if zenoh_config.is_some() {
+                    Vec::new()
+                } else {
+                    vec!["tcp/127.0.0.1:7447".into()]
+                },
             ),
             zenoh_connect: pick(args.zenoh_connect, file.zenoh_connect, Vec::new()),
+            zenoh_config,
             workers: args.workers.or(file.workers).unwrap_or(cores),
             queue_limit: args.queue_limit.or(file.queue_limit).unwrap_or(256),
             token: args.token.or(file.token).filter(|t| !t.is_empty()),
@@ -173,6 +199,15 @@ impl ServeConfig {
                     .unwrap_or(1024)
                     .saturating_mul(1 << 20),
             },
+            retain: None,
+        };
+        let cfg = match args.retain_days.or(file.retain_days) {
+            None => cfg,
+            Some(d) if d.is_finite() && d > 0.0 => ServeConfig {
+                retain: Some(std::time::Duration::from_secs_f64(d * 86_400.0)),
+                ..cfg
+            },
+            Some(d) => bail!("--retain-days must be a positive number of days, not {d}"),
         };
         if cfg.workers == 0 {
             bail!("workers must be at least 1");

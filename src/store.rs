@@ -632,6 +632,18 @@ impl Store {
             .collect()
     }
 
+    /// The finished jobs (succeeded, failed, cancelled) that ended before `cutoff_ms`.
+    pub fn finished_before(&self, cutoff_ms: u64) -> Result<Vec<String>, StoreError> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(
+            "SELECT id FROM jobs WHERE state IN ('succeeded', 'failed', 'cancelled') AND finished_ms < ?1",
+        )?;
+        let ids = stmt
+            .query_map([cutoff_ms as i64], |r| r.get::<_, String>(0))?
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(ids)
+    }
+
     /// Removes a job, its result and its series. False when there was no such job.
     pub fn delete(&self, id: &str) -> Result<bool, StoreError> {
         let mut conn = self.conn();

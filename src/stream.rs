@@ -76,28 +76,45 @@ pub struct ZenohOptions {
     pub listen: Vec<String>,
     /// Endpoints to connect to (routers or peers).
     pub connect: Vec<String>,
+    /// A zenoh configuration file (JSON5) to start from instead of the built-in peer on
+    /// loopback: its mode, authentication (`transport.auth.usrpwd`, TLS) and access control
+    /// apply; `listen`/`connect`, when not empty, replace its endpoints.
+    pub config: Option<std::path::PathBuf>,
 }
 
-/// Opens a zenoh peer: explicit endpoints, multicast scouting off.
+/// Opens a zenoh session: a peer with multicast scouting off on the given endpoints, or the
+/// configuration file of `opts.config` with the endpoints given.
 pub async fn open_session(opts: &ZenohOptions) -> Result<Session> {
-    let mut config = zenoh::Config::default();
     let set = |config: &mut zenoh::Config, key: &str, value: String| {
         config
             .insert_json5(key, &value)
             .map_err(|e| anyhow!("zenoh config {key}: {e}"))
     };
-    set(&mut config, "mode", "\"peer\"".into())?;
-    set(&mut config, "scouting/multicast/enabled", "false".into())?;
-    set(
-        &mut config,
-        "listen/endpoints",
-        serde_json::to_string(&opts.listen)?,
-    )?;
-    set(
-        &mut config,
-        "connect/endpoints",
-        serde_json::to_string(&opts.connect)?,
-    )?;
+    let mut config = match &opts.config {
+        Some(path) => zenoh::Config::from_file(path)
+            .map_err(|e| anyhow!("zenoh config {}: {e}", path.display()))?,
+        None => {
+            let mut config = zenoh::Config::default();
+            set(&mut config, "mode", "\"peer\"".into())?;
+            set(&mut config, "scouting/multicast/enabled", "false".into())?;
+            config
+        }
+    };
+    let from_file = opts.config.is_some();
+    if !from_file || !opts.listen.is_empty() {
+        set(
+            &mut config,
+            "listen/endpoints",
+            serde_json::to_string(&opts.listen)?,
+        )?;
+    }
+    if !from_file || !opts.connect.is_empty() {
+        set(
+            &mut config,
+            "connect/endpoints",
+            serde_json::to_string(&opts.connect)?,
+        )?;
+    }
     zenoh::open(config)
         .await
         .map_err(|e| anyhow!("opening zenoh session: {e}"))

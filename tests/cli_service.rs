@@ -200,7 +200,7 @@ async fn watch_reports_a_spoofed_final_status_as_an_error() {
     let endpoint = format!("tcp/127.0.0.1:{}", common::free_port());
     let stranger = signorini::stream::open_session(&signorini::stream::ZenohOptions {
         listen: vec![endpoint.clone()],
-        connect: Vec::new(),
+        ..Default::default()
     })
     .await
     .expect("the stranger's zenoh peer");

@@ -325,3 +325,47 @@ async fn purge_removes_a_finished_job_and_its_result_but_not_a_running_one() {
         ["done"]
     );
 }
+
+/// `--retain-days`: a finished job goes once it has been over for longer (here 2 s, as a
+/// fraction of a day), with its result; a running one stays.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn finished_jobs_expire_after_the_retention_and_running_ones_stay() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(
+        &dir.path().join("s.db"),
+        &Options {
+            retain_days: Some(2.0 / 86_400.0),
+            ..Options::default()
+        },
+    );
+    let mut client = server.grpc().await;
+    let done = submit_json(&mut client, ball_json(1e-3, 100, 1), Some("short-lived"))
+        .await
+        .expect("submit");
+    wait_terminal(&mut client, &done).await;
+    let busy = submit_json(&mut client, ball_json(1e-6, 50_000_000, 1000), Some("busy"))
+        .await
+        .expect("submit");
+    wait_running(&mut client, &busy, 1).await;
+    let (code, body) = server.http("GET", "/v1/jobs/short-lived", None, None).await;
+    assert_eq!(code, 200, "still there right after its end");
+    let finished_ms = body["finished_ms"].as_u64().expect("finished_ms");
+    let start = std::time::Instant::now();
+    loop {
+        let (code, _) = server
+            .http("GET", "/v1/jobs/short-lived/result", None, None)
+            .await;
+        if code == 404 {
+            break;
+        }
+        assert!(start.elapsed() < common::PATIENCE, "never expired");
+        tokio::time::sleep(std::time::Duration::from_millis(200)).await;
+    }
+    let now_ms = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .expect("clock")
+        .as_millis() as u64;
+    assert!(now_ms >= finished_ms + 2000, "not before its time");
+    let (code, body) = server.http("GET", "/v1/jobs/busy", None, None).await;
+    assert_eq!((code, body["state"].as_str()), (200, Some("running")));
+}

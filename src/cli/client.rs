@@ -124,6 +124,10 @@ pub struct WatchArgs {
     /// One JSON object per frame on stdout instead of a progress bar.
     #[arg(long)]
     pub json: bool,
+    /// zenoh configuration file (JSON5): mode and credentials for a router with access control
+    /// (deploy/zenoh/viewer.json5); --zenoh replaces its endpoints.
+    #[arg(long, env = "SIGNORINI_WATCH_ZENOH_CONFIG")]
+    pub zenoh_config: Option<PathBuf>,
     /// The server whose gRPC API confirms the final status seen over zenoh.
     #[command(flatten)]
     pub conn: Connection,
@@ -231,6 +235,7 @@ pub fn submit(args: SubmitArgs) -> Result<()> {
             id,
             zenoh: args.zenoh,
             json: false,
+            zenoh_config: None,
             conn: args.conn,
         });
     }
@@ -526,6 +531,7 @@ pub fn watch(args: WatchArgs) -> Result<()> {
         let session = stream::open_session(&ZenohOptions {
             listen: Vec::new(),
             connect: vec![args.zenoh.clone()],
+            config: args.zenoh_config.clone(),
         })
         .await?;
         let outcome = watch_session(&session, &args).await;

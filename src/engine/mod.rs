@@ -391,6 +391,23 @@ impl Engine {
         })
     }
 
+    /// Removes the finished jobs that ended more than `retain` ago, with their results
+    /// (blocking); the number removed.
+    pub fn expire(&self, retain: std::time::Duration) -> Result<usize, ApiError> {
+        let cutoff = now_ms().saturating_sub(retain.as_millis() as u64);
+        let ids = self.inner.store.finished_before(cutoff)?;
+        let mut removed = 0;
+        for id in &ids {
+            match self.delete(id) {
+                Ok(()) => removed += 1,
+                // Purged meanwhile by a client.
+                Err(ApiError::NotFound { .. }) => {}
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(removed)
+    }
+
     /// Removes a finished job and its result from the store; a queued or running job must be
     /// cancelled first.
     pub fn delete(&self, id: &str) -> Result<(), ApiError> {

@@ -224,6 +224,7 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
     let session = stream::open_session(&ZenohOptions {
         listen: cfg.zenoh_listen.clone(),
         connect: cfg.zenoh_connect.clone(),
+        config: cfg.zenoh_config.clone(),
     })
     .await?;
     let opened = StoreLock::take(&cfg.store).and_then(|lock| Ok((lock, Store::open(&cfg.store)?)));
@@ -247,6 +248,22 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
             engine.history(id).ok().map(|(_, h)| h)
         })
         .await?;
+    }
+    if let Some(retain) = cfg.retain {
+        // Old finished jobs go at start and then every tenth of the retention (at most hourly).
+        let engine = engine.clone();
+        let every = (retain / 10).clamp(Duration::from_millis(200), Duration::from_secs(3600));
+        tokio::spawn(async move {
+            loop {
+                let e = engine.clone();
+                match tokio::task::spawn_blocking(move || e.expire(retain)).await {
+                    Ok(Ok(n)) if n > 0 => tracing::info!(removed = n, "retention"),
+                    Ok(Err(e)) => tracing::error!("retention: {e}"),
+                    _ => {}
+                }
+                tokio::time::sleep(every).await;
+            }
+        });
     }
     let state = AppState {
         engine: engine.clone(),

@@ -36,6 +36,10 @@ pub struct Options {
     pub queue_limit: usize,
     pub token: Option<String>,
     pub max_steps: Option<u64>,
+    /// A zenoh configuration file for the server's session (`--zenoh-config`).
+    pub zenoh_config: Option<PathBuf>,
+    /// `--retain-days`.
+    pub retain_days: Option<f64>,
 }
 
 impl Default for Options {
@@ -45,6 +49,8 @@ impl Default for Options {
             queue_limit: 64,
             token: None,
             max_steps: None,
+            zenoh_config: None,
+            retain_days: None,
         }
     }
 }
@@ -94,6 +100,8 @@ impl TestServer {
             ])
             .env_remove("SIGNORINI_TOKEN")
             .env_remove("SIGNORINI_CONFIG")
+            .env_remove("SIGNORINI_ZENOH_CONFIG")
+            .env_remove("SIGNORINI_RETAIN_DAYS")
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit());
         if let Some(t) = &opts.token {
@@ -101,6 +109,12 @@ impl TestServer {
         }
         if let Some(s) = opts.max_steps {
             cmd.args(["--max-steps", &s.to_string()]);
+        }
+        if let Some(c) = &opts.zenoh_config {
+            cmd.arg("--zenoh-config").arg(c);
+        }
+        if let Some(d) = opts.retain_days {
+            cmd.args(["--retain-days", &d.to_string()]);
         }
         let mut child = cmd.spawn().expect("starting signorini serve");
         let stdout = child.stdout.take().expect("piped stdout");
@@ -269,6 +283,7 @@ impl TestServer {
         signorini::stream::open_session(&signorini::stream::ZenohOptions {
             listen: Vec::new(),
             connect: vec![self.zenoh.clone()],
+            ..Default::default()
         })
         .await
         .expect("zenoh session")
