@@ -393,10 +393,11 @@ pub fn main_asymptote(k: usize) -> f64 {
     (r + 1.0) * (r + 1.0) / (r + 2.0)
 }
 
-/// Columns of `backbone.csv`. The last three classify an admissible orbit: `branch` (k of the
-/// main branch it lies on, [`main_branch`]; NaN, i.e. empty, off the main branches and for two
-/// contact phases), `zero_force_steps` and `grazing_steps` ([`OrbitClass`]; NaN when not
-/// admissible).
+/// Columns of `backbone.csv`. The last three classify an admissible orbit: `branch` (k ≥ 1 of
+/// the main branch it lies on, [`main_branch`]; 0 off the main branches and for two contact
+/// phases — not NaN, so that a default table stays finite, as the stored results need),
+/// `zero_force_steps` and `grazing_steps` ([`OrbitClass`]; NaN when not admissible, like
+/// `energy`).
 pub const BACKBONE_COLUMNS: [&str; 15] = [
     "gap",
     "m",
@@ -431,7 +432,7 @@ pub fn backbone_row(pt: &BackbonePoint) -> Vec<f64> {
         pt.period,
         pt.contact_duration,
         if pt.k > 0 { 2.0 } else { 1.0 },
-        pt.branch.map_or(f64::NAN, |k| k as f64),
+        pt.branch.map_or(0.0, |k| k as f64),
         class.map_or(f64::NAN, |c| c.zero_force_steps as f64),
         class.map_or(f64::NAN, |c| c.grazing_steps as f64),
     ]
