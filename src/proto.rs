@@ -3,6 +3,7 @@
 //! zenoh share.
 
 pub mod encode;
+pub mod typed_spec;
 
 /// The encoded file-descriptor set of `proto/signorini/v1` (gRPC server reflection).
 pub const FILE_DESCRIPTOR_SET: &[u8] = tonic::include_file_descriptor_set!("signorini_descriptor");

@@ -5,20 +5,17 @@
 //! Sections newer than the typed messages (`scene = "lagrangian"`) go over gRPC in the JSON
 //! spelling of `SubmitJobRequest` only: their examples are skipped here.
 
-#[path = "common/to_proto.rs"]
-mod to_proto;
-
 use prost::Message;
+use signorini::proto::typed_spec::job_spec_to_proto;
 use signorini::proto::v1 as pb;
 use signorini::server::convert::job_spec;
 use signorini::spec_file::{Format, parse};
 use signorini_core::spec::JobSpec;
 use std::collections::BTreeSet;
 use std::path::Path;
-use to_proto::job_spec_to_proto;
 
 fn round_trip(spec: &JobSpec) -> JobSpec {
-    let typed = job_spec_to_proto(spec);
+    let typed = job_spec_to_proto(spec).expect("a spec the typed message carries");
     let bytes = typed.encode_to_vec();
     let decoded = pb::JobSpec::decode(bytes.as_slice()).expect("decoding the typed spec");
     assert_eq!(decoded, typed, "prost wire round trip");
@@ -184,7 +181,7 @@ fn newton_strategy_round_trips_and_defaults() {
             r#"{{"model":{{"scene":"pendulum"}},"integrator":{{"scheme":"{scheme}","newton":"full"}},"time":{{"h":0.001,"steps":5}}}}"#
         );
         let spec = parse(&text, Format::Json).unwrap_or_else(|e| panic!("{text}: {e}"));
-        let typed = job_spec_to_proto(&spec);
+        let typed = job_spec_to_proto(&spec).expect("a typed spec");
         let newton = match typed.integrator.as_ref().and_then(|i| i.scheme.as_ref()) {
             Some(pb::integrator_spec::Scheme::Soi2GeneralizedAlpha(g)) => g.newton,
             Some(
@@ -680,4 +677,20 @@ fn random_specs_round_trip_through_the_typed_proto() {
         .expect("spawning the property test")
         .join()
         .expect("the property holds");
+}
+
+#[test]
+fn json_only_sections_are_named_not_converted() {
+    let json_only = |text: &str| {
+        let spec = parse(text, Format::Toml).unwrap_or_else(|e| panic!("{text}: {e}"));
+        job_spec_to_proto(&spec).expect_err("JSON only").to_string()
+    };
+    let ball = "[model]\nscene = \"bouncing_ball\"\n[time]\nh = 0.01\nsteps = 10\n";
+    assert!(job_spec_to_proto(&parse(ball, Format::Toml).expect("ball")).is_ok());
+    let e = json_only(&format!("{ball}[check]\nmax_balance_residual = 1e-12\n"));
+    assert!(e.starts_with("[check] has no typed proto message"), "{e}");
+    let e = json_only(
+        "[model]\nscene = \"lagrangian\"\ncoordinates = [\"x\"]\nmass = [[1.0]]\nq0 = [0.0]\n[time]\nh = 0.01\nsteps = 1\n",
+    );
+    assert!(e.starts_with("scene `lagrangian`"), "{e}");
 }

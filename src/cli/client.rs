@@ -190,11 +190,19 @@ pub fn submit(args: SubmitArgs) -> Result<()> {
         .with_context(|| format!("reading {}", args.spec.display()))?;
     let spec = spec_file::parse(&text, Format::of_path(&args.spec))
         .map_err(|e| anyhow!("invalid spec {}: {e}", args.spec.display()))?;
-    let json = serde_json::to_string(&spec)?;
+    // Typed, as a gRPC client should; the sections the typed message does not carry
+    // (`lagrangian` models, friction, [check], [study]) go as the JSON spelling.
+    let typed = match crate::proto::typed_spec::job_spec_to_proto(&spec) {
+        Ok(t) => pb::submit_job_request::Spec::Typed(t),
+        Err(json_only) => {
+            tracing::debug!("{json_only}");
+            pb::submit_job_request::Spec::Json(serde_json::to_string(&spec)?)
+        }
+    };
     let id = runtime()?.block_on(async {
         let mut c = client(&args.conn).await?;
         let req = pb::SubmitJobRequest {
-            spec: Some(pb::submit_job_request::Spec::Json(json)),
+            spec: Some(typed),
             id: args.id.clone(),
         };
         let resp = c

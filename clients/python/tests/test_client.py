@@ -51,11 +51,15 @@ def test_file_and_dict_submits_give_the_same_result(client):
     assert set(ra.columns) == {"step", "t", "energy"}
 
 
-@pytest.mark.parametrize("via", ["zenoh"])
+@pytest.mark.parametrize("via", ["zenoh", "grpc"])
 def test_watched_energy_equals_the_stored_result_bit_for_bit(client, via):
     job_id = f"py-watch-{via}-{uuid.uuid4().hex[:8]}"
-    watch = client.watch(job_id, via=via)  # subscribed before the job exists
-    client.submit(BALL, id=job_id)
+    if via == "zenoh":
+        watch = client.watch(job_id, via=via)  # subscribed before the job exists
+        client.submit(BALL, id=job_id)
+    else:
+        client.submit(BALL, id=job_id)
+        watch = client.watch(job_id, via=via)  # replays the stored frames, then live
     streamed: dict[int, float] = {}
     states = []
     for frame in watch:
@@ -128,3 +132,21 @@ def test_server_reflection_lists_the_service_and_its_messages(server):
         assert {"SubmitJob", "GetJob", "WatchJob", "GetResult", "Capabilities"} <= methods
         submit = simulation.methods_by_name["SubmitJob"]
         assert "typed" in submit.input_type.fields_by_name
+
+
+def test_results_stream_in_pieces_cut_on_the_server_and_jobs_page_and_delete(client):
+    job = client.submit(typed_ball(t_end=20.0))  # 4000 steps
+    client.wait(job, timeout=60)
+    whole = client.result(job)
+    assert len(whole["step"]) == 4001 and not whole.partial
+    cut = client.result(job, columns=["energy"], every=10, from_step=1000, to_step=2000)
+    assert set(cut.columns) == {"step", "t", "energy"}
+    assert cut["step"][0] == 1000 and cut["step"][-1] == 2000 and len(cut["step"]) == 101
+    np.testing.assert_array_equal(cut["energy"], whole["energy"][1000:2001:10])
+    ids = [s.id for s in client.jobs(state="succeeded", page_size=2)]
+    assert job in ids and len(ids) == len(set(ids))
+    client.delete(job)
+    assert job not in [s.id for s in client.jobs()]
+    with pytest.raises(SignoriniError) as e:
+        client.status(job)
+    assert e.value.code.name == "NOT_FOUND"

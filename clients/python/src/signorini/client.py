@@ -118,7 +118,7 @@ class Frame:
 class Result:
     """A finished job: `columns` maps every recorded column (with `step` and `t`) to a numpy
     array; `summary` is summary.json; `tables` maps a table name to its columns; `figures` a
-    figure name to its SVG text."""
+    figure name to its SVG text; `partial` marks the rows a failed or cancelled run recorded."""
 
     id: str
     state: str
@@ -127,6 +127,7 @@ class Result:
     tables: dict[str, dict[str, np.ndarray]]
     figures: dict[str, str]
     status: service_pb2.JobStatus
+    partial: bool = False
 
     def __getitem__(self, column: str) -> np.ndarray:
         return self.columns[column]
@@ -135,9 +136,10 @@ class Result:
 class Watch:
     """The frames of one job, from the moment this object exists until the job ends.
 
-    Subscribes on construction, so `w = client.watch(id)` before `client.submit(spec, id=id)`
-    sees every frame. Iterate it (it ends after the terminal status) or use it as a context
-    manager; `via` is `"zenoh"` or `"grpc"`."""
+    Over zenoh it subscribes on construction, so `w = client.watch(id)` before
+    `client.submit(spec, id=id)` sees every frame; over gRPC the job must exist, and its stored
+    frames are replayed before the live ones, so nothing is missed either. Iterate it (it ends
+    after the terminal status) or use it as a context manager; `via` is `"zenoh"` or `"grpc"`."""
 
     def __init__(self, client: "Client", job_id: str, via: str, timeout: float | None):
         self._queue: queue.Queue = queue.Queue()
@@ -175,8 +177,9 @@ class Watch:
                     self._queue.put(Frame("status", status=status))
 
     def _open_grpc(self, client: "Client", job_id: str) -> None:
+        # from_seq = 0: the job's stored frames first, then the live ones (no gap).
         call = client._stub.WatchJob(
-            service_pb2.WatchJobRequest(id=job_id), metadata=client._metadata
+            service_pb2.WatchJobRequest(id=job_id, from_seq=0), metadata=client._metadata
         )
         self._closers.append(call.cancel)
         started = threading.Event()
@@ -284,9 +287,25 @@ class Client:
         """Cancels a queued or running job."""
         return self._call("CancelJob", service_pb2.CancelJobRequest(id=job_id))
 
-    def jobs(self) -> list[service_pb2.JobStatus]:
-        """Every job the service knows."""
-        return list(self._call("ListJobs", service_pb2.ListJobsRequest()).jobs)
+    def jobs(self, state: str | None = None, page_size: int = 100) -> Iterator[service_pb2.JobStatus]:
+        """The service's jobs, newest first (only those in `state`, e.g. "running"), fetched
+        one page at a time."""
+        wanted = 0
+        if state is not None:
+            names = {v: k for k, v in STATES.items()}
+            if state not in names:
+                raise ValueError(f"state: one of {sorted(names)}, not {state!r}")
+            wanted = names[state]
+        token = ""
+        while True:
+            page = self._call(
+                "ListJobs",
+                service_pb2.ListJobsRequest(limit=page_size, page_token=token, state=wanted),
+            )
+            yield from page.jobs
+            token = page.next_page_token
+            if not token:
+                return
 
     def capabilities(self) -> service_pb2.CapabilitiesResponse:
         """Models, integrators, contact solvers, analyses and their parameters."""
@@ -303,33 +322,72 @@ class Client:
                 raise SignoriniError(f"job {job_id} still {state_name(status)} after {timeout} s")
             time.sleep(poll)
 
-    def result(self, job_id: str, columns: list[str] | None = None, every: int = 0) -> Result:
-        """The result of a finished job, as numpy arrays."""
-        r = self._call(
-            "GetResult", service_pb2.GetResultRequest(id=job_id, columns=columns or [], every=every)
-        )
-        cols: dict[str, np.ndarray] = {
-            "step": np.asarray(r.step, dtype=np.uint64),
-            "t": np.asarray(r.t, dtype=np.float64),
-        }
-        for s in r.series:
-            cols[s.column] = np.asarray(s.values, dtype=np.float64)
+    def result(
+        self,
+        job_id: str,
+        columns: list[str] | None = None,
+        every: int = 0,
+        from_step: int | None = None,
+        to_step: int | None = None,
+    ) -> Result:
+        """The result of a finished job, as numpy arrays, received with StreamResult in
+        messages of about 1 MiB (any size of result, under every default message limit) and
+        written into arrays allocated once. A failed or cancelled job's recorded rows come with
+        `partial = True`. `columns`, `every`, `from_step`, `to_step` cut the rows on the server."""
+        request = service_pb2.GetResultRequest(id=job_id, columns=columns or [], every=every)
+        if from_step is not None:
+            request.from_step = from_step
+        if to_step is not None:
+            request.to_step = to_step
+        try:
+            stream = self._stub.StreamResult(request, metadata=self._metadata)
+            header = None
+            figures: dict[str, str] = {}
+            cols: dict[str, np.ndarray] = {}
+            for chunk in stream:
+                part = chunk.WhichOneof("part")
+                if part == "header":
+                    header = chunk.header
+                    n = header.rows
+                    cols = {"step": np.empty(n, dtype=np.uint64), "t": np.empty(n)}
+                    names = list(header.columns)
+                    for c in names:
+                        cols[c] = np.empty(n)
+                elif part == "figure":
+                    figures[chunk.figure.name] = chunk.figure.svg
+                elif part == "rows" and header is not None:
+                    rows = chunk.rows
+                    a, k = rows.first_row, len(rows.step)
+                    cols["step"][a : a + k] = rows.step
+                    cols["t"][a : a + k] = rows.t
+                    values = np.asarray(rows.values, dtype=np.float64).reshape(k, len(names))
+                    for i, c in enumerate(names):
+                        cols[c][a : a + k] = values[:, i]
+        except grpc.RpcError as e:
+            _raise(e)
+        if header is None:
+            raise SignoriniError(f"job {job_id}: the result stream sent no header")
         tables = {
             tb.name: {
                 c: np.asarray([row.values[i] for row in tb.rows], dtype=np.float64)
                 for i, c in enumerate(tb.columns)
             }
-            for tb in r.tables
+            for tb in header.tables
         }
         return Result(
-            id=r.id,
-            state=state_name(r.status),
-            summary=json.loads(r.summary_json) if r.summary_json else {},
+            id=header.id,
+            state=state_name(header.status),
+            summary=json.loads(header.summary_json) if header.summary_json else {},
             columns=cols,
             tables=tables,
-            figures={f.name: f.svg for f in r.figures},
-            status=r.status,
+            figures=figures,
+            status=header.status,
+            partial=header.partial,
         )
+
+    def delete(self, job_id: str) -> None:
+        """Removes a finished job and its result."""
+        self._call("DeleteJob", service_pb2.DeleteJobRequest(id=job_id))
 
     def watch(self, job_id: str, *, via: str = "auto", timeout: float | None = 60.0) -> Watch:
         """The job's live frames (see `Watch`). `via="auto"` uses zenoh when eclipse-zenoh is

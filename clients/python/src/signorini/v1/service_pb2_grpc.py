@@ -54,6 +54,11 @@ class SimulationStub:
                 request_serializer=signorini_dot_v1_dot_service__pb2.CancelJobRequest.SerializeToString,
                 response_deserializer=signorini_dot_v1_dot_service__pb2.JobStatus.FromString,
                 _registered_method=True)
+        self.DeleteJob = channel.unary_unary(
+                '/signorini.v1.Simulation/DeleteJob',
+                request_serializer=signorini_dot_v1_dot_service__pb2.DeleteJobRequest.SerializeToString,
+                response_deserializer=signorini_dot_v1_dot_service__pb2.DeleteJobResponse.FromString,
+                _registered_method=True)
         self.WatchJob = channel.unary_stream(
                 '/signorini.v1.Simulation/WatchJob',
                 request_serializer=signorini_dot_v1_dot_service__pb2.WatchJobRequest.SerializeToString,
@@ -63,6 +68,11 @@ class SimulationStub:
                 '/signorini.v1.Simulation/GetResult',
                 request_serializer=signorini_dot_v1_dot_service__pb2.GetResultRequest.SerializeToString,
                 response_deserializer=signorini_dot_v1_dot_service__pb2.JobResult.FromString,
+                _registered_method=True)
+        self.StreamResult = channel.unary_stream(
+                '/signorini.v1.Simulation/StreamResult',
+                request_serializer=signorini_dot_v1_dot_service__pb2.GetResultRequest.SerializeToString,
+                response_deserializer=signorini_dot_v1_dot_service__pb2.ResultChunk.FromString,
                 _registered_method=True)
         self.Capabilities = channel.unary_unary(
                 '/signorini.v1.Simulation/Capabilities',
@@ -89,7 +99,8 @@ class SimulationServicer:
         raise NotImplementedError('Method not implemented!')
 
     def ListJobs(self, request, context):
-        """Missing associated documentation comment in .proto file."""
+        """One page of jobs, newest first.
+        """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
@@ -100,15 +111,35 @@ class SimulationServicer:
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
 
+    def DeleteJob(self, request, context):
+        """Removes a finished job and its result (FAILED_PRECONDITION while it is queued or running).
+        """
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
     def WatchJob(self, request, context):
-        """Status frames and step frames of a job until it ends (live only: no history).
+        """Status frames and step frames of a job until it ends: live only, or with `from_seq` its
+        history first (stored frames of seq ≥ from_seq), then live, no gap or duplicate between.
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
 
     def GetResult(self, request, context):
-        """Missing associated documentation comment in .proto file."""
+        """A succeeded job's whole result in one message (FAILED_PRECONDITION for any other state).
+        RESOURCE_EXHAUSTED when the cut series would exceed 64 MiB: use StreamResult.
+        """
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
+    def StreamResult(self, request, context):
+        """A finished job's result in messages of at most about 1 MiB each (under every client's
+        default 4 MiB limit): one ResultHeader, the figures one per message, then the kept rows in
+        chunks, read from the store as they are sent. A failed or cancelled job's recorded rows
+        come with `partial` set.
+        """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
@@ -142,6 +173,11 @@ def add_SimulationServicer_to_server(servicer, server):
                     request_deserializer=signorini_dot_v1_dot_service__pb2.CancelJobRequest.FromString,
                     response_serializer=signorini_dot_v1_dot_service__pb2.JobStatus.SerializeToString,
             ),
+            'DeleteJob': grpc.unary_unary_rpc_method_handler(
+                    servicer.DeleteJob,
+                    request_deserializer=signorini_dot_v1_dot_service__pb2.DeleteJobRequest.FromString,
+                    response_serializer=signorini_dot_v1_dot_service__pb2.DeleteJobResponse.SerializeToString,
+            ),
             'WatchJob': grpc.unary_stream_rpc_method_handler(
                     servicer.WatchJob,
                     request_deserializer=signorini_dot_v1_dot_service__pb2.WatchJobRequest.FromString,
@@ -151,6 +187,11 @@ def add_SimulationServicer_to_server(servicer, server):
                     servicer.GetResult,
                     request_deserializer=signorini_dot_v1_dot_service__pb2.GetResultRequest.FromString,
                     response_serializer=signorini_dot_v1_dot_service__pb2.JobResult.SerializeToString,
+            ),
+            'StreamResult': grpc.unary_stream_rpc_method_handler(
+                    servicer.StreamResult,
+                    request_deserializer=signorini_dot_v1_dot_service__pb2.GetResultRequest.FromString,
+                    response_serializer=signorini_dot_v1_dot_service__pb2.ResultChunk.SerializeToString,
             ),
             'Capabilities': grpc.unary_unary_rpc_method_handler(
                     servicer.Capabilities,
@@ -277,6 +318,33 @@ class Simulation:
             _registered_method=True)
 
     @staticmethod
+    def DeleteJob(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_unary(
+            request,
+            target,
+            '/signorini.v1.Simulation/DeleteJob',
+            signorini_dot_v1_dot_service__pb2.DeleteJobRequest.SerializeToString,
+            signorini_dot_v1_dot_service__pb2.DeleteJobResponse.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
     def WatchJob(request,
             target,
             options=(),
@@ -320,6 +388,33 @@ class Simulation:
             '/signorini.v1.Simulation/GetResult',
             signorini_dot_v1_dot_service__pb2.GetResultRequest.SerializeToString,
             signorini_dot_v1_dot_service__pb2.JobResult.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
+    def StreamResult(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_stream(
+            request,
+            target,
+            '/signorini.v1.Simulation/StreamResult',
+            signorini_dot_v1_dot_service__pb2.GetResultRequest.SerializeToString,
+            signorini_dot_v1_dot_service__pb2.ResultChunk.FromString,
             options,
             channel_credentials,
             insecure,

@@ -1,11 +1,15 @@
-//! The core spec → the typed proto message, the inverse of `signorini::server::convert::job_spec`
-//! (which the service uses). Only the tests need this direction: it lets them round-trip specs
-//! through the wire. Every value is written explicitly, defaults included, so converting back
-//! gives an equal spec whenever no optional list is `Some(vec![])` (proto3 `repeated` fields have
-//! no presence). Every core struct is destructured field by field, so a field added to the core
-//! spec breaks this build until it is handled.
+//! The core spec → the typed proto message, the inverse of [`crate::server::convert::job_spec`]
+//! (which the service uses): `signorini submit` sends specs typed, and the tests round-trip specs
+//! through the wire with it. Every value is written explicitly, defaults included, so converting
+//! back gives an equal spec whenever no optional list is `Some(vec![])` (proto3 `repeated`
+//! fields have no presence). Every core struct is destructured field by field, so a field added
+//! to the core spec breaks this build until it is handled.
+//!
+//! The sections added after the typed message was frozen — `lagrangian` models, Coulomb friction
+//! on `linear` models, `[check]`, `[study]` — travel in the JSON spelling of `SubmitJobRequest`
+//! only: for a spec that has one, [`job_spec_to_proto`] says which ([`JsonOnly`]).
 
-use signorini::proto::v1 as pb;
+use crate::proto::v1 as pb;
 use signorini_core::contact::Activation;
 use signorini_core::lcp::LcpSolverKind;
 use signorini_core::scenes::{BarSpec, BouncingBall, Chain, HarmonicSpec, LeftEnd, MassMatrix};
@@ -19,8 +23,13 @@ use signorini_core::spec::{
 
 type Triplets = Vec<(usize, usize, f64)>;
 
-/// The core spec → the typed proto message.
-pub fn job_spec_to_proto(s: &JobSpec) -> pb::JobSpec {
+/// A spec the typed message cannot carry: the section that travels as JSON only.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("{0} has no typed proto message: it travels as the JSON spelling")]
+pub struct JsonOnly(pub &'static str);
+
+/// The core spec → the typed proto message, or the section that only the JSON spelling carries.
+pub fn job_spec_to_proto(s: &JobSpec) -> Result<pb::JobSpec, JsonOnly> {
     let JobSpec {
         // An editor hint of spec files, not carried by the typed spec.
         schema: _,
@@ -31,20 +40,24 @@ pub fn job_spec_to_proto(s: &JobSpec) -> pb::JobSpec {
         contact_solver,
         output,
         analysis,
-        // Read by `signorini check` only, not carried by the typed spec.
-        check: _,
-        // Studies travel as the JSON spelling only.
-        study: _,
+        check,
+        study,
     } = s;
-    pb::JobSpec {
+    if check.is_some() {
+        return Err(JsonOnly("[check]"));
+    }
+    if study.is_some() {
+        return Err(JsonOnly("[study]"));
+    }
+    Ok(pb::JobSpec {
         name: name.clone(),
-        model: model.as_ref().map(model_to_proto),
+        model: model.as_ref().map(model_to_proto).transpose()?,
         integrator: Some(integrator_to_proto(integrator)),
         time: time.as_ref().map(time_to_proto),
         contact_solver: Some(contact_solver_to_proto(contact_solver)),
         output: Some(output_to_proto(output)),
         analysis: analysis.as_ref().map(analysis_to_proto),
-    }
+    })
 }
 
 fn u64_of(v: usize) -> u64 {
@@ -52,7 +65,7 @@ fn u64_of(v: usize) -> u64 {
     v as u64
 }
 
-fn model_to_proto(m: &ModelSpec) -> pb::ModelSpec {
+fn model_to_proto(m: &ModelSpec) -> Result<pb::ModelSpec, JsonOnly> {
     use pb::model_spec::Scene;
     let scene = match m {
         ModelSpec::BouncingBall(b) => {
@@ -93,7 +106,7 @@ fn model_to_proto(m: &ModelSpec) -> pb::ModelSpec {
                 force: force.clone().unwrap_or_default(),
             })
         }
-        ModelSpec::Linear(l) => Scene::Linear(linear_to_proto(l)),
+        ModelSpec::Linear(l) => Scene::Linear(linear_to_proto(l)?),
         ModelSpec::Pendulum(p) => {
             let Pendulum {
                 mass,
@@ -147,14 +160,9 @@ fn model_to_proto(m: &ModelSpec) -> pb::ModelSpec {
                 z0: z0.clone().unwrap_or_default(),
             })
         }
-        // New sections travel in the JSON spelling of SubmitJobRequest only: the typed message
-        // has no `lagrangian` scene, and the callers leave these specs out (the proptest's
-        // strategy generates none, the example round trip skips them).
-        ModelSpec::Lagrangian(_) => {
-            panic!("scene `lagrangian` has no typed proto message: send it as JSON")
-        }
+        ModelSpec::Lagrangian(_) => return Err(JsonOnly("scene `lagrangian`")),
     };
-    pb::ModelSpec { scene: Some(scene) }
+    Ok(pb::ModelSpec { scene: Some(scene) })
 }
 
 fn harmonic_to_proto(h: &HarmonicSpec) -> pb::Harmonic {
@@ -229,7 +237,7 @@ fn triplets_to_proto(t: &Option<Triplets>) -> Vec<pb::Triplet> {
         .collect()
 }
 
-fn linear_to_proto(l: &LinearSpec) -> pb::LinearModel {
+fn linear_to_proto(l: &LinearSpec) -> Result<pb::LinearModel, JsonOnly> {
     let LinearSpec {
         mass,
         mass_triplets,
@@ -247,12 +255,10 @@ fn linear_to_proto(l: &LinearSpec) -> pb::LinearModel {
         t_matrix,
         friction,
     } = l;
-    // Coulomb friction is a round-2 section: JSON only, like `lagrangian` models.
-    assert!(
-        t_matrix.is_none() && friction.is_none(),
-        "a linear model with friction has no typed proto message: send it as JSON"
-    );
-    pb::LinearModel {
+    if t_matrix.is_some() || friction.is_some() {
+        return Err(JsonOnly("Coulomb friction (`t_matrix`, `friction`)"));
+    }
+    Ok(pb::LinearModel {
         mass: mass.as_deref().map(dense_to_proto),
         mass_triplets: triplets_to_proto(mass_triplets),
         stiffness: stiffness.as_deref().map(dense_to_proto),
@@ -280,7 +286,7 @@ fn linear_to_proto(l: &LinearSpec) -> pb::LinearModel {
         restitution: restitution.clone(),
         q0: q0.clone().unwrap_or_default(),
         v0: v0.clone().unwrap_or_default(),
-    }
+    })
 }
 
 fn activation_to_proto(a: Activation) -> i32 {
