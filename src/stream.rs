@@ -264,19 +264,24 @@ pub const HISTORY_FRAMES: usize = 512;
 
 /// Answers `signorini/v1/jobs/{id}/energy` and `…/state` queries (`?from_seq=N`, default 0)
 /// with up to [`HISTORY_FRAMES`] recorded frames of that key from seq N on, read from
-/// `history(id)` (blocking) as the frames are sent; an error reply for an unknown job.
-pub async fn serve_history_queryable<F>(session: Session, history: F) -> Result<()>
+/// `history(id)` (blocking) as the frames are sent; an error reply for an unknown job. Returns
+/// the serving tasks (aborted at shutdown: they hold `history`).
+pub async fn serve_history_queryable<F>(
+    session: Session,
+    history: F,
+) -> Result<Vec<tokio::task::JoinHandle<()>>>
 where
     F: Fn(&str) -> Option<crate::engine::History> + Send + Sync + 'static,
 {
     let history = Arc::new(history);
+    let mut tasks = Vec::new();
     for kind in ["energy", "state"] {
         let queryable = session
             .declare_queryable(format!("signorini/v1/jobs/*/{kind}/*"))
             .await
             .map_err(|e| anyhow!("declaring queryable: {e}"))?;
         let history = history.clone();
-        tokio::spawn(async move {
+        tasks.push(tokio::spawn(async move {
             while let Ok(query) = queryable.recv_async().await {
                 let history = history.clone();
                 tokio::spawn(async move {
@@ -328,14 +333,18 @@ where
                     }
                 });
             }
-        });
+        }));
     }
-    Ok(())
+    Ok(tasks)
 }
 
 /// Answers `signorini/v1/jobs/{id}/status` queries with `lookup(id)` (an error reply when the
-/// job is unknown), until the session closes.
-pub async fn serve_status_queryable<F>(session: Session, lookup: F) -> Result<()>
+/// job is unknown), until the session closes. Returns the serving task (aborted at shutdown:
+/// it holds `lookup`).
+pub async fn serve_status_queryable<F>(
+    session: Session,
+    lookup: F,
+) -> Result<tokio::task::JoinHandle<()>>
 where
     F: Fn(&str) -> Option<JobView> + Send + Sync + 'static,
 {
@@ -343,7 +352,7 @@ where
         .declare_queryable(STATUS_WILDCARD)
         .await
         .map_err(|e| anyhow!("declaring queryable: {e}"))?;
-    tokio::spawn(async move {
+    Ok(tokio::spawn(async move {
         while let Ok(query) = queryable.recv_async().await {
             let key = query.key_expr().as_str().to_string();
             let reply = match id_of_key(&key).and_then(&lookup) {
@@ -359,6 +368,5 @@ where
                 tracing::debug!("status query reply: {e}");
             }
         }
-    });
-    Ok(())
+    }))
 }

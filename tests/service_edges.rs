@@ -223,3 +223,37 @@ async fn a_store_serves_one_server_and_a_failed_start_creates_nothing() {
         .collect();
     assert!(left.is_empty(), "{left:?}");
 }
+
+/// A container engine stops the service with SIGTERM and kills it 5 s later (podman, docker):
+/// the graceful shutdown must finish well inside that, with the zenoh queryables (which hold the
+/// engine) served during the run. It once waited the streamer's whole 5 s timeout for them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sigterm_stops_the_service_promptly_and_cleanly() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut server = TestServer::start(&dir.path().join("s.db"), &Options::default());
+    let mut client = server.grpc().await;
+    let id = submit_json(&mut client, ball_json(1e-3, 1000, 1), Some("before-stop"))
+        .await
+        .expect("submit");
+    wait_terminal(&mut client, &id).await;
+    let session = server.zenoh_session().await;
+    let replies = session
+        .get("signorini/v1/jobs/before-stop/status")
+        .await
+        .expect("status query");
+    assert!(
+        replies.recv_async().await.is_ok(),
+        "the status queryable answers"
+    );
+    drop(replies);
+    let _ = session.close().await;
+    drop(client);
+    let (status, took) = server
+        .terminate(std::time::Duration::from_secs(10))
+        .expect("serve exits after SIGTERM");
+    assert!(status.success(), "clean exit: {status:?}");
+    assert!(
+        took < std::time::Duration::from_secs(3),
+        "shutdown took {took:?}"
+    );
+}

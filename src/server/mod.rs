@@ -238,22 +238,29 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
     let (streamer, sink) = Streamer::start(session.clone());
     let engine = Engine::start(store, cfg.limits, cfg.queue_limit, cfg.workers, sink)
         .map_err(anyhow::Error::from)?;
+    // Tasks that hold the engine (and through it the event sink): aborted at shutdown, before
+    // the streamer waits for every sink to go.
+    let mut background = Vec::new();
     {
         let engine = engine.clone();
-        stream::serve_status_queryable(session.clone(), move |id| engine.find(id)).await?;
+        background.push(
+            stream::serve_status_queryable(session.clone(), move |id| engine.find(id)).await?,
+        );
     }
     {
         let engine = engine.clone();
-        stream::serve_history_queryable(session.clone(), move |id| {
-            engine.history(id).ok().map(|(_, h)| h)
-        })
-        .await?;
+        background.extend(
+            stream::serve_history_queryable(session.clone(), move |id| {
+                engine.history(id).ok().map(|(_, h)| h)
+            })
+            .await?,
+        );
     }
     if let Some(retain) = cfg.retain {
         // Old finished jobs go at start and then every tenth of the retention (at most hourly).
         let engine = engine.clone();
         let every = (retain / 10).clamp(Duration::from_millis(200), Duration::from_secs(3600));
-        tokio::spawn(async move {
+        background.push(tokio::spawn(async move {
             loop {
                 let e = engine.clone();
                 match tokio::task::spawn_blocking(move || e.expire(retain)).await {
@@ -263,7 +270,7 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
                 }
                 tokio::time::sleep(every).await;
             }
-        });
+        }));
     }
     let state = AppState {
         engine: engine.clone(),
@@ -321,6 +328,10 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
     let _ = tokio::time::timeout(Duration::from_secs(10), http_task).await;
     let e = engine.clone();
     tokio::task::spawn_blocking(move || e.shutdown()).await?;
+    for task in background {
+        task.abort();
+        let _ = task.await;
+    }
     drop(state);
     drop(engine);
     streamer.close().await;

@@ -150,6 +150,27 @@ impl TestServer {
         })
     }
 
+    /// SIGTERM (what a container engine sends to stop), then waits for the process to exit:
+    /// its exit status and how long it took (`None` after `within` without exiting: then it is
+    /// killed).
+    pub fn terminate(
+        &mut self,
+        within: std::time::Duration,
+    ) -> Option<(std::process::ExitStatus, std::time::Duration)> {
+        let started = std::time::Instant::now();
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status();
+        while started.elapsed() < within {
+            if let Ok(Some(status)) = self.child.try_wait() {
+                return Some((status, started.elapsed()));
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        self.kill9();
+        None
+    }
+
     /// SIGKILL, no cleanup (crash test).
     pub fn kill9(&mut self) {
         let _ = self.child.kill();
