@@ -95,17 +95,7 @@ pub fn run_study(
                                 run.label,
                                 at.join(" ")
                             ));
-                            StudyPoint {
-                                scheme_index: run.scheme_index,
-                                label: run.label.clone(),
-                                values: run.values.clone(),
-                                h: run.h,
-                                steps,
-                                cpu_s,
-                                error,
-                                max_balance_residual: samples.max_balance_residual,
-                                max_energy_error: samples.max_energy_error,
-                            }
+                            StudyPoint::new(run, steps, cpu_s, error, Some(&samples))
                         }
                         Err(e) => {
                             progress(format!(
@@ -114,17 +104,7 @@ pub fn run_study(
                                 run.label,
                                 at.join(" ")
                             ));
-                            StudyPoint {
-                                scheme_index: run.scheme_index,
-                                label: run.label.clone(),
-                                values: run.values.clone(),
-                                h: run.h,
-                                steps: 0,
-                                cpu_s: f64::NAN,
-                                error: f64::NAN,
-                                max_balance_residual: f64::NAN,
-                                max_energy_error: f64::NAN,
-                            }
+                            StudyPoint::new(run, 0, f64::NAN, f64::NAN, None)
                         }
                     };
                     if let Ok(mut p) = points.lock() {

@@ -33,17 +33,8 @@ fn report(study: &Study) -> StudyReport {
         .map(|r| {
             let mut s = Samples::default();
             job::run(&r.job, 1, &mut s).expect("study run");
-            StudyPoint {
-                scheme_index: r.scheme_index,
-                label: r.label.clone(),
-                values: r.values.clone(),
-                h: r.h,
-                steps: r.job.size().steps,
-                cpu_s: 0.0,
-                error: study.error(&s, reference.as_ref()).expect("error"),
-                max_balance_residual: s.max_balance_residual,
-                max_energy_error: s.max_energy_error,
-            }
+            let error = study.error(&s, reference.as_ref()).expect("error");
+            StudyPoint::new(r, r.job.size().steps, 0.0, error, Some(&s))
         })
         .collect();
     StudyReport::new(study, points)

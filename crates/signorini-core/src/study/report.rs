@@ -32,6 +32,30 @@ pub struct StudyPoint {
     pub max_energy_error: f64,
 }
 
+impl StudyPoint {
+    /// The point of `run`: its steps, CPU seconds and error, and the energy checks of its
+    /// `samples` (NaN without samples: a run that failed).
+    pub fn new(
+        run: &super::StudyRun,
+        steps: u64,
+        cpu_s: f64,
+        error: f64,
+        samples: Option<&super::Samples>,
+    ) -> Self {
+        StudyPoint {
+            scheme_index: run.scheme_index,
+            label: run.label.clone(),
+            values: run.values.clone(),
+            h: run.h,
+            steps,
+            cpu_s,
+            error,
+            max_balance_residual: samples.map_or(f64::NAN, |s| s.max_balance_residual),
+            max_energy_error: samples.map_or(f64::NAN, |s| s.max_energy_error),
+        }
+    }
+}
+
 /// The observed order of convergence of one scheme (at fixed values of the other grid axes):
 /// the least-squares slope of log(error) against log(h).
 #[derive(Debug, Clone, PartialEq, Serialize)]
