@@ -28,7 +28,7 @@ use crate::scenes::Bar;
 use crate::soi2::run::Soi2Job;
 use crate::spec::{
     IntegratorSpec, JobSpec, LagrangianSpec, LinearSpec, ModelSpec, MoreauJeanSpec, NsAlphaSpec,
-    PositionContactSpec, Probes, SchemeFamily, SpecError, mismatch,
+    PositionContactSpec, Probes, SchemeFamily, SpecError, Steps, mismatch,
 };
 use crate::trace::EnergyTrace;
 use crate::wfem::job::WaveJob;
@@ -191,19 +191,16 @@ fn lagrangian_moreau_jean(
         index_set,
         newton: NewtonOptions::default(),
     };
-    let steps = spec.time_section()?.steps(false)?;
-    let lcp = spec.contact_solver.options()?;
-    let output = spec
-        .output
-        .options(Probes::Dofs(LagrangianSystem::dofs(&model)))?;
+    let (steps, lcp, output) = lagrangian_run_settings(spec, &model)?;
     // The scheme checks its own parameters once more against the model's sizes.
+    // Moreau–Jean's `gamma` is the index set's `activation_gamma`.
     let scheme = NonlinearMoreauJean::new(&model, params, steps.h, lcp).map_err(|e| {
-        let field = match e.field {
-            "h" => "time.h".to_string(),
-            "gamma" => "integrator.activation_gamma".to_string(),
-            other => format!("integrator.{other}"),
+        let field = if e.field == "gamma" {
+            "activation_gamma"
+        } else {
+            e.field
         };
-        SpecError::new(field, e.reason)
+        scheme_field_error(field, e.reason)
     })?;
     Ok(JobKind::Nonlinear(Box::new(NonlinearJob {
         model,
@@ -212,6 +209,29 @@ fn lagrangian_moreau_jean(
         steps: steps.count(),
         output,
     })))
+}
+
+/// The step count, the contact solver and the output of a `lagrangian` job, each checked once.
+fn lagrangian_run_settings(
+    spec: &JobSpec,
+    model: &UserModel,
+) -> Result<(Steps, LcpOptions, OutputOptions), SpecError> {
+    let steps = spec.time_section()?.steps(false)?;
+    let lcp = spec.contact_solver.options()?;
+    let output = spec
+        .output
+        .options(Probes::Dofs(LagrangianSystem::dofs(model)))?;
+    Ok((steps, lcp, output))
+}
+
+/// A nonlinear scheme's parameter error as a spec error: `h` is `time.h`, the rest
+/// `integrator.<name>`.
+fn scheme_field_error(field: &str, reason: String) -> SpecError {
+    let field = match field {
+        "h" => "time.h".to_string(),
+        other => format!("integrator.{other}"),
+    };
+    SpecError::new(field, reason)
 }
 
 /// A `lagrangian` model under `ns_generalized_alpha`: the coefficients and their checks are the
@@ -241,18 +261,9 @@ fn lagrangian_ns_alpha(l: &LagrangianSpec, spec: &JobSpec) -> Result<JobKind, Sp
         newton: NewtonOptions::default(),
     };
     check_joint_start(&model)?;
-    let steps = spec.time_section()?.steps(false)?;
-    let lcp = spec.contact_solver.options()?;
-    let output = spec
-        .output
-        .options(Probes::Dofs(LagrangianSystem::dofs(&model)))?;
-    let scheme = NonsmoothGeneralizedAlpha::new(&model, params, steps.h, lcp).map_err(|e| {
-        let field = match e.field {
-            "h" => "time.h".to_string(),
-            other => format!("integrator.{other}"),
-        };
-        SpecError::new(field, e.reason)
-    })?;
+    let (steps, lcp, output) = lagrangian_run_settings(spec, &model)?;
+    let scheme = NonsmoothGeneralizedAlpha::new(&model, params, steps.h, lcp)
+        .map_err(|e| scheme_field_error(e.field, e.reason))?;
     Ok(JobKind::NsAlpha(Box::new(NsAlphaJob {
         model,
         scheme,
