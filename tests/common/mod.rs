@@ -4,6 +4,8 @@
 //! clients (hyper-util).
 #![allow(dead_code)]
 
+pub mod browser;
+
 use http_body_util::{BodyExt, Full};
 use hyper::body::Bytes;
 use hyper_util::client::legacy::Client;
