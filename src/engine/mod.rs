@@ -113,6 +113,9 @@ struct Inner {
     shutdown: AtomicBool,
     counters: Counters,
     workers: usize,
+    /// Results being streamed, with their number of readers: a purge waits until none is left
+    /// (it answers [`ApiError::BeingRead`]), so no stream is cut mid-body.
+    readers: Mutex<HashMap<String, usize>>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -253,6 +256,7 @@ impl Engine {
             shutdown: AtomicBool::new(false),
             counters: Counters::default(),
             workers,
+            readers: Mutex::new(HashMap::new()),
         });
         for (view, spec_json) in recovered {
             let built = crate::spec_file::parse(&spec_json, crate::spec_file::Format::Json)
@@ -400,8 +404,8 @@ impl Engine {
         for id in &ids {
             match self.delete(id) {
                 Ok(()) => removed += 1,
-                // Purged meanwhile by a client.
-                Err(ApiError::NotFound { .. }) => {}
+                // Purged meanwhile by a client; or being read: removed at a later sweep.
+                Err(ApiError::NotFound { .. } | ApiError::BeingRead { .. }) => {}
                 Err(e) => return Err(e),
             }
         }
@@ -409,12 +413,20 @@ impl Engine {
     }
 
     /// Removes a finished job and its result from the store; a queued or running job must be
-    /// cancelled first.
+    /// cancelled first, and a result being streamed must be read to its end.
     pub fn delete(&self, id: &str) -> Result<(), ApiError> {
         if let Some(live) = lock(&self.inner.live).get(id) {
             return Err(ApiError::Unfinished {
                 id: id.into(),
                 state: live.view().state.as_str(),
+            });
+        }
+        // Held over the removal: no reader opens the result in between.
+        let readers = lock(&self.inner.readers);
+        if let Some(&n) = readers.get(id) {
+            return Err(ApiError::BeingRead {
+                id: id.into(),
+                readers: n,
             });
         }
         if !self.inner.store.delete(id)? {
@@ -476,13 +488,31 @@ impl Engine {
         }
     }
 
-    /// The stored series of a job whose result has `columns` value columns.
-    pub fn series(&self, id: &str, columns: usize) -> Result<Series, ApiError> {
+    /// A finished job's result, as [`Engine::result_head`], with its stored series opened for
+    /// reading: until the [`Series`] is dropped the job cannot be purged, so a stream of it is
+    /// never cut by a concurrent `DELETE …?purge=true` or the retention sweep.
+    pub fn open_result(&self, id: &str) -> Result<(JobView, StoredResult, Series), ApiError> {
+        let mut readers = lock(&self.inner.readers);
+        let (view, head) = self.result_head(id)?;
+        let series = self.open_series(&mut readers, id, head.columns.len())?;
+        Ok((view, head, series))
+    }
+
+    /// A job's stored series with `columns` value columns, opened for reading under the lock of
+    /// the readers (taken by the caller, so that it covers what the caller read before).
+    fn open_series(
+        &self,
+        readers: &mut HashMap<String, usize>,
+        id: &str,
+        columns: usize,
+    ) -> Result<Series, ApiError> {
+        let chunks = self.inner.store.series_index(id)?;
+        *readers.entry(id.to_string()).or_default() += 1;
         Ok(Series {
             inner: self.inner.clone(),
             id: id.to_string(),
             columns,
-            chunks: self.inner.store.series_index(id)?,
+            chunks,
         })
     }
 
@@ -524,7 +554,7 @@ impl Engine {
 }
 
 /// A job's stored series: its chunk index, and its chunks read one at a time (blocking: call
-/// from a blocking context).
+/// from a blocking context). The job is not purged while it lives.
 pub struct Series {
     inner: Arc<Inner>,
     id: String,
@@ -546,6 +576,18 @@ impl Series {
     /// One chunk's rows.
     pub fn read(&self, meta: &ChunkMeta) -> Result<SeriesChunk, ApiError> {
         Ok(self.inner.store.read_chunk(&self.id, meta, self.columns)?)
+    }
+}
+
+impl Drop for Series {
+    fn drop(&mut self) {
+        let mut readers = lock(&self.inner.readers);
+        if let Some(n) = readers.get_mut(&self.id) {
+            *n -= 1;
+            if *n == 0 {
+                readers.remove(&self.id);
+            }
+        }
     }
 }
 
