@@ -4,6 +4,17 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo --version
 scripts/check_core_purity.sh
+# The PostgreSQL store's tests (tests/service_postgres*.rs) start a private server from the
+# distribution's binaries: install them when missing (as root, e.g. CI on a fresh machine).
+if ! ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        DEBIAN_FRONTEND=noninteractive apt-get update -q
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -q postgresql
+    else
+        echo "PostgreSQL is missing: install the postgresql package (apt-get install -y postgresql)" >&2
+        exit 1
+    fi
+fi
 cargo test --workspace
 # The Python client (clients/python), installed as a user would, against the binary just built.
 python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore "./clients/python[test]"
