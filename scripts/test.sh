@@ -3,18 +3,20 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo --version
-# System parts some tests need, installed from the distribution when missing:
-# Chromium drives the pages the service serves (tests/service_browser.rs).
-install_missing() { # COMMAND PACKAGE
-  command -v "$1" >/dev/null 2>&1 && return
-  echo "installing $2 (for $1)"
+# System parts some tests need, installed from the distribution when missing (apt-get, as root
+# or through sudo): Chromium drives the pages the service serves (tests/service_browser.rs);
+# PostgreSQL's binaries start the private servers of the PostgreSQL store's tests
+# (tests/service_postgres*.rs).
+install() { # PACKAGE…
+  echo "installing $* from the distribution"
   local sudo=""
   [ "$(id -u)" -eq 0 ] || sudo="sudo"
   export DEBIAN_FRONTEND=noninteractive
-  $sudo apt-get install -y --no-install-recommends "$2" ||
-    { $sudo apt-get update && $sudo apt-get install -y --no-install-recommends "$2"; }
+  $sudo apt-get install -y -q --no-install-recommends "$@" ||
+    { $sudo apt-get update -q && $sudo apt-get install -y -q --no-install-recommends "$@"; }
 }
-[ -n "${SIGNORINI_CHROMIUM:-}" ] || install_missing chromium chromium
+[ -n "${SIGNORINI_CHROMIUM:-}" ] || command -v chromium >/dev/null 2>&1 || install chromium
+ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || install postgresql
 scripts/check_core_purity.sh
 cargo test --workspace
 # The Python client (clients/python), installed as a user would, against the binary just built.

@@ -15,7 +15,9 @@ The TOML file uses the flag names with underscores, e.g.
 
   grpc_addr = \"127.0.0.1:50051\"
   http_addr = \"127.0.0.1:8080\"
-  store = \"signorini.db\"
+  store = \"signorini.db\"          # or \"postgres://user@host/db\": replicas share it
+  replica = \"node-a\"              # with PostgreSQL: this replica's name (default: host-pid-random)
+  lease_secs = 10.0               # with PostgreSQL: a job's lease, renewed by the heartbeat
   zenoh_listen = [\"tcp/127.0.0.1:7447\"]
   zenoh_connect = []            # e.g. [\"tcp/zenohd:7447\"] to join a zenoh router
   zenoh_config = \"deploy/zenoh/service.json5\"   # optional: mode, authentication, ACL
@@ -45,9 +47,19 @@ pub struct ServeArgs {
     /// HTTP listen address [default: 127.0.0.1:8080].
     #[arg(long, env = "SIGNORINI_HTTP_ADDR")]
     pub http_addr: Option<SocketAddr>,
-    /// SQLite store file [default: signorini.db].
+    /// SQLite store file, or a PostgreSQL URL (`postgres://user:password@host:5432/db`) that
+    /// any number of replicas share, with the queue [default: signorini.db].
     #[arg(long, env = "SIGNORINI_STORE")]
     pub store: Option<PathBuf>,
+    /// This replica's name in a PostgreSQL store's claims; unique among the replicas
+    /// [default: HOSTNAME-PID-RANDOM].
+    #[arg(long, env = "SIGNORINI_REPLICA")]
+    pub replica: Option<String>,
+    /// With a PostgreSQL store: seconds a claimed job stays this replica's without a heartbeat
+    /// (renewed four times per lease); a replica that dies gives its jobs up after this long
+    /// [default: 10].
+    #[arg(long, env = "SIGNORINI_LEASE_SECS")]
+    pub lease_secs: Option<f64>,
     /// zenoh endpoint(s) the embedded peer listens on [default: tcp/127.0.0.1:7447].
     #[arg(long, env = "SIGNORINI_ZENOH_LISTEN", value_delimiter = ',')]
     pub zenoh_listen: Vec<String>,
@@ -89,6 +101,8 @@ struct FileConfig {
     grpc_addr: Option<SocketAddr>,
     http_addr: Option<SocketAddr>,
     store: Option<PathBuf>,
+    replica: Option<String>,
+    lease_secs: Option<f64>,
     zenoh_listen: Option<Vec<String>>,
     zenoh_connect: Option<Vec<String>>,
     zenoh_config: Option<PathBuf>,
@@ -119,8 +133,12 @@ pub struct ServeConfig {
     pub grpc_addr: SocketAddr,
     /// HTTP address.
     pub http_addr: SocketAddr,
-    /// Store file.
+    /// Store file, or PostgreSQL URL.
     pub store: PathBuf,
+    /// This replica's name (its claims in a PostgreSQL store).
+    pub replica: String,
+    /// A claim's lease in a PostgreSQL store.
+    pub lease: std::time::Duration,
     /// zenoh listen endpoints.
     pub zenoh_listen: Vec<String>,
     /// zenoh connect endpoints.
@@ -175,6 +193,17 @@ impl ServeConfig {
                 .store
                 .or(file.store)
                 .unwrap_or_else(|| PathBuf::from("signorini.db")),
+            replica: match args.replica.or(file.replica) {
+                Some(r) if !r.trim().is_empty() => r,
+                _ => default_replica(),
+            },
+            lease: match args.lease_secs.or(file.lease_secs) {
+                None => std::time::Duration::from_secs(10),
+                Some(s) if s.is_finite() && (0.2..=3600.0).contains(&s) => {
+                    std::time::Duration::from_secs_f64(s)
+                }
+                Some(s) => bail!("--lease-secs must be between 0.2 and 3600 seconds, not {s}"),
+            },
             // A zenoh configuration file names its own endpoints.
             zenoh_listen: pick(
                 args.zenoh_listen,
@@ -220,4 +249,18 @@ impl ServeConfig {
         }
         Ok(cfg)
     }
+}
+
+/// A replica name unique among the replicas of one store: the host (`HOSTNAME`, a container's
+/// or pod's name), the process id and a random part (two processes of one host, or two
+/// containers whose main process are both pid 1, differ).
+fn default_replica() -> String {
+    let host = std::env::var("HOSTNAME")
+        .ok()
+        .filter(|h| !h.is_empty())
+        .unwrap_or_else(|| "replica".into());
+    // The last 8 hex digits of a job id are its random part.
+    let id = crate::engine::ids::new_id();
+    let random = &id[id.len().saturating_sub(8)..];
+    format!("{host}-{}-{random}", std::process::id())
 }

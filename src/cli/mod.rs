@@ -26,7 +26,7 @@ pub enum Command {
     /// Run a job in this process (no server) and write its results to a directory.
     Run(run::RunArgs),
     /// Run the service: gRPC + HTTP API, worker pool, zenoh streams, SQLite store.
-    Serve(crate::config::ServeArgs),
+    Serve(Box<crate::config::ServeArgs>),
     /// Submit a job spec to a server; prints the job id.
     Submit(client::SubmitArgs),
     /// Print a job's status (state, progress) as JSON.
@@ -55,7 +55,7 @@ pub enum Command {
 pub fn dispatch(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Run(args) => run::run(args),
-        Command::Serve(args) => serve::run(args),
+        Command::Serve(args) => serve::run(*args),
         Command::Submit(args) => client::submit(args),
         Command::Status(args) => client::status(args),
         Command::Watch(args) => client::watch(args),

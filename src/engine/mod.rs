@@ -3,6 +3,11 @@
 //! status and results in the [`Store`]. It speaks no wire format: what happens to a job leaves as
 //! [`JobEvent`]s, which the adapters (`crate::stream`, `crate::server`) encode.
 //!
+//! With a shared store (PostgreSQL) the queue is the store's: workers claim jobs from it under a
+//! lease that a heartbeat thread renews (with the progress of the jobs this replica runs, and
+//! the cancel requests made on other replicas), and idle workers wait for the store's
+//! notification of a new job or [`CLAIM_POLL`], whichever comes first.
+//!
 //! Cancellation is an `AtomicBool` the run's observer reads after every step, so a running job
 //! stops within one step of the call. Progress (step, t, fraction) lives in atomics read by
 //! `GetJob` and is sent as a status event about every 200 ms.
@@ -16,7 +21,10 @@ use crate::config::Limits;
 use crate::error::ApiError;
 use crate::output::finish_run;
 use crate::status::{JobState, JobView};
-use crate::store::{ChunkMeta, SeriesChunk, Store, StoredResult};
+use crate::store::{
+    Beat, BeatReply, CancelOutcome, ChunkMeta, Claim, SeriesChunk, SharedQueue, Store, StoreError,
+    StoredResult,
+};
 use events::{EventSink, JobEvent, StreamStats};
 use ids::{new_id, now_ms};
 use observer::ServiceObserver;
@@ -27,7 +35,7 @@ use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 use tokio::sync::watch;
 
 pub use history::History;
@@ -289,6 +297,19 @@ impl Engine {
             inner,
             threads: Arc::new(Mutex::new(Vec::new())),
         };
+        if let Some(q) = engine.inner.store.shared() {
+            tracing::info!(
+                replica = q.replica(),
+                lease_s = q.lease().as_secs_f64(),
+                "shared queue"
+            );
+            let inner = engine.inner.clone();
+            let handle = std::thread::Builder::new()
+                .name("signorini-heartbeat".into())
+                .spawn(move || heartbeat_loop(&inner))
+                .map_err(|e| ApiError::Internal(format!("spawning the heartbeat: {e}")))?;
+            lock(&engine.threads).push(handle);
+        }
         for k in 0..workers {
             let inner = engine.inner.clone();
             let handle = std::thread::Builder::new()
@@ -317,6 +338,19 @@ impl Engine {
         let id = id.unwrap_or_else(new_id);
         let created_ms = now_ms();
         let live = Arc::new(new_live(id.clone(), spec.name.clone(), job, created_ms));
+        if let Some(q) = self.inner.store.shared() {
+            // The store queues it (and tells every replica); a worker of any replica claims it.
+            if q.queued()? >= self.inner.queue_limit as u64 {
+                return Err(ApiError::QueueFull {
+                    limit: self.inner.queue_limit,
+                });
+            }
+            if !self.inner.store.insert(&live.view(), &spec_json)? {
+                return Err(ApiError::AlreadyExists { id });
+            }
+            self.inner.sink.send(JobEvent::Status(live.view()));
+            return Ok(id);
+        }
         {
             let mut queue = lock(&self.inner.queue);
             if queue.len() >= self.inner.queue_limit {
@@ -430,7 +464,14 @@ impl Engine {
             });
         }
         if !self.inner.store.delete(id)? {
-            return Err(ApiError::NotFound { id: id.into() });
+            // A shared store keeps a job another replica still runs.
+            return Err(match self.inner.store.get(id)? {
+                Some(v) if !v.state.is_terminal() => ApiError::Unfinished {
+                    id: id.into(),
+                    state: v.state.as_str(),
+                },
+                _ => ApiError::NotFound { id: id.into() },
+            });
         }
         tracing::info!(%id, "purged");
         Ok(())
@@ -441,6 +482,14 @@ impl Engine {
     pub fn cancel(&self, id: &str) -> Result<JobView, ApiError> {
         let live = lock(&self.inner.live).get(id).cloned();
         let Some(live) = live else {
+            if let Some(q) = self.inner.store.shared() {
+                // Queued, or running on another replica (stopped at its next heartbeat).
+                if let CancelOutcome::Cancelled(view) = q.request_cancel(id, now_ms())? {
+                    self.inner.sink.send(JobEvent::Status(view.clone()));
+                    self.inner.sink.send(JobEvent::Closed(id.to_string()));
+                    return Ok(view);
+                }
+            }
             return self.status(id);
         };
         live.cancel.store(true, Ordering::Release);
@@ -521,9 +570,12 @@ impl Engine {
         Ok(self.inner.store.counts()?)
     }
 
-    /// Jobs waiting for a worker.
-    pub fn queue_depth(&self) -> usize {
-        lock(&self.inner.queue).len()
+    /// Jobs waiting for a worker (of any replica, with a shared store).
+    pub fn queue_depth(&self) -> Result<usize, ApiError> {
+        match self.inner.store.shared() {
+            Some(q) => Ok(q.queued()? as usize),
+            None => Ok(lock(&self.inner.queue).len()),
+        }
     }
 
     /// Worker threads.
@@ -542,10 +594,14 @@ impl Engine {
     }
 
     /// Stops taking jobs, stops running ones (they stay `running` in the store and run again at
-    /// the next start) and joins the worker threads. Blocking: call from a blocking context.
+    /// the next start; a shared store gives them back to its queue at once) and joins the
+    /// worker threads. Blocking: call from a blocking context.
     pub fn shutdown(&self) {
         self.inner.shutdown.store(true, Ordering::Release);
         self.inner.wake.notify_all();
+        if let Some(q) = self.inner.store.shared() {
+            q.wake();
+        }
         let threads: Vec<_> = lock(&self.threads).drain(..).collect();
         for t in threads {
             let _ = t.join();
@@ -639,9 +695,133 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
         .unwrap_or_else(|| "a panic without a message".into())
 }
 
+/// Longest wait of an idle worker between two claims on a shared store (a notification of a
+/// new job wakes it sooner; a lease that ran out is only found this way).
+pub const CLAIM_POLL: Duration = Duration::from_millis(250);
+
 fn worker_loop(inner: &Inner) {
-    while let Some(live) = next_job(inner) {
+    loop {
+        let next = match inner.store.shared() {
+            Some(q) => next_claim(inner, q),
+            None => next_job(inner),
+        };
+        let Some(live) = next else {
+            return;
+        };
         run_one(inner, &live);
+    }
+}
+
+/// The next job claimed from the shared queue (`None` at shutdown).
+fn next_claim(inner: &Inner, q: &dyn SharedQueue) -> Option<Arc<LiveJob>> {
+    loop {
+        if inner.shutdown.load(Ordering::Acquire) {
+            return None;
+        }
+        let seen = q.ticket();
+        match q.claim(now_ms()) {
+            Ok(Some(claim)) => {
+                if let Some(live) = adopt(inner, claim) {
+                    return Some(live);
+                }
+            }
+            Ok(None) => q.wait(seen, CLAIM_POLL),
+            Err(e) => {
+                tracing::error!("claiming a job: {e}");
+                std::thread::sleep(CLAIM_POLL);
+            }
+        }
+    }
+}
+
+/// A claimed job made live on this replica; `None` when its spec no longer builds (it is
+/// failed, naming the field).
+fn adopt(inner: &Inner, claim: Claim) -> Option<Arc<LiveJob>> {
+    let Claim {
+        view,
+        spec_json,
+        attempt,
+        cancel_requested,
+    } = claim;
+    let built = crate::spec_file::parse(&spec_json, crate::spec_file::Format::Json)
+        .and_then(|spec| Job::from_spec(&spec));
+    let job = match built {
+        Ok(job) => job,
+        Err(e) => {
+            let failed = JobView {
+                state: JobState::Failed,
+                finished_ms: now_ms(),
+                error: Some((e.field, format!("not valid on this replica: {}", e.reason))),
+                ..view
+            };
+            if let Err(e) = inner.store.finish(&failed, None) {
+                tracing::error!(id = %failed.id, "store: {e}");
+            }
+            inner.sink.send(JobEvent::Status(failed.clone()));
+            inner.sink.send(JobEvent::Closed(failed.id));
+            return None;
+        }
+    };
+    tracing::info!(id = %view.id, attempt, "claimed");
+    let live = Arc::new(new_live(
+        view.id.clone(),
+        view.name.clone(),
+        job,
+        view.created_ms,
+    ));
+    if cancel_requested {
+        live.cancel.store(true, Ordering::Release);
+    }
+    lock(&inner.live).insert(view.id.clone(), live.clone());
+    Some(live)
+}
+
+/// Renews this replica's leases about four times per lease, with the progress of its running
+/// jobs; stops a job whose cancel was asked on another replica, or whose lease was lost.
+fn heartbeat_loop(inner: &Inner) {
+    let Some(q) = inner.store.shared() else {
+        return;
+    };
+    let every = q.lease() / 4;
+    let mut last = Instant::now();
+    while !inner.shutdown.load(Ordering::Acquire) {
+        std::thread::sleep(Duration::from_millis(20).min(every));
+        if last.elapsed() < every {
+            continue;
+        }
+        last = Instant::now();
+        let running: Vec<Arc<LiveJob>> = lock(&inner.live)
+            .values()
+            .filter(|l| l.running.load(Ordering::Acquire))
+            .cloned()
+            .collect();
+        let beats: Vec<Beat> = running
+            .iter()
+            .map(|l| Beat {
+                id: l.id.clone(),
+                done: l.done.load(Ordering::Relaxed),
+                total: l.total.load(Ordering::Relaxed),
+                t: f64::from_bits(l.t_bits.load(Ordering::Relaxed)),
+            })
+            .collect();
+        match q.heartbeat(&beats) {
+            Ok(replies) => {
+                for (id, reply) in replies {
+                    let Some(live) = running.iter().find(|l| l.id == id) else {
+                        continue;
+                    };
+                    match reply {
+                        BeatReply::Held => {}
+                        BeatReply::CancelRequested => live.cancel.store(true, Ordering::Release),
+                        BeatReply::Lost => {
+                            tracing::warn!(%id, "lease lost: another replica runs the job now");
+                            live.cancel.store(true, Ordering::Release);
+                        }
+                    }
+                }
+            }
+            Err(e) => tracing::error!("heartbeat: {e}"),
+        }
     }
 }
 
@@ -704,8 +884,14 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
             (JobState::Succeeded, None, Some(result))
         }
         Ok(Err(RunError::Stopped { .. })) if !live.cancel.load(Ordering::Acquire) => {
-            // Server shutdown: leave the job `running` in the store; the next start re-runs it.
+            // Server shutdown: leave the job `running` in the store; the next start re-runs it
+            // (a shared store's queue takes it back now, for any replica).
             tracing::info!(id = %live.id, "interrupted by shutdown");
+            if let Some(q) = inner.store.shared()
+                && let Err(e) = q.release(&live.id)
+            {
+                tracing::error!(id = %live.id, "store: {e}");
+            }
             return;
         }
         Ok(Err(RunError::Stopped { .. })) => (JobState::Cancelled, None, partial()),
@@ -738,6 +924,14 @@ fn end_job(
     last_batch: JobEvent,
 ) {
     if let Err(e) = inner.store.finish(&view, result.as_ref()) {
+        if let StoreError::LeaseLost { .. } = e {
+            // Another replica runs the job now: its end is that replica's to tell.
+            tracing::warn!(id = %live.id, "{e}");
+            lock(&inner.live).remove(&live.id);
+            inner.sink.send(JobEvent::Closed(live.id.clone()));
+            live.ended.send_replace(true);
+            return;
+        }
         tracing::error!(id = %live.id, "store: {e}");
         view.state = JobState::Failed;
         view.error = Some(("store".into(), e.to_string()));

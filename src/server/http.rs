@@ -474,6 +474,7 @@ type Samples = Vec<(String, String)>;
 /// Prometheus text: per metric its help and type lines, then `NAME{labels} value` per sample.
 async fn metrics(State(state): State<AppState>) -> Result<Response, ApiError> {
     let counts = state.engine.counts()?;
+    let queue_depth = state.engine.queue_depth()?;
     let steps = state.engine.steps_total();
     let rate = state.steps_rate(steps);
     let stats = state.engine.stream_stats();
@@ -491,7 +492,7 @@ async fn metrics(State(state): State<AppState>) -> Result<Response, ApiError> {
             "signorini_queue_depth",
             "gauge",
             "Jobs waiting for a worker.",
-            one(state.engine.queue_depth().to_string()),
+            one(queue_depth.to_string()),
         ),
         (
             "signorini_workers",

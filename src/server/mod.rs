@@ -13,7 +13,7 @@ use crate::engine::events::JobEvent;
 use crate::error::ApiError;
 use crate::proto::v1::simulation_server::SimulationServer;
 use crate::status::JobView;
-use crate::store::{Store, StoreLock};
+use crate::store::{Location, Store, StoreLock};
 use crate::stream::{self, Streamer, ZenohOptions};
 use anyhow::{Context, Result};
 use std::sync::{Arc, Mutex};
@@ -227,12 +227,22 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
         config: cfg.zenoh_config.clone(),
     })
     .await?;
-    let opened = StoreLock::take(&cfg.store).and_then(|lock| Ok((lock, Store::open(&cfg.store)?)));
+    let location = Location::of(&cfg.store);
+    let opened = match location {
+        Location::Sqlite(path) => {
+            StoreLock::take(path).and_then(|lock| Ok((lock, Store::open(path)?)))
+        }
+        // Replicas share it: no lock. A connection per worker, one for the heartbeat, a few
+        // for the API.
+        Location::Postgres(url) => {
+            Store::connect(url, &cfg.replica, cfg.workers + 4, cfg.lease).map(|s| (None, s))
+        }
+    };
     let (_lock, store) = match opened {
         Ok(o) => o,
         Err(e) => {
             let _ = session.close().await;
-            return Err(e).with_context(|| format!("opening store {}", cfg.store.display()));
+            return Err(e).with_context(|| format!("opening store {}", location.shown()));
         }
     };
     let (streamer, sink) = Streamer::start(session.clone());
@@ -318,7 +328,7 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
         .with_graceful_shutdown(stopped(stop_rx));
     let grpc_task = tokio::spawn(grpc);
     let http_task = tokio::spawn(async move { http.await });
-    tracing::info!(%grpc_addr, %http_addr, store = %cfg.store.display(), workers = cfg.workers, "serving");
+    tracing::info!(%grpc_addr, %http_addr, store = %location.shown(), workers = cfg.workers, "serving");
     println!("signorini serving gRPC on {grpc_addr}, HTTP on {http_addr}");
 
     shutdown_signal().await;

@@ -5,6 +5,7 @@
 #![allow(dead_code)]
 
 pub mod browser;
+pub mod pg;
 
 use http_body_util::{BodyExt, Full};
 use hyper::body::Bytes;
@@ -74,8 +75,13 @@ impl TestServer {
     /// be taken by another test's server before this one binds it: a server that exits before
     /// serving is started again on a new port (at most five times).
     pub fn start(store: &Path, opts: &Options) -> TestServer {
+        Self::start_with(store, opts, &[])
+    }
+
+    /// [`TestServer::start`] with more flags (`--replica`, `--lease-secs`, `--zenoh-connect`).
+    pub fn start_with(store: &Path, opts: &Options, extra: &[&str]) -> TestServer {
         for _ in 0..5 {
-            if let Some(server) = Self::try_start(store, opts) {
+            if let Some(server) = Self::try_start(store, opts, extra) {
                 return server;
             }
         }
@@ -83,7 +89,7 @@ impl TestServer {
     }
 
     /// One attempt: `None` when the server exited before reporting where it serves.
-    fn try_start(store: &Path, opts: &Options) -> Option<TestServer> {
+    fn try_start(store: &Path, opts: &Options, extra: &[&str]) -> Option<TestServer> {
         let zenoh = format!("tcp/127.0.0.1:{}", free_port());
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_signorini"));
         cmd.arg("serve")
@@ -118,6 +124,9 @@ impl TestServer {
         if let Some(d) = opts.retain_days {
             cmd.args(["--retain-days", &d.to_string()]);
         }
+        cmd.args(extra)
+            .env_remove("SIGNORINI_REPLICA")
+            .env_remove("SIGNORINI_LEASE_SECS");
         let mut child = cmd.spawn().expect("starting signorini serve");
         let stdout = child.stdout.take().expect("piped stdout");
         let (tx, rx) = mpsc::channel();

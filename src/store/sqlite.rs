@@ -1,4 +1,4 @@
-//! The result store: one embedded SQLite file (WAL) with every job's spec, status, summary and
+//! The SQLite backend: one embedded SQLite file (WAL) with every job's spec, status, summary and
 //! recorded series.
 //!
 //! A job's row is written when it is accepted, updated when it starts, and completed in one
@@ -15,129 +15,18 @@
 //! it wrote, marked `partial`. A database of the earlier layout (one blob per job in `results`)
 //! is rewritten into chunks, one job per transaction, when it is opened.
 
+use super::{
+    Backend, ChunkMeta, ResultTexts, SeriesChunk, StoreError, StoredResult, batches_blob,
+    check_index, decode_chunk, decode_f64s, decode_u64s, f64s_to_blob, split_series, u64s_to_blob,
+};
 use crate::status::{JobState, JobView};
 use rusqlite::{Connection, OptionalExtension, params};
-use serde_json::{Map, Value};
-use signorini_core::outcome::Table;
-use signorini_figures::Figure;
 use std::path::Path;
 use std::sync::Mutex;
-use thiserror::Error;
-
-/// A store failure.
-#[derive(Debug, Error)]
-pub enum StoreError {
-    /// SQLite said no.
-    #[error("store: {0}")]
-    Sql(#[from] rusqlite::Error),
-    /// Another process holds the store's lock.
-    #[error(
-        "store {path} is in use by another signorini serve (it holds the file's lock): stop that server or give another --store"
-    )]
-    Locked {
-        /// The store file.
-        path: String,
-    },
-    /// The lock file could not be opened or locked.
-    #[error("store {path}: {reason}")]
-    Lock {
-        /// The store file.
-        path: String,
-        /// Why.
-        reason: String,
-    },
-    /// A stored value does not decode.
-    #[error("store: corrupt {what} of job {id}")]
-    Corrupt {
-        /// Which column.
-        what: &'static str,
-        /// Which job.
-        id: String,
-    },
-}
-
-/// A finished job's result.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct StoredResult {
-    /// True for the steps a failed or cancelled run recorded before it stopped (no summary).
-    pub partial: bool,
-    /// summary.json.
-    pub summary: Map<String, Value>,
-    /// Columns besides `step` and `t`.
-    pub columns: Vec<String>,
-    /// Step numbers of the records.
-    pub steps: Vec<u64>,
-    /// Times of the records.
-    pub t: Vec<f64>,
-    /// Values, row-major (`values[i * columns.len() + c]`).
-    pub values: Vec<f64>,
-    /// Extra tables (analyses).
-    pub tables: Vec<Table>,
-    /// Figures (SVG text), in the order the job made them.
-    pub figures: Vec<Figure>,
-}
-
-impl StoredResult {
-    /// The figure called `name` (`NAME` or `NAME.svg`), if the job made one.
-    pub fn figure(&self, name: &str) -> Option<&Figure> {
-        let stem = name.strip_suffix(".svg").unwrap_or(name);
-        let by = |n: &str| self.figures.iter().find(|f| f.name == n);
-        by(name).or_else(|| by(stem))
-    }
-
-    /// The values of column `c`.
-    pub fn column(&self, c: usize) -> Vec<f64> {
-        let n = self.columns.len();
-        self.values
-            .iter()
-            .skip(c)
-            .step_by(n.max(1))
-            .copied()
-            .collect()
-    }
-}
 
 /// The SQLite store (one connection behind a mutex: calls are short).
-pub struct Store {
+pub struct SqliteStore {
     conn: Mutex<Connection>,
-}
-
-/// Target size of one stored chunk of a series (its rows are [`chunk_rows`]).
-pub const CHUNK_BYTES: usize = 1 << 20;
-
-/// Rows per stored chunk for `columns` value columns (besides `step` and `t`): about
-/// [`CHUNK_BYTES`], at least one.
-pub fn chunk_rows(columns: usize) -> usize {
-    (CHUNK_BYTES / (8 * (columns + 2))).max(1)
-}
-
-/// Where one stored chunk sits in its series.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct ChunkMeta {
-    /// Chunk number (0, 1, …).
-    pub chunk: u64,
-    /// Index of its first row in the series.
-    pub first_row: u64,
-    /// Its rows.
-    pub rows: u64,
-    /// Step number of its first and last rows.
-    pub step_first: u64,
-    /// Step number of its last row.
-    pub step_last: u64,
-}
-
-/// Consecutive rows of a series, as stored.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct SeriesChunk {
-    /// Step numbers.
-    pub steps: Vec<u64>,
-    /// Times.
-    pub t: Vec<f64>,
-    /// Values, row-major, one row of the result's columns per step.
-    pub values: Vec<f64>,
-    /// The live batches these rows went out in: (seq, first row, end row) in the series (empty
-    /// for a series stored before batches were recorded).
-    pub batches: Vec<(u64, u64, u64)>,
 }
 
 const SCHEMA: &str = "
@@ -250,8 +139,8 @@ fn migrate(conn: &mut Connection) -> Result<(), StoreError> {
     Ok(())
 }
 
-/// Writes `steps`/`t`/`values` (row-major, `n` columns) as chunks of [`chunk_rows`] rows,
-/// numbered from `chunk`, the first row being row `first_row` of the series.
+/// Writes `steps`/`t`/`values` (row-major, `n` columns) as chunks of [`super::chunk_rows`]
+/// rows, numbered from `chunk`, the first row being row `first_row` of the series.
 #[allow(clippy::too_many_arguments)]
 fn append_series(
     conn: &Connection,
@@ -263,21 +152,8 @@ fn append_series(
     t: &[f64],
     values: &[f64],
 ) -> Result<(), StoreError> {
-    let per = chunk_rows(n);
-    for (k, start) in (0..steps.len()).step_by(per).enumerate() {
-        let end = (start + per).min(steps.len());
-        insert_chunk(
-            conn,
-            id,
-            chunk + k as u64,
-            first_row + start as u64,
-            &SeriesChunk {
-                steps: steps[start..end].to_vec(),
-                t: t[start..end].to_vec(),
-                values: values[start * n..end * n].to_vec(),
-                batches: Vec::new(),
-            },
-        )?;
+    for (k, (start, rows)) in split_series(n, steps, t, values).into_iter().enumerate() {
+        insert_chunk(conn, id, chunk + k as u64, first_row + start, &rows)?;
     }
     Ok(())
 }
@@ -292,11 +168,6 @@ fn insert_chunk(
     let (Some(&first), Some(&last)) = (rows.steps.first(), rows.steps.last()) else {
         return Ok(());
     };
-    let batches: Vec<u64> = rows
-        .batches
-        .iter()
-        .flat_map(|&(seq, start, end)| [seq, start, end])
-        .collect();
     conn.execute(
         "INSERT OR REPLACE INTO result_chunks (id, chunk, first_row, rows, step_first, step_last, steps, t, vals, batches)
          VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
@@ -310,74 +181,10 @@ fn insert_chunk(
             u64s_to_blob(&rows.steps),
             f64s_to_blob(&rows.t),
             f64s_to_blob(&rows.values),
-            u64s_to_blob(&batches),
+            batches_blob(rows),
         ],
     )?;
     Ok(())
-}
-
-fn decode_u64s(b: &[u8]) -> Option<Vec<u64>> {
-    Some(blob_to_8(b)?.map(u64::from_le_bytes).collect())
-}
-
-fn decode_f64s(b: &[u8]) -> Option<Vec<f64>> {
-    Some(blob_to_8(b)?.map(f64::from_le_bytes).collect())
-}
-
-fn f64s_to_blob(v: &[f64]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
-}
-
-fn u64s_to_blob(v: &[u64]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
-}
-
-fn blob_to_8(b: &[u8]) -> Option<impl Iterator<Item = [u8; 8]> + '_> {
-    if !b.len().is_multiple_of(8) {
-        return None;
-    }
-    Some(b.chunks_exact(8).map(|c| {
-        let mut a = [0u8; 8];
-        a.copy_from_slice(c);
-        a
-    }))
-}
-
-#[derive(serde::Serialize, serde::Deserialize)]
-struct TableJson {
-    name: String,
-    columns: Vec<String>,
-    /// JSON has no NaN: an empty cell (NaN, e.g. the `branch` of an orbit on no main branch)
-    /// is stored as null and read back as NaN.
-    #[serde(with = "nan_as_null")]
-    rows: Vec<Vec<f64>>,
-}
-
-/// Table rows with NaN cells through JSON: NaN ↔ null.
-mod nan_as_null {
-    use serde::{Deserialize, Deserializer, Serialize, Serializer};
-
-    pub fn serialize<S: Serializer>(rows: &[Vec<f64>], s: S) -> Result<S::Ok, S::Error> {
-        let cells: Vec<Vec<Option<f64>>> = rows
-            .iter()
-            .map(|r| r.iter().map(|&x| (!x.is_nan()).then_some(x)).collect())
-            .collect();
-        cells.serialize(s)
-    }
-
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Vec<f64>>, D::Error> {
-        let cells = Vec::<Vec<Option<f64>>>::deserialize(d)?;
-        Ok(cells
-            .into_iter()
-            .map(|r| r.into_iter().map(|x| x.unwrap_or(f64::NAN)).collect())
-            .collect())
-    }
-}
-
-#[derive(serde::Serialize, serde::Deserialize)]
-struct FigureJson {
-    name: String,
-    svg: String,
 }
 
 const JOB_COLUMNS: &str = "id, name, spec_json, state, created_ms, started_ms, finished_ms, error_field, error_reason, done, total, t";
@@ -461,9 +268,9 @@ impl StoreLock {
     }
 }
 
-impl Store {
+impl SqliteStore {
     /// Opens (or creates) the store at `path` in WAL mode. `:memory:` gives a throwaway store.
-    pub fn open(path: &Path) -> Result<Store, StoreError> {
+    pub fn open(path: &Path) -> Result<SqliteStore, StoreError> {
         let mut conn = Connection::open(path)?;
         // WAL + synchronous=NORMAL: a committed transaction survives a process crash.
         conn.pragma_update(None, "journal_mode", "WAL")?;
@@ -471,7 +278,7 @@ impl Store {
         conn.busy_timeout(std::time::Duration::from_secs(5))?;
         conn.execute_batch(SCHEMA)?;
         migrate(&mut conn)?;
-        Ok(Store {
+        Ok(SqliteStore {
             conn: Mutex::new(conn),
         })
     }
@@ -481,8 +288,20 @@ impl Store {
         self.conn.lock().unwrap_or_else(|p| p.into_inner())
     }
 
+    /// Every job's status and spec (JSON), oldest first.
+    fn list_with_specs(&self) -> Result<Vec<(JobView, String)>, StoreError> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(&format!("SELECT {JOB_COLUMNS} FROM jobs ORDER BY seq"))?;
+        let rows = stmt
+            .query_map([], row_to_job)?
+            .collect::<Result<Vec<_>, _>>()?;
+        rows.into_iter().map(finish_row).collect()
+    }
+}
+
+impl Backend for SqliteStore {
     /// Records a new queued job with its spec (JSON). False when the id is taken.
-    pub fn insert(&self, row: &JobView, spec_json: &str) -> Result<bool, StoreError> {
+    fn insert(&self, row: &JobView, spec_json: &str) -> Result<bool, StoreError> {
         let n = self.conn().execute(
             "INSERT OR IGNORE INTO jobs (id, name, spec_json, state, created_ms, total) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
             params![row.id, row.name, spec_json, row.state.as_str(), row.created_ms as i64, row.total as i64],
@@ -491,7 +310,7 @@ impl Store {
     }
 
     /// Marks a job running.
-    pub fn set_running(&self, id: &str, started_ms: u64) -> Result<(), StoreError> {
+    fn set_running(&self, id: &str, started_ms: u64) -> Result<(), StoreError> {
         self.conn().execute(
             "UPDATE jobs SET state = 'running', started_ms = ?2 WHERE id = ?1",
             params![id, started_ms as i64],
@@ -500,7 +319,7 @@ impl Store {
     }
 
     /// Forgets the recorded series of a job (a job about to run again after a restart).
-    pub fn clear_series(&self, id: &str) -> Result<(), StoreError> {
+    fn clear_series(&self, id: &str) -> Result<(), StoreError> {
         self.conn()
             .execute("DELETE FROM result_chunks WHERE id = ?1", [id])?;
         Ok(())
@@ -508,7 +327,7 @@ impl Store {
 
     /// Stores chunk number `chunk` of a running job's series, whose first row is row
     /// `first_row` of the series.
-    pub fn append_chunk(
+    fn append_chunk(
         &self,
         id: &str,
         chunk: u64,
@@ -521,36 +340,20 @@ impl Store {
     /// Ends a job: its final state, error, progress and (for a success, or the partial series
     /// of a failed or cancelled run) its result, in one transaction. The series chunks the run
     /// appended stay; rows in `result` itself, if any, are appended after them.
-    pub fn finish(&self, row: &JobView, result: Option<&StoredResult>) -> Result<(), StoreError> {
+    fn finish(&self, row: &JobView, result: Option<&StoredResult>) -> Result<(), StoreError> {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
         if let Some(r) = result {
-            let tables: Vec<TableJson> = r
-                .tables
-                .iter()
-                .map(|t| TableJson {
-                    name: t.name.clone(),
-                    columns: t.columns.clone(),
-                    rows: t.rows.clone(),
-                })
-                .collect();
-            let figures: Vec<FigureJson> = r
-                .figures
-                .iter()
-                .map(|f| FigureJson {
-                    name: f.name.clone(),
-                    svg: f.svg.clone(),
-                })
-                .collect();
+            let texts = ResultTexts::of(r);
             tx.execute(
                 "INSERT OR REPLACE INTO results (id, summary_json, columns_json, steps, t, vals, tables_json, figures_json, partial)
                  VALUES (?1, ?2, ?3, x'', x'', x'', ?4, ?5, ?6)",
                 params![
                     row.id,
-                    serde_json::to_string(&r.summary).unwrap_or_else(|_| "{}".into()),
-                    serde_json::to_string(&r.columns).unwrap_or_else(|_| "[]".into()),
-                    serde_json::to_string(&tables).unwrap_or_else(|_| "[]".into()),
-                    serde_json::to_string(&figures).unwrap_or_else(|_| "[]".into()),
+                    texts.summary,
+                    texts.columns,
+                    texts.tables,
+                    texts.figures,
                     r.partial,
                 ],
             )?;
@@ -595,7 +398,7 @@ impl Store {
     }
 
     /// One job's status.
-    pub fn get(&self, id: &str) -> Result<Option<JobView>, StoreError> {
+    fn get(&self, id: &str) -> Result<Option<JobView>, StoreError> {
         let conn = self.conn();
         let row = conn
             .query_row(
@@ -610,7 +413,7 @@ impl Store {
     /// One page of jobs, newest first: at most `limit`, only those in `state` if given, only
     /// those older than the job numbered `before` if given. Each comes with its number (the
     /// store's insertion order), which the next page takes as `before`.
-    pub fn list_page(
+    fn list_page(
         &self,
         state: Option<JobState>,
         before: Option<i64>,
@@ -633,7 +436,7 @@ impl Store {
     }
 
     /// The finished jobs (succeeded, failed, cancelled) that ended before `cutoff_ms`.
-    pub fn finished_before(&self, cutoff_ms: u64) -> Result<Vec<String>, StoreError> {
+    fn finished_before(&self, cutoff_ms: u64) -> Result<Vec<String>, StoreError> {
         let conn = self.conn();
         let mut stmt = conn.prepare(
             "SELECT id FROM jobs WHERE state IN ('succeeded', 'failed', 'cancelled') AND finished_ms < ?1",
@@ -645,7 +448,7 @@ impl Store {
     }
 
     /// Removes a job, its result and its series. False when there was no such job.
-    pub fn delete(&self, id: &str) -> Result<bool, StoreError> {
+    fn delete(&self, id: &str) -> Result<bool, StoreError> {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
         tx.execute("DELETE FROM result_chunks WHERE id = ?1", [id])?;
@@ -655,19 +458,9 @@ impl Store {
         Ok(n == 1)
     }
 
-    /// Every job's status and spec (JSON), oldest first.
-    fn list_with_specs(&self) -> Result<Vec<(JobView, String)>, StoreError> {
-        let conn = self.conn();
-        let mut stmt = conn.prepare(&format!("SELECT {JOB_COLUMNS} FROM jobs ORDER BY seq"))?;
-        let rows = stmt
-            .query_map([], row_to_job)?
-            .collect::<Result<Vec<_>, _>>()?;
-        rows.into_iter().map(finish_row).collect()
-    }
-
     /// At start-up: every job that was queued or running when the last process stopped, oldest
     /// first, now marked queued again, with its spec (JSON).
-    pub fn recover(&self) -> Result<Vec<(JobView, String)>, StoreError> {
+    fn recover(&self) -> Result<Vec<(JobView, String)>, StoreError> {
         self.conn().execute(
             "UPDATE jobs SET state = 'queued', started_ms = 0 WHERE state = 'running'",
             [],
@@ -680,7 +473,7 @@ impl Store {
     }
 
     /// Number of jobs per state.
-    pub fn counts(&self) -> Result<Vec<(JobState, u64)>, StoreError> {
+    fn counts(&self) -> Result<Vec<(JobState, u64)>, StoreError> {
         let conn = self.conn();
         let mut stmt = conn.prepare("SELECT state, COUNT(*) FROM jobs GROUP BY state")?;
         let rows = stmt
@@ -703,7 +496,7 @@ impl Store {
 
     /// A job's result without its series (`steps`, `t`, `values` empty): summary, columns,
     /// tables, figures and whether it is partial. `None` when the job has no result.
-    pub fn result_head(&self, id: &str) -> Result<Option<StoredResult>, StoreError> {
+    fn result_head(&self, id: &str) -> Result<Option<StoredResult>, StoreError> {
         let conn = self.conn();
         let raw = conn
             .query_row(
@@ -723,43 +516,17 @@ impl Store {
         let Some((summary, columns, tables, figures, partial)) = raw else {
             return Ok(None);
         };
-        let corrupt = |what| StoreError::Corrupt {
-            what,
-            id: id.to_string(),
-        };
-        let summary: Map<String, Value> =
-            serde_json::from_str(&summary).map_err(|_| corrupt("summary"))?;
-        let columns: Vec<String> =
-            serde_json::from_str(&columns).map_err(|_| corrupt("columns"))?;
-        let tables: Vec<TableJson> =
-            serde_json::from_str(&tables).map_err(|_| corrupt("tables"))?;
-        let figures: Vec<FigureJson> =
-            serde_json::from_str(&figures).map_err(|_| corrupt("figures"))?;
-        Ok(Some(StoredResult {
-            partial,
+        let texts = ResultTexts {
             summary,
             columns,
-            tables: tables
-                .into_iter()
-                .map(|t| Table {
-                    name: t.name,
-                    columns: t.columns,
-                    rows: t.rows,
-                })
-                .collect(),
-            figures: figures
-                .into_iter()
-                .map(|f| Figure {
-                    name: f.name,
-                    svg: f.svg,
-                })
-                .collect(),
-            ..StoredResult::default()
-        }))
+            tables,
+            figures,
+        };
+        Ok(Some(texts.decode(id, partial)?))
     }
 
     /// The chunks of a job's series, in order (no values read).
-    pub fn series_index(&self, id: &str) -> Result<Vec<ChunkMeta>, StoreError> {
+    fn series_index(&self, id: &str) -> Result<Vec<ChunkMeta>, StoreError> {
         let conn = self.conn();
         let mut stmt = conn.prepare(
             "SELECT chunk, first_row, rows, step_first, step_last FROM result_chunks WHERE id = ?1 ORDER BY chunk",
@@ -775,21 +542,11 @@ impl Store {
                 })
             })?
             .collect::<Result<Vec<_>, _>>()?;
-        let mut next = 0;
-        for c in &rows {
-            if c.first_row != next {
-                return Err(StoreError::Corrupt {
-                    what: "chunk index",
-                    id: id.into(),
-                });
-            }
-            next += c.rows;
-        }
-        Ok(rows)
+        check_index(id, rows)
     }
 
     /// One chunk of a job's series with `columns` value columns, checked against its index.
-    pub fn read_chunk(
+    fn read_chunk(
         &self,
         id: &str,
         meta: &ChunkMeta,
@@ -807,51 +564,18 @@ impl Store {
                 ))
             },
         )?;
-        let corrupt = |what| StoreError::Corrupt {
-            what,
-            id: id.to_string(),
-        };
-        let steps = decode_u64s(&steps).ok_or_else(|| corrupt("steps"))?;
-        let t = decode_f64s(&t).ok_or_else(|| corrupt("t"))?;
-        let values = decode_f64s(&vals).ok_or_else(|| corrupt("values"))?;
-        let batches = decode_u64s(&batches)
-            .filter(|b| b.len() % 3 == 0)
-            .ok_or_else(|| corrupt("batches"))?
-            .chunks_exact(3)
-            .map(|b| (b[0], b[1], b[2]))
-            .collect();
-        let rows = meta.rows as usize;
-        if steps.len() != rows || t.len() != rows || values.len() != rows * columns {
-            return Err(corrupt("series"));
-        }
-        Ok(SeriesChunk {
-            steps,
-            t,
-            values,
-            batches,
-        })
-    }
-
-    /// A job's whole result, its series read chunk by chunk into memory: for tests and small
-    /// results only (the servers stream series with [`Store::series_index`] and
-    /// [`Store::read_chunk`]).
-    pub fn result(&self, id: &str) -> Result<Option<StoredResult>, StoreError> {
-        let Some(mut r) = self.result_head(id)? else {
-            return Ok(None);
-        };
-        for meta in self.series_index(id)? {
-            let c = self.read_chunk(id, &meta, r.columns.len())?;
-            r.steps.extend(c.steps);
-            r.t.extend(c.t);
-            r.values.extend(c.values);
-        }
-        Ok(Some(r))
+        decode_chunk(
+            id,
+            meta.rows as usize,
+            columns,
+            (&steps, &t, &vals, &batches),
+        )
     }
 }
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use signorini_figures::Figure;
 
     fn row(id: &str) -> JobView {
         JobView {
@@ -877,7 +601,7 @@ mod tests {
         })?;
         let path = dir.path().join("s.db");
         {
-            let s = Store::open(&path)?;
+            let s = SqliteStore::open(&path)?;
             assert!(s.insert(&row("a"), "{}")?);
             assert!(!s.insert(&row("a"), "{}")?);
             assert!(s.insert(&row("b"), "{}")?);
@@ -902,7 +626,7 @@ mod tests {
             );
             assert_eq!(back.column(1), vec![f64::MIN_POSITIVE, 1e300]);
         }
-        let s = Store::open(&path)?;
+        let s = SqliteStore::open(&path)?;
         let again = s.recover()?;
         assert_eq!(
             again.iter().map(|(r, _)| r.id.as_str()).collect::<Vec<_>>(),
@@ -947,7 +671,7 @@ mod tests {
     #[test]
     fn figures_round_trip_and_are_found_with_or_without_svg() -> Result<(), StoreError> {
         let dir = tmp()?;
-        let s = Store::open(&dir.path().join("s.db"))?;
+        let s = SqliteStore::open(&dir.path().join("s.db"))?;
         assert!(s.insert(&row("f"), "{}")?);
         let figures = vec![
             Figure {
@@ -980,7 +704,7 @@ mod tests {
     #[test]
     fn corrupt_figures_are_reported_as_corrupt() -> Result<(), StoreError> {
         let dir = tmp()?;
-        let s = Store::open(&dir.path().join("s.db"))?;
+        let s = SqliteStore::open(&dir.path().join("s.db"))?;
         assert!(s.insert(&row("c"), "{}")?);
         let mut done = row("c");
         done.state = JobState::Succeeded;
@@ -1048,7 +772,7 @@ INSERT INTO jobs (id, spec_json, state, created_ms, finished_ms, done, total, t)
         }
         for _ in 0..2 {
             // Twice: the second open finds the column already there.
-            let s = Store::open(&path)?;
+            let s = SqliteStore::open(&path)?;
             let back = s.result("old")?.ok_or_else(|| missing("old"))?;
             assert_eq!(back.summary.get("steps"), Some(&serde_json::json!(1)));
             assert_eq!(back.steps, vec![0, 1]);
@@ -1057,7 +781,7 @@ INSERT INTO jobs (id, spec_json, state, created_ms, finished_ms, done, total, t)
             assert!(back.figures.is_empty());
             assert_eq!(s.get("old")?.map(|r| r.state), Some(JobState::Succeeded));
         }
-        let s = Store::open(&path)?;
+        let s = SqliteStore::open(&path)?;
         assert!(s.insert(&row("new"), "{}")?);
         let mut done = row("new");
         done.state = JobState::Succeeded;

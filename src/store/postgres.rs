@@ -1,0 +1,861 @@
+//! The PostgreSQL backend: jobs, results, series and the queue in one database shared by any
+//! number of `serve` replicas (`--store postgres://…`).
+//!
+//! The queue is the `jobs` table: a worker claims the oldest job that is queued, or running
+//! under a lease that ran out, with `SELECT … FOR UPDATE SKIP LOCKED` (so two replicas never
+//! claim the same job and never wait on each other), raising its `attempt` and taking a lease
+//! until `now() + lease` (the database's clock, the same for every replica). The replica renews
+//! its leases with a heartbeat ([`SharedQueue::heartbeat`]), which also records progress and
+//! carries cancel requests. A replica killed with SIGKILL renews nothing: its jobs are claimed
+//! again once their leases run out. Everything a run stores (series chunks, its end and result)
+//! is written only while its replica still owns the job, in the same statement or transaction
+//! that checks it, so a slow replica that lost its lease (a zombie) cannot overwrite the run
+//! that replaced it; results are keyed by (job, attempt) and read for the job's current attempt.
+//!
+//! New jobs are announced with `NOTIFY signorini_jobs`; each replica LISTENs on one connection
+//! and wakes its idle workers, which also poll at a short bound (a lease that ran out is
+//! noticed that way).
+//!
+//! The schema is created and upgraded by the SQL files of `migrations/postgres/`, applied in
+//! order, each once, under an advisory lock.
+//!
+//! The calls are blocking (like the SQLite backend's): each runs on the store's own small tokio
+//! runtime and the caller waits for its answer on a channel, so they may be made from any
+//! thread, including the server's async handlers, without nesting runtimes.
+
+use super::{
+    Backend, Beat, BeatReply, CancelOutcome, ChunkMeta, Claim, ResultTexts, SeriesChunk,
+    SharedQueue, StoreError, StoredResult, batches_blob, check_index, decode_chunk, f64s_to_blob,
+    split_series, u64s_to_blob,
+};
+use crate::status::{JobState, JobView};
+use deadpool_postgres::{Manager, ManagerConfig, Pool, RecyclingMethod, Transaction};
+use std::future::Future;
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::Duration;
+use tokio_postgres::{AsyncMessage, NoTls, Row};
+
+/// The migrations, in order: (version, name, SQL).
+const MIGRATIONS: &[(i64, &str, &str)] = &[(
+    1,
+    "0001_init",
+    include_str!("../../migrations/postgres/0001_init.sql"),
+)];
+
+/// Advisory lock key held while migrating ("sgnrn" in ASCII).
+const MIGRATION_LOCK: i64 = 0x73_67_6e_72_6e;
+
+/// The channel new jobs are announced on.
+const CHANNEL: &str = "signorini_jobs";
+
+/// The status columns of `jobs`, in the order [`view`] reads them.
+const JOB_COLUMNS: &str = "id, name, state, created_ms, started_ms, finished_ms, error_field, error_reason, done, total, t";
+
+fn pg(e: tokio_postgres::Error) -> StoreError {
+    StoreError::Postgres(match e.as_db_error() {
+        Some(db) => format!("{} ({})", db.message(), db.code().code()),
+        None => match std::error::Error::source(&e) {
+            Some(cause) => format!("{e}: {cause}"),
+            None => e.to_string(),
+        },
+    })
+}
+
+fn pool_err(e: deadpool_postgres::PoolError) -> StoreError {
+    match e {
+        deadpool_postgres::PoolError::Backend(e) => pg(e),
+        other => StoreError::Postgres(other.to_string()),
+    }
+}
+
+/// A job's status from a `SELECT {JOB_COLUMNS}` row.
+fn view(r: &Row) -> Result<JobView, StoreError> {
+    let id: String = r.try_get(0).map_err(pg)?;
+    let state: String = r.try_get(2).map_err(pg)?;
+    let field: Option<String> = r.try_get(6).map_err(pg)?;
+    let reason: Option<String> = r.try_get(7).map_err(pg)?;
+    let int =
+        |k: usize| -> Result<u64, StoreError> { Ok(r.try_get::<_, i64>(k).map_err(pg)? as u64) };
+    Ok(JobView {
+        state: JobState::parse(&state).ok_or_else(|| StoreError::Corrupt {
+            what: "state",
+            id: id.clone(),
+        })?,
+        name: r.try_get(1).map_err(pg)?,
+        created_ms: int(3)?,
+        started_ms: int(4)?,
+        finished_ms: int(5)?,
+        error: match (field, reason) {
+            (Some(f), Some(r)) => Some((f, r)),
+            _ => None,
+        },
+        done: int(8)?,
+        total: int(9)?,
+        t: r.try_get(10).map_err(pg)?,
+        id,
+    })
+}
+
+/// A number bumped at every notification, and the condition idle workers wait on.
+#[derive(Default)]
+struct Ticket {
+    n: Mutex<u64>,
+    changed: Condvar,
+}
+
+impl Ticket {
+    fn bump(&self) {
+        let mut n = self.n.lock().unwrap_or_else(|p| p.into_inner());
+        *n = n.wrapping_add(1);
+        self.changed.notify_all();
+    }
+}
+
+/// The PostgreSQL store of one replica.
+pub struct PgStore {
+    runtime: Option<tokio::runtime::Runtime>,
+    handle: tokio::runtime::Handle,
+    pool: Pool,
+    replica: String,
+    lease: Duration,
+    ticket: Arc<Ticket>,
+}
+
+impl Drop for PgStore {
+    fn drop(&mut self) {
+        // Never blocks (the store may be dropped on an async thread): the listener and the
+        // pool's connection tasks are simply abandoned.
+        if let Some(rt) = self.runtime.take() {
+            rt.shutdown_background();
+        }
+    }
+}
+
+/// Applies the migrations not yet recorded in `schema_migrations`, each in its own
+/// transaction, under an advisory lock (replicas starting together wait for each other).
+async fn migrate(pool: Pool) -> Result<(), StoreError> {
+    let mut client = pool.get().await.map_err(pool_err)?;
+    client
+        .execute("SELECT pg_advisory_lock($1)", &[&MIGRATION_LOCK])
+        .await
+        .map_err(pg)?;
+    let applied = async {
+        client
+            .batch_execute(
+                "CREATE TABLE IF NOT EXISTS schema_migrations (
+                    version BIGINT PRIMARY KEY,
+                    name TEXT NOT NULL,
+                    applied_at TIMESTAMPTZ NOT NULL DEFAULT now()
+                )",
+            )
+            .await
+            .map_err(pg)?;
+        for &(version, name, sql) in MIGRATIONS {
+            let tx = client.transaction().await.map_err(pg)?;
+            let done = tx
+                .query_opt(
+                    "SELECT 1 FROM schema_migrations WHERE version = $1",
+                    &[&version],
+                )
+                .await
+                .map_err(pg)?
+                .is_some();
+            if done {
+                continue;
+            }
+            tx.batch_execute(sql)
+                .await
+                .map_err(|e| StoreError::Postgres(format!("migration {name}: {}", pg(e))))?;
+            tx.execute(
+                "INSERT INTO schema_migrations (version, name) VALUES ($1, $2)",
+                &[&version, &name],
+            )
+            .await
+            .map_err(pg)?;
+            tx.commit().await.map_err(pg)?;
+            tracing::info!(migration = name, "store: migrated");
+        }
+        Ok(())
+    }
+    .await;
+    let unlocked = client
+        .execute("SELECT pg_advisory_unlock($1)", &[&MIGRATION_LOCK])
+        .await
+        .map_err(pg);
+    applied.and(unlocked.map(|_| ()))
+}
+
+/// Listens for new jobs on a connection of its own (reconnecting after a second if it drops)
+/// and bumps the ticket at each.
+async fn listen(config: tokio_postgres::Config, ticket: Arc<Ticket>) {
+    loop {
+        match config.connect(NoTls).await {
+            Ok((client, mut connection)) => {
+                let bumps = ticket.clone();
+                let driver = tokio::spawn(async move {
+                    while let Some(message) =
+                        std::future::poll_fn(|cx| connection.poll_message(cx)).await
+                    {
+                        match message {
+                            Ok(AsyncMessage::Notification(_)) => bumps.bump(),
+                            Ok(_) => {}
+                            Err(_) => break,
+                        }
+                    }
+                });
+                match client.batch_execute(&format!("LISTEN {CHANNEL}")).await {
+                    Ok(()) => {
+                        // A job queued while this connection was down is found by polling.
+                        ticket.bump();
+                        let _ = driver.await;
+                    }
+                    Err(e) => {
+                        tracing::warn!("store: LISTEN {CHANNEL}: {}", pg(e));
+                        driver.abort();
+                    }
+                }
+            }
+            Err(e) => tracing::warn!("store: connecting the listener: {}", pg(e)),
+        }
+        tokio::time::sleep(Duration::from_secs(1)).await;
+    }
+}
+
+impl PgStore {
+    /// Connects to `url`, applies the migrations and starts listening for new jobs.
+    pub fn connect(
+        url: &str,
+        replica: &str,
+        connections: usize,
+        lease: Duration,
+    ) -> Result<PgStore, StoreError> {
+        let config: tokio_postgres::Config = url
+            .parse()
+            .map_err(|e| StoreError::Postgres(format!("--store: not a PostgreSQL URL: {e}")))?;
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .thread_name("signorini-store")
+            .enable_all()
+            .build()
+            .map_err(|e| StoreError::Postgres(format!("starting the store's runtime: {e}")))?;
+        let manager = Manager::from_config(
+            config.clone(),
+            NoTls,
+            ManagerConfig {
+                recycling_method: RecyclingMethod::Fast,
+            },
+        );
+        let pool = Pool::builder(manager)
+            .max_size(connections.max(2))
+            .build()
+            .map_err(|e| StoreError::Postgres(format!("connection pool: {e}")))?;
+        let store = PgStore {
+            handle: runtime.handle().clone(),
+            runtime: Some(runtime),
+            pool: pool.clone(),
+            replica: replica.to_string(),
+            lease,
+            ticket: Arc::new(Ticket::default()),
+        };
+        store.block(migrate(pool))?;
+        store.handle.spawn(listen(config, store.ticket.clone()));
+        Ok(store)
+    }
+
+    /// Runs `f` on the store's runtime and waits for its answer.
+    fn block<T: Send + 'static>(
+        &self,
+        f: impl Future<Output = Result<T, StoreError>> + Send + 'static,
+    ) -> Result<T, StoreError> {
+        let (tx, rx) = std::sync::mpsc::sync_channel(1);
+        self.handle.spawn(async move {
+            let _ = tx.send(f.await);
+        });
+        rx.recv()
+            .map_err(|_| StoreError::Postgres("the store's runtime stopped".into()))?
+    }
+
+    /// Runs `f` with a pooled connection.
+    fn with<T, F, Fut>(&self, f: F) -> Result<T, StoreError>
+    where
+        T: Send + 'static,
+        F: FnOnce(deadpool_postgres::Object) -> Fut + Send + 'static,
+        Fut: Future<Output = Result<T, StoreError>> + Send,
+    {
+        let pool = self.pool.clone();
+        self.block(async move { f(pool.get().await.map_err(pool_err)?).await })
+    }
+
+    fn lease_secs(&self) -> f64 {
+        self.lease.as_secs_f64()
+    }
+}
+
+/// Inserts one chunk of attempt `attempt`.
+async fn insert_chunk(
+    c: &Transaction<'_>,
+    id: &str,
+    attempt: i64,
+    chunk: u64,
+    first_row: u64,
+    rows: &SeriesChunk,
+) -> Result<(), StoreError> {
+    let (Some(&first), Some(&last)) = (rows.steps.first(), rows.steps.last()) else {
+        return Ok(());
+    };
+    c.execute(
+        "INSERT INTO result_chunks (id, attempt, chunk, first_row, rows, step_first, step_last, steps, t, vals, batches)
+         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11)
+         ON CONFLICT (id, attempt, chunk) DO NOTHING",
+        &[
+            &id,
+            &attempt,
+            &(chunk as i64),
+            &(first_row as i64),
+            &(rows.steps.len() as i64),
+            &(first as i64),
+            &(last as i64),
+            &u64s_to_blob(&rows.steps),
+            &f64s_to_blob(&rows.t),
+            &f64s_to_blob(&rows.values),
+            &batches_blob(rows),
+        ],
+    )
+    .await
+    .map_err(pg)?;
+    Ok(())
+}
+
+impl Backend for PgStore {
+    fn insert(&self, row: &JobView, spec_json: &str) -> Result<bool, StoreError> {
+        let (id, name, spec) = (row.id.clone(), row.name.clone(), spec_json.to_string());
+        let (state, created, total) = (row.state.as_str(), row.created_ms as i64, row.total as i64);
+        self.with(move |c| async move {
+            // Inserted and announced in one statement: the notification goes at commit.
+            let n = c
+                .query(
+                    &format!(
+                        "WITH ins AS (
+                            INSERT INTO jobs (id, name, spec_json, state, created_ms, total)
+                            VALUES ($1, $2, $3, $4, $5, $6) ON CONFLICT (id) DO NOTHING RETURNING id)
+                         SELECT pg_notify('{CHANNEL}', id) FROM ins"
+                    ),
+                    &[&id, &name, &spec, &state, &created, &total],
+                )
+                .await
+                .map_err(pg)?
+                .len();
+            Ok(n == 1)
+        })
+    }
+
+    fn set_running(&self, id: &str, started_ms: u64) -> Result<(), StoreError> {
+        let (id, owner) = (id.to_string(), self.replica.clone());
+        self.with(move |c| async move {
+            c.execute(
+                "UPDATE jobs SET started_ms = $2 WHERE id = $1 AND owner = $3 AND state = 'running'",
+                &[&id, &(started_ms as i64), &owner],
+            )
+            .await
+            .map_err(pg)?;
+            Ok(())
+        })
+    }
+
+    fn clear_series(&self, id: &str) -> Result<(), StoreError> {
+        // The chunks of earlier attempts (a replica that died mid-run); the current attempt's
+        // are written under its own key.
+        let id = id.to_string();
+        self.with(move |c| async move {
+            c.execute(
+                "DELETE FROM result_chunks WHERE id = $1 AND attempt < (SELECT attempt FROM jobs WHERE id = $1)",
+                &[&id],
+            )
+            .await
+            .map_err(pg)?;
+            Ok(())
+        })
+    }
+
+    fn append_chunk(
+        &self,
+        id: &str,
+        chunk: u64,
+        first_row: u64,
+        rows: &SeriesChunk,
+    ) -> Result<(), StoreError> {
+        let (Some(&first), Some(&last)) = (rows.steps.first(), rows.steps.last()) else {
+            return Ok(());
+        };
+        let (id, owner) = (id.to_string(), self.replica.clone());
+        let blobs = (
+            u64s_to_blob(&rows.steps),
+            f64s_to_blob(&rows.t),
+            f64s_to_blob(&rows.values),
+            batches_blob(rows),
+        );
+        let n_rows = rows.steps.len() as i64;
+        self.with(move |c| async move {
+            // Written only while this replica holds the job (FOR SHARE waits for a claim in
+            // progress and sees its outcome).
+            let n = c
+                .execute(
+                    "INSERT INTO result_chunks (id, attempt, chunk, first_row, rows, step_first, step_last, steps, t, vals, batches)
+                     SELECT id, attempt, $2, $3, $4, $5, $6, $7, $8, $9, $10 FROM jobs
+                     WHERE id = $1 AND owner = $11 AND state = 'running' FOR SHARE
+                     ON CONFLICT (id, attempt, chunk) DO NOTHING",
+                    &[
+                        &id,
+                        &(chunk as i64),
+                        &(first_row as i64),
+                        &n_rows,
+                        &(first as i64),
+                        &(last as i64),
+                        &blobs.0,
+                        &blobs.1,
+                        &blobs.2,
+                        &blobs.3,
+                        &owner,
+                    ],
+                )
+                .await
+                .map_err(pg)?;
+            if n == 0 {
+                return Err(StoreError::LeaseLost { id });
+            }
+            Ok(())
+        })
+    }
+
+    fn finish(&self, row: &JobView, result: Option<&StoredResult>) -> Result<(), StoreError> {
+        let row = row.clone();
+        let owner = self.replica.clone();
+        let result = result.map(|r| (ResultTexts::of(r), r.clone()));
+        self.with(move |mut c| async move {
+            let tx = c.transaction().await.map_err(pg)?;
+            let (field, reason) = match &row.error {
+                Some((f, r)) => (Some(f.as_str()), Some(r.as_str())),
+                None => (None, None),
+            };
+            let attempt: Option<i64> = tx
+                .query_opt(
+                    "UPDATE jobs SET state = $2, finished_ms = $3, error_field = $4, error_reason = $5,
+                            done = $6, total = $7, t = $8, lease_until = NULL
+                     WHERE id = $1 AND state = 'running' AND owner = $9 RETURNING attempt",
+                    &[
+                        &row.id,
+                        &row.state.as_str(),
+                        &(row.finished_ms as i64),
+                        &field,
+                        &reason,
+                        &(row.done as i64),
+                        &(row.total as i64),
+                        &row.t,
+                        &owner,
+                    ],
+                )
+                .await
+                .map_err(pg)?
+                .map(|r| r.try_get(0))
+                .transpose()
+                .map_err(pg)?;
+            let Some(attempt) = attempt else {
+                return Err(StoreError::LeaseLost { id: row.id });
+            };
+            if let Some((texts, r)) = result {
+                tx.execute(
+                    "INSERT INTO results (id, attempt, summary_json, columns_json, tables_json, figures_json, partial)
+                     VALUES ($1, $2, $3, $4, $5, $6, $7) ON CONFLICT (id, attempt) DO NOTHING",
+                    &[
+                        &row.id,
+                        &attempt,
+                        &texts.summary,
+                        &texts.columns,
+                        &texts.tables,
+                        &texts.figures,
+                        &r.partial,
+                    ],
+                )
+                .await
+                .map_err(pg)?;
+                if !r.steps.is_empty() {
+                    let have = tx
+                        .query_one(
+                            "SELECT COUNT(*), COALESCE(SUM(rows), 0)::BIGINT FROM result_chunks WHERE id = $1 AND attempt = $2",
+                            &[&row.id, &attempt],
+                        )
+                        .await
+                        .map_err(pg)?;
+                    let chunk = have.try_get::<_, i64>(0).map_err(pg)? as u64;
+                    let first_row = have.try_get::<_, i64>(1).map_err(pg)? as u64;
+                    let parts = split_series(r.columns.len(), &r.steps, &r.t, &r.values);
+                    for (k, (start, rows)) in parts.into_iter().enumerate() {
+                        insert_chunk(
+                            &tx,
+                            &row.id,
+                            attempt,
+                            chunk + k as u64,
+                            first_row + start,
+                            &rows,
+                        )
+                        .await?;
+                    }
+                }
+            }
+            tx.commit().await.map_err(pg)?;
+            Ok(())
+        })
+    }
+
+    fn get(&self, id: &str) -> Result<Option<JobView>, StoreError> {
+        let id = id.to_string();
+        self.with(move |c| async move {
+            c.query_opt(
+                &format!("SELECT {JOB_COLUMNS} FROM jobs WHERE id = $1"),
+                &[&id],
+            )
+            .await
+            .map_err(pg)?
+            .map(|r| view(&r))
+            .transpose()
+        })
+    }
+
+    fn list_page(
+        &self,
+        state: Option<JobState>,
+        before: Option<i64>,
+        limit: usize,
+    ) -> Result<Vec<(i64, JobView)>, StoreError> {
+        let state = state.map(JobState::as_str);
+        self.with(move |c| async move {
+            let rows = c
+                .query(
+                    &format!(
+                        "SELECT {JOB_COLUMNS}, seq FROM jobs
+                         WHERE ($1::TEXT IS NULL OR state = $1) AND ($2::BIGINT IS NULL OR seq < $2)
+                         ORDER BY seq DESC LIMIT $3"
+                    ),
+                    &[&state, &before, &(limit as i64)],
+                )
+                .await
+                .map_err(pg)?;
+            rows.iter()
+                .map(|r| Ok((r.try_get::<_, i64>(11).map_err(pg)?, view(r)?)))
+                .collect()
+        })
+    }
+
+    fn finished_before(&self, cutoff_ms: u64) -> Result<Vec<String>, StoreError> {
+        self.with(move |c| async move {
+            c.query(
+                "SELECT id FROM jobs WHERE state IN ('succeeded', 'failed', 'cancelled') AND finished_ms < $1",
+                &[&(cutoff_ms as i64)],
+            )
+            .await
+            .map_err(pg)?
+            .iter()
+            .map(|r| r.try_get(0).map_err(pg))
+            .collect()
+        })
+    }
+
+    fn delete(&self, id: &str) -> Result<bool, StoreError> {
+        // Results and chunks go with the job (ON DELETE CASCADE); a job another replica runs
+        // is not finished, so not removed.
+        let id = id.to_string();
+        self.with(move |c| async move {
+            let n = c
+                .execute(
+                    "DELETE FROM jobs WHERE id = $1 AND state IN ('succeeded', 'failed', 'cancelled')",
+                    &[&id],
+                )
+                .await
+                .map_err(pg)?;
+            Ok(n == 1)
+        })
+    }
+
+    fn recover(&self) -> Result<Vec<(JobView, String)>, StoreError> {
+        // Nothing to take back: unfinished jobs are claimed from the queue, those of a replica
+        // that died once their leases run out.
+        Ok(Vec::new())
+    }
+
+    fn counts(&self) -> Result<Vec<(JobState, u64)>, StoreError> {
+        let rows: Vec<(String, u64)> = self.with(move |c| async move {
+            c.query("SELECT state, COUNT(*) FROM jobs GROUP BY state", &[])
+                .await
+                .map_err(pg)?
+                .iter()
+                .map(|r| {
+                    Ok((
+                        r.try_get(0).map_err(pg)?,
+                        r.try_get::<_, i64>(1).map_err(pg)? as u64,
+                    ))
+                })
+                .collect()
+        })?;
+        Ok(JobState::ALL
+            .into_iter()
+            .map(|s| {
+                (
+                    s,
+                    rows.iter()
+                        .find(|(n, _)| n == s.as_str())
+                        .map_or(0, |(_, c)| *c),
+                )
+            })
+            .collect())
+    }
+
+    fn result_head(&self, id: &str) -> Result<Option<StoredResult>, StoreError> {
+        let id = id.to_string();
+        self.with(move |c| async move {
+            let Some(r) = c
+                .query_opt(
+                    "SELECT r.summary_json, r.columns_json, r.tables_json, r.figures_json, r.partial
+                     FROM results r JOIN jobs j ON j.id = r.id AND j.attempt = r.attempt WHERE r.id = $1",
+                    &[&id],
+                )
+                .await
+                .map_err(pg)?
+            else {
+                return Ok(None);
+            };
+            let texts = ResultTexts {
+                summary: r.try_get(0).map_err(pg)?,
+                columns: r.try_get(1).map_err(pg)?,
+                tables: r.try_get(2).map_err(pg)?,
+                figures: r.try_get(3).map_err(pg)?,
+            };
+            Ok(Some(texts.decode(&id, r.try_get(4).map_err(pg)?)?))
+        })
+    }
+
+    fn series_index(&self, id: &str) -> Result<Vec<ChunkMeta>, StoreError> {
+        let id = id.to_string();
+        self.with(move |c| async move {
+            let rows = c
+                .query(
+                    "SELECT c.chunk, c.first_row, c.rows, c.step_first, c.step_last
+                     FROM result_chunks c JOIN jobs j ON j.id = c.id AND j.attempt = c.attempt
+                     WHERE c.id = $1 ORDER BY c.chunk",
+                    &[&id],
+                )
+                .await
+                .map_err(pg)?;
+            let int = |r: &Row, k: usize| -> Result<u64, StoreError> {
+                Ok(r.try_get::<_, i64>(k).map_err(pg)? as u64)
+            };
+            let chunks = rows
+                .iter()
+                .map(|r| {
+                    Ok(ChunkMeta {
+                        chunk: int(r, 0)?,
+                        first_row: int(r, 1)?,
+                        rows: int(r, 2)?,
+                        step_first: int(r, 3)?,
+                        step_last: int(r, 4)?,
+                    })
+                })
+                .collect::<Result<Vec<_>, StoreError>>()?;
+            check_index(&id, chunks)
+        })
+    }
+
+    fn read_chunk(
+        &self,
+        id: &str,
+        meta: &ChunkMeta,
+        columns: usize,
+    ) -> Result<SeriesChunk, StoreError> {
+        let (id, meta) = (id.to_string(), *meta);
+        self.with(move |c| async move {
+            let r = c
+                .query_one(
+                    "SELECT c.steps, c.t, c.vals, c.batches
+                     FROM result_chunks c JOIN jobs j ON j.id = c.id AND j.attempt = c.attempt
+                     WHERE c.id = $1 AND c.chunk = $2",
+                    &[&id, &(meta.chunk as i64)],
+                )
+                .await
+                .map_err(pg)?;
+            let blob = |k: usize| -> Result<Vec<u8>, StoreError> { r.try_get(k).map_err(pg) };
+            let (steps, t, vals, batches) = (blob(0)?, blob(1)?, blob(2)?, blob(3)?);
+            decode_chunk(
+                &id,
+                meta.rows as usize,
+                columns,
+                (&steps, &t, &vals, &batches),
+            )
+        })
+    }
+
+    fn shared(&self) -> Option<&dyn SharedQueue> {
+        Some(self)
+    }
+}
+
+impl SharedQueue for PgStore {
+    fn replica(&self) -> &str {
+        &self.replica
+    }
+
+    fn lease(&self) -> Duration {
+        self.lease
+    }
+
+    fn claim(&self, started_ms: u64) -> Result<Option<Claim>, StoreError> {
+        let (owner, lease) = (self.replica.clone(), self.lease_secs());
+        self.with(move |c| async move {
+            let Some(r) = c
+                .query_opt(
+                    &format!(
+                        "WITH next AS (
+                            SELECT id FROM jobs
+                            WHERE state = 'queued' OR (state = 'running' AND lease_until < now())
+                            ORDER BY seq LIMIT 1 FOR UPDATE SKIP LOCKED)
+                         UPDATE jobs j SET state = 'running', owner = $1, attempt = j.attempt + 1,
+                                lease_until = now() + make_interval(secs => $2),
+                                started_ms = $3, done = 0, t = 0
+                         FROM next WHERE j.id = next.id
+                         RETURNING {}, j.spec_json, j.attempt, j.cancel_requested",
+                        JOB_COLUMNS
+                            .split(", ")
+                            .map(|c| format!("j.{c}"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                    &[&owner, &lease, &(started_ms as i64)],
+                )
+                .await
+                .map_err(pg)?
+            else {
+                return Ok(None);
+            };
+            Ok(Some(Claim {
+                view: view(&r)?,
+                spec_json: r.try_get(11).map_err(pg)?,
+                attempt: r.try_get::<_, i64>(12).map_err(pg)? as u64,
+                cancel_requested: r.try_get(13).map_err(pg)?,
+            }))
+        })
+    }
+
+    fn heartbeat(&self, beats: &[Beat]) -> Result<Vec<(String, BeatReply)>, StoreError> {
+        if beats.is_empty() {
+            return Ok(Vec::new());
+        }
+        let (owner, lease) = (self.replica.clone(), self.lease_secs());
+        let ids: Vec<String> = beats.iter().map(|b| b.id.clone()).collect();
+        let done: Vec<i64> = beats.iter().map(|b| b.done as i64).collect();
+        let total: Vec<i64> = beats.iter().map(|b| b.total as i64).collect();
+        let t: Vec<f64> = beats.iter().map(|b| b.t).collect();
+        self.with(move |c| async move {
+            let rows = c
+                .query(
+                    "UPDATE jobs j SET lease_until = now() + make_interval(secs => $2),
+                            done = u.done, total = u.total, t = u.t
+                     FROM unnest($3::TEXT[], $4::BIGINT[], $5::BIGINT[], $6::FLOAT8[]) AS u(id, done, total, t)
+                     WHERE j.id = u.id AND j.owner = $1 AND j.state = 'running'
+                     RETURNING j.id, j.cancel_requested",
+                    &[&owner, &lease, &ids, &done, &total, &t],
+                )
+                .await
+                .map_err(pg)?;
+            let mut held = Vec::with_capacity(rows.len());
+            for r in &rows {
+                let id: String = r.try_get(0).map_err(pg)?;
+                let cancel: bool = r.try_get(1).map_err(pg)?;
+                held.push((id, cancel));
+            }
+            Ok(ids
+                .into_iter()
+                .map(|id| {
+                    let reply = match held.iter().find(|(h, _)| *h == id) {
+                        Some((_, true)) => BeatReply::CancelRequested,
+                        Some((_, false)) => BeatReply::Held,
+                        None => BeatReply::Lost,
+                    };
+                    (id, reply)
+                })
+                .collect())
+        })
+    }
+
+    fn release(&self, id: &str) -> Result<(), StoreError> {
+        let (id, owner) = (id.to_string(), self.replica.clone());
+        self.with(move |c| async move {
+            c.query(
+                &format!(
+                    "WITH released AS (
+                        UPDATE jobs SET state = 'queued', owner = NULL, lease_until = NULL, started_ms = 0
+                        WHERE id = $1 AND owner = $2 AND state = 'running' RETURNING id)
+                     SELECT pg_notify('{CHANNEL}', id) FROM released"
+                ),
+                &[&id, &owner],
+            )
+            .await
+            .map_err(pg)?;
+            Ok(())
+        })
+    }
+
+    fn request_cancel(&self, id: &str, finished_ms: u64) -> Result<CancelOutcome, StoreError> {
+        let id = id.to_string();
+        self.with(move |c| async move {
+            if let Some(r) = c
+                .query_opt(
+                    &format!(
+                        "UPDATE jobs SET state = 'cancelled', finished_ms = $2
+                         WHERE id = $1 AND state = 'queued' RETURNING {JOB_COLUMNS}"
+                    ),
+                    &[&id, &(finished_ms as i64)],
+                )
+                .await
+                .map_err(pg)?
+            {
+                return Ok(CancelOutcome::Cancelled(view(&r)?));
+            }
+            let n = c
+                .execute(
+                    "UPDATE jobs SET cancel_requested = TRUE WHERE id = $1 AND state = 'running'",
+                    &[&id],
+                )
+                .await
+                .map_err(pg)?;
+            Ok(if n == 1 {
+                CancelOutcome::Requested
+            } else {
+                CancelOutcome::NotLive
+            })
+        })
+    }
+
+    fn queued(&self) -> Result<u64, StoreError> {
+        self.with(move |c| async move {
+            let r = c
+                .query_one("SELECT COUNT(*) FROM jobs WHERE state = 'queued'", &[])
+                .await
+                .map_err(pg)?;
+            Ok(r.try_get::<_, i64>(0).map_err(pg)? as u64)
+        })
+    }
+
+    fn ticket(&self) -> u64 {
+        *self.ticket.n.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn wait(&self, seen: u64, timeout: Duration) {
+        let n = self.ticket.n.lock().unwrap_or_else(|p| p.into_inner());
+        let _ = self
+            .ticket
+            .changed
+            .wait_timeout_while(n, timeout, |n| *n == seen);
+    }
+
+    fn wake(&self) {
+        self.ticket.bump();
+    }
+}

@@ -1,0 +1,304 @@
+//! Replicas on one PostgreSQL store (`serve --store postgres://…`), each a real `signorini serve`
+//! process with one worker, on a private PostgreSQL server (common::pg): the queue is shared
+//! (each job claimed and run exactly once, by either replica), a replica killed with SIGKILL
+//! loses its lease and its job completes on the other, and any replica answers for any job.
+
+mod common;
+
+use common::pg::Postgres;
+use common::{Options, PATIENCE, TestServer, ball_json, free_port, submit_json};
+use prost::Message;
+use signorini::proto::v1 as pb;
+use signorini::proto::v1::simulation_client::SimulationClient;
+use std::path::Path;
+use std::time::Duration;
+use tonic::transport::Channel;
+
+/// Lease of the test replicas (short, so a killed replica's job is claimed again soon).
+const LEASE_SECS: &str = "2";
+
+fn replica(url: &str, name: &str, extra: &[&str]) -> TestServer {
+    let mut args = vec!["--replica", name, "--lease-secs", LEASE_SECS];
+    args.extend_from_slice(extra);
+    let opts = Options {
+        workers: 1,
+        queue_limit: 256,
+        ..Options::default()
+    };
+    TestServer::start_with(Path::new(url), &opts, &args)
+}
+
+/// Polls `GetJob` (which any replica answers from the store) until the job has ended.
+async fn poll_terminal(client: &mut SimulationClient<Channel>, id: &str) -> pb::JobStatus {
+    let fut = async {
+        loop {
+            let s = client
+                .get_job(pb::GetJobRequest { id: id.to_string() })
+                .await
+                .expect("GetJob")
+                .into_inner();
+            if s.state >= pb::JobState::Succeeded as i32 {
+                return s;
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    };
+    tokio::time::timeout(PATIENCE, fut)
+        .await
+        .expect("job did not end in time")
+}
+
+/// Polls the store until `sql` (one value) gives `want`.
+async fn poll_sql(pg: &Postgres, db: &str, sql: &str, want: impl Fn(&str) -> bool) -> String {
+    let deadline = tokio::time::Instant::now() + PATIENCE;
+    loop {
+        let got = pg.psql(db, sql);
+        if want(&got) {
+            return got;
+        }
+        assert!(tokio::time::Instant::now() < deadline, "{sql}: still {got}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+/// The `step` column of a job's result, read over HTTP from `server`.
+async fn result_steps(server: &TestServer, id: &str) -> Vec<f64> {
+    let (status, body) = server
+        .http("GET", &format!("/v1/jobs/{id}/result"), None, None)
+        .await;
+    assert_eq!(status, 200, "{body}");
+    body["steps"]["step"]
+        .as_array()
+        .expect("a step column")
+        .iter()
+        .map(|v| v.as_f64().expect("a number"))
+        .collect()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_replicas_share_one_queue_and_run_each_job_exactly_once() {
+    let pg = Postgres::start();
+    let url = pg.create_database("queue");
+    let a = replica(&url, "a", &[]);
+    let b = replica(&url, "b", &[]);
+    let mut to_a = a.grpc().await;
+    let mut to_b = b.grpc().await;
+
+    // 40 jobs, all submitted to replica a.
+    let ids: Vec<String> = (0..40).map(|k| format!("job-{k:02}")).collect();
+    for id in &ids {
+        submit_json(&mut to_a, ball_json(1e-4, 20_000, 100), Some(id))
+            .await
+            .expect("submit");
+    }
+    // Replica b answers for every job, whichever ran it.
+    for id in &ids {
+        let s = poll_terminal(&mut to_b, id).await;
+        assert_eq!(s.state, pb::JobState::Succeeded as i32, "{id}: {s:?}");
+    }
+
+    // Each job claimed once (attempt 1), finished by the replica that claimed it; both
+    // replicas did work.
+    let per_owner = pg.psql(
+        "queue",
+        "SELECT owner, count(*), min(attempt), max(attempt) FROM jobs GROUP BY owner ORDER BY owner",
+    );
+    let rows: Vec<Vec<&str>> = per_owner.lines().map(|l| l.split('|').collect()).collect();
+    assert_eq!(rows.len(), 2, "both replicas ran jobs: {per_owner}");
+    assert_eq!((rows[0][0], rows[1][0]), ("a", "b"), "{per_owner}");
+    let counts: Vec<u64> = rows
+        .iter()
+        .map(|r| r[1].parse().expect("a count"))
+        .collect();
+    assert!(counts.iter().all(|&n| n > 0), "{per_owner}");
+    assert_eq!(counts.iter().sum::<u64>(), 40);
+    assert!(
+        rows.iter().all(|r| r[2] == "1" && r[3] == "1"),
+        "a job was claimed twice: {per_owner}"
+    );
+    // One result per job, and each series whole (0, 100, …, 20000).
+    assert_eq!(
+        pg.psql("queue", "SELECT count(*), count(DISTINCT id) FROM results"),
+        "40|40"
+    );
+    let ran_on_a = pg.psql(
+        "queue",
+        "SELECT id FROM jobs WHERE owner = 'a' ORDER BY seq LIMIT 1",
+    );
+    let steps = result_steps(&b, &ran_on_a).await;
+    assert_eq!(
+        steps,
+        (0..=200).map(|k| f64::from(k * 100)).collect::<Vec<_>>()
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_replica_killed_mid_job_loses_its_lease_and_the_other_finishes_the_job() {
+    let pg = Postgres::start();
+    let url = pg.create_database("failover");
+    let mut a = replica(&url, "a", &[]);
+    let mut b = replica(&url, "b", &[]);
+    let mut to_a = a.grpc().await;
+
+    // A job of several seconds, then short ones, all to replica a.
+    submit_json(&mut to_a, ball_json(1e-5, 3_000_000, 1000), Some("long"))
+        .await
+        .expect("submit long");
+    let short: Vec<String> = (0..6).map(|k| format!("short-{k}")).collect();
+    for id in &short {
+        submit_json(&mut to_a, ball_json(1e-4, 5_000, 50), Some(id))
+            .await
+            .expect("submit short");
+    }
+    // Well into the long job (progress reaches the store with the heartbeat): kill its replica.
+    let owner = poll_sql(
+        &pg,
+        "failover",
+        "SELECT owner FROM jobs WHERE id = 'long' AND state = 'running' AND done >= 20000",
+        |o| !o.is_empty(),
+    )
+    .await;
+    let survivor = match owner.as_str() {
+        "a" => {
+            a.kill9();
+            b
+        }
+        "b" => {
+            b.kill9();
+            a
+        }
+        other => panic!("unexpected owner {other}"),
+    };
+    let mut client = survivor.grpc().await;
+    let s = poll_terminal(&mut client, "long").await;
+    assert_eq!(s.state, pb::JobState::Succeeded as i32, "{s:?}");
+    for id in &short {
+        let s = poll_terminal(&mut client, id).await;
+        assert_eq!(s.state, pb::JobState::Succeeded as i32, "{id}: {s:?}");
+    }
+    let survivor_name = if owner == "a" { "b" } else { "a" };
+    // Claimed a second time, by the survivor, after the lease ran out; the short jobs once.
+    assert_eq!(
+        pg.psql(
+            "failover",
+            "SELECT owner, attempt FROM jobs WHERE id = 'long'"
+        ),
+        format!("{survivor_name}|2")
+    );
+    assert_eq!(
+        pg.psql(
+            "failover",
+            "SELECT count(*) FROM jobs WHERE id <> 'long' AND attempt = 1 AND state = 'succeeded'"
+        ),
+        "6"
+    );
+    // Nothing lost or duplicated: one result per job, the long job's chunks all of its second
+    // run, its series whole and in order.
+    assert_eq!(
+        pg.psql(
+            "failover",
+            "SELECT count(*), count(DISTINCT id) FROM results"
+        ),
+        "7|7"
+    );
+    assert_eq!(
+        pg.psql(
+            "failover",
+            "SELECT string_agg(DISTINCT attempt::TEXT, ',') FROM result_chunks WHERE id = 'long'"
+        ),
+        "2"
+    );
+    let steps = result_steps(&survivor, "long").await;
+    assert_eq!(
+        steps,
+        (0..=3000).map(|k| f64::from(k * 1000)).collect::<Vec<_>>()
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn frames_of_a_job_on_either_replica_reach_a_subscriber_through_a_router() {
+    // A zenoh router on loopback (what zenohd is in a deployment); the replicas and the
+    // subscriber connect to it only.
+    let router_endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let mut config = zenoh::Config::default();
+    for (key, value) in [
+        ("mode", "\"router\"".to_string()),
+        ("scouting/multicast/enabled", "false".into()),
+        ("listen/endpoints", format!("[\"{router_endpoint}\"]")),
+    ] {
+        config.insert_json5(key, &value).expect("router config");
+    }
+    let router = zenoh::open(config).await.expect("zenoh router");
+
+    let pg = Postgres::start();
+    let url = pg.create_database("frames");
+    let a = replica(&url, "a", &["--zenoh-connect", &router_endpoint]);
+    let b = replica(&url, "b", &["--zenoh-connect", &router_endpoint]);
+    let subscriber = signorini::stream::open_session(&signorini::stream::ZenohOptions {
+        listen: Vec::new(),
+        connect: vec![router_endpoint.clone()],
+        ..Default::default()
+    })
+    .await
+    .expect("subscriber session");
+    let energy = subscriber
+        .declare_subscriber(signorini::stream::energy_key("watched"))
+        .await
+        .expect("subscribe energy");
+    let status = subscriber
+        .declare_subscriber(signorini::stream::status_key("watched"))
+        .await
+        .expect("subscribe status");
+    // Both replicas' status queryables answer through the router: routes are up both ways.
+    let deadline = tokio::time::Instant::now() + PATIENCE;
+    loop {
+        let replies = subscriber
+            .get(signorini::stream::status_key("watched"))
+            .await
+            .expect("zenoh get");
+        let mut n = 0;
+        while replies.recv_async().await.is_ok() {
+            n += 1;
+        }
+        if n >= 2 {
+            break;
+        }
+        assert!(
+            tokio::time::Instant::now() < deadline,
+            "replicas not routed"
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+
+    // Two jobs keep both workers busy; the watched one runs on either replica.
+    let mut to_a = a.grpc().await;
+    submit_json(&mut to_a, ball_json(1e-5, 1_000_000, 1000), Some("other"))
+        .await
+        .expect("submit other");
+    submit_json(&mut to_a, ball_json(1e-5, 1_000_000, 1000), Some("watched"))
+        .await
+        .expect("submit watched");
+    let frames = common::collect_until_last(&energy).await;
+    assert!(frames.frames > 0);
+    assert_eq!(frames.steps.last(), Some(&1_000_000));
+    // The final status goes out after the result is stored.
+    let fin = loop {
+        let sample = tokio::time::timeout(PATIENCE, status.recv_async())
+            .await
+            .expect("no status in time")
+            .expect("subscriber closed");
+        let s = pb::JobStatus::decode(&*sample.payload().to_bytes()).expect("a JobStatus");
+        if s.state >= pb::JobState::Succeeded as i32 {
+            break s;
+        }
+    };
+    assert_eq!(fin.state, pb::JobState::Succeeded as i32);
+    let owner = pg.psql("frames", "SELECT owner FROM jobs WHERE id = 'watched'");
+    assert!(owner == "a" || owner == "b", "{owner}");
+    let mut to_b = b.grpc().await;
+    poll_terminal(&mut to_b, "other").await;
+    drop((to_a, to_b));
+    subscriber.close().await.expect("closing the subscriber");
+    drop((a, b));
+    router.close().await.expect("closing the router");
+}
