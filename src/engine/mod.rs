@@ -829,11 +829,14 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     let started = now_ms();
     live.started_ms.store(started, Ordering::Relaxed);
     live.running.store(true, Ordering::Release);
-    // A job run again after a restart starts its series afresh.
-    if let Err(e) = inner
-        .store
-        .set_running(&live.id, started)
-        .and_then(|()| inner.store.clear_series(&live.id))
+    if let Err(e) = inner.store.set_running(&live.id, started) {
+        tracing::error!(id = %live.id, "store: {e}");
+    }
+    // A job run again after a restart continues from its last checkpoint, or else starts its
+    // series afresh.
+    let resume = resume_point(inner, live);
+    if resume.is_none()
+        && let Err(e) = inner.store.clear_series(&live.id)
     {
         tracing::error!(id = %live.id, "store: {e}");
     }
@@ -841,10 +844,17 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     tracing::info!(id = %live.id, "running");
 
     let mut observer = ServiceObserver::new(inner, live);
+    if let Some(r) = &resume {
+        observer = observer.resumed(r.attempt, r.last_chunk);
+    }
     let clock = Instant::now();
     // A panic in the numerics (a bug) fails this job and keeps the worker and the server alive.
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        job::run(&live.job, threads_per_job(inner.workers), &mut observer)
+        let threads = threads_per_job(inner.workers);
+        match &resume {
+            Some(r) => job::resume(&live.job, threads, &mut observer, &r.checkpoint),
+            None => job::run(&live.job, threads, &mut observer),
+        }
     }))
     .map_err(|panic| panic_message(panic.as_ref()));
     let wall = clock.elapsed();
@@ -914,6 +924,72 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     end_job(inner, live, view, result, last_batch);
 }
 
+/// Where an interrupted job continues: its checkpoint, the attempt that continues it, and the
+/// last chunk of its stored series (whose last batch the next live batch follows).
+struct ResumePoint {
+    checkpoint: signorini_core::checkpoint::Checkpoint,
+    attempt: u64,
+    last_chunk: Option<ChunkMeta>,
+}
+
+/// The checkpoint a job continues from, its stored series cut back to the rows the checkpoint
+/// counts and the job's buffer set after them; `None` for a job without one. A checkpoint that
+/// cannot be used (damaged, of another format or spec) is logged, dropped, and the job runs
+/// again from step 0.
+fn resume_point(inner: &Inner, live: &LiveJob) -> Option<ResumePoint> {
+    let (attempt, step, bytes) = match inner.store.load_checkpoint(&live.id) {
+        Ok(Some(found)) => found,
+        Ok(None) => return None,
+        Err(e) => {
+            tracing::error!(id = %live.id, "store: {e}");
+            return None;
+        }
+    };
+    let usable = live
+        .job
+        .read_checkpoint(&bytes)
+        .map_err(|e| e.to_string())
+        .and_then(|c| {
+            inner
+                .store
+                .truncate_series(&live.id, c.records())
+                .and_then(|()| inner.store.series_index(&live.id))
+                .map(|index| (c, index))
+                .map_err(|e| e.to_string())
+        });
+    let (checkpoint, index) = match usable {
+        Ok(found) => found,
+        Err(e) => {
+            tracing::warn!(
+                id = %live.id,
+                step,
+                "the checkpoint cannot be used ({e}): the job reruns from step 0"
+            );
+            if let Err(e) = inner.store.delete_checkpoint(&live.id) {
+                tracing::error!(id = %live.id, "store: {e}");
+            }
+            return None;
+        }
+    };
+    {
+        let mut recent = lock(&live.recent);
+        recent.chunks = index.last().map_or(0, |m| m.chunk + 1);
+        recent.first_row = index.iter().map(|m| m.rows).sum();
+    }
+    live.done.store(checkpoint.step(), Ordering::Relaxed);
+    tracing::info!(
+        id = %live.id,
+        step = checkpoint.step(),
+        attempt = attempt + 1,
+        "resuming from its checkpoint"
+    );
+    Some(ResumePoint {
+        checkpoint,
+        attempt: attempt + 1,
+        last_chunk: index.last().copied(),
+    })
+}
+
 /// Stores a job's end (and its result), then tells the world: the last step batch, the final
 /// status, the end of the job's events.
 fn end_job(
@@ -935,6 +1011,10 @@ fn end_job(
         tracing::error!(id = %live.id, "store: {e}");
         view.state = JobState::Failed;
         view.error = Some(("store".into(), e.to_string()));
+    }
+    // An ended job is not resumed: its checkpoint goes.
+    if let Err(e) = inner.store.delete_checkpoint(&live.id) {
+        tracing::error!(id = %live.id, "store: {e}");
     }
     lock(&inner.live).remove(&live.id);
     inner.sink.send(last_batch);
