@@ -36,11 +36,18 @@ use std::time::Duration;
 use tokio_postgres::{AsyncMessage, NoTls, Row};
 
 /// The migrations, in order: (version, name, SQL).
-const MIGRATIONS: &[(i64, &str, &str)] = &[(
-    1,
-    "0001_init",
-    include_str!("../../migrations/postgres/0001_init.sql"),
-)];
+const MIGRATIONS: &[(i64, &str, &str)] = &[
+    (
+        1,
+        "0001_init",
+        include_str!("../../migrations/postgres/0001_init.sql"),
+    ),
+    (
+        2,
+        "0002_checkpoints",
+        include_str!("../../migrations/postgres/0002_checkpoints.sql"),
+    ),
+];
 
 /// Advisory lock key held while migrating ("sgnrn" in ASCII).
 const MIGRATION_LOCK: i64 = 0x73_67_6e_72_6e;
@@ -557,6 +564,141 @@ impl Backend for PgStore {
             .iter()
             .map(|r| r.try_get(0).map_err(pg))
             .collect()
+        })
+    }
+
+    fn save_checkpoint(
+        &self,
+        id: &str,
+        attempt: u64,
+        step: u64,
+        bytes: &[u8],
+    ) -> Result<(), StoreError> {
+        let (id, owner, bytes) = (id.to_string(), self.replica.clone(), bytes.to_vec());
+        self.with(move |c| async move {
+            // Written only while this replica holds the job, like its chunks.
+            let n = c
+                .execute(
+                    "INSERT INTO checkpoints (id, attempt, step, bytes, series_attempt)
+                     SELECT id, $2, $3, $4, attempt FROM jobs
+                     WHERE id = $1 AND owner = $5 AND state = 'running' FOR SHARE
+                     ON CONFLICT (id) DO UPDATE SET attempt = EXCLUDED.attempt, step = EXCLUDED.step,
+                        bytes = EXCLUDED.bytes, series_attempt = EXCLUDED.series_attempt",
+                    &[&id, &(attempt as i64), &(step as i64), &bytes, &owner],
+                )
+                .await
+                .map_err(pg)?;
+            if n == 0 {
+                return Err(StoreError::LeaseLost { id });
+            }
+            Ok(())
+        })
+    }
+
+    fn load_checkpoint(&self, id: &str) -> Result<Option<(u64, u64, Vec<u8>)>, StoreError> {
+        let id = id.to_string();
+        self.with(move |c| async move {
+            let row = c
+                .query_opt(
+                    "SELECT attempt, step, bytes FROM checkpoints WHERE id = $1",
+                    &[&id],
+                )
+                .await
+                .map_err(pg)?;
+            row.map(|r| {
+                Ok((
+                    r.try_get::<_, i64>(0).map_err(pg)? as u64,
+                    r.try_get::<_, i64>(1).map_err(pg)? as u64,
+                    r.try_get::<_, Vec<u8>>(2).map_err(pg)?,
+                ))
+            })
+            .transpose()
+        })
+    }
+
+    fn delete_checkpoint(&self, id: &str) -> Result<(), StoreError> {
+        let id = id.to_string();
+        self.with(move |c| async move {
+            c.execute("DELETE FROM checkpoints WHERE id = $1", &[&id])
+                .await
+                .map_err(pg)?;
+            Ok(())
+        })
+    }
+
+    fn truncate_series(&self, id: &str, rows: u64) -> Result<(), StoreError> {
+        let (id, owner) = (id.to_string(), self.replica.clone());
+        self.with(move |mut c| async move {
+            let tx = c.transaction().await.map_err(pg)?;
+            // This replica's claim and the claim that wrote the checkpoint's chunks.
+            let found = tx
+                .query_opt(
+                    "SELECT j.attempt, k.series_attempt FROM jobs j JOIN checkpoints k ON k.id = j.id
+                     WHERE j.id = $1 AND j.owner = $2 AND j.state = 'running' FOR UPDATE OF j",
+                    &[&id, &owner],
+                )
+                .await
+                .map_err(pg)?;
+            let Some(found) = found else {
+                return Err(StoreError::LeaseLost { id });
+            };
+            let current: i64 = found.try_get(0).map_err(pg)?;
+            let written: i64 = found.try_get(1).map_err(pg)?;
+            let rows = rows as i64;
+            let across: i64 = tx
+                .query_one(
+                    "SELECT COUNT(*) FROM result_chunks
+                     WHERE id = $1 AND attempt = $2 AND first_row < $3 AND first_row + rows > $3",
+                    &[&id, &written, &rows],
+                )
+                .await
+                .map_err(pg)?
+                .try_get(0)
+                .map_err(pg)?;
+            if across > 0 {
+                return Err(StoreError::Corrupt {
+                    what: "series (a chunk across the checkpoint)",
+                    id,
+                });
+            }
+            if written == current {
+                tx.execute(
+                    "DELETE FROM result_chunks WHERE id = $1 AND attempt = $2 AND first_row >= $3",
+                    &[&id, &current, &rows],
+                )
+                .await
+                .map_err(pg)?;
+            } else {
+                // Claimed again: the chunks before the checkpoint move to this claim, the rest
+                // of the dead claim's (and anything older) goes.
+                tx.execute(
+                    "DELETE FROM result_chunks WHERE id = $1 AND attempt = $2",
+                    &[&id, &current],
+                )
+                .await
+                .map_err(pg)?;
+                tx.execute(
+                    "UPDATE result_chunks SET attempt = $2
+                     WHERE id = $1 AND attempt = $3 AND first_row < $4",
+                    &[&id, &current, &written, &rows],
+                )
+                .await
+                .map_err(pg)?;
+                tx.execute(
+                    "DELETE FROM result_chunks WHERE id = $1 AND attempt < $2",
+                    &[&id, &current],
+                )
+                .await
+                .map_err(pg)?;
+                tx.execute(
+                    "UPDATE checkpoints SET series_attempt = $2 WHERE id = $1",
+                    &[&id, &current],
+                )
+                .await
+                .map_err(pg)?;
+            }
+            tx.commit().await.map_err(pg)?;
+            Ok(())
         })
     }
 
