@@ -91,7 +91,10 @@ async fn two_replicas_share_one_queue_and_run_each_job_exactly_once() {
             .await
             .expect("submit");
     }
-    // Replica b answers for every job, whichever ran it.
+    // Replica b follows the last job (WatchJob) to its end, whichever replica runs it, and
+    // answers for every job.
+    let last = common::wait_terminal(&mut to_b, &ids[39]).await;
+    assert_eq!(last.state, pb::JobState::Succeeded as i32, "{last:?}");
     for id in &ids {
         let s = poll_terminal(&mut to_b, id).await;
         assert_eq!(s.state, pb::JobState::Succeeded as i32, "{id}: {s:?}");
@@ -170,7 +173,9 @@ async fn a_replica_killed_mid_job_loses_its_lease_and_the_other_finishes_the_job
         other => panic!("unexpected owner {other}"),
     };
     let mut client = survivor.grpc().await;
-    let s = poll_terminal(&mut client, "long").await;
+    // Followed on the survivor from before it claims the job (status read from the store) to
+    // its end there.
+    let s = common::wait_terminal(&mut client, "long").await;
     assert_eq!(s.state, pb::JobState::Succeeded as i32, "{s:?}");
     for id in &short {
         let s = poll_terminal(&mut client, id).await;
