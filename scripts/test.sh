@@ -3,18 +3,21 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo --version
+# System parts some tests need, installed from the distribution when missing (apt-get, as root
+# or through sudo): Chromium drives the pages the service serves (tests/service_browser.rs);
+# PostgreSQL's binaries start the private servers of the PostgreSQL store's tests
+# (tests/service_postgres*.rs).
+install() { # PACKAGE…
+  echo "installing $* from the distribution"
+  local sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo apt-get install -y -q --no-install-recommends "$@" ||
+    { $sudo apt-get update -q && $sudo apt-get install -y -q --no-install-recommends "$@"; }
+}
+[ -n "${SIGNORINI_CHROMIUM:-}" ] || command -v chromium >/dev/null 2>&1 || install chromium
+ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || install postgresql
 scripts/check_core_purity.sh
-# The PostgreSQL store's tests (tests/service_postgres*.rs) start a private server from the
-# distribution's binaries: install them when missing (as root, e.g. CI on a fresh machine).
-if ! ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1; then
-    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
-        DEBIAN_FRONTEND=noninteractive apt-get update -q
-        DEBIAN_FRONTEND=noninteractive apt-get install -y -q postgresql
-    else
-        echo "PostgreSQL is missing: install the postgresql package (apt-get install -y postgresql)" >&2
-        exit 1
-    fi
-fi
 cargo test --workspace
 # The Python client (clients/python), installed as a user would, against the binary just built.
 python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore "./clients/python[test]"

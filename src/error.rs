@@ -44,6 +44,14 @@ pub enum ApiError {
         /// Its state.
         state: &'static str,
     },
+    /// The job's result is being streamed: it cannot be removed until the readers are done.
+    #[error("job {id}'s result is being read by {readers} client(s): remove it when they are done")]
+    BeingRead {
+        /// The job.
+        id: String,
+        /// Streams open on its result.
+        readers: usize,
+    },
     /// The job succeeded but made no figure of this name.
     #[error("job {id} has no figure {name:?}")]
     NoFigure {
@@ -101,7 +109,8 @@ impl ApiError {
             ApiError::NotFound { .. }
             | ApiError::AlreadyExists { .. }
             | ApiError::NoResult { .. }
-            | ApiError::Unfinished { .. } => ("id".into(), self.to_string()),
+            | ApiError::Unfinished { .. }
+            | ApiError::BeingRead { .. } => ("id".into(), self.to_string()),
             ApiError::NoFigure { .. } => ("figure".into(), self.to_string()),
             ApiError::Body { .. } => ("body".into(), self.to_string()),
             ApiError::NoRoute { .. } => ("path".into(), self.to_string()),

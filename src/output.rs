@@ -70,7 +70,14 @@ pub struct CsvSteps {
     out: BufWriter<File>,
     error: Option<std::io::Error>,
     started: bool,
+    /// Continuing a resumed run: the header and the first records are in the file already.
+    resumed: bool,
 }
+
+/// The checkpoint of a run in its output directory, written with [`write_checkpoint`].
+pub const CHECKPOINT_FILE: &str = "checkpoint.bin";
+/// The spec of a run that can be resumed (JSON), next to its checkpoint.
+pub const RUN_SPEC_FILE: &str = "run_spec.json";
 
 impl CsvSteps {
     /// Opens `DIR/steps.csv.partial` for writing.
@@ -85,7 +92,62 @@ impl CsvSteps {
             out: BufWriter::with_capacity(1 << 20, file),
             error: None,
             started: false,
+            resumed: false,
         })
+    }
+
+    /// Reopens `DIR/steps.csv.partial` of an interrupted run to continue it after its first
+    /// `records` records: rows written after the checkpoint (and a row cut by the kill) are
+    /// dropped, so the file continues exactly where the checkpoint left it.
+    pub fn resume(dir: &Path, records: u64) -> Result<Self> {
+        let path = dir.join("steps.csv");
+        let partial = dir.join("steps.csv.partial");
+        let bytes = fs::read(&partial).with_context(|| format!("reading {}", partial.display()))?;
+        // The header line and `records` rows.
+        let keep_lines = records + 1;
+        let mut lines = 0u64;
+        let mut end = None;
+        for (i, &b) in bytes.iter().enumerate() {
+            if b == b'\n' {
+                lines += 1;
+                if lines == keep_lines {
+                    end = Some(i + 1);
+                    break;
+                }
+            }
+        }
+        let Some(end) = end else {
+            return Err(anyhow!(
+                "{} has {lines} complete lines, the checkpoint needs {keep_lines}",
+                partial.display()
+            ));
+        };
+        let file = fs::OpenOptions::new()
+            .write(true)
+            .open(&partial)
+            .with_context(|| format!("opening {}", partial.display()))?;
+        file.set_len(end as u64)
+            .with_context(|| format!("truncating {}", partial.display()))?;
+        let mut file = file;
+        std::io::Seek::seek(&mut file, std::io::SeekFrom::End(0))
+            .with_context(|| format!("seeking {}", partial.display()))?;
+        Ok(Self {
+            path,
+            partial,
+            out: BufWriter::with_capacity(1 << 20, file),
+            error: None,
+            started: true,
+            resumed: true,
+        })
+    }
+
+    /// Writes the rows so far to the disk (before a checkpoint that counts them is written).
+    pub fn sync(&mut self) -> Result<()> {
+        if let Some(e) = self.error.take() {
+            return Err(e).context("writing steps.csv");
+        }
+        self.out.flush().context("writing steps.csv")?;
+        self.out.get_ref().sync_data().context("syncing steps.csv")
     }
 
     fn write_row(&mut self, r: &StepRecord<'_>) -> std::io::Result<()> {
@@ -121,6 +183,9 @@ impl CsvSteps {
 impl Observer for CsvSteps {
     fn start(&mut self, columns: &Columns) {
         self.started = true;
+        if self.resumed {
+            return;
+        }
         if let Err(e) = writeln!(self.out, "{}", csv_header(columns.names())) {
             self.error = Some(e);
         }
@@ -156,6 +221,34 @@ pub fn clear_results(dir: &Path) -> Result<()> {
             Ok(()) => {}
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
             Err(e) => return Err(e).with_context(|| format!("removing stale {}", p.display())),
+        }
+    }
+    Ok(())
+}
+
+/// Writes a run's checkpoint to `DIR/checkpoint.bin` atomically and durably: a temporary file,
+/// synced, renamed over the last one, so a kill at any moment leaves the previous checkpoint or
+/// this one, never a mix.
+pub fn write_checkpoint(dir: &Path, bytes: &[u8]) -> Result<()> {
+    let path = dir.join(CHECKPOINT_FILE);
+    let tmp = dir.join(format!("{CHECKPOINT_FILE}.partial"));
+    let mut f = File::create(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
+    f.write_all(bytes)
+        .and_then(|()| f.sync_data())
+        .with_context(|| format!("writing {}", tmp.display()))?;
+    drop(f);
+    fs::rename(&tmp, &path).with_context(|| format!("renaming {}", path.display()))
+}
+
+/// Removes what lets a run be resumed (`checkpoint.bin`, `run_spec.json`): after it finished,
+/// or before a fresh run in the same directory.
+pub fn clear_checkpoint(dir: &Path) -> Result<()> {
+    for name in [CHECKPOINT_FILE, RUN_SPEC_FILE] {
+        let p = dir.join(name);
+        match fs::remove_file(&p) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(e).with_context(|| format!("removing {}", p.display())),
         }
     }
     Ok(())

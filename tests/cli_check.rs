@@ -114,3 +114,69 @@ fn a_bad_spec_exits_two_naming_the_field() {
     );
     assert_eq!(junit_counts(&junit), (3, 0, 2));
 }
+
+/// A study checks `min_order` against each curve's observed order: generalized-α-SOI2 is second
+/// order on the Jay–Negrut test problem (15), so 1.9 holds and 2.5 fails; a bound of a single run
+/// in a study is a bad spec.
+#[test]
+fn a_study_checks_the_observed_order_of_each_curve() {
+    let dir = tempfile::tempdir().unwrap();
+    let junit = dir.path().join("report.xml");
+    let study = |name: &str, bounds: &str| {
+        let path = dir.path().join(name);
+        let text = format!(
+            r#"
+[study]
+reference = "exact"
+error = "final"
+[study.base]
+model = {{ scene = "jay_negrut_test" }}
+time = {{ h = 0.1, t_end = 1.0 }}
+output = {{ probes = [0, 1] }}
+[[study.schemes]]
+scheme = "soi2_generalized_alpha"
+rho_inf = 0.2
+[study.grid]
+"time.h" = [0.03125, 0.015625, 0.0078125, 0.00390625]
+[check]
+{bounds}
+"#
+        );
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let out = check(&[study("holds.toml", "min_order = 1.9")], &junit);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{stdout}");
+    let line = stdout.lines().next().expect("a line");
+    assert!(line.starts_with("PASS "), "{line}");
+    assert!(line.contains("min_order [soi2_generalized_alpha"), "{line}");
+    let order: f64 = line
+        .split(" = ")
+        .nth(1)
+        .and_then(|v| v.split(' ').next())
+        .and_then(|v| v.parse().ok())
+        .expect("the measured order");
+    assert!((order - 2.0).abs() < 0.1, "{line}");
+    assert_eq!(junit_counts(&junit), (1, 0, 0));
+
+    let out = check(&[study("fails.toml", "min_order = 2.5")], &junit);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}");
+    assert!(stdout.starts_with("FAIL "), "{stdout}");
+    assert_eq!(junit_counts(&junit), (1, 1, 0));
+
+    let out = check(
+        &[study(
+            "bad.toml",
+            "min_order = 1.9\nmax_balance_residual = 1e-12",
+        )],
+        &junit,
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(2), "{stdout}");
+    assert!(
+        stdout.contains("check.max_balance_residual: a study checks min_order only"),
+        "{stdout}"
+    );
+}

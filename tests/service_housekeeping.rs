@@ -2,7 +2,7 @@
 //! over-long expression are refused naming their field; the job list is paged (newest first,
 //! `limit`, `page_token`, `state`) over HTTP, gRPC and `signorini list`; a finished job is
 //! removed with its result by `DELETE …?purge=true` and gRPC `DeleteJob`, an unfinished one is
-//! not.
+//! not, nor one whose result is being streamed until its reader is done.
 
 mod common;
 
@@ -351,8 +351,8 @@ async fn finished_jobs_expire_after_the_retention_and_running_ones_stay() {
     assert_eq!(code, 200, "still there right after its end");
     let finished_ms = body["finished_ms"].as_u64().expect("finished_ms");
     let start = std::time::Instant::now();
-    // Polls the status (one read): a result streamed while the sweep purges the job is cut
-    // mid-body, which is what a purge does to a reader, not what this test is about.
+    // Polls the status: a sweep never purges a result being read (see the next test), so
+    // fetching it here would only postpone the expiry.
     loop {
         let (code, _) = server.http("GET", "/v1/jobs/short-lived", None, None).await;
         if code == 404 {
@@ -372,4 +372,71 @@ async fn finished_jobs_expire_after_the_retention_and_running_ones_stay() {
     assert!(now_ms >= finished_ms + 2000, "not before its time");
     let (code, body) = server.http("GET", "/v1/jobs/busy", None, None).await;
     assert_eq!((code, body["state"].as_str()), (200, Some("running")));
+}
+
+/// A purge never cuts a result stream: while a client reads a result, `DELETE …?purge=true` and
+/// gRPC `DeleteJob` answer 409 / FAILED_PRECONDITION naming the readers, the stream goes on to
+/// its last row, and once it is closed the purge goes through.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_result_being_streamed_is_purged_only_after_its_reader_is_done() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&dir.path().join("s.db"), &Options::default());
+    let mut client = server.grpc().await;
+    // About 50 stored chunks: far more than the stream's buffers hold.
+    let id = submit_json(&mut client, ball_json(1e-6, 500_000, 1), Some("read"))
+        .await
+        .expect("submit");
+    wait_terminal(&mut client, &id).await;
+    let mut stream = client
+        .stream_result(pb::GetResultRequest {
+            id: id.clone(),
+            ..Default::default()
+        })
+        .await
+        .expect("StreamResult")
+        .into_inner();
+    let mut rows = 0;
+    let mut count = |msg: pb::ResultChunk| {
+        if let Some(pb::result_chunk::Part::Rows(r)) = msg.part {
+            rows += r.step.len();
+        }
+    };
+    count(stream.message().await.expect("stream").expect("a header"));
+
+    let (code, body) = server
+        .http("DELETE", "/v1/jobs/read?purge=true", None, None)
+        .await;
+    assert_eq!(
+        (code, &body["error"]["field"]),
+        (409, &json!("id")),
+        "{body}"
+    );
+    let reason = body["error"]["reason"].as_str().expect("a reason");
+    assert!(reason.contains("being read by 1 client"), "{reason}");
+    let err = client
+        .delete_job(pb::DeleteJobRequest { id: id.clone() })
+        .await
+        .expect_err("refused while read");
+    assert_eq!(err.code(), Code::FailedPrecondition, "{err:?}");
+
+    while let Some(msg) = stream.message().await.expect("the stream, uncut") {
+        count(msg);
+    }
+    assert_eq!(rows, 500_001, "every row");
+    drop(stream);
+    // The server drops its reader when the stream's producer ends, a moment after the last
+    // message.
+    let start = std::time::Instant::now();
+    loop {
+        let (code, body) = server
+            .http("DELETE", "/v1/jobs/read?purge=true", None, None)
+            .await;
+        if code == 200 {
+            assert_eq!(body, json!({ "id": "read", "purged": true }));
+            break;
+        }
+        assert_eq!(code, 409, "{body}");
+        assert!(start.elapsed() < common::PATIENCE, "never released");
+        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+    }
 }

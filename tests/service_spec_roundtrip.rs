@@ -629,8 +629,11 @@ mod random {
                 tolerance,
                 max_iterations,
             });
-        let output =
-            (any::<u64>(), vec(n(), 0..4)).prop_map(|(every, probes)| OutputSpec { every, probes });
+        let output = (any::<u64>(), vec(n(), 0..4)).prop_map(|(every, probes)| OutputSpec {
+            every,
+            probes,
+            ..Default::default()
+        });
         (
             of("[a-z _-]{0,12}"),
             of(model()),

@@ -10,6 +10,7 @@ use quick_junit::{NonSuccessKind, Report, TestCase, TestCaseStatus, TestSuite};
 use serde_json::{Map, Value};
 use signorini_core::job::{self, Job};
 use signorini_core::observer::{Columns, Observer, StepRecord};
+use signorini_core::spec::JobSpec;
 use signorini_core::spec::check::CheckSpec;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
@@ -162,6 +163,13 @@ fn check_one(path: &Path) -> Vec<Line> {
         Ok(t) => t,
         Err(e) => return bad(format!("reading: {e}")),
     };
+    let spec = match spec_file::parse(&text, Format::of_path(path)) {
+        Ok(s) => s,
+        Err(e) => return bad(e.to_string()),
+    };
+    if spec.study.is_some() {
+        return check_study(path, &spec);
+    }
     let job: Job = match spec_file::load(&text, Format::of_path(path)) {
         Ok(j) => j,
         Err(e) => return bad(e.to_string()),
@@ -198,12 +206,6 @@ fn check_one(path: &Path) -> Vec<Line> {
         .into_iter()
         .map(|(bound, limit)| {
             let outcome = match measured.value(bound, &summary) {
-                Ok(value) if bound == "min_order" => Outcome::Measured {
-                    value,
-                    limit,
-                    holds: value >= limit,
-                    relation: "≥",
-                },
                 Ok(value) => Outcome::Measured {
                     value,
                     limit,
@@ -218,6 +220,71 @@ fn check_one(path: &Path) -> Vec<Line> {
                 outcome,
                 time,
             }
+        })
+        .collect()
+}
+
+/// Runs a study (`[study]`) and checks `min_order` against the observed order of each of its
+/// curves (a scheme at fixed values of the other grid axes): one line per curve. The other
+/// bounds measure single runs and are refused as a bad spec.
+fn check_study(path: &Path, spec: &JobSpec) -> Vec<Line> {
+    let name = path.display().to_string();
+    let line = |bound: String, outcome, time| Line {
+        spec: name.clone(),
+        bound,
+        outcome,
+        time,
+    };
+    let check = spec.check.clone().unwrap_or_default();
+    if let Some((bound, _)) = check.bounds().into_iter().find(|(b, _)| *b != "min_order") {
+        let reason = format!(
+            "check.{bound}: a study checks min_order only (each run's bounds belong in a spec of its own)"
+        );
+        return vec![line(
+            "spec".into(),
+            Outcome::BadSpec(reason),
+            Duration::ZERO,
+        )];
+    }
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let started = Instant::now();
+    let report = crate::study::run_study(spec, path.parent(), threads, &|_| {});
+    let time = started.elapsed();
+    let report = match report {
+        Ok(r) => r,
+        Err(e) => {
+            return vec![line(
+                "run".into(),
+                Outcome::RunFailed(format!("{e:#}")),
+                time,
+            )];
+        }
+    };
+    let Some(limit) = check.min_order else {
+        return vec![line("run".into(), Outcome::RunSucceeded, time)];
+    };
+    let orders = report.orders();
+    if orders.is_empty() {
+        let reason =
+            "check.min_order: the study has no curve with two step sizes to fit an order on".into();
+        return vec![line("spec".into(), Outcome::BadSpec(reason), time)];
+    }
+    orders
+        .into_iter()
+        .map(|o| {
+            let at: Vec<String> = o.at.iter().map(|(k, v)| format!("{k}={v}")).collect();
+            let curve = if at.is_empty() {
+                o.scheme.clone()
+            } else {
+                format!("{}, {}", o.scheme, at.join(", "))
+            };
+            let outcome = Outcome::Measured {
+                value: o.order,
+                limit,
+                holds: o.order >= limit,
+                relation: "≥",
+            };
+            line(format!("min_order [{curve}]"), outcome, time)
         })
         .collect()
 }

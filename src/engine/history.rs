@@ -28,19 +28,14 @@ impl Engine {
     /// history exactly once (a running job's buffer and the store's chunk index are read under
     /// the buffer's lock, which its observer holds while it moves rows to the store).
     pub fn history(&self, id: &str) -> Result<(JobView, History), ApiError> {
+        let mut readers = lock(&self.inner.readers);
         let live = lock(&self.inner.live).get(id).cloned();
         if let Some(live) = live {
             let recent = lock(&live.recent);
-            let chunks = self.inner.store.series_index(id)?;
             let history = History {
                 id: id.to_string(),
                 columns: recent.columns.clone(),
-                stored: Series {
-                    inner: self.inner.clone(),
-                    id: id.to_string(),
-                    columns: recent.columns.len(),
-                    chunks,
-                },
+                stored: self.open_series(&mut readers, id, recent.columns.len())?,
                 recent: recent.rows.clone(),
                 recent_first_row: recent.first_row,
                 ended: false,
@@ -60,7 +55,7 @@ impl Engine {
         };
         let history = History {
             id: id.to_string(),
-            stored: self.series(id, columns.len())?,
+            stored: self.open_series(&mut readers, id, columns.len())?,
             columns,
             recent: SeriesChunk::default(),
             recent_first_row: 0,

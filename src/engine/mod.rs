@@ -121,6 +121,9 @@ struct Inner {
     shutdown: AtomicBool,
     counters: Counters,
     workers: usize,
+    /// Results being streamed, with their number of readers: a purge waits until none is left
+    /// (it answers [`ApiError::BeingRead`]), so no stream is cut mid-body.
+    readers: Mutex<HashMap<String, usize>>,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -261,6 +264,7 @@ impl Engine {
             shutdown: AtomicBool::new(false),
             counters: Counters::default(),
             workers,
+            readers: Mutex::new(HashMap::new()),
         });
         for (view, spec_json) in recovered {
             let built = crate::spec_file::parse(&spec_json, crate::spec_file::Format::Json)
@@ -440,8 +444,8 @@ impl Engine {
         for id in &ids {
             match self.delete(id) {
                 Ok(()) => removed += 1,
-                // Purged meanwhile by a client.
-                Err(ApiError::NotFound { .. }) => {}
+                // Purged meanwhile by a client; or being read: removed at a later sweep.
+                Err(ApiError::NotFound { .. } | ApiError::BeingRead { .. }) => {}
                 Err(e) => return Err(e),
             }
         }
@@ -449,12 +453,20 @@ impl Engine {
     }
 
     /// Removes a finished job and its result from the store; a queued or running job must be
-    /// cancelled first.
+    /// cancelled first, and a result being streamed must be read to its end.
     pub fn delete(&self, id: &str) -> Result<(), ApiError> {
         if let Some(live) = lock(&self.inner.live).get(id) {
             return Err(ApiError::Unfinished {
                 id: id.into(),
                 state: live.view().state.as_str(),
+            });
+        }
+        // Held over the removal: no reader opens the result in between.
+        let readers = lock(&self.inner.readers);
+        if let Some(&n) = readers.get(id) {
+            return Err(ApiError::BeingRead {
+                id: id.into(),
+                readers: n,
             });
         }
         if !self.inner.store.delete(id)? {
@@ -531,13 +543,31 @@ impl Engine {
         }
     }
 
-    /// The stored series of a job whose result has `columns` value columns.
-    pub fn series(&self, id: &str, columns: usize) -> Result<Series, ApiError> {
+    /// A finished job's result, as [`Engine::result_head`], with its stored series opened for
+    /// reading: until the [`Series`] is dropped the job cannot be purged, so a stream of it is
+    /// never cut by a concurrent `DELETE …?purge=true` or the retention sweep.
+    pub fn open_result(&self, id: &str) -> Result<(JobView, StoredResult, Series), ApiError> {
+        let mut readers = lock(&self.inner.readers);
+        let (view, head) = self.result_head(id)?;
+        let series = self.open_series(&mut readers, id, head.columns.len())?;
+        Ok((view, head, series))
+    }
+
+    /// A job's stored series with `columns` value columns, opened for reading under the lock of
+    /// the readers (taken by the caller, so that it covers what the caller read before).
+    fn open_series(
+        &self,
+        readers: &mut HashMap<String, usize>,
+        id: &str,
+        columns: usize,
+    ) -> Result<Series, ApiError> {
+        let chunks = self.inner.store.series_index(id)?;
+        *readers.entry(id.to_string()).or_default() += 1;
         Ok(Series {
             inner: self.inner.clone(),
             id: id.to_string(),
             columns,
-            chunks: self.inner.store.series_index(id)?,
+            chunks,
         })
     }
 
@@ -586,7 +616,7 @@ impl Engine {
 }
 
 /// A job's stored series: its chunk index, and its chunks read one at a time (blocking: call
-/// from a blocking context).
+/// from a blocking context). The job is not purged while it lives.
 pub struct Series {
     inner: Arc<Inner>,
     id: String,
@@ -608,6 +638,18 @@ impl Series {
     /// One chunk's rows.
     pub fn read(&self, meta: &ChunkMeta) -> Result<SeriesChunk, ApiError> {
         Ok(self.inner.store.read_chunk(&self.id, meta, self.columns)?)
+    }
+}
+
+impl Drop for Series {
+    fn drop(&mut self) {
+        let mut readers = lock(&self.inner.readers);
+        if let Some(n) = readers.get_mut(&self.id) {
+            *n -= 1;
+            if *n == 0 {
+                readers.remove(&self.id);
+            }
+        }
     }
 }
 
@@ -793,11 +835,14 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     let started = now_ms();
     live.started_ms.store(started, Ordering::Relaxed);
     live.running.store(true, Ordering::Release);
-    // A job run again after a restart starts its series afresh.
-    if let Err(e) = inner
-        .store
-        .set_running(&live.id, started)
-        .and_then(|()| inner.store.clear_series(&live.id))
+    if let Err(e) = inner.store.set_running(&live.id, started) {
+        tracing::error!(id = %live.id, "store: {e}");
+    }
+    // A job run again after a restart continues from its last checkpoint, or else starts its
+    // series afresh.
+    let resume = resume_point(inner, live);
+    if resume.is_none()
+        && let Err(e) = inner.store.clear_series(&live.id)
     {
         tracing::error!(id = %live.id, "store: {e}");
     }
@@ -805,10 +850,17 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     tracing::info!(id = %live.id, "running");
 
     let mut observer = ServiceObserver::new(inner, live);
+    if let Some(r) = &resume {
+        observer = observer.resumed(r.attempt, r.last_chunk);
+    }
     let clock = Instant::now();
     // A panic in the numerics (a bug) fails this job and keeps the worker and the server alive.
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        job::run(&live.job, threads_per_job(inner.workers), &mut observer)
+        let threads = threads_per_job(inner.workers);
+        match &resume {
+            Some(r) => job::resume(&live.job, threads, &mut observer, &r.checkpoint),
+            None => job::run(&live.job, threads, &mut observer),
+        }
     }))
     .map_err(|panic| panic_message(panic.as_ref()));
     let wall = clock.elapsed();
@@ -878,6 +930,72 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     end_job(inner, live, view, result, last_batch);
 }
 
+/// Where an interrupted job continues: its checkpoint, the attempt that continues it, and the
+/// last chunk of its stored series (whose last batch the next live batch follows).
+struct ResumePoint {
+    checkpoint: signorini_core::checkpoint::Checkpoint,
+    attempt: u64,
+    last_chunk: Option<ChunkMeta>,
+}
+
+/// The checkpoint a job continues from, its stored series cut back to the rows the checkpoint
+/// counts and the job's buffer set after them; `None` for a job without one. A checkpoint that
+/// cannot be used (damaged, of another format or spec) is logged, dropped, and the job runs
+/// again from step 0.
+fn resume_point(inner: &Inner, live: &LiveJob) -> Option<ResumePoint> {
+    let (attempt, step, bytes) = match inner.store.load_checkpoint(&live.id) {
+        Ok(Some(found)) => found,
+        Ok(None) => return None,
+        Err(e) => {
+            tracing::error!(id = %live.id, "store: {e}");
+            return None;
+        }
+    };
+    let usable = live
+        .job
+        .read_checkpoint(&bytes)
+        .map_err(|e| e.to_string())
+        .and_then(|c| {
+            inner
+                .store
+                .truncate_series(&live.id, c.records())
+                .and_then(|()| inner.store.series_index(&live.id))
+                .map(|index| (c, index))
+                .map_err(|e| e.to_string())
+        });
+    let (checkpoint, index) = match usable {
+        Ok(found) => found,
+        Err(e) => {
+            tracing::warn!(
+                id = %live.id,
+                step,
+                "the checkpoint cannot be used ({e}): the job reruns from step 0"
+            );
+            if let Err(e) = inner.store.delete_checkpoint(&live.id) {
+                tracing::error!(id = %live.id, "store: {e}");
+            }
+            return None;
+        }
+    };
+    {
+        let mut recent = lock(&live.recent);
+        recent.chunks = index.last().map_or(0, |m| m.chunk + 1);
+        recent.first_row = index.iter().map(|m| m.rows).sum();
+    }
+    live.done.store(checkpoint.step(), Ordering::Relaxed);
+    tracing::info!(
+        id = %live.id,
+        step = checkpoint.step(),
+        attempt = attempt + 1,
+        "resuming from its checkpoint"
+    );
+    Some(ResumePoint {
+        checkpoint,
+        attempt: attempt + 1,
+        last_chunk: index.last().copied(),
+    })
+}
+
 /// Stores a job's end (and its result), then tells the world: the last step batch, the final
 /// status, the end of the job's events.
 fn end_job(
@@ -899,6 +1017,10 @@ fn end_job(
         tracing::error!(id = %live.id, "store: {e}");
         view.state = JobState::Failed;
         view.error = Some(("store".into(), e.to_string()));
+    }
+    // An ended job is not resumed: its checkpoint goes.
+    if let Err(e) = inner.store.delete_checkpoint(&live.id) {
+        tracing::error!(id = %live.id, "store: {e}");
     }
     lock(&inner.live).remove(&live.id);
     inner.sink.send(last_batch);

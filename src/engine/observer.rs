@@ -10,8 +10,10 @@
 use super::events::{ColumnGroup, JobEvent, StepBatch, split_columns};
 use super::ids::now_ns;
 use super::{Inner, LiveJob, Recent, lock};
-use crate::store::{StoreError, chunk_rows};
+use crate::store::{ChunkMeta, StoreError, chunk_rows};
+use signorini_core::checkpoint::Checkpoint;
 use signorini_core::observer::{Columns, Observer, Progress, StepRecord};
+use signorini_core::spec::CheckpointPeriod;
 use std::ops::ControlFlow;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
@@ -39,6 +41,21 @@ pub(super) struct ServiceObserver<'a> {
     seq: u64,
     last_status: Instant,
     uncounted: u64,
+    /// Checkpoints of a time integration (none for an analysis).
+    checkpoints: Option<Checkpoints>,
+    /// A resumed run: the last chunk of the series stored before, whose last batch number the
+    /// next batch follows (read once the columns are known).
+    resumed_after: Option<ChunkMeta>,
+}
+
+/// When and as which attempt a run checkpoints.
+struct Checkpoints {
+    period: CheckpointPeriod,
+    last: Instant,
+    /// The run's attempt number (0 for the first run, one more per resume).
+    attempt: u64,
+    /// A checkpoint was written after the server began to shut down: the run may stop.
+    final_written: bool,
 }
 
 /// The columns `idx` of `rows` (row-major, `n` columns) from row `from` on.
@@ -57,6 +74,16 @@ fn group(recent: &Recent, idx: &[usize], from: usize) -> ColumnGroup {
 
 impl<'a> ServiceObserver<'a> {
     pub(super) fn new(inner: &'a Inner, live: &'a LiveJob) -> Self {
+        let period = live.job.spec().output.checkpoint_period();
+        let checkpoints = match period {
+            Ok(period) if live.job.checkpoints() => Some(Checkpoints {
+                period,
+                last: Instant::now(),
+                attempt: 0,
+                final_written: false,
+            }),
+            _ => None,
+        };
         Self {
             inner,
             live,
@@ -69,7 +96,20 @@ impl<'a> ServiceObserver<'a> {
             seq: 0,
             last_status: Instant::now(),
             uncounted: 0,
+            checkpoints,
+            resumed_after: None,
         }
+    }
+
+    /// Continues a run resumed by its `attempt`-th attempt, whose series was stored up to its
+    /// checkpoint, ending with chunk `last_chunk`: the next batch is numbered after the last
+    /// one stored.
+    pub(super) fn resumed(mut self, attempt: u64, last_chunk: Option<ChunkMeta>) -> Self {
+        if let Some(c) = &mut self.checkpoints {
+            c.attempt = attempt;
+        }
+        self.resumed_after = last_chunk;
+        self
     }
 
     /// The pending steps as one batch, its rows recorded in the history as batch `seq`.
@@ -160,6 +200,23 @@ impl Observer for ServiceObserver<'_> {
         recent.columns = columns.names().to_vec();
         self.chunk_rows = chunk_rows(recent.columns.len());
         (self.energy_idx, self.state_idx) = split_columns(&recent.columns);
+        if let Some(last) = self.resumed_after.take() {
+            let stored = self
+                .inner
+                .store
+                .read_chunk(&self.live.id, &last, recent.columns.len());
+            match stored {
+                Ok(chunk) => {
+                    self.seq = chunk
+                        .batches
+                        .iter()
+                        .map(|&(s, _, _)| s + 1)
+                        .max()
+                        .unwrap_or(0);
+                }
+                Err(e) => self.store_error = Some(e),
+            }
+        }
     }
 
     fn observe(&mut self, record: &StepRecord<'_>) -> ControlFlow<()> {
@@ -194,9 +251,51 @@ impl Observer for ServiceObserver<'_> {
             self.last_status = Instant::now();
             self.inner.sink.offer(JobEvent::Status(self.live.view()));
         }
-        if self.live.cancel.load(Ordering::Relaxed) || self.inner.shutdown.load(Ordering::Relaxed) {
+        // At shutdown, a run that checkpoints stops after its next checkpoint.
+        let shutdown = self.inner.shutdown.load(Ordering::Relaxed)
+            && self.checkpoints.as_ref().is_none_or(|c| c.final_written);
+        if self.live.cancel.load(Ordering::Relaxed) || shutdown || self.store_error.is_some() {
             return ControlFlow::Break(());
         }
         ControlFlow::Continue(())
+    }
+
+    fn checkpoint_due(&mut self, p: Progress) -> bool {
+        let Some(c) = &self.checkpoints else {
+            return false;
+        };
+        self.inner.shutdown.load(Ordering::Relaxed)
+            || c.period.steps.is_some_and(|n| p.done.is_multiple_of(n))
+            || (p.done.is_multiple_of(16) && c.last.elapsed().as_secs_f64() >= c.period.seconds)
+    }
+
+    /// Stores the rows recorded so far (sending the pending batch first), then the checkpoint
+    /// that counts them: a resumed run finds its series exactly up to its checkpoint.
+    fn checkpoint(&mut self, checkpoint: &mut Checkpoint) {
+        let saved = {
+            let mut recent = lock(&self.live.recent);
+            self.flush(&mut recent);
+            self.store_chunk(&mut recent)
+        }
+        .map_err(|e| e.to_string())
+        .and_then(|()| checkpoint.encode().map_err(|e| e.to_string()))
+        .and_then(|bytes| {
+            let attempt = self.checkpoints.as_ref().map_or(0, |c| c.attempt);
+            self.inner
+                .store
+                .save_checkpoint(&self.live.id, attempt, checkpoint.step(), &bytes)
+                .map_err(|e| e.to_string())
+        });
+        match saved {
+            Ok(()) => {
+                if let Some(c) = &mut self.checkpoints {
+                    c.last = Instant::now();
+                    c.final_written = self.inner.shutdown.load(Ordering::Relaxed);
+                }
+            }
+            Err(e) => {
+                tracing::warn!(id = %self.live.id, step = checkpoint.step(), "checkpoint not saved: {e}")
+            }
+        }
     }
 }

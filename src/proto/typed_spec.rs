@@ -55,7 +55,7 @@ pub fn job_spec_to_proto(s: &JobSpec) -> Result<pb::JobSpec, JsonOnly> {
         integrator: Some(integrator_to_proto(integrator)),
         time: time.as_ref().map(time_to_proto),
         contact_solver: Some(contact_solver_to_proto(contact_solver)),
-        output: Some(output_to_proto(output)),
+        output: Some(output_to_proto(output)?),
         analysis: analysis.as_ref().map(analysis_to_proto),
     })
 }
@@ -527,12 +527,22 @@ fn contact_solver_to_proto(c: &ContactSolverSpec) -> pb::ContactSolverSpec {
     }
 }
 
-fn output_to_proto(o: &OutputSpec) -> pb::OutputSpec {
-    let OutputSpec { every, probes } = o;
-    pb::OutputSpec {
+fn output_to_proto(o: &OutputSpec) -> Result<pb::OutputSpec, JsonOnly> {
+    let OutputSpec {
+        every,
+        probes,
+        checkpoint_seconds,
+        checkpoint_steps,
+    } = o;
+    if checkpoint_seconds.is_some() || checkpoint_steps.is_some() {
+        return Err(JsonOnly(
+            "output.checkpoint_seconds / output.checkpoint_steps",
+        ));
+    }
+    Ok(pb::OutputSpec {
         every: Some(*every),
         probes: probes.iter().copied().map(u64_of).collect(),
-    }
+    })
 }
 
 fn analysis_to_proto(a: &AnalysisSpec) -> pb::AnalysisSpec {

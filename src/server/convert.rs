@@ -725,6 +725,9 @@ fn output_spec(p: pb::OutputSpec) -> Result<OutputSpec, SpecError> {
             .into_iter()
             .map(|j| usize_of("output.probes", j))
             .collect::<Result<_, _>>()?,
+        // The checkpoint period is JSON-only: the typed spec keeps the default.
+        checkpoint_seconds: None,
+        checkpoint_steps: None,
     })
 }
 

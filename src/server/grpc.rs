@@ -53,7 +53,9 @@ pub fn to_status(e: ApiError) -> Status {
         ApiError::Body { .. } => Code::InvalidArgument,
         ApiError::AlreadyExists { .. } => Code::AlreadyExists,
         ApiError::QueueFull { .. } | ApiError::TooLarge { .. } => Code::ResourceExhausted,
-        ApiError::NoResult { .. } | ApiError::Unfinished { .. } => Code::FailedPrecondition,
+        ApiError::NoResult { .. } | ApiError::Unfinished { .. } | ApiError::BeingRead { .. } => {
+            Code::FailedPrecondition
+        }
         ApiError::Unauthenticated => Code::Unauthenticated,
         ApiError::Unavailable => Code::Unavailable,
         ApiError::Internal(_) => Code::Internal,
@@ -120,8 +122,7 @@ fn stream_result(state: &AppState, id: String, req: CutRequest) -> ResultStream 
             tx.blocking_send(Ok(pb::ResultChunk { part: Some(part) }))
                 .map_err(|_| std::io::Error::new(std::io::ErrorKind::BrokenPipe, "client gone"))
         };
-        let opened = engine.result_head(&id).and_then(|(view, head)| {
-            let series = engine.series(&id, head.columns.len())?;
+        let opened = engine.open_result(&id).and_then(|(view, head, series)| {
             let cut = Cut::new(&head, &series, &req)?;
             Ok((view, head, series, cut))
         });
@@ -303,7 +304,7 @@ impl Simulation for SimulationService {
         let req = cut_request(columns, every, from_step, to_step);
         let engine = self.state.engine.clone();
         let result = tokio::task::spawn_blocking(move || {
-            let (view, head) = engine.result_head(&id)?;
+            let (view, head, series) = engine.open_result(&id)?;
             if head.partial {
                 // A client of this call takes what it gets for the whole run: partial rows only
                 // go out through StreamResult and HTTP, marked.
@@ -312,7 +313,6 @@ impl Simulation for SimulationService {
                     state: view.state.as_str(),
                 });
             }
-            let series = engine.series(&id, head.columns.len())?;
             let cut = Cut::new(&head, &series, &req)?;
             let bytes = cut.rows() * (cut.names.len() as u64 + 2) * 8;
             if bytes > UNARY_RESULT_BYTES {

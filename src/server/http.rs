@@ -40,7 +40,8 @@ impl IntoResponse for ApiError {
             ApiError::Body { .. } => StatusCode::BAD_REQUEST,
             ApiError::AlreadyExists { .. }
             | ApiError::NoResult { .. }
-            | ApiError::Unfinished { .. } => StatusCode::CONFLICT,
+            | ApiError::Unfinished { .. }
+            | ApiError::BeingRead { .. } => StatusCode::CONFLICT,
             ApiError::QueueFull { .. } => StatusCode::TOO_MANY_REQUESTS,
             ApiError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::Unauthenticated => StatusCode::UNAUTHORIZED,
@@ -387,8 +388,7 @@ async fn get_result(
     };
     let engine = state.engine.clone();
     let (view, head, series, cut) = tokio::task::spawn_blocking(move || {
-        let (view, head) = engine.result_head(&id)?;
-        let series = engine.series(&id, head.columns.len())?;
+        let (view, head, series) = engine.open_result(&id)?;
         let cut = Cut::new(&head, &series, &req)?;
         Ok::<_, ApiError>((view, head, series, cut))
     })

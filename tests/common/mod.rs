@@ -4,6 +4,7 @@
 //! clients (hyper-util).
 #![allow(dead_code)]
 
+pub mod browser;
 pub mod pg;
 
 use http_body_util::{BodyExt, Full};

@@ -88,7 +88,7 @@ impl IndexSetRule {
 /// the active contacts ((21c)–(21d), (25c)–(25d)), together with the round-off level of the
 /// local velocities the previous step's LCP produced, which the sign test of (24) reads
 /// ([`IndexSetRule::is_active_within`]). One per scheme; reused from step to step.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct IndexSet {
     /// Contacts of 𝓘¹_k, in increasing order.
     pub active: Vec<usize>,
@@ -180,7 +180,7 @@ impl IndexSet {
 }
 
 /// Diagnostics of the LCP solved in one step.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct LcpStats {
     /// Number of contacts in the index set (size of the LCP).
     pub size: usize,

@@ -19,7 +19,7 @@ pub const CUMULATIVE_COLUMNS: [&str; 3] =
     ["work_ext_total", "work_damping_total", "work_contact_total"];
 
 /// Energy terms of one step `[t_k, t_{k+1}]`; the state terms are at t_{k+1}.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct EnergyTerms {
     /// ½ vᵀMv.
     pub kinetic: f64,

@@ -3,24 +3,25 @@
 //! summary and any tables or figures the job makes.
 
 use crate::band::SymBand;
+use crate::checkpoint::{Checkpoint, CheckpointError};
 use crate::contact::IndexSetRule;
 use crate::integrators::alpha::{AlphaParams, AlphaScheme, NonsmoothAlpha, ParamError};
 use crate::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
 use crate::integrators::position_contact::{PositionContact, PositionContactParams};
-use crate::integrators::{LinearScheme, LinearState, OutputOptions, run_linear};
+use crate::integrators::{LinearScheme, LinearState, OutputOptions, run_linear_from};
 use crate::lagrangian::UserModel;
 use crate::lcp::LcpOptions;
 use crate::model::{Contact, ContactFriction, Forcing, HarmonicLoad, LinearModel, ModelError};
 use crate::nonlinear::LagrangianSystem;
 use crate::nonlinear::generalized_alpha::{
     JointedSystem, NonsmoothGeneralizedAlpha, NsAlphaParams, NsAlphaSummary, ns_alpha_columns,
-    run_ns_alpha,
+    run_ns_alpha_from,
 };
 use crate::nonlinear::moreau_jean::{
     NewtonOptions, NonlinearMoreauJean, NonlinearMoreauJeanParams, NonlinearState, has_friction,
-    nonlinear_columns, run_nonlinear,
+    nonlinear_columns, run_nonlinear_from,
 };
-use crate::observer::Observer;
+use crate::observer::{Columns, Observer, Progress, StepRecord};
 use crate::outcome::{
     LinearSummary, NonlinearSummary, RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader,
 };
@@ -32,6 +33,7 @@ use crate::spec::{
 };
 use crate::trace::EnergyTrace;
 use crate::wfem::job::WaveJob;
+use std::ops::ControlFlow;
 
 /// Size of a job, for the service's limits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -377,6 +379,23 @@ impl Job {
         &self.spec
     }
 
+    /// The hash of this job's spec that its checkpoints carry ([`spec_hash`]).
+    pub fn spec_hash(&self) -> u64 {
+        spec_hash(&self.spec)
+    }
+
+    /// Reads a checkpoint written by a run of this job's spec; refuses foreign, damaged or
+    /// mismatched bytes with the reason ([`Checkpoint::decode`]).
+    pub fn read_checkpoint(&self, bytes: &[u8]) -> Result<Checkpoint, CheckpointError> {
+        Checkpoint::decode(bytes, self.spec_hash())
+    }
+
+    /// Whether a run of this job hands checkpoints to an observer that asks for them (every time
+    /// integration does; an analysis of modes or forced response does not, it reruns whole).
+    pub fn checkpoints(&self) -> bool {
+        !matches!(&self.kind, JobKind::Wave(j) if j.is_analysis())
+    }
+
     /// Size of the job.
     pub fn size(&self) -> JobSize {
         match &self.kind {
@@ -450,32 +469,123 @@ impl Job {
 /// response) spreads its independent tasks over that many threads (0 counts as 1), a time
 /// integration runs on the calling thread. The results do not depend on it.
 pub fn run(job: &Job, threads: usize, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
-    let mut trace = EnergyTrace::new(observer);
+    run_from(job, threads, observer, None)
+}
+
+/// Continues a run of `job` from `checkpoint` (read by [`Job::read_checkpoint`]): the steps
+/// after it are computed exactly as an uninterrupted run computes them, and `observer` receives
+/// the records after the checkpoint's [`Checkpoint::records`] first ones (it is
+/// [`Observer::start`]ed again, with the same columns, but gets no initial record). The output
+/// (summary, charts, every recorded value) equals the uninterrupted run's bit for bit. A
+/// checkpoint of another kind of run, or whose state does not fit the model, is refused before
+/// any step ([`RunError::Checkpoint`]).
+pub fn resume(
+    job: &Job,
+    threads: usize,
+    observer: &mut dyn Observer,
+    checkpoint: &Checkpoint,
+) -> Result<RunOutput, RunError> {
+    run_from(job, threads, observer, Some(checkpoint))
+}
+
+fn run_from(
+    job: &Job,
+    threads: usize,
+    observer: &mut dyn Observer,
+    checkpoint: Option<&Checkpoint>,
+) -> Result<RunOutput, RunError> {
+    if let Some(c) = checkpoint
+        && c.spec_hash() != job.spec_hash()
+    {
+        return Err(CheckpointError::Spec {
+            expected: job.spec_hash(),
+            found: c.spec_hash(),
+        }
+        .into());
+    }
+    let records = checkpoint.map_or(0, Checkpoint::records);
+    let trace_state = checkpoint
+        .map(Checkpoint::trace_state)
+        .transpose()?
+        .flatten();
+    let mut stamp = Stamp {
+        inner: observer,
+        spec_hash: job.spec_hash(),
+        records,
+    };
+    let mut trace = EnergyTrace::resumed(&mut stamp, trace_state);
+    let t = &mut trace;
+    let c = checkpoint;
     let mut output = match &job.kind {
-        JobKind::Linear(j) => run_linear_job(job, j, &mut trace),
-        JobKind::Soi2(j) => run_soi2_job(job, j, &mut trace),
-        JobKind::Wave(j) => j.run(header(job), threads, &mut trace),
-        JobKind::Nonlinear(j) => run_nonlinear_job(job, j, &mut trace),
-        JobKind::NsAlpha(j) => run_ns_alpha_job(job, j, &mut trace),
+        JobKind::Linear(j) => run_linear_job(job, j, t, c),
+        JobKind::Soi2(j) => run_soi2_job(job, j, t, c),
+        JobKind::Wave(j) => j.run_from(header(job), threads, t, c),
+        JobKind::Nonlinear(j) => run_nonlinear_job(job, j, t, c),
+        JobKind::NsAlpha(j) => run_ns_alpha_job(job, j, t, c),
     }?;
     output.charts.extend(trace.charts());
     Ok(output)
+}
+
+/// The observer between a run (and its [`EnergyTrace`]) and the caller's: counts the records
+/// handed out and stamps the count and the spec hash on every checkpoint.
+struct Stamp<'a> {
+    inner: &'a mut dyn Observer,
+    spec_hash: u64,
+    records: u64,
+}
+
+impl Observer for Stamp<'_> {
+    fn start(&mut self, columns: &Columns) {
+        self.inner.start(columns);
+    }
+
+    fn observe(&mut self, record: &StepRecord<'_>) -> ControlFlow<()> {
+        self.records += 1;
+        self.inner.observe(record)
+    }
+
+    fn progress(&mut self, progress: Progress) -> ControlFlow<()> {
+        self.inner.progress(progress)
+    }
+
+    fn checkpoint_due(&mut self, progress: Progress) -> bool {
+        self.inner.checkpoint_due(progress)
+    }
+
+    fn checkpoint(&mut self, checkpoint: &mut Checkpoint) {
+        checkpoint.stamp(self.records, self.spec_hash);
+        self.inner.checkpoint(checkpoint);
+    }
+}
+
+/// The hash a checkpoint of `spec` carries: FNV-1a 64 of the spec's JSON with the checkpoint
+/// period left out (a run may be resumed with another period and continue bit for bit).
+pub fn spec_hash(spec: &JobSpec) -> u64 {
+    let mut spec = spec.clone();
+    spec.output.checkpoint_seconds = None;
+    spec.output.checkpoint_steps = None;
+    // A JobSpec is plain data (no map with non-string keys): its JSON always serialises.
+    let json = serde_json::to_vec(&spec).unwrap_or_default();
+    crate::checkpoint::fnv1a(&json)
 }
 
 fn run_nonlinear_job(
     job: &Job,
     j: &NonlinearJob,
     observer: &mut dyn Observer,
+    resume: Option<&Checkpoint>,
 ) -> Result<RunOutput, RunError> {
     let mut scheme = j.scheme.clone();
     let mut state = NonlinearState::initial(&j.model);
-    let stats = run_nonlinear(
+    let stats = run_nonlinear_from(
         &j.model,
         &mut scheme,
         &mut state,
         j.steps,
         &j.output,
         observer,
+        resume,
     )?;
     let body = SummaryBody::Nonlinear(NonlinearSummary {
         dofs: LagrangianSystem::dofs(&j.model),
@@ -494,16 +604,18 @@ fn run_ns_alpha_job(
     job: &Job,
     j: &NsAlphaJob,
     observer: &mut dyn Observer,
+    resume: Option<&Checkpoint>,
 ) -> Result<RunOutput, RunError> {
     let mut scheme = j.scheme.clone();
     let mut state = NonlinearState::initial(&j.model);
-    let stats = run_ns_alpha(
+    let stats = run_ns_alpha_from(
         &j.model,
         &mut scheme,
         &mut state,
         j.steps,
         &j.output,
         observer,
+        resume,
     )?;
     let p = scheme.params();
     let body = SummaryBody::NsAlpha(Box::new(NsAlphaSummary {
@@ -528,8 +640,9 @@ fn run_soi2_job(
     job: &Job,
     j: &crate::soi2::run::Soi2Job,
     observer: &mut dyn Observer,
+    resume: Option<&Checkpoint>,
 ) -> Result<RunOutput, RunError> {
-    let body = SummaryBody::Soi2(Box::new(j.run(observer)?));
+    let body = SummaryBody::Soi2(Box::new(j.run_from(observer, resume)?));
     Ok(RunOutput {
         summary: RunSummary::new(header(job), body),
         tables: Vec::new(),
@@ -541,6 +654,7 @@ fn run_linear_job(
     job: &Job,
     j: &LinearJob,
     observer: &mut dyn Observer,
+    resume: Option<&Checkpoint>,
 ) -> Result<RunOutput, RunError> {
     let mut scheme: Box<dyn LinearScheme> = match j.scheme {
         LinearSchemeChoice::MoreauJean(p) => {
@@ -554,13 +668,14 @@ fn run_linear_job(
         ),
     };
     let mut state = LinearState::initial(&j.model);
-    let stats = run_linear(
+    let stats = run_linear_from(
         &j.model,
         scheme.as_mut(),
         &mut state,
         j.steps,
         &j.output,
         observer,
+        resume,
     )?;
     let body = SummaryBody::Linear(LinearSummary {
         dofs: j.model.dofs(),

@@ -8,6 +8,7 @@
 
 pub mod band;
 pub mod capabilities;
+pub mod checkpoint;
 pub mod contact;
 pub mod energy;
 pub mod expr;

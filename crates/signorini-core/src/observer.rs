@@ -6,6 +6,7 @@
 //! Every output (steps.csv, the zenoh energy frames, `GET /v1/jobs/{id}/result`) uses the same
 //! columns in the same order, so the values a subscriber receives are the stored ones, bit for bit.
 
+use crate::checkpoint::Checkpoint;
 use std::ops::ControlFlow;
 
 /// Names of the values of every [`StepRecord`] of a run, fixed before the first step.
@@ -91,6 +92,21 @@ pub trait Observer {
     fn progress(&mut self, progress: Progress) -> ControlFlow<()> {
         let _ = progress;
         ControlFlow::Continue(())
+    }
+
+    /// Called after every step of a time integration, after [`Observer::progress`]: whether the
+    /// run should hand a [`Checkpoint`] now (never, by default). The caller answers from its
+    /// own clock or step count (`output.checkpoint_seconds`, `output.checkpoint_steps`). Must be
+    /// cheap.
+    fn checkpoint_due(&mut self, progress: Progress) -> bool {
+        let _ = progress;
+        false
+    }
+
+    /// Receives the run's checkpoint after a step for which [`Observer::checkpoint_due`] said
+    /// yes; [`Checkpoint::encode`] makes it bytes, [`crate::job::resume`] continues from it.
+    fn checkpoint(&mut self, checkpoint: &mut Checkpoint) {
+        let _ = checkpoint;
     }
 }
 

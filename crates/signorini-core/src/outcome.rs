@@ -3,6 +3,7 @@
 //! here knows the job kinds.
 
 use crate::band::BandError;
+use crate::checkpoint::CheckpointError;
 use crate::integrators::{LinearRunStats, RunStop, StepError};
 use crate::nonlinear::generalized_alpha::NsAlphaSummary;
 use crate::nonlinear::moreau_jean::{NonlinearRunStats, NonlinearRunStop, NonlinearStepError};
@@ -237,6 +238,9 @@ pub enum RunError {
         /// Coordinates of the model.
         dofs: usize,
     },
+    /// The checkpoint to resume from was refused; nothing of it was restored.
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
 }
 
 impl From<NonlinearRunStop> for RunError {
@@ -245,6 +249,7 @@ impl From<NonlinearRunStop> for RunError {
             NonlinearRunStop::Step(e) => RunError::Nonlinear(e),
             NonlinearRunStop::Stopped { step } => RunError::Stopped { step },
             NonlinearRunStop::Probe { probe, dofs } => RunError::Probe { probe, dofs },
+            NonlinearRunStop::Checkpoint(e) => RunError::Checkpoint(e),
         }
     }
 }
@@ -254,6 +259,7 @@ impl From<RunStop> for RunError {
         match s {
             RunStop::Step(e) => RunError::Step(e),
             RunStop::Stopped { step } => RunError::Stopped { step },
+            RunStop::Checkpoint(e) => RunError::Checkpoint(e),
         }
     }
 }
@@ -262,6 +268,7 @@ impl From<Soi2Error> for RunError {
     fn from(e: Soi2Error) -> Self {
         match e {
             Soi2Error::Stopped { step } => RunError::Stopped { step },
+            Soi2Error::Checkpoint(e) => RunError::Checkpoint(e),
             other => RunError::Soi2(other),
         }
     }
@@ -493,7 +500,7 @@ pub struct WaveSummary {
 }
 
 /// What a WFEM run measured over all its steps; its fields are those of `summary.json`.
-#[derive(Debug, Clone, PartialEq, Default, Serialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, serde::Deserialize)]
 pub struct WaveRunStats {
     /// Steps done.
     pub steps: u64,

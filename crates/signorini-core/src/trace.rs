@@ -9,8 +9,10 @@
 //! doubles: memory and figure size stay bounded for any number of steps, and a one-step spike
 //! (an impact, a residual jump) is never decimated away.
 
+use crate::checkpoint::Checkpoint;
 use crate::observer::{Columns, Observer, Progress, StepRecord};
 use crate::outcome::{Chart, TraceChart, TracedSeries};
+use serde::{Deserialize, Serialize};
 use std::ops::ControlFlow;
 
 /// Buckets kept per envelope before neighbours merge (so between half this and this many).
@@ -37,7 +39,7 @@ pub const RESIDUAL_COLUMNS: [&str; 4] = [
 ];
 
 /// Smallest and largest value of a bucket, each with its time (NaN until a finite value).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 struct Extremes {
     lo: (f64, f64),
     hi: (f64, f64),
@@ -75,7 +77,7 @@ impl Extremes {
 
 /// The min/max envelope of a series (t, v) in at most [`MAX_BUCKETS`] buckets; with `log`, of
 /// log₁₀|v| (exact zeros, whose logarithm is not finite, are left out).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Envelope {
     log: bool,
     buckets: Vec<Extremes>,
@@ -154,6 +156,16 @@ pub struct EnergyTrace<'a> {
     inner: &'a mut dyn Observer,
     traced: Vec<Traced>,
     records: u64,
+    /// The envelopes of a checkpoint, restored at [`Observer::start`].
+    resumed: Option<TraceState>,
+}
+
+/// What an [`EnergyTrace`] keeps across a checkpoint: its record count and its envelopes, in the
+/// order of its traced columns.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct TraceState {
+    records: u64,
+    envelopes: Vec<Envelope>,
 }
 
 impl<'a> EnergyTrace<'a> {
@@ -163,6 +175,15 @@ impl<'a> EnergyTrace<'a> {
             inner,
             traced: Vec::new(),
             records: 0,
+            resumed: None,
+        }
+    }
+
+    /// Wraps `inner` for a run resumed from a checkpoint whose trace state was `state`.
+    pub(crate) fn resumed(inner: &'a mut dyn Observer, state: Option<TraceState>) -> Self {
+        Self {
+            resumed: state,
+            ..Self::new(inner)
         }
     }
 
@@ -206,6 +227,14 @@ impl Observer for EnergyTrace<'_> {
                 })
             })
             .collect();
+        if let Some(state) = self.resumed.take()
+            && state.envelopes.len() == self.traced.len()
+        {
+            self.records = state.records;
+            for (c, e) in self.traced.iter_mut().zip(state.envelopes) {
+                c.envelope = e;
+            }
+        }
         self.inner.start(columns);
     }
 
@@ -222,6 +251,21 @@ impl Observer for EnergyTrace<'_> {
 
     fn progress(&mut self, progress: Progress) -> ControlFlow<()> {
         self.inner.progress(progress)
+    }
+
+    fn checkpoint_due(&mut self, progress: Progress) -> bool {
+        self.inner.checkpoint_due(progress)
+    }
+
+    fn checkpoint(&mut self, checkpoint: &mut Checkpoint) {
+        let state = TraceState {
+            records: self.records,
+            envelopes: self.traced.iter().map(|c| c.envelope.clone()).collect(),
+        };
+        // Envelopes are plain numbers: they always encode. Should they not, the checkpoint
+        // goes without them and a resumed run draws its charts from the resumed part only.
+        let _ = checkpoint.set_trace(&state);
+        self.inner.checkpoint(checkpoint);
     }
 }
 

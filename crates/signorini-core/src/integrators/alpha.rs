@@ -66,8 +66,9 @@
 //! When ν = 0 (α_m = ½) the filters (48) vanish; the scheme then requires η = 0 (Remark 1), and
 //! the filter terms are zero.
 
-use super::{LinearScheme, LinearState, StepError, StepReport};
+use super::{LinearScheme, LinearState, SchemeState, StepError, StepReport};
 use crate::band::{BandCholesky, BandError, SymBand};
+use crate::checkpoint::CheckpointError;
 use crate::contact::{IndexSet, IndexSetRule, LcpStats};
 use crate::energy::EnergyTerms;
 use crate::lcp::{self, Lcp, LcpOptions};
@@ -395,7 +396,7 @@ pub(crate) struct Coefficients {
 }
 
 /// Per-step history of the smooth part at t_k (one of two buffers swapped every step).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) struct Frame {
     pub a: Vec<f64>,
     pub ma: Vec<f64>,
@@ -433,7 +434,7 @@ impl Frame {
 
 /// Scratch vectors of one step; after [`AlphaCore::predict`] `a`, `q`, `v` hold the free
 /// (impulse- and force-free) a_{k+1}, q_{k+1}, v_{k+1}; the scheme then corrects them.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) struct Scratch {
     pub a: Vec<f64>,
     pub q: Vec<f64>,
@@ -878,6 +879,31 @@ impl LinearScheme for NonsmoothAlpha {
         self.core.h
     }
 
+    fn save_state(&self) -> SchemeState {
+        SchemeState::Alpha(Box::new(AlphaState {
+            core: self.core.checkpoint_state(),
+            index_set: self.index_set.clone(),
+            lcp_m: self.lcp_m.clone(),
+        }))
+    }
+
+    fn restore_state(&mut self, state: SchemeState) -> Result<(), CheckpointError> {
+        match state {
+            SchemeState::Alpha(s) => {
+                let AlphaState {
+                    core,
+                    index_set,
+                    lcp_m,
+                } = *s;
+                self.core.restore_checkpoint_state(core)?;
+                self.index_set = index_set;
+                self.lcp_m = lcp_m;
+                Ok(())
+            }
+            other => Err(other.mismatch("the nonsmooth α-family")),
+        }
+    }
+
     fn algorithmic_energy(&self, model: &LinearModel, state: &LinearState) -> f64 {
         self.core.algorithmic_energy(model, state)
     }
@@ -969,6 +995,57 @@ impl LinearScheme for NonsmoothAlpha {
             ContactWork::Impulse(work_contact),
             report,
         );
+        Ok(())
+    }
+}
+
+/// What [`AlphaCore`] carries between steps: the history frames (accelerations a_k, the filters
+/// z, x, y and their products, λ_k of a baseline), the step they describe and the scratch
+/// vectors.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct AlphaCoreState {
+    cur: Frame,
+    nxt: Frame,
+    cur_step: Option<u64>,
+    s: Scratch,
+}
+
+/// What [`NonsmoothAlpha`] carries between steps: its core's state and the index set with its
+/// round-off levels.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct AlphaState {
+    core: AlphaCoreState,
+    index_set: IndexSet,
+    lcp_m: Vec<f64>,
+}
+
+impl AlphaCore {
+    pub(crate) fn checkpoint_state(&self) -> AlphaCoreState {
+        AlphaCoreState {
+            cur: self.cur.clone(),
+            nxt: self.nxt.clone(),
+            cur_step: self.cur_step,
+            s: self.s.clone(),
+        }
+    }
+
+    pub(crate) fn restore_checkpoint_state(
+        &mut self,
+        s: AlphaCoreState,
+    ) -> Result<(), CheckpointError> {
+        let fits =
+            |f: &Frame, g: &Frame| f.a.len() == g.a.len() && f.lambda.len() == g.lambda.len();
+        if !fits(&s.cur, &self.cur) || !fits(&s.nxt, &self.nxt) || s.s.a.len() != self.s.a.len() {
+            return Err(CheckpointError::Mismatch(format!(
+                "α-family state of {} dofs, the model has {}",
+                s.cur.a.len(),
+                self.cur.a.len()
+            )));
+        }
+        self.cur = s.cur;
+        self.nxt = s.nxt;
+        self.cur_step = s.cur_step;
+        self.s = s.s;
         Ok(())
     }
 }

@@ -8,17 +8,19 @@ pub mod alpha;
 pub mod moreau_jean;
 pub mod position_contact;
 
+use crate::checkpoint::{Checkpoint, CheckpointError, RunKind};
 use crate::contact::LcpStats;
 use crate::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS, EnergyTerms};
 use crate::friction::FrictionError;
 use crate::lcp::LcpError;
 use crate::model::LinearModel;
 use crate::observer::{Columns, Observer, Progress, StepRecord};
+use serde::{Deserialize, Serialize};
 use std::ops::ControlFlow;
 use thiserror::Error;
 
 /// State of a linear model at t_k.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LinearState {
     /// Step number k.
     pub step: u64,
@@ -43,7 +45,7 @@ impl LinearState {
 }
 
 /// What one step produced besides the new state.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct StepReport {
     /// Energy terms of the step.
     pub energy: EnergyTerms,
@@ -138,6 +140,47 @@ pub trait LinearScheme {
 
     /// Step size h.
     fn step_size(&self) -> f64;
+
+    /// What the scheme carries from one step to the next (history, cached values, index set),
+    /// for a checkpoint; the rest it rebuilds from the model.
+    fn save_state(&self) -> SchemeState;
+
+    /// Restores a state saved by the same scheme, built for the same model and step size.
+    fn restore_state(&mut self, state: SchemeState) -> Result<(), CheckpointError>;
+}
+
+/// What a linear scheme carries between steps, per scheme.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub enum SchemeState {
+    /// [`moreau_jean::MoreauJean`].
+    MoreauJean(Box<moreau_jean::MoreauJeanState>),
+    /// [`alpha::NonsmoothAlpha`].
+    Alpha(Box<alpha::AlphaState>),
+    /// [`position_contact::PositionContact`].
+    PositionContact(Box<alpha::AlphaCoreState>),
+}
+
+impl SchemeState {
+    /// The refusal of a state saved by another scheme.
+    fn mismatch(&self, expected: &str) -> CheckpointError {
+        let found = match self {
+            SchemeState::MoreauJean(_) => "moreau_jean",
+            SchemeState::Alpha(_) => "the nonsmooth α-family",
+            SchemeState::PositionContact(_) => "a position-contact scheme",
+        };
+        CheckpointError::Mismatch(format!("a state of {found}, not of {expected}"))
+    }
+}
+
+/// What [`run_linear`] carries from one step to the next: the state, the running statistics,
+/// the previous impulses (impact count), the last step's report and the scheme's state.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(crate) struct LinearRun {
+    pub(crate) state: LinearState,
+    stats: LinearRunStats,
+    previous_impulse: Vec<f64>,
+    report: StepReport,
+    scheme: SchemeState,
 }
 
 /// Output settings of a run.
@@ -151,7 +194,7 @@ pub struct OutputOptions {
 
 /// What a linear run measured over all its steps (recorded or not); its fields are those of
 /// `summary.json`.
-#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct LinearRunStats {
     /// Steps done.
     pub steps: u64,
@@ -228,6 +271,9 @@ pub enum RunStop {
         /// Steps done.
         step: u64,
     },
+    /// The checkpoint to resume from does not fit the run.
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
 }
 
 /// Runs `steps` steps of `scheme` from `state`, recording per `output`.
@@ -238,6 +284,21 @@ pub fn run_linear(
     steps: u64,
     output: &OutputOptions,
     observer: &mut dyn Observer,
+) -> Result<LinearRunStats, RunStop> {
+    run_linear_from(model, scheme, state, steps, output, observer, None)
+}
+
+/// [`run_linear`], or its continuation from the checkpoint `resume` (then `state` and the
+/// scheme's state are replaced by the checkpoint's, and the records up to it are not repeated;
+/// a checkpoint of another run or scheme, or of another size, is refused before any step).
+pub(crate) fn run_linear_from(
+    model: &LinearModel,
+    scheme: &mut dyn LinearScheme,
+    state: &mut LinearState,
+    steps: u64,
+    output: &OutputOptions,
+    observer: &mut dyn Observer,
+    resume: Option<&Checkpoint>,
 ) -> Result<LinearRunStats, RunStop> {
     let m = model.contacts.len();
     let friction = model.has_friction();
@@ -287,18 +348,45 @@ pub fn run_linear(
                 row.extend([state.q[j], state.v[j]]);
             }
         };
-    record(&report, &stats, state, &mut row);
-    if observer
-        .observe(&StepRecord {
-            step: state.step,
-            t: state.t,
-            values: &row,
-        })
-        .is_break()
-    {
-        return Err(RunStop::Stopped { step: 0 });
-    }
-    for k in 1..=steps {
+    let first = match resume {
+        Some(c) => {
+            let run: LinearRun = c.run_state(RunKind::Linear)?;
+            let k = run.state.step;
+            if run.state.q.len() != state.q.len() || run.previous_impulse.len() != m {
+                return Err(CheckpointError::Mismatch(format!(
+                    "a linear state of {} dofs, the model has {}",
+                    run.state.q.len(),
+                    state.q.len()
+                ))
+                .into());
+            }
+            let LinearRun {
+                state: s,
+                stats: st,
+                previous_impulse: p,
+                report: r,
+                scheme: sc,
+            } = run;
+            scheme.restore_state(sc)?;
+            (*state, stats, previous_impulse, report) = (s, st, p, r);
+            k + 1
+        }
+        None => {
+            record(&report, &stats, state, &mut row);
+            if observer
+                .observe(&StepRecord {
+                    step: state.step,
+                    t: state.t,
+                    values: &row,
+                })
+                .is_break()
+            {
+                return Err(RunStop::Stopped { step: 0 });
+            }
+            1
+        }
+    };
+    for k in first..=steps {
         scheme.step(model, state, &mut report)?;
         let e = &report.energy;
         if !(e.energy().is_finite() && e.algorithmic_energy.is_finite()) {
@@ -345,12 +433,23 @@ pub fn run_linear(
                 return Err(RunStop::Stopped { step: k });
             }
         }
-        if let ControlFlow::Break(()) = observer.progress(Progress {
+        let progress = Progress {
             done: k,
             total: steps,
             t: state.t,
-        }) {
+        };
+        if let ControlFlow::Break(()) = observer.progress(progress) {
             return Err(RunStop::Stopped { step: k });
+        }
+        if observer.checkpoint_due(progress) {
+            let run = LinearRun {
+                state: state.clone(),
+                stats: stats.clone(),
+                previous_impulse: previous_impulse.clone(),
+                report: report.clone(),
+                scheme: scheme.save_state(),
+            };
+            observer.checkpoint(&mut Checkpoint::new(k, RunKind::Linear, &run)?);
         }
     }
     Ok(stats)

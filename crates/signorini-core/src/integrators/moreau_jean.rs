@@ -34,8 +34,9 @@
 //! [`crate::nonlinear::moreau_jean`]). Without friction on the index set the step is the
 //! frictionless one, operation for operation.
 
-use super::{LinearScheme, LinearState, StepError, StepReport};
+use super::{LinearScheme, LinearState, SchemeState, StepError, StepReport};
 use crate::band::{BandCholesky, BandError, SymBand};
+use crate::checkpoint::CheckpointError;
 use crate::contact::{Delassus, FrictionDelassus, IndexSet, IndexSetRule};
 use crate::energy::EnergyTerms;
 use crate::lcp::LcpOptions;
@@ -83,7 +84,7 @@ pub struct MoreauJean {
     index_set: IndexSet,
 }
 
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct Scratch {
     f_k: Vec<f64>,
     f_theta: Vec<f64>,
@@ -158,6 +159,17 @@ impl MoreauJean {
 impl LinearScheme for MoreauJean {
     fn step_size(&self) -> f64 {
         self.h
+    }
+
+    fn save_state(&self) -> SchemeState {
+        SchemeState::MoreauJean(Box::new(self.checkpoint_state()))
+    }
+
+    fn restore_state(&mut self, state: SchemeState) -> Result<(), CheckpointError> {
+        match state {
+            SchemeState::MoreauJean(s) => self.restore_checkpoint_state(*s),
+            other => Err(other.mismatch("moreau_jean")),
+        }
     }
 
     fn algorithmic_energy(&self, model: &LinearModel, state: &LinearState) -> f64 {
@@ -344,6 +356,46 @@ impl LinearScheme for MoreauJean {
                 - numerical_dissipation,
         };
         report.fill_contacts(model, &state.q, &state.v, t_next);
+        Ok(())
+    }
+}
+
+/// What [`MoreauJean`] carries between steps: the energy and load cached at the end of the last
+/// step, the scratch vectors (F at θ keeps its last value) and the index set with its round-off
+/// levels.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct MoreauJeanState {
+    last_energy: Option<(u64, f64, f64)>,
+    f_next: Vec<f64>,
+    f_next_t: f64,
+    scratch: Scratch,
+    index_set: IndexSet,
+}
+
+impl MoreauJean {
+    fn checkpoint_state(&self) -> MoreauJeanState {
+        MoreauJeanState {
+            last_energy: self.last_energy,
+            f_next: self.f_next.clone(),
+            f_next_t: self.f_next_t,
+            scratch: self.scratch.clone(),
+            index_set: self.index_set.clone(),
+        }
+    }
+
+    fn restore_checkpoint_state(&mut self, s: MoreauJeanState) -> Result<(), CheckpointError> {
+        if s.f_next.len() != self.f_next.len() || s.scratch.f_k.len() != self.scratch.f_k.len() {
+            return Err(CheckpointError::Mismatch(format!(
+                "moreau_jean state of {} dofs, the model has {}",
+                s.f_next.len(),
+                self.f_next.len()
+            )));
+        }
+        self.last_energy = s.last_energy;
+        self.f_next = s.f_next;
+        self.f_next_t = s.f_next_t;
+        self.scratch = s.scratch;
+        self.index_set = s.index_set;
         Ok(())
     }
 }

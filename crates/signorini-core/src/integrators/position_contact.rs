@@ -25,8 +25,9 @@
 //! schemes of [`super::alpha`] (Lemma 3: their contact work is ≤ 0).
 
 use super::alpha::{AlphaCore, AlphaParams, AlphaScheme, ContactWork, ParamError};
-use super::{LinearScheme, LinearState, StepError, StepReport};
+use super::{LinearScheme, LinearState, SchemeState, StepError, StepReport};
 use crate::band::BandError;
+use crate::checkpoint::CheckpointError;
 use crate::contact::LcpStats;
 use crate::lcp::{self, Lcp, LcpOptions};
 use crate::model::LinearModel;
@@ -137,6 +138,17 @@ impl PositionContact {
 impl LinearScheme for PositionContact {
     fn step_size(&self) -> f64 {
         self.core.h
+    }
+
+    fn save_state(&self) -> SchemeState {
+        SchemeState::PositionContact(Box::new(self.core.checkpoint_state()))
+    }
+
+    fn restore_state(&mut self, state: SchemeState) -> Result<(), CheckpointError> {
+        match state {
+            SchemeState::PositionContact(s) => self.core.restore_checkpoint_state(*s),
+            other => Err(other.mismatch("a position-contact scheme")),
+        }
     }
 
     fn algorithmic_energy(&self, model: &LinearModel, state: &LinearState) -> f64 {

@@ -167,7 +167,7 @@ impl NsAlphaParams {
 }
 
 /// What one step produced besides the new state.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct NsAlphaStepReport {
     /// Energies, works, gaps g(q_{k+1}), local velocities U_{k+1}, contact impulses Λ, the
     /// velocity stage's LCP and the smooth stage's Newton iterations, as the nonlinear
@@ -216,7 +216,7 @@ impl NsAlphaStepReport {
 }
 
 /// The end of a step, kept as the start of the next.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct Memory {
     step: u64,
     t: f64,
@@ -828,7 +828,7 @@ fn constraint_rows(g: &[f64], h: &[f64], active: &[usize], n: usize) -> Vec<f64>
 
 /// What a run of the scheme measured over all its steps; its fields are those of
 /// `summary.json`.
-#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct NsAlphaRunStats {
     /// Steps, energies, impacts, LCP (velocity stage) and Newton (smooth stage) figures, works,
     /// as for the nonlinear Moreau–Jean scheme.
@@ -911,6 +911,32 @@ pub fn run_ns_alpha<S: JointedSystem + ?Sized>(
     output: &OutputOptions,
     observer: &mut dyn Observer,
 ) -> Result<NsAlphaRunStats, NonlinearRunStop> {
+    run_ns_alpha_from(system, scheme, state, steps, output, observer, None)
+}
+
+/// What [`run_ns_alpha`] carries from one step to the next: the state, the running statistics,
+/// the previous impulses, the last step's report and the scheme's memory of its end (a_k, q̈_k,
+/// λ_k, the applied forces and the energy).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub(crate) struct NsAlphaRun {
+    pub(crate) state: NonlinearState,
+    stats: NsAlphaRunStats,
+    previous_impulse: Vec<f64>,
+    newton_total: u64,
+    report: NsAlphaStepReport,
+    last: Option<Memory>,
+}
+
+/// [`run_ns_alpha`], or its continuation from a checkpoint's `resume`.
+pub(crate) fn run_ns_alpha_from<S: JointedSystem + ?Sized>(
+    system: &S,
+    scheme: &mut NonsmoothGeneralizedAlpha,
+    state: &mut NonlinearState,
+    steps: u64,
+    output: &OutputOptions,
+    observer: &mut dyn Observer,
+    resume: Option<&crate::checkpoint::Checkpoint>,
+) -> Result<NsAlphaRunStats, NonlinearRunStop> {
     let (n, m, nb) = (system.dofs(), system.contacts(), system.joints());
     if let Some(&probe) = output.probes.iter().find(|&&j| j >= n) {
         return Err(NonlinearRunStop::Probe { probe, dofs: n });
@@ -975,13 +1001,39 @@ pub fn run_ns_alpha<S: JointedSystem + ?Sized>(
             values: row,
         })
     };
-    record(&report, &stats, state, &mut row);
-    if observed(observer, state, &row).is_break() {
-        return Err(NonlinearRunStop::Stopped { step: 0 });
-    }
     let mut previous_impulse = vec![0.0; m];
     let mut newton_total = 0u64;
-    for k in 1..=steps {
+    let first = match resume {
+        Some(c) => {
+            let run: NsAlphaRun = c.run_state(crate::checkpoint::RunKind::NsAlpha)?;
+            let k = run.state.step;
+            if run.state.q.len() != n || run.previous_impulse.len() != m {
+                return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
+                    "an ns_generalized_alpha state of {} coordinates, the system has {n}",
+                    run.state.q.len()
+                ))
+                .into());
+            }
+            let r = run;
+            (*state, stats, previous_impulse, newton_total, report) = (
+                r.state,
+                r.stats,
+                r.previous_impulse,
+                r.newton_total,
+                r.report,
+            );
+            scheme.last = r.last;
+            k + 1
+        }
+        None => {
+            record(&report, &stats, state, &mut row);
+            if observed(observer, state, &row).is_break() {
+                return Err(NonlinearRunStop::Stopped { step: 0 });
+            }
+            1
+        }
+    };
+    for k in first..=steps {
         scheme.step(system, state, &mut report)?;
         let b = &mut stats.base;
         b.steps = k;
@@ -1013,12 +1065,25 @@ pub fn run_ns_alpha<S: JointedSystem + ?Sized>(
                 return Err(NonlinearRunStop::Stopped { step: k });
             }
         }
-        if let ControlFlow::Break(()) = observer.progress(Progress {
+        let progress = Progress {
             done: k,
             total: steps,
             t: state.t,
-        }) {
+        };
+        if let ControlFlow::Break(()) = observer.progress(progress) {
             return Err(NonlinearRunStop::Stopped { step: k });
+        }
+        if observer.checkpoint_due(progress) {
+            let run = NsAlphaRun {
+                state: state.clone(),
+                stats: stats.clone(),
+                previous_impulse: previous_impulse.clone(),
+                newton_total,
+                report: report.clone(),
+                last: scheme.last.clone(),
+            };
+            let kind = crate::checkpoint::RunKind::NsAlpha;
+            observer.checkpoint(&mut crate::checkpoint::Checkpoint::new(k, kind, &run)?);
         }
     }
     Ok(stats)

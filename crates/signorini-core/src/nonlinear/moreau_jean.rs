@@ -243,7 +243,7 @@ pub enum NonlinearStepError {
 }
 
 /// State of a nonlinear system at t_k.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NonlinearState {
     /// Step number k.
     pub step: u64,
@@ -269,7 +269,7 @@ impl NonlinearState {
 }
 
 /// What one step produced besides the new state.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct NonlinearStepReport {
     /// ½ vᵀM(q)v at t_{k+1}.
     pub kinetic: f64,
@@ -341,7 +341,7 @@ impl NonlinearStepReport {
 
 /// The values at the end of one step kept for the next (they are the start of the next step),
 /// with the state they belong to: a state changed between steps is evaluated afresh.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct EndOfStep {
     step: u64,
     t: f64,
@@ -376,7 +376,7 @@ pub struct NonlinearMoreauJean {
     s: Scratch,
 }
 
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct Scratch {
     mass: Vec<f64>,
     dfdq: Vec<f64>,
@@ -972,7 +972,7 @@ fn singular(u: &DMatrix<f64>, column_max: &[f64]) -> bool {
 
 /// What a nonlinear run measured over all its steps (recorded or not); its fields are those of
 /// `summary.json`.
-#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct NonlinearRunStats {
     /// Steps done.
     pub steps: u64,
@@ -1031,6 +1031,9 @@ pub enum NonlinearRunStop {
         /// Coordinates of the system.
         dofs: usize,
     },
+    /// The checkpoint to resume from does not fit the run.
+    #[error(transparent)]
+    Checkpoint(#[from] crate::checkpoint::CheckpointError),
 }
 
 /// Column names of a nonlinear run: [`NONLINEAR_ENERGY_COLUMNS`], [`NONLINEAR_RUN_COLUMNS`],
@@ -1067,6 +1070,36 @@ pub fn run_nonlinear<S: LagrangianSystem + ?Sized>(
     steps: u64,
     output: &OutputOptions,
     observer: &mut dyn Observer,
+) -> Result<NonlinearRunStats, NonlinearRunStop> {
+    run_nonlinear_from(system, scheme, state, steps, output, observer, None)
+}
+
+/// What [`run_nonlinear`] carries from one step to the next: the state, the running statistics
+/// and sums, the previous impulses, the last step's report and the scheme's memory of it (the
+/// end-of-step values, the round-off levels of the index set, the scratch vectors).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub(crate) struct NonlinearRun {
+    pub(crate) state: NonlinearState,
+    stats: NonlinearRunStats,
+    previous_impulse: Vec<f64>,
+    newton_total: u64,
+    work_friction_total: f64,
+    report: NonlinearStepReport,
+    last: Option<EndOfStep>,
+    roundoff_step: u64,
+    roundoff: Vec<f64>,
+    scratch: Scratch,
+}
+
+/// [`run_nonlinear`], or its continuation from a checkpoint's `resume`.
+pub(crate) fn run_nonlinear_from<S: LagrangianSystem + ?Sized>(
+    system: &S,
+    scheme: &mut NonlinearMoreauJean,
+    state: &mut NonlinearState,
+    steps: u64,
+    output: &OutputOptions,
+    observer: &mut dyn Observer,
+    resume: Option<&crate::checkpoint::Checkpoint>,
 ) -> Result<NonlinearRunStats, NonlinearRunStop> {
     let (n, m) = (system.dofs(), system.contacts());
     if let Some(&probe) = output.probes.iter().find(|&&j| j >= n) {
@@ -1120,7 +1153,6 @@ pub fn run_nonlinear<S: LagrangianSystem + ?Sized>(
             row.extend([state.q[j], state.v[j]]);
         }
     };
-    record(&report, &stats, state, 0.0, &mut row);
     let observed = |observer: &mut dyn Observer, state: &NonlinearState, row: &[f64]| {
         observer.observe(&StepRecord {
             step: state.step,
@@ -1128,10 +1160,46 @@ pub fn run_nonlinear<S: LagrangianSystem + ?Sized>(
             values: row,
         })
     };
-    if observed(observer, state, &row).is_break() {
-        return Err(NonlinearRunStop::Stopped { step: 0 });
-    }
-    for k in 1..=steps {
+    let first = match resume {
+        Some(c) => {
+            let run: NonlinearRun = c.run_state(crate::checkpoint::RunKind::Nonlinear)?;
+            let k = run.state.step;
+            if run.state.q.len() != n || run.roundoff.len() != scheme.roundoff.len() {
+                return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
+                    "a nonlinear state of {} coordinates, the system has {n}",
+                    run.state.q.len()
+                ))
+                .into());
+            }
+            let r = run;
+            (
+                *state,
+                stats,
+                previous_impulse,
+                newton_total,
+                work_friction_total,
+                report,
+            ) = (
+                r.state,
+                r.stats,
+                r.previous_impulse,
+                r.newton_total,
+                r.work_friction_total,
+                r.report,
+            );
+            (scheme.last, scheme.roundoff_step, scheme.roundoff, scheme.s) =
+                (r.last, r.roundoff_step, r.roundoff, r.scratch);
+            k + 1
+        }
+        None => {
+            record(&report, &stats, state, 0.0, &mut row);
+            if observed(observer, state, &row).is_break() {
+                return Err(NonlinearRunStop::Stopped { step: 0 });
+            }
+            1
+        }
+    };
+    for k in first..=steps {
         scheme.step(system, state, &mut report)?;
         stats.steps = k;
         stats.t_end = state.t;
@@ -1165,12 +1233,29 @@ pub fn run_nonlinear<S: LagrangianSystem + ?Sized>(
                 return Err(NonlinearRunStop::Stopped { step: k });
             }
         }
-        if let ControlFlow::Break(()) = observer.progress(Progress {
+        let progress = Progress {
             done: k,
             total: steps,
             t: state.t,
-        }) {
+        };
+        if let ControlFlow::Break(()) = observer.progress(progress) {
             return Err(NonlinearRunStop::Stopped { step: k });
+        }
+        if observer.checkpoint_due(progress) {
+            let run = NonlinearRun {
+                state: state.clone(),
+                stats: stats.clone(),
+                previous_impulse: previous_impulse.clone(),
+                newton_total,
+                work_friction_total,
+                report: report.clone(),
+                last: scheme.last.clone(),
+                roundoff_step: scheme.roundoff_step,
+                roundoff: scheme.roundoff.clone(),
+                scratch: scheme.s.clone(),
+            };
+            let kind = crate::checkpoint::RunKind::Nonlinear;
+            observer.checkpoint(&mut crate::checkpoint::Checkpoint::new(k, kind, &run)?);
         }
     }
     Ok(stats)

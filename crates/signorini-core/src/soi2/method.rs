@@ -108,7 +108,7 @@ impl Default for NewtonOptions {
 }
 
 /// How the step Newton iterations get their Jacobian.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum NewtonStrategy {
     /// Simplified Newton (the default): the Jacobian and its LU factorisation are kept across
     /// iterations and across steps of the same size (one per step size, a few sizes) while the
@@ -126,7 +126,7 @@ pub enum NewtonStrategy {
 
 /// The Jacobian a run carries from step to step (simplified Newton): its LU factorisation, the
 /// step size and the system size it was built for.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct NewtonCache {
     /// Strategy.
     pub strategy: NewtonStrategy,
@@ -180,7 +180,7 @@ pub struct Method {
 }
 
 /// State at t_n of a SOI2 run.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Soi2State {
     /// Steps done.
     pub step: u64,

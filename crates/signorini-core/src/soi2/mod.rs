@@ -216,6 +216,9 @@ pub fn k_dot<M: ConstrainedModel + ?Sized, T: Scalar>(
 /// Why a SOI2 run (or its set-up) failed. Every variant names the cause and where it happened.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum Soi2Error {
+    /// The checkpoint to resume from does not fit the run.
+    #[error(transparent)]
+    Checkpoint(#[from] crate::checkpoint::CheckpointError),
     /// The constraint Jacobian (g_y; k_z) has dependent rows: the multipliers are not unique.
     #[error(
         "singular constraint Jacobian (g_y; k_z) at t = {t}: rank {rank} < {constraints} constraints \
@@ -388,7 +391,7 @@ pub fn kinetic_energy<M: ConstrainedModel + ?Sized>(
 
 /// Global errors ‖·‖₂ at the end of a run against the exact solution: y_N, z_N, λ_N, ψ_N at
 /// t_N, and a_{N+α} at t_N + α h_{N−1} (§2, §7).
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct GlobalErrors {
     /// ‖y_N − y(t_N)‖₂.
     pub y: f64,

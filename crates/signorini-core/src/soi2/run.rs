@@ -172,7 +172,7 @@ pub struct Soi2Output {
 }
 
 /// What a run measured over all its steps.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Soi2Stats {
     /// Steps done.
     pub steps: u64,
@@ -270,6 +270,38 @@ pub fn integrate_with<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized>(
     output: &Soi2Output,
     observer: &mut dyn Observer,
 ) -> Result<(Soi2State, Soi2Stats), Soi2Error> {
+    integrate_from(
+        model, method, newton, start, sizes, adjust, output, observer, None,
+    )
+}
+
+/// What the SOI2 loop carries from one step to the next: the state (with a_α, M_α a_α and the
+/// previous step's values that (14) interpolates from), the running statistics, the Newton
+/// cache (the Jacobians' LU factors of simplified Newton), the damping force at t_k, the last
+/// step size; the position in the step-size schedule is the step count.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub(crate) struct Soi2Run {
+    k: u64,
+    state: Soi2State,
+    stats: Soi2Stats,
+    cache: NewtonCache,
+    fd0: Vec<f64>,
+    h_last: f64,
+}
+
+/// [`integrate_with`], or its continuation from a checkpoint's `resume`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn integrate_from<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized>(
+    model: &M,
+    method: &Method,
+    newton: NewtonStrategy,
+    start: StartValue,
+    sizes: &S,
+    adjust: bool,
+    output: &Soi2Output,
+    observer: &mut dyn Observer,
+    resume: Option<&crate::checkpoint::Checkpoint>,
+) -> Result<(Soi2State, Soi2Stats), Soi2Error> {
     let mut cache = NewtonCache::new(newton);
     let dims = model.dims();
     let n = dims.n;
@@ -324,21 +356,45 @@ pub fn integrate_with<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized>(
             row.extend([s.y[j], s.z[j]]);
         }
     };
-    let res0 = constraint_residuals(model, state.t, &state.y, &state.z);
-    record(&mut row, &state, 0.0, k0, p0, 0.0, 0.0, res0, 0);
-    if observer
-        .observe(&StepRecord {
-            step: 0,
-            t: state.t,
-            values: &row,
-        })
-        .is_break()
-    {
-        return Err(Soi2Error::Stopped { step: 0 });
-    }
     let mut steps = sizes.steps().peekable();
     let mut k = 0u64;
     let mut h_last = 0.0;
+    match resume {
+        Some(c) => {
+            let run: Soi2Run = c.run_state(crate::checkpoint::RunKind::Soi2)?;
+            if run.state.y.len() != n || run.fd0.len() != n {
+                return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
+                    "a SOI2 state of {} coordinates, the model has {n}",
+                    run.state.y.len()
+                ))
+                .into());
+            }
+            let r = run;
+            (k, state, stats, cache, fd0, h_last) =
+                (r.k, r.state, r.stats, r.cache, r.fd0, r.h_last);
+            // The schedule's position: the k sizes already stepped.
+            if k > 0 && steps.nth((k - 1) as usize).is_none() {
+                return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
+                    "a checkpoint after step {k}, the schedule has fewer steps"
+                ))
+                .into());
+            }
+        }
+        None => {
+            let res0 = constraint_residuals(model, state.t, &state.y, &state.z);
+            record(&mut row, &state, 0.0, k0, p0, 0.0, 0.0, res0, 0);
+            if observer
+                .observe(&StepRecord {
+                    step: 0,
+                    t: state.t,
+                    values: &row,
+                })
+                .is_break()
+            {
+                return Err(Soi2Error::Stopped { step: 0 });
+            }
+        }
+    }
     while let Some(h) = steps.next() {
         k += 1;
         h_last = h;
@@ -390,12 +446,25 @@ pub fn integrate_with<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized>(
                 return Err(Soi2Error::Stopped { step: k });
             }
         }
-        if let ControlFlow::Break(()) = observer.progress(Progress {
+        let progress = Progress {
             done: k,
             total,
             t: state.t,
-        }) {
+        };
+        if let ControlFlow::Break(()) = observer.progress(progress) {
             return Err(Soi2Error::Stopped { step: k });
+        }
+        if observer.checkpoint_due(progress) {
+            let run = Soi2Run {
+                k,
+                state: state.clone(),
+                stats: stats.clone(),
+                cache: cache.clone(),
+                fd0: fd0.clone(),
+                h_last,
+            };
+            let kind = crate::checkpoint::RunKind::Soi2;
+            observer.checkpoint(&mut crate::checkpoint::Checkpoint::new(k, kind, &run)?);
         }
     }
     stats.errors = model.exact(state.t).map(|ex| {
@@ -760,9 +829,18 @@ impl Soi2Job {
 
     /// Runs the job; the summary's SOI2 part (the caller adds name, scene, scheme).
     pub fn run(&self, observer: &mut dyn Observer) -> Result<Soi2Summary, Soi2Error> {
+        self.run_from(observer, None)
+    }
+
+    /// [`Soi2Job::run`], or its continuation from a checkpoint's `resume`.
+    pub(crate) fn run_from(
+        &self,
+        observer: &mut dyn Observer,
+        resume: Option<&crate::checkpoint::Checkpoint>,
+    ) -> Result<Soi2Summary, Soi2Error> {
         let sizes = &self.schedule;
         let (state, stats) = match &self.model {
-            Soi2Model::Pendulum(p) => integrate_with(
+            Soi2Model::Pendulum(p) => integrate_from(
                 p,
                 &self.method,
                 self.newton,
@@ -771,8 +849,9 @@ impl Soi2Job {
                 self.adjust,
                 &self.output,
                 observer,
+                resume,
             )?,
-            Soi2Model::SliderCrank(s) => integrate_with(
+            Soi2Model::SliderCrank(s) => integrate_from(
                 s,
                 &self.method,
                 self.newton,
@@ -781,8 +860,9 @@ impl Soi2Job {
                 self.adjust,
                 &self.output,
                 observer,
+                resume,
             )?,
-            Soi2Model::JayNegrutTest(j) => integrate_with(
+            Soi2Model::JayNegrutTest(j) => integrate_from(
                 j,
                 &self.method,
                 self.newton,
@@ -791,8 +871,9 @@ impl Soi2Job {
                 self.adjust,
                 &self.output,
                 observer,
+                resume,
             )?,
-            Soi2Model::User(u) => integrate_with(
+            Soi2Model::User(u) => integrate_from(
                 u.as_ref(),
                 &self.method,
                 self.newton,
@@ -801,6 +882,7 @@ impl Soi2Job {
                 self.adjust,
                 &self.output,
                 observer,
+                resume,
             )?,
         };
         let c = self.method.coefficients;

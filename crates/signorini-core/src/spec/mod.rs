@@ -139,6 +139,16 @@ pub struct OutputSpec {
     /// Dofs whose q_j, v_j are recorded (default none).
     #[serde(default)]
     pub probes: Vec<usize>,
+    /// Wall-clock seconds between two checkpoints of a running time integration (`signorini run
+    /// --out DIR` writes `DIR/checkpoint.bin`, the service its store); > 0, default 30. The
+    /// caller measures the time: the numerical core keeps no clock.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
+    pub checkpoint_seconds: Option<f64>,
+    /// Steps between two checkpoints, in addition to `checkpoint_seconds` (≥ 1, default none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1))]
+    pub checkpoint_steps: Option<u64>,
 }
 
 impl Default for OutputSpec {
@@ -146,7 +156,42 @@ impl Default for OutputSpec {
         Self {
             every: 1,
             probes: Vec::new(),
+            checkpoint_seconds: None,
+            checkpoint_steps: None,
         }
+    }
+}
+
+/// Default of `output.checkpoint_seconds`.
+pub const CHECKPOINT_SECONDS: f64 = 30.0;
+
+/// When a caller checkpoints a run: every `seconds` of wall time, and every `steps` steps if
+/// given (`output.checkpoint_seconds`, `output.checkpoint_steps`, checked).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CheckpointPeriod {
+    /// Seconds of wall time (> 0).
+    pub seconds: f64,
+    /// Steps (≥ 1), if given.
+    pub steps: Option<u64>,
+}
+
+impl OutputSpec {
+    /// The checkpoint period; errors name `output.checkpoint_seconds` / `output.checkpoint_steps`.
+    pub fn checkpoint_period(&self) -> Result<CheckpointPeriod, SpecError> {
+        let seconds = self.checkpoint_seconds.unwrap_or(CHECKPOINT_SECONDS);
+        if !seconds.is_finite() || seconds <= 0.0 {
+            return Err(SpecError::new(
+                "output.checkpoint_seconds",
+                format!("must be a finite number of seconds > 0, got {seconds}"),
+            ));
+        }
+        if self.checkpoint_steps == Some(0) {
+            return Err(SpecError::new("output.checkpoint_steps", "must be ≥ 1"));
+        }
+        Ok(CheckpointPeriod {
+            seconds,
+            steps: self.checkpoint_steps,
+        })
     }
 }
 
@@ -322,6 +367,7 @@ impl OutputSpec {
         if self.every == 0 {
             return Err(SpecError::new("output.every", "must be ≥ 1"));
         }
+        self.checkpoint_period()?;
         match probes {
             Probes::Unsupported(reason) if !self.probes.is_empty() => {
                 return Err(SpecError::new("output.probes", reason));

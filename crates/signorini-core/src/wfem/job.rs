@@ -94,6 +94,12 @@ impl WaveJob {
         }
     }
 
+    /// Whether this is an analysis (nonsmooth modes, forced response) rather than a time
+    /// integration.
+    pub fn is_analysis(&self) -> bool {
+        !matches!(self, WaveJob::Integrate { .. })
+    }
+
     /// Runs the job; `header` names it in the summary; an analysis spreads its tasks over
     /// `threads` threads.
     pub fn run(
@@ -102,15 +108,30 @@ impl WaveJob {
         threads: usize,
         observer: &mut dyn Observer,
     ) -> Result<RunOutput, RunError> {
+        self.run_from(header, threads, observer, None)
+    }
+
+    /// [`WaveJob::run`], or the continuation of a time integration from a checkpoint's
+    /// `resume` (an analysis has none).
+    pub(crate) fn run_from(
+        &self,
+        header: SummaryHeader,
+        threads: usize,
+        observer: &mut dyn Observer,
+        resume: Option<&crate::checkpoint::Checkpoint>,
+    ) -> Result<RunOutput, RunError> {
         match self {
             WaveJob::Integrate { bar, steps, every } => {
                 let mut state = bar.initial_state();
-                let stats = run_wave(bar, &mut state, *steps, *every, observer)?;
+                let stats = run_wave_from(bar, &mut state, *steps, *every, observer, resume)?;
                 Ok(RunOutput {
                     summary: RunSummary::new(header, SummaryBody::Wave(stats.summary(bar))),
                     tables: Vec::new(),
                     charts: Vec::new(),
                 })
+            }
+            WaveJob::Modes(_) | WaveJob::Forced(_) if resume.is_some() => {
+                Err(crate::checkpoint::CheckpointError::Unsupported("analysis").into())
             }
             WaveJob::Modes(m) => modal::run_modes(m, header, threads, observer),
             WaveJob::Forced(f) => modal::forced::run_forced(f, header, threads, observer),
@@ -153,6 +174,30 @@ pub fn run_wave(
     steps: u64,
     every: u64,
     observer: &mut dyn Observer,
+) -> Result<WaveRunStats, RunError> {
+    run_wave_from(bar, state, steps, every, observer, None)
+}
+
+/// What the WFEM loop carries from one step to the next: the cells (the ring of characteristic
+/// values) and end displacements, the running statistics, the energy of the last record, the
+/// works summed since it and whether the gap was closed.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub(crate) struct WaveRun {
+    pub(crate) state: WaveState,
+    stats: WaveRunStats,
+    e_prev: f64,
+    works: [f64; 3],
+    was_contact: bool,
+}
+
+/// [`run_wave`], or its continuation from a checkpoint's `resume`.
+pub(crate) fn run_wave_from(
+    bar: &WaveBar,
+    state: &mut WaveState,
+    steps: u64,
+    every: u64,
+    observer: &mut dyn Observer,
+    resume: Option<&crate::checkpoint::Checkpoint>,
 ) -> Result<WaveRunStats, RunError> {
     let columns = wave_columns();
     observer.start(&columns);
@@ -199,18 +244,37 @@ pub fn run_wave(
             bar.area * terms.contact_stress,
         ]);
     };
-    push_row(&mut row, kin, strain, [0.0; 3], 0.0, [0.0; 3], state, &last);
-    if observer
-        .observe(&StepRecord {
-            step: state.step,
-            t: state.step as f64 * dt,
-            values: &row,
-        })
-        .is_break()
-    {
-        return Err(RunError::Stopped { step: 0 });
-    }
-    for k in 1..=steps {
+    let first = match resume {
+        Some(c) => {
+            let run: WaveRun = c.run_state(crate::checkpoint::RunKind::Wave)?;
+            if !run.state.fits(state) {
+                return Err(crate::checkpoint::CheckpointError::Mismatch(
+                    "a WFEM state of another number of cells".to_string(),
+                )
+                .into());
+            }
+            let r = run;
+            let k = r.state.step;
+            (*state, stats, e_prev, was_contact) = (r.state, r.stats, r.e_prev, r.was_contact);
+            [w_ext, w_damp, w_contact] = r.works;
+            k + 1
+        }
+        None => {
+            push_row(&mut row, kin, strain, [0.0; 3], 0.0, [0.0; 3], state, &last);
+            if observer
+                .observe(&StepRecord {
+                    step: state.step,
+                    t: state.step as f64 * dt,
+                    values: &row,
+                })
+                .is_break()
+            {
+                return Err(RunError::Stopped { step: 0 });
+            }
+            1
+        }
+    };
+    for k in first..=steps {
         last = step(bar, state);
         w_ext += last.work_ext;
         w_damp += last.work_damping;
@@ -261,12 +325,24 @@ pub fn run_wave(
                 return Err(RunError::Stopped { step: k });
             }
         }
-        if let ControlFlow::Break(()) = observer.progress(Progress {
+        let progress = Progress {
             done: k,
             total: steps,
             t: state.step as f64 * dt,
-        }) {
+        };
+        if let ControlFlow::Break(()) = observer.progress(progress) {
             return Err(RunError::Stopped { step: k });
+        }
+        if observer.checkpoint_due(progress) {
+            let run = WaveRun {
+                state: state.clone(),
+                stats: stats.clone(),
+                e_prev,
+                works: [w_ext, w_damp, w_contact],
+                was_contact,
+            };
+            let kind = crate::checkpoint::RunKind::Wave;
+            observer.checkpoint(&mut crate::checkpoint::Checkpoint::new(k, kind, &run)?);
         }
     }
     stats.steps = steps;

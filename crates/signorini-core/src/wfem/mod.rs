@@ -283,7 +283,7 @@ impl WaveBar {
 
 /// State of a wave bar at t_n: the ring of characteristic values (see the module doc), the
 /// displacements of both ends, and the step number.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct WaveState {
     ring: Vec<f64>,
     shift: usize,
@@ -295,6 +295,13 @@ pub struct WaveState {
     /// of the Riemann solution (30), equal to `u_left + Σ Δx σ_i / E` (the paper's strain
     /// integration) by the discrete conservation law (27).
     pub u_right: f64,
+}
+
+impl WaveState {
+    /// Whether `self` has as many cells as `other` (a checkpoint's state fits the bar).
+    pub(crate) fn fits(&self, other: &WaveState) -> bool {
+        self.ring.len() == other.ring.len() && self.shift < self.ring.len().max(1)
+    }
 }
 
 impl WaveState {
@@ -460,7 +467,7 @@ pub enum EndCondition {
 }
 
 /// What one step did besides updating the state.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct StepTerms {
     /// True when the contact end was fixed (contact) during the step.
     pub contact: bool,

@@ -1,0 +1,161 @@
+//! `signorini run --resume DIR`: a run killed with SIGKILL after a checkpoint continues from it
+//! to the same steps.csv and summary.json as an uninterrupted run (byte for byte, the wall time
+//! aside); a damaged checkpoint is reported and the run starts again from step 0.
+
+use serde_json::{Map, Value};
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn signorini() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_signorini"))
+}
+
+/// A bar of 1000 elements for long enough (a few seconds) to be killed in the middle.
+const SPEC: &str = r#"
+name = "killed bar"
+[model]
+scene = "bar"
+elements = 1000
+gap = 0.001
+initial_velocity = 1.0
+[integrator]
+scheme = "ns_generalized_alpha"
+rho_inf = 0.8
+[time]
+h = 0.0002
+steps = 60000
+[output]
+every = 37
+probes = [500]
+checkpoint_steps = 1500
+"#;
+
+fn run_whole(dir: &Path, spec: &Path) -> std::path::PathBuf {
+    let out = dir.join("whole");
+    let status = signorini()
+        .args(["run", "--quiet", "--out"])
+        .arg(&out)
+        .arg(spec)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    out
+}
+
+/// The summary without its wall time and rate.
+fn summary(dir: &Path) -> Map<String, Value> {
+    let text = std::fs::read_to_string(dir.join("summary.json")).unwrap();
+    let mut map: Map<String, Value> = serde_json::from_str(&text).unwrap();
+    map.remove("wall_s");
+    map.remove("steps_per_s");
+    map
+}
+
+fn assert_same_results(a: &Path, b: &Path) {
+    let (sa, sb) = (
+        std::fs::read(a.join("steps.csv")).unwrap(),
+        std::fs::read(b.join("steps.csv")).unwrap(),
+    );
+    assert!(sa == sb, "steps.csv differs");
+    assert_eq!(summary(a), summary(b));
+    for f in ["energy.svg", "residuals.svg"] {
+        assert_eq!(
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+            "{f} differs"
+        );
+    }
+    for gone in ["checkpoint.bin", "run_spec.json", "steps.csv.partial"] {
+        assert!(!b.join(gone).exists(), "{gone} left after the run");
+    }
+}
+
+/// Starts the run in `out` and kills it with SIGKILL once a checkpoint is on disk.
+fn start_and_kill(spec: &Path, out: &Path) {
+    let mut child = signorini()
+        .args(["run", "--quiet", "--out"])
+        .arg(out)
+        .arg(spec)
+        .stdout(Stdio::null())
+        .spawn()
+        .unwrap();
+    let started = Instant::now();
+    while !out.join("checkpoint.bin").exists() {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the run ended before its first checkpoint"
+        );
+        assert!(started.elapsed() < Duration::from_secs(120));
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    std::thread::sleep(Duration::from_millis(150));
+    child.kill().unwrap(); // SIGKILL
+    let status = child.wait().unwrap();
+    assert!(!status.success(), "the run finished before it was killed");
+    assert!(out.join("steps.csv.partial").exists());
+    assert!(!out.join("summary.json").exists());
+}
+
+#[test]
+fn a_killed_run_resumes_to_the_same_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = dir.path().join("bar.toml");
+    std::fs::write(&spec, SPEC).unwrap();
+    let whole = run_whole(dir.path(), &spec);
+
+    let out = dir.path().join("killed");
+    start_and_kill(&spec, &out);
+    let resumed = signorini()
+        .arg("run")
+        .arg("--resume")
+        .arg(&out)
+        .stdout(Stdio::null())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&resumed.stderr);
+    assert!(resumed.status.success(), "{stderr}");
+    assert!(stderr.contains("resuming"), "{stderr}");
+    assert_same_results(&whole, &out);
+}
+
+#[test]
+fn a_damaged_checkpoint_reruns_from_step_zero_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = dir.path().join("bar.toml");
+    std::fs::write(&spec, SPEC).unwrap();
+    let whole = run_whole(dir.path(), &spec);
+
+    let out = dir.path().join("killed");
+    start_and_kill(&spec, &out);
+    let path = out.join("checkpoint.bin");
+    let mut bytes = std::fs::read(&path).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0xff;
+    std::fs::write(&path, &bytes).unwrap();
+    let resumed = signorini()
+        .args(["run", "--quiet", "--resume"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&resumed.stderr);
+    assert!(resumed.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("checkpoint corrupted") && stderr.contains("rerunning from step 0"),
+        "{stderr}"
+    );
+    assert_same_results(&whole, &out);
+}
+
+#[test]
+fn resume_of_a_directory_without_a_run_names_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = signorini()
+        .args(["run", "--resume"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("run_spec.json"), "{stderr}");
+}

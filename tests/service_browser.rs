@@ -1,0 +1,178 @@
+//! The pages the service serves, in a real headless Chromium (issue 13, part 8):
+//!
+//! - a running job's live page replays the job's history from step 0 (its energy plot starts at
+//!   t = 0 although the page opened long after), draws axes with units and the residual on a log
+//!   scale, and, once the job ends, switches to the stored curves;
+//! - a finished job's page shows the stored curves and loads its figures; a failed job's page
+//!   shows the error; an unknown job answers 404; the index page `/` lists recent jobs, each
+//!   linked to its page.
+
+mod common;
+
+use common::browser::Browser;
+use common::{Options, TestServer, ball_json, submit_json, wait_running, wait_terminal};
+use serde_json::Value;
+use signorini::proto::v1 as pb;
+
+/// A falling mass whose potential `√y` leaves its domain at y = 0: the job fails at step 439
+/// with "F(t, q, v) is not finite".
+const FAILING: &str = r#"{"name":"leaves the domain","model":{"scene":"lagrangian",
+  "coordinates":["y"],"parameters":{"m":1.0,"g":9.81},"mass":[["m"]],
+  "potential":"m*g*y + sqrt(y)","q0":[1.0],"v0":[0.0]},
+  "integrator":{"scheme":"moreau_jean","theta":0.5},"time":{"h":0.001,"t_end":2.0}}"#;
+
+/// A number from a canvas `data-` attribute.
+fn data(b: &mut Browser, canvas: &str, key: &str) -> f64 {
+    let v = b.eval(&format!(
+        "document.getElementById('{canvas}').dataset.{key}"
+    ));
+    v.as_str()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("{canvas}.dataset.{key} = {v}"))
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_running_jobs_page_replays_its_history_then_shows_the_stored_curves() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&dir.path().join("s.db"), &Options::default());
+    let mut client = server.grpc().await;
+    let id = submit_json(&mut client, ball_json(1e-6, 60_000_000, 1000), Some("long"))
+        .await
+        .expect("submit");
+    // The page opens long after the start: everything before is history to replay.
+    wait_running(&mut client, &id, 200_000).await;
+    let mut b = Browser::launch();
+    b.open(&format!("http://{}/jobs/{id}", server.http));
+    b.wait_for(
+        "the running state",
+        "document.getElementById('state').textContent === 'running'",
+    );
+    b.wait_for(
+        "a drawn energy plot",
+        "+document.getElementById('energy').dataset.points > 50",
+    );
+    assert_eq!(
+        data(&mut b, "energy", "t0"),
+        0.0,
+        "history replayed from t = 0"
+    );
+    let label = b.eval("document.getElementById('energy').getAttribute('aria-label')");
+    let label = label.as_str().expect("an aria-label");
+    assert!(label.starts_with("energy, work (J) from "), "{label}");
+    assert!(label.contains("against t (s) from 0 to "), "{label}");
+    // The balance residual of Moreau–Jean θ = ½ is at round-off: on the log axis, not a line at 0.
+    let (lo, hi) = (
+        data(&mut b, "residual", "lo"),
+        data(&mut b, "residual", "hi"),
+    );
+    assert!(
+        -40.0 < lo && lo < hi && hi < -12.0,
+        "log10 |r| in [{lo}, {hi}]"
+    );
+    client
+        .cancel_job(pb::CancelJobRequest { id: id.clone() })
+        .await
+        .expect("cancel");
+    let st = wait_terminal(&mut client, &id).await;
+    b.wait_for(
+        "the cancelled state",
+        "document.getElementById('state').textContent === 'cancelled'",
+    );
+    // The stored curves replace the live ones: they reach the last recorded step.
+    let t_end = st.progress.expect("progress").t;
+    b.wait_for(
+        "the stored curves",
+        &format!("+document.getElementById('energy').dataset.t1 >= {t_end} - 0.01"),
+    );
+    assert_eq!(data(&mut b, "energy", "t0"), 0.0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn finished_failed_and_unknown_jobs_and_the_index_page() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&dir.path().join("s.db"), &Options::default());
+    let mut client = server.grpc().await;
+    let ok = submit_json(&mut client, ball_json(1e-3, 5_000, 1), Some("ok"))
+        .await
+        .expect("submit");
+    let failed = submit_json(&mut client, FAILING.to_string(), Some("failed"))
+        .await
+        .expect("submit");
+    for id in [&ok, &failed] {
+        wait_terminal(&mut client, id).await;
+    }
+    let mut b = Browser::launch();
+    let base = format!("http://{}", server.http);
+
+    b.open(&format!("{base}/jobs/{ok}"));
+    b.wait_for(
+        "the succeeded state",
+        "document.getElementById('state').textContent === 'succeeded'",
+    );
+    b.wait_for(
+        "the stored curves",
+        "+document.getElementById('energy').dataset.points > 1000",
+    );
+    assert_eq!(data(&mut b, "energy", "t0"), 0.0);
+    assert_eq!(data(&mut b, "energy", "t1"), 5.0);
+    assert_eq!(
+        b.eval("document.getElementById('progress').textContent"),
+        "step 5000 / 5000, t = 5 s"
+    );
+    // The stored figures load as images (an SVG that fails to load has naturalWidth 0).
+    let widths = b.wait_for(
+        "the figures loaded",
+        "(() => { const i = [...document.querySelectorAll('#figures img')]; \
+           return i.length === 2 && i.every(x => x.complete && x.naturalWidth > 0) \
+             ? i.map(x => x.alt) : null; })()",
+    );
+    assert_eq!(widths, serde_json::json!(["energy", "residuals"]));
+
+    b.open(&format!("{base}/jobs/{failed}"));
+    let error = b.wait_for(
+        "the error reason",
+        "document.getElementById('error').textContent",
+    );
+    assert!(
+        error.as_str().is_some_and(|e| e.contains("is not finite")),
+        "{error}"
+    );
+    assert_eq!(
+        b.eval("document.getElementById('state').textContent"),
+        "failed"
+    );
+
+    // An unknown job: 404 with the JSON error naming the id.
+    let (code, body) = server.http("GET", "/jobs/nosuchjob", None, None).await;
+    assert_eq!(code, 404);
+    assert_eq!(body["error"]["field"], "id");
+    b.open(&format!("{base}/jobs/nosuchjob"));
+    b.wait_for(
+        "the 404 body",
+        "document.body.innerText.includes('no job nosuchjob')",
+    );
+
+    // The index lists both jobs, newest first, each linked to its page; the failed one with
+    // its reason.
+    b.open(&format!("{base}/"));
+    let rows = b.wait_for(
+        "the job rows",
+        "(() => { const r = [...document.querySelectorAll('#jobs tr')]; \
+           return r.length === 2 ? r.map(x => [x.className, \
+             x.querySelector('a').getAttribute('href'), x.innerText]) : null; })()",
+    );
+    let rows = rows.as_array().expect("rows");
+    let row = |id: &str| -> &Value {
+        rows.iter()
+            .find(|r| r[1] == format!("/jobs/{id}"))
+            .unwrap_or_else(|| panic!("no row links to /jobs/{id}: {rows:?}"))
+    };
+    assert_eq!(row(&ok)[0], "succeeded");
+    assert_eq!(row(&failed)[0], "failed");
+    assert!(
+        row(&failed)[2]
+            .as_str()
+            .is_some_and(|t| t.contains("is not finite")),
+        "{rows:?}"
+    );
+}
