@@ -437,6 +437,28 @@ pub trait Backend: Send + Sync {
         columns: usize,
     ) -> Result<SeriesChunk, StoreError>;
 
+    /// Keeps the latest checkpoint of a running job (its bytes, made by
+    /// `signorini_core::checkpoint::Checkpoint::encode`), written by its run number `attempt`
+    /// after step `step`; replaces the one before.
+    fn save_checkpoint(
+        &self,
+        id: &str,
+        attempt: u64,
+        step: u64,
+        bytes: &[u8],
+    ) -> Result<(), StoreError>;
+
+    /// The latest checkpoint of a job: (attempt, step, bytes), if any.
+    fn load_checkpoint(&self, id: &str) -> Result<Option<(u64, u64, Vec<u8>)>, StoreError>;
+
+    /// Forgets a job's checkpoint (it ended, or its checkpoint cannot be used).
+    fn delete_checkpoint(&self, id: &str) -> Result<(), StoreError>;
+
+    /// Keeps the first `rows` rows of a job's stored series (a job resumed from a checkpoint
+    /// that had recorded that many) and drops the chunks after them. A checkpoint is saved
+    /// right after a chunk, so its row count is a chunk boundary; a chunk across it is refused.
+    fn truncate_series(&self, id: &str, rows: u64) -> Result<(), StoreError>;
+
     /// The queue shared by replicas, when this store holds one (PostgreSQL).
     fn shared(&self) -> Option<&dyn SharedQueue> {
         None

@@ -12,6 +12,11 @@
 //! that checks it, so a slow replica that lost its lease (a zombie) cannot overwrite the run
 //! that replaced it; results are keyed by (job, attempt) and read for the job's current attempt.
 //!
+//! A job that checkpoints (`output.checkpoint_seconds`/`checkpoint_steps`) keeps its latest
+//! checkpoint in `checkpoints`, written under the same ownership check; a replica that claims
+//! it again continues from there ([`Backend::truncate_series`] hands the rows stored up to the
+//! checkpoint over to the new attempt) instead of from step 0.
+//!
 //! New jobs are announced with `NOTIFY signorini_jobs`; each replica LISTENs on one connection
 //! and wakes its idle workers, which also poll at a short bound (a lease that ran out is
 //! noticed that way).
@@ -36,11 +41,18 @@ use std::time::Duration;
 use tokio_postgres::{AsyncMessage, NoTls, Row};
 
 /// The migrations, in order: (version, name, SQL).
-const MIGRATIONS: &[(i64, &str, &str)] = &[(
-    1,
-    "0001_init",
-    include_str!("../../migrations/postgres/0001_init.sql"),
-)];
+const MIGRATIONS: &[(i64, &str, &str)] = &[
+    (
+        1,
+        "0001_init",
+        include_str!("../../migrations/postgres/0001_init.sql"),
+    ),
+    (
+        2,
+        "0002_checkpoints",
+        include_str!("../../migrations/postgres/0002_checkpoints.sql"),
+    ),
+];
 
 /// Advisory lock key held while migrating ("sgnrn" in ASCII).
 const MIGRATION_LOCK: i64 = 0x73_67_6e_72_6e;
@@ -440,10 +452,131 @@ impl Backend for PgStore {
         Ok(())
     }
 
-    fn clear_series(&self, _id: &str) -> Result<(), StoreError> {
-        // Done by the claim: it deletes the chunks of the job's earlier attempts (a replica that
-        // died mid-run); the new attempt's are written under its own key.
-        Ok(())
+    fn clear_series(&self, id: &str) -> Result<(), StoreError> {
+        // The chunks of earlier attempts (a replica that died mid-run, with no checkpoint to
+        // continue from); the current attempt's are written under its own key.
+        let id = id.to_string();
+        self.with(move |c| async move {
+            let st = c
+                .prepare_cached(
+                    "DELETE FROM result_chunks WHERE id = $1 AND attempt < (SELECT attempt FROM jobs WHERE id = $1)",
+                )
+                .await
+                .map_err(pg)?;
+            c.execute(&st, &[&id]).await.map_err(pg)?;
+            Ok(())
+        })
+    }
+
+    fn save_checkpoint(
+        &self,
+        id: &str,
+        attempt: u64,
+        step: u64,
+        bytes: &[u8],
+    ) -> Result<(), StoreError> {
+        let (id, owner, bytes) = (id.to_string(), self.replica.clone(), bytes.to_vec());
+        self.with(move |c| async move {
+            // Only while this replica holds the job (a zombie's checkpoint would replace the
+            // one the new owner continues from).
+            let st = c
+                .prepare_cached(
+                    "INSERT INTO checkpoints (id, attempt, step, bytes)
+                     SELECT id, $2, $3, $4 FROM jobs WHERE id = $1 AND owner = $5 AND state = 'running' FOR SHARE
+                     ON CONFLICT (id) DO UPDATE SET attempt = EXCLUDED.attempt, step = EXCLUDED.step, bytes = EXCLUDED.bytes",
+                )
+                .await
+                .map_err(pg)?;
+            let n = c
+                .execute(&st, &[&id, &(attempt as i64), &(step as i64), &bytes, &owner])
+                .await
+                .map_err(pg)?;
+            if n == 0 {
+                return Err(StoreError::LeaseLost { id });
+            }
+            Ok(())
+        })
+    }
+
+    fn load_checkpoint(&self, id: &str) -> Result<Option<(u64, u64, Vec<u8>)>, StoreError> {
+        let id = id.to_string();
+        self.with(move |c| async move {
+            let st = c
+                .prepare_cached("SELECT attempt, step, bytes FROM checkpoints WHERE id = $1")
+                .await
+                .map_err(pg)?;
+            let Some(r) = c.query_opt(&st, &[&id]).await.map_err(pg)? else {
+                return Ok(None);
+            };
+            Ok(Some((
+                r.try_get::<_, i64>(0).map_err(pg)? as u64,
+                r.try_get::<_, i64>(1).map_err(pg)? as u64,
+                r.try_get(2).map_err(pg)?,
+            )))
+        })
+    }
+
+    fn delete_checkpoint(&self, id: &str) -> Result<(), StoreError> {
+        let id = id.to_string();
+        self.with(move |c| async move {
+            let st = c
+                .prepare_cached("DELETE FROM checkpoints WHERE id = $1")
+                .await
+                .map_err(pg)?;
+            c.execute(&st, &[&id]).await.map_err(pg)?;
+            Ok(())
+        })
+    }
+
+    fn truncate_series(&self, id: &str, rows: u64) -> Result<(), StoreError> {
+        // Resuming on a new attempt: the rows the checkpoint counts were stored by earlier
+        // attempts; those after it go, and the rest become this attempt's (the series is read
+        // for the job's current attempt), in one transaction, while this replica holds the job.
+        let (id, owner) = (id.to_string(), self.replica.clone());
+        self.with(move |mut c| async move {
+            let tx = c.transaction().await.map_err(pg)?;
+            let attempt: i64 = match tx
+                .query_opt(
+                    "SELECT attempt FROM jobs WHERE id = $1 AND owner = $2 AND state = 'running' FOR SHARE",
+                    &[&id, &owner],
+                )
+                .await
+                .map_err(pg)?
+            {
+                Some(r) => r.try_get(0).map_err(pg)?,
+                None => return Err(StoreError::LeaseLost { id }),
+            };
+            let rows = rows as i64;
+            let across: i64 = tx
+                .query_one(
+                    "SELECT COUNT(*) FROM result_chunks WHERE id = $1 AND first_row < $2 AND first_row + rows > $2",
+                    &[&id, &rows],
+                )
+                .await
+                .map_err(pg)?
+                .try_get(0)
+                .map_err(pg)?;
+            if across > 0 {
+                return Err(StoreError::Corrupt {
+                    what: "series (a chunk across the checkpoint)",
+                    id,
+                });
+            }
+            tx.execute(
+                "DELETE FROM result_chunks WHERE id = $1 AND first_row >= $2",
+                &[&id, &rows],
+            )
+            .await
+            .map_err(pg)?;
+            tx.execute(
+                "UPDATE result_chunks SET attempt = $2 WHERE id = $1 AND attempt < $2",
+                &[&id, &attempt],
+            )
+            .await
+            .map_err(pg)?;
+            tx.commit().await.map_err(pg)?;
+            Ok(())
+        })
     }
 
     fn append_chunk(
@@ -793,10 +926,7 @@ impl SharedQueue for PgStore {
                                 lease_until = now() + make_interval(secs => $2),
                                 started_ms = $3, done = 0, t = 0
                          FROM next WHERE j.id = next.id
-                         RETURNING {}, j.spec_json, j.attempt, j.cancel_requested),
-                         gone AS (
-                            DELETE FROM result_chunks c USING claimed
-                            WHERE c.id = claimed.id AND c.attempt < claimed.attempt)
+                         RETURNING {}, j.spec_json, j.attempt, j.cancel_requested)
                          SELECT * FROM claimed",
                         JOB_COLUMNS
                             .split(", ")

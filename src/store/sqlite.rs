@@ -456,7 +456,7 @@ impl Backend for SqliteStore {
     /// Keeps the latest checkpoint of a running job (its bytes, made by
     /// `signorini_core::checkpoint::Checkpoint::encode`), written by its run number `attempt`
     /// after step `step`; replaces the one before.
-    pub fn save_checkpoint(
+    fn save_checkpoint(
         &self,
         id: &str,
         attempt: u64,
@@ -471,7 +471,7 @@ impl Backend for SqliteStore {
     }
 
     /// The latest checkpoint of a job: (attempt, step, bytes), if any.
-    pub fn load_checkpoint(&self, id: &str) -> Result<Option<(u64, u64, Vec<u8>)>, StoreError> {
+    fn load_checkpoint(&self, id: &str) -> Result<Option<(u64, u64, Vec<u8>)>, StoreError> {
         let row = self
             .conn()
             .query_row(
@@ -490,7 +490,7 @@ impl Backend for SqliteStore {
     }
 
     /// Forgets a job's checkpoint (the job ended, or its checkpoint cannot be used).
-    pub fn delete_checkpoint(&self, id: &str) -> Result<(), StoreError> {
+    fn delete_checkpoint(&self, id: &str) -> Result<(), StoreError> {
         self.conn()
             .execute("DELETE FROM checkpoints WHERE id = ?1", [id])?;
         Ok(())
@@ -499,7 +499,7 @@ impl Backend for SqliteStore {
     /// Keeps the first `rows` rows of a job's stored series (a job resumed from a checkpoint
     /// that had recorded that many) and drops the chunks after them. A checkpoint is saved
     /// right after a chunk, so its row count is a chunk boundary; a chunk across it is refused.
-    pub fn truncate_series(&self, id: &str, rows: u64) -> Result<(), StoreError> {
+    fn truncate_series(&self, id: &str, rows: u64) -> Result<(), StoreError> {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
         let across: i64 = tx.query_row(
