@@ -1,7 +1,8 @@
 //! Replicas on one PostgreSQL store (`serve --store postgres://…`), each a real `signorini serve`
 //! process with one worker, on a private PostgreSQL server (common::pg): the queue is shared
 //! (each job claimed and run exactly once, by either replica), a replica killed with SIGKILL
-//! loses its lease and its job completes on the other, and any replica answers for any job.
+//! loses its lease and its job completes on the other from its last checkpoint, any replica
+//! answers for any job, and frames cross a zenoh router.
 
 mod common;
 
@@ -91,7 +92,10 @@ async fn two_replicas_share_one_queue_and_run_each_job_exactly_once() {
             .await
             .expect("submit");
     }
-    // Replica b answers for every job, whichever ran it.
+    // Replica b follows the last job (WatchJob) to its end, whichever replica runs it, and
+    // answers for every job.
+    let last = common::wait_terminal(&mut to_b, &ids[39]).await;
+    assert_eq!(last.state, pb::JobState::Succeeded as i32, "{last:?}");
     for id in &ids {
         let s = poll_terminal(&mut to_b, id).await;
         assert_eq!(s.state, pb::JobState::Succeeded as i32, "{id}: {s:?}");
@@ -132,6 +136,18 @@ async fn two_replicas_share_one_queue_and_run_each_job_exactly_once() {
     );
 }
 
+/// Steps a server computed (`signorini_steps_total` of `/metrics`).
+async fn steps_total(server: &TestServer) -> u64 {
+    let (status, body) = server.http_raw("GET", "/metrics", None, None).await;
+    assert_eq!(status, 200);
+    String::from_utf8(body)
+        .expect("metrics text")
+        .lines()
+        .find_map(|l| l.strip_prefix("signorini_steps_total "))
+        .and_then(|v| v.trim().parse().ok())
+        .expect("signorini_steps_total")
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_replica_killed_mid_job_loses_its_lease_and_the_other_finishes_the_job() {
     let pg = Postgres::start();
@@ -140,8 +156,10 @@ async fn a_replica_killed_mid_job_loses_its_lease_and_the_other_finishes_the_job
     let mut b = replica(&url, "b", &[]);
     let mut to_a = a.grpc().await;
 
-    // A job of several seconds, then short ones, all to replica a.
-    submit_json(&mut to_a, ball_json(1e-5, 3_000_000, 1000), Some("long"))
+    // A job of several seconds that checkpoints every 2·10⁵ steps, then short ones, all to
+    // replica a.
+    let long = r#"{"name":"ball","model":{"scene":"bouncing_ball","restitution":0.8},"time":{"h":1e-5,"steps":3000000},"output":{"every":1000,"checkpoint_steps":200000}}"#;
+    submit_json(&mut to_a, long.to_string(), Some("long"))
         .await
         .expect("submit long");
     let short: Vec<String> = (0..6).map(|k| format!("short-{k}")).collect();
@@ -150,14 +168,19 @@ async fn a_replica_killed_mid_job_loses_its_lease_and_the_other_finishes_the_job
             .await
             .expect("submit short");
     }
-    // Well into the long job (progress reaches the store with the heartbeat): kill its replica.
+    // After its first checkpoint (progress reaches the store with the heartbeat): kill its
+    // replica.
     let owner = poll_sql(
         &pg,
         "failover",
-        "SELECT owner FROM jobs WHERE id = 'long' AND state = 'running' AND done >= 20000",
+        "SELECT j.owner FROM jobs j JOIN checkpoints c ON c.id = j.id WHERE j.id = 'long' AND j.state = 'running' AND c.step >= 200000",
         |o| !o.is_empty(),
     )
     .await;
+    let checkpointed: u64 = pg
+        .psql("failover", "SELECT step FROM checkpoints WHERE id = 'long'")
+        .parse()
+        .expect("a step");
     let survivor = match owner.as_str() {
         "a" => {
             a.kill9();
@@ -170,13 +193,22 @@ async fn a_replica_killed_mid_job_loses_its_lease_and_the_other_finishes_the_job
         other => panic!("unexpected owner {other}"),
     };
     let mut client = survivor.grpc().await;
-    let s = poll_terminal(&mut client, "long").await;
+    // Followed on the survivor from before it claims the job (status read from the store) to
+    // its end there.
+    let s = common::wait_terminal(&mut client, "long").await;
     assert_eq!(s.state, pb::JobState::Succeeded as i32, "{s:?}");
     for id in &short {
         let s = poll_terminal(&mut client, id).await;
         assert_eq!(s.state, pb::JobState::Succeeded as i32, "{id}: {s:?}");
     }
     let survivor_name = if owner == "a" { "b" } else { "a" };
+    // The survivor continued from the checkpoint: it computed the rest of the long job and the
+    // short jobs, not the long job's first steps again.
+    let computed = steps_total(&survivor).await;
+    assert!(
+        computed <= 3_000_000 - checkpointed + 6 * 5_000,
+        "the survivor computed {computed} steps: it did not resume from step {checkpointed}"
+    );
     // Claimed a second time, by the survivor, after the lease ran out; the short jobs once.
     assert_eq!(
         pg.psql(
@@ -193,7 +225,8 @@ async fn a_replica_killed_mid_job_loses_its_lease_and_the_other_finishes_the_job
         "6"
     );
     // Nothing lost or duplicated: one result per job, the long job's chunks all of its second
-    // run, its series whole and in order.
+    // run (those stored before the checkpoint handed over to it), its series whole and in
+    // order; no checkpoint left.
     assert_eq!(
         pg.psql(
             "failover",
@@ -208,6 +241,7 @@ async fn a_replica_killed_mid_job_loses_its_lease_and_the_other_finishes_the_job
         ),
         "2"
     );
+    assert_eq!(pg.psql("failover", "SELECT count(*) FROM checkpoints"), "0");
     let steps = result_steps(&survivor, "long").await;
     assert_eq!(
         steps,

@@ -1,13 +1,10 @@
--- Checkpoints of running jobs: the latest one per job, written by the replica that holds the job
--- (never by one that lost its lease). A replica that claims the job after its holder died
--- continues from it: it copies the chunks the checkpoint counts from the attempt that wrote them
--- (`series_attempt`) to its own attempt, and runs on from the checkpoint's step.
+-- The latest checkpoint of each running job (signorini_core::checkpoint encoding): a job claimed
+-- again after its replica died continues from it on whichever replica claims it. Written only
+-- by the replica that holds the job.
 CREATE TABLE checkpoints (
     id TEXT PRIMARY KEY REFERENCES jobs (id) ON DELETE CASCADE,
-    -- The run number the engine counts (one more per resume).
+    -- The run number that wrote it (0 for the first run, one more per resume).
     attempt BIGINT NOT NULL,
     step BIGINT NOT NULL,
-    bytes BYTEA NOT NULL,
-    -- The claim (jobs.attempt) whose stored chunks the checkpoint counts.
-    series_attempt BIGINT NOT NULL
+    bytes BYTEA NOT NULL
 );

@@ -382,6 +382,12 @@ impl Engine {
             .ok_or_else(|| ApiError::NotFound { id: id.into() })
     }
 
+    /// True for a job this replica does not hold while its store's queue is shared: queued for
+    /// any replica, or running on another one (its events go out there).
+    pub fn runs_elsewhere(&self, id: &str) -> bool {
+        self.inner.store.shared().is_some() && !lock(&self.inner.live).contains_key(id)
+    }
+
     /// The status if the job exists (for the zenoh status queryable).
     pub fn find(&self, id: &str) -> Option<JobView> {
         self.status(id).ok()

@@ -64,10 +64,17 @@ impl AppState {
         if current.state.is_terminal() {
             return Ok((current, None));
         }
-        let id = id.to_string();
+        let only = id.to_string();
         let events = BroadcastStream::new(rx)
-            .filter_map(move |msg| msg.ok().filter(|event| event.job_id() == id));
-        Ok((current, Some(until_terminal(events, encode))))
+            .filter_map(move |msg| msg.ok().filter(|event| event.job_id() == only));
+        // Queued, or running on another replica (a shared store): its events go out there;
+        // here its status is read from the store until it ends. Otherwise nothing is polled.
+        let polled = if self.engine.runs_elsewhere(id) {
+            poll_status(self.engine.clone(), id.to_string(), current.clone())
+        } else {
+            tokio_stream::wrappers::ReceiverStream::new(tokio::sync::mpsc::channel(1).1)
+        };
+        Ok((current, Some(until_terminal(events.merge(polled), encode))))
     }
 
     /// A job's history from batch `from_seq` on, then its live events, each encoded by
@@ -352,6 +359,43 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
 /// ends there. (A combinator such as `map_while` would only end the stream when the *next* event
 /// of the job arrives — never, once the job is over.) A forwarding task ends the stream by
 /// dropping its sender right after the terminal status, or stops when the client goes away.
+/// How often a watcher of a job that runs on another replica reads its status from the store.
+const STATUS_POLL: Duration = Duration::from_millis(250);
+
+/// A job's status read from the store every [`STATUS_POLL`], as a status event each time it
+/// changed from `last`, until it ends (or the receiver goes).
+fn poll_status(
+    engine: Engine,
+    id: String,
+    mut last: JobView,
+) -> tokio_stream::wrappers::ReceiverStream<Arc<JobEvent>> {
+    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    tokio::spawn(async move {
+        while !last.state.is_terminal() {
+            tokio::select! {
+                () = tokio::time::sleep(STATUS_POLL) => {}
+                () = tx.closed() => return,
+            }
+            let (e, i) = (engine.clone(), id.clone());
+            let view = match tokio::task::spawn_blocking(move || e.status(&i)).await {
+                Ok(Ok(view)) => view,
+                Ok(Err(e)) => {
+                    tracing::warn!(%id, "watching: {e}");
+                    return;
+                }
+                Err(_) => return,
+            };
+            if view != last {
+                last = view.clone();
+                if tx.send(Arc::new(JobEvent::Status(view))).await.is_err() {
+                    return;
+                }
+            }
+        }
+    });
+    tokio_stream::wrappers::ReceiverStream::new(rx)
+}
+
 fn until_terminal<T: Send + 'static>(
     events: impl Stream<Item = Arc<JobEvent>> + Send + 'static,
     encode: impl Fn(&JobEvent) -> Vec<T> + Send + 'static,

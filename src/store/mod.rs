@@ -451,13 +451,12 @@ pub trait Backend: Send + Sync {
     /// The latest checkpoint of a job: (attempt, step, bytes), if any.
     fn load_checkpoint(&self, id: &str) -> Result<Option<(u64, u64, Vec<u8>)>, StoreError>;
 
-    /// Forgets a job's checkpoint (the job ended, or its checkpoint cannot be used).
+    /// Forgets a job's checkpoint (it ended, or its checkpoint cannot be used).
     fn delete_checkpoint(&self, id: &str) -> Result<(), StoreError>;
 
-    /// Makes the job's stored series the first `rows` rows of the series its checkpoint was
-    /// written with (a job resumed from a checkpoint that had recorded that many), dropping the
-    /// chunks after them. A checkpoint is saved right after a chunk, so its row count is a
-    /// chunk boundary; a chunk across it is refused.
+    /// Keeps the first `rows` rows of a job's stored series (a job resumed from a checkpoint
+    /// that had recorded that many) and drops the chunks after them. A checkpoint is saved
+    /// right after a chunk, so its row count is a chunk boundary; a chunk across it is refused.
     fn truncate_series(&self, id: &str, rows: u64) -> Result<(), StoreError>;
 
     /// The queue shared by replicas, when this store holds one (PostgreSQL).

@@ -12,6 +12,11 @@
 //! that checks it, so a slow replica that lost its lease (a zombie) cannot overwrite the run
 //! that replaced it; results are keyed by (job, attempt) and read for the job's current attempt.
 //!
+//! A job that checkpoints (`output.checkpoint_seconds`/`checkpoint_steps`) keeps its latest
+//! checkpoint in `checkpoints`, written under the same ownership check; a replica that claims
+//! it again continues from there ([`Backend::truncate_series`] hands the rows stored up to the
+//! checkpoint over to the new attempt) instead of from step 0.
+//!
 //! New jobs are announced with `NOTIFY signorini_jobs`; each replica LISTENs on one connection
 //! and wakes its idle workers, which also poll at a short bound (a lease that ran out is
 //! noticed that way).
@@ -296,145 +301,14 @@ impl PgStore {
     fn lease_secs(&self) -> f64 {
         self.lease.as_secs_f64()
     }
-}
 
-/// Inserts one chunk of attempt `attempt`.
-async fn insert_chunk(
-    c: &Transaction<'_>,
-    id: &str,
-    attempt: i64,
-    chunk: u64,
-    first_row: u64,
-    rows: &SeriesChunk,
-) -> Result<(), StoreError> {
-    let (Some(&first), Some(&last)) = (rows.steps.first(), rows.steps.last()) else {
-        return Ok(());
-    };
-    c.execute(
-        "INSERT INTO result_chunks (id, attempt, chunk, first_row, rows, step_first, step_last, steps, t, vals, batches)
-         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11)
-         ON CONFLICT (id, attempt, chunk) DO NOTHING",
-        &[
-            &id,
-            &attempt,
-            &(chunk as i64),
-            &(first_row as i64),
-            &(rows.steps.len() as i64),
-            &(first as i64),
-            &(last as i64),
-            &u64s_to_blob(&rows.steps),
-            &f64s_to_blob(&rows.t),
-            &f64s_to_blob(&rows.values),
-            &batches_blob(rows),
-        ],
-    )
-    .await
-    .map_err(pg)?;
-    Ok(())
-}
-
-impl Backend for PgStore {
-    fn insert(&self, row: &JobView, spec_json: &str) -> Result<bool, StoreError> {
-        let (id, name, spec) = (row.id.clone(), row.name.clone(), spec_json.to_string());
-        let (state, created, total) = (row.state.as_str(), row.created_ms as i64, row.total as i64);
-        self.with(move |c| async move {
-            // Inserted and announced in one statement: the notification goes at commit.
-            let n = c
-                .query(
-                    &format!(
-                        "WITH ins AS (
-                            INSERT INTO jobs (id, name, spec_json, state, created_ms, total)
-                            VALUES ($1, $2, $3, $4, $5, $6) ON CONFLICT (id) DO NOTHING RETURNING id)
-                         SELECT pg_notify('{CHANNEL}', id) FROM ins"
-                    ),
-                    &[&id, &name, &spec, &state, &created, &total],
-                )
-                .await
-                .map_err(pg)?
-                .len();
-            Ok(n == 1)
-        })
-    }
-
-    fn set_running(&self, id: &str, started_ms: u64) -> Result<(), StoreError> {
-        let (id, owner) = (id.to_string(), self.replica.clone());
-        self.with(move |c| async move {
-            c.execute(
-                "UPDATE jobs SET started_ms = $2 WHERE id = $1 AND owner = $3 AND state = 'running'",
-                &[&id, &(started_ms as i64), &owner],
-            )
-            .await
-            .map_err(pg)?;
-            Ok(())
-        })
-    }
-
-    fn clear_series(&self, id: &str) -> Result<(), StoreError> {
-        // The chunks of earlier attempts (a replica that died mid-run); the current attempt's
-        // are written under its own key.
-        let id = id.to_string();
-        self.with(move |c| async move {
-            c.execute(
-                "DELETE FROM result_chunks WHERE id = $1 AND attempt < (SELECT attempt FROM jobs WHERE id = $1)",
-                &[&id],
-            )
-            .await
-            .map_err(pg)?;
-            Ok(())
-        })
-    }
-
-    fn append_chunk(
+    /// [`Backend::finish`] for a result that carries rows of its own (appended as chunks after
+    /// the run's), in one transaction.
+    fn finish_with_rows(
         &self,
-        id: &str,
-        chunk: u64,
-        first_row: u64,
-        rows: &SeriesChunk,
+        row: &JobView,
+        result: Option<&StoredResult>,
     ) -> Result<(), StoreError> {
-        let (Some(&first), Some(&last)) = (rows.steps.first(), rows.steps.last()) else {
-            return Ok(());
-        };
-        let (id, owner) = (id.to_string(), self.replica.clone());
-        let blobs = (
-            u64s_to_blob(&rows.steps),
-            f64s_to_blob(&rows.t),
-            f64s_to_blob(&rows.values),
-            batches_blob(rows),
-        );
-        let n_rows = rows.steps.len() as i64;
-        self.with(move |c| async move {
-            // Written only while this replica holds the job (FOR SHARE waits for a claim in
-            // progress and sees its outcome).
-            let n = c
-                .execute(
-                    "INSERT INTO result_chunks (id, attempt, chunk, first_row, rows, step_first, step_last, steps, t, vals, batches)
-                     SELECT id, attempt, $2, $3, $4, $5, $6, $7, $8, $9, $10 FROM jobs
-                     WHERE id = $1 AND owner = $11 AND state = 'running' FOR SHARE
-                     ON CONFLICT (id, attempt, chunk) DO NOTHING",
-                    &[
-                        &id,
-                        &(chunk as i64),
-                        &(first_row as i64),
-                        &n_rows,
-                        &(first as i64),
-                        &(last as i64),
-                        &blobs.0,
-                        &blobs.1,
-                        &blobs.2,
-                        &blobs.3,
-                        &owner,
-                    ],
-                )
-                .await
-                .map_err(pg)?;
-            if n == 0 {
-                return Err(StoreError::LeaseLost { id });
-            }
-            Ok(())
-        })
-    }
-
-    fn finish(&self, row: &JobView, result: Option<&StoredResult>) -> Result<(), StoreError> {
         let row = row.clone();
         let owner = self.replica.clone();
         let result = result.map(|r| (ResultTexts::of(r), r.clone()));
@@ -513,12 +387,321 @@ impl Backend for PgStore {
             Ok(())
         })
     }
+}
+
+/// Inserts one chunk of attempt `attempt`.
+async fn insert_chunk(
+    c: &Transaction<'_>,
+    id: &str,
+    attempt: i64,
+    chunk: u64,
+    first_row: u64,
+    rows: &SeriesChunk,
+) -> Result<(), StoreError> {
+    let (Some(&first), Some(&last)) = (rows.steps.first(), rows.steps.last()) else {
+        return Ok(());
+    };
+    c.execute(
+        "INSERT INTO result_chunks (id, attempt, chunk, first_row, rows, step_first, step_last, steps, t, vals, batches)
+         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11)
+         ON CONFLICT (id, attempt, chunk) DO NOTHING",
+        &[
+            &id,
+            &attempt,
+            &(chunk as i64),
+            &(first_row as i64),
+            &(rows.steps.len() as i64),
+            &(first as i64),
+            &(last as i64),
+            &u64s_to_blob(&rows.steps),
+            &f64s_to_blob(&rows.t),
+            &f64s_to_blob(&rows.values),
+            &batches_blob(rows),
+        ],
+    )
+    .await
+    .map_err(pg)?;
+    Ok(())
+}
+
+impl Backend for PgStore {
+    fn insert(&self, row: &JobView, spec_json: &str) -> Result<bool, StoreError> {
+        let (id, name, spec) = (row.id.clone(), row.name.clone(), spec_json.to_string());
+        let (state, created, total) = (row.state.as_str(), row.created_ms as i64, row.total as i64);
+        self.with(move |c| async move {
+            // Inserted and announced in one statement: the notification goes at commit.
+            let n = c
+                .query(
+                    &c.prepare_cached(&format!(
+                        "WITH ins AS (
+                            INSERT INTO jobs (id, name, spec_json, state, created_ms, total)
+                            VALUES ($1, $2, $3, $4, $5, $6) ON CONFLICT (id) DO NOTHING RETURNING id)
+                         SELECT pg_notify('{CHANNEL}', id) FROM ins"
+                    )).await.map_err(pg)?,
+                    &[&id, &name, &spec, &state, &created, &total],
+                )
+                .await
+                .map_err(pg)?
+                .len();
+            Ok(n == 1)
+        })
+    }
+
+    fn set_running(&self, _id: &str, _started_ms: u64) -> Result<(), StoreError> {
+        // Done by the claim (state, owner, lease, start time), in the same statement.
+        Ok(())
+    }
+
+    fn clear_series(&self, id: &str) -> Result<(), StoreError> {
+        // The chunks of earlier attempts (a replica that died mid-run, with no checkpoint to
+        // continue from); the current attempt's are written under its own key.
+        let id = id.to_string();
+        self.with(move |c| async move {
+            let st = c
+                .prepare_cached(
+                    "DELETE FROM result_chunks WHERE id = $1 AND attempt < (SELECT attempt FROM jobs WHERE id = $1)",
+                )
+                .await
+                .map_err(pg)?;
+            c.execute(&st, &[&id]).await.map_err(pg)?;
+            Ok(())
+        })
+    }
+
+    fn save_checkpoint(
+        &self,
+        id: &str,
+        attempt: u64,
+        step: u64,
+        bytes: &[u8],
+    ) -> Result<(), StoreError> {
+        let (id, owner, bytes) = (id.to_string(), self.replica.clone(), bytes.to_vec());
+        self.with(move |c| async move {
+            // Only while this replica holds the job (a zombie's checkpoint would replace the
+            // one the new owner continues from).
+            let st = c
+                .prepare_cached(
+                    "INSERT INTO checkpoints (id, attempt, step, bytes)
+                     SELECT id, $2, $3, $4 FROM jobs WHERE id = $1 AND owner = $5 AND state = 'running' FOR SHARE
+                     ON CONFLICT (id) DO UPDATE SET attempt = EXCLUDED.attempt, step = EXCLUDED.step, bytes = EXCLUDED.bytes",
+                )
+                .await
+                .map_err(pg)?;
+            let n = c
+                .execute(&st, &[&id, &(attempt as i64), &(step as i64), &bytes, &owner])
+                .await
+                .map_err(pg)?;
+            if n == 0 {
+                return Err(StoreError::LeaseLost { id });
+            }
+            Ok(())
+        })
+    }
+
+    fn load_checkpoint(&self, id: &str) -> Result<Option<(u64, u64, Vec<u8>)>, StoreError> {
+        let id = id.to_string();
+        self.with(move |c| async move {
+            let st = c
+                .prepare_cached("SELECT attempt, step, bytes FROM checkpoints WHERE id = $1")
+                .await
+                .map_err(pg)?;
+            let Some(r) = c.query_opt(&st, &[&id]).await.map_err(pg)? else {
+                return Ok(None);
+            };
+            Ok(Some((
+                r.try_get::<_, i64>(0).map_err(pg)? as u64,
+                r.try_get::<_, i64>(1).map_err(pg)? as u64,
+                r.try_get(2).map_err(pg)?,
+            )))
+        })
+    }
+
+    fn delete_checkpoint(&self, id: &str) -> Result<(), StoreError> {
+        let id = id.to_string();
+        self.with(move |c| async move {
+            let st = c
+                .prepare_cached("DELETE FROM checkpoints WHERE id = $1")
+                .await
+                .map_err(pg)?;
+            c.execute(&st, &[&id]).await.map_err(pg)?;
+            Ok(())
+        })
+    }
+
+    fn truncate_series(&self, id: &str, rows: u64) -> Result<(), StoreError> {
+        // Resuming on a new attempt: the rows the checkpoint counts were stored by earlier
+        // attempts; those after it go, and the rest become this attempt's (the series is read
+        // for the job's current attempt), in one transaction, while this replica holds the job.
+        let (id, owner) = (id.to_string(), self.replica.clone());
+        self.with(move |mut c| async move {
+            let tx = c.transaction().await.map_err(pg)?;
+            let attempt: i64 = match tx
+                .query_opt(
+                    "SELECT attempt FROM jobs WHERE id = $1 AND owner = $2 AND state = 'running' FOR SHARE",
+                    &[&id, &owner],
+                )
+                .await
+                .map_err(pg)?
+            {
+                Some(r) => r.try_get(0).map_err(pg)?,
+                None => return Err(StoreError::LeaseLost { id }),
+            };
+            let rows = rows as i64;
+            let across: i64 = tx
+                .query_one(
+                    "SELECT COUNT(*) FROM result_chunks WHERE id = $1 AND first_row < $2 AND first_row + rows > $2",
+                    &[&id, &rows],
+                )
+                .await
+                .map_err(pg)?
+                .try_get(0)
+                .map_err(pg)?;
+            if across > 0 {
+                return Err(StoreError::Corrupt {
+                    what: "series (a chunk across the checkpoint)",
+                    id,
+                });
+            }
+            tx.execute(
+                "DELETE FROM result_chunks WHERE id = $1 AND first_row >= $2",
+                &[&id, &rows],
+            )
+            .await
+            .map_err(pg)?;
+            tx.execute(
+                "UPDATE result_chunks SET attempt = $2 WHERE id = $1 AND attempt < $2",
+                &[&id, &attempt],
+            )
+            .await
+            .map_err(pg)?;
+            tx.commit().await.map_err(pg)?;
+            Ok(())
+        })
+    }
+
+    fn append_chunk(
+        &self,
+        id: &str,
+        chunk: u64,
+        first_row: u64,
+        rows: &SeriesChunk,
+    ) -> Result<(), StoreError> {
+        let (Some(&first), Some(&last)) = (rows.steps.first(), rows.steps.last()) else {
+            return Ok(());
+        };
+        let (id, owner) = (id.to_string(), self.replica.clone());
+        let blobs = (
+            u64s_to_blob(&rows.steps),
+            f64s_to_blob(&rows.t),
+            f64s_to_blob(&rows.values),
+            batches_blob(rows),
+        );
+        let n_rows = rows.steps.len() as i64;
+        self.with(move |c| async move {
+            // Written only while this replica holds the job (FOR SHARE waits for a claim in
+            // progress and sees its outcome).
+            let n = c
+                .execute(
+                    &c.prepare_cached("INSERT INTO result_chunks (id, attempt, chunk, first_row, rows, step_first, step_last, steps, t, vals, batches)
+                     SELECT id, attempt, $2, $3, $4, $5, $6, $7, $8, $9, $10 FROM jobs
+                     WHERE id = $1 AND owner = $11 AND state = 'running' FOR SHARE
+                     ON CONFLICT (id, attempt, chunk) DO NOTHING").await.map_err(pg)?,
+                    &[
+                        &id,
+                        &(chunk as i64),
+                        &(first_row as i64),
+                        &n_rows,
+                        &(first as i64),
+                        &(last as i64),
+                        &blobs.0,
+                        &blobs.1,
+                        &blobs.2,
+                        &blobs.3,
+                        &owner,
+                    ],
+                )
+                .await
+                .map_err(pg)?;
+            if n == 0 {
+                return Err(StoreError::LeaseLost { id });
+            }
+            Ok(())
+        })
+    }
+
+    fn finish(&self, row: &JobView, result: Option<&StoredResult>) -> Result<(), StoreError> {
+        if result.is_some_and(|r| !r.steps.is_empty()) {
+            return self.finish_with_rows(row, result);
+        }
+        // The usual end (the series is already in chunks): one statement, so one round trip.
+        let row = row.clone();
+        let owner = self.replica.clone();
+        let texts = result.map(ResultTexts::of);
+        let partial = result.is_some_and(|r| r.partial);
+        self.with(move |c| async move {
+            let (field, reason) = match &row.error {
+                Some((f, r)) => (Some(f.as_str()), Some(r.as_str())),
+                None => (None, None),
+            };
+            let has_result = texts.is_some();
+            let texts = texts.unwrap_or(ResultTexts {
+                summary: String::new(),
+                columns: String::new(),
+                tables: String::new(),
+                figures: String::new(),
+            });
+            let st = c
+                .prepare_cached(
+                    "WITH done AS (
+                        UPDATE jobs SET state = $2, finished_ms = $3, error_field = $4, error_reason = $5,
+                               done = $6, total = $7, t = $8, lease_until = NULL
+                        WHERE id = $1 AND state = 'running' AND owner = $9 RETURNING attempt),
+                     ins AS (
+                        INSERT INTO results (id, attempt, summary_json, columns_json, tables_json, figures_json, partial)
+                        SELECT $1, attempt, $10, $11, $12, $13, $14 FROM done WHERE $15
+                        ON CONFLICT (id, attempt) DO NOTHING)
+                     SELECT attempt FROM done",
+                )
+                .await
+                .map_err(pg)?;
+            let owned = c
+                .query_opt(
+                    &st,
+                    &[
+                        &row.id,
+                        &row.state.as_str(),
+                        &(row.finished_ms as i64),
+                        &field,
+                        &reason,
+                        &(row.done as i64),
+                        &(row.total as i64),
+                        &row.t,
+                        &owner,
+                        &texts.summary,
+                        &texts.columns,
+                        &texts.tables,
+                        &texts.figures,
+                        &partial,
+                        &has_result,
+                    ],
+                )
+                .await
+                .map_err(pg)?
+                .is_some();
+            if !owned {
+                return Err(StoreError::LeaseLost { id: row.id });
+            }
+            Ok(())
+        })
+    }
 
     fn get(&self, id: &str) -> Result<Option<JobView>, StoreError> {
         let id = id.to_string();
         self.with(move |c| async move {
             c.query_opt(
-                &format!("SELECT {JOB_COLUMNS} FROM jobs WHERE id = $1"),
+                &c.prepare_cached(&format!("SELECT {JOB_COLUMNS} FROM jobs WHERE id = $1"))
+                    .await
+                    .map_err(pg)?,
                 &[&id],
             )
             .await
@@ -538,11 +721,13 @@ impl Backend for PgStore {
         self.with(move |c| async move {
             let rows = c
                 .query(
-                    &format!(
+                    &c.prepare_cached(&format!(
                         "SELECT {JOB_COLUMNS}, seq FROM jobs
                          WHERE ($1::TEXT IS NULL OR state = $1) AND ($2::BIGINT IS NULL OR seq < $2)
                          ORDER BY seq DESC LIMIT $3"
-                    ),
+                    ))
+                    .await
+                    .map_err(pg)?,
                     &[&state, &before, &(limit as i64)],
                 )
                 .await
@@ -556,7 +741,7 @@ impl Backend for PgStore {
     fn finished_before(&self, cutoff_ms: u64) -> Result<Vec<String>, StoreError> {
         self.with(move |c| async move {
             c.query(
-                "SELECT id FROM jobs WHERE state IN ('succeeded', 'failed', 'cancelled') AND finished_ms < $1",
+                &c.prepare_cached("SELECT id FROM jobs WHERE state IN ('succeeded', 'failed', 'cancelled') AND finished_ms < $1").await.map_err(pg)?,
                 &[&(cutoff_ms as i64)],
             )
             .await
@@ -567,141 +752,6 @@ impl Backend for PgStore {
         })
     }
 
-    fn save_checkpoint(
-        &self,
-        id: &str,
-        attempt: u64,
-        step: u64,
-        bytes: &[u8],
-    ) -> Result<(), StoreError> {
-        let (id, owner, bytes) = (id.to_string(), self.replica.clone(), bytes.to_vec());
-        self.with(move |c| async move {
-            // Written only while this replica holds the job, like its chunks.
-            let n = c
-                .execute(
-                    "INSERT INTO checkpoints (id, attempt, step, bytes, series_attempt)
-                     SELECT id, $2, $3, $4, attempt FROM jobs
-                     WHERE id = $1 AND owner = $5 AND state = 'running' FOR SHARE
-                     ON CONFLICT (id) DO UPDATE SET attempt = EXCLUDED.attempt, step = EXCLUDED.step,
-                        bytes = EXCLUDED.bytes, series_attempt = EXCLUDED.series_attempt",
-                    &[&id, &(attempt as i64), &(step as i64), &bytes, &owner],
-                )
-                .await
-                .map_err(pg)?;
-            if n == 0 {
-                return Err(StoreError::LeaseLost { id });
-            }
-            Ok(())
-        })
-    }
-
-    fn load_checkpoint(&self, id: &str) -> Result<Option<(u64, u64, Vec<u8>)>, StoreError> {
-        let id = id.to_string();
-        self.with(move |c| async move {
-            let row = c
-                .query_opt(
-                    "SELECT attempt, step, bytes FROM checkpoints WHERE id = $1",
-                    &[&id],
-                )
-                .await
-                .map_err(pg)?;
-            row.map(|r| {
-                Ok((
-                    r.try_get::<_, i64>(0).map_err(pg)? as u64,
-                    r.try_get::<_, i64>(1).map_err(pg)? as u64,
-                    r.try_get::<_, Vec<u8>>(2).map_err(pg)?,
-                ))
-            })
-            .transpose()
-        })
-    }
-
-    fn delete_checkpoint(&self, id: &str) -> Result<(), StoreError> {
-        let id = id.to_string();
-        self.with(move |c| async move {
-            c.execute("DELETE FROM checkpoints WHERE id = $1", &[&id])
-                .await
-                .map_err(pg)?;
-            Ok(())
-        })
-    }
-
-    fn truncate_series(&self, id: &str, rows: u64) -> Result<(), StoreError> {
-        let (id, owner) = (id.to_string(), self.replica.clone());
-        self.with(move |mut c| async move {
-            let tx = c.transaction().await.map_err(pg)?;
-            // This replica's claim and the claim that wrote the checkpoint's chunks.
-            let found = tx
-                .query_opt(
-                    "SELECT j.attempt, k.series_attempt FROM jobs j JOIN checkpoints k ON k.id = j.id
-                     WHERE j.id = $1 AND j.owner = $2 AND j.state = 'running' FOR UPDATE OF j",
-                    &[&id, &owner],
-                )
-                .await
-                .map_err(pg)?;
-            let Some(found) = found else {
-                return Err(StoreError::LeaseLost { id });
-            };
-            let current: i64 = found.try_get(0).map_err(pg)?;
-            let written: i64 = found.try_get(1).map_err(pg)?;
-            let rows = rows as i64;
-            let across: i64 = tx
-                .query_one(
-                    "SELECT COUNT(*) FROM result_chunks
-                     WHERE id = $1 AND attempt = $2 AND first_row < $3 AND first_row + rows > $3",
-                    &[&id, &written, &rows],
-                )
-                .await
-                .map_err(pg)?
-                .try_get(0)
-                .map_err(pg)?;
-            if across > 0 {
-                return Err(StoreError::Corrupt {
-                    what: "series (a chunk across the checkpoint)",
-                    id,
-                });
-            }
-            if written == current {
-                tx.execute(
-                    "DELETE FROM result_chunks WHERE id = $1 AND attempt = $2 AND first_row >= $3",
-                    &[&id, &current, &rows],
-                )
-                .await
-                .map_err(pg)?;
-            } else {
-                // Claimed again: the chunks before the checkpoint move to this claim, the rest
-                // of the dead claim's (and anything older) goes.
-                tx.execute(
-                    "DELETE FROM result_chunks WHERE id = $1 AND attempt = $2",
-                    &[&id, &current],
-                )
-                .await
-                .map_err(pg)?;
-                tx.execute(
-                    "UPDATE result_chunks SET attempt = $2
-                     WHERE id = $1 AND attempt = $3 AND first_row < $4",
-                    &[&id, &current, &written, &rows],
-                )
-                .await
-                .map_err(pg)?;
-                tx.execute(
-                    "DELETE FROM result_chunks WHERE id = $1 AND attempt < $2",
-                    &[&id, &current],
-                )
-                .await
-                .map_err(pg)?;
-                tx.execute(
-                    "UPDATE checkpoints SET series_attempt = $2 WHERE id = $1",
-                    &[&id, &current],
-                )
-                .await
-                .map_err(pg)?;
-            }
-            tx.commit().await.map_err(pg)?;
-            Ok(())
-        })
-    }
-
     fn delete(&self, id: &str) -> Result<bool, StoreError> {
         // Results and chunks go with the job (ON DELETE CASCADE); a job another replica runs
         // is not finished, so not removed.
@@ -709,7 +759,7 @@ impl Backend for PgStore {
         self.with(move |c| async move {
             let n = c
                 .execute(
-                    "DELETE FROM jobs WHERE id = $1 AND state IN ('succeeded', 'failed', 'cancelled')",
+                    &c.prepare_cached("DELETE FROM jobs WHERE id = $1 AND state IN ('succeeded', 'failed', 'cancelled')").await.map_err(pg)?,
                     &[&id],
                 )
                 .await
@@ -726,17 +776,22 @@ impl Backend for PgStore {
 
     fn counts(&self) -> Result<Vec<(JobState, u64)>, StoreError> {
         let rows: Vec<(String, u64)> = self.with(move |c| async move {
-            c.query("SELECT state, COUNT(*) FROM jobs GROUP BY state", &[])
-                .await
-                .map_err(pg)?
-                .iter()
-                .map(|r| {
-                    Ok((
-                        r.try_get(0).map_err(pg)?,
-                        r.try_get::<_, i64>(1).map_err(pg)? as u64,
-                    ))
-                })
-                .collect()
+            c.query(
+                &c.prepare_cached("SELECT state, COUNT(*) FROM jobs GROUP BY state")
+                    .await
+                    .map_err(pg)?,
+                &[],
+            )
+            .await
+            .map_err(pg)?
+            .iter()
+            .map(|r| {
+                Ok((
+                    r.try_get(0).map_err(pg)?,
+                    r.try_get::<_, i64>(1).map_err(pg)? as u64,
+                ))
+            })
+            .collect()
         })?;
         Ok(JobState::ALL
             .into_iter()
@@ -756,8 +811,8 @@ impl Backend for PgStore {
         self.with(move |c| async move {
             let Some(r) = c
                 .query_opt(
-                    "SELECT r.summary_json, r.columns_json, r.tables_json, r.figures_json, r.partial
-                     FROM results r JOIN jobs j ON j.id = r.id AND j.attempt = r.attempt WHERE r.id = $1",
+                    &c.prepare_cached("SELECT r.summary_json, r.columns_json, r.tables_json, r.figures_json, r.partial
+                     FROM results r JOIN jobs j ON j.id = r.id AND j.attempt = r.attempt WHERE r.id = $1").await.map_err(pg)?,
                     &[&id],
                 )
                 .await
@@ -780,9 +835,13 @@ impl Backend for PgStore {
         self.with(move |c| async move {
             let rows = c
                 .query(
-                    "SELECT c.chunk, c.first_row, c.rows, c.step_first, c.step_last
+                    &c.prepare_cached(
+                        "SELECT c.chunk, c.first_row, c.rows, c.step_first, c.step_last
                      FROM result_chunks c JOIN jobs j ON j.id = c.id AND j.attempt = c.attempt
                      WHERE c.id = $1 ORDER BY c.chunk",
+                    )
+                    .await
+                    .map_err(pg)?,
                     &[&id],
                 )
                 .await
@@ -816,9 +875,13 @@ impl Backend for PgStore {
         self.with(move |c| async move {
             let r = c
                 .query_one(
-                    "SELECT c.steps, c.t, c.vals, c.batches
+                    &c.prepare_cached(
+                        "SELECT c.steps, c.t, c.vals, c.batches
                      FROM result_chunks c JOIN jobs j ON j.id = c.id AND j.attempt = c.attempt
                      WHERE c.id = $1 AND c.chunk = $2",
+                    )
+                    .await
+                    .map_err(pg)?,
                     &[&id, &(meta.chunk as i64)],
                 )
                 .await
@@ -853,22 +916,26 @@ impl SharedQueue for PgStore {
         self.with(move |c| async move {
             let Some(r) = c
                 .query_opt(
-                    &format!(
+                    &c.prepare_cached(&format!(
                         "WITH next AS (
                             SELECT id FROM jobs
                             WHERE state = 'queued' OR (state = 'running' AND lease_until < now())
-                            ORDER BY seq LIMIT 1 FOR UPDATE SKIP LOCKED)
+                            ORDER BY seq LIMIT 1 FOR UPDATE SKIP LOCKED),
+                         claimed AS (
                          UPDATE jobs j SET state = 'running', owner = $1, attempt = j.attempt + 1,
                                 lease_until = now() + make_interval(secs => $2),
                                 started_ms = $3, done = 0, t = 0
                          FROM next WHERE j.id = next.id
-                         RETURNING {}, j.spec_json, j.attempt, j.cancel_requested",
+                         RETURNING {}, j.spec_json, j.attempt, j.cancel_requested)
+                         SELECT * FROM claimed",
                         JOB_COLUMNS
                             .split(", ")
                             .map(|c| format!("j.{c}"))
                             .collect::<Vec<_>>()
                             .join(", ")
-                    ),
+                    ))
+                    .await
+                    .map_err(pg)?,
                     &[&owner, &lease, &(started_ms as i64)],
                 )
                 .await
@@ -897,11 +964,11 @@ impl SharedQueue for PgStore {
         self.with(move |c| async move {
             let rows = c
                 .query(
-                    "UPDATE jobs j SET lease_until = now() + make_interval(secs => $2),
+                    &c.prepare_cached("UPDATE jobs j SET lease_until = now() + make_interval(secs => $2),
                             done = u.done, total = u.total, t = u.t
                      FROM unnest($3::TEXT[], $4::BIGINT[], $5::BIGINT[], $6::FLOAT8[]) AS u(id, done, total, t)
                      WHERE j.id = u.id AND j.owner = $1 AND j.state = 'running'
-                     RETURNING j.id, j.cancel_requested",
+                     RETURNING j.id, j.cancel_requested").await.map_err(pg)?,
                     &[&owner, &lease, &ids, &done, &total, &t],
                 )
                 .await
@@ -930,12 +997,12 @@ impl SharedQueue for PgStore {
         let (id, owner) = (id.to_string(), self.replica.clone());
         self.with(move |c| async move {
             c.query(
-                &format!(
+                &c.prepare_cached(&format!(
                     "WITH released AS (
                         UPDATE jobs SET state = 'queued', owner = NULL, lease_until = NULL, started_ms = 0
                         WHERE id = $1 AND owner = $2 AND state = 'running' RETURNING id)
                      SELECT pg_notify('{CHANNEL}', id) FROM released"
-                ),
+                )).await.map_err(pg)?,
                 &[&id, &owner],
             )
             .await
@@ -949,10 +1016,10 @@ impl SharedQueue for PgStore {
         self.with(move |c| async move {
             if let Some(r) = c
                 .query_opt(
-                    &format!(
+                    &c.prepare_cached(&format!(
                         "UPDATE jobs SET state = 'cancelled', finished_ms = $2
                          WHERE id = $1 AND state = 'queued' RETURNING {JOB_COLUMNS}"
-                    ),
+                    )).await.map_err(pg)?,
                     &[&id, &(finished_ms as i64)],
                 )
                 .await
@@ -962,7 +1029,7 @@ impl SharedQueue for PgStore {
             }
             let n = c
                 .execute(
-                    "UPDATE jobs SET cancel_requested = TRUE WHERE id = $1 AND state = 'running'",
+                    &c.prepare_cached("UPDATE jobs SET cancel_requested = TRUE WHERE id = $1 AND state = 'running'").await.map_err(pg)?,
                     &[&id],
                 )
                 .await
@@ -978,7 +1045,12 @@ impl SharedQueue for PgStore {
     fn queued(&self) -> Result<u64, StoreError> {
         self.with(move |c| async move {
             let r = c
-                .query_one("SELECT COUNT(*) FROM jobs WHERE state = 'queued'", &[])
+                .query_one(
+                    &c.prepare_cached("SELECT COUNT(*) FROM jobs WHERE state = 'queued'")
+                        .await
+                        .map_err(pg)?,
+                    &[],
+                )
                 .await
                 .map_err(pg)?;
             Ok(r.try_get::<_, i64>(0).map_err(pg)? as u64)

@@ -186,6 +186,29 @@ impl Postgres {
         String::from_utf8_lossy(&out.stdout).trim().to_string()
     }
 
+    /// Runs `pgbench` with `args` against database `db` (over TCP, as `postgres`): its output.
+    pub fn pgbench(&self, db: &str, args: &[&str]) -> String {
+        let out = Command::new(self.bin.join("pgbench"))
+            .args([
+                "-h",
+                "127.0.0.1",
+                "-p",
+                &self.port.to_string(),
+                "-U",
+                "postgres",
+            ])
+            .args(args)
+            .arg(db)
+            .output()
+            .expect("running pgbench");
+        assert!(
+            out.status.success(),
+            "pgbench: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    }
+
     /// The directory of the server's files.
     pub fn dir(&self) -> &Path {
         self.dir.path()
