@@ -304,6 +304,9 @@ impl SymBand {
         let n = self.n;
         let (x, y) = (&x[..n], &y[..n]);
         let sums = self.row_sums();
+        if self.kd == 1 && n >= 2 {
+            return tridiagonal_quad(sums, self.diag(1), x, y);
+        }
         let mut total = sum_products(sums, x, y);
         for k in 1..=self.kd {
             total -= sum_difference_products(&self.diag(k)[k..], x, y, k);
@@ -415,6 +418,44 @@ fn sum_products(s: &[f64], x: &[f64], y: &[f64]) -> f64 {
     for ((a, b), c) in sc.zip(xc).zip(yc) {
         for l in 0..4 {
             acc[l] += a[l] * b[l] * c[l];
+        }
+    }
+    (acc[0] + acc[2]) + (acc[1] + acc[3]) + tail
+}
+
+/// The difference form of [`SymBand::quad`] for a tridiagonal matrix in one sweep:
+/// `s_0 x_0 y_0 + Σ_{i ≥ 1} [s_i x_i y_i − a1_i (x_i − x_{i−1})(y_i − y_{i−1})]`, four partial
+/// sums.
+fn tridiagonal_quad(s: &[f64], a1: &[f64], x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len();
+    let term = |s: f64, a: f64, xi: f64, xj: f64, yi: f64, yj: f64| {
+        s * xi * yi - a * (xi - xj) * (yi - yj)
+    };
+    let m = n - 1;
+    let (sc, ac, xh, xl, yh, yl) = (
+        s[1..n].chunks_exact(4),
+        a1[1..n].chunks_exact(4),
+        x[1..n].chunks_exact(4),
+        x[..m].chunks_exact(4),
+        y[1..n].chunks_exact(4),
+        y[..m].chunks_exact(4),
+    );
+    let mut tail = s[0] * x[0] * y[0];
+    for (((((s, a), xi), xj), yi), yj) in sc
+        .remainder()
+        .iter()
+        .zip(ac.remainder())
+        .zip(xh.remainder())
+        .zip(xl.remainder())
+        .zip(yh.remainder())
+        .zip(yl.remainder())
+    {
+        tail += term(*s, *a, *xi, *xj, *yi, *yj);
+    }
+    let mut acc = [0.0; 4];
+    for (((((s, a), xi), xj), yi), yj) in sc.zip(ac).zip(xh).zip(xl).zip(yh).zip(yl) {
+        for l in 0..4 {
+            acc[l] += term(s[l], a[l], xi[l], xj[l], yi[l], yj[l]);
         }
     }
     (acc[0] + acc[2]) + (acc[1] + acc[3]) + tail
