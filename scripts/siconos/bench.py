@@ -3,6 +3,16 @@
 
     /usr/bin/python3 scripts/siconos/bench.py            # N = 100 and N = 1000
     /usr/bin/python3 scripts/siconos/bench.py 100 2000   # N = 100 and N = 2000, default steps
+    /usr/bin/python3 scripts/siconos/bench.py --compare  # Signorini, C loop, Siconos side by side
+
+`--compare [N ...]` (default N = 100 1000) runs, for each N, Signorini's own bench
+(`cargo bench -p signorini-core --bench moreau_jean -- --elements N,...`), the C-loop reference
+`benches/reference/moreau_jean_bar.c` (built with the system `cc -O2` into a temporary directory
+when `cc` is on the PATH, skipped otherwise) and this Siconos bench, and prints one table of
+steps/s with the ratios Signorini/C and Signorini/Siconos (all three on-CPU time; the load
+average is printed with it). Signorini and the C loop run the default index set (24) with
+gap 1e-3 + 1e-7 and 2·10⁷/N steps; the Siconos scene below runs fewer steps (its cost grows as
+N²): steps/s of the three are per step of the same bar, the same scheme and the same contact.
 
 Scene (the same as this Signorini job spec, see docs/siconos.md):
 
@@ -43,12 +53,16 @@ on stdout.
 
 import json
 import os
+import pathlib
+import shutil
+import subprocess
 import sys
+import tempfile
 import time
 
 import numpy as np
-import siconos
-import siconos.kernel as sk
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 GAP = 1e-3 + 3.7e-6
 H = 1e-4
@@ -73,6 +87,9 @@ def bar_matrices(n, length=1.0, young=1.0, density=1.0, area=1.0):
 
 
 def bench(n, steps):
+    import siconos
+    import siconos.kernel as sk
+
     t0 = time.perf_counter()
     M, K = bar_matrices(n)
     ds = sk.LagrangianLinearTIDS([0.0] * n, [1.0] * n, M, K, np.zeros((n, n)))
@@ -123,8 +140,60 @@ def bench(n, steps):
     }
 
 
+def json_lines(text):
+    return [json.loads(line) for line in text.splitlines() if line.startswith("{")]
+
+
+def signorini(ns):
+    """Steps/s of `cargo bench -p signorini-core --bench moreau_jean` per N."""
+    out = subprocess.run(
+        ["cargo", "bench", "-q", "-p", "signorini-core", "--bench", "moreau_jean", "--",
+         "--elements", ",".join(str(n) for n in ns)],
+        cwd=ROOT, check=True, capture_output=True, text=True,
+    ).stdout
+    return {r["elements"]: r for r in json_lines(out)}
+
+
+def c_reference(ns):
+    """Steps/s of the C loop per N, or {} without a C compiler."""
+    cc = shutil.which("cc")
+    if cc is None:
+        print("# no `cc` on the PATH: the C-loop reference is skipped", file=sys.stderr)
+        return {}
+    with tempfile.TemporaryDirectory() as tmp:
+        exe = os.path.join(tmp, "moreau_jean_bar")
+        src = ROOT / "benches" / "reference" / "moreau_jean_bar.c"
+        subprocess.run([cc, "-O2", "-o", exe, str(src)], check=True)
+        out = subprocess.run([exe, *map(str, ns)], check=True, capture_output=True, text=True).stdout
+    return {r["elements"]: r for r in json_lines(out)}
+
+
+def compare(ns):
+    ours = signorini(ns)
+    c = c_reference(ns)
+    try:
+        sic = {n: bench(n, STEPS.get(n, max(200, int(2e6 / n)))) for n in ns}
+    except ImportError:
+        print("# Siconos is not importable (apt-get install -y python3-siconos, /usr/bin/python3)",
+              file=sys.stderr)
+        sic = {}
+    print(f"# load average (1 min): {os.getloadavg()[0]:.2f}; steps/s from on-CPU time")
+    print(f"{'N':>7} {'signorini':>12} {'C loop':>12} {'siconos':>10} {'sig/C':>7} {'sig/siconos':>12}")
+    for n in ns:
+        s = ours[n]["steps_per_s"]
+        cs = c.get(n, {}).get("steps_per_s")
+        ss = sic.get(n, {}).get("cpu_steps_per_s")
+        cell = lambda x, w: f"{x:>{w}.0f}" if x else f"{'—':>{w}}"
+        ratio = lambda x, w: f"{s / x:>{w}.2f}" if x else f"{'—':>{w}}"
+        print(f"{n:>7} {s:>12.0f} {cell(cs, 12)} {cell(ss, 10)} {ratio(cs, 7)} {ratio(ss, 12)}")
+
+
 def main():
-    ns = [int(a) for a in sys.argv[1:]] or [100, 1000]
+    args = sys.argv[1:]
+    if args[:1] == ["--compare"]:
+        compare([int(a) for a in args[1:]] or [100, 1000])
+        return
+    ns = [int(a) for a in args] or [100, 1000]
     for n in ns:
         steps = STEPS.get(n, max(200, int(2e6 / n)))
         print(json.dumps(bench(n, steps)), flush=True)

@@ -269,10 +269,14 @@ impl SymBand {
         self.data.iter().all(|&a| a == 0.0)
     }
 
-    /// y = A x, O(n · kd).
+    /// y = A x, O(n · kd); a tridiagonal matrix in one sweep.
     pub fn mul_into(&self, x: &[f64], y: &mut [f64]) {
         let n = self.n;
         let (x, y) = (&x[..n], &mut y[..n]);
+        if self.kd == 1 && n >= 2 {
+            tridiagonal_mul(self.diag(0), self.diag(1), x, y);
+            return;
+        }
         for ((yi, a), xi) in y.iter_mut().zip(self.diag(0)).zip(x) {
             *yi = a * xi;
         }
@@ -299,7 +303,22 @@ impl SymBand {
     pub fn quad(&self, x: &[f64], y: &[f64]) -> f64 {
         let n = self.n;
         let (x, y) = (&x[..n], &y[..n]);
-        let sums = self.row_sums.get_or_init(|| {
+        let sums = self.row_sums();
+        if self.kd == 1 && n >= 2 {
+            return tridiagonal_quad(sums, self.diag(1), x, y);
+        }
+        let mut total = sum_products(sums, x, y);
+        for k in 1..=self.kd {
+            total -= sum_difference_products(&self.diag(k)[k..], x, y, k);
+        }
+        total
+    }
+
+    /// Row sums s_i = Σ_j A_ij (the weights of the difference form of [`SymBand::quad`]),
+    /// computed once.
+    pub fn row_sums(&self) -> &[f64] {
+        let n = self.n;
+        self.row_sums.get_or_init(|| {
             let mut s = self.diag(0).to_vec();
             for k in 1..=self.kd {
                 let d = &self.diag(k)[k..];
@@ -311,18 +330,13 @@ impl SymBand {
                 }
             }
             s
-        });
-        let mut total: f64 = sums.iter().zip(x).zip(y).map(|((s, a), b)| s * a * b).sum();
-        for k in 1..=self.kd {
-            let d = &self.diag(k)[k..];
-            total -= d
-                .iter()
-                .zip(x[k..].iter().zip(&x[..n - k]))
-                .zip(y[k..].iter().zip(&y[..n - k]))
-                .map(|((a, (xi, xj)), (yi, yj))| a * (xi - xj) * (yi - yj))
-                .sum::<f64>();
-        }
-        total
+        })
+    }
+
+    /// Sub-diagonal k ≤ kd as a slice of length n: entry i is A[i][i−k] (entries i < k are zero).
+    /// Diagonal 0 is the main diagonal.
+    pub fn band(&self, k: usize) -> &[f64] {
+        self.diag(k)
     }
 
     /// Factorisation A = L D Lᵀ (L unit lower triangular with the same band, D > 0).
@@ -352,7 +366,244 @@ impl SymBand {
             d[i] = p;
         }
         let inv_d = d.iter().map(|p| 1.0 / p).collect();
-        Ok(BandCholesky { n, kd, l, inv_d })
+        let twisted = (kd == 1).then(|| Twisted::new(self)).flatten();
+        Ok(BandCholesky {
+            n,
+            kd,
+            l,
+            inv_d,
+            twisted,
+        })
+    }
+}
+
+/// y = A x for a tridiagonal A (diagonal `a0`, sub-diagonal `a1`, `a1[i]` = A[i][i−1]), n ≥ 2,
+/// in one sweep: y_i = a1_i x_{i−1} + a0_i x_i + a1_{i+1} x_{i+1}.
+fn tridiagonal_mul(a0: &[f64], a1: &[f64], x: &[f64], y: &mut [f64]) {
+    let n = x.len();
+    y[0] = a0[0] * x[0] + a1[1] * x[1];
+    y[n - 1] = a1[n - 1] * x[n - 2] + a0[n - 1] * x[n - 1];
+    for (((((yi, lo), di), up), xl), (xi, xu)) in y[1..n - 1]
+        .iter_mut()
+        .zip(&a1[1..n - 1])
+        .zip(&a0[1..n - 1])
+        .zip(&a1[2..])
+        .zip(&x[..n - 2])
+        .zip(x[1..n - 1].iter().zip(&x[2..]))
+    {
+        *yi = lo * xl + di * xi + up * xu;
+    }
+}
+
+/// Σ_i s_i x_i y_i in four interleaved partial sums: consecutive additions do not wait for each
+/// other (a single running sum is bound by the latency of one addition per term). Differs from
+/// the plain sum by round-off only.
+fn sum_products(s: &[f64], x: &[f64], y: &[f64]) -> f64 {
+    let n = s.len().min(x.len()).min(y.len());
+    let (sc, xc, yc) = (
+        s[..n].chunks_exact(4),
+        x[..n].chunks_exact(4),
+        y[..n].chunks_exact(4),
+    );
+    let mut tail = 0.0;
+    for ((a, b), c) in sc
+        .remainder()
+        .iter()
+        .zip(xc.remainder())
+        .zip(yc.remainder())
+    {
+        tail += a * b * c;
+    }
+    let mut acc = [0.0; 4];
+    for ((a, b), c) in sc.zip(xc).zip(yc) {
+        for l in 0..4 {
+            acc[l] += a[l] * b[l] * c[l];
+        }
+    }
+    (acc[0] + acc[2]) + (acc[1] + acc[3]) + tail
+}
+
+/// The difference form of [`SymBand::quad`] for a tridiagonal matrix in one sweep:
+/// `s_0 x_0 y_0 + Σ_{i ≥ 1} [s_i x_i y_i − a1_i (x_i − x_{i−1})(y_i − y_{i−1})]`, four partial
+/// sums.
+fn tridiagonal_quad(s: &[f64], a1: &[f64], x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len();
+    let term = |s: f64, a: f64, xi: f64, xj: f64, yi: f64, yj: f64| {
+        s * xi * yi - a * (xi - xj) * (yi - yj)
+    };
+    let m = n - 1;
+    let (sc, ac, xh, xl, yh, yl) = (
+        s[1..n].chunks_exact(4),
+        a1[1..n].chunks_exact(4),
+        x[1..n].chunks_exact(4),
+        x[..m].chunks_exact(4),
+        y[1..n].chunks_exact(4),
+        y[..m].chunks_exact(4),
+    );
+    let mut tail = s[0] * x[0] * y[0];
+    for (((((s, a), xi), xj), yi), yj) in sc
+        .remainder()
+        .iter()
+        .zip(ac.remainder())
+        .zip(xh.remainder())
+        .zip(xl.remainder())
+        .zip(yh.remainder())
+        .zip(yl.remainder())
+    {
+        tail += term(*s, *a, *xi, *xj, *yi, *yj);
+    }
+    let mut acc = [0.0; 4];
+    for (((((s, a), xi), xj), yi), yj) in sc.zip(ac).zip(xh).zip(xl).zip(yh).zip(yl) {
+        for l in 0..4 {
+            acc[l] += term(s[l], a[l], xi[l], xj[l], yi[l], yj[l]);
+        }
+    }
+    (acc[0] + acc[2]) + (acc[1] + acc[3]) + tail
+}
+
+/// Σ_{i ≥ k} d_{i−k} (x_i − x_{i−k})(y_i − y_{i−k}) (`d` = diagonal k from row k on), in four
+/// partial sums like [`sum_products`].
+fn sum_difference_products(d: &[f64], x: &[f64], y: &[f64], k: usize) -> f64 {
+    let m = d.len();
+    let (dc, xh, xl, yh, yl) = (
+        d.chunks_exact(4),
+        x[k..k + m].chunks_exact(4),
+        x[..m].chunks_exact(4),
+        y[k..k + m].chunks_exact(4),
+        y[..m].chunks_exact(4),
+    );
+    let mut tail = 0.0;
+    for ((((a, xi), xj), yi), yj) in dc
+        .remainder()
+        .iter()
+        .zip(xh.remainder())
+        .zip(xl.remainder())
+        .zip(yh.remainder())
+        .zip(yl.remainder())
+    {
+        tail += a * (xi - xj) * (yi - yj);
+    }
+    let mut acc = [0.0; 4];
+    for ((((a, xi), xj), yi), yj) in dc.zip(xh).zip(xl).zip(yh).zip(yl) {
+        for l in 0..4 {
+            acc[l] += a[l] * (xi[l] - xj[l]) * (yi[l] - yj[l]);
+        }
+    }
+    (acc[0] + acc[2]) + (acc[1] + acc[3]) + tail
+}
+
+/// Twisted ("burn at both ends") factorisation of a tridiagonal SPD matrix, A = N Γ Nᵀ with
+/// twist index m = ⌊n/2⌋: rows above m are those of the L D Lᵀ factor from the top, rows below m
+/// those of the U Δ Uᵀ factor from the bottom, and row m joins them (Parlett & Dhillon, *Fernando's
+/// solution to Wilkinson's problem*, Linear Algebra Appl. 267:247–279, 1997, §3,
+/// doi:10.1016/S0024-3795(97)80053-2). A solve then runs two independent recurrences per sweep,
+/// one from each end towards m and back, so each sweep waits for n/2 dependent steps instead of
+/// n: the triangular solves are latency-bound, so this halves their cost.
+#[derive(Debug, Clone)]
+struct Twisted {
+    m: usize,
+    /// l_i = A[i][i−1]/d_{i−1} for 1 ≤ i ≤ m, 0 elsewhere.
+    lo: Vec<f64>,
+    /// u_i = A[i+1][i]/δ_{i+1} for m ≤ i ≤ n−2, 0 elsewhere.
+    up: Vec<f64>,
+    /// 1/d_i (i < m), 1/γ_m (i = m), 1/δ_i (i > m).
+    inv: Vec<f64>,
+}
+
+impl Twisted {
+    /// Factorises a tridiagonal matrix; `None` if a pivot is not positive and finite (the
+    /// caller then keeps the one-sided L D Lᵀ factor).
+    fn new(a: &SymBand) -> Option<Self> {
+        let n = a.n;
+        if n == 0 {
+            return None;
+        }
+        let (diag, sub) = (a.diag(0), a.diag(1));
+        let ok = |p: f64| p > 0.0 && p.is_finite();
+        let m = n / 2;
+        let (mut lo, mut up, mut inv) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        // From the top: d_0 = a_0, l_i = e_i/d_{i−1}, d_i = a_i − l_i e_i (e_i = A[i][i−1]).
+        let mut d = diag[0];
+        for i in 1..=m {
+            if !ok(d) {
+                return None;
+            }
+            inv[i - 1] = 1.0 / d;
+            lo[i] = sub[i] / d;
+            d = diag[i] - lo[i] * sub[i];
+        }
+        // From the bottom: δ_{n−1} = a_{n−1}, u_j = e_{j+1}/δ_{j+1}, δ_j = a_j − u_j e_{j+1}.
+        let mut delta = diag[n - 1];
+        for j in (m..n - 1).rev() {
+            if !ok(delta) {
+                return None;
+            }
+            inv[j + 1] = 1.0 / delta;
+            up[j] = sub[j + 1] / delta;
+            delta = diag[j] - up[j] * sub[j + 1];
+        }
+        // γ_m = a_m − l_m e_m − u_m e_{m+1}.
+        let gamma = if m + 1 < n { d - up[m] * sub[m + 1] } else { d };
+        if !ok(gamma) {
+            return None;
+        }
+        inv[m] = 1.0 / gamma;
+        Some(Self { m, lo, up, inv })
+    }
+
+    /// Solves A x = b in place: N w = b from both ends, scaled by Γ⁻¹ on the way, then Nᵀ x = Γ⁻¹w
+    /// from m outwards. The two chains of each sweep are interleaved in one loop.
+    fn solve(&self, b: &mut [f64]) {
+        let m = self.m;
+        let (top, rest) = b.split_at_mut(m);
+        let Some((mid, bot)) = rest.split_first_mut() else {
+            return;
+        };
+        let (lo_t, inv_t) = (&self.lo[..m], &self.inv[..m]);
+        let (up_b, inv_b) = (&self.up[m + 1..], &self.inv[m + 1..]);
+        // w_i = b_i − l_i w_{i−1} (top, l_0 = 0) and w_j = b_j − u_j w_{j+1} (bottom,
+        // u_{n−1} = 0), stored as Γ⁻¹ w.
+        // (Both chains run min(m, n − 1 − m) steps together; `take` keeps zip from consuming
+        // an element of the longer one.)
+        let k = top.len().min(bot.len());
+        let (mut y, mut z) = (0.0, 0.0);
+        let mut ti = top.iter_mut().zip(lo_t).zip(inv_t);
+        let mut bi = bot.iter_mut().zip(up_b).zip(inv_b).rev();
+        for (((bt, l), wt), ((bb, u), wb)) in (&mut ti).take(k).zip((&mut bi).take(k)) {
+            y = *bt - l * y;
+            z = *bb - u * z;
+            *bt = y * wt;
+            *bb = z * wb;
+        }
+        for ((bt, l), wt) in ti {
+            y = *bt - l * y;
+            *bt = y * wt;
+        }
+        for ((bb, u), wb) in bi {
+            z = *bb - u * z;
+            *bb = z * wb;
+        }
+        // Twist row: x_m = (b_m − l_m w_{m−1} − u_m w_{m+1}) / γ_m.
+        let xm = (*mid - self.lo[m] * y - self.up[m] * z) * self.inv[m];
+        *mid = xm;
+        // x_i = Γ⁻¹w_i − l_{i+1} x_{i+1} upwards and x_j = Γ⁻¹w_j − u_{j−1} x_{j−1} downwards.
+        let (mut xt, mut xb) = (xm, xm);
+        let mut ti = top.iter_mut().rev().zip(self.lo[1..=m].iter().rev());
+        let mut bi = bot.iter_mut().zip(&self.up[m..]);
+        for ((bt, l), (bb, u)) in (&mut ti).take(k).zip((&mut bi).take(k)) {
+            xt = *bt - l * xt;
+            xb = *bb - u * xb;
+            *bt = xt;
+            *bb = xb;
+        }
+        for (bt, l) in ti {
+            xt = *bt - l * xt;
+            *bt = xt;
+        }
+        for (bb, u) in bi {
+            xb = *bb - u * xb;
+            *bb = xb;
+        }
     }
 }
 
@@ -365,6 +616,9 @@ pub struct BandCholesky {
     /// Sub-diagonals of L in the storage of [`SymBand`] (diagonal 0 unused: L is unit).
     l: Vec<f64>,
     inv_d: Vec<f64>,
+    /// The twisted factor of a tridiagonal matrix, used by the solves (same solution, two
+    /// independent recurrences per sweep).
+    twisted: Option<Twisted>,
 }
 
 impl BandCholesky {
@@ -377,6 +631,10 @@ impl BandCholesky {
     pub fn solve_in_place(&self, b: &mut [f64]) {
         let (n, kd) = (self.n, self.kd);
         let b = &mut b[..n];
+        if let Some(t) = &self.twisted {
+            t.solve(b);
+            return;
+        }
         match kd {
             0 => {}
             1 => {
@@ -461,6 +719,45 @@ mod tests {
         f.solve_in_place(&mut b);
         for i in 0..n {
             assert!((b[i] - x[i]).abs() < 1e-13, "{} vs {}", b[i], x[i]);
+        }
+    }
+
+    #[test]
+    fn twisted_tridiagonal_solve_matches_dense_product() {
+        // Every twist position parity and the degenerate orders 1 and 2; a diagonally weak
+        // matrix (a Laplacian plus a small shift) so that the factors are far from diagonal.
+        for n in [1usize, 2, 3, 4, 5, 8, 33] {
+            let mut a = SymBand::zeros(n, 1);
+            for i in 0..n {
+                a.set(i, i, 2.0 + 1e-3 * (i as f64 + 1.0));
+                if i >= 1 {
+                    a.set(i, i - 1, -1.0 + 0.01 * i as f64);
+                }
+            }
+            let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.7).sin() + 0.3).collect();
+            let mut b = vec![0.0; n];
+            a.mul_into(&x, &mut b);
+            let d = dense(&a);
+            for i in 0..n {
+                let bi: f64 = (0..n).map(|j| d[i][j] * x[j]).sum();
+                assert!(
+                    (bi - b[i]).abs() < 1e-14,
+                    "n = {n}, row {i}: {} vs {bi}",
+                    b[i]
+                );
+            }
+            let f = a.cholesky().unwrap();
+            assert_eq!(f.twisted.is_some(), n >= 2);
+            f.solve_in_place(&mut b);
+            for i in 0..n {
+                assert!((b[i] - x[i]).abs() < 1e-11, "n = {n}: {} vs {}", b[i], x[i]);
+            }
+            let xx: f64 = x.iter().zip(&x).map(|(p, q)| p * q).sum();
+            let dx: Vec<f64> = (0..n)
+                .map(|i| (0..n).map(|j| d[i][j] * x[j]).sum())
+                .collect();
+            let plain: f64 = x.iter().zip(&dx).map(|(p, q)| p * q).sum();
+            assert!((a.quad(&x, &x) - plain).abs() < 1e-13 * xx.max(1.0));
         }
     }
 

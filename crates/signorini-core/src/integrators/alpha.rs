@@ -660,26 +660,27 @@ impl AlphaCore {
         let xy = self.filters && self.c.xy_filters;
         // Filters (48), (52): (½+ν) z_{k+1} + (½−ν) z_k = ν Δq (and K z, C x, y alike).
         if self.filters {
-            let (p, m) = (0.5 + nu, 0.5 - nu);
+            // Multiplied by 1/(½+ν) (one division per step, not two per dof).
+            let (ip, m) = (1.0 / (0.5 + nu), 0.5 - nu);
             for i in 0..n {
-                nxt.z[i] = (nu * (s.q[i] - state.q[i]) - m * cur.z[i]) / p;
-                nxt.kz[i] = (nu * (nxt.kq[i] - cur.kq[i]) - m * cur.kz[i]) / p;
+                nxt.z[i] = (nu * (s.q[i] - state.q[i]) - m * cur.z[i]) * ip;
+                nxt.kz[i] = (nu * (nxt.kq[i] - cur.kq[i]) - m * cur.kz[i]) * ip;
             }
             // x and y start at zero and are driven by Δ(Cv) and ΔF only: without damping or
             // without a time-varying load they stay exactly zero and are skipped.
             if xy && self.has_damping {
                 for i in 0..n {
-                    nxt.cx[i] = (nu * (nxt.cv[i] - cur.cv[i]) - m * cur.cx[i]) / p;
+                    nxt.cx[i] = (nu * (nxt.cv[i] - cur.cv[i]) - m * cur.cx[i]) * ip;
                 }
             }
             if xy && self.varying_load {
                 for i in 0..n {
-                    nxt.y[i] = (nu * (nxt.f[i] - cur.f[i]) - m * cur.y[i]) / p;
+                    nxt.y[i] = (nu * (nxt.f[i] - cur.f[i]) - m * cur.y[i]) * ip;
                 }
             }
             if xy {
                 for a in 0..nxt.lambda.len() {
-                    nxt.ylam[a] = (nu * (nxt.lambda[a] - cur.lambda[a]) - m * cur.ylam[a]) / p;
+                    nxt.ylam[a] = (nu * (nxt.lambda[a] - cur.lambda[a]) - m * cur.ylam[a]) * ip;
                 }
             }
         }
@@ -785,7 +786,21 @@ impl AlphaCore {
 }
 
 fn dot(x: &[f64], y: &[f64]) -> f64 {
-    x.iter().zip(y).map(|(a, b)| a * b).sum()
+    let n = x.len().min(y.len());
+    let (xc, yc) = (x[..n].chunks_exact(4), y[..n].chunks_exact(4));
+    let mut tail = 0.0;
+    for (a, b) in xc.remainder().iter().zip(yc.remainder()) {
+        tail += a * b;
+    }
+    // Four interleaved partial sums: consecutive additions do not wait for each other (one
+    // running sum is bound by the latency of one addition per dof); round-off differences only.
+    let mut acc = [0.0; 4];
+    for (a, b) in xc.zip(yc) {
+        for l in 0..4 {
+            acc[l] += a[l] * b[l];
+        }
+    }
+    (acc[0] + acc[2]) + (acc[1] + acc[3]) + tail
 }
 
 /// The nonsmooth α-family scheme (25) / (30) for one model and one step size.
