@@ -937,6 +937,9 @@ struct ResumePoint {
 /// cannot be used (damaged, of another format or spec) is logged, dropped, and the job runs
 /// again from step 0.
 fn resume_point(inner: &Inner, live: &LiveJob) -> Option<ResumePoint> {
+    if !inner.store.keeps_checkpoints() {
+        return None;
+    }
     let (attempt, step, bytes) = match inner.store.load_checkpoint(&live.id) {
         Ok(Some(found)) => found,
         Ok(None) => return None,
@@ -1013,7 +1016,9 @@ fn end_job(
         view.error = Some(("store".into(), e.to_string()));
     }
     // An ended job is not resumed: its checkpoint goes.
-    if let Err(e) = inner.store.delete_checkpoint(&live.id) {
+    if inner.store.keeps_checkpoints()
+        && let Err(e) = inner.store.delete_checkpoint(&live.id)
+    {
         tracing::error!(id = %live.id, "store: {e}");
     }
     lock(&inner.live).remove(&live.id);

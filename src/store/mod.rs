@@ -63,6 +63,9 @@ pub enum StoreError {
         /// Which job.
         id: String,
     },
+    /// This store keeps no checkpoints ([`Backend::keeps_checkpoints`] is false).
+    #[error("store: this store keeps no checkpoints")]
+    NoCheckpoints,
 }
 
 /// A finished job's result.
@@ -440,6 +443,47 @@ pub trait Backend: Send + Sync {
     /// The queue shared by replicas, when this store holds one (PostgreSQL).
     fn shared(&self) -> Option<&dyn SharedQueue> {
         None
+    }
+
+    /// Whether this store keeps checkpoints of running jobs (the four methods below). A store
+    /// that does not refuses them ([`StoreError::NoCheckpoints`]), the engine does not
+    /// checkpoint on it, and its interrupted jobs run again from step 0.
+    fn keeps_checkpoints(&self) -> bool {
+        false
+    }
+
+    /// Keeps the latest checkpoint of a running job (its bytes, made by
+    /// `signorini_core::checkpoint::Checkpoint::encode`), written by its run number `attempt`
+    /// after step `step`; replaces the one before.
+    fn save_checkpoint(
+        &self,
+        id: &str,
+        attempt: u64,
+        step: u64,
+        bytes: &[u8],
+    ) -> Result<(), StoreError> {
+        let _ = (id, attempt, step, bytes);
+        Err(StoreError::NoCheckpoints)
+    }
+
+    /// The latest checkpoint of a job: (attempt, step, bytes), if any.
+    fn load_checkpoint(&self, id: &str) -> Result<Option<(u64, u64, Vec<u8>)>, StoreError> {
+        let _ = id;
+        Err(StoreError::NoCheckpoints)
+    }
+
+    /// Forgets a job's checkpoint (the job ended, or its checkpoint cannot be used).
+    fn delete_checkpoint(&self, id: &str) -> Result<(), StoreError> {
+        let _ = id;
+        Err(StoreError::NoCheckpoints)
+    }
+
+    /// Keeps the first `rows` rows of a job's stored series (a job resumed from a checkpoint
+    /// that had recorded that many) and drops the chunks after them. A checkpoint is saved
+    /// right after a chunk, so its row count is a chunk boundary; a chunk across it is refused.
+    fn truncate_series(&self, id: &str, rows: u64) -> Result<(), StoreError> {
+        let _ = (id, rows);
+        Err(StoreError::NoCheckpoints)
     }
 
     /// A job's whole result, its series read chunk by chunk into memory: for tests and small

@@ -453,74 +453,6 @@ impl Backend for SqliteStore {
         Ok(ids)
     }
 
-    /// Keeps the latest checkpoint of a running job (its bytes, made by
-    /// `signorini_core::checkpoint::Checkpoint::encode`), written by its run number `attempt`
-    /// after step `step`; replaces the one before.
-    pub fn save_checkpoint(
-        &self,
-        id: &str,
-        attempt: u64,
-        step: u64,
-        bytes: &[u8],
-    ) -> Result<(), StoreError> {
-        self.conn().execute(
-            "INSERT OR REPLACE INTO checkpoints (id, attempt, step, bytes) VALUES (?1, ?2, ?3, ?4)",
-            params![id, attempt as i64, step as i64, bytes],
-        )?;
-        Ok(())
-    }
-
-    /// The latest checkpoint of a job: (attempt, step, bytes), if any.
-    pub fn load_checkpoint(&self, id: &str) -> Result<Option<(u64, u64, Vec<u8>)>, StoreError> {
-        let row = self
-            .conn()
-            .query_row(
-                "SELECT attempt, step, bytes FROM checkpoints WHERE id = ?1",
-                [id],
-                |r| {
-                    Ok((
-                        r.get::<_, i64>(0)? as u64,
-                        r.get::<_, i64>(1)? as u64,
-                        r.get::<_, Vec<u8>>(2)?,
-                    ))
-                },
-            )
-            .optional()?;
-        Ok(row)
-    }
-
-    /// Forgets a job's checkpoint (the job ended, or its checkpoint cannot be used).
-    pub fn delete_checkpoint(&self, id: &str) -> Result<(), StoreError> {
-        self.conn()
-            .execute("DELETE FROM checkpoints WHERE id = ?1", [id])?;
-        Ok(())
-    }
-
-    /// Keeps the first `rows` rows of a job's stored series (a job resumed from a checkpoint
-    /// that had recorded that many) and drops the chunks after them. A checkpoint is saved
-    /// right after a chunk, so its row count is a chunk boundary; a chunk across it is refused.
-    pub fn truncate_series(&self, id: &str, rows: u64) -> Result<(), StoreError> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        let across: i64 = tx.query_row(
-            "SELECT COUNT(*) FROM result_chunks WHERE id = ?1 AND first_row < ?2 AND first_row + rows > ?2",
-            params![id, rows as i64],
-            |r| r.get(0),
-        )?;
-        if across > 0 {
-            return Err(StoreError::Corrupt {
-                what: "series (a chunk across the checkpoint)",
-                id: id.to_string(),
-            });
-        }
-        tx.execute(
-            "DELETE FROM result_chunks WHERE id = ?1 AND first_row >= ?2",
-            params![id, rows as i64],
-        )?;
-        tx.commit()?;
-        Ok(())
-    }
-
     /// Removes a job, its result and its series. False when there was no such job.
     fn delete(&self, id: &str) -> Result<bool, StoreError> {
         let mut conn = self.conn();
@@ -621,6 +553,70 @@ impl Backend for SqliteStore {
     }
 
     /// One chunk of a job's series with `columns` value columns, checked against its index.
+    fn keeps_checkpoints(&self) -> bool {
+        true
+    }
+
+    fn save_checkpoint(
+        &self,
+        id: &str,
+        attempt: u64,
+        step: u64,
+        bytes: &[u8],
+    ) -> Result<(), StoreError> {
+        self.conn().execute(
+            "INSERT OR REPLACE INTO checkpoints (id, attempt, step, bytes) VALUES (?1, ?2, ?3, ?4)",
+            params![id, attempt as i64, step as i64, bytes],
+        )?;
+        Ok(())
+    }
+
+    fn load_checkpoint(&self, id: &str) -> Result<Option<(u64, u64, Vec<u8>)>, StoreError> {
+        let row = self
+            .conn()
+            .query_row(
+                "SELECT attempt, step, bytes FROM checkpoints WHERE id = ?1",
+                [id],
+                |r| {
+                    Ok((
+                        r.get::<_, i64>(0)? as u64,
+                        r.get::<_, i64>(1)? as u64,
+                        r.get::<_, Vec<u8>>(2)?,
+                    ))
+                },
+            )
+            .optional()?;
+        Ok(row)
+    }
+
+    fn delete_checkpoint(&self, id: &str) -> Result<(), StoreError> {
+        self.conn()
+            .execute("DELETE FROM checkpoints WHERE id = ?1", [id])?;
+        Ok(())
+    }
+
+    fn truncate_series(&self, id: &str, rows: u64) -> Result<(), StoreError> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        let across: i64 = tx.query_row(
+            "SELECT COUNT(*) FROM result_chunks WHERE id = ?1 AND first_row < ?2 AND first_row + rows > ?2",
+            params![id, rows as i64],
+            |r| r.get(0),
+        )?;
+        if across > 0 {
+            return Err(StoreError::Corrupt {
+                what: "series (a chunk across the checkpoint)",
+                id: id.to_string(),
+            });
+        }
+        tx.execute(
+            "DELETE FROM result_chunks WHERE id = ?1 AND first_row >= ?2",
+            params![id, rows as i64],
+        )?;
+        tx.commit()?;
+        Ok(())
+    }
+
     fn read_chunk(
         &self,
         id: &str,
