@@ -76,14 +76,12 @@ impl<'a> ServiceObserver<'a> {
     pub(super) fn new(inner: &'a Inner, live: &'a LiveJob) -> Self {
         let period = live.job.spec().output.checkpoint_period();
         let checkpoints = match period {
-            Ok(period) if live.job.checkpoints() => {
-                Some(Checkpoints {
-                    period,
-                    last: Instant::now(),
-                    attempt: 0,
-                    final_written: false,
-                })
-            }
+            Ok(period) if live.job.checkpoints() => Some(Checkpoints {
+                period,
+                last: Instant::now(),
+                attempt: 0,
+                final_written: false,
+            }),
             _ => None,
         };
         Self {

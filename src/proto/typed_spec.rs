@@ -6,7 +6,8 @@
 //! to the core spec breaks this build until it is handled.
 //!
 //! The sections added after the typed message was frozen — `lagrangian` models, Coulomb friction
-//! on `linear` models, `[check]`, `[study]` — travel in the JSON spelling of `SubmitJobRequest`
+//! on `linear` models, `[check]`, `[study]`, the `string` scene, the `obstacle` of a `bar`, the
+//! `banded_active_set` contact solver — travel in the JSON spelling of `SubmitJobRequest`
 //! only: for a spec that has one, [`job_spec_to_proto`] says which ([`JsonOnly`]).
 
 use crate::proto::v1 as pb;
@@ -54,7 +55,7 @@ pub fn job_spec_to_proto(s: &JobSpec) -> Result<pb::JobSpec, JsonOnly> {
         model: model.as_ref().map(model_to_proto).transpose()?,
         integrator: Some(integrator_to_proto(integrator)),
         time: time.as_ref().map(time_to_proto),
-        contact_solver: Some(contact_solver_to_proto(contact_solver)),
+        contact_solver: Some(contact_solver_to_proto(contact_solver)?),
         output: Some(output_to_proto(output)?),
         analysis: analysis.as_ref().map(analysis_to_proto),
     })
@@ -83,6 +84,9 @@ fn model_to_proto(m: &ModelSpec) -> Result<pb::ModelSpec, JsonOnly> {
                 v0: Some(*v0),
                 restitution: Some(*restitution),
             })
+        }
+        ModelSpec::Bar(b) | ModelSpec::DepBar(b) if b.obstacle.is_some() => {
+            return Err(JsonOnly("the `obstacle` of a bar"));
         }
         ModelSpec::Bar(b) => Scene::Bar(bar_to_proto(b)),
         ModelSpec::DepBar(b) => Scene::DepBar(bar_to_proto(b)),
@@ -161,6 +165,7 @@ fn model_to_proto(m: &ModelSpec) -> Result<pb::ModelSpec, JsonOnly> {
             })
         }
         ModelSpec::Lagrangian(_) => return Err(JsonOnly("scene `lagrangian`")),
+        ModelSpec::String(_) => return Err(JsonOnly("scene `string`")),
     };
     Ok(pb::ModelSpec { scene: Some(scene) })
 }
@@ -191,6 +196,8 @@ fn bar_to_proto(b: &BarSpec) -> pb::BarModel {
         rayleigh_stiffness,
         harmonic_force,
         wall_motion,
+        // Carried by the JSON spelling only (`model_to_proto`).
+        obstacle: _,
     } = b;
     pb::BarModel {
         elements: elements.map(u64_of),
@@ -509,22 +516,25 @@ fn time_to_proto(t: &TimeSpec) -> pb::TimeSpec {
     }
 }
 
-fn contact_solver_to_proto(c: &ContactSolverSpec) -> pb::ContactSolverSpec {
+fn contact_solver_to_proto(c: &ContactSolverSpec) -> Result<pb::ContactSolverSpec, JsonOnly> {
     let ContactSolverSpec {
         kind,
         tolerance,
         max_iterations,
     } = c;
-    pb::ContactSolverSpec {
+    Ok(pb::ContactSolverSpec {
         kind: match kind {
             LcpSolverKind::Auto => pb::LcpSolver::Auto,
             LcpSolverKind::Lemke => pb::LcpSolver::Lemke,
             LcpSolverKind::Pgs => pb::LcpSolver::Pgs,
             LcpSolverKind::Enumeration => pb::LcpSolver::Enum,
+            LcpSolverKind::BandedActiveSet => {
+                return Err(JsonOnly("contact_solver.kind = \"banded_active_set\""));
+            }
         } as i32,
         tolerance: Some(*tolerance),
         max_iterations: Some(u64_of(*max_iterations)),
-    }
+    })
 }
 
 fn output_to_proto(o: &OutputSpec) -> Result<pb::OutputSpec, JsonOnly> {

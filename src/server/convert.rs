@@ -161,6 +161,8 @@ fn bar(p: pb::BarModel) -> Result<BarSpec, SpecError> {
         rayleigh_stiffness,
         harmonic_force: harmonic_force.map(harmonic),
         wall_motion: wall_motion.map(harmonic),
+        // The distributed obstacle travels in the JSON spelling only.
+        obstacle: None,
     })
 }
 

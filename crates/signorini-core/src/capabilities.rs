@@ -425,7 +425,7 @@ mod tests {
         assert_eq!(names(&caps.sections), ["time", "contact_solver", "output"]);
         assert_eq!(
             names(&caps.contact_solvers),
-            ["auto", "lemke", "pgs", "enum"]
+            ["auto", "lemke", "pgs", "enum", "banded_active_set"]
         );
         for c in caps
             .models

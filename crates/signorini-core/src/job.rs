@@ -3,15 +3,20 @@
 //! summary and any tables or figures the job makes.
 
 use crate::band::SymBand;
+use crate::banded_contact::{banded_refusal, uses_banded};
 use crate::checkpoint::{Checkpoint, CheckpointError};
 use crate::contact::IndexSetRule;
+use crate::contact_region::ContactRegion;
 use crate::integrators::alpha::{AlphaParams, AlphaScheme, NonsmoothAlpha, ParamError};
 use crate::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
 use crate::integrators::position_contact::{PositionContact, PositionContactParams};
 use crate::integrators::{LinearScheme, LinearState, OutputOptions, run_linear_from};
 use crate::lagrangian::UserModel;
-use crate::lcp::LcpOptions;
-use crate::model::{Contact, ContactFriction, Forcing, HarmonicLoad, LinearModel, ModelError};
+use crate::lcp::{LcpOptions, LcpSolverKind};
+use crate::model::{
+    Contact, ContactFriction, Forcing, HarmonicLoad, LinearModel, ModelError,
+    dense_contacts_too_large,
+};
 use crate::nonlinear::LagrangianSystem;
 use crate::nonlinear::generalized_alpha::{
     JointedSystem, NonsmoothGeneralizedAlpha, NsAlphaParams, NsAlphaSummary, ns_alpha_columns,
@@ -93,6 +98,47 @@ struct LinearJob {
     steps: u64,
     lcp: LcpOptions,
     output: OutputOptions,
+    /// The contacts of a distributed obstacle, for the `contact_region` chart.
+    region: Option<RegionContacts>,
+}
+
+/// The contacts of a distributed obstacle: the first one's index, their abscissae, and the
+/// touching threshold δ = 10⁻³ max|q₀| of the chart.
+#[derive(Debug, Clone)]
+struct RegionContacts {
+    first: usize,
+    x: Vec<f64>,
+    delta: f64,
+}
+
+impl RegionContacts {
+    /// For a `string` or a `bar` with an `obstacle`.
+    fn of(spec: &ModelSpec, model: &LinearModel) -> Option<Self> {
+        let (first, x) = match spec {
+            ModelSpec::String(st) if st.obstacle.is_some() => {
+                (0, (0..st.nodes).map(|j| st.x(j)).collect())
+            }
+            ModelSpec::Bar(b) if b.obstacle.is_some() => (
+                1,
+                b.resolve(Bar::default())
+                    .obstacle_nodes()
+                    .iter()
+                    .map(|n| n.1)
+                    .collect(),
+            ),
+            ModelSpec::DepBar(b) if b.obstacle.is_some() => (
+                1,
+                b.resolve(Bar::doyen_ern_piperno(100))
+                    .obstacle_nodes()
+                    .iter()
+                    .map(|n| n.1)
+                    .collect(),
+            ),
+            _ => return None,
+        };
+        let delta = 1e-3 * model.q0.iter().fold(0.0f64, |m, q| m.max(q.abs()));
+        Some(Self { first, x, delta })
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -136,6 +182,7 @@ impl LinearJob {
                 return Err(mismatch(model_spec, spec.integrator.scheme()));
             }
         };
+        check_contact_path(&model, &scheme, &lcp, spec.integrator.scheme())?;
         if model.has_friction() && !matches!(scheme, LinearSchemeChoice::MoreauJean(_)) {
             return Err(SpecError::new(
                 "integrator.scheme",
@@ -146,6 +193,7 @@ impl LinearJob {
             ));
         }
         Ok(LinearJob {
+            region: RegionContacts::of(model_spec, &model),
             model,
             scheme,
             h: steps.h,
@@ -154,6 +202,47 @@ impl LinearJob {
             output,
         })
     }
+}
+
+/// The contact path of a linear job: `banded_active_set` only where the scheme and the model
+/// take it ([`banded_refusal`]), and a dense path only where its operators Ŵ⁻¹G and W fit
+/// ([`dense_contacts_too_large`]; the model checked it already unless its contacts could go
+/// banded).
+fn check_contact_path(
+    model: &LinearModel,
+    scheme: &LinearSchemeChoice,
+    lcp: &LcpOptions,
+    scheme_name: &str,
+) -> Result<(), SpecError> {
+    let lumped = matches!(scheme, LinearSchemeChoice::Alpha(_));
+    let velocity_level = !matches!(scheme, LinearSchemeChoice::PositionContact(_));
+    if lcp.kind == LcpSolverKind::BandedActiveSet {
+        if !velocity_level {
+            return Err(SpecError::new(
+                "contact_solver.kind",
+                format!(
+                    "banded_active_set solves the impulse of moreau_jean and the nonsmooth α-family, not the position-level contact of {scheme_name}"
+                ),
+            ));
+        }
+        if let Some(reason) = banded_refusal(model, lumped) {
+            return Err(SpecError::new("contact_solver.kind", reason));
+        }
+    }
+    let banded = velocity_level && uses_banded(model, lcp.kind, lumped);
+    let (n, m) = (model.dofs(), model.contacts.len());
+    if !banded && dense_contacts_too_large(n, m) {
+        return Err(SpecError::new(
+            "model.contacts",
+            format!(
+                "{m} contacts on {n} dofs need {:.2e} stored entries for the dense operators Ŵ⁻¹G and W = GᵀŴ⁻¹G of contact_solver.kind = {:?}, more than the {:.2e} allowed: single-dof contacts take banded_active_set (or auto) with moreau_jean or the nonsmooth α-family",
+                m as f64 * m.max(n) as f64,
+                lcp.kind,
+                crate::band::MAX_STORED_ENTRIES as f64
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// A `lagrangian` model under a scheme of the linear family other than `ns_generalized_alpha`
@@ -220,6 +309,12 @@ fn lagrangian_run_settings(
 ) -> Result<(Steps, LcpOptions, OutputOptions), SpecError> {
     let steps = spec.time_section()?.steps(false)?;
     let lcp = spec.contact_solver.options()?;
+    if lcp.kind == LcpSolverKind::BandedActiveSet {
+        return Err(SpecError::new(
+            "contact_solver.kind",
+            "banded_active_set solves linear models (a banded iteration matrix), not lagrangian ones",
+        ));
+    }
     let output = spec
         .output
         .options(Probes::Dofs(LagrangianSystem::dofs(model)))?;
@@ -391,9 +486,18 @@ impl Job {
     }
 
     /// Whether a run of this job hands checkpoints to an observer that asks for them (every time
-    /// integration does; an analysis of modes or forced response does not, it reruns whole).
+    /// integration does, except two that rerun whole: an analysis of modes or forced response,
+    /// and a linear job whose contacts go the banded path or draw a contact region, whose solver
+    /// warm start and chart are not in the checkpoint yet).
     pub fn checkpoints(&self) -> bool {
-        !matches!(&self.kind, JobKind::Wave(j) if j.is_analysis())
+        match &self.kind {
+            JobKind::Wave(j) => !j.is_analysis(),
+            JobKind::Linear(j) => {
+                let lumped = matches!(j.scheme, LinearSchemeChoice::Alpha(_));
+                j.region.is_none() && !uses_banded(&j.model, j.lcp.kind, lumped)
+            }
+            _ => true,
+        }
     }
 
     /// Size of the job.
@@ -668,15 +772,34 @@ fn run_linear_job(
         ),
     };
     let mut state = LinearState::initial(&j.model);
-    let stats = run_linear_from(
-        &j.model,
-        scheme.as_mut(),
-        &mut state,
-        j.steps,
-        &j.output,
-        observer,
-        resume,
-    )?;
+    let (stats, charts) = match &j.region {
+        Some(r) => {
+            let records = j.steps / j.output.every.max(1) + 2;
+            let mut region = ContactRegion::new(observer, r.first, r.x.clone(), r.delta, records);
+            let stats = run_linear_from(
+                &j.model,
+                scheme.as_mut(),
+                &mut state,
+                j.steps,
+                &j.output,
+                &mut region,
+                resume,
+            )?;
+            (stats, vec![region.chart()])
+        }
+        None => (
+            run_linear_from(
+                &j.model,
+                scheme.as_mut(),
+                &mut state,
+                j.steps,
+                &j.output,
+                observer,
+                resume,
+            )?,
+            Vec::new(),
+        ),
+    };
     let body = SummaryBody::Linear(LinearSummary {
         dofs: j.model.dofs(),
         contacts: j.model.contacts.len(),
@@ -686,7 +809,7 @@ fn run_linear_job(
     Ok(RunOutput {
         summary: RunSummary::new(header(job), body),
         tables: Vec::new(),
-        charts: Vec::new(),
+        charts,
     })
 }
 
@@ -706,9 +829,12 @@ fn header(job: &Job) -> SummaryHeader {
 pub fn build_model(spec: &ModelSpec) -> Result<LinearModel, SpecError> {
     let result = match spec {
         ModelSpec::BouncingBall(b) => b.build(),
-        ModelSpec::Bar(b) => b.resolve(Bar::default()).build(),
-        ModelSpec::DepBar(b) => b.resolve(Bar::doyen_ern_piperno(100)).build(),
+        ModelSpec::Bar(b) => b.resolve(Bar::default()).build_with(b.obstacle.as_ref()),
+        ModelSpec::DepBar(b) => b
+            .resolve(Bar::doyen_ern_piperno(100))
+            .build_with(b.obstacle.as_ref()),
         ModelSpec::Chain(c) => c.build(),
+        ModelSpec::String(st) => st.build(),
         ModelSpec::Linear(l) => build_linear(l),
         ModelSpec::Pendulum(_)
         | ModelSpec::SliderCrank(_)

@@ -7,9 +7,11 @@
 #![warn(missing_docs)]
 
 pub mod band;
+pub mod banded_contact;
 pub mod capabilities;
 pub mod checkpoint;
 pub mod contact;
+pub mod contact_region;
 pub mod energy;
 pub mod expr;
 pub mod friction;

@@ -246,6 +246,12 @@ impl ModelError {
     }
 }
 
+/// Whether m contacts on n dofs need more than [`crate::band::MAX_STORED_ENTRIES`] entries
+/// for the dense operators Ŵ⁻¹G (n × m) and W (m × m).
+pub fn dense_contacts_too_large(n: usize, m: usize) -> bool {
+    m.saturating_mul(m.max(n)) > crate::band::MAX_STORED_ENTRIES
+}
+
 /// Checks that `x` has `n` finite entries.
 pub fn check_vector(field: &str, x: &[f64], n: usize) -> Result<(), ModelError> {
     if x.len() != n {
@@ -351,7 +357,11 @@ impl LinearModel {
     ) -> Result<Self, ModelError> {
         let n = mass.n();
         let m = contacts.len();
-        if m.saturating_mul(m.max(n)) > crate::band::MAX_STORED_ENTRIES {
+        // Single-dof contacts can take the banded path, which stores no dense operator; a job
+        // that sends them to a dense solver checks this size itself (`job.rs`).
+        let banded =
+            crate::lcp::active_set::unit_columns(n, contacts.iter().map(|c| c.g.as_slice()));
+        if !banded && dense_contacts_too_large(n, m) {
             return Err(ModelError::TooManyContacts {
                 field: "contacts".into(),
                 contacts: m,

@@ -43,6 +43,8 @@ pub enum Chart {
     ContactEnd(Vec<EndHistory>),
     /// `work_precision`: a study's error against CPU time, log–log, a curve per scheme.
     WorkPrecision(WorkPrecisionChart),
+    /// `contact_region`: where a distributed obstacle is touched or pushes, against x and t.
+    ContactRegion(ContactRegionChart),
 }
 
 impl Chart {
@@ -57,8 +59,24 @@ impl Chart {
             Chart::BackbonePanel(b) => &b.name,
             Chart::ContactEnd(_) => "contact_end",
             Chart::WorkPrecision(_) => "work_precision",
+            Chart::ContactRegion(_) => "contact_region",
         }
     }
+}
+
+/// The contact region of a distributed obstacle: a grid of cells (time bucket × group of
+/// neighbouring contacts), each the strongest state seen in it: 0 free, 1 touching
+/// (`gap ≤ delta`), 2 pushed (`P > 0`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactRegionChart {
+    /// Abscissa of each group of contacts (increasing).
+    pub x: Vec<f64>,
+    /// Start time of each bucket.
+    pub t: Vec<f64>,
+    /// `states[bucket][group]`.
+    pub states: Vec<Vec<u8>>,
+    /// The touching threshold δ on the gap.
+    pub delta: f64,
 }
 
 /// A study's work–precision diagram.

@@ -246,6 +246,25 @@ impl Bar {
     /// Builds the model. Dofs are nodal displacements from left to right (without node 0 when
     /// the left end is fixed).
     pub fn build(&self) -> Result<LinearModel, ModelError> {
+        self.build_with(None)
+    }
+
+    /// The nodes a distributed obstacle touches, `(dof, x)` from left to right: every node but
+    /// the right end (which keeps its end contact) and a fixed left end.
+    pub fn obstacle_nodes(&self) -> Vec<(usize, f64)> {
+        let he = self.length / self.elements as f64;
+        let first = match self.left {
+            LeftEnd::Fixed => 1,
+            LeftEnd::Free => 0,
+        };
+        (0..self.contact_dof())
+            .map(|i| (i, (i + first) as f64 * he))
+            .collect()
+    }
+
+    /// Builds the model with a distributed `obstacle` under every node but the right end
+    /// (field `obstacle.…` in errors); [`Bar::build`] without.
+    pub fn build_with(&self, obstacle: Option<&Obstacle>) -> Result<LinearModel, ModelError> {
         if !(1..=MAX_ELEMENTS).contains(&self.elements) {
             return Err(ModelError::OutOfRange {
                 field: "elements".into(),
@@ -368,14 +387,220 @@ impl Bar {
             }),
             restitution: self.restitution,
         };
+        let q0 = vec![self.initial_displacement; n];
+        let mut contacts = vec![contact];
+        if let Some(o) = obstacle {
+            contacts.extend(o.contacts(&self.obstacle_nodes(), self.length, &q0)?);
+        }
         LinearModel::new(
             m,
             damping,
             k,
             force,
-            vec![contact],
-            vec![self.initial_displacement; n],
+            contacts,
+            q0,
             vec![self.initial_velocity; n],
+        )
+    }
+}
+
+/// A rigid obstacle under a string or a bar, of profile `y(x) = −offset + curvature (x − L/2)²`
+/// (a parabolic bridge; flat for curvature 0): one contact per node at x_i, gap
+/// `g_i = q_i + offset − curvature (x_i − L/2)² ≥ 0`, Newton restitution e.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Obstacle {
+    /// Depth of the obstacle's apex (x = L/2) below the rest line (any finite value; the
+    /// initial shape must not lie below the obstacle).
+    pub offset: f64,
+    /// Curvature of the parabolic profile (finite, default 0: a flat obstacle).
+    #[serde(default)]
+    pub curvature: f64,
+    /// Newton restitution in [0, 1], default 0.
+    #[serde(default)]
+    #[schemars(range(min = 0.0, max = 1.0))]
+    pub restitution: f64,
+}
+
+impl Obstacle {
+    /// Its contacts at the nodes `(dof, x)` of a body of length `length` whose initial
+    /// displacement is `q0`; errors name `obstacle.offset`, `obstacle.curvature`,
+    /// `obstacle.restitution`, and `obstacle.offset` when a node starts below the profile.
+    pub fn contacts(
+        &self,
+        nodes: &[(usize, f64)],
+        length: f64,
+        q0: &[f64],
+    ) -> Result<Vec<Contact>, ModelError> {
+        check_range(
+            "obstacle.offset",
+            self.offset,
+            f64::MIN,
+            f64::MAX,
+            "finite values",
+        )?;
+        check_range(
+            "obstacle.curvature",
+            self.curvature,
+            f64::MIN,
+            f64::MAX,
+            "finite values",
+        )?;
+        check_range("obstacle.restitution", self.restitution, 0.0, 1.0, "[0, 1]")?;
+        nodes
+            .iter()
+            .map(|&(dof, x)| {
+                let w = self.offset - self.curvature * (x - 0.5 * length).powi(2);
+                if q0[dof] + w < 0.0 {
+                    return Err(ModelError::OutOfRange {
+                        field: "obstacle.offset".into(),
+                        value: self.offset,
+                        range: "values that leave the initial shape on or above the obstacle",
+                    });
+                }
+                Ok(Contact {
+                    g: vec![(dof, 1.0)],
+                    offset: w,
+                    motion: None,
+                    restitution: self.restitution,
+                })
+            })
+            .collect()
+    }
+}
+
+/// The initial shape of a plucked string: a triangle of height `amplitude` at `position`, at
+/// rest.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Pluck {
+    /// Where the string is plucked, 0 < position < length (m).
+    pub position: f64,
+    /// Displacement there (m, any sign; positive is away from the obstacle).
+    pub amplitude: f64,
+}
+
+/// `scene = "string"`: a transverse string of length L under tension T with linear density
+/// ρ, fixed at both ends, discretised by `nodes` moving nodes at `x_j = (j + 1) L/(N + 1)`
+/// with lumped masses `ρ Δx` and the finite-difference stiffness `(T/Δx) tridiag(−1, 2, −1)`
+/// (Δx = L/(N + 1)): `M q̈ + K q = G λ`, the ideal string of Issanchou, Acary, Pérignon, Touzé
+/// & Le Carrou 2018 (no stiffness or losses). The wave speed is `c = √(T/ρ)`. An optional
+/// [`Obstacle`] puts a contact at every node.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct StringScene {
+    /// Moving nodes N (1 … 10⁷), default 100.
+    #[schemars(range(min = 1, max = 10_000_000))]
+    pub nodes: usize,
+    /// Length L > 0 (m), default 1.
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
+    pub length: f64,
+    /// Tension T > 0 (N), default 100.
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
+    pub tension: f64,
+    /// Linear density ρ > 0 (kg/m), default 0.01.
+    #[schemars(extend("exclusiveMinimum" = 0.0))]
+    pub linear_density: f64,
+    /// Initial triangular shape (default: none, the string at rest on its line).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pluck: Option<Pluck>,
+    /// The obstacle under the string (default: none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub obstacle: Option<Obstacle>,
+}
+
+impl Default for StringScene {
+    fn default() -> Self {
+        Self {
+            nodes: 100,
+            length: 1.0,
+            tension: 100.0,
+            linear_density: 0.01,
+            pluck: None,
+            obstacle: None,
+        }
+    }
+}
+
+impl StringScene {
+    /// Node spacing Δx = L/(N + 1).
+    pub fn spacing(&self) -> f64 {
+        self.length / (self.nodes + 1) as f64
+    }
+
+    /// Abscissa of dof j.
+    pub fn x(&self, j: usize) -> f64 {
+        (j + 1) as f64 * self.spacing()
+    }
+
+    /// Builds the model (dofs: the transverse displacements of the moving nodes, left to right).
+    pub fn build(&self) -> Result<LinearModel, ModelError> {
+        if !(1..=MAX_ELEMENTS).contains(&self.nodes) {
+            return Err(ModelError::OutOfRange {
+                field: "nodes".into(),
+                value: self.nodes as f64,
+                range: "[1, 10⁷]",
+            });
+        }
+        for (f, x) in [
+            ("length", self.length),
+            ("tension", self.tension),
+            ("linear_density", self.linear_density),
+        ] {
+            check_range(f, x, f64::MIN_POSITIVE, f64::MAX, "(0, ∞)")?;
+        }
+        let (n, dx, l) = (self.nodes, self.spacing(), self.length);
+        let mut q0 = vec![0.0; n];
+        if let Some(p) = self.pluck {
+            if !p.position.is_finite() || p.position <= 0.0 || p.position >= l {
+                return Err(ModelError::OutOfRange {
+                    field: "pluck.position".into(),
+                    value: p.position,
+                    range: "(0, length)",
+                });
+            }
+            check_range(
+                "pluck.amplitude",
+                p.amplitude,
+                f64::MIN,
+                f64::MAX,
+                "finite values",
+            )?;
+            for (j, q) in q0.iter_mut().enumerate() {
+                let x = self.x(j);
+                *q = if x <= p.position {
+                    p.amplitude * x / p.position
+                } else {
+                    p.amplitude * (l - x) / (l - p.position)
+                };
+            }
+        }
+        let kt = self.tension / dx;
+        let mut k = SymBand::zeros(n, 1);
+        for j in 0..n {
+            k.set(j, j, 2.0 * kt);
+            if j > 0 {
+                k.set(j, j - 1, -kt);
+            }
+        }
+        let contacts = match &self.obstacle {
+            Some(o) => {
+                let nodes: Vec<(usize, f64)> = (0..n).map(|j| (j, self.x(j))).collect();
+                o.contacts(&nodes, l, &q0)?
+            }
+            None => Vec::new(),
+        };
+        LinearModel::new(
+            SymBand::diagonal(&vec![self.linear_density * dx; n]),
+            SymBand::zeros(n, 0),
+            k,
+            Forcing {
+                constant: vec![0.0; n],
+                harmonic: vec![],
+            },
+            contacts,
+            q0,
+            vec![0.0; n],
         )
     }
 }
@@ -425,6 +650,11 @@ pub struct BarSpec {
     pub harmonic_force: Option<HarmonicSpec>,
     /// Obstacle motion `amplitude · sin(omega t)`.
     pub wall_motion: Option<HarmonicSpec>,
+    /// A distributed obstacle under the bar's displacement (a unilateral foundation): a
+    /// contact `u_i ≥ −offset + curvature (x_i − L/2)²` at every node but the right end, which
+    /// keeps its end contact. Moreau–Jean and the nonsmooth α-family only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub obstacle: Option<Obstacle>,
 }
 
 impl BarSpec {

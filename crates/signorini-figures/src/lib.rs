@@ -17,6 +17,7 @@
 
 pub mod modal;
 pub mod plot;
+pub mod region;
 pub mod study;
 pub mod trace;
 
@@ -44,6 +45,7 @@ pub fn render(charts: &[Chart]) -> Vec<Figure> {
             Chart::BackbonePanel(b) => modal::backbone_panel_figure(b),
             Chart::ContactEnd(ends) => modal::contact_end_figure(ends),
             Chart::WorkPrecision(w) => study::work_precision_figure(w),
+            Chart::ContactRegion(c) => region::contact_region_figure(c),
         })
         .collect()
 }

@@ -225,7 +225,10 @@ pub fn solve_friction(
     options: &LcpOptions,
 ) -> Result<FrictionSolution, FrictionError> {
     problem.validate()?;
-    if options.kind == LcpSolverKind::Enumeration {
+    if matches!(
+        options.kind,
+        LcpSolverKind::Enumeration | LcpSolverKind::BandedActiveSet
+    ) {
         return Err(FrictionError::UnsupportedSolver { kind: options.kind });
     }
     if let Some(s) = separation(problem) {

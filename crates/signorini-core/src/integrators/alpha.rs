@@ -63,14 +63,20 @@
 //! ΔH is evaluated in difference form (`½(v_{k+1}+v_k)ᵀ M Δv + …`) so that it keeps its relative
 //! accuracy when H is large and the step changes it little.
 //!
+//! **Many contacts.** With single-dof contacts and a lumped mass the columns above are not
+//! formed: the impulse solves `S x = R M⁻¹ G P` on the banded S (`BandedAlpha`,
+//! [`crate::banded_contact`]), the same complementarity problem with the same W.
+//!
 //! When ν = 0 (α_m = ½) the filters (48) vanish; the scheme then requires η = 0 (Remark 1), and
 //! the filter terms are zero.
 
 use super::{LinearScheme, LinearState, SchemeState, StepError, StepReport};
 use crate::band::{BandCholesky, BandError, SymBand};
+use crate::banded_contact::{BandedImpulse, uses_banded};
 use crate::checkpoint::CheckpointError;
 use crate::contact::{IndexSet, IndexSetRule, LcpStats};
 use crate::energy::EnergyTerms;
+use crate::lcp::active_set::ImpulseMap;
 use crate::lcp::{self, Lcp, LcpOptions};
 use crate::model::LinearModel;
 use std::fmt;
@@ -817,6 +823,24 @@ pub struct NonsmoothAlpha {
     w: Vec<f64>,
     index_set: IndexSet,
     lcp_m: Vec<f64>,
+    /// The banded path (many single-dof contacts, lumped mass), instead of the dense columns.
+    banded: Option<BandedAlpha>,
+}
+
+/// The α-family's impulse on the banded S: with `y = M⁻¹ G P` (the w_{k+1} of (25b)) and
+/// `z = S⁻¹ B y`, `B = (1−α_C) C + (1−α_K)(h/2) K`, the impulse changes a_{k+1} by −z,
+/// v_{k+1} by `y − γh z = S⁻¹ R y` and q_{k+1} by `(h/2) y − βh² z`, where
+/// `R = S − γh B = (1−α_M) M + (1−α_K) h²(β − γ/2) K`: the problem is `S x = R M⁻¹ G P`
+/// ([`ImpulseMap::Filtered`]), x the change of v_{k+1}.
+#[derive(Debug, Clone)]
+struct BandedAlpha {
+    impulse: BandedImpulse,
+    /// B.
+    b: SymBand,
+    /// Diagonal of M.
+    mass: Vec<f64>,
+    y: Vec<f64>,
+    z: Vec<f64>,
 }
 
 impl NonsmoothAlpha {
@@ -829,9 +853,48 @@ impl NonsmoothAlpha {
         lcp: LcpOptions,
     ) -> Result<Self, BandError> {
         let core = AlphaCore::new(model, params.coefficients(), h)?;
-        let (n, m) = (model.dofs(), model.contacts.len());
         let w8 = params.weights();
         let (beta, gamma) = (params.beta, params.gamma);
+        if uses_banded(model, lcp.kind, true) {
+            let n = model.dofs();
+            let s = SymBand::combine(&[
+                (1.0 - w8.mass, &model.mass),
+                ((1.0 - w8.damping) * gamma * h, &model.damping),
+                ((1.0 - w8.stiffness) * beta * h * h, &model.stiffness),
+            ]);
+            let r = SymBand::combine(&[
+                (1.0 - w8.mass, &model.mass),
+                (
+                    (1.0 - w8.stiffness) * h * h * (beta - 0.5 * gamma),
+                    &model.stiffness,
+                ),
+            ]);
+            let mass: Vec<f64> = (0..n).map(|i| model.mass.get(i, i)).collect();
+            let d = mass.iter().map(|m| 1.0 / m).collect();
+            let b = SymBand::combine(&[
+                (1.0 - w8.damping, &model.damping),
+                ((1.0 - w8.stiffness) * 0.5 * h, &model.stiffness),
+            ]);
+            return Ok(Self {
+                params,
+                lcp,
+                core,
+                a_cols: Vec::new(),
+                v_cols: Vec::new(),
+                q_cols: Vec::new(),
+                w: Vec::new(),
+                index_set: IndexSet::new(model.contacts.len()),
+                lcp_m: Vec::new(),
+                banded: Some(BandedAlpha {
+                    impulse: BandedImpulse::new(model, s, ImpulseMap::Filtered { r, d }),
+                    b,
+                    mass,
+                    y: vec![0.0; n],
+                    z: vec![0.0; n],
+                }),
+            });
+        }
+        let (n, m) = (model.dofs(), model.contacts.len());
         let mut a_cols = vec![0.0; n * m];
         let mut v_cols = vec![0.0; n * m];
         let mut q_cols = vec![0.0; n * m];
@@ -873,6 +936,7 @@ impl NonsmoothAlpha {
             w,
             index_set: IndexSet::new(model.contacts.len()),
             lcp_m: Vec::new(),
+            banded: None,
         })
     }
 
@@ -950,7 +1014,34 @@ impl LinearScheme for NonsmoothAlpha {
         );
         report.impulse.fill(0.0);
         report.lcp = LcpStats::default();
-        if !self.index_set.active.is_empty() {
+        if let Some(banded) = self.banded.as_mut() {
+            report.lcp = banded
+                .impulse
+                .apply(&mut self.index_set, &self.lcp, &mut report.impulse, step)
+                .map_err(|source| StepError::Lcp {
+                    step,
+                    t: t_next,
+                    source,
+                })?;
+            if report.lcp.size > 0 {
+                // y = M⁻¹ G P, z = S⁻¹ B y; a −= z, v += y − γh z, q += (h/2) y − βh² z.
+                banded.y.fill(0.0);
+                for &a in &self.index_set.active {
+                    let (dof, coef) = banded.impulse.unit(a);
+                    banded.y[dof] = coef * report.impulse[a] / banded.mass[dof];
+                }
+                banded.b.mul_into(&banded.y, &mut banded.z);
+                self.core.s_factor.solve_in_place(&mut banded.z);
+                let (beta, gamma) = (self.params.beta, self.params.gamma);
+                let s = &mut self.core.s;
+                for i in 0..n {
+                    let (y, z) = (banded.y[i], banded.z[i]);
+                    s.a[i] -= z;
+                    s.v[i] += y - gamma * h * z;
+                    s.q[i] += 0.5 * h * y - beta * h * h * z;
+                }
+            }
+        } else if !self.index_set.active.is_empty() {
             self.lcp_m.clear();
             for &a in &self.index_set.active {
                 for &b in &self.index_set.active {
@@ -992,8 +1083,10 @@ impl LinearScheme for NonsmoothAlpha {
                 }
             }
         }
-        self.index_set
-            .record_roundoff(&self.w, &report.impulse, step);
+        if self.banded.is_none() {
+            self.index_set
+                .record_roundoff(&self.w, &report.impulse, step);
+        }
         // work_contact = (Gᵀ v_{k+1/2})ᵀ P_{k+1} (Lemma 2; U_{k+1/2}ᵀP for a fixed obstacle).
         let mut work_contact = 0.0;
         for &a in &self.index_set.active {

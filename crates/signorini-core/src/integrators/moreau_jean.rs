@@ -12,7 +12,9 @@
 //! Eliminating q_{k+1} gives `Ŵ (v_{k+1} − v_k) = h(F_{k+θ} − K(q_k + θ h v_k) − C v_k) + G P`
 //! with the iteration matrix `Ŵ = M + θhC + θ²h²K` (variant: `M + θhC + ½θh²K`), factorised
 //! once per run. The free velocity is the solution with P = 0; the Delassus operator is
-//! `W = Gᵀ Ŵ⁻¹ G`.
+//! `W = Gᵀ Ŵ⁻¹ G`. With many single-dof contacts (a string on a bridge) W is never formed: the
+//! impulse solves `Ŵ x = G P`, `0 ≤ Gᵀ(v_free + x) + e U_k ⊥ P ≥ 0` on the banded Ŵ
+//! ([`crate::banded_contact`]), the same problem, so the energy terms below are unchanged.
 //!
 //! Energy terms (Lemma 1, (31)–(33)): `work_ext = h v_{k+θ}ᵀ F_{k+θ}`,
 //! `work_damping = −h v_{k+θ}ᵀ C v_{k+θ}`, `work_contact = v_{k+θ}ᵀ G P_{k+1}` (= U_{k+θ}ᵀP for a
@@ -36,10 +38,12 @@
 
 use super::{LinearScheme, LinearState, SchemeState, StepError, StepReport};
 use crate::band::{BandCholesky, BandError, SymBand};
+use crate::banded_contact::{BandedImpulse, uses_banded};
 use crate::checkpoint::CheckpointError;
 use crate::contact::{Delassus, FrictionDelassus, IndexSet, IndexSetRule};
 use crate::energy::EnergyTerms;
 use crate::lcp::LcpOptions;
+use crate::lcp::active_set::ImpulseMap;
 use crate::model::LinearModel;
 
 /// Parameters of the Moreau–Jean scheme.
@@ -72,6 +76,9 @@ pub struct MoreauJean {
     /// Cholesky factor of Ŵ.
     factor: BandCholesky,
     delassus: Delassus,
+    /// The banded impulse solver, when the model's contacts take it
+    /// ([`crate::banded_contact::uses_banded`]); the dense `delassus` is then empty.
+    banded: Option<BandedImpulse>,
     /// The Delassus operator with the tangent rows (models with friction).
     friction: Option<FrictionDelassus>,
     has_damping: bool,
@@ -120,7 +127,13 @@ impl MoreauJean {
             (k_coef, &model.stiffness),
         ]);
         let factor = w_hat.cholesky()?;
-        let delassus = Delassus::new(&factor, &model.contacts);
+        let banded = uses_banded(model, lcp.kind, false)
+            .then(|| BandedImpulse::new(model, w_hat, ImpulseMap::Direct));
+        let delassus = if banded.is_some() {
+            Delassus::new(&factor, &[])
+        } else {
+            Delassus::new(&factor, &model.contacts)
+        };
         let friction = model
             .has_friction()
             .then(|| FrictionDelassus::new(&factor, &model.contacts, &model.friction));
@@ -134,6 +147,7 @@ impl MoreauJean {
             lcp,
             factor,
             delassus,
+            banded,
             friction,
             has_damping: !model.damping.is_zero(),
             last_energy: None,
@@ -263,6 +277,21 @@ impl LinearScheme for MoreauJean {
                     source,
                 })?;
             self.index_set.record_levels(&s.levels, step);
+        } else if let Some(banded) = self.banded.as_mut() {
+            // The same problem on the banded Ŵ: Ŵ x = G P, Δv += x.
+            report.tangent_impulse.fill(0.0);
+            report.lcp = banded
+                .apply(&mut self.index_set, &self.lcp, &mut report.impulse, step)
+                .map_err(|source| StepError::Lcp {
+                    step,
+                    t: t_next,
+                    source,
+                })?;
+            if report.lcp.size > 0 {
+                for (dv, x) in s.dv.iter_mut().zip(banded.x()) {
+                    *dv += x;
+                }
+            }
         } else {
             report.tangent_impulse.fill(0.0);
             report.lcp = self

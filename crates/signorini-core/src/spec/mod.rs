@@ -101,7 +101,11 @@ fn default_max_iterations() -> usize {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ContactSolverSpec {
-    /// `auto` (default), `lemke`, `pgs` or `enum`.
+    /// `auto` (default), `lemke`, `pgs`, `enum` or `banded_active_set` (the impulse solved on
+    /// the banded iteration matrix, memory and time linear in the dofs: linear models whose
+    /// contacts are one dof each, no two on a dof, without friction; the α-family also needs a
+    /// lumped mass). `auto` takes `banded_active_set` for such models from 201 contacts on, and
+    /// otherwise enumeration up to 3 contacts in the index set, Lemke up to 200, PGS above.
     #[serde(default)]
     pub kind: LcpSolverKind,
     /// Largest complementarity error accepted, default 1e-12.

@@ -2,7 +2,7 @@
 //! nonlinear constrained ones in [`crate::soi2::models`]; the raw-matrix `linear` scene here.
 
 use super::lagrangian::LagrangianSpec;
-use crate::scenes::{BarSpec, BouncingBall, Chain};
+use crate::scenes::{BarSpec, BouncingBall, Chain, StringScene};
 use crate::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -19,6 +19,9 @@ pub enum ModelSpec {
     DepBar(BarSpec),
     /// Masses and springs, one contact per mass.
     Chain(Chain),
+    /// A transverse string with fixed ends, lumped nodes, optionally against a distributed
+    /// obstacle (a contact at every node).
+    String(StringScene),
     /// Raw matrices.
     Linear(LinearSpec),
     /// The pendulum (16) of Jay & Negrut 2008, Fig. 3 (SOI2 schemes).
@@ -51,6 +54,7 @@ impl ModelSpec {
             ModelSpec::Bar(_) => "bar",
             ModelSpec::DepBar(_) => "dep_bar",
             ModelSpec::Chain(_) => "chain",
+            ModelSpec::String(_) => "string",
             ModelSpec::Linear(_) => "linear",
             ModelSpec::Pendulum(_) => "pendulum",
             ModelSpec::SliderCrank(_) => "slider_crank",

@@ -398,7 +398,8 @@ fn exact_reference(model: &ModelSpec, base: &JobSpec, t_end: f64) -> Result<Refe
         ModelSpec::BouncingBall(b) => Ok(Reference::Ball(b.clone())),
         ModelSpec::DepBar(spec) => {
             let bar: Bar = spec.resolve(Bar::doyen_ern_piperno(100));
-            if bar.initial_displacement != 0.0
+            if spec.obstacle.is_some()
+                || bar.initial_displacement != 0.0
                 || bar.rayleigh_mass != 0.0
                 || bar.rayleigh_stiffness != 0.0
                 || bar.harmonic_force.is_some()

@@ -44,6 +44,14 @@ impl WaveJob {
 
     /// Time integration (`scheme = "wfem"`) of the `bar` or `dep_bar` scene `model`.
     pub fn integrate(model: &ModelSpec, spec: &JobSpec) -> Result<WaveJob, SpecError> {
+        if let ModelSpec::Bar(b) | ModelSpec::DepBar(b) = model
+            && b.obstacle.is_some()
+        {
+            return Err(SpecError::new(
+                "model.obstacle",
+                "scheme \"wfem\" takes the bar's end contact only: run a distributed obstacle with moreau_jean or the nonsmooth α-family",
+            ));
+        }
         let bar = match model {
             ModelSpec::Bar(b) => b.resolve(Bar::default()),
             ModelSpec::DepBar(b) => b.resolve(Bar::doyen_ern_piperno(100)),
