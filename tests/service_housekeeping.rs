@@ -387,14 +387,7 @@ async fn a_result_being_streamed_is_purged_only_after_its_reader_is_done() {
         .await
         .expect("submit");
     wait_terminal(&mut client, &id).await;
-    let mut stream = client
-        .stream_result(pb::GetResultRequest {
-            id: id.clone(),
-            ..Default::default()
-        })
-        .await
-        .expect("StreamResult")
-        .into_inner();
+    let mut stream = common::result_stream(&mut client, &id).await;
     let mut rows = 0;
     let mut count = |msg: pb::ResultChunk| {
         if let Some(pb::result_chunk::Part::Rows(r)) = msg.part {

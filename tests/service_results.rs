@@ -251,14 +251,7 @@ async fn a_result_of_many_chunks_streams_bit_for_bit_in_every_format() {
     assert_eq!(cut_rows, want);
 
     // gRPC StreamResult: every message under the default 4 MiB, rows in order, exact.
-    let mut stream = client
-        .stream_result(pb::GetResultRequest {
-            id: id.clone(),
-            ..Default::default()
-        })
-        .await
-        .expect("StreamResult")
-        .into_inner();
+    let mut stream = common::result_stream(&mut client, &id).await;
     let mut messages = 0;
     let mut got_header = None;
     let mut next_row = 0u64;
@@ -366,14 +359,7 @@ async fn fetching_a_large_result_leaves_the_servers_peak_memory_bounded() {
     assert_eq!(csv_rows.len(), 714_287);
     assert_eq!(csv_rows.last().map(|r| r.0), Some(5_000_000));
     drop((csv, csv_rows));
-    let mut stream = client
-        .stream_result(pb::GetResultRequest {
-            id: id.clone(),
-            ..Default::default()
-        })
-        .await
-        .expect("StreamResult")
-        .into_inner();
+    let mut stream = common::result_stream(&mut client, &id).await;
     let mut rows = 0;
     while let Some(msg) = stream.message().await.expect("stream") {
         if let Some(pb::result_chunk::Part::Rows(r)) = msg.part {

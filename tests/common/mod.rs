@@ -475,6 +475,21 @@ pub fn ball_typed(h: f64, steps: u64, every: u64) -> pb::JobSpec {
     }
 }
 
+/// The messages of gRPC `StreamResult` for a job's whole result.
+pub async fn result_stream(
+    client: &mut SimulationClient<Channel>,
+    id: &str,
+) -> tonic::Streaming<pb::ResultChunk> {
+    client
+        .stream_result(pb::GetResultRequest {
+            id: id.to_string(),
+            ..Default::default()
+        })
+        .await
+        .expect("StreamResult")
+        .into_inner()
+}
+
 /// Submits a JSON spec over gRPC.
 pub async fn submit_json(
     client: &mut SimulationClient<Channel>,
