@@ -28,14 +28,16 @@ impl Engine {
     /// history exactly once (a running job's buffer and the store's chunk index are read under
     /// the buffer's lock, which its observer holds while it moves rows to the store).
     pub fn history(&self, id: &str) -> Result<(JobView, History), ApiError> {
-        let mut readers = lock(&self.inner.readers);
+        let mut stored = self.reader(id);
         let live = lock(&self.inner.live).get(id).cloned();
         if let Some(live) = live {
             let recent = lock(&live.recent);
+            stored.columns = recent.columns.len();
+            stored.chunks = self.inner.store.series_index(id)?;
             let history = History {
                 id: id.to_string(),
                 columns: recent.columns.clone(),
-                stored: self.open_series(&mut readers, id, recent.columns.len())?,
+                stored,
                 recent: recent.rows.clone(),
                 recent_first_row: recent.first_row,
                 ended: false,
@@ -53,9 +55,11 @@ impl Engine {
         } else {
             Vec::new()
         };
+        stored.columns = columns.len();
+        stored.chunks = self.inner.store.series_index(id)?;
         let history = History {
             id: id.to_string(),
-            stored: self.open_series(&mut readers, id, columns.len())?,
+            stored,
             columns,
             recent: SeriesChunk::default(),
             recent_first_row: 0,

@@ -547,28 +547,24 @@ impl Engine {
     /// reading: until the [`Series`] is dropped the job cannot be purged, so a stream of it is
     /// never cut by a concurrent `DELETE …?purge=true` or the retention sweep.
     pub fn open_result(&self, id: &str) -> Result<(JobView, StoredResult, Series), ApiError> {
-        let mut readers = lock(&self.inner.readers);
+        // Registered before the reads: a purge from here on waits for the drop.
+        let mut series = self.reader(id);
         let (view, head) = self.result_head(id)?;
-        let series = self.open_series(&mut readers, id, head.columns.len())?;
+        series.columns = head.columns.len();
+        series.chunks = self.inner.store.series_index(id)?;
         Ok((view, head, series))
     }
 
-    /// A job's stored series with `columns` value columns, opened for reading under the lock of
-    /// the readers (taken by the caller, so that it covers what the caller read before).
-    fn open_series(
-        &self,
-        readers: &mut HashMap<String, usize>,
-        id: &str,
-        columns: usize,
-    ) -> Result<Series, ApiError> {
-        let chunks = self.inner.store.series_index(id)?;
-        *readers.entry(id.to_string()).or_default() += 1;
-        Ok(Series {
+    /// An empty [`Series`] of job `id`, registered as a reader (only the count is taken under
+    /// the lock; the store is read after it, outside).
+    fn reader(&self, id: &str) -> Series {
+        *lock(&self.inner.readers).entry(id.to_string()).or_default() += 1;
+        Series {
             inner: self.inner.clone(),
             id: id.to_string(),
-            columns,
-            chunks,
-        })
+            columns: 0,
+            chunks: Vec::new(),
+        }
     }
 
     /// Jobs per state (from the store).
