@@ -115,6 +115,7 @@ const EXTRA: &[&str] = &[
     r#"{"model":{"scene":"chain","force":[1.0,0.0,-1.0]},"integrator":{"scheme":"ns_newmark","beta":0.3,"gamma":0.55,"allow_unstable":true},"time":{"h":0.01,"t_end":0.1},"contact_solver":{"kind":"enum"}}"#,
     r#"{"model":{"scene":"bar","elements":10,"mass_matrix":"consistent","left":"free","wall_motion":{"amplitude":0.1,"omega":2.0},"initial_displacement":0.01,"body_force":1.0,"rayleigh_mass":0.1},"integrator":{"scheme":"ns_kh_alpha","alpha_m":0.1,"alpha_f":0.2,"beta":0.3,"gamma":0.6,"activation":"gap_and_velocity"},"time":{"h":0.01,"steps":5},"output":{"every":2,"probes":[0,9]}}"#,
     r#"{"model":{"scene":"chain"},"integrator":{"scheme":"hht_position_contact","alpha":0.1,"beta":0.3,"gamma":0.6},"time":{"h":0.01,"steps":5}}"#,
+    r#"{"model":{"scene":"bouncing_ball"},"time":{"h":0.01,"steps":10},"output":{"every":3,"checkpoint_seconds":2.5,"checkpoint_steps":7}}"#,
     r#"{"model":{"scene":"slider_crank","crank_speed":3.0},"integrator":{"scheme":"hht_i3","alpha":-0.1,"start":"lunk_simeon","newton_tolerance":1e-9,"newton_max_iterations":30,"newton":"full","consistency_tolerance":1e-7},"time":{"h":0.001,"steps":5}}"#,
     r#"{"model":{"scene":"pendulum","y0":[0.0,-2.0,4.71238898038469],"z0":[20.0,0.0,10.0]},"integrator":{"scheme":"soi2_generalized_alpha","alpha_m":0.1,"alpha_f":0.2,"beta":0.3,"gamma":0.6,"additive":false,"start":"lunk_simeon","consistency_tolerance":1e-6},"time":{"h":0.001,"steps":5}}"#,
     r#"{"model":{"scene":"jay_negrut_test","y0":[1.0,1.0],"z0":[1.0,-2.0]},"integrator":{"scheme":"soi2_hht"},"time":{"h":0.01,"t_end":0.1,"pattern":[1.0,2.0],"adjust":false}}"#,
@@ -634,11 +635,20 @@ mod random {
                 tolerance,
                 max_iterations,
             });
-        let output = (any::<u64>(), vec(n(), 0..4)).prop_map(|(every, probes)| OutputSpec {
-            every,
-            probes,
-            ..Default::default()
-        });
+        let output = (
+            any::<u64>(),
+            vec(n(), 0..4),
+            ox(),
+            proptest::option::of(any::<u64>()),
+        )
+            .prop_map(
+                |(every, probes, checkpoint_seconds, checkpoint_steps)| OutputSpec {
+                    every,
+                    probes,
+                    checkpoint_seconds,
+                    checkpoint_steps,
+                },
+            );
         (
             of("[a-z _-]{0,12}"),
             of(model()),

@@ -27,6 +27,7 @@ fn spec(
         output: Some(pb::OutputSpec {
             every: Some(1),
             probes: vec![0, 1],
+            ..Default::default()
         }),
         analysis: None,
     }

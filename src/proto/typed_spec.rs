@@ -544,14 +544,11 @@ fn output_to_proto(o: &OutputSpec) -> Result<pb::OutputSpec, JsonOnly> {
         checkpoint_seconds,
         checkpoint_steps,
     } = o;
-    if checkpoint_seconds.is_some() || checkpoint_steps.is_some() {
-        return Err(JsonOnly(
-            "output.checkpoint_seconds / output.checkpoint_steps",
-        ));
-    }
     Ok(pb::OutputSpec {
         every: Some(*every),
         probes: probes.iter().copied().map(u64_of).collect(),
+        checkpoint_seconds: *checkpoint_seconds,
+        checkpoint_steps: *checkpoint_steps,
     })
 }
 

@@ -719,7 +719,12 @@ fn contact_solver_spec(p: pb::ContactSolverSpec) -> Result<ContactSolverSpec, Sp
 }
 
 fn output_spec(p: pb::OutputSpec) -> Result<OutputSpec, SpecError> {
-    let pb::OutputSpec { every, probes } = p;
+    let pb::OutputSpec {
+        every,
+        probes,
+        checkpoint_seconds,
+        checkpoint_steps,
+    } = p;
     let d = OutputSpec::default();
     Ok(OutputSpec {
         every: every.unwrap_or(d.every),
@@ -727,9 +732,8 @@ fn output_spec(p: pb::OutputSpec) -> Result<OutputSpec, SpecError> {
             .into_iter()
             .map(|j| usize_of("output.probes", j))
             .collect::<Result<_, _>>()?,
-        // The checkpoint period is JSON-only: the typed spec keeps the default.
-        checkpoint_seconds: None,
-        checkpoint_steps: None,
+        checkpoint_seconds,
+        checkpoint_steps,
     })
 }
 

@@ -470,6 +470,7 @@ pub fn ball_typed(h: f64, steps: u64, every: u64) -> pb::JobSpec {
         output: Some(pb::OutputSpec {
             every: Some(every),
             probes: vec![],
+            ..Default::default()
         }),
         analysis: None,
     }
