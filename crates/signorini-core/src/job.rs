@@ -664,11 +664,19 @@ impl Observer for Stamp<'_> {
 }
 
 /// The hash a checkpoint of `spec` carries: FNV-1a 64 of the spec's JSON with the checkpoint
-/// period left out (a run may be resumed with another period and continue bit for bit).
+/// period and the run's end (`time.t_end`, `time.steps`) left out: a run may be resumed with
+/// another period, and a run's state after step k does not depend on where the run ends, so a
+/// checkpoint may be continued to a later end (the service's `extend`) and continue bit for
+/// bit. Every other field is hashed: a checkpoint of another model, scheme, step size or output
+/// is refused.
 pub fn spec_hash(spec: &JobSpec) -> u64 {
     let mut spec = spec.clone();
     spec.output.checkpoint_seconds = None;
     spec.output.checkpoint_steps = None;
+    if let Some(time) = spec.time.as_mut() {
+        time.t_end = None;
+        time.steps = None;
+    }
     // A JobSpec is plain data (no map with non-string keys): its JSON always serialises.
     let json = serde_json::to_vec(&spec).unwrap_or_default();
     crate::checkpoint::fnv1a(&json)
