@@ -44,6 +44,16 @@ pub enum ApiError {
         /// Its state.
         state: &'static str,
     },
+    /// The job is not in a state (or of a kind) that allows the call: pause, resume, extend.
+    #[error("job {id} is {state}: {reason}")]
+    WrongState {
+        /// The job.
+        id: String,
+        /// Its state.
+        state: &'static str,
+        /// What the call needs, or why the job cannot do it.
+        reason: String,
+    },
     /// The job's result is being streamed: it cannot be removed until the readers are done.
     #[error("job {id}'s result is being read by {readers} client(s): remove it when they are done")]
     BeingRead {
@@ -110,6 +120,7 @@ impl ApiError {
             | ApiError::AlreadyExists { .. }
             | ApiError::NoResult { .. }
             | ApiError::Unfinished { .. }
+            | ApiError::WrongState { .. }
             | ApiError::BeingRead { .. } => ("id".into(), self.to_string()),
             ApiError::NoFigure { .. } => ("figure".into(), self.to_string()),
             ApiError::Body { .. } => ("body".into(), self.to_string()),

@@ -17,16 +17,20 @@ pub enum JobState {
     Failed,
     /// Stopped by a cancel call.
     Cancelled,
+    /// Parked by a pause call: not queued, not finished; its checkpoint (if it ran) and its
+    /// series are kept, and a resume call queues it again to continue from that checkpoint.
+    Paused,
 }
 
 impl JobState {
     /// Every state, in lifecycle order.
-    pub const ALL: [JobState; 5] = [
+    pub const ALL: [JobState; 6] = [
         JobState::Queued,
         JobState::Running,
         JobState::Succeeded,
         JobState::Failed,
         JobState::Cancelled,
+        JobState::Paused,
     ];
 
     /// The name used in HTTP bodies, the store and metrics.
@@ -37,6 +41,7 @@ impl JobState {
             JobState::Succeeded => "succeeded",
             JobState::Failed => "failed",
             JobState::Cancelled => "cancelled",
+            JobState::Paused => "paused",
         }
     }
 

@@ -2,56 +2,20 @@
 //! store; the job continues from its last stored checkpoint (not from step 0) and its final
 //! result equals an uninterrupted run's bit for bit (every column of the series, the summary
 //! without its wall time, the figures). A damaged checkpoint row is dropped and the job reruns
-//! from step 0, to the same result.
+//! from step 0, to the same result. A graceful shutdown (SIGTERM) writes a last checkpoint after
+//! the step it interrupts: the restart computes only the steps after it. A succeeded job keeps
+//! its final state (the checkpoint after its last step), the running checkpoint goes.
 
 mod common;
 
+use common::fingerprint::{fingerprint, result};
 use common::{Options, TestServer, submit_json, wait_running, wait_terminal};
 use signorini::proto::v1 as pb;
 use signorini::store::Store;
-use tonic::transport::Channel;
-
-type Client = pb::simulation_client::SimulationClient<Channel>;
 
 /// A bouncing ball of a few seconds, recording every 1000th step, checkpointing every 200 000.
 fn long_ball() -> String {
     r#"{"name":"ball","model":{"scene":"bouncing_ball","restitution":0.8},"time":{"h":1e-5,"steps":4000000},"output":{"every":1000,"checkpoint_steps":200000}}"#.to_string()
-}
-
-async fn result(client: &mut Client, id: &str) -> pb::JobResult {
-    client
-        .get_result(pb::GetResultRequest {
-            id: id.to_string(),
-            ..Default::default()
-        })
-        .await
-        .expect("result")
-        .into_inner()
-}
-
-/// A result's summary (without the wall time and rate), times, series (as bits) and figures.
-type Fingerprint = (String, Vec<u64>, Vec<(String, Vec<u64>)>, Vec<String>);
-
-/// The result as values that tell every f64 apart, without the wall time and rate.
-fn fingerprint(r: &pb::JobResult) -> Fingerprint {
-    let mut summary: serde_json::Map<String, serde_json::Value> =
-        serde_json::from_str(&r.summary_json).expect("summary");
-    summary.remove("wall_s");
-    summary.remove("steps_per_s");
-    (
-        serde_json::to_string(&summary).expect("summary"),
-        r.t.iter().map(|x| x.to_bits()).collect(),
-        r.series
-            .iter()
-            .map(|s| {
-                (
-                    s.column.clone(),
-                    s.values.iter().map(|v| v.to_bits()).collect(),
-                )
-            })
-            .collect(),
-        r.figures.iter().map(|f| f.svg.clone()).collect(),
-    )
 }
 
 /// What [`kill_restart`] saw.
@@ -80,6 +44,16 @@ async fn steps_total(server: &TestServer) -> u64 {
 /// Runs the long job on a server, kills it -9 once a checkpoint is stored, then (after
 /// `tamper` on the store) restarts, lets it finish and runs the same spec whole.
 async fn kill_restart(tamper: impl FnOnce(&Store, &str)) -> Seen {
+    interrupt_restart(&long_ball(), TestServer::kill9, tamper).await
+}
+
+/// Runs `spec` on a server, stops it with `stop` after 10⁶ steps, then (after `tamper` on the
+/// store) restarts, lets the job finish and runs the same spec whole.
+async fn interrupt_restart(
+    spec: &str,
+    stop: impl FnOnce(&mut TestServer),
+    tamper: impl FnOnce(&Store, &str),
+) -> Seen {
     let dir = tempfile::tempdir().expect("tempdir");
     let store = dir.path().join("store.db");
     let opts = Options {
@@ -88,12 +62,12 @@ async fn kill_restart(tamper: impl FnOnce(&Store, &str)) -> Seen {
     };
     let mut first = TestServer::start(&store, &opts);
     let mut client = first.grpc().await;
-    let id = submit_json(&mut client, long_ball(), Some("interrupted"))
+    let id = submit_json(&mut client, spec.to_string(), Some("interrupted"))
         .await
         .expect("submit");
     wait_running(&mut client, &id, 1_000_000).await;
     drop(client);
-    first.kill9();
+    stop(&mut first);
 
     let checkpoint_step = {
         let s = Store::open(&store).expect("store");
@@ -102,7 +76,7 @@ async fn kill_restart(tamper: impl FnOnce(&Store, &str)) -> Seen {
             .expect("load")
             .expect("a checkpoint after 10⁶ steps");
         assert_eq!(attempt, 0);
-        assert!(step >= 200_000 && step.is_multiple_of(200_000), "{step}");
+        assert!(step >= 200_000, "{step}");
         tamper(&s, &id);
         step
     };
@@ -112,7 +86,7 @@ async fn kill_restart(tamper: impl FnOnce(&Store, &str)) -> Seen {
     let s = wait_terminal(&mut client, &id).await;
     assert_eq!(s.state, pb::JobState::Succeeded as i32, "{s:?}");
     let resumed = result(&mut client, &id).await;
-    let whole_id = submit_json(&mut client, long_ball(), Some("whole"))
+    let whole_id = submit_json(&mut client, spec.to_string(), Some("whole"))
         .await
         .expect("submit whole");
     let s = wait_terminal(&mut client, &whole_id).await;
@@ -125,6 +99,11 @@ async fn kill_restart(tamper: impl FnOnce(&Store, &str)) -> Seen {
     let s = Store::open(&store).expect("store");
     assert!(s.load_checkpoint(&id).expect("load").is_none());
     assert!(s.load_checkpoint(&whole_id).expect("load").is_none());
+    // A succeeded job keeps the checkpoint after its last step as its final state (for extend).
+    for job in [&id, &whole_id] {
+        let (step, _) = s.final_state(job).expect("load").expect("a final state");
+        assert_eq!(step, 4_000_000);
+    }
     Seen {
         resumed,
         whole,
@@ -141,6 +120,7 @@ async fn kill9_then_restart_resumes_from_the_checkpoint_bit_for_bit() {
         checkpoint_step,
         steps_after_restart,
     } = kill_restart(|_, _| {}).await;
+    assert!(checkpoint_step.is_multiple_of(200_000), "{checkpoint_step}");
     // The restarted server computed the steps after the checkpoint, and the whole run.
     assert_eq!(
         steps_after_restart,
@@ -167,4 +147,37 @@ async fn a_damaged_checkpoint_reruns_the_job_from_step_zero() {
     assert_eq!(seen.steps_after_restart, 8_000_000);
     assert_eq!(seen.resumed.step, seen.whole.step);
     assert_eq!(fingerprint(&seen.resumed), fingerprint(&seen.whole));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sigterm_writes_a_last_checkpoint_and_the_restart_loses_nothing() {
+    // No checkpoint period of steps: the default 30 s, so the checkpoint the restart continues
+    // from is the one the graceful shutdown wrote after the step it was at.
+    let spec = long_ball().replace(r#","checkpoint_steps":200000"#, "");
+    assert!(!spec.contains("checkpoint_steps"));
+    let Seen {
+        resumed,
+        whole,
+        checkpoint_step,
+        steps_after_restart,
+    } = interrupt_restart(
+        &spec,
+        |server| {
+            let (status, _) = server
+                .terminate(std::time::Duration::from_secs(60))
+                .expect("the server exits after SIGTERM");
+            assert!(status.success(), "{status:?}");
+        },
+        |_, _| {},
+    )
+    .await;
+    // Written after the step the run was at when SIGTERM came (at least 10⁶): the restarted
+    // server computed only the steps after it, and the whole run.
+    assert!(checkpoint_step >= 1_000_000, "{checkpoint_step}");
+    assert_eq!(
+        steps_after_restart,
+        (4_000_000 - checkpoint_step) + 4_000_000
+    );
+    assert_eq!(resumed.step, whole.step);
+    assert_eq!(fingerprint(&resumed), fingerprint(&whole));
 }

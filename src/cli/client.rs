@@ -74,7 +74,7 @@ pub struct IdArgs {
 /// `signorini list`.
 #[derive(Debug, Args)]
 pub struct ListArgs {
-    /// Only jobs in this state (queued, running, succeeded, failed, cancelled).
+    /// Only jobs in this state (queued, running, succeeded, failed, cancelled, paused).
     #[arg(long)]
     pub state: Option<String>,
     /// Most jobs to show (the server's default page is 100, its largest 1000).
@@ -321,7 +321,7 @@ pub fn list(args: ListArgs) -> Result<()> {
             Some(st) => crate::proto::encode::state_to_proto(st),
             None => {
                 return Err(anyhow!(
-                    "--state {s:?} is not one of queued, running, succeeded, failed, cancelled"
+                    "--state {s:?} is not one of queued, running, succeeded, failed, cancelled, paused"
                 ));
             }
         },

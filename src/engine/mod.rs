@@ -16,6 +16,7 @@ pub mod events;
 mod history;
 pub mod ids;
 mod observer;
+mod pause;
 
 use crate::config::Limits;
 use crate::error::ApiError;
@@ -63,6 +64,8 @@ struct LiveJob {
     job: Job,
     created_ms: u64,
     cancel: AtomicBool,
+    /// A pause was asked: the run writes a checkpoint after its next step and stops there.
+    pause: AtomicBool,
     running: AtomicBool,
     started_ms: AtomicU64,
     done: AtomicU64,
@@ -461,6 +464,7 @@ impl Engine {
                 state: live.view().state.as_str(),
             });
         }
+        self.refuse_paused_delete(id)?;
         // Held over the removal: no reader opens the result in between.
         let readers = lock(&self.inner.readers);
         if let Some(&n) = readers.get(id) {
@@ -488,6 +492,9 @@ impl Engine {
     pub fn cancel(&self, id: &str) -> Result<JobView, ApiError> {
         let live = lock(&self.inner.live).get(id).cloned();
         let Some(live) = live else {
+            if let Some(view) = self.cancel_paused(id)? {
+                return Ok(view);
+            }
             if let Some(q) = self.inner.store.shared() {
                 // Queued, or running on another replica (stopped at its next heartbeat).
                 if let CancelOutcome::Cancelled(view) = q.request_cancel(id, now_ms())? {
@@ -657,6 +664,7 @@ fn new_live(id: String, name: Option<String>, job: Job, created_ms: u64) -> Live
         job,
         created_ms,
         cancel: AtomicBool::new(false),
+        pause: AtomicBool::new(false),
         running: AtomicBool::new(false),
         started_ms: AtomicU64::new(0),
         done: AtomicU64::new(0),
@@ -815,6 +823,7 @@ fn heartbeat_loop(inner: &Inner) {
                     match reply {
                         BeatReply::Held => {}
                         BeatReply::CancelRequested => live.cancel.store(true, Ordering::Release),
+                        BeatReply::PauseRequested => live.pause.store(true, Ordering::Release),
                         BeatReply::Lost => {
                             tracing::warn!(%id, "lease lost: another replica runs the job now");
                             live.cancel.store(true, Ordering::Release);
@@ -885,7 +894,8 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     };
     let (state, error, result) = match outcome {
         Ok(Ok(output)) => {
-            let run = finish_run(output, wall);
+            let mut run = finish_run(output, wall);
+            pause::mark_extension(inner, &live.id, &mut run.summary);
             let result = StoredResult {
                 summary: run.summary,
                 columns: columns.clone(),
@@ -894,6 +904,12 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
                 ..StoredResult::default()
             };
             (JobState::Succeeded, None, Some(result))
+        }
+        Ok(Err(RunError::Stopped { .. }))
+            if !live.cancel.load(Ordering::Acquire) && live.pause.load(Ordering::Acquire) =>
+        {
+            pause::park(inner, live);
+            return;
         }
         Ok(Err(RunError::Stopped { .. })) if !live.cancel.load(Ordering::Acquire) => {
             // Server shutdown: leave the job `running` in the store; the next start re-runs it
@@ -1014,7 +1030,11 @@ fn end_job(
         view.state = JobState::Failed;
         view.error = Some(("store".into(), e.to_string()));
     }
-    // An ended job is not resumed: its checkpoint goes.
+    // An ended job is not resumed: its checkpoint goes (a succeeded one's, written after its
+    // last step, is first kept as its final state, which `extend` continues from).
+    if view.state == JobState::Succeeded {
+        pause::keep_final_state(inner, &view);
+    }
     if let Err(e) = inner.store.delete_checkpoint(&live.id) {
         tracing::error!(id = %live.id, "store: {e}");
     }

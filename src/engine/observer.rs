@@ -54,7 +54,8 @@ struct Checkpoints {
     last: Instant,
     /// The run's attempt number (0 for the first run, one more per resume).
     attempt: u64,
-    /// A checkpoint was written after the server began to shut down: the run may stop.
+    /// A checkpoint was written after the server began to shut down, or after a pause was
+    /// asked: the run stops before its next record or progress.
     final_written: bool,
 }
 
@@ -182,6 +183,12 @@ impl<'a> ServiceObserver<'a> {
         Ok(())
     }
 
+    /// True once a checkpoint was written after a shutdown began or a pause was asked: the run
+    /// stops there.
+    fn stops_after_checkpoint(&self) -> bool {
+        self.checkpoints.as_ref().is_some_and(|c| c.final_written)
+    }
+
     /// Stores the last recorded rows and returns the column names (empty for a run that
     /// recorded no series), or why the series could not be stored.
     pub(super) fn finish_series(&mut self) -> Result<Vec<String>, StoreError> {
@@ -220,6 +227,10 @@ impl Observer for ServiceObserver<'_> {
     }
 
     fn observe(&mut self, record: &StepRecord<'_>) -> ControlFlow<()> {
+        if self.stops_after_checkpoint() {
+            // Nothing after the last checkpoint is recorded: the run continues from it.
+            return ControlFlow::Break(());
+        }
         let stamp = now_ns();
         let mut recent = lock(&self.live.recent);
         recent.rows.steps.push(record.step);
@@ -242,6 +253,10 @@ impl Observer for ServiceObserver<'_> {
     }
 
     fn progress(&mut self, p: Progress) -> ControlFlow<()> {
+        if self.stops_after_checkpoint() {
+            // The progress stays at the checkpoint's step, where the run continues.
+            return ControlFlow::Break(());
+        }
         self.live.done.store(p.done, Ordering::Relaxed);
         self.live.total.store(p.total, Ordering::Relaxed);
         self.live.t_bits.store(p.t.to_bits(), Ordering::Relaxed);
@@ -251,9 +266,11 @@ impl Observer for ServiceObserver<'_> {
             self.last_status = Instant::now();
             self.inner.sink.offer(JobEvent::Status(self.live.view()));
         }
-        // At shutdown, a run that checkpoints stops after its next checkpoint.
-        let shutdown = self.inner.shutdown.load(Ordering::Relaxed)
-            && self.checkpoints.as_ref().is_none_or(|c| c.final_written);
+        // At shutdown or at a pause, a run that checkpoints stops after its next checkpoint
+        // (above); one that does not stops now.
+        let shutdown = (self.inner.shutdown.load(Ordering::Relaxed)
+            || self.live.pause.load(Ordering::Relaxed))
+            && self.checkpoints.is_none();
         if self.live.cancel.load(Ordering::Relaxed) || shutdown || self.store_error.is_some() {
             return ControlFlow::Break(());
         }
@@ -265,6 +282,9 @@ impl Observer for ServiceObserver<'_> {
             return false;
         };
         self.inner.shutdown.load(Ordering::Relaxed)
+            || self.live.pause.load(Ordering::Relaxed)
+            // After the last step: the final state a succeeded job keeps (for `extend`).
+            || p.done == p.total
             || c.period.steps.is_some_and(|n| p.done.is_multiple_of(n))
             || (p.done.is_multiple_of(16) && c.last.elapsed().as_secs_f64() >= c.period.seconds)
     }
@@ -290,7 +310,8 @@ impl Observer for ServiceObserver<'_> {
             Ok(()) => {
                 if let Some(c) = &mut self.checkpoints {
                     c.last = Instant::now();
-                    c.final_written = self.inner.shutdown.load(Ordering::Relaxed);
+                    c.final_written = self.inner.shutdown.load(Ordering::Relaxed)
+                        || self.live.pause.load(Ordering::Relaxed);
                 }
             }
             Err(e) => {

@@ -17,6 +17,7 @@ pub fn state_to_proto(s: JobState) -> pb::JobState {
         JobState::Succeeded => pb::JobState::Succeeded,
         JobState::Failed => pb::JobState::Failed,
         JobState::Cancelled => pb::JobState::Cancelled,
+        JobState::Paused => pb::JobState::Paused,
     }
 }
 
@@ -29,6 +30,7 @@ pub fn state_from_proto(s: i32) -> Option<JobState> {
         pb::JobState::Succeeded => Some(JobState::Succeeded),
         pb::JobState::Failed => Some(JobState::Failed),
         pb::JobState::Cancelled => Some(JobState::Cancelled),
+        pb::JobState::Paused => Some(JobState::Paused),
     }
 }
 

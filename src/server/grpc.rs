@@ -56,6 +56,7 @@ pub fn to_status(e: ApiError) -> Status {
         ApiError::NoResult { .. } | ApiError::Unfinished { .. } | ApiError::BeingRead { .. } => {
             Code::FailedPrecondition
         }
+        ApiError::WrongState { .. } => Code::FailedPrecondition,
         ApiError::Unauthenticated => Code::Unauthenticated,
         ApiError::Unavailable => Code::Unavailable,
         ApiError::Internal(_) => Code::Internal,
@@ -254,6 +255,43 @@ impl Simulation for SimulationService {
             .map_err(|e| Status::internal(e.to_string()))?
             .map_err(to_status)?;
         Ok(Response::new(pb::DeleteJobResponse { id }))
+    }
+
+    async fn pause_job(
+        &self,
+        req: Request<pb::PauseJobRequest>,
+    ) -> Result<Response<pb::JobStatus>, Status> {
+        self.authorize(&req)?;
+        let pb::PauseJobRequest { id } = req.into_inner();
+        let view = self.state.pause_and_wait(&id).await.map_err(to_status)?;
+        Ok(Response::new(status_to_proto(&view)))
+    }
+
+    async fn resume_job(
+        &self,
+        req: Request<pb::ResumeJobRequest>,
+    ) -> Result<Response<pb::JobStatus>, Status> {
+        self.authorize(&req)?;
+        let pb::ResumeJobRequest { id } = req.into_inner();
+        let view = self.state.resume_job(&id).await.map_err(to_status)?;
+        Ok(Response::new(status_to_proto(&view)))
+    }
+
+    async fn extend_job(
+        &self,
+        req: Request<pb::ExtendJobRequest>,
+    ) -> Result<Response<pb::ExtendJobResponse>, Status> {
+        self.authorize(&req)?;
+        let pb::ExtendJobRequest { id, t_end, new_id } = req.into_inner();
+        let new = self
+            .state
+            .extend_job(&id, t_end, new_id)
+            .await
+            .map_err(to_status)?;
+        Ok(Response::new(pb::ExtendJobResponse {
+            id: new,
+            extends: id,
+        }))
     }
 
     async fn cancel_job(

@@ -16,7 +16,7 @@ use axum::extract::{DefaultBodyLimit, Path, Query, State};
 use axum::http::{HeaderMap, Method, StatusCode, Uri, header};
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{Html, IntoResponse, Response};
-use axum::routing::get;
+use axum::routing::{get, post};
 use axum::{Json, Router};
 use serde::Deserialize;
 use serde_json::{Value, json};
@@ -41,6 +41,7 @@ impl IntoResponse for ApiError {
             ApiError::AlreadyExists { .. }
             | ApiError::NoResult { .. }
             | ApiError::Unfinished { .. }
+            | ApiError::WrongState { .. }
             | ApiError::BeingRead { .. } => StatusCode::CONFLICT,
             ApiError::QueueFull { .. } => StatusCode::TOO_MANY_REQUESTS,
             ApiError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
@@ -76,6 +77,9 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/jobs/{id}/figures", get(list_figures))
         .route("/v1/jobs/{id}/figures/{name}", get(get_figure))
         .route("/v1/jobs/{id}/events", get(job_events))
+        .route("/v1/jobs/{id}/pause", post(super::pause::pause_job))
+        .route("/v1/jobs/{id}/resume", post(super::pause::resume_job))
+        .route("/v1/jobs/{id}/extend", post(super::pause::extend_job))
         .route("/v1/capabilities", get(capabilities))
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))
@@ -172,7 +176,9 @@ async fn list_jobs(
         Some(s) => Some(JobState::parse(s).ok_or_else(|| {
             signorini_core::spec::SpecError::new(
                 "state",
-                format!("{s:?} is not one of queued, running, succeeded, failed, cancelled"),
+                format!(
+                    "{s:?} is not one of queued, running, succeeded, failed, cancelled, paused"
+                ),
             )
         })?),
     };
@@ -196,7 +202,16 @@ async fn get_job(
     State(state): State<AppState>,
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
-    Ok(status_body(&state.engine.status(&id)?))
+    let view = state.engine.status(&id)?;
+    // An extension names the job it continues.
+    match state.engine.extends(&id)? {
+        Some(first) => {
+            let mut body = json!(StatusJson::from(&view));
+            body["extends"] = Value::String(first);
+            Ok(Json(body).into_response())
+        }
+        None => Ok(status_body(&view)),
+    }
 }
 
 /// `?purge=true` of `DELETE /v1/jobs/{id}`.

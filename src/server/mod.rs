@@ -5,6 +5,7 @@ pub mod convert;
 pub mod grpc;
 pub mod http;
 pub mod json;
+mod pause;
 pub mod results;
 
 use crate::config::ServeConfig;

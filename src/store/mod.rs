@@ -10,6 +10,7 @@
 //! (little-endian `u64`/`f64` blobs: what is read back is what was computed, bit for bit),
 //! appended while the job runs, read back one chunk at a time.
 
+pub mod pause;
 pub mod postgres;
 pub mod sqlite;
 
@@ -369,7 +370,7 @@ pub(crate) fn batches_blob(rows: &SeriesChunk) -> Vec<u8> {
 
 /// What every store does (see the module documentation). Blocking calls: the engine calls them
 /// from its worker threads, the servers from blocking contexts or for short reads.
-pub trait Backend: Send + Sync {
+pub trait Backend: Send + Sync + pause::PauseStore {
     /// Records a new queued job with its spec (JSON). False when the id is taken.
     fn insert(&self, row: &JobView, spec_json: &str) -> Result<bool, StoreError>;
 
@@ -515,6 +516,8 @@ pub enum BeatReply {
     Held,
     /// The lease was renewed and a client asked (on any replica) to cancel the job.
     CancelRequested,
+    /// The lease was renewed and a client asked (on any replica) to pause the job.
+    PauseRequested,
     /// The job is no longer this replica's (its lease ran out and another replica claimed it):
     /// stop running it.
     Lost,

@@ -40,6 +40,8 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
 use tokio_postgres::{AsyncMessage, NoTls, Row};
 
+mod pause;
+
 /// The migrations, in order: (version, name, SQL).
 const MIGRATIONS: &[(i64, &str, &str)] = &[
     (
@@ -51,6 +53,11 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
         2,
         "0002_checkpoints",
         include_str!("../../migrations/postgres/0002_checkpoints.sql"),
+    ),
+    (
+        4,
+        "0004_pause",
+        include_str!("../../migrations/postgres/0004_pause.sql"),
     ),
 ];
 
@@ -968,7 +975,7 @@ impl SharedQueue for PgStore {
                             done = u.done, total = u.total, t = u.t
                      FROM unnest($3::TEXT[], $4::BIGINT[], $5::BIGINT[], $6::FLOAT8[]) AS u(id, done, total, t)
                      WHERE j.id = u.id AND j.owner = $1 AND j.state = 'running'
-                     RETURNING j.id, j.cancel_requested").await.map_err(pg)?,
+                     RETURNING j.id, j.cancel_requested, j.pause_requested").await.map_err(pg)?,
                     &[&owner, &lease, &ids, &done, &total, &t],
                 )
                 .await
@@ -977,14 +984,16 @@ impl SharedQueue for PgStore {
             for r in &rows {
                 let id: String = r.try_get(0).map_err(pg)?;
                 let cancel: bool = r.try_get(1).map_err(pg)?;
-                held.push((id, cancel));
+                let pause: bool = r.try_get(2).map_err(pg)?;
+                held.push((id, cancel, pause));
             }
             Ok(ids
                 .into_iter()
                 .map(|id| {
-                    let reply = match held.iter().find(|(h, _)| *h == id) {
-                        Some((_, true)) => BeatReply::CancelRequested,
-                        Some((_, false)) => BeatReply::Held,
+                    let reply = match held.iter().find(|(h, _, _)| *h == id) {
+                        Some((_, true, _)) => BeatReply::CancelRequested,
+                        Some((_, false, true)) => BeatReply::PauseRequested,
+                        Some((_, false, false)) => BeatReply::Held,
                         None => BeatReply::Lost,
                     };
                     (id, reply)

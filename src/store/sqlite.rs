@@ -24,6 +24,8 @@ use rusqlite::{Connection, OptionalExtension, params};
 use std::path::Path;
 use std::sync::Mutex;
 
+mod pause;
+
 /// The SQLite store (one connection behind a mutex: calls are short).
 pub struct SqliteStore {
     conn: Mutex<Connection>,
@@ -284,6 +286,7 @@ impl SqliteStore {
         conn.busy_timeout(std::time::Duration::from_secs(5))?;
         conn.execute_batch(SCHEMA)?;
         migrate(&mut conn)?;
+        pause::create_tables(&conn)?;
         Ok(SqliteStore {
             conn: Mutex::new(conn),
         })
@@ -528,6 +531,7 @@ impl Backend for SqliteStore {
         tx.execute("DELETE FROM checkpoints WHERE id = ?1", [id])?;
         tx.execute("DELETE FROM result_chunks WHERE id = ?1", [id])?;
         tx.execute("DELETE FROM results WHERE id = ?1", [id])?;
+        pause::delete_job(&tx, id)?;
         let n = tx.execute("DELETE FROM jobs WHERE id = ?1", [id])?;
         tx.commit()?;
         Ok(n == 1)

@@ -5,6 +5,7 @@
 #![allow(dead_code)]
 
 pub mod browser;
+pub mod fingerprint;
 pub mod pg;
 
 use http_body_util::{BodyExt, Full};

@@ -25,6 +25,7 @@ STATES = {
     service_pb2.JOB_STATE_SUCCEEDED: "succeeded",
     service_pb2.JOB_STATE_FAILED: "failed",
     service_pb2.JOB_STATE_CANCELLED: "cancelled",
+    service_pb2.JOB_STATE_PAUSED: "paused",
 }
 TERMINAL = {"succeeded", "failed", "cancelled"}
 

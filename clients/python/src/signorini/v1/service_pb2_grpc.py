@@ -79,6 +79,21 @@ class SimulationStub:
                 request_serializer=signorini_dot_v1_dot_service__pb2.CapabilitiesRequest.SerializeToString,
                 response_deserializer=signorini_dot_v1_dot_service__pb2.CapabilitiesResponse.FromString,
                 _registered_method=True)
+        self.PauseJob = channel.unary_unary(
+                '/signorini.v1.Simulation/PauseJob',
+                request_serializer=signorini_dot_v1_dot_service__pb2.PauseJobRequest.SerializeToString,
+                response_deserializer=signorini_dot_v1_dot_service__pb2.JobStatus.FromString,
+                _registered_method=True)
+        self.ResumeJob = channel.unary_unary(
+                '/signorini.v1.Simulation/ResumeJob',
+                request_serializer=signorini_dot_v1_dot_service__pb2.ResumeJobRequest.SerializeToString,
+                response_deserializer=signorini_dot_v1_dot_service__pb2.JobStatus.FromString,
+                _registered_method=True)
+        self.ExtendJob = channel.unary_unary(
+                '/signorini.v1.Simulation/ExtendJob',
+                request_serializer=signorini_dot_v1_dot_service__pb2.ExtendJobRequest.SerializeToString,
+                response_deserializer=signorini_dot_v1_dot_service__pb2.ExtendJobResponse.FromString,
+                _registered_method=True)
 
 
 class SimulationServicer:
@@ -150,6 +165,33 @@ class SimulationServicer:
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
 
+    def PauseJob(self, request, context):
+        """Pauses a job: a running one writes a checkpoint after its next step and stops there, a
+        queued one is parked; either is left PAUSED (not finished). FAILED_PRECONDITION naming the
+        state for a job in any other state, or for a job whose scheme family writes no checkpoints;
+        NOT_FOUND for an unknown id.
+        """
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
+    def ResumeJob(self, request, context):
+        """Queues a paused job again; it continues from its checkpoint (on any replica with a shared
+        store). FAILED_PRECONDITION naming the state when the job is not paused.
+        """
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
+    def ExtendJob(self, request, context):
+        """A new job that continues a succeeded job from its final state to a later `t_end`; its
+        result holds the rows after the first job's end, and its summary names the first job
+        (`extends`). INVALID_ARGUMENT naming `t_end` when it is not after the first job's end.
+        """
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
 
 def add_SimulationServicer_to_server(servicer, server):
     rpc_method_handlers = {
@@ -197,6 +239,21 @@ def add_SimulationServicer_to_server(servicer, server):
                     servicer.Capabilities,
                     request_deserializer=signorini_dot_v1_dot_service__pb2.CapabilitiesRequest.FromString,
                     response_serializer=signorini_dot_v1_dot_service__pb2.CapabilitiesResponse.SerializeToString,
+            ),
+            'PauseJob': grpc.unary_unary_rpc_method_handler(
+                    servicer.PauseJob,
+                    request_deserializer=signorini_dot_v1_dot_service__pb2.PauseJobRequest.FromString,
+                    response_serializer=signorini_dot_v1_dot_service__pb2.JobStatus.SerializeToString,
+            ),
+            'ResumeJob': grpc.unary_unary_rpc_method_handler(
+                    servicer.ResumeJob,
+                    request_deserializer=signorini_dot_v1_dot_service__pb2.ResumeJobRequest.FromString,
+                    response_serializer=signorini_dot_v1_dot_service__pb2.JobStatus.SerializeToString,
+            ),
+            'ExtendJob': grpc.unary_unary_rpc_method_handler(
+                    servicer.ExtendJob,
+                    request_deserializer=signorini_dot_v1_dot_service__pb2.ExtendJobRequest.FromString,
+                    response_serializer=signorini_dot_v1_dot_service__pb2.ExtendJobResponse.SerializeToString,
             ),
     }
     generic_handler = grpc.method_handlers_generic_handler(
@@ -442,6 +499,87 @@ class Simulation:
             '/signorini.v1.Simulation/Capabilities',
             signorini_dot_v1_dot_service__pb2.CapabilitiesRequest.SerializeToString,
             signorini_dot_v1_dot_service__pb2.CapabilitiesResponse.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
+    def PauseJob(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_unary(
+            request,
+            target,
+            '/signorini.v1.Simulation/PauseJob',
+            signorini_dot_v1_dot_service__pb2.PauseJobRequest.SerializeToString,
+            signorini_dot_v1_dot_service__pb2.JobStatus.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
+    def ResumeJob(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_unary(
+            request,
+            target,
+            '/signorini.v1.Simulation/ResumeJob',
+            signorini_dot_v1_dot_service__pb2.ResumeJobRequest.SerializeToString,
+            signorini_dot_v1_dot_service__pb2.JobStatus.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
+    def ExtendJob(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_unary(
+            request,
+            target,
+            '/signorini.v1.Simulation/ExtendJob',
+            signorini_dot_v1_dot_service__pb2.ExtendJobRequest.SerializeToString,
+            signorini_dot_v1_dot_service__pb2.ExtendJobResponse.FromString,
             options,
             channel_credentials,
             insecure,

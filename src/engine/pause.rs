@@ -1,0 +1,394 @@
+//! Pause, resume and extend.
+//!
+//! * **Pause** parks a job in the state `paused`. A queued job is taken off the queue at once;
+//!   a running one is asked to stop (its [`LiveJob::pause`] flag, or with a shared store the
+//!   `pause_requested` flag its replica reads at its next heartbeat): its observer asks the run
+//!   for a checkpoint after the next step, stores it with the rows recorded up to it, and stops
+//!   the run there ([`park`]). A paused job keeps its checkpoint and its series; it is neither
+//!   queued nor finished, so no worker takes it, a restart leaves it paused, and the retention
+//!   sweep does not expire it.
+//! * **Resume** queues a paused job again; a worker (of any replica, with a shared store) takes
+//!   it and continues from its checkpoint exactly as after a restart (`resume_point`): the result
+//!   equals an uninterrupted run's bit for bit.
+//! * **Extend** makes a new job that continues a succeeded job to a later `t_end`. A succeeded
+//!   job that checkpoints keeps the checkpoint written after its last step as its final state
+//!   ([`keep_final_state`]); the new job's spec is the first's with `time.t_end` set (and
+//!   `time.steps` cleared), and it starts from that final state, which the spec hash accepts
+//!   because it leaves out the run's end (`signorini_core::job::spec_hash`). Its result holds
+//!   the rows after the first job's end (the first job's result holds the rows up to it) and its
+//!   summary, the whole run's, names the first job (`extends`).
+//!
+//! A job whose scheme family writes no checkpoints (`Job::checkpoints`: analyses, the banded
+//! contact path, a contact region) is refused: it could only be rerun from step 0.
+
+use super::{Engine, Inner, LiveJob, check_limits, check_text, lock, new_live};
+use crate::engine::events::JobEvent;
+use crate::engine::ids::{check_id, new_id, now_ms};
+use crate::error::ApiError;
+use crate::spec_file::{Format, parse};
+use crate::status::{JobState, JobView};
+use serde_json::{Map, Value};
+use signorini_core::job::Job;
+use signorini_core::spec::{SchemeFamily, SpecError};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+
+/// Why a job of this kind cannot be paused or extended.
+const NO_CHECKPOINTS: &str = "its scheme family writes no checkpoints (an analysis, or a linear job on the banded contact path or drawing a contact region: docs/checkpoints.md), so it could only rerun from step 0";
+
+/// Parks a running job whose run stopped after its pause checkpoint: the store marks it paused
+/// with the progress of that checkpoint, and its watchers get the status.
+pub(super) fn park(inner: &Inner, live: &Arc<LiveJob>) {
+    let view = JobView {
+        state: JobState::Paused,
+        ..live.view()
+    };
+    match inner.store.park(&view) {
+        Ok(true) => tracing::info!(id = %live.id, step = view.done, "paused"),
+        Ok(false) => {
+            tracing::warn!(id = %live.id, "paused, but the store no longer had it running")
+        }
+        Err(e) => tracing::error!(id = %live.id, "store: {e}"),
+    }
+    lock(&inner.live).remove(&live.id);
+    inner.sink.send(JobEvent::Status(view));
+    inner.sink.send(JobEvent::Closed(live.id.clone()));
+    live.ended.send_replace(true);
+}
+
+/// Keeps the checkpoint a job that just succeeded wrote after its last step as its final state
+/// (a job without one, which writes no checkpoints, keeps nothing).
+pub(super) fn keep_final_state(inner: &Inner, view: &JobView) {
+    match inner.store.keep_final_state(&view.id, view.done) {
+        Ok(kept) => tracing::debug!(id = %view.id, kept, "final state"),
+        Err(e) => tracing::error!(id = %view.id, "store: {e}"),
+    }
+}
+
+/// Names the job an extension continues in its summary (`extends`).
+pub(super) fn mark_extension(inner: &Inner, id: &str, summary: &mut Map<String, Value>) {
+    match inner.store.extends(id) {
+        Ok(Some(first)) => {
+            summary.insert("extends".into(), Value::String(first));
+        }
+        Ok(None) => {}
+        Err(e) => tracing::error!(%id, "store: {e}"),
+    }
+}
+
+fn wrong_state(view: &JobView, reason: impl Into<String>) -> ApiError {
+    ApiError::WrongState {
+        id: view.id.clone(),
+        state: view.state.as_str(),
+        reason: reason.into(),
+    }
+}
+
+impl Engine {
+    /// A job's spec as stored, built into a job (the error names the field).
+    fn stored_job(&self, id: &str) -> Result<(Job, signorini_core::spec::JobSpec), ApiError> {
+        let json = self
+            .inner
+            .store
+            .spec_json(id)?
+            .ok_or_else(|| ApiError::NotFound { id: id.into() })?;
+        let spec = parse(&json, Format::Json)?;
+        Ok((Job::from_spec(&spec)?, spec))
+    }
+
+    /// Pauses a job: a queued one is parked at once (its status, `paused`, is returned); a
+    /// running one is asked to stop after a checkpoint at its next step (its status, still
+    /// `running`, is returned: await [`Engine::ended`] for the pause). Another state, or a job
+    /// that writes no checkpoints, is refused ([`ApiError::WrongState`]).
+    pub fn pause(&self, id: &str) -> Result<JobView, ApiError> {
+        let live = lock(&self.inner.live).get(id).cloned();
+        let Some(live) = live else {
+            let view = self.status(id)?;
+            return match view.state {
+                JobState::Queued | JobState::Running => {
+                    // With a shared store: queued for any replica, or running on another one.
+                    if !self.stored_job(id)?.0.checkpoints() {
+                        return Err(wrong_state(
+                            &view,
+                            format!("it cannot be paused: {NO_CHECKPOINTS}"),
+                        ));
+                    }
+                    let parked = JobView {
+                        state: JobState::Paused,
+                        ..view.clone()
+                    };
+                    if view.state == JobState::Queued && self.inner.store.park(&parked)? {
+                        self.inner.sink.send(JobEvent::Status(parked.clone()));
+                        return Ok(parked);
+                    }
+                    if self.inner.store.request_pause(id)? {
+                        return Ok(view);
+                    }
+                    // It moved on meanwhile (claimed, finished): answer for its state now.
+                    let now = self.status(id)?;
+                    Err(wrong_state(
+                        &now,
+                        "only a queued or running job can be paused",
+                    ))
+                }
+                JobState::Paused => Err(wrong_state(&view, "it is paused already")),
+                _ => Err(wrong_state(
+                    &view,
+                    "only a queued or running job can be paused",
+                )),
+            };
+        };
+        if !live.job.checkpoints() {
+            return Err(wrong_state(
+                &live.view(),
+                format!("it cannot be paused: {NO_CHECKPOINTS}"),
+            ));
+        }
+        let was_queued = {
+            let mut queue = lock(&self.inner.queue);
+            let before = queue.len();
+            queue.retain(|j| j.id != id);
+            queue.len() != before
+        };
+        if !was_queued {
+            // Running: its observer checkpoints after the next step and stops the run.
+            live.pause.store(true, Ordering::Release);
+            return Ok(live.view());
+        }
+        let view = JobView {
+            state: JobState::Paused,
+            ..live.view()
+        };
+        self.inner.store.park(&view)?;
+        lock(&self.inner.live).remove(id);
+        self.inner.sink.send(JobEvent::Status(view.clone()));
+        self.inner.sink.send(JobEvent::Closed(id.to_string()));
+        live.ended.send_replace(true);
+        tracing::info!(%id, "paused while queued");
+        Ok(view)
+    }
+
+    /// Queues a paused job again: it continues from its checkpoint (or starts, if it was paused
+    /// before it ran). Its status, now `queued`. Another state is refused
+    /// ([`ApiError::WrongState`]).
+    pub fn resume(&self, id: &str) -> Result<JobView, ApiError> {
+        if self.inner.shutdown.load(Ordering::Acquire) {
+            return Err(ApiError::Unavailable);
+        }
+        let shared = self.inner.store.shared().is_some();
+        // Checked before the job leaves `paused`, so a refused resume changes nothing.
+        let queued = match self.inner.store.shared() {
+            Some(q) => q.queued()? as usize,
+            None => lock(&self.inner.queue).len(),
+        };
+        if queued >= self.inner.queue_limit {
+            return Err(ApiError::QueueFull {
+                limit: self.inner.queue_limit,
+            });
+        }
+        let Some((view, spec_json)) = self.inner.store.unpark(id)? else {
+            let view = self.status(id)?;
+            return Err(wrong_state(&view, "only a paused job can be resumed"));
+        };
+        tracing::info!(%id, step = view.done, "resumed: queued again");
+        if shared {
+            // Any replica claims it (the store announced it).
+            self.inner.sink.send(JobEvent::Status(view.clone()));
+            return Ok(view);
+        }
+        let job = match parse(&spec_json, Format::Json).and_then(|spec| Job::from_spec(&spec)) {
+            Ok(job) => job,
+            Err(e) => {
+                let failed = JobView {
+                    state: JobState::Failed,
+                    finished_ms: now_ms(),
+                    error: Some((e.field, format!("no longer valid: {}", e.reason))),
+                    ..view
+                };
+                self.inner.store.finish(&failed, None)?;
+                self.inner.sink.send(JobEvent::Status(failed.clone()));
+                self.inner.sink.send(JobEvent::Closed(id.to_string()));
+                return Ok(failed);
+            }
+        };
+        let live = Arc::new(new_live(
+            view.id.clone(),
+            view.name.clone(),
+            job,
+            view.created_ms,
+        ));
+        live.done.store(view.done, Ordering::Relaxed);
+        live.t_bits.store(view.t.to_bits(), Ordering::Relaxed);
+        let status = live.view();
+        {
+            let mut queue = lock(&self.inner.queue);
+            lock(&self.inner.live).insert(id.to_string(), live.clone());
+            self.inner.sink.send(JobEvent::Status(status.clone()));
+            queue.push_back(live);
+        }
+        self.inner.wake.notify_one();
+        Ok(status)
+    }
+
+    /// Cancels a paused job (called by [`Engine::cancel`] for a job this process does not hold):
+    /// its status, now `cancelled`; `None` when the job is not paused.
+    pub(super) fn cancel_paused(&self, id: &str) -> Result<Option<JobView>, ApiError> {
+        let Some(view) = self.inner.store.cancel_parked(id, now_ms())? else {
+            return Ok(None);
+        };
+        tracing::info!(%id, "cancelled while paused");
+        self.inner.sink.send(JobEvent::Status(view.clone()));
+        self.inner.sink.send(JobEvent::Closed(id.to_string()));
+        Ok(Some(view))
+    }
+
+    /// Refuses to remove a paused job (cancel it first), as for a queued or running one.
+    pub(super) fn refuse_paused_delete(&self, id: &str) -> Result<(), ApiError> {
+        match self.inner.store.get(id)? {
+            Some(v) if v.state == JobState::Paused => Err(ApiError::Unfinished {
+                id: id.into(),
+                state: v.state.as_str(),
+            }),
+            _ => Ok(()),
+        }
+    }
+
+    /// The job that job `id` extends, if it is an extension.
+    pub fn extends(&self, id: &str) -> Result<Option<String>, ApiError> {
+        Ok(self.inner.store.extends(id)?)
+    }
+
+    /// A new job continuing succeeded job `id` from its final state to `t_end` (with id
+    /// `new_id` if given): its id. `t_end` must lie after the first job's end, by one step at
+    /// least (else [`ApiError::Invalid`] naming `t_end`); the first job must have succeeded and
+    /// kept its final state (else [`ApiError::WrongState`]).
+    pub fn extend(&self, id: &str, t_end: f64, chosen: Option<String>) -> Result<String, ApiError> {
+        if self.inner.shutdown.load(Ordering::Acquire) {
+            return Err(ApiError::Unavailable);
+        }
+        if let Some(n) = &chosen {
+            check_id(n)?;
+        }
+        let first = self.status(id)?;
+        if first.state != JobState::Succeeded {
+            return Err(wrong_state(&first, "only a succeeded job can be extended"));
+        }
+        let (first_job, spec) = self.stored_job(id)?;
+        let Some((step, bytes)) = self.inner.store.final_state(id)? else {
+            let reason = if first_job.checkpoints() {
+                "it kept no final state (it ended before this server kept final states)".to_string()
+            } else {
+                format!("it cannot be extended: {NO_CHECKPOINTS}")
+            };
+            return Err(wrong_state(&first, reason));
+        };
+        match spec.integrator.family() {
+            SchemeFamily::Soi2 => {
+                return Err(wrong_state(
+                    &first,
+                    "an SOI2 job cannot be extended bit for bit: its last step is shortened to land on t_end, so a run to a later t_end parts from it there; submit the longer run instead",
+                ));
+            }
+            SchemeFamily::Wave if !step.is_multiple_of(spec.output.every.max(1)) => {
+                return Err(wrong_state(
+                    &first,
+                    format!(
+                        "a WFEM job extends from a recorded step only: it ended on step {step}, not a multiple of output.every = {} (WFEM sums the works since the last record)",
+                        spec.output.every
+                    ),
+                ));
+            }
+            _ => {}
+        }
+        if !(t_end.is_finite() && t_end > first.t) {
+            return Err(SpecError::new(
+                "t_end",
+                format!(
+                    "must be after the end of job {id} (t = {}), got {t_end}",
+                    first.t
+                ),
+            )
+            .into());
+        }
+        let mut next = spec;
+        let time = next
+            .time
+            .as_mut()
+            .ok_or_else(|| ApiError::Internal(format!("job {id} has no time section")))?;
+        time.t_end = Some(t_end);
+        time.steps = None;
+        let job = Job::from_spec(&next)?;
+        if job.size().steps <= step {
+            return Err(SpecError::new(
+                "t_end",
+                format!(
+                    "{t_end} adds no step after the end of job {id} (step {step}, t = {})",
+                    first.t
+                ),
+            )
+            .into());
+        }
+        // The final state must continue the new job (the same spec but for its end).
+        job.read_checkpoint(&bytes)
+            .map_err(|e| ApiError::Internal(format!("the final state of job {id}: {e}")))?;
+        let spec_value =
+            serde_json::to_value(&next).map_err(|e| ApiError::Internal(e.to_string()))?;
+        check_text(&spec_value, "")?;
+        check_limits(&job, &self.inner.limits)?;
+        let spec_json = spec_value.to_string();
+        let new = chosen.unwrap_or_else(new_id);
+        let live = Arc::new(new_live(new.clone(), next.name.clone(), job, now_ms()));
+        if let Some(q) = self.inner.store.shared() {
+            if q.queued()? >= self.inner.queue_limit as u64 {
+                return Err(ApiError::QueueFull {
+                    limit: self.inner.queue_limit,
+                });
+            }
+            // Inserted paused (no replica claims it), linked, then queued and announced.
+            let parked = JobView {
+                state: JobState::Paused,
+                ..live.view()
+            };
+            if !self.inner.store.insert(&parked, &spec_json)? {
+                return Err(ApiError::AlreadyExists { id: new });
+            }
+            self.link(id, &new)?;
+            if let Some((view, _)) = self.inner.store.unpark(&new)? {
+                self.inner.sink.send(JobEvent::Status(view));
+            }
+            tracing::info!(%id, extension = %new, t_end, "extended");
+            return Ok(new);
+        }
+        {
+            let mut queue = lock(&self.inner.queue);
+            if queue.len() >= self.inner.queue_limit {
+                return Err(ApiError::QueueFull {
+                    limit: self.inner.queue_limit,
+                });
+            }
+            if !self.inner.store.insert(&live.view(), &spec_json)? {
+                return Err(ApiError::AlreadyExists { id: new });
+            }
+            // Linked before a worker can take it (workers take jobs under the queue's lock).
+            self.link(id, &new)?;
+            lock(&self.inner.live).insert(new.clone(), live.clone());
+            self.inner.sink.send(JobEvent::Status(live.view()));
+            queue.push_back(live);
+        }
+        self.inner.wake.notify_one();
+        tracing::info!(%id, extension = %new, t_end, "extended");
+        Ok(new)
+    }
+
+    /// Links extension `new` to job `first`, or removes `new` again when `first`'s final state
+    /// went meanwhile (purged).
+    fn link(&self, first: &str, new: &str) -> Result<(), ApiError> {
+        if self.inner.store.link_extension(first, new)? {
+            return Ok(());
+        }
+        // A shared store removes finished jobs only: the parked one is cancelled first.
+        self.inner.store.cancel_parked(new, now_ms())?;
+        self.inner.store.delete(new)?;
+        Err(ApiError::NotFound { id: first.into() })
+    }
+}
