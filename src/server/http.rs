@@ -76,6 +76,7 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/jobs/{id}/figures", get(list_figures))
         .route("/v1/jobs/{id}/figures/{name}", get(get_figure))
         .route("/v1/jobs/{id}/events", get(job_events))
+        .route("/v1/jobs/{id}/children", get(super::study::list_children))
         .route("/v1/capabilities", get(capabilities))
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))

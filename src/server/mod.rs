@@ -6,6 +6,7 @@ pub mod grpc;
 pub mod http;
 pub mod json;
 pub mod results;
+mod study;
 
 use crate::config::ServeConfig;
 use crate::engine::Engine;

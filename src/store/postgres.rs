@@ -40,6 +40,8 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
 use tokio_postgres::{AsyncMessage, NoTls, Row};
 
+mod study;
+
 /// The migrations, in order: (version, name, SQL).
 const MIGRATIONS: &[(i64, &str, &str)] = &[
     (
@@ -51,6 +53,11 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
         2,
         "0002_checkpoints",
         include_str!("../../migrations/postgres/0002_checkpoints.sql"),
+    ),
+    (
+        3,
+        "0003_studies",
+        include_str!("../../migrations/postgres/0003_studies.sql"),
     ),
 ];
 
