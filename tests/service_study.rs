@@ -541,3 +541,59 @@ async fn a_study_on_two_postgres_replicas_runs_its_children_on_both() {
     assert_eq!(code, 200);
     assert_eq!(result_b["summary"], result["summary"]);
 }
+
+/// A SQLite server killed (SIGKILL) mid-study: after the restart the parent is still `running`
+/// (not re-queued as a job), its unfinished children run again, and the parent completes with
+/// every run in its report.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_study_interrupted_by_kill9_completes_after_the_restart() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("store.db");
+    let opts = Options {
+        workers: 1,
+        max_steps: Some(1_000_000_000),
+        ..Options::default()
+    };
+    let mut first = TestServer::start(&store, &opts);
+    let spec = r#"{"study": {
+        "reference": "exact",
+        "base": {"model": {"scene": "bouncing_ball"}, "time": {"h": 1e-5, "t_end": 1.7},
+                 "output": {"every": 1}},
+        "schemes": [{"scheme": "moreau_jean", "theta": 0.5}],
+        "grid": {"time.h": [8e-6, 4e-6, 2e-6]}}}"#;
+    let (code, body) = first.http("POST", "/v1/jobs", Some(spec), None).await;
+    assert_eq!(code, 201, "{body}");
+    let id = body["id"].as_str().unwrap().to_string();
+    // Killed once the second run has started (the first has ended).
+    let deadline = tokio::time::Instant::now() + PATIENCE;
+    loop {
+        let c = children_of(&first, &id).await;
+        if c[1]["state"] == "running" {
+            assert_eq!(c[0]["state"], "succeeded", "{c:?}");
+            break;
+        }
+        assert!(
+            tokio::time::Instant::now() < deadline,
+            "the second run never started"
+        );
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    first.kill9();
+    let second = TestServer::start(&store, &opts);
+    let (status, _) = http_wait(&second, &id).await;
+    assert_eq!(status["state"], "succeeded", "{status}");
+    assert_eq!(status["progress"]["step"], 3);
+    let c = children_of(&second, &id).await;
+    assert!(c.iter().all(|j| j["state"] == "succeeded"), "{c:?}");
+    let (code, result) = second
+        .http("GET", &format!("/v1/jobs/{id}/result"), None, None)
+        .await;
+    assert_eq!(code, 200, "{result}");
+    assert_eq!(result["summary"]["runs"], 3);
+    let rows = result["tables"][0]["rows"].as_array().unwrap();
+    assert!(
+        rows.iter().all(|r| r[6].as_f64().is_some_and(|e| e > 0.0)),
+        "every run has its error: {rows:?}"
+    );
+    assert_eq!(result["summary"]["orders"].as_array().unwrap().len(), 1);
+}
