@@ -6,8 +6,9 @@ use anyhow::{Context, Result, anyhow};
 use cpu_time::ThreadTime;
 use signorini_core::job;
 use signorini_core::spec::JobSpec;
+use signorini_core::spec::SpecError;
 use signorini_core::spec::study::StudyBase;
-use signorini_core::study::{Reference, Samples, Study, StudyPoint, StudyReport};
+use signorini_core::study::{Reference, Samples, Study, StudyPoint, StudyReport, StudyRun};
 use std::path::Path;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -31,13 +32,97 @@ pub fn base_spec(spec: &JobSpec, dir: Option<&Path>) -> Result<JobSpec> {
     }
 }
 
-/// Runs `job` with a [`Samples`] observer on this thread: (samples, steps, CPU seconds).
-fn run_one(job: &job::Job) -> Result<(Samples, u64, f64), String> {
+/// What one run of a study gives: its samples, its steps and its CPU seconds.
+pub struct Measured {
+    /// The compared columns of every recorded step.
+    pub samples: Samples,
+    /// Steps taken.
+    pub steps: u64,
+    /// CPU seconds of the run's thread.
+    pub cpu_s: f64,
+}
+
+/// Runs `job` with a [`Samples`] observer on this thread, timed in CPU seconds of the thread.
+fn run_one(job: &job::Job) -> Result<Measured, String> {
     let mut samples = Samples::default();
     let started = ThreadTime::now();
     job::run(job, 1, &mut samples).map_err(|e| e.to_string())?;
-    let cpu = started.elapsed().as_secs_f64();
-    Ok((samples, job.size().steps, cpu))
+    let cpu_s = started.elapsed().as_secs_f64();
+    Ok(Measured {
+        samples,
+        steps: job.size().steps,
+        cpu_s,
+    })
+}
+
+/// The base spec of a study the service runs: inline only (a file name is on the client's
+/// machine, not the server's).
+pub fn inline_base(spec: &JobSpec) -> Result<JobSpec, SpecError> {
+    let study = spec
+        .study
+        .as_ref()
+        .ok_or_else(|| SpecError::new("study", "missing section"))?;
+    match &study.base {
+        StudyBase::Inline(b) => Ok((**b).clone()),
+        StudyBase::File(name) => Err(SpecError::new(
+            "study.base",
+            format!(
+                "the service takes the base spec inline ([study.base] or \"base\": {{…}}); \
+                 {name:?} names a file, which the server cannot read (`signorini run` reads it)"
+            ),
+        )),
+    }
+}
+
+/// The point of one run of `study`: its error against the reference (the reference run's
+/// samples when it is one), or, for a run that failed (`Err` with why), a row with an empty
+/// error, CPU time and steps. The CLI and the service both make every point here.
+pub fn point(
+    study: &Study,
+    run: &StudyRun,
+    outcome: Result<&Measured, &str>,
+    reference: Option<&Samples>,
+) -> Result<StudyPoint, SpecError> {
+    match outcome {
+        Ok(m) => {
+            let error = study.error(&m.samples, reference)?;
+            Ok(StudyPoint::new(
+                run,
+                m.steps,
+                m.cpu_s,
+                error,
+                Some(&m.samples),
+            ))
+        }
+        Err(_) => Ok(StudyPoint::new(run, 0, f64::NAN, f64::NAN, None)),
+    }
+}
+
+/// The outputs of a study: `study.csv` (text, for the CLI), the `study` table (numbers, for
+/// the service), the `work_precision` figure and `summary.json`.
+pub struct Outputs {
+    /// `study.csv`.
+    pub csv: String,
+    /// The numeric table [`StudyReport::table`].
+    pub table: signorini_core::outcome::Table,
+    /// `work_precision.svg`.
+    pub figures: Vec<signorini_figures::Figure>,
+    /// `summary.json`.
+    pub summary: serde_json::Map<String, serde_json::Value>,
+}
+
+/// The outputs of `report`.
+pub fn outputs(report: &StudyReport) -> Result<Outputs> {
+    let summary = match serde_json::to_value(report.summary())? {
+        serde_json::Value::Object(map) => map,
+        other => return Err(anyhow!("a study summary is an object, got {other}")),
+    };
+    Ok(Outputs {
+        csv: report.csv(),
+        table: report.table(),
+        figures: signorini_figures::render(&[report.chart()]),
+        summary,
+    })
 }
 
 /// Expands and runs the study of `spec` on `threads` threads; `progress` hears one line per
@@ -57,10 +142,9 @@ pub fn run_study(
                 "reference: {}",
                 study.reference.describe(&study_spec.reference)
             ));
-            let (samples, _, cpu) =
-                run_one(job).map_err(|e| anyhow!("study.reference: the run failed: {e}"))?;
-            progress(format!("reference done ({cpu:.3} s CPU)"));
-            Some(samples)
+            let m = run_one(job).map_err(|e| anyhow!("study.reference: the run failed: {e}"))?;
+            progress(format!("reference done ({:.3} s CPU)", m.cpu_s));
+            Some(m.samples)
         }
         _ => None,
     };
@@ -80,33 +164,35 @@ pub fn run_study(
                         .zip(&run.values)
                         .map(|(a, v)| format!("{a}={v}"))
                         .collect();
-                    let point = match run_one(&run.job) {
-                        Ok((samples, steps, cpu_s)) => {
-                            let error = match study.error(&samples, reference.as_ref()) {
-                                Ok(e) => e,
-                                Err(e) => {
-                                    failure.lock().map(|mut f| *f = Some(anyhow!("{e}"))).ok();
-                                    f64::NAN
-                                }
-                            };
-                            progress(format!(
-                                "run {}/{total} {} {}: error {error:.3e}, {cpu_s:.4} s CPU",
-                                i + 1,
-                                run.label,
-                                at.join(" ")
-                            ));
-                            StudyPoint::new(run, steps, cpu_s, error, Some(&samples))
-                        }
+                    let outcome = run_one(&run.job);
+                    let point = match point(
+                        &study,
+                        run,
+                        outcome.as_ref().map_err(String::as_str),
+                        reference.as_ref(),
+                    ) {
+                        Ok(p) => p,
                         Err(e) => {
-                            progress(format!(
-                                "run {}/{total} {} {}: failed: {e}",
-                                i + 1,
-                                run.label,
-                                at.join(" ")
-                            ));
+                            failure.lock().map(|mut f| *f = Some(anyhow!("{e}"))).ok();
                             StudyPoint::new(run, 0, f64::NAN, f64::NAN, None)
                         }
                     };
+                    match &outcome {
+                        Ok(m) => progress(format!(
+                            "run {}/{total} {} {}: error {:.3e}, {:.4} s CPU",
+                            i + 1,
+                            run.label,
+                            at.join(" "),
+                            point.error,
+                            m.cpu_s
+                        )),
+                        Err(e) => progress(format!(
+                            "run {}/{total} {} {}: failed: {e}",
+                            i + 1,
+                            run.label,
+                            at.join(" ")
+                        )),
+                    }
                     if let Ok(mut p) = points.lock() {
                         p[i] = Some(point);
                     }

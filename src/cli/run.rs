@@ -259,11 +259,12 @@ fn run_study(args: &RunArgs, spec_path: &Path, spec: &signorini_core::spec::JobS
     .map_err(|e| anyhow!("study {}: {e:#}", spec_path.display()))?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
-    write_atomic(&args.out.join("study.csv"), &report.csv())?;
-    for figure in signorini_figures::render(&[report.chart()]) {
-        write_figure(&args.out, &figure)?;
+    let outputs = crate::study::outputs(&report)?;
+    write_atomic(&args.out.join("study.csv"), &outputs.csv)?;
+    for figure in &outputs.figures {
+        write_figure(&args.out, figure)?;
     }
-    let summary = serde_json::to_string_pretty(&report.summary())?;
+    let summary = serde_json::to_string_pretty(&outputs.summary)?;
     write_atomic(&args.out.join("summary.json"), &summary)?;
     if !quiet {
         println!("{summary}");

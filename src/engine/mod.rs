@@ -17,6 +17,7 @@ mod history;
 pub mod ids;
 mod observer;
 mod pause;
+mod study;
 
 use crate::config::Limits;
 use crate::error::ApiError;
@@ -321,6 +322,8 @@ impl Engine {
                 .map_err(|e| ApiError::Internal(format!("spawning worker: {e}")))?;
             lock(&engine.threads).push(handle);
         }
+        let sweeper = study::spawn_sweeper(&engine)?;
+        lock(&engine.threads).push(sweeper);
         Ok(engine)
     }
 
@@ -335,6 +338,9 @@ impl Engine {
         let spec_value =
             serde_json::to_value(spec).map_err(|e| ApiError::Internal(e.to_string()))?;
         check_text(&spec_value, "")?;
+        if spec.study.is_some() {
+            return study::submit(self, spec, spec_value.to_string(), id);
+        }
         let job = Job::from_spec(spec)?;
         check_limits(&job, &self.inner.limits)?;
         let spec_json = spec_value.to_string();
@@ -465,6 +471,8 @@ impl Engine {
             });
         }
         self.refuse_paused_delete(id)?;
+        // A study's children go with it.
+        self.delete_children(id)?;
         // Held over the removal: no reader opens the result in between.
         let readers = lock(&self.inner.readers);
         if let Some(&n) = readers.get(id) {
@@ -492,6 +500,9 @@ impl Engine {
     pub fn cancel(&self, id: &str) -> Result<JobView, ApiError> {
         let live = lock(&self.inner.live).get(id).cloned();
         let Some(live) = live else {
+            if let Some(view) = self.cancel_study(id)? {
+                return Ok(view);
+            }
             if let Some(view) = self.cancel_paused(id)? {
                 return Ok(view);
             }
@@ -500,6 +511,7 @@ impl Engine {
                 if let CancelOutcome::Cancelled(view) = q.request_cancel(id, now_ms())? {
                     self.inner.sink.send(JobEvent::Status(view.clone()));
                     self.inner.sink.send(JobEvent::Closed(id.to_string()));
+                    study::child_ended(&self.inner, id);
                     return Ok(view);
                 }
             }
@@ -519,6 +531,7 @@ impl Engine {
             self.inner.sink.send(JobEvent::Status(view.clone()));
             self.inner.sink.send(JobEvent::Closed(id.to_string()));
             live.ended.send_replace(true);
+            study::child_ended(&self.inner, id);
             return Ok(view);
         }
         Ok(live.view())
@@ -768,6 +781,7 @@ fn adopt(inner: &Inner, claim: Claim) -> Option<Arc<LiveJob>> {
                 tracing::error!(id = %failed.id, "store: {e}");
             }
             inner.sink.send(JobEvent::Status(failed.clone()));
+            study::child_ended(inner, &failed.id);
             inner.sink.send(JobEvent::Closed(failed.id));
             return None;
         }
@@ -859,6 +873,8 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
         observer = observer.resumed(r.attempt, r.last_chunk);
     }
     let clock = Instant::now();
+    // CPU seconds of this worker thread (a study's children report theirs as `cpu_s`).
+    let cpu = cpu_time::ThreadTime::now();
     // A panic in the numerics (a bug) fails this job and keeps the worker and the server alive.
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         let threads = threads_per_job(inner.workers);
@@ -869,6 +885,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     }))
     .map_err(|panic| panic_message(panic.as_ref()));
     let wall = clock.elapsed();
+    let cpu_s = cpu.elapsed().as_secs_f64();
     // The last batch goes out after the result is stored: whoever saw it can fetch the result.
     let last_batch = observer.last_batch();
     observer.count_steps();
@@ -895,6 +912,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     let (state, error, result) = match outcome {
         Ok(Ok(output)) => {
             let mut run = finish_run(output, wall);
+            run.summary.insert("cpu_s".into(), cpu_s.into());
             pause::mark_extension(inner, &live.id, &mut run.summary);
             let result = StoredResult {
                 summary: run.summary,
@@ -1044,4 +1062,5 @@ fn end_job(
     inner.sink.send(JobEvent::Status(view));
     inner.sink.send(JobEvent::Closed(live.id.clone()));
     live.ended.send_replace(true);
+    study::child_ended(inner, &live.id);
 }

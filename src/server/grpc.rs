@@ -242,6 +242,20 @@ impl Simulation for SimulationService {
         }))
     }
 
+    async fn list_children(
+        &self,
+        req: Request<pb::ListChildrenRequest>,
+    ) -> Result<Response<pb::ListJobsResponse>, Status> {
+        let id = req.into_inner().id;
+        let jobs = super::study::children(&self.state, id)
+            .await
+            .map_err(to_status)?;
+        Ok(Response::new(pb::ListJobsResponse {
+            jobs: jobs.iter().map(status_to_proto).collect(),
+            next_page_token: String::new(),
+        }))
+    }
+
     async fn delete_job(
         &self,
         req: Request<pb::DeleteJobRequest>,

@@ -80,6 +80,7 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/jobs/{id}/pause", post(super::pause::pause_job))
         .route("/v1/jobs/{id}/resume", post(super::pause::resume_job))
         .route("/v1/jobs/{id}/extend", post(super::pause::extend_job))
+        .route("/v1/jobs/{id}/children", get(super::study::list_children))
         .route("/v1/capabilities", get(capabilities))
         .route("/healthz", get(healthz))
         .route("/metrics", get(metrics))

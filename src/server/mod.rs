@@ -7,6 +7,7 @@ pub mod http;
 pub mod json;
 mod pause;
 pub mod results;
+mod study;
 
 use crate::config::ServeConfig;
 use crate::engine::Engine;

@@ -13,6 +13,7 @@
 pub mod pause;
 pub mod postgres;
 pub mod sqlite;
+mod study;
 
 use crate::status::{JobState, JobView};
 use serde_json::{Map, Value};
@@ -23,6 +24,7 @@ use std::time::Duration;
 use thiserror::Error;
 
 pub use sqlite::StoreLock;
+pub use study::StudyStore;
 
 /// A store failure.
 #[derive(Debug, Error)]
@@ -370,7 +372,7 @@ pub(crate) fn batches_blob(rows: &SeriesChunk) -> Vec<u8> {
 
 /// What every store does (see the module documentation). Blocking calls: the engine calls them
 /// from its worker threads, the servers from blocking contexts or for short reads.
-pub trait Backend: Send + Sync + pause::PauseStore {
+pub trait Backend: StudyStore + Send + Sync + pause::PauseStore {
     /// Records a new queued job with its spec (JSON). False when the id is taken.
     fn insert(&self, row: &JobView, spec_json: &str) -> Result<bool, StoreError>;
 

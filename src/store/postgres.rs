@@ -41,6 +41,7 @@ use std::time::Duration;
 use tokio_postgres::{AsyncMessage, NoTls, Row};
 
 mod pause;
+mod study;
 
 /// The migrations, in order: (version, name, SQL).
 const MIGRATIONS: &[(i64, &str, &str)] = &[
@@ -53,6 +54,11 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
         2,
         "0002_checkpoints",
         include_str!("../../migrations/postgres/0002_checkpoints.sql"),
+    ),
+    (
+        3,
+        "0003_studies",
+        include_str!("../../migrations/postgres/0003_studies.sql"),
     ),
     (
         4,

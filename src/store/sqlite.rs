@@ -25,6 +25,7 @@ use std::path::Path;
 use std::sync::Mutex;
 
 mod pause;
+mod study;
 
 /// The SQLite store (one connection behind a mutex: calls are short).
 pub struct SqliteStore {
@@ -100,6 +101,7 @@ fn migrate(conn: &mut Connection) -> Result<(), StoreError> {
         .prepare("SELECT name FROM pragma_table_info('result_chunks')")?
         .query_map([], |r| r.get::<_, String>(0))?
         .collect::<Result<Vec<_>, _>>()?;
+    study::migrate(conn)?;
     if !chunk_columns.iter().any(|c| c == "batches") {
         conn.execute_batch(
             "ALTER TABLE result_chunks ADD COLUMN batches BLOB NOT NULL DEFAULT x''",
@@ -541,7 +543,9 @@ impl Backend for SqliteStore {
     /// first, now marked queued again, with its spec (JSON).
     fn recover(&self) -> Result<Vec<(JobView, String)>, StoreError> {
         self.conn().execute(
-            "UPDATE jobs SET state = 'queued', started_ms = 0 WHERE state = 'running'",
+            // A study's parent stays `running`: its children are re-queued, and the engine
+            // completes it once they have all ended.
+            "UPDATE jobs SET state = 'queued', started_ms = 0 WHERE state = 'running' AND children = 0",
             [],
         )?;
         Ok(self

@@ -5,15 +5,15 @@ use signorini::proto::v1 as pb;
 use signorini::proto::v1::simulation_client::SimulationClient;
 use tonic::transport::Channel;
 
-/// A result's summary (without the wall time and rate), times, series (as bits) and figures.
+/// A result's summary (without the wall time, rate and CPU seconds), times, series (as bits) and figures.
 pub type Fingerprint = (String, Vec<u64>, Vec<(String, Vec<u64>)>, Vec<String>);
 
-/// The result as values that tell every f64 apart, without the wall time and rate and the
+/// The result as values that tell every f64 apart, without the wall time, rate and CPU seconds and the
 /// summary keys in `drop` (e.g. `extends`).
 pub fn fingerprint_without(r: &pb::JobResult, drop: &[&str]) -> Fingerprint {
     let mut summary: serde_json::Map<String, serde_json::Value> =
         serde_json::from_str(&r.summary_json).expect("summary");
-    for key in ["wall_s", "steps_per_s"].iter().chain(drop) {
+    for key in ["wall_s", "steps_per_s", "cpu_s"].iter().chain(drop) {
         summary.remove(*key);
     }
     (

@@ -150,3 +150,17 @@ def test_results_stream_in_pieces_cut_on_the_server_and_jobs_page_and_delete(cli
     with pytest.raises(SignoriniError) as e:
         client.status(job)
     assert e.value.code.name == "NOT_FOUND"
+
+
+def test_a_study_runs_as_child_jobs_and_reports_its_orders(client):
+    study = __import__("tomllib").loads((REPO / "examples" / "study_dep_bar.toml").read_text())
+    job = client.submit(study)
+    assert client.wait(job, timeout=180).state == 3  # JOB_STATE_SUCCEEDED
+    children = client.children(job)
+    assert len(children) == 12 and all(c.state == 3 for c in children)
+    assert client.children(children[0].id) == []
+    r = client.result(job)
+    assert r.summary["kind"] == "study" and r.summary["runs"] == 12
+    orders = {o["scheme"]: o["order"] for o in r.summary["orders"]}
+    # docs/study.md: WFEM first order, Moreau–Jean θ = ½ ≈ 0.71 on this study.
+    assert abs(orders["wfem"] - 1.0) < 0.01 and abs(orders["moreau_jean"] - 0.707) < 0.01

@@ -1,181 +1,75 @@
 //! Work–precision diagrams: error against CPU time, per integrator, on two scenes
-//! with an exact solution. Plain `fn main` (`harness = false`):
+//! with an exact solution, run from the study specs in `examples/` by the core's study code
+//! (`signorini_core::study`: the same expansion, errors, fits as `signorini run STUDY.toml` and
+//! the service). Plain `fn main` (`harness = false`):
 //!
 //! ```text
-//! cargo bench -p signorini-core --bench work_precision            # ≈ 1–2 min
-//! cargo bench -p signorini-core --bench work_precision -- --quick # ≈ 10 s, coarse points only
+//! cargo bench -p signorini-core --bench work_precision            # ≈ 2 min
+//! cargo bench -p signorini-core --bench work_precision -- --quick # N ≤ 200, j ≤ 4, 1 repetition
 //! ```
 //!
 //! Writes `docs/work_precision/`: `dep_bar.csv`, `dep_bar.svg` (displacement error),
 //! `dep_bar_force.svg` (impulse error), `dep_bar_trace.{csv,svg}` (u(L, t) of every scheme at
 //! N = 100, c_r = 1), `ball.csv`, `ball.svg` (a bench may write files; the core crate does no
-//! I/O), and prints one line per run.
+//! I/O), and prints one line per run and the observed orders.
 //!
-//! **Scene 1, the Doyen–Ern–Piperno bar** (`Bar::doyen_ern_piperno(N)`, Yoong et al. 2018
-//! Table 1) on [0, T], T = 6 s (two contact phases, from t = 1 s and t ≈ 3.7 s), against its exact solution by
-//! characteristics (`wfem::exact`). Errors, with u the contact-end displacement and t_k the steps:
+//! **Scene 1, the Doyen–Ern–Piperno bar**: `examples/work_precision_dep_bar.toml` (c_r = 1, the
+//! WFEM too) and `examples/work_precision_dep_bar_cr4.toml` (c_r = 4), against the exact solution
+//! by characteristics. `err_u` is the study's `max_abs` norm (of the contact-end gap, so of the
+//! displacement u = g0 − gap); `err_force` the same runs in the study's `impulse_l1` norm (the
+//! relative L¹ error of the contact impulse per step). The trace is the c_r = 1 runs at N = 100.
 //!
-//! * `err_u` = max_k |u_h(t_k) − u(t_k)| in metres (u runs over [0, g0 = 5 m]);
-//! * `err_force` = Σ_k |P_k − I_k| / Σ_k I_k, the relative L¹ error of the contact impulse per
-//!   step, with P_k the scheme's impulse over [t_{k−1}, t_k] (`p_0`; h λ for the position-contact
-//!   baseline) and I_k = −∫ r dt over the same step from the exact (piecewise linear) force r.
+//! **Scene 2, the bouncing ball**: `examples/work_precision_ball.toml`, |q_h − q| at t = 1.7 s
+//! (the `final` norm). Where the impacts fall inside a step makes this error jump by 10× between
+//! neighbouring h, so each plotted point is the largest error over the eight step sizes of one
+//! level j of the grid (`err_q_envelope`; the CPU time is that of its first h). The envelope is a
+//! maximum over runs, not a norm of one run, so it stays here, over the study's points.
 //!
-//! Finite elements (lumped mass, N elements, Δx = L/N) with h = c_r Δx / c for c_r ∈ {1, 4};
-//! the WFEM with its own step Δt = Δx/c.
-//!
-//! **Scene 2, the bouncing ball** (m = 1, g = 9.81, q0 = 1, e = 0.9): |q_h − q| at t = 1.7 s, in
-//! mid-flight after two impacts, h = 1.7/(170·2^j). Where the impacts fall inside a step makes
-//! this error jump by 10× between neighbouring h, so each point plots the largest error over the
-//! eight step sizes h·(16 + i)/16, i = 0…7 (`err_q_envelope`; CPU time is that of h).
-//!
-//! **Cost.** One run = building the scheme (factorisations, Delassus operator) plus the whole
-//! integration through the public run loops (`integrators::run_linear`, `wfem::job::run_wave`,
-//! every step recorded, energy bookkeeping on, as a job does it); the errors are computed from the
-//! kept columns after the clock stops. Time is wall-clock (`Instant`) of this single-threaded
-//! process, best of `REPS` repetitions, each repetition repeating short runs until it lasts
-//! ≥ 30 ms; on the shared 2-core VM the best-of filters out most preemption by other jobs.
+//! **Cost.** One run = `job::run` of the study's validated job (building the scheme, then the
+//! whole integration, every step recorded into the study's `Samples`, energy bookkeeping on), as
+//! `signorini run` does it; the errors are computed from the samples after the clock stops. Time
+//! is wall-clock (`Instant`) of this single-threaded process, best of `REPS` repetitions, each
+//! repetition repeating short runs until it lasts ≥ 30 ms; on the shared 2-core VM the best-of
+//! filters out most preemption by other jobs.
 
 // Only the core library must stay pure (clippy.toml): a benchmark times itself and prints.
 #![allow(clippy::disallowed_macros, clippy::disallowed_methods)]
 
-use signorini_core::integrators::alpha::{AlphaParams, AlphaScheme, NonsmoothAlpha};
-use signorini_core::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
-use signorini_core::integrators::position_contact::{PositionContact, PositionContactParams};
-use signorini_core::integrators::{LinearScheme, LinearState, OutputOptions, run_linear};
-use signorini_core::lcp::LcpOptions;
-use signorini_core::model::LinearModel;
-use signorini_core::observer::{Columns, Observer, StepRecord};
-use signorini_core::scenes::{Bar, BouncingBall};
-use signorini_core::wfem::WaveBar;
-use signorini_core::wfem::exact::{ExactBar, ExactSolution};
-use signorini_core::wfem::job::run_wave;
+use signorini_core::job;
+use signorini_core::spec::JobSpec;
+use signorini_core::spec::study::ErrorNorm;
+use signorini_core::study::{Samples, Study, StudyPoint, StudyReport, StudyRun, inline_base};
 use std::fmt::Write as _;
 use std::hint::black_box;
-use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 /// End of the bar runs (s).
 const T_BAR: f64 = 6.0;
-/// Courant numbers c h / Δx of the finite-element runs.
-const COURANT: [f64; 2] = [1.0, 4.0];
-/// Time of the ball's position error (mid-flight after the second impact).
-const T_BALL: f64 = 1.7;
-/// Step sizes per point of the ball's error envelope.
+/// Step sizes per point of the ball's error envelope (one level of its grid).
 const ENVELOPE: usize = 8;
+/// Elements of the trace.
+const TRACE_N: f64 = 100.0;
 
-/// Keeps `t`, `gap_0` and `p_0` of every record (the columns both run loops share).
-#[derive(Default)]
-struct Keep {
-    gap: usize,
-    p: usize,
-    t: Vec<f64>,
-    g: Vec<f64>,
-    imp: Vec<f64>,
+/// The study of `examples/NAME`, expanded by the core (the base inline).
+fn study(name: &str) -> Study {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../examples")
+        .join(name);
+    let text = std::fs::read_to_string(&path).expect("reading the study");
+    let spec: JobSpec = toml::from_str(&text).expect("a study spec");
+    let study_spec = spec.study.as_ref().expect("[study]");
+    let base = inline_base(study_spec).expect("an inline base");
+    Study::from_spec(study_spec, base)
+        .unwrap_or_else(|e| panic!("{name}: {}: {}", e.field, e.reason))
 }
 
-impl Keep {
-    fn with_capacity(n: usize) -> Self {
-        Self {
-            t: Vec::with_capacity(n),
-            g: Vec::with_capacity(n),
-            imp: Vec::with_capacity(n),
-            ..Default::default()
-        }
-    }
-}
-
-impl Observer for Keep {
-    fn start(&mut self, columns: &Columns) {
-        self.gap = columns.index("gap_0").expect("gap_0 column");
-        self.p = columns.index("p_0").expect("p_0 column");
-    }
-
-    fn observe(&mut self, r: &StepRecord<'_>) -> ControlFlow<()> {
-        self.t.push(r.t);
-        self.g.push(r.values[self.gap]);
-        self.imp.push(r.values[self.p]);
-        ControlFlow::Continue(())
-    }
-}
-
-type Make = Box<dyn Fn(&LinearModel, f64) -> Box<dyn LinearScheme>>;
-
-/// A linear scheme of the comparison: name, parameters (as in a spec), constructor.
-struct Scheme {
-    name: &'static str,
-    params: &'static str,
-    make: Make,
-}
-
-fn schemes() -> Vec<Scheme> {
-    let lcp = LcpOptions::default();
-    let mj = move |theta: f64, variant: bool| -> Make {
-        Box::new(move |m, h| {
-            let p = MoreauJeanParams {
-                theta,
-                variant,
-                ..Default::default()
-            };
-            Box::new(MoreauJean::new(m, p, h, lcp).expect("SPD")) as Box<dyn LinearScheme>
-        })
-    };
-    let ns = move |p: AlphaParams| -> Make {
-        Box::new(move |m, h| {
-            Box::new(NonsmoothAlpha::new(m, p, h, lcp).expect("SPD")) as Box<dyn LinearScheme>
-        })
-    };
-    vec![
-        Scheme {
-            name: "moreau_jean",
-            params: "θ=½",
-            make: mj(0.5, false),
-        },
-        Scheme {
-            name: "moreau_jean",
-            params: "θ=1",
-            make: mj(1.0, false),
-        },
-        // θ = ½ would be the same scheme as moreau_jean θ = ½ (v_{k+θ} = v_{k+1/2}).
-        Scheme {
-            name: "moreau_jean_variant",
-            params: "θ=1",
-            make: mj(1.0, true),
-        },
-        Scheme {
-            name: "ns_newmark",
-            params: "β=¼ γ=½",
-            make: ns(AlphaParams::newmark(0.25, 0.5)),
-        },
-        Scheme {
-            name: "ns_hht",
-            params: "α=0.1",
-            make: ns(AlphaParams::hht(0.1)),
-        },
-        Scheme {
-            name: "ns_generalized_alpha",
-            params: "ρ∞=0.8",
-            make: ns(AlphaParams::from_rho_inf(
-                AlphaScheme::GeneralizedAlpha,
-                0.8,
-            )),
-        },
-        Scheme {
-            name: "ns_kh_alpha",
-            params: "ρ∞=0.8",
-            make: ns(AlphaParams::from_rho_inf(AlphaScheme::KrenkHogsberg, 0.8)),
-        },
-        Scheme {
-            name: "newmark_position_contact",
-            params: "β=¼ γ=½",
-            make: Box::new(move |m, h| {
-                Box::new(
-                    PositionContact::new(m, PositionContactParams::newmark(0.25, 0.5), h, lcp)
-                        .expect("SPD"),
-                ) as Box<dyn LinearScheme>
-            }),
-        },
-    ]
+/// The same study judged in another norm.
+fn in_norm(study: &Study, norm: ErrorNorm) -> Study {
+    let mut spec = study.spec.clone();
+    spec.error = norm;
+    let base = inline_base(&spec).expect("an inline base");
+    Study::from_spec(&spec, base).expect("the same study")
 }
 
 /// Best time of `reps` repetitions of `f`, each repeating `f` until it lasts ≥ 30 ms; returns
@@ -198,61 +92,55 @@ fn time_best<R>(reps: usize, mut f: impl FnMut() -> R) -> (f64, R) {
     (best, last.expect("reps ≥ 1"))
 }
 
-/// −∫_{ta}^{tb} r dt of the exact contact force (≥ 0), exactly (r is linear on each piece).
-fn exact_impulse(ex: &ExactSolution, area: f64, ta: f64, tb: f64) -> f64 {
-    let mut sum = 0.0;
-    let start = ex.pieces.partition_point(|p| p.t1 <= ta);
-    for p in &ex.pieces[start..] {
-        if p.t0 >= tb {
-            break;
-        }
-        if !p.contact {
-            continue;
-        }
-        let (a, b) = (ta.max(p.t0), tb.min(p.t1));
-        if b > a {
-            // ∫ (a0 + a1 (t − t0)) dt over [a, b].
-            let mid = 0.5 * (a + b) - p.t0;
-            sum += area * (p.a0 + p.a1 * mid) * (b - a);
-        }
-    }
-    -sum
+/// One run of a study, timed: its samples (or why it failed) and CPU seconds.
+struct Ran<'a> {
+    run: &'a StudyRun,
+    cpu: f64,
+    samples: Result<Samples, String>,
 }
 
-/// Errors of a bar run from its kept columns: (max |u_h − u|, relative L¹ impulse error, gap
-/// closures seen).
-fn bar_errors(keep: &Keep, ex: &ExactSolution, gap0: f64, area: f64) -> (f64, f64, usize) {
-    let (mut e_u, mut e_p, mut total) = (0.0f64, 0.0, 0.0);
-    let mut closures = 0;
-    for k in 0..keep.t.len() {
-        let u = gap0 - keep.g[k];
-        e_u = e_u.max((u - ex.end_displacement(keep.t[k])).abs());
-        if k > 0 {
-            let exact = exact_impulse(ex, area, keep.t[k - 1], keep.t[k]);
-            e_p += (keep.imp[k] - exact).abs();
-            total += exact;
-            closures += usize::from(keep.imp[k] > 0.0 && keep.imp[k - 1] <= 0.0);
-        }
-    }
-    (e_u, e_p / total, closures)
+/// Runs the runs of `study` kept by `keep`, in order, each timed (best of `reps`).
+fn run_study<'a>(
+    study: &'a Study,
+    reps: usize,
+    keep: impl Fn(usize, &StudyRun) -> bool,
+) -> Vec<Ran<'a>> {
+    study
+        .runs
+        .iter()
+        .enumerate()
+        .filter(|(i, r)| keep(*i, r))
+        .map(|(_, run)| {
+            let (cpu, samples) = time_best(reps, || {
+                let mut samples = Samples::default();
+                job::run(&run.job, 1, &mut samples)
+                    .map(|_| samples)
+                    .map_err(|e| e.to_string())
+            });
+            Ran { run, cpu, samples }
+        })
+        .collect()
 }
 
-/// Exact (q, v) at time t of a ball dropped at rest from q0 with restitution e (before the
-/// accumulation point of its impacts); as in `tests/moreau_jean_exact.rs`.
-fn ball_exact(q0: f64, g: f64, e: f64, t: f64) -> (f64, f64) {
-    let t1 = (2.0 * q0 / g).sqrt();
-    if t < t1 {
-        return (q0 - 0.5 * g * t * t, -g * t);
-    }
-    let (mut start, mut u) = (t1, e * g * t1);
-    loop {
-        let flight = 2.0 * u / g;
-        if t < start + flight {
-            let s = t - start;
-            return (u * s - 0.5 * g * s * s, u - g * s);
+/// The study's point of a run (an empty error for a failed one), as the CLI and the service make
+/// it.
+fn point(study: &Study, ran: &Ran<'_>) -> StudyPoint {
+    match &ran.samples {
+        Ok(s) => {
+            let error = study.error(s, None).unwrap_or(f64::NAN);
+            StudyPoint::new(ran.run, ran.run.job.size().steps, ran.cpu, error, Some(s))
         }
-        start += flight;
-        u *= e;
+        Err(_) => StudyPoint::new(ran.run, 0, f64::NAN, f64::NAN, None),
+    }
+}
+
+/// Prints the observed orders of a study's points.
+fn print_orders(name: &str, study: &Study, points: Vec<StudyPoint>) {
+    for o in StudyReport::new(study, points).orders() {
+        println!(
+            "# {name}: observed order {:.3} ({}, {} runs)",
+            o.order, o.scheme, o.points
+        );
     }
 }
 
@@ -313,138 +201,137 @@ fn main() {
     println!("# wrote {}", out.display());
 }
 
+/// The number of elements of a DEP bar run (its first grid value).
+fn elements(run: &StudyRun) -> f64 {
+    run.values[0][0].as_f64().unwrap_or(f64::NAN)
+}
+
+/// Steps where the contact impulse switches on.
+fn closures(samples: &Samples) -> usize {
+    samples
+        .impulses
+        .windows(2)
+        .filter(|w| w[1] > 0.0 && w[0] <= 0.0)
+        .count()
+}
+
 /// Scene 1. Returns the displacement and force diagrams' points.
 fn dep_bar(out: &Path, quick: bool, reps: usize) -> (Vec<Point>, Vec<Point>) {
-    let exact_bar = ExactBar::doyen_ern_piperno();
-    let ex = ExactSolution::solve(exact_bar, T_BAR + 1.0);
-    let (gap0, area) = (exact_bar.gap, exact_bar.area);
-    let exact_closures = ex.contacts.iter().filter(|c| c.0 <= T_BAR).count();
-    let ns: &[usize] = if quick {
-        &[25, 50, 100, 200]
-    } else {
-        &[25, 50, 100, 200, 400, 800, 1600]
-    };
     let mut csv = String::from(
-        "scheme,params,courant,elements,h,steps,cpu_seconds,err_u_max_m,err_force_l1_rel,closures,exact_closures,status\n",
+        "scheme,courant,elements,h,steps,cpu_seconds,err_u_max_m,err_force_l1_rel,closures,exact_closures,status\n",
     );
     let (mut pu, mut pf) = (Vec::new(), Vec::new());
-    let mut push = |series: String, cpu: f64, e_u: f64, e_f: f64| {
-        pu.push(Point {
-            series: series.clone(),
-            cpu,
-            err: e_u,
-        });
-        pf.push(Point {
-            series,
-            cpu,
-            err: e_f,
-        });
-    };
-    // WFEM: Δt = Δx/c.
-    for &n in ns {
-        let bar = Bar::doyen_ern_piperno(n);
-        let dt = 10.0 / n as f64 / bar.wave_speed();
-        let steps = (T_BAR / dt).round() as u64;
-        let (cpu, keep) = time_best(reps, || {
-            let wave = WaveBar::from_bar(&bar).expect("DEP bar");
-            let mut state = wave.initial_state();
-            let mut keep = Keep::with_capacity(steps as usize + 1);
-            run_wave(&wave, &mut state, steps, 1, &mut keep).expect("wfem run");
-            keep
-        });
-        let (e_u, e_f, closures) = bar_errors(&keep, &ex, gap0, area);
-        println!(
-            "dep_bar wfem N={n:5} h={dt:.3e} steps={steps:6} cpu={cpu:.3e}s err_u={e_u:.3e} err_force={e_f:.3e} closures={closures}/{exact_closures}"
-        );
-        let _ = writeln!(
-            csv,
-            "wfem,,1,{n},{dt:e},{steps},{cpu:e},{e_u:e},{e_f:e},{closures},{exact_closures},ok"
-        );
-        push("wfem (h = Δx/c)".into(), cpu, e_u, e_f);
-    }
-    for scheme in schemes() {
-        for &cr in &COURANT {
-            let series = format!("{} {}, c_r = {cr}", scheme.name, scheme.params);
-            for &n in ns {
-                let bar = Bar::doyen_ern_piperno(n);
-                let model = bar.build().expect("DEP bar");
-                let h = cr * bar.length / n as f64 / bar.wave_speed();
-                let steps = (T_BAR / h).round() as u64;
-                let output = OutputOptions {
-                    every: 1,
-                    probes: vec![],
-                };
-                let (cpu, result) = time_best(reps, || {
-                    let mut s = (scheme.make)(&model, h);
-                    let mut state = LinearState::initial(&model);
-                    let mut keep = Keep::with_capacity(steps as usize + 1);
-                    run_linear(&model, s.as_mut(), &mut state, steps, &output, &mut keep)
-                        .map(|_| keep)
-                });
-                let (name, params) = (scheme.name, scheme.params);
-                match result {
-                    Ok(keep) => {
-                        let (e_u, e_f, closures) = bar_errors(&keep, &ex, gap0, area);
-                        println!(
-                            "dep_bar {name} {params} c_r={cr} N={n:5} h={h:.3e} steps={steps:6} cpu={cpu:.3e}s err_u={e_u:.3e} err_force={e_f:.3e} closures={closures}/{exact_closures}"
-                        );
-                        let _ = writeln!(
-                            csv,
-                            "{name},{params},{cr},{n},{h:e},{steps},{cpu:e},{e_u:e},{e_f:e},{closures},{exact_closures},ok"
-                        );
-                        push(series.clone(), cpu, e_u, e_f);
-                    }
-                    Err(err) => {
-                        println!("dep_bar {name} {params} c_r={cr} N={n}: failed: {err}");
-                        let _ = writeln!(
-                            csv,
-                            "{name},{params},{cr},{n},{h:e},{steps},{cpu:e},,,,{exact_closures},\"failed: {err}\""
-                        );
+    let mut trace: Vec<(String, Vec<f64>, Vec<f64>)> = Vec::new();
+    for (file, cr) in [
+        ("work_precision_dep_bar.toml", 1.0),
+        ("work_precision_dep_bar_cr4.toml", 4.0),
+    ] {
+        let disp = study(file);
+        let force = in_norm(&disp, ErrorNorm::ImpulseL1);
+        let signorini_core::study::Reference::DepBar { solution, .. } = &disp.reference else {
+            panic!("{file}: the DEP bar's exact reference");
+        };
+        let exact_closures = solution.contacts.iter().filter(|c| c.0 <= T_BAR).count();
+        let ran = run_study(&disp, reps, |_, r| !quick || elements(r) <= 200.0);
+        let (mut points_u, mut points_f) = (Vec::new(), Vec::new());
+        for r in &ran {
+            let (name, n, h) = (&r.run.label, elements(r.run), r.run.h);
+            let wfem = r.run.job.spec().integrator.scheme() == "wfem";
+            let courant = if wfem { 1.0 } else { cr };
+            let (pu_k, pf_k) = (point(&disp, r), point(&force, r));
+            let steps = pu_k.steps;
+            let series = if wfem {
+                "wfem (h = Δx/c)".to_string()
+            } else {
+                format!("{name}, c_r = {cr}")
+            };
+            match &r.samples {
+                Ok(s) => {
+                    let (e_u, e_f, c) = (pu_k.error, pf_k.error, closures(s));
+                    println!(
+                        "dep_bar {name} c_r={courant} N={n:5} h={h:.3e} steps={steps:6} cpu={:.3e}s err_u={e_u:.3e} err_force={e_f:.3e} closures={c}/{exact_closures}",
+                        r.cpu
+                    );
+                    let _ = writeln!(
+                        csv,
+                        "\"{name}\",{courant},{n},{h:e},{steps},{:e},{e_u:e},{e_f:e},{c},{exact_closures},ok",
+                        r.cpu
+                    );
+                    pu.push(Point {
+                        series: series.clone(),
+                        cpu: r.cpu,
+                        err: e_u,
+                    });
+                    pf.push(Point {
+                        series,
+                        cpu: r.cpu,
+                        err: e_f,
+                    });
+                    if cr == 1.0 && n == TRACE_N {
+                        let gap = s.names.iter().position(|c| c == "gap_0").expect("gap_0");
+                        let u = s
+                            .values
+                            .iter()
+                            .map(|row| solution_gap(&disp) - row[gap])
+                            .collect();
+                        trace.push((name.clone(), s.t.clone(), u));
                     }
                 }
+                Err(err) => {
+                    println!("dep_bar {name} c_r={courant} N={n}: failed: {err}");
+                    let _ = writeln!(
+                        csv,
+                        "\"{name}\",{courant},{n},{h:e},,{:e},,,,{exact_closures},\"failed: {err}\"",
+                        r.cpu
+                    );
+                }
             }
+            points_u.push(pu_k);
+            points_f.push(pf_k);
+        }
+        print_orders(&format!("dep_bar c_r={cr} err_u"), &disp, points_u);
+        print_orders(&format!("dep_bar c_r={cr} err_force"), &force, points_f);
+        if cr == 1.0 {
+            let (trace_csv, trace_svg) = trace_files(solution, &trace);
+            std::fs::write(out.join("dep_bar_trace.csv"), trace_csv).expect("write trace");
+            std::fs::write(out.join("dep_bar_trace.svg"), trace_svg).expect("write trace");
         }
     }
     std::fs::write(out.join("dep_bar.csv"), csv).expect("write dep_bar.csv");
-    let (trace_csv, trace_svg) = trace(&ex, gap0);
-    std::fs::write(out.join("dep_bar_trace.csv"), trace_csv).expect("write trace");
-    std::fs::write(out.join("dep_bar_trace.svg"), trace_svg).expect("write trace");
     (pu, pf)
 }
 
-/// Contact-end displacement histories at N = TRACE_N, c_r = 1 (and the WFEM, and the exact
-/// solution), one column per scheme, every TRACE_EVERY-th step.
-fn trace(ex: &ExactSolution, gap0: f64) -> (String, String) {
-    const TRACE_N: usize = 100;
+/// The initial gap g0 of a DEP bar study.
+fn solution_gap(study: &Study) -> f64 {
+    match &study.reference {
+        signorini_core::study::Reference::DepBar { gap, .. } => *gap,
+        _ => f64::NAN,
+    }
+}
+
+/// Contact-end displacement histories at N = TRACE_N, c_r = 1 (the WFEM's steps are the
+/// abscissa; the exact solution first), every TRACE_EVERY-th step.
+fn trace_files(
+    exact: &signorini_core::wfem::exact::ExactSolution,
+    runs: &[(String, Vec<f64>, Vec<f64>)],
+) -> (String, String) {
     const TRACE_EVERY: usize = 3;
-    let bar = Bar::doyen_ern_piperno(TRACE_N);
-    let h = bar.length / TRACE_N as f64 / bar.wave_speed();
-    let steps = (T_BAR / h).round() as u64;
-    let mut cols: Vec<(String, Vec<f64>)> = Vec::new();
-    let wave = WaveBar::from_bar(&bar).expect("DEP bar");
-    let mut state = wave.initial_state();
-    let mut keep = Keep::default();
-    run_wave(&wave, &mut state, steps, 1, &mut keep).expect("wfem run");
-    let t = keep.t.clone();
-    cols.push((
+    let t = runs
+        .iter()
+        .find(|r| r.0 == "wfem")
+        .map_or_else(|| runs[0].1.clone(), |r| r.1.clone());
+    let mut cols: Vec<(String, Vec<f64>)> = vec![(
         "exact".into(),
-        t.iter().map(|&t| ex.end_displacement(t)).collect(),
-    ));
-    cols.push(("wfem".into(), keep.g.iter().map(|g| gap0 - g).collect()));
-    let model = bar.build().expect("DEP bar");
-    for scheme in schemes() {
-        let mut s = (scheme.make)(&model, h);
-        let mut state = LinearState::initial(&model);
-        let mut keep = Keep::default();
-        let output = OutputOptions {
-            every: 1,
-            probes: vec![],
+        t.iter().map(|&t| exact.end_displacement(t)).collect(),
+    )];
+    for (name, ts, u) in runs {
+        // Every c_r = 1 run at N = 100 has the WFEM's steps (h = Δx/c).
+        let u = if ts.len() == t.len() {
+            u.clone()
+        } else {
+            vec![f64::NAN; t.len()]
         };
-        let u = match run_linear(&model, s.as_mut(), &mut state, steps, &output, &mut keep) {
-            Ok(_) => keep.g.iter().map(|g| gap0 - g).collect(),
-            Err(_) => vec![f64::NAN; t.len()],
-        };
-        cols.push((format!("{} {}", scheme.name, scheme.params), u));
+        cols.push((name.clone(), u));
     }
     let mut csv = String::from("t");
     for (name, _) in &cols {
@@ -459,7 +346,7 @@ fn trace(ex: &ExactSolution, gap0: f64) -> (String, String) {
         csv.push('\n');
     }
     let svg = svg_lines(
-        &format!("Doyen–Ern–Piperno bar, N = {TRACE_N}, h = Δx/c: contact-end displacement"),
+        "Doyen–Ern–Piperno bar, N = 100, h = Δx/c: contact-end displacement",
         "t (s)",
         "u(L, t) (m); the obstacle is at u = 5 m",
         &t,
@@ -470,78 +357,51 @@ fn trace(ex: &ExactSolution, gap0: f64) -> (String, String) {
 
 /// Scene 2. Returns the diagram's points.
 fn bouncing_ball(out: &Path, quick: bool, reps: usize) -> Vec<Point> {
-    let ball = BouncingBall {
-        mass: 1.0,
-        gravity: 9.81,
-        q0: 1.0,
-        v0: 0.0,
-        restitution: 0.9,
-    };
-    let model = ball.build().expect("ball");
-    let (q_ex, v_ex) = ball_exact(ball.q0, ball.gravity, ball.restitution, T_BALL);
+    let study = study("work_precision_ball.toml");
     let levels = if quick { 5 } else { 9 };
-    let mut csv = String::from(
-        "scheme,params,h,steps,cpu_seconds,err_q_m,err_q_envelope_m,err_v_m_per_s,impacts,status\n",
-    );
+    let per_scheme = study.runs.len() / study.spec.schemes.len();
+    let ran = run_study(&study, reps, |i, _| (i % per_scheme) / ENVELOPE < levels);
+    let mut csv = String::from("scheme,h,steps,cpu_seconds,err_q_m,err_q_envelope_m,status\n");
     let mut points = Vec::new();
-    for scheme in schemes() {
-        let (name, params) = (scheme.name, scheme.params);
-        for j in 0..levels {
-            let steps = 170u64 << j;
-            let h = T_BALL / steps as f64;
-            let output = OutputOptions {
-                every: steps,
-                probes: vec![0],
-            };
-            let (cpu, result) = time_best(reps, || {
-                let mut s = (scheme.make)(&model, h);
-                let mut state = LinearState::initial(&model);
-                let mut keep = Keep::default();
-                run_linear(&model, s.as_mut(), &mut state, steps, &output, &mut keep)
-                    .map(|stats| (state, stats.impacts))
-            });
-            match result {
-                Ok((state, impacts)) => {
-                    let (e_q, e_v) = ((state.q[0] - q_ex).abs(), (state.v[0] - v_ex).abs());
-                    // The error depends on where the impacts fall inside a step: take the
-                    // largest over ENVELOPE step sizes h·(16 + i)/16, i = 0…7 (untimed runs).
-                    let mut env = e_q;
-                    for i in 1..ENVELOPE {
-                        let n = (steps as f64 * 16.0 / (16.0 + i as f64)).round() as u64;
-                        let mut s = (scheme.make)(&model, T_BALL / n as f64);
-                        let mut st = LinearState::initial(&model);
-                        let o = OutputOptions {
-                            every: n,
-                            probes: vec![],
-                        };
-                        match run_linear(&model, s.as_mut(), &mut st, n, &o, &mut Keep::default()) {
-                            Ok(_) => env = env.max((st.q[0] - q_ex).abs()),
-                            Err(_) => env = f64::NAN,
-                        }
-                    }
-                    println!(
-                        "ball {name} {params} h={h:.3e} steps={steps:6} cpu={cpu:.3e}s err_q={e_q:.3e} err_q_envelope={env:.3e} err_v={e_v:.3e} impacts={impacts}"
-                    );
-                    let _ = writeln!(
-                        csv,
-                        "{name},{params},{h:e},{steps},{cpu:e},{e_q:e},{env:e},{e_v:e},{impacts},ok"
-                    );
-                    points.push(Point {
-                        series: format!("{name} {params}"),
-                        cpu,
-                        err: env,
-                    });
-                }
-                Err(err) => {
-                    println!("ball {name} {params} h={h:.3e}: failed: {err}");
-                    let _ = writeln!(
-                        csv,
-                        "{name},{params},{h:e},{steps},{cpu:e},,,,,\"failed: {err}\""
-                    );
-                }
+    let mut study_points = Vec::new();
+    for level in ran.chunks(ENVELOPE) {
+        let first = &level[0];
+        let (name, h) = (&first.run.label, first.run.h);
+        let errors: Vec<StudyPoint> = level.iter().map(|r| point(&study, r)).collect();
+        let steps = errors[0].steps;
+        let e_q = errors[0].error;
+        let env = errors.iter().map(|p| p.error).fold(0.0f64, |a, e| {
+            if a.is_nan() || e.is_nan() {
+                f64::NAN
+            } else {
+                a.max(e)
+            }
+        });
+        match &first.samples {
+            Ok(_) => {
+                println!(
+                    "ball {name} h={h:.3e} steps={steps:6} cpu={:.3e}s err_q={e_q:.3e} err_q_envelope={env:.3e}",
+                    first.cpu
+                );
+                let _ = writeln!(
+                    csv,
+                    "\"{name}\",{h:e},{steps},{:e},{e_q:e},{env:e},ok",
+                    first.cpu
+                );
+                points.push(Point {
+                    series: name.clone(),
+                    cpu: first.cpu,
+                    err: env,
+                });
+            }
+            Err(err) => {
+                println!("ball {name} h={h:.3e}: failed: {err}");
+                let _ = writeln!(csv, "\"{name}\",{h:e},,{:e},,,\"failed: {err}\"", first.cpu);
             }
         }
+        study_points.extend(errors);
     }
+    print_orders("ball err_q", &study, study_points);
     std::fs::write(out.join("ball.csv"), csv).expect("write ball.csv");
     points
 }

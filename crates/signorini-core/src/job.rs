@@ -426,8 +426,8 @@ impl Job {
         if spec.study.is_some() {
             return Err(SpecError::new(
                 "study",
-                "a study is several runs: run it with `signorini run STUDY.toml` (the service \
-                 does not take studies yet)",
+                "a study is several runs, not one job: run it with `signorini run STUDY.toml`, \
+                 or submit it to the service, which runs each as a child job",
             ));
         }
         let model = spec.model.as_ref();

@@ -308,6 +308,11 @@ class Client:
             if not token:
                 return
 
+    def children(self, job_id: str) -> list[service_pb2.JobStatus]:
+        """The child jobs of a study's parent job (a spec with [study]), in study order: the
+        reference run first if the study has one, then one per run; empty for any other job."""
+        return list(self._call("ListChildren", service_pb2.ListChildrenRequest(id=job_id)).jobs)
+
     def capabilities(self) -> service_pb2.CapabilitiesResponse:
         """Models, integrators, contact solvers, analyses and their parameters."""
         return self._call("Capabilities", service_pb2.CapabilitiesRequest())

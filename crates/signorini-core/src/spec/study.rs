@@ -83,6 +83,12 @@ pub enum ErrorNorm {
     Rms,
     /// max_i |e_{K,i}| at the last recorded step K.
     Final,
+    /// Σ_k |P_k − I_k| / Σ_k I_k: the relative L¹ error of the contact impulse per step, for
+    /// `dep_bar` against its exact solution only (`reference = "exact"`): P_k is the run's
+    /// `p_0`, its impulse over [t_{k−1}, t_k], and I_k = −∫ r dt the exact force's over the same
+    /// step, integrated exactly (r is piecewise linear). Every step must be recorded
+    /// (`output.every = 1`).
+    ImpulseL1,
 }
 
 impl ErrorNorm {
@@ -92,6 +98,7 @@ impl ErrorNorm {
             ErrorNorm::MaxAbs => "max_abs",
             ErrorNorm::Rms => "rms",
             ErrorNorm::Final => "final",
+            ErrorNorm::ImpulseL1 => "impulse_l1",
         }
     }
 }

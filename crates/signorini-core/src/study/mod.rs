@@ -47,6 +47,8 @@ pub enum Reference {
     DepBar {
         /// The initial gap g0.
         gap: f64,
+        /// The cross-section area (the exact force r is a stress: the impulse is −A ∫ r dt).
+        area: f64,
         /// u(L, t).
         solution: Box<ExactSolution>,
     },
@@ -298,6 +300,13 @@ impl Study {
                 )?))
             }
         };
+        if spec.error == ErrorNorm::ImpulseL1 && !matches!(reference, Reference::DepBar { .. }) {
+            return Err(SpecError::new(
+                "study.error",
+                "impulse_l1 is the contact impulse error of dep_bar against its exact solution \
+                 (reference = \"exact\" on scene dep_bar)",
+            ));
+        }
         Ok(Study {
             spec: spec.clone(),
             name: base.name.clone(),
@@ -311,6 +320,11 @@ impl Study {
     /// The error of a run's samples against the reference (`reference_samples` of the fine
     /// run when the reference is one), in the study's norm.
     pub fn error(&self, run: &Samples, reference: Option<&Samples>) -> Result<f64, SpecError> {
+        if let (ErrorNorm::ImpulseL1, Reference::DepBar { solution, area, .. }) =
+            (self.spec.error, &self.reference)
+        {
+            return impulse_error(run, solution, *area);
+        }
         let mut acc = NormAccumulator::new(self.spec.error);
         match &self.reference {
             Reference::Run(_) => {
@@ -376,7 +390,9 @@ impl Reference {
     fn exact_values(&self, t: f64) -> Vec<f64> {
         match self {
             Reference::Ball(ball) => vec![ball.exact_motion(t).0],
-            Reference::DepBar { gap, solution } => vec![gap - solution.end_displacement(t)],
+            Reference::DepBar { gap, solution, .. } => {
+                vec![gap - solution.end_displacement(t)]
+            }
             Reference::JayNegrut { probes } => {
                 let y = JayNegrutTest::default()
                     .exact(t)
@@ -424,6 +440,7 @@ fn exact_reference(model: &ModelSpec, base: &JobSpec, t_end: f64) -> Result<Refe
             };
             Ok(Reference::DepBar {
                 gap: bar.gap,
+                area: bar.area,
                 solution: Box::new(ExactSolution::solve(exact, t_end * 1.01 + 1e-9)),
             })
         }
@@ -443,6 +460,45 @@ fn exact_reference(model: &ModelSpec, base: &JobSpec, t_end: f64) -> Result<Refe
             ),
         )),
     }
+}
+
+/// −∫_{ta}^{tb} A r dt of the exact contact force (≥ 0), exactly (r is linear on each piece
+/// of the solution by characteristics).
+pub fn exact_impulse(exact: &ExactSolution, area: f64, ta: f64, tb: f64) -> f64 {
+    let mut sum = 0.0;
+    let start = exact.pieces.partition_point(|p| p.t1 <= ta);
+    for p in &exact.pieces[start..] {
+        if p.t0 >= tb {
+            break;
+        }
+        if !p.contact {
+            continue;
+        }
+        let (a, b) = (ta.max(p.t0), tb.min(p.t1));
+        if b > a {
+            // ∫ (a0 + a1 (t − t0)) dt over [a, b].
+            let mid = 0.5 * (a + b) - p.t0;
+            sum += area * (p.a0 + p.a1 * mid) * (b - a);
+        }
+    }
+    -sum
+}
+
+/// [`ErrorNorm::ImpulseL1`] of a run's `p_0` against the exact impulses.
+fn impulse_error(run: &Samples, exact: &ExactSolution, area: f64) -> Result<f64, SpecError> {
+    if run.impulses.len() != run.t.len() {
+        return Err(SpecError::new(
+            "study.error",
+            "impulse_l1 needs the runs' contact impulse p_0 (a scheme that reports it)",
+        ));
+    }
+    let (mut error, mut total) = (0.0, 0.0);
+    for k in 1..run.t.len() {
+        let exact = exact_impulse(exact, area, run.t[k - 1], run.t[k]);
+        error += (run.impulses[k] - exact).abs();
+        total += exact;
+    }
+    Ok(error / total)
 }
 
 /// Accumulates a norm of errors e_{k,i}.
@@ -494,6 +550,8 @@ impl NormAccumulator {
             ErrorNorm::Rms if self.count > 0 => (self.sum_sq / self.count as f64).sqrt(),
             ErrorNorm::Rms => 0.0,
             ErrorNorm::Final => self.last_max,
+            // Computed from the impulses ([`impulse_error`]), never accumulated.
+            ErrorNorm::ImpulseL1 => f64::NAN,
         }
     }
 }
@@ -509,6 +567,9 @@ pub struct Samples {
     pub t: Vec<f64>,
     /// The recorded values, one row per step (in `names` order).
     pub values: Vec<Vec<f64>>,
+    /// The contact impulse `p_0` of every recorded step (empty when the run has no `p_0`).
+    pub impulses: Vec<f64>,
+    impulse: Option<usize>,
     balance: Option<usize>,
     energy_error: Option<usize>,
     /// Largest |balance_residual| (NaN when the scheme reports none).
@@ -548,6 +609,8 @@ impl Observer for Samples {
                 self.indices.push(i);
             }
         }
+        self.impulse = columns.index("p_0");
+        self.impulses.clear();
         self.balance = columns.index("balance_residual");
         self.energy_error = columns.index("energy_error");
         self.max_balance_residual = if self.balance.is_some() {
@@ -566,6 +629,9 @@ impl Observer for Samples {
         self.t.push(record.t);
         self.values
             .push(self.indices.iter().map(|&i| record.values[i]).collect());
+        if let Some(i) = self.impulse {
+            self.impulses.push(record.values[i]);
+        }
         if let Some(i) = self.balance {
             self.max_balance_residual = self.max_balance_residual.max(record.values[i].abs());
         }

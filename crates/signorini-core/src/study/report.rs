@@ -2,7 +2,7 @@
 //! the work–precision chart and `summary.json`.
 
 use super::Study;
-use crate::outcome::{Chart, WorkPrecisionChart, WorkPrecisionCurve};
+use crate::outcome::{Chart, Table, WorkPrecisionChart, WorkPrecisionCurve};
 use crate::spec::study::ErrorNorm;
 use serde::Serialize;
 use serde_json::Value;
@@ -242,6 +242,62 @@ impl StudyReport {
             );
         }
         s
+    }
+
+    /// `study.csv` as a numeric [`Table`] named `study` (what the service stores as the
+    /// parent job's table): `run`, `scheme` (the index into [`StudySummary::schemes`]), one
+    /// column per grid field path (an axis of several paths gives one column each; a value that
+    /// is not a number is NaN), then `h, steps, cpu_s, error, max_balance_residual,
+    /// max_energy_error` as in [`StudyReport::csv`] (NaN where that is empty).
+    pub fn table(&self) -> Table {
+        let paths: Vec<Vec<&str>> = self
+            .axes
+            .iter()
+            .map(|a| a.split(',').map(str::trim).collect())
+            .collect();
+        let mut columns = vec!["run".to_string(), "scheme".to_string()];
+        columns.extend(paths.iter().flatten().map(|p| p.to_string()));
+        columns.extend(
+            [
+                "h",
+                "steps",
+                "cpu_s",
+                "error",
+                "max_balance_residual",
+                "max_energy_error",
+            ]
+            .map(String::from),
+        );
+        let number = |v: Option<&Value>| v.and_then(Value::as_f64).unwrap_or(f64::NAN);
+        let rows = self
+            .points
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let mut row = vec![i as f64, p.scheme_index as f64];
+                for (v, ps) in p.values.iter().zip(&paths) {
+                    if ps.len() == 1 {
+                        row.push(number(Some(v)));
+                    } else {
+                        row.extend((0..ps.len()).map(|k| number(v.get(k))));
+                    }
+                }
+                row.extend([
+                    p.h,
+                    p.steps as f64,
+                    p.cpu_s,
+                    p.error,
+                    p.max_balance_residual,
+                    p.max_energy_error,
+                ]);
+                row
+            })
+            .collect();
+        Table {
+            name: "study".into(),
+            columns,
+            rows,
+        }
     }
 
     /// `work_precision`: error against CPU seconds, log–log, a curve per scheme (and values of

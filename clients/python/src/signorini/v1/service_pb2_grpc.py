@@ -79,6 +79,11 @@ class SimulationStub:
                 request_serializer=signorini_dot_v1_dot_service__pb2.CapabilitiesRequest.SerializeToString,
                 response_deserializer=signorini_dot_v1_dot_service__pb2.CapabilitiesResponse.FromString,
                 _registered_method=True)
+        self.ListChildren = channel.unary_unary(
+                '/signorini.v1.Simulation/ListChildren',
+                request_serializer=signorini_dot_v1_dot_service__pb2.ListChildrenRequest.SerializeToString,
+                response_deserializer=signorini_dot_v1_dot_service__pb2.ListJobsResponse.FromString,
+                _registered_method=True)
         self.PauseJob = channel.unary_unary(
                 '/signorini.v1.Simulation/PauseJob',
                 request_serializer=signorini_dot_v1_dot_service__pb2.PauseJobRequest.SerializeToString,
@@ -165,6 +170,15 @@ class SimulationServicer:
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
 
+    def ListChildren(self, request, context):
+        """The child jobs of a study's parent job (a spec with [study]), in study order: the reference
+        run first if the study has one, then one per run. Empty for any other job; NOT_FOUND for
+        an unknown id. The parent's own status counts its ended children in `progress`.
+        """
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
     def PauseJob(self, request, context):
         """Pauses a job: a running one writes a checkpoint after its next step and stops there, a
         queued one is parked; either is left PAUSED (not finished). FAILED_PRECONDITION naming the
@@ -239,6 +253,11 @@ def add_SimulationServicer_to_server(servicer, server):
                     servicer.Capabilities,
                     request_deserializer=signorini_dot_v1_dot_service__pb2.CapabilitiesRequest.FromString,
                     response_serializer=signorini_dot_v1_dot_service__pb2.CapabilitiesResponse.SerializeToString,
+            ),
+            'ListChildren': grpc.unary_unary_rpc_method_handler(
+                    servicer.ListChildren,
+                    request_deserializer=signorini_dot_v1_dot_service__pb2.ListChildrenRequest.FromString,
+                    response_serializer=signorini_dot_v1_dot_service__pb2.ListJobsResponse.SerializeToString,
             ),
             'PauseJob': grpc.unary_unary_rpc_method_handler(
                     servicer.PauseJob,
@@ -499,6 +518,33 @@ class Simulation:
             '/signorini.v1.Simulation/Capabilities',
             signorini_dot_v1_dot_service__pb2.CapabilitiesRequest.SerializeToString,
             signorini_dot_v1_dot_service__pb2.CapabilitiesResponse.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
+    def ListChildren(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_unary(
+            request,
+            target,
+            '/signorini.v1.Simulation/ListChildren',
+            signorini_dot_v1_dot_service__pb2.ListChildrenRequest.SerializeToString,
+            signorini_dot_v1_dot_service__pb2.ListJobsResponse.FromString,
             options,
             channel_credentials,
             insecure,
