@@ -405,6 +405,7 @@ pub(crate) struct Coefficients {
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) struct Frame {
     pub a: Vec<f64>,
+    /// M a; kept by the steps for a consistent mass only (see `AlphaCore::lumped`).
     pub ma: Vec<f64>,
     pub kq: Vec<f64>,
     pub cv: Vec<f64>,
@@ -466,6 +467,9 @@ pub(crate) struct AlphaCore {
     /// `nxt.f` holds the (constant) load: set by the first predictor of a run with
     /// `varying_load` false, so that later steps do not copy F again.
     f_ready: bool,
+    /// M is diagonal (lumped): M a is formed as m∘a where it is needed, and the frames' `ma`
+    /// is not kept up to date (one sweep and two history vectors fewer per step).
+    lumped: bool,
     pub s_factor: BandCholesky,
     pub m_factor: BandCholesky,
     /// History at t_k and the buffer for t_{k+1}.
@@ -515,6 +519,7 @@ impl AlphaCore {
             has_damping: !model.damping.is_zero(),
             varying_load: !model.force.harmonic.is_empty(),
             f_ready: false,
+            lumped: model.mass.kd() == 0,
             s_factor,
             m_factor,
             cur: Frame::zeros(n, m),
@@ -566,6 +571,29 @@ impl AlphaCore {
         }
     }
 
+    /// aᵀMa of a frame (M a formed as m∘a for a lumped mass, where `frame.ma` is not kept), in
+    /// the partial sums of [`dot`] and of the step's sweep.
+    fn a_m_a(&self, model: &LinearModel, frame: &Frame) -> f64 {
+        if self.lumped {
+            let n = frame.a.len();
+            let (a, m) = (&frame.a[..n], &model.mass.band(0)[..n]);
+            let (ac, mc) = (a.chunks_exact(4), m.chunks_exact(4));
+            let mut tail = 0.0;
+            for (x, w) in ac.remainder().iter().zip(mc.remainder()) {
+                tail += x * (w * x);
+            }
+            let mut acc = [0.0; 4];
+            for (x, w) in ac.zip(mc) {
+                for l in 0..4 {
+                    acc[l] += x[l] * (w[l] * x[l]);
+                }
+            }
+            (acc[0] + acc[2]) + (acc[1] + acc[3]) + tail
+        } else {
+            dot(&frame.a, &frame.ma)
+        }
+    }
+
     /// H (55) at `state` given its history frame.
     fn algorithmic_energy_of(
         &self,
@@ -577,7 +605,7 @@ impl AlphaCore {
         let strain = 0.5 * dot(&state.q, &frame.kq);
         let h2 = self.h * self.h;
         kin + strain
-            + 0.25 * h2 * (2.0 * self.c.beta - self.c.gamma) * dot(&frame.a, &frame.ma)
+            + 0.25 * h2 * (2.0 * self.c.beta - self.c.gamma) * self.a_m_a(model, frame)
             + self.cz * dot(&frame.z, &frame.kz)
     }
 
@@ -616,28 +644,64 @@ impl AlphaCore {
         // Predictors q̂ = q_k + h v_k + h²(½ − β) a_k (in s.q), v̂ = v_k + h(1 − γ) a_k (in s.v).
         let cq = h * h * (0.5 - beta);
         let cv = h * (1.0 - gamma);
-        for (((sq, sv), (q, v)), a) in s.q[..n]
-            .iter_mut()
-            .zip(&mut s.v[..n])
-            .zip(state.q[..n].iter().zip(&state.v[..n]))
-            .zip(&cur.a[..n])
-        {
-            *sq = q + h * v + cq * a;
-            *sv = v + cv * a;
-        }
-        // b = (1−α_L) F_{k+1} + α_L F_k − α_M M a_k − α_C C v_k − α_K K q_k − (1−α_C) C v̂ − (1−α_K) K q̂.
-        model.stiffness.mul_into(&s.q, &mut s.tmp);
-        for (((b, (f1, f0)), (ma, cv)), (kq, kqh)) in s.a[..n]
-            .iter_mut()
-            .zip(nxt.f[..n].iter().zip(&cur.f[..n]))
-            .zip(cur.ma[..n].iter().zip(&cur.cv[..n]))
-            .zip(cur.kq[..n].iter().zip(&s.tmp[..n]))
-        {
-            *b = (1.0 - w.load) * f1 + w.load * f0
-                - w.mass * ma
-                - w.damping * cv
-                - w.stiffness * kq
-                - (1.0 - w.stiffness) * kqh;
+        // A constant load: F_k and F_{k+1} are the same values, read once.
+        let f0 = if self.varying_load { &cur.f } else { &nxt.f };
+        if model.stiffness.kd() == 1 && n >= 2 {
+            // Tridiagonal K: predictors, K q̂ and b in one sweep.
+            let sweep = PredictSweep {
+                q: &state.q[..n],
+                v: &state.v[..n],
+                a: &cur.a[..n],
+                ma: &cur.ma[..n],
+                mass: &model.mass.band(0)[..n],
+                f1: &nxt.f[..n],
+                f0: &f0[..n],
+                cv: &cur.cv[..n],
+                kq: &cur.kq[..n],
+                k0: &model.stiffness.band(0)[..n],
+                k1: &model.stiffness.band(1)[..n],
+                q_hat: &mut s.q[..n],
+                v_hat: &mut s.v[..n],
+                b: &mut s.a[..n],
+            };
+            let c = [h, cq, cv];
+            if self.lumped {
+                predict_sweep::<true>(sweep, c, w);
+            } else {
+                predict_sweep::<false>(sweep, c, w);
+            }
+        } else {
+            for (((sq, sv), (q, v)), a) in s.q[..n]
+                .iter_mut()
+                .zip(&mut s.v[..n])
+                .zip(state.q[..n].iter().zip(&state.v[..n]))
+                .zip(&cur.a[..n])
+            {
+                *sq = q + h * v + cq * a;
+                *sv = v + cv * a;
+            }
+            // b = (1−α_L) F_{k+1} + α_L F_k − α_M M a_k − α_C C v_k − α_K K q_k − (1−α_C) C v̂ − (1−α_K) K q̂.
+            model.stiffness.mul_into(&s.q, &mut s.tmp);
+            if self.lumped {
+                let m = model.mass.band(0);
+                for (((b, (f1, f0)), ((a, m), cv)), (kq, kqh)) in s.a[..n]
+                    .iter_mut()
+                    .zip(nxt.f[..n].iter().zip(&f0[..n]))
+                    .zip(cur.a[..n].iter().zip(&m[..n]).zip(&cur.cv[..n]))
+                    .zip(cur.kq[..n].iter().zip(&s.tmp[..n]))
+                {
+                    *b = rhs_row(w, [*f1, *f0, m * a, *cv, *kq, *kqh]);
+                }
+            } else {
+                for (((b, (f1, f0)), (ma, cv)), (kq, kqh)) in s.a[..n]
+                    .iter_mut()
+                    .zip(nxt.f[..n].iter().zip(&f0[..n]))
+                    .zip(cur.ma[..n].iter().zip(&cur.cv[..n]))
+                    .zip(cur.kq[..n].iter().zip(&s.tmp[..n]))
+                {
+                    *b = rhs_row(w, [*f1, *f0, *ma, *cv, *kq, *kqh]);
+                }
+            }
         }
         if self.has_damping {
             model.damping.mul_into(&s.v, &mut s.tmp);
@@ -653,12 +717,13 @@ impl AlphaCore {
                 }
             }
         }
-        self.s_factor.solve_in_place(&mut s.a);
+        // Solve S a_{k+1} = b, with (25f), (25g) q = q̂ + h²β a, v = v̂ + hγ a in its back sweep.
         let (ca, cva) = (h * h * beta, h * gamma);
-        for ((q, v), a) in s.q[..n].iter_mut().zip(&mut s.v[..n]).zip(&s.a[..n]) {
-            *q += ca * a;
-            *v += cva * a;
-        }
+        let (q, v) = (&mut s.q[..n], &mut s.v[..n]);
+        self.s_factor.solve_in_place_then(&mut s.a, |i, a| {
+            q[i] += ca * a;
+            v[i] += cva * a;
+        });
         t_next
     }
 
@@ -680,7 +745,10 @@ impl AlphaCore {
         let (h, beta, gamma, nu) = (self.h, self.c.beta, self.c.gamma, self.c.nu);
         let eta = self.c.eta;
         let (cur, nxt, s) = (&self.cur, &mut self.nxt, &mut self.s);
-        model.mass.mul_into(&s.a, &mut nxt.ma);
+        let lumped = self.lumped;
+        if !lumped {
+            model.mass.mul_into(&s.a, &mut nxt.ma);
+        }
         model.stiffness.mul_into(&s.q, &mut nxt.kq);
         // Without damping C v stays zero in both frames (start_frame zeroes it).
         if self.has_damping {
@@ -730,7 +798,13 @@ impl AlphaCore {
         let (g1, g0) = (gamma, 1.0 - gamma);
         let rx = if xy { ratio } else { 0.0 };
         let ry = if xy && self.varying_load { ratio } else { 0.0 };
-        let lumped = model.mass.kd() == 0;
+        // With a lumped mass `ma` is not read (M a = m∘a), with a constant load F_k = F_{k+1}.
+        let (ma1, ma0) = if lumped {
+            (&s.a, &cur.a)
+        } else {
+            (&nxt.ma, &cur.ma)
+        };
+        let f0 = if self.varying_load { &cur.f } else { &nxt.f };
         let sweep = Sweep {
             q1: &s.q[..n],
             q0: &state.q[..n],
@@ -740,10 +814,10 @@ impl AlphaCore {
             a0: &cur.a[..n],
             kq1: &nxt.kq[..n],
             kq0: &cur.kq[..n],
-            ma1: &nxt.ma[..n],
-            ma0: &cur.ma[..n],
+            ma1: &ma1[..n],
+            ma0: &ma0[..n],
             f1: &nxt.f[..n],
-            f0: &cur.f[..n],
+            f0: &f0[..n],
             z0: &cur.z[..n],
             kz0: &cur.kz[..n],
             mass: &model.mass.band(0)[..n],
@@ -850,6 +924,73 @@ impl AlphaCore {
     }
 }
 
+/// The vectors of [`predict_sweep`], all of length n ≥ 2: the state and history at t_k, the
+/// loads, the diagonals of a tridiagonal K (`k1[i]` = K[i][i−1]) and the outputs q̂, v̂, b.
+struct PredictSweep<'a> {
+    q: &'a [f64],
+    v: &'a [f64],
+    a: &'a [f64],
+    /// (M a)_k, read for a consistent mass only.
+    ma: &'a [f64],
+    /// Diagonal of M, read for a lumped mass only.
+    mass: &'a [f64],
+    f1: &'a [f64],
+    f0: &'a [f64],
+    cv: &'a [f64],
+    kq: &'a [f64],
+    k0: &'a [f64],
+    k1: &'a [f64],
+    q_hat: &'a mut [f64],
+    v_hat: &'a mut [f64],
+    b: &'a mut [f64],
+}
+
+/// The predictors (25f), (25g) without a_{k+1} and the right-hand side of (53) for a tridiagonal
+/// K in one sweep, `c` = (h, h²(½ − β), h(1 − γ)): q̂_j is formed again for rows j ± 1 (the same
+/// arithmetic as stored, so K q̂ is the product [`SymBand::mul_into`] forms), and no vector
+/// holds K q̂. Without damping the C v̂ term is added by the caller.
+fn predict_sweep<const LUMPED: bool>(p: PredictSweep<'_>, c: [f64; 3], w: Weighting) {
+    let n = p.q.len();
+    let [h, cq, cv] = c;
+    let (q, v, a) = (&p.q[..n], &p.v[..n], &p.a[..n]);
+    let (ma, mass, f1, f0) = (&p.ma[..n], &p.mass[..n], &p.f1[..n], &p.f0[..n]);
+    let (cv0, kq0, k0, k1) = (&p.cv[..n], &p.kq[..n], &p.k0[..n], &p.k1[..n]);
+    let (q_hat, v_hat, b) = (&mut p.q_hat[..n], &mut p.v_hat[..n], &mut p.b[..n]);
+    let qh = [0, 1, n - 2, n - 1].map(|j| q[j] + h * v[j] + cq * a[j]);
+    let ma_at = |i: usize| if LUMPED { mass[i] * a[i] } else { ma[i] };
+    let rows = [
+        (0, k0[0] * qh[0] + k1[1] * qh[1], qh[0]),
+        (n - 1, k1[n - 1] * qh[2] + k0[n - 1] * qh[3], qh[3]),
+    ];
+    for (i, kqh, qi) in rows {
+        q_hat[i] = qi;
+        v_hat[i] = v[i] + cv * a[i];
+        b[i] = rhs_row(w, [f1[i], f0[i], ma_at(i), cv0[i], kq0[i], kqh]);
+    }
+    for i in 1..n - 1 {
+        let ql = q[i - 1] + h * v[i - 1] + cq * a[i - 1];
+        let qi = q[i] + h * v[i] + cq * a[i];
+        let qu = q[i + 1] + h * v[i + 1] + cq * a[i + 1];
+        q_hat[i] = qi;
+        v_hat[i] = v[i] + cv * a[i];
+        let ma_i = if LUMPED { mass[i] * a[i] } else { ma[i] };
+        let kqh = k1[i] * ql + k0[i] * qi + k1[i + 1] * qu;
+        b[i] = rhs_row(w, [f1[i], f0[i], ma_i, cv0[i], kq0[i], kqh]);
+    }
+}
+
+/// One row of the right-hand side of (53) from (F_{k+1}, F_k, (M a)_k, (C v)_k, (K q)_k, K q̂)
+/// (the C v̂ term is subtracted by the caller).
+#[inline(always)]
+fn rhs_row(w: Weighting, x: [f64; 6]) -> f64 {
+    let [f1, f0, ma, cv, kq, kqh] = x;
+    (1.0 - w.load) * f1 + w.load * f0
+        - w.mass * ma
+        - w.damping * cv
+        - w.stiffness * kq
+        - (1.0 - w.stiffness) * kqh
+}
+
 /// The vectors [`finish_sweep`] reads (t_{k+1}: `…1`, t_k: `…0`) and writes, all of length n.
 struct Sweep<'a> {
     q1: &'a [f64],
@@ -866,7 +1007,7 @@ struct Sweep<'a> {
     f0: &'a [f64],
     z0: &'a [f64],
     kz0: &'a [f64],
-    /// Diagonal of M (read for a lumped mass only).
+    /// Diagonal of M (read for a lumped mass only, where `ma1`, `ma0` are not).
     mass: &'a [f64],
     z1: &'a mut [f64],
     kz1: &'a mut [f64],
@@ -896,10 +1037,10 @@ const SUMS: usize = 12;
 /// One sweep over the dofs for the z filter (48) and the sums of a step (Lemma 2):
 /// `Δqᵀ F_{k,γ}`, `‖Δq‖²_K`, `(q_{k+1} + q_k)ᵀ K Δq`, `‖Δa‖²_M`, `(a_{k+1} + a_k)ᵀ M Δa`,
 /// `qᵀKq`, `aᵀMa` (at t_{k+1}), with a lumped mass `(v_{k+1} + v_k)ᵀ M Δv` and `vᵀMv`, with the
-/// filters `‖Δz‖²_K`, `(z_{k+1} + z_k)ᵀ K Δz` and `zᵀKz`. Each sum runs in four interleaved
-/// partial sums (by dof index mod 4, the order of `dot` and `SymBand::quad`, so H agrees bit for
-/// bit with [`AlphaCore::algorithmic_energy`]): round-off differences only from the sequential
-/// sums.
+/// filters `‖Δz‖²_K`, `(z_{k+1} + z_k)ᵀ K Δz` and `zᵀKz`. The sums of H run in four
+/// interleaved partial sums (by dof index mod 4, the order of `dot` and `SymBand::quad`, so H
+/// agrees bit for bit with [`AlphaCore::algorithmic_energy`]), the others in two: round-off
+/// differences only from the sequential sums.
 fn finish_sweep<const FILTERS: bool, const LUMPED: bool>(w: Sweep<'_>) -> [f64; SUMS] {
     let n = w.q1.len();
     let m = n / 4;
@@ -936,13 +1077,22 @@ fn finish_sweep<const FILTERS: bool, const LUMPED: bool>(w: Sweep<'_>) -> [f64; 
         &mut dvs[..n].as_chunks_mut::<4>().0[..m],
         &mut svs[..n].as_chunks_mut::<4>().0[..m],
     );
+    // The sums of H in four lanes (the order of `dot` and `SymBand::quad`), the others in two
+    // (lanes l and l + 2 added first): twelve sums in four lanes would not fit the registers.
     let mut lanes = [F4::default(); SUMS];
+    let mut pairs = [[0.0; 2]; SUMS];
     for c in 0..m {
         let x = std::array::from_fn(|j| F4(ins[j][c]));
         let (t, out) = dof::<FILTERS, LUMPED, F4>(&k, x);
-        for (s, acc) in lanes.iter_mut().enumerate() {
-            if used::<FILTERS, LUMPED>(s) {
-                *acc = *acc + t[s];
+        for s in 0..SUMS {
+            if !used::<FILTERS, LUMPED>(s) {
+                continue;
+            }
+            if of_h(s) {
+                lanes[s] = lanes[s] + t[s];
+            } else {
+                let u = t[s].0;
+                pairs[s] = [pairs[s][0] + (u[0] + u[2]), pairs[s][1] + (u[1] + u[3])];
             }
         }
         if FILTERS {
@@ -977,9 +1127,19 @@ fn finish_sweep<const FILTERS: bool, const LUMPED: bool>(w: Sweep<'_>) -> [f64; 
         }
     }
     std::array::from_fn(|s| {
-        let l = lanes[s].0;
-        (l[0] + l[2]) + (l[1] + l[3]) + tail[s]
+        if of_h(s) {
+            let l = lanes[s].0;
+            (l[0] + l[2]) + (l[1] + l[3]) + tail[s]
+        } else {
+            (pairs[s][0] + pairs[s][1]) + tail[s]
+        }
     })
+}
+
+/// Whether sum `s` is one of H (55): qᵀKq, aᵀMa, vᵀMv, zᵀKz.
+#[inline(always)]
+const fn of_h(s: usize) -> bool {
+    matches!(s, S_STRAIN | S_ATERM | S_KIN | S_ZTERM)
 }
 
 /// Four dofs at once, lane l for the dof index ≡ l mod 4: element-wise arithmetic that the
@@ -1079,6 +1239,12 @@ where
         kz0,
         mass,
     ] = x;
+    // A lumped mass: M a = m∘a (the product `SymBand::mul_into` forms), `ma` not read.
+    let (ma1, ma0) = if LUMPED {
+        (mass * a1, mass * a0)
+    } else {
+        (ma1, ma0)
+    };
     let [g1, g0] = k.g;
     let [nu, mz, ip] = k.filter;
     let mut t = [T::default(); SUMS];
@@ -1393,10 +1559,15 @@ impl LinearScheme for NonsmoothAlpha {
                         &self.v_cols[a * n..(a + 1) * n],
                         &self.q_cols[a * n..(a + 1) * n],
                     );
-                    for i in 0..n {
-                        s.a[i] += p * ac[i];
-                        s.v[i] += p * vc[i];
-                        s.q[i] += p * qc[i];
+                    for (((sa, sv), sq), ((ac, vc), qc)) in s.a[..n]
+                        .iter_mut()
+                        .zip(&mut s.v[..n])
+                        .zip(&mut s.q[..n])
+                        .zip(ac.iter().zip(vc).zip(qc))
+                    {
+                        *sa += p * ac;
+                        *sv += p * vc;
+                        *sq += p * qc;
                     }
                 }
             }
