@@ -552,8 +552,9 @@ impl Twisted {
     }
 
     /// Solves A x = b in place: N w = b from both ends, scaled by Γ⁻¹ on the way, then Nᵀ x = Γ⁻¹w
-    /// from m outwards. The two chains of each sweep are interleaved in one loop.
-    fn solve(&self, b: &mut [f64]) {
+    /// from m outwards. The two chains of each sweep are interleaved in one loop; `each(i, x_i)`
+    /// is called as x_i is found (work that hides in the latency of the chains).
+    fn solve_then(&self, b: &mut [f64], mut each: impl FnMut(usize, f64)) {
         let m = self.m;
         let (top, rest) = b.split_at_mut(m);
         let Some((mid, bot)) = rest.split_first_mut() else {
@@ -586,23 +587,32 @@ impl Twisted {
         // Twist row: x_m = (b_m − l_m w_{m−1} − u_m w_{m+1}) / γ_m.
         let xm = (*mid - self.lo[m] * y - self.up[m] * z) * self.inv[m];
         *mid = xm;
+        each(m, xm);
         // x_i = Γ⁻¹w_i − l_{i+1} x_{i+1} upwards and x_j = Γ⁻¹w_j − u_{j−1} x_{j−1} downwards.
         let (mut xt, mut xb) = (xm, xm);
-        let mut ti = top.iter_mut().rev().zip(self.lo[1..=m].iter().rev());
-        let mut bi = bot.iter_mut().zip(&self.up[m..]);
-        for ((bt, l), (bb, u)) in (&mut ti).take(k).zip((&mut bi).take(k)) {
+        let mut ti = top
+            .iter_mut()
+            .enumerate()
+            .rev()
+            .zip(self.lo[1..=m].iter().rev());
+        let mut bi = bot.iter_mut().enumerate().zip(&self.up[m..]);
+        for (((i, bt), l), ((j, bb), u)) in (&mut ti).take(k).zip((&mut bi).take(k)) {
             xt = *bt - l * xt;
             xb = *bb - u * xb;
             *bt = xt;
             *bb = xb;
+            each(i, xt);
+            each(m + 1 + j, xb);
         }
-        for (bt, l) in ti {
+        for ((i, bt), l) in ti {
             xt = *bt - l * xt;
             *bt = xt;
+            each(i, xt);
         }
-        for (bb, u) in bi {
+        for ((j, bb), u) in bi {
             xb = *bb - u * xb;
             *bb = xb;
+            each(m + 1 + j, xb);
         }
     }
 }
@@ -629,10 +639,17 @@ impl BandCholesky {
 
     /// Solves A x = b in place (b becomes x).
     pub fn solve_in_place(&self, b: &mut [f64]) {
+        self.solve_in_place_then(b, |_, _| {});
+    }
+
+    /// Solves A x = b in place and calls `each(i, x_i)` once for every i (in no fixed order):
+    /// with the twisted factor as the back sweep finds x_i, so that an update by x (a corrector
+    /// such as q += c x) costs no sweep of its own.
+    pub fn solve_in_place_then(&self, b: &mut [f64], mut each: impl FnMut(usize, f64)) {
         let (n, kd) = (self.n, self.kd);
         let b = &mut b[..n];
         if let Some(t) = &self.twisted {
-            t.solve(b);
+            t.solve_then(b, each);
             return;
         }
         match kd {
@@ -678,6 +695,9 @@ impl BandCholesky {
                     b[i] = s;
                 }
             }
+        }
+        for (i, x) in b.iter().enumerate() {
+            each(i, *x);
         }
     }
 }

@@ -405,6 +405,7 @@ pub(crate) struct Coefficients {
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) struct Frame {
     pub a: Vec<f64>,
+    /// M a; kept by the steps for a consistent mass only (see `AlphaCore::lumped`).
     pub ma: Vec<f64>,
     pub kq: Vec<f64>,
     pub cv: Vec<f64>,
@@ -463,6 +464,12 @@ pub(crate) struct AlphaCore {
     has_damping: bool,
     /// F has a time-varying part (else the y filter stays exactly zero and is skipped).
     varying_load: bool,
+    /// `nxt.f` holds the (constant) load: set by the first predictor of a run with
+    /// `varying_load` false, so that later steps do not copy F again.
+    f_ready: bool,
+    /// M is diagonal (lumped): M a is formed as m∘a where it is needed, and the frames' `ma`
+    /// is not kept up to date (one sweep and two history vectors fewer per step).
+    lumped: bool,
     pub s_factor: BandCholesky,
     pub m_factor: BandCholesky,
     /// History at t_k and the buffer for t_{k+1}.
@@ -511,6 +518,8 @@ impl AlphaCore {
             filters,
             has_damping: !model.damping.is_zero(),
             varying_load: !model.force.harmonic.is_empty(),
+            f_ready: false,
+            lumped: model.mass.kd() == 0,
             s_factor,
             m_factor,
             cur: Frame::zeros(n, m),
@@ -562,6 +571,29 @@ impl AlphaCore {
         }
     }
 
+    /// aᵀMa of a frame (M a formed as m∘a for a lumped mass, where `frame.ma` is not kept), in
+    /// the partial sums of [`dot`] and of the step's sweep.
+    fn a_m_a(&self, model: &LinearModel, frame: &Frame) -> f64 {
+        if self.lumped {
+            let n = frame.a.len();
+            let (a, m) = (&frame.a[..n], &model.mass.band(0)[..n]);
+            let (ac, mc) = (a.chunks_exact(4), m.chunks_exact(4));
+            let mut tail = 0.0;
+            for (x, w) in ac.remainder().iter().zip(mc.remainder()) {
+                tail += x * (w * x);
+            }
+            let mut acc = [0.0; 4];
+            for (x, w) in ac.zip(mc) {
+                for l in 0..4 {
+                    acc[l] += x[l] * (w[l] * x[l]);
+                }
+            }
+            (acc[0] + acc[2]) + (acc[1] + acc[3]) + tail
+        } else {
+            dot(&frame.a, &frame.ma)
+        }
+    }
+
     /// H (55) at `state` given its history frame.
     fn algorithmic_energy_of(
         &self,
@@ -573,7 +605,7 @@ impl AlphaCore {
         let strain = 0.5 * dot(&state.q, &frame.kq);
         let h2 = self.h * self.h;
         kin + strain
-            + 0.25 * h2 * (2.0 * self.c.beta - self.c.gamma) * dot(&frame.a, &frame.ma)
+            + 0.25 * h2 * (2.0 * self.c.beta - self.c.gamma) * self.a_m_a(model, frame)
             + self.cz * dot(&frame.z, &frame.kz)
     }
 
@@ -592,35 +624,89 @@ impl AlphaCore {
     /// Free step: F_{k+1} into `nxt.f`, and the solution of the collocation relation with no
     /// impulse (and, for the baselines, no new contact force) into `s.a`, `s.q`, `s.v`.
     /// Returns t_{k+1}.
+    ///
+    /// Every sweep runs on plain slices of equal length (no bounds checks, no reloading of the
+    /// vectors through `self`), so that the compiler vectorises it; the arithmetic per dof is
+    /// that of (25f), (25g) and (53) in the order written, so the result does not depend on it.
     pub fn predict(&mut self, model: &LinearModel, state: &LinearState) -> f64 {
         self.ensure_history(model, state);
         let h = self.h;
         let (beta, gamma) = (self.c.beta, self.c.gamma);
         let w = self.c.weights;
         let t_next = (state.step + 1) as f64 * h;
-        model.force.eval_into(t_next, &mut self.nxt.f);
+        // A constant load is the same at every t: evaluated once into each frame.
+        if self.varying_load || !self.f_ready {
+            model.force.eval_into(t_next, &mut self.nxt.f);
+            self.f_ready = !self.varying_load;
+        }
         let n = state.q.len();
-        let (cur, s) = (&self.cur, &mut self.s);
+        let (cur, nxt, s) = (&self.cur, &self.nxt, &mut self.s);
         // Predictors q̂ = q_k + h v_k + h²(½ − β) a_k (in s.q), v̂ = v_k + h(1 − γ) a_k (in s.v).
         let cq = h * h * (0.5 - beta);
         let cv = h * (1.0 - gamma);
-        for i in 0..n {
-            s.q[i] = state.q[i] + h * state.v[i] + cq * cur.a[i];
-            s.v[i] = state.v[i] + cv * cur.a[i];
-        }
-        // b = (1−α_L) F_{k+1} + α_L F_k − α_M M a_k − α_C C v_k − α_K K q_k − (1−α_C) C v̂ − (1−α_K) K q̂.
-        model.stiffness.mul_into(&s.q, &mut s.tmp);
-        for i in 0..n {
-            s.a[i] = (1.0 - w.load) * self.nxt.f[i] + w.load * cur.f[i]
-                - w.mass * cur.ma[i]
-                - w.damping * cur.cv[i]
-                - w.stiffness * cur.kq[i]
-                - (1.0 - w.stiffness) * s.tmp[i];
+        // A constant load: F_k and F_{k+1} are the same values, read once.
+        let f0 = if self.varying_load { &cur.f } else { &nxt.f };
+        if model.stiffness.kd() == 1 && n >= 2 {
+            // Tridiagonal K: predictors, K q̂ and b in one sweep.
+            let sweep = PredictSweep {
+                q: &state.q[..n],
+                v: &state.v[..n],
+                a: &cur.a[..n],
+                ma: &cur.ma[..n],
+                mass: &model.mass.band(0)[..n],
+                f1: &nxt.f[..n],
+                f0: &f0[..n],
+                cv: &cur.cv[..n],
+                kq: &cur.kq[..n],
+                k0: &model.stiffness.band(0)[..n],
+                k1: &model.stiffness.band(1)[..n],
+                q_hat: &mut s.q[..n],
+                v_hat: &mut s.v[..n],
+                b: &mut s.a[..n],
+            };
+            let c = [h, cq, cv];
+            if self.lumped {
+                predict_sweep::<true>(sweep, c, w);
+            } else {
+                predict_sweep::<false>(sweep, c, w);
+            }
+        } else {
+            for (((sq, sv), (q, v)), a) in s.q[..n]
+                .iter_mut()
+                .zip(&mut s.v[..n])
+                .zip(state.q[..n].iter().zip(&state.v[..n]))
+                .zip(&cur.a[..n])
+            {
+                *sq = q + h * v + cq * a;
+                *sv = v + cv * a;
+            }
+            // b = (1−α_L) F_{k+1} + α_L F_k − α_M M a_k − α_C C v_k − α_K K q_k − (1−α_C) C v̂ − (1−α_K) K q̂.
+            model.stiffness.mul_into(&s.q, &mut s.tmp);
+            if self.lumped {
+                let m = model.mass.band(0);
+                for (((b, (f1, f0)), ((a, m), cv)), (kq, kqh)) in s.a[..n]
+                    .iter_mut()
+                    .zip(nxt.f[..n].iter().zip(&f0[..n]))
+                    .zip(cur.a[..n].iter().zip(&m[..n]).zip(&cur.cv[..n]))
+                    .zip(cur.kq[..n].iter().zip(&s.tmp[..n]))
+                {
+                    *b = rhs_row(w, [*f1, *f0, m * a, *cv, *kq, *kqh]);
+                }
+            } else {
+                for (((b, (f1, f0)), (ma, cv)), (kq, kqh)) in s.a[..n]
+                    .iter_mut()
+                    .zip(nxt.f[..n].iter().zip(&f0[..n]))
+                    .zip(cur.ma[..n].iter().zip(&cur.cv[..n]))
+                    .zip(cur.kq[..n].iter().zip(&s.tmp[..n]))
+                {
+                    *b = rhs_row(w, [*f1, *f0, *ma, *cv, *kq, *kqh]);
+                }
+            }
         }
         if self.has_damping {
             model.damping.mul_into(&s.v, &mut s.tmp);
-            for i in 0..n {
-                s.a[i] -= (1.0 - w.damping) * s.tmp[i];
+            for (b, cvh) in s.a[..n].iter_mut().zip(&s.tmp[..n]) {
+                *b -= (1.0 - w.damping) * cvh;
             }
         }
         // A baseline's contact force at t_k enters with the load weight.
@@ -631,17 +717,22 @@ impl AlphaCore {
                 }
             }
         }
-        self.s_factor.solve_in_place(&mut s.a);
+        // Solve S a_{k+1} = b, with (25f), (25g) q = q̂ + h²β a, v = v̂ + hγ a in its back sweep.
         let (ca, cva) = (h * h * beta, h * gamma);
-        for i in 0..n {
-            s.q[i] += ca * s.a[i];
-            s.v[i] += cva * s.a[i];
-        }
+        let (q, v) = (&mut s.q[..n], &mut s.v[..n]);
+        self.s_factor.solve_in_place_then(&mut s.a, |i, a| {
+            q[i] += ca * a;
+            v[i] += cva * a;
+        });
         t_next
     }
 
     /// Completes a step whose a_{k+1}, q_{k+1}, v_{k+1} are in `s.a`, `s.q`, `s.v` (and, for a
     /// baseline, λ_{k+1} in `nxt.lambda`): history, filters, energy terms, then the new state.
+    ///
+    /// Three product sweeps (M a, K q, C v at t_{k+1}), then one sweep ([`finish_sweep`]) for
+    /// the z filter, every sum of the balance (works, quadratic terms, ΔH) and the sums of H;
+    /// the new a, q, v are swapped in, not copied.
     pub fn finish(
         &mut self,
         model: &LinearModel,
@@ -654,39 +745,51 @@ impl AlphaCore {
         let (h, beta, gamma, nu) = (self.h, self.c.beta, self.c.gamma, self.c.nu);
         let eta = self.c.eta;
         let (cur, nxt, s) = (&self.cur, &mut self.nxt, &mut self.s);
-        nxt.a.copy_from_slice(&s.a);
-        model.mass.mul_into(&s.a, &mut nxt.ma);
+        let lumped = self.lumped;
+        if !lumped {
+            model.mass.mul_into(&s.a, &mut nxt.ma);
+        }
         model.stiffness.mul_into(&s.q, &mut nxt.kq);
+        // Without damping C v stays zero in both frames (start_frame zeroes it).
         if self.has_damping {
             model.damping.mul_into(&s.v, &mut nxt.cv);
-        } else {
-            nxt.cv.fill(0.0);
         }
         let ratio = self.ratio;
         let xy = self.filters && self.c.xy_filters;
-        // Filters (48), (52): (½+ν) z_{k+1} + (½−ν) z_k = ν Δq (and K z, C x, y alike).
+        // Filters (48), (52): (½+ν) z_{k+1} + (½−ν) z_k = ν Δq (and K z, C x, y alike),
+        // multiplied by 1/(½+ν) (one division per step, not two per dof). z and K z are
+        // updated in the sweep below.
+        let (ip, mz) = if self.filters {
+            (1.0 / (0.5 + nu), 0.5 - nu)
+        } else {
+            (0.0, 0.0)
+        };
         if self.filters {
-            // Multiplied by 1/(½+ν) (one division per step, not two per dof).
-            let (ip, m) = (1.0 / (0.5 + nu), 0.5 - nu);
-            for i in 0..n {
-                nxt.z[i] = (nu * (s.q[i] - state.q[i]) - m * cur.z[i]) * ip;
-                nxt.kz[i] = (nu * (nxt.kq[i] - cur.kq[i]) - m * cur.kz[i]) * ip;
-            }
             // x and y start at zero and are driven by Δ(Cv) and ΔF only: without damping or
             // without a time-varying load they stay exactly zero and are skipped.
             if xy && self.has_damping {
-                for i in 0..n {
-                    nxt.cx[i] = (nu * (nxt.cv[i] - cur.cv[i]) - m * cur.cx[i]) * ip;
+                for (((x1, x0), c1), c0) in nxt.cx[..n]
+                    .iter_mut()
+                    .zip(&cur.cx[..n])
+                    .zip(&nxt.cv[..n])
+                    .zip(&cur.cv[..n])
+                {
+                    *x1 = (nu * (c1 - c0) - mz * x0) * ip;
                 }
             }
             if xy && self.varying_load {
-                for i in 0..n {
-                    nxt.y[i] = (nu * (nxt.f[i] - cur.f[i]) - m * cur.y[i]) * ip;
+                for (((y1, y0), f1), f0) in nxt.y[..n]
+                    .iter_mut()
+                    .zip(&cur.y[..n])
+                    .zip(&nxt.f[..n])
+                    .zip(&cur.f[..n])
+                {
+                    *y1 = (nu * (f1 - f0) - mz * y0) * ip;
                 }
             }
             if xy {
                 for a in 0..nxt.lambda.len() {
-                    nxt.ylam[a] = (nu * (nxt.lambda[a] - cur.lambda[a]) - m * cur.ylam[a]) * ip;
+                    nxt.ylam[a] = (nu * (nxt.lambda[a] - cur.lambda[a]) - mz * cur.ylam[a]) * ip;
                 }
             }
         }
@@ -695,50 +798,78 @@ impl AlphaCore {
         let (g1, g0) = (gamma, 1.0 - gamma);
         let rx = if xy { ratio } else { 0.0 };
         let ry = if xy && self.varying_load { ratio } else { 0.0 };
-        let mut work_ext = 0.0;
+        // With a lumped mass `ma` is not read (M a = m∘a), with a constant load F_k = F_{k+1}.
+        let (ma1, ma0) = if lumped {
+            (&s.a, &cur.a)
+        } else {
+            (&nxt.ma, &cur.ma)
+        };
+        let f0 = if self.varying_load { &cur.f } else { &nxt.f };
+        let sweep = Sweep {
+            q1: &s.q[..n],
+            q0: &state.q[..n],
+            v1: &s.v[..n],
+            v0: &state.v[..n],
+            a1: &s.a[..n],
+            a0: &cur.a[..n],
+            kq1: &nxt.kq[..n],
+            kq0: &cur.kq[..n],
+            ma1: &ma1[..n],
+            ma0: &ma0[..n],
+            f1: &nxt.f[..n],
+            f0: &f0[..n],
+            z0: &cur.z[..n],
+            kz0: &cur.kz[..n],
+            mass: &model.mass.band(0)[..n],
+            z1: &mut nxt.z[..n],
+            kz1: &mut nxt.kz[..n],
+            dv: &mut s.tmp[..n],
+            sv: &mut s.tmp2[..n],
+            g: [g1, g0],
+            filter: [nu, mz, ip],
+        };
+        let sums = match (self.filters, lumped) {
+            (true, true) => finish_sweep::<true, true>(sweep),
+            (true, false) => finish_sweep::<true, false>(sweep),
+            (false, true) => finish_sweep::<false, true>(sweep),
+            (false, false) => finish_sweep::<false, false>(sweep),
+        };
+        let mut work_ext = sums[S_WORK_EXT];
         let mut work_damping = 0.0;
-        let mut dq_k_dq = 0.0;
-        let mut da_m_da = 0.0;
-        let mut dz_k_dz = 0.0;
-        let mut d_strain = 0.0;
-        let mut d_aterm = 0.0;
-        let mut d_zterm = 0.0;
-        for i in 0..n {
-            let dq = s.q[i] - state.q[i];
-            s.tmp[i] = s.v[i] - state.v[i];
-            s.tmp2[i] = s.v[i] + state.v[i];
-            work_ext += dq * (g1 * nxt.f[i] + g0 * cur.f[i]);
-            let dkq = nxt.kq[i] - cur.kq[i];
-            dq_k_dq += dq * dkq;
-            d_strain += (s.q[i] + state.q[i]) * dkq;
-            let dma = nxt.ma[i] - cur.ma[i];
-            let da = nxt.a[i] - cur.a[i];
-            da_m_da += da * dma;
-            d_aterm += (nxt.a[i] + cur.a[i]) * dma;
-        }
         if ry != 0.0 {
-            for i in 0..n {
-                work_ext -= (s.q[i] - state.q[i]) * ry * (g1 * nxt.y[i] + g0 * cur.y[i]);
+            for (((q1, q0), y1), y0) in s.q[..n]
+                .iter()
+                .zip(&state.q[..n])
+                .zip(&nxt.y[..n])
+                .zip(&cur.y[..n])
+            {
+                work_ext -= (q1 - q0) * ry * (g1 * y1 + g0 * y0);
             }
         }
         if self.has_damping {
-            for i in 0..n {
-                let dq = s.q[i] - state.q[i];
-                let cv_g = g1 * nxt.cv[i] + g0 * cur.cv[i] - rx * (g1 * nxt.cx[i] + g0 * cur.cx[i]);
-                work_damping -= dq * cv_g;
+            for (((q1, q0), (c1, c0)), (x1, x0)) in s.q[..n]
+                .iter()
+                .zip(&state.q[..n])
+                .zip(nxt.cv[..n].iter().zip(&cur.cv[..n]))
+                .zip(nxt.cx[..n].iter().zip(&cur.cx[..n]))
+            {
+                let cv_g = g1 * c1 + g0 * c0 - rx * (g1 * x1 + g0 * x0);
+                work_damping -= (q1 - q0) * cv_g;
             }
         }
-        if self.filters {
-            for i in 0..n {
-                let dkz = nxt.kz[i] - cur.kz[i];
-                dz_k_dz += (nxt.z[i] - cur.z[i]) * dkz;
-                d_zterm += (nxt.z[i] + cur.z[i]) * dkz;
-            }
-        }
-        let d_kin = 0.5 * model.mass.quad(&s.tmp2, &s.tmp);
+        let (d_kin, kin) = if lumped {
+            (0.5 * sums[S_D_KIN], 0.5 * sums[S_KIN])
+        } else {
+            (
+                0.5 * model.mass.quad(&s.tmp2, &s.tmp),
+                0.5 * model.mass.quad(&s.v, &s.v),
+            )
+        };
         let h2 = h * h;
-        let delta_h =
-            d_kin + 0.5 * d_strain + 0.25 * h2 * (2.0 * beta - gamma) * d_aterm + self.cz * d_zterm;
+        let delta_h = d_kin
+            + 0.5 * sums[S_D_STRAIN]
+            + 0.25 * h2 * (2.0 * beta - gamma) * sums[S_D_ATERM]
+            + self.cz * sums[S_D_ZTERM];
         let work_contact = match contact {
             ContactWork::Impulse(w) => w,
             ContactWork::Force => {
@@ -754,24 +885,26 @@ impl AlphaCore {
                 w
             }
         };
-        let numerical_dissipation = -0.5 * h2 * (gamma - 0.5) * (2.0 * beta - gamma) * da_m_da
-            - (gamma - 0.5 - eta) * dq_k_dq
-            - ratio * (nu - gamma + 0.5) * dz_k_dz;
+        let numerical_dissipation =
+            -0.5 * h2 * (gamma - 0.5) * (2.0 * beta - gamma) * sums[S_DA_M_DA]
+                - (gamma - 0.5 - eta) * sums[S_DQ_K_DQ]
+                - ratio * (nu - gamma + 0.5) * sums[S_DZ_K_DZ];
 
-        state.q.copy_from_slice(&s.q);
-        state.v.copy_from_slice(&s.v);
+        // The new state and history: swapped in (the scratch vectors are rewritten by the next
+        // predictor before they are read).
+        std::mem::swap(&mut state.q, &mut s.q);
+        std::mem::swap(&mut state.v, &mut s.v);
+        std::mem::swap(&mut nxt.a, &mut s.a);
         state.t = t_next;
         state.step += 1;
         std::mem::swap(&mut self.cur, &mut self.nxt);
         self.cur_step = Some(state.step);
 
-        // H (55) from the pieces at hand (no second pass of K over q).
-        let kin = 0.5 * model.mass.quad(&state.v, &state.v);
-        let strain = 0.5 * dot(&state.q, &self.cur.kq);
-        let mut alg =
-            kin + strain + 0.25 * h2 * (2.0 * beta - gamma) * dot(&self.cur.a, &self.cur.ma);
+        // H (55) from the sums of the sweep (no second pass over q, v, a, z).
+        let strain = 0.5 * sums[S_STRAIN];
+        let mut alg = kin + strain + 0.25 * h2 * (2.0 * beta - gamma) * sums[S_ATERM];
         if self.filters {
-            alg += self.cz * dot(&self.cur.z, &self.cur.kz);
+            alg += self.cz * sums[S_ZTERM];
         }
         report.energy = EnergyTerms {
             kinetic: kin,
@@ -789,6 +922,357 @@ impl AlphaCore {
         };
         report.fill_contacts(model, &state.q, &state.v, t_next);
     }
+}
+
+/// The vectors of [`predict_sweep`], all of length n ≥ 2: the state and history at t_k, the
+/// loads, the diagonals of a tridiagonal K (`k1[i]` = K[i][i−1]) and the outputs q̂, v̂, b.
+struct PredictSweep<'a> {
+    q: &'a [f64],
+    v: &'a [f64],
+    a: &'a [f64],
+    /// (M a)_k, read for a consistent mass only.
+    ma: &'a [f64],
+    /// Diagonal of M, read for a lumped mass only.
+    mass: &'a [f64],
+    f1: &'a [f64],
+    f0: &'a [f64],
+    cv: &'a [f64],
+    kq: &'a [f64],
+    k0: &'a [f64],
+    k1: &'a [f64],
+    q_hat: &'a mut [f64],
+    v_hat: &'a mut [f64],
+    b: &'a mut [f64],
+}
+
+/// The predictors (25f), (25g) without a_{k+1} and the right-hand side of (53) for a tridiagonal
+/// K in one sweep, `c` = (h, h²(½ − β), h(1 − γ)): q̂_j is formed again for rows j ± 1 (the same
+/// arithmetic as stored, so K q̂ is the product [`SymBand::mul_into`] forms), and no vector
+/// holds K q̂. Without damping the C v̂ term is added by the caller.
+fn predict_sweep<const LUMPED: bool>(p: PredictSweep<'_>, c: [f64; 3], w: Weighting) {
+    let n = p.q.len();
+    let [h, cq, cv] = c;
+    let (q, v, a) = (&p.q[..n], &p.v[..n], &p.a[..n]);
+    let (ma, mass, f1, f0) = (&p.ma[..n], &p.mass[..n], &p.f1[..n], &p.f0[..n]);
+    let (cv0, kq0, k0, k1) = (&p.cv[..n], &p.kq[..n], &p.k0[..n], &p.k1[..n]);
+    let (q_hat, v_hat, b) = (&mut p.q_hat[..n], &mut p.v_hat[..n], &mut p.b[..n]);
+    let qh = [0, 1, n - 2, n - 1].map(|j| q[j] + h * v[j] + cq * a[j]);
+    let ma_at = |i: usize| if LUMPED { mass[i] * a[i] } else { ma[i] };
+    let rows = [
+        (0, k0[0] * qh[0] + k1[1] * qh[1], qh[0]),
+        (n - 1, k1[n - 1] * qh[2] + k0[n - 1] * qh[3], qh[3]),
+    ];
+    for (i, kqh, qi) in rows {
+        q_hat[i] = qi;
+        v_hat[i] = v[i] + cv * a[i];
+        b[i] = rhs_row(w, [f1[i], f0[i], ma_at(i), cv0[i], kq0[i], kqh]);
+    }
+    for i in 1..n - 1 {
+        let ql = q[i - 1] + h * v[i - 1] + cq * a[i - 1];
+        let qi = q[i] + h * v[i] + cq * a[i];
+        let qu = q[i + 1] + h * v[i + 1] + cq * a[i + 1];
+        q_hat[i] = qi;
+        v_hat[i] = v[i] + cv * a[i];
+        let ma_i = if LUMPED { mass[i] * a[i] } else { ma[i] };
+        let kqh = k1[i] * ql + k0[i] * qi + k1[i + 1] * qu;
+        b[i] = rhs_row(w, [f1[i], f0[i], ma_i, cv0[i], kq0[i], kqh]);
+    }
+}
+
+/// One row of the right-hand side of (53) from (F_{k+1}, F_k, (M a)_k, (C v)_k, (K q)_k, K q̂)
+/// (the C v̂ term is subtracted by the caller).
+#[inline(always)]
+fn rhs_row(w: Weighting, x: [f64; 6]) -> f64 {
+    let [f1, f0, ma, cv, kq, kqh] = x;
+    (1.0 - w.load) * f1 + w.load * f0
+        - w.mass * ma
+        - w.damping * cv
+        - w.stiffness * kq
+        - (1.0 - w.stiffness) * kqh
+}
+
+/// The vectors [`finish_sweep`] reads (t_{k+1}: `…1`, t_k: `…0`) and writes, all of length n.
+struct Sweep<'a> {
+    q1: &'a [f64],
+    q0: &'a [f64],
+    v1: &'a [f64],
+    v0: &'a [f64],
+    a1: &'a [f64],
+    a0: &'a [f64],
+    kq1: &'a [f64],
+    kq0: &'a [f64],
+    ma1: &'a [f64],
+    ma0: &'a [f64],
+    f1: &'a [f64],
+    f0: &'a [f64],
+    z0: &'a [f64],
+    kz0: &'a [f64],
+    /// Diagonal of M (read for a lumped mass only, where `ma1`, `ma0` are not).
+    mass: &'a [f64],
+    z1: &'a mut [f64],
+    kz1: &'a mut [f64],
+    /// v_{k+1} − v_k and v_{k+1} + v_k (written for a consistent mass only).
+    dv: &'a mut [f64],
+    sv: &'a mut [f64],
+    /// γ, 1 − γ.
+    g: [f64; 2],
+    /// ν, ½ − ν, 1/(½ + ν).
+    filter: [f64; 3],
+}
+
+const S_WORK_EXT: usize = 0;
+const S_DQ_K_DQ: usize = 1;
+const S_D_STRAIN: usize = 2;
+const S_DA_M_DA: usize = 3;
+const S_D_ATERM: usize = 4;
+const S_STRAIN: usize = 5;
+const S_ATERM: usize = 6;
+const S_D_KIN: usize = 7;
+const S_KIN: usize = 8;
+const S_DZ_K_DZ: usize = 9;
+const S_D_ZTERM: usize = 10;
+const S_ZTERM: usize = 11;
+const SUMS: usize = 12;
+
+/// One sweep over the dofs for the z filter (48) and the sums of a step (Lemma 2):
+/// `Δqᵀ F_{k,γ}`, `‖Δq‖²_K`, `(q_{k+1} + q_k)ᵀ K Δq`, `‖Δa‖²_M`, `(a_{k+1} + a_k)ᵀ M Δa`,
+/// `qᵀKq`, `aᵀMa` (at t_{k+1}), with a lumped mass `(v_{k+1} + v_k)ᵀ M Δv` and `vᵀMv`, with the
+/// filters `‖Δz‖²_K`, `(z_{k+1} + z_k)ᵀ K Δz` and `zᵀKz`. The sums of H run in four
+/// interleaved partial sums (by dof index mod 4, the order of `dot` and `SymBand::quad`, so H
+/// agrees bit for bit with [`AlphaCore::algorithmic_energy`]), the others in two: round-off
+/// differences only from the sequential sums.
+fn finish_sweep<const FILTERS: bool, const LUMPED: bool>(w: Sweep<'_>) -> [f64; SUMS] {
+    let n = w.q1.len();
+    let m = n / 4;
+    let k = SweepCoefficients {
+        g: w.g,
+        filter: w.filter,
+    };
+    // The dofs 0..4m as chunks of four (one lane per dof index mod 4): every chunk slice has
+    // the same length m, so the loop below indexes without bounds checks and vectorises.
+    fn quads(x: &[f64], m: usize) -> &[[f64; 4]] {
+        &x.as_chunks::<4>().0[..m]
+    }
+    let ins = [
+        quads(w.q1, m),
+        quads(w.q0, m),
+        quads(w.v1, m),
+        quads(w.v0, m),
+        quads(w.a1, m),
+        quads(w.a0, m),
+        quads(w.kq1, m),
+        quads(w.kq0, m),
+        quads(w.ma1, m),
+        quads(w.ma0, m),
+        quads(w.f1, m),
+        quads(w.f0, m),
+        quads(w.z0, m),
+        quads(w.kz0, m),
+        quads(w.mass, m),
+    ];
+    let (z1, kz1, dvs, svs) = (w.z1, w.kz1, w.dv, w.sv);
+    let (z1q, kz1q, dvq, svq) = (
+        &mut z1[..n].as_chunks_mut::<4>().0[..m],
+        &mut kz1[..n].as_chunks_mut::<4>().0[..m],
+        &mut dvs[..n].as_chunks_mut::<4>().0[..m],
+        &mut svs[..n].as_chunks_mut::<4>().0[..m],
+    );
+    // The sums of H in four lanes (the order of `dot` and `SymBand::quad`), the others in two
+    // (lanes l and l + 2 added first): twelve sums in four lanes would not fit the registers.
+    let mut lanes = [F4::default(); SUMS];
+    let mut pairs = [[0.0; 2]; SUMS];
+    for c in 0..m {
+        let x = std::array::from_fn(|j| F4(ins[j][c]));
+        let (t, out) = dof::<FILTERS, LUMPED, F4>(&k, x);
+        for s in 0..SUMS {
+            if !used::<FILTERS, LUMPED>(s) {
+                continue;
+            }
+            if of_h(s) {
+                lanes[s] = lanes[s] + t[s];
+            } else {
+                let u = t[s].0;
+                pairs[s] = [pairs[s][0] + (u[0] + u[2]), pairs[s][1] + (u[1] + u[3])];
+            }
+        }
+        if FILTERS {
+            z1q[c] = out[0].0;
+            kz1q[c] = out[1].0;
+        }
+        if !LUMPED {
+            dvq[c] = out[2].0;
+            svq[c] = out[3].0;
+        }
+    }
+    let mut tail = [0.0; SUMS];
+    let all = [
+        w.q1, w.q0, w.v1, w.v0, w.a1, w.a0, w.kq1, w.kq0, w.ma1, w.ma0, w.f1, w.f0, w.z0, w.kz0,
+        w.mass,
+    ];
+    for i in 4 * m..n {
+        let x = std::array::from_fn(|j| all[j][i]);
+        let (t, out) = dof::<FILTERS, LUMPED, f64>(&k, x);
+        for (s, acc) in tail.iter_mut().enumerate() {
+            if used::<FILTERS, LUMPED>(s) {
+                *acc += t[s];
+            }
+        }
+        if FILTERS {
+            z1[i] = out[0];
+            kz1[i] = out[1];
+        }
+        if !LUMPED {
+            dvs[i] = out[2];
+            svs[i] = out[3];
+        }
+    }
+    std::array::from_fn(|s| {
+        if of_h(s) {
+            let l = lanes[s].0;
+            (l[0] + l[2]) + (l[1] + l[3]) + tail[s]
+        } else {
+            (pairs[s][0] + pairs[s][1]) + tail[s]
+        }
+    })
+}
+
+/// Whether sum `s` is one of H (55): qᵀKq, aᵀMa, vᵀMv, zᵀKz.
+#[inline(always)]
+const fn of_h(s: usize) -> bool {
+    matches!(s, S_STRAIN | S_ATERM | S_KIN | S_ZTERM)
+}
+
+/// Four dofs at once, lane l for the dof index ≡ l mod 4: element-wise arithmetic that the
+/// compiler maps to vector instructions (each lane computes exactly what a scalar would).
+#[derive(Debug, Clone, Copy, Default)]
+struct F4([f64; 4]);
+
+impl std::ops::Add for F4 {
+    type Output = F4;
+    #[inline(always)]
+    fn add(self, o: F4) -> F4 {
+        F4(std::array::from_fn(|l| self.0[l] + o.0[l]))
+    }
+}
+
+impl std::ops::Sub for F4 {
+    type Output = F4;
+    #[inline(always)]
+    fn sub(self, o: F4) -> F4 {
+        F4(std::array::from_fn(|l| self.0[l] - o.0[l]))
+    }
+}
+
+impl std::ops::Mul for F4 {
+    type Output = F4;
+    #[inline(always)]
+    fn mul(self, o: F4) -> F4 {
+        F4(std::array::from_fn(|l| self.0[l] * o.0[l]))
+    }
+}
+
+impl std::ops::Mul<F4> for f64 {
+    type Output = F4;
+    #[inline(always)]
+    fn mul(self, o: F4) -> F4 {
+        F4(o.0.map(|x| self * x))
+    }
+}
+
+/// What [`dof`] computes with: one dof (f64) or four ([`F4`]).
+trait Lane:
+    Copy
+    + Default
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + std::ops::Mul<Output = Self>
+where
+    f64: std::ops::Mul<Self, Output = Self>,
+{
+}
+
+impl Lane for f64 {}
+impl Lane for F4 {}
+
+/// The coefficients of [`dof`]: γ, 1 − γ and ν, ½ − ν, 1/(½ + ν).
+struct SweepCoefficients {
+    g: [f64; 2],
+    filter: [f64; 3],
+}
+
+/// Whether sum `s` is formed by the variant (the filter sums with filters, the kinetic sums
+/// with a lumped mass).
+#[inline(always)]
+const fn used<const FILTERS: bool, const LUMPED: bool>(s: usize) -> bool {
+    match s {
+        S_D_KIN | S_KIN => LUMPED,
+        S_DZ_K_DZ | S_D_ZTERM | S_ZTERM => FILTERS,
+        _ => true,
+    }
+}
+
+/// The terms of one dof (or four, [`F4`]) for [`finish_sweep`] from `x` = (q, q_k, v, v_k, a,
+/// a_k, Kq, (Kq)_k, Ma, (Ma)_k, F, F_k, z_k, (Kz)_k, M_ii) (no index: t_{k+1}); returns the
+/// terms of the sums and (z, Kz, Δv, v + v_k) at t_{k+1}.
+#[inline(always)]
+fn dof<const FILTERS: bool, const LUMPED: bool, T: Lane>(
+    k: &SweepCoefficients,
+    x: [T; 15],
+) -> ([T; SUMS], [T; 4])
+where
+    f64: std::ops::Mul<T, Output = T>,
+{
+    let [
+        q1,
+        q0,
+        v1,
+        v0,
+        a1,
+        a0,
+        kq1,
+        kq0,
+        ma1,
+        ma0,
+        f1,
+        f0,
+        z0,
+        kz0,
+        mass,
+    ] = x;
+    // A lumped mass: M a = m∘a (the product `SymBand::mul_into` forms), `ma` not read.
+    let (ma1, ma0) = if LUMPED {
+        (mass * a1, mass * a0)
+    } else {
+        (ma1, ma0)
+    };
+    let [g1, g0] = k.g;
+    let [nu, mz, ip] = k.filter;
+    let mut t = [T::default(); SUMS];
+    let dq = q1 - q0;
+    t[S_WORK_EXT] = dq * (g1 * f1 + g0 * f0);
+    let dkq = kq1 - kq0;
+    t[S_DQ_K_DQ] = dq * dkq;
+    t[S_D_STRAIN] = (q1 + q0) * dkq;
+    let dma = ma1 - ma0;
+    t[S_DA_M_DA] = (a1 - a0) * dma;
+    t[S_D_ATERM] = (a1 + a0) * dma;
+    t[S_STRAIN] = q1 * kq1;
+    t[S_ATERM] = a1 * ma1;
+    let (dv, sv) = (v1 - v0, v1 + v0);
+    if LUMPED {
+        t[S_D_KIN] = mass * sv * dv;
+        t[S_KIN] = mass * v1 * v1;
+    }
+    let (mut z, mut kz) = (T::default(), T::default());
+    if FILTERS {
+        z = ip * (nu * dq - mz * z0);
+        kz = ip * (nu * dkq - mz * kz0);
+        let dkz = kz - kz0;
+        t[S_DZ_K_DZ] = (z - z0) * dkz;
+        t[S_D_ZTERM] = (z + z0) * dkz;
+        t[S_ZTERM] = z * kz;
+    }
+    (t, [z, kz, dv, sv])
 }
 
 fn dot(x: &[f64], y: &[f64]) -> f64 {
@@ -1075,10 +1559,15 @@ impl LinearScheme for NonsmoothAlpha {
                         &self.v_cols[a * n..(a + 1) * n],
                         &self.q_cols[a * n..(a + 1) * n],
                     );
-                    for i in 0..n {
-                        s.a[i] += p * ac[i];
-                        s.v[i] += p * vc[i];
-                        s.q[i] += p * qc[i];
+                    for (((sa, sv), sq), ((ac, vc), qc)) in s.a[..n]
+                        .iter_mut()
+                        .zip(&mut s.v[..n])
+                        .zip(&mut s.q[..n])
+                        .zip(ac.iter().zip(vc).zip(qc))
+                    {
+                        *sa += p * ac;
+                        *sv += p * vc;
+                        *sq += p * qc;
                     }
                 }
             }
@@ -1154,6 +1643,7 @@ impl AlphaCore {
         self.nxt = s.nxt;
         self.cur_step = s.cur_step;
         self.s = s.s;
+        self.f_ready = false;
         Ok(())
     }
 }

@@ -13,7 +13,8 @@
 //!
 //! i.e. a *signed permutation* of the 2N values: the `a` run a_1…a_N followed by the `b` run
 //! b_N…b_1 form a ring that rotates by one position per step, with a sign at each end. We
-//! store the ring with a moving origin, so an unforced step costs O(1) and moves values without
+//! store the a's and the b's in cell order, each with a moving origin (the rotation is two
+//! opposite shifts, see [`WaveState`]), so an unforced step costs O(1) and moves values without
 //! arithmetic: the cell energy `S Δx Σ (a_i² + b_i²)/(4ρc²)` is conserved exactly, not just to
 //! round-off. The paper's (36)–(39) form is kept as [`flux_form_step`] for cross-checks.
 //!
@@ -283,9 +284,19 @@ impl WaveBar {
 
 /// State of a wave bar at t_n: the ring of characteristic values (see the module doc), the
 /// displacements of both ends, and the step number.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+///
+/// The ring is stored as two arrays in cell order, the a's in `cells[..N]` and the b's in
+/// `cells[N..]`, each with its own moving origin: a step shifts the a's by one cell to the
+/// right and the b's by one cell to the left (two opposite shifts by the same count, so one
+/// counter `shift` ∈ [0, N) places both: a_i is at `(i − shift) mod N`, b_i at
+/// `N + (i + shift) mod N`). A sweep over the cells then reads a_i and b_i from two forward
+/// runs (at most three run pairs per sweep), which the compiler vectorises; the ring storing
+/// the b's backwards did not. Checkpoints keep the ring's position form (`ring`, `shift` of
+/// the module doc), so the format is unchanged.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "RingForm", into = "RingForm")]
 pub struct WaveState {
-    ring: Vec<f64>,
+    cells: Vec<f64>,
     shift: usize,
     /// Step number n.
     pub step: u64,
@@ -297,10 +308,62 @@ pub struct WaveState {
     pub u_right: f64,
 }
 
+/// The serialised form of a [`WaveState`]: the ring in storage with a moving origin, position
+/// p (a_1…a_N, b_N…b_1) at `(p − shift) mod 2N` (what checkpoints have always held).
+#[derive(serde::Serialize, serde::Deserialize)]
+struct RingForm {
+    ring: Vec<f64>,
+    shift: usize,
+    step: u64,
+    u_left: f64,
+    u_right: f64,
+}
+
+impl From<WaveState> for RingForm {
+    fn from(s: WaveState) -> Self {
+        RingForm {
+            ring: s.ring(),
+            shift: 0,
+            step: s.step,
+            u_left: s.u_left,
+            u_right: s.u_right,
+        }
+    }
+}
+
+impl TryFrom<RingForm> for WaveState {
+    type Error = String;
+
+    fn try_from(r: RingForm) -> Result<Self, String> {
+        let n2 = r.ring.len();
+        if !n2.is_multiple_of(2) || r.shift >= n2.max(1) {
+            return Err(format!(
+                "a WFEM ring of {n2} values with shift {} (expected an even length and a shift below it)",
+                r.shift
+            ));
+        }
+        let positions = (0..n2).map(|p| r.ring[(p + n2 - r.shift) % n2]).collect();
+        let mut state = WaveState::from_ring(positions, r.u_left, r.u_right);
+        state.step = r.step;
+        Ok(state)
+    }
+}
+
+/// Two states are equal when their cells, ends and step are (whatever the storage origin).
+impl PartialEq for WaveState {
+    fn eq(&self, other: &Self) -> bool {
+        self.cells.len() == other.cells.len()
+            && self.step == other.step
+            && self.u_left == other.u_left
+            && self.u_right == other.u_right
+            && (0..self.cells()).all(|i| self.a(i) == other.a(i) && self.b(i) == other.b(i))
+    }
+}
+
 impl WaveState {
     /// Whether `self` has as many cells as `other` (a checkpoint's state fits the bar).
     pub(crate) fn fits(&self, other: &WaveState) -> bool {
-        self.ring.len() == other.ring.len() && self.shift < self.ring.len().max(1)
+        self.cells.len() == other.cells.len() && self.shift < self.cells().max(1)
     }
 }
 
@@ -308,13 +371,13 @@ impl WaveState {
     /// A state from cell stresses and velocities (equal lengths N ≥ 1) and impedance ρc.
     pub fn from_cells(sigma: &[f64], v: &[f64], impedance: f64, u_left: f64, u_right: f64) -> Self {
         let n = sigma.len();
-        let mut ring = vec![0.0; 2 * n];
+        let mut cells = vec![0.0; 2 * n];
         for i in 0..n {
-            ring[i] = sigma[i] - impedance * v[i];
-            ring[2 * n - 1 - i] = sigma[i] + impedance * v[i];
+            cells[i] = sigma[i] - impedance * v[i];
+            cells[n + i] = sigma[i] + impedance * v[i];
         }
         WaveState {
-            ring,
+            cells,
             shift: 0,
             step: 0,
             u_left,
@@ -324,8 +387,12 @@ impl WaveState {
 
     /// A state from ring values (positions 0..N are a_1…a_N, N..2N are b_N…b_1).
     pub fn from_ring(ring: Vec<f64>, u_left: f64, u_right: f64) -> Self {
+        let n2 = ring.len();
+        let n = n2 / 2;
+        let mut cells = ring;
+        cells[n..].reverse();
         WaveState {
-            ring,
+            cells,
             shift: 0,
             step: 0,
             u_left,
@@ -335,63 +402,66 @@ impl WaveState {
 
     /// Number of cells N.
     pub fn cells(&self) -> usize {
-        self.ring.len() / 2
+        self.cells.len() / 2
     }
 
+    /// Storage index of a_i (0-based cell i < N).
     #[inline]
-    fn index(&self, position: usize) -> usize {
-        let n2 = self.ring.len();
-        let i = position + n2 - self.shift;
-        if i >= n2 { i - n2 } else { i }
+    fn index_a(&self, i: usize) -> usize {
+        let n = self.cells();
+        let k = i + n - self.shift;
+        if k >= n { k - n } else { k }
     }
 
-    /// Calls `f(a_i, b_i)` for every cell i = 1…N in order, on contiguous runs of the ring: the
-    /// moving origin splits the a's and the b's into at most two runs each, so the loop runs
-    /// over at most three plain slice pairs (no index arithmetic per cell; vectorisable).
-    fn for_each_cell(&mut self, mut f: impl FnMut(&mut f64, &mut f64)) {
-        let n2 = self.ring.len();
-        let n = n2 / 2;
+    /// Storage index of b_i (0-based cell i < N).
+    #[inline]
+    fn index_b(&self, i: usize) -> usize {
+        let n = self.cells();
+        let k = i + self.shift;
+        n + if k >= n { k - n } else { k }
+    }
+
+    /// Calls `f(i, a, b)` on runs of consecutive cells i, i+1, … whose a's and b's are both
+    /// contiguous slices (`a[j]`, `b[j]` of cell i + j), in cell order: the two origins split
+    /// the cells into at most three runs.
+    fn for_each_run(&mut self, mut f: impl FnMut(usize, &mut [f64], &mut [f64])) {
+        let n = self.cells();
         let mut i = 0;
         while i < n {
-            let ia = self.index(i);
-            let ib = self.index(n2 - 1 - i);
-            // Cells i.. keep contiguous storage until a reaches the end of the buffer or b
-            // (walking down) reaches its start.
-            let run = (n - i).min(n2 - ia).min(ib + 1);
-            let (a_run, b_run) = if ia < ib {
-                let (lo, hi) = self.ring.split_at_mut(ib + 1 - run);
-                (&mut lo[ia..ia + run], &mut hi[..run])
-            } else {
-                let (lo, hi) = self.ring.split_at_mut(ia);
-                (&mut hi[..run], &mut lo[ib + 1 - run..=ib])
-            };
-            for (a, b) in a_run.iter_mut().zip(b_run.iter_mut().rev()) {
-                f(a, b);
-            }
+            let ia = self.index_a(i);
+            let ib = self.index_b(i) - n;
+            let run = (n - i).min(n - ia).min(n - ib);
+            let (a, b) = self.cells.split_at_mut(n);
+            f(i, &mut a[ia..ia + run], &mut b[ib..ib + run]);
             i += run;
         }
     }
 
     /// Ring value at `position` (a_{k+1} for k < N, b_{2N−k} for k ≥ N, 1-based cells).
     pub fn ring_value(&self, position: usize) -> f64 {
-        self.ring[self.index(position)]
+        let n = self.cells();
+        if position < n {
+            self.a(position)
+        } else {
+            self.b(2 * n - 1 - position)
+        }
     }
 
     /// The ring in position order.
     pub fn ring(&self) -> Vec<f64> {
-        (0..self.ring.len()).map(|k| self.ring_value(k)).collect()
+        (0..self.cells.len()).map(|k| self.ring_value(k)).collect()
     }
 
     /// a_i = σ_i − ρc v_i of cell i (0-based).
     #[inline]
     pub fn a(&self, i: usize) -> f64 {
-        self.ring[self.index(i)]
+        self.cells[self.index_a(i)]
     }
 
     /// b_i = σ_i + ρc v_i of cell i (0-based).
     #[inline]
     pub fn b(&self, i: usize) -> f64 {
-        self.ring[self.index(self.ring.len() - 1 - i)]
+        self.cells[self.index_b(i)]
     }
 
     /// Stress σ_i of cell i.
@@ -434,7 +504,11 @@ impl WaveState {
     /// Total cell energy `S Δx Σ (a_i² + b_i²)/(4ρc²)` = kinetic + strain.
     pub fn energy(&self, bar: &WaveBar) -> f64 {
         let scale = bar.area * bar.dx() / (4.0 * bar.density * bar.wave_speed().powi(2));
-        scale * self.ring.iter().map(|x| x * x).sum::<f64>()
+        // In ring position order (a_1…a_N, b_N…b_1): the sum the ring has always summed.
+        let n = self.cells();
+        let a = (0..n).map(|i| self.a(i));
+        let b = (0..n).rev().map(|i| self.b(i));
+        scale * a.chain(b).map(|x| x * x).sum::<f64>()
     }
 
     /// Contact-end displacement by the paper's strain integration (Appendix A.1):
@@ -528,7 +602,6 @@ pub fn transport(
     wall_velocity: f64,
 ) -> StepTerms {
     let n = bar.cells;
-    let n2 = 2 * n;
     let z = bar.impedance();
     let dt = bar.dt();
     let a_n = state.a(n - 1);
@@ -548,15 +621,17 @@ pub fn transport(
         LeftEnd::Fixed => (b_1, 0.0),
         LeftEnd::Free => (-b_1, b_1 / z),
     };
-    state.shift = if state.shift + 1 == n2 {
+    // (36): a_i ← a_{i−1}, b_i ← b_{i+1}, one shift of each origin; the freed slots take the
+    // boundary values (the a_N and b_1 that leave).
+    state.shift = if state.shift + 1 == n {
         0
     } else {
         state.shift + 1
     };
-    let i0 = state.index(0);
-    state.ring[i0] = a_1_new;
-    let i_n = state.index(n);
-    state.ring[i_n] = b_n_new;
+    let i0 = state.index_a(0);
+    state.cells[i0] = a_1_new;
+    let i_n = state.index_b(n - 1);
+    state.cells[i_n] = b_n_new;
     state.step += 1;
     state.u_right += dt * v_star;
     state.u_left += dt * v_left;
@@ -587,16 +662,45 @@ fn source_step(bar: &WaveBar, state: &mut WaveState, t0: f64, t1: f64) -> (f64, 
     // velocity over the step is ((1 + keep)/(2z) · d + push)/2.
     let (shrink, lift) = (0.5 * (1.0 - keep), z * push);
     let (c_d, c_0) = (0.25 * (1.0 + keep) / z, 0.5 * push);
-    let (mut sum_v, mut sum_v2) = (0.0, 0.0);
-    state.for_each_cell(|a, b| {
+    // One pass over the cells, the two sums in four partial sums by cell index i mod 4 (so the
+    // sums do not depend on where the storage origins split the runs: a resumed run sums alike).
+    let (mut sum_v, mut sum_v2) = ([0.0; 4], [0.0; 4]);
+    let cell = |a: &mut f64, b: &mut f64| {
         let d = *b - *a;
         *a += shrink * d - lift;
         *b -= shrink * d - lift;
-        let v_mean = c_d * d + c_0;
-        sum_v += v_mean;
-        sum_v2 += v_mean * v_mean;
+        c_d * d + c_0
+    };
+    state.for_each_run(|i0, a, b| {
+        let head = ((4 - i0 % 4) % 4).min(a.len());
+        let (a_head, a) = a.split_at_mut(head);
+        let (b_head, b) = b.split_at_mut(head);
+        for (j, (x, y)) in a_head.iter_mut().zip(b_head.iter_mut()).enumerate() {
+            let v = cell(x, y);
+            let l = (i0 + j) % 4;
+            sum_v[l] += v;
+            sum_v2[l] += v * v;
+        }
+        let (mut ac, mut bc) = (a.chunks_exact_mut(4), b.chunks_exact_mut(4));
+        for (x, y) in (&mut ac).zip(&mut bc) {
+            for l in 0..4 {
+                let v = cell(&mut x[l], &mut y[l]);
+                sum_v[l] += v;
+                sum_v2[l] += v * v;
+            }
+        }
+        let (a_tail, b_tail) = (ac.into_remainder(), bc.into_remainder());
+        for (l, (x, y)) in a_tail.iter_mut().zip(b_tail.iter_mut()).enumerate() {
+            let v = cell(x, y);
+            sum_v[l] += v;
+            sum_v2[l] += v * v;
+        }
     });
-    (dx * dt * f * sum_v, -bar.damping * rho_s * dx * dt * sum_v2)
+    let total = |s: [f64; 4]| (s[0] + s[2]) + (s[1] + s[3]);
+    (
+        dx * dt * f * total(sum_v),
+        -bar.damping * rho_s * dx * dt * total(sum_v2),
+    )
 }
 
 /// The paper's form of one unforced step against a fixed wall: (36) for the inner cells, (38)
@@ -646,4 +750,57 @@ pub fn flux_form_step(
         v_new[i as usize] = 0.5 * (vr + vl + (sr - sl) / z);
     }
     (s_new, v_new)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The state serialises in the ring's position form whatever its storage origins, reads
+    /// back a ring stored with a moving origin (the form checkpoints have always held), and a
+    /// run continued from the decoded state is bit-identical to the uninterrupted one.
+    #[test]
+    fn serialised_ring_form_round_trips() {
+        let mut bar = WaveBar::unit(7, 1e-3);
+        bar.initial_velocity = 1e-3;
+        bar.damping = 0.3;
+        let mut state = bar.initial_state();
+        for _ in 0..11 {
+            step(&bar, &mut state);
+        }
+        assert_ne!(state.shift, 0);
+        let bytes = rmp_serde::to_vec_named(&state).unwrap();
+        let mut back: WaveState = rmp_serde::from_slice(&bytes).unwrap();
+        assert_eq!(back, state);
+        assert_eq!(back.ring(), state.ring());
+        for _ in 0..23 {
+            let (t1, t2) = (step(&bar, &mut state), step(&bar, &mut back));
+            assert_eq!(t1, t2);
+        }
+        assert_eq!(back.ring(), state.ring());
+        // A ring stored with origin 3: position p at (p − 3) mod 2N.
+        let positions = state.ring();
+        let n2 = positions.len();
+        let stored: Vec<f64> = (0..n2).map(|k| positions[(k + 3) % n2]).collect();
+        let old = RingForm {
+            ring: stored,
+            shift: 3,
+            step: state.step,
+            u_left: state.u_left,
+            u_right: state.u_right,
+        };
+        let decoded: WaveState =
+            rmp_serde::from_slice(&rmp_serde::to_vec_named(&old).unwrap()).unwrap();
+        assert_eq!(decoded, state);
+        let bad = RingForm {
+            ring: vec![0.0; 3],
+            shift: 0,
+            step: 0,
+            u_left: 0.0,
+            u_right: 0.0,
+        };
+        assert!(
+            rmp_serde::from_slice::<WaveState>(&rmp_serde::to_vec_named(&bad).unwrap()).is_err()
+        );
+    }
 }
