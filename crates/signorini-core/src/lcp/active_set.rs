@@ -492,6 +492,8 @@ struct BandChol {
     kd: usize,
     /// Row i, entries L_ij for j = i − kd … i, at `i (kd + 1) + kd + j − i`.
     l: Vec<f64>,
+    /// 1/L_ii.
+    inv: Vec<f64>,
 }
 
 impl BandChol {
@@ -509,6 +511,7 @@ impl BandChol {
             n,
             kd,
             l: vec![0.0; n * (kd + 1)],
+            inv: vec![0.0; n],
         };
         for i in 0..n {
             for j in i.saturating_sub(kd)..=i {
@@ -520,9 +523,11 @@ impl BandChol {
                     if !(sum > 0.0 && sum.is_finite()) {
                         return None;
                     }
-                    sum.sqrt()
+                    let d = sum.sqrt();
+                    c.inv[i] = 1.0 / d;
+                    d
                 } else {
-                    sum / c.get(j, j)
+                    sum * c.inv[j]
                 };
                 c.l[i * (kd + 1) + kd + j - i] = v;
             }
@@ -565,7 +570,7 @@ impl BandChol {
             for k in i.saturating_sub(kd).max(first)..i {
                 y -= self.get(i, k) * x[dof(k)];
             }
-            x[dof(i)] = y / self.get(i, i);
+            x[dof(i)] = y * self.inv[i];
         }
         // Backward: Lᵀ x_1 = y.
         for i in (0..a).rev() {
@@ -573,7 +578,7 @@ impl BandChol {
             for k in i + 1..(i + kd + 1).min(a) {
                 v -= self.get(k, i) * x[dof(k)];
             }
-            x[dof(i)] = v / self.get(i, i);
+            x[dof(i)] = v * self.inv[i];
         }
     }
 }
@@ -605,6 +610,8 @@ struct BandLu {
     /// Leading dimension 2 kl + ku + 1: entry (i, j) at `j ld + kl + ku + i − j`.
     ab: Vec<f64>,
     pivots: Vec<usize>,
+    /// 1/U_jj: a solve multiplies (a division in its dependency chain would bound its speed).
+    inv: Vec<f64>,
 }
 
 impl BandLu {
@@ -615,6 +622,7 @@ impl BandLu {
             ku,
             ab: vec![0.0; n * (2 * kl + ku + 1)],
             pivots: vec![0; n],
+            inv: vec![0.0; n],
         }
     }
 
@@ -657,6 +665,7 @@ impl BandLu {
                 }
             }
             let inv = 1.0 / pv;
+            self.inv[j] = inv;
             for i in j + 1..=last {
                 let k = self.idx(i, j);
                 self.ab[k] *= inv;
@@ -693,7 +702,7 @@ impl BandLu {
             }
         }
         for j in (0..n).rev() {
-            b[j] /= self.ab[self.idx(j, j)];
+            b[j] *= self.inv[j];
             let bj = b[j];
             if bj != 0.0 {
                 for i in j.saturating_sub(ku)..j {
