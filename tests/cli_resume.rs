@@ -159,3 +159,40 @@ fn resume_of_a_directory_without_a_run_names_the_file() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("run_spec.json"), "{stderr}");
 }
+
+/// `examples/string_bridge.toml` made long enough to be killed (10⁶ steps, a record every 2 000,
+/// a checkpoint every 20 000 steps): the banded contact solver's warm start and the
+/// contact-region chart go through the checkpoint, and the resumed run ends with the same
+/// files, `contact_region.svg` included.
+#[test]
+fn a_killed_string_on_its_bridge_resumes_to_the_same_files() {
+    let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/string_bridge.toml");
+    let text = std::fs::read_to_string(example).unwrap();
+    let text = text
+        .replace("t_end = 0.06", "t_end = 20.0")
+        .replace("every = 5", "every = 2000\ncheckpoint_steps = 20000");
+    assert!(text.contains("t_end = 20.0") && text.contains("checkpoint_steps"));
+    let dir = tempfile::tempdir().unwrap();
+    let spec = dir.path().join("string_bridge.toml");
+    std::fs::write(&spec, text).unwrap();
+    let whole = run_whole(dir.path(), &spec);
+
+    let out = dir.path().join("killed");
+    start_and_kill(&spec, &out);
+    let resumed = signorini()
+        .arg("run")
+        .arg("--resume")
+        .arg(&out)
+        .stdout(Stdio::null())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&resumed.stderr);
+    assert!(resumed.status.success(), "{stderr}");
+    assert!(stderr.contains("resuming"), "{stderr}");
+    assert_same_results(&whole, &out);
+    assert_eq!(
+        std::fs::read(whole.join("contact_region.svg")).unwrap(),
+        std::fs::read(out.join("contact_region.svg")).unwrap(),
+        "contact_region.svg differs"
+    );
+}

@@ -5,6 +5,15 @@ with a contact at every node, the `plucked` case of crates/signorini-core/benche
     /usr/bin/python3 scripts/siconos/string_bench.py               # N = 10, 30, 100, 300, 1000
     /usr/bin/python3 scripts/siconos/string_bench.py 100 300       # chosen N
     BUDGET_S=120 /usr/bin/python3 scripts/siconos/string_bench.py  # stop after a run past 120 s
+    /usr/bin/python3 scripts/siconos/string_bench.py --compare     # both codes, side by side
+
+`--compare [N ...]` (default N = 10 30 100 300) runs, in one go, Signorini's string bench on the
+same window (`cargo bench -p signorini-core --bench string_contacts -- --siconos N ...`: the
+same scene, Moreau–Jean θ = ½, 200 untimed steps to t = 4 ms, then STEPS(N) timed, best of 3)
+and this Siconos bench for each N (N grows until a Siconos run takes more than BUDGET_S), and
+prints one table: µs per step of both (wall clock; Siconos' on-CPU time too) and the ratios
+Siconos/Signorini. Signorini's side is its banded path (`auto`: banded above 200 contacts, Lemke
+on the dense W below), Siconos' the dense LCP.
 
 Scene (the Signorini spec; examples/string_bridge.toml with a flat obstacle):
 
@@ -36,6 +45,8 @@ N; N grows until a run takes more than BUDGET_S seconds (default 60).
 
 import json
 import os
+import pathlib
+import subprocess
 import sys
 import time
 
@@ -120,7 +131,50 @@ def bench(n):
     }
 
 
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
+def signorini(ns):
+    """Signorini's µs per step on the Siconos window, per N."""
+    out = subprocess.run(
+        ["cargo", "bench", "-q", "-p", "signorini-core", "--bench", "string_contacts", "--",
+         "--siconos", *map(str, ns)],
+        cwd=ROOT, check=True, capture_output=True, text=True,
+    ).stdout
+    rows = [json.loads(line) for line in out.splitlines() if line.startswith("{")]
+    return {r["nodes"]: r for r in rows if r.get("window") == "siconos"}
+
+
+def compare(ns):
+    ours = signorini(ns)
+    budget = float(os.environ.get("BUDGET_S", "60"))
+    sic = {}
+    for n in ns:
+        t = time.perf_counter()
+        sic[n] = bench(n)
+        print(json.dumps(sic[n]), file=sys.stderr, flush=True)
+        if time.perf_counter() - t > budget:
+            break
+    print(f"# load average (1 min): {os.getloadavg()[0]:.2f}; Siconos {siconos.version}; "
+          f"µs per step, plucked string, Moreau-Jean theta = 1/2, h = {H}, from t = {WARM_T} s")
+    print(f"{'N':>6} {'steps':>6} {'signorini':>10} {'iter/step':>10} {'siconos wall':>13} "
+          f"{'siconos cpu':>12} {'wall ratio':>11} {'cpu ratio':>10}")
+    for n in ns:
+        s, it = ours[n]["us_per_step"], ours[n]["iterations_per_step"]
+        head = f"{n:>6} {ours[n]['steps']:>6} {s:>10.2f} {it:>10.2f}"
+        c = sic.get(n)
+        if c is None:
+            print(f"{head} {'—':>13} {'—':>12} {'—':>11} {'—':>10}")
+            continue
+        cpu = 1e6 * c["cpu_s"] / c["steps"]
+        print(f"{head} {c['us_per_step']:>13.1f} {cpu:>12.1f} "
+              f"{c['us_per_step'] / s:>11.0f} {cpu / s:>10.0f}")
+
+
 def main():
+    if sys.argv[1:2] == ["--compare"]:
+        compare([int(a) for a in sys.argv[2:]] or [10, 30, 100, 300])
+        return
     ns = [int(a) for a in sys.argv[1:]] or [10, 30, 100, 300, 1000]
     budget = float(os.environ.get("BUDGET_S", "60"))
     for n in ns:

@@ -12,7 +12,13 @@
 //! ```text
 //! cargo bench -p signorini-core --bench string_contacts            # N = 10³, 10⁴, 10⁵
 //! cargo bench -p signorini-core --bench string_contacts -- 10000   # chosen N
+//! cargo bench -p signorini-core --bench string_contacts -- --siconos 10 100   # Siconos' window
 //! ```
+//!
+//! `--siconos` times only Moreau–Jean on the `plucked` string over the window of
+//! `scripts/siconos/string_bench.py` (200 steps untimed, to t = 4 ms, then
+//! max(20, min(2000, 2·10⁵/N)) timed, best of 3): that script's `--compare` runs it next to
+//! Siconos.
 //!
 //! One JSON line per (N, scheme, case): steps/s, µs per step, the ratio to the free step, the
 //! mean active-set iterations per step, and the process' resident memory read from
@@ -117,11 +123,70 @@ fn time_steps(
     (best, iterations as f64 / steps as f64, residual)
 }
 
+/// Moreau–Jean on the `plucked` string over the window of `scripts/siconos/string_bench.py`:
+/// one JSON line.
+fn siconos_window(n: usize) {
+    let model = scene(n, "plucked");
+    let warm = 200;
+    let steps = (200_000 / n).clamp(20, 2000) as u64;
+    let (mut best, mut iterations) = (f64::INFINITY, 0usize);
+    for _ in 0..3 {
+        let mut scheme = MoreauJean::new(
+            &model,
+            MoreauJeanParams::default(),
+            H,
+            LcpOptions::default(),
+        )
+        .expect("Ŵ is SPD");
+        let mut state = LinearState::initial(&model);
+        let mut report = StepReport::with_contacts(model.contacts.len());
+        for _ in 0..warm {
+            scheme
+                .step(&model, &mut state, &mut report)
+                .expect("the bench steps succeed");
+        }
+        iterations = 0;
+        let start = Instant::now();
+        for _ in 0..steps {
+            scheme
+                .step(&model, &mut state, &mut report)
+                .expect("the bench steps succeed");
+            iterations += report.lcp.iterations;
+        }
+        best = best.min(start.elapsed().as_secs_f64() / steps as f64);
+        std::hint::black_box(&state);
+    }
+    println!(
+        "{}",
+        json!({
+            "bench": "string_contacts",
+            "window": "siconos",
+            "nodes": n,
+            "contacts": model.contacts.len(),
+            "scheme": "moreau_jean",
+            "case": "plucked",
+            "h": H,
+            "t_start": warm as f64 * H,
+            "steps": steps,
+            "us_per_step": (1e8 * best).round() / 100.0,
+            "iterations_per_step": (100.0 * iterations as f64 / steps as f64).round() / 100.0,
+            "load_avg_1min": load(),
+        })
+    );
+}
+
 fn main() {
+    let siconos = std::env::args().any(|a| a == "--siconos");
     let args: Vec<usize> = std::env::args()
         .skip(1)
         .filter_map(|a| a.parse().ok())
         .collect();
+    if siconos {
+        for n in args {
+            siconos_window(n);
+        }
+        return;
+    }
     let ns = if args.is_empty() {
         vec![1_000, 10_000, 100_000]
     } else {

@@ -8,6 +8,7 @@
 //! O(n · bandwidth²) per active-set iteration, without forming either operator.
 
 use crate::band::SymBand;
+use crate::checkpoint::CheckpointError;
 use crate::contact::{IndexSet, LcpStats};
 use crate::lcp::active_set::{BandedActiveSet, ImpulseMap, unit_columns};
 use crate::lcp::{AUTO_LEMKE_MAX, LcpError, LcpOptions, LcpSolverKind};
@@ -91,6 +92,25 @@ impl BandedImpulse {
         self.unit[alpha]
     }
 
+    /// The active dofs the next solve starts from (what a checkpoint keeps of the solver:
+    /// its factor is rebuilt bit for bit from them, [`BandedActiveSet::warm_start`]).
+    pub fn warm_start(&self) -> Vec<bool> {
+        self.solver.warm_start().to_vec()
+    }
+
+    /// Restores [`BandedImpulse::warm_start`] from a checkpoint; refused for another size.
+    pub fn set_warm_start(&mut self, warm: &[bool]) -> Result<(), CheckpointError> {
+        if self.solver.set_warm_start(warm) {
+            Ok(())
+        } else {
+            Err(CheckpointError::Mismatch(format!(
+                "a banded solver state of {} dofs, the model has {}",
+                warm.len(),
+                self.solver.n()
+            )))
+        }
+    }
+
     /// x of the last solve (the velocity change the impulse makes, for Moreau–Jean).
     pub fn x(&self) -> &[f64] {
         &self.x
@@ -140,5 +160,24 @@ impl BandedImpulse {
         }
         index_set.record_levels(&self.levels, step);
         Ok(stats)
+    }
+}
+
+/// Restores the warm start of a scheme's banded solver (`banded`) from the one its checkpoint
+/// saved (`warm`): both or neither.
+pub(crate) fn restore_warm_start(
+    banded: Option<&mut BandedImpulse>,
+    warm: Option<Vec<bool>>,
+) -> Result<(), CheckpointError> {
+    match (banded, warm) {
+        (Some(b), Some(w)) => b.set_warm_start(&w),
+        (None, None) => Ok(()),
+        (Some(_), None) => Err(CheckpointError::Mismatch(
+            "a state without the banded solver's warm start, this job solves its contacts banded"
+                .into(),
+        )),
+        (None, Some(_)) => Err(CheckpointError::Mismatch(
+            "a state of the banded contact solver, this job solves its contacts dense".into(),
+        )),
     }
 }

@@ -8,7 +8,8 @@
 //! accelerations, for SOI2 a_α, the Newton cache and the position in the step-size schedule, for
 //! WFEM the cells), the index set with its round-off levels, the loop's running statistics and
 //! previous impulses, the last step's report, and the observers' state in the core (the
-//! envelopes of [`crate::trace::EnergyTrace`], the count of records handed out). Nothing that is
+//! envelopes of [`crate::trace::EnergyTrace`], the grid of
+//! [`crate::contact_region::ContactRegion`], the count of records handed out). Nothing that is
 //! rebuilt from the spec (factorisations, Delassus operators, compiled models) is stored: a
 //! resumed run rebuilds it bit for bit from the same spec, which the header's spec hash pins.
 //!
@@ -33,8 +34,11 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-/// Version of the checkpoint format this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
+/// Version of the checkpoint format this build writes and reads. Version 2 added the banded
+/// contact solver's warm start to the Moreau–Jean and α-family states and the
+/// `contact_region` chart's grid ([`crate::contact_region`]); version 1 is refused
+/// ([`CheckpointError::Version`]).
+pub const FORMAT_VERSION: u32 = 2;
 
 const MAGIC: &[u8; 8] = b"SIGNCKPT";
 const HEADER_LEN: usize = 8 + 4 + 8 + 8 + 8;
@@ -104,6 +108,9 @@ pub struct Checkpoint {
     /// The state of [`crate::trace::EnergyTrace`], if the run had one.
     #[serde(with = "serde_bytes")]
     trace: Option<Vec<u8>>,
+    /// The state of [`crate::contact_region::ContactRegion`], if the run draws one.
+    #[serde(with = "serde_bytes")]
+    region: Option<Vec<u8>>,
 }
 
 /// Which run loop a checkpoint belongs to.
@@ -158,6 +165,7 @@ impl Checkpoint {
             kind,
             run: to_bytes(run)?,
             trace: None,
+            region: None,
         })
     }
 
@@ -209,6 +217,15 @@ impl Checkpoint {
 
     pub(crate) fn trace_state<T: DeserializeOwned>(&self) -> Result<Option<T>, CheckpointError> {
         self.trace.as_deref().map(from_bytes).transpose()
+    }
+
+    pub(crate) fn set_region<T: Serialize>(&mut self, region: &T) -> Result<(), CheckpointError> {
+        self.region = Some(to_bytes(region)?);
+        Ok(())
+    }
+
+    pub(crate) fn region_state<T: DeserializeOwned>(&self) -> Result<Option<T>, CheckpointError> {
+        self.region.as_deref().map(from_bytes).transpose()
     }
 
     /// The checkpoint as bytes (header and payload, see the [module](self) documentation).

@@ -5,8 +5,10 @@
 //! (`gap ≤ δ`) or pushed (`P > 0`). Memory is bounded by the grid, whatever the run's length
 //! and the number of contacts.
 
+use crate::checkpoint::{Checkpoint, CheckpointError};
 use crate::observer::{Columns, Observer, Progress, StepRecord};
 use crate::outcome::{Chart, ContactRegionChart};
+use serde::{Deserialize, Serialize};
 use std::ops::ControlFlow;
 
 /// Most time buckets and most contact groups of the grid.
@@ -57,6 +59,30 @@ impl<'a> ContactRegion<'a> {
         }
     }
 
+    /// Continues the grid of a checkpoint (`state`, from [`Checkpoint`]'s region section) of a
+    /// run of the same spec; refused when its shape does not fit this one's.
+    pub(crate) fn restore(&mut self, state: RegionState) -> Result<(), CheckpointError> {
+        let groups = self.x.len().div_ceil(self.per_group);
+        let buckets = usize::try_from(state.records)
+            .unwrap_or(usize::MAX)
+            .div_ceil(self.per_bucket);
+        if state.t.len() != state.states.len()
+            || state.states.len() != buckets
+            || state.states.iter().any(|row| row.len() != groups)
+        {
+            return Err(CheckpointError::Mismatch(format!(
+                "a contact-region grid of {} time buckets, {} records and {} contact groups at most, this job's has {groups} groups and {buckets} buckets for those records",
+                state.states.len(),
+                state.records,
+                state.states.iter().map(Vec::len).max().unwrap_or(0),
+            )));
+        }
+        self.records = state.records as usize;
+        self.t = state.t;
+        self.states = state.states;
+        Ok(())
+    }
+
     /// The chart of what was observed.
     pub fn chart(self) -> Chart {
         let x = self
@@ -104,5 +130,50 @@ impl Observer for ContactRegion<'_> {
 
     fn progress(&mut self, progress: Progress) -> ControlFlow<()> {
         self.inner.progress(progress)
+    }
+
+    fn checkpoint_due(&mut self, progress: Progress) -> bool {
+        self.inner.checkpoint_due(progress)
+    }
+
+    fn checkpoint(&mut self, checkpoint: &mut Checkpoint) {
+        let state = RegionState {
+            records: self.records as u64,
+            t: self.t.clone(),
+            states: self.states.clone(),
+        };
+        // Plain numbers always encode; should they not, the checkpoint goes without the grid
+        // and its resume is refused (the job then reruns whole).
+        let _ = checkpoint.set_region(&state);
+        self.inner.checkpoint(checkpoint);
+    }
+}
+
+/// What a [`ContactRegion`] keeps across a checkpoint: the records seen, the time of each
+/// bucket and the cells (0 free, 1 touching, 2 pushed).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct RegionState {
+    records: u64,
+    t: Vec<f64>,
+    #[serde(with = "cells")]
+    states: Vec<Vec<u8>>,
+}
+
+/// The cells as byte strings (one per time bucket): 1 byte per cell in MessagePack.
+mod cells {
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(rows: &[Vec<u8>], s: S) -> Result<S::Ok, S::Error> {
+        let rows: Vec<&serde_bytes::Bytes> =
+            rows.iter().map(|r| serde_bytes::Bytes::new(r)).collect();
+        rows.serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Vec<u8>>, D::Error> {
+        let rows = Vec::<serde_bytes::ByteBuf>::deserialize(d)?;
+        Ok(rows
+            .into_iter()
+            .map(serde_bytes::ByteBuf::into_vec)
+            .collect())
     }
 }

@@ -485,17 +485,13 @@ impl Job {
         Checkpoint::decode(bytes, self.spec_hash())
     }
 
-    /// Whether a run of this job hands checkpoints to an observer that asks for them (every time
-    /// integration does, except two that rerun whole: an analysis of modes or forced response,
-    /// and a linear job whose contacts go the banded path or draw a contact region, whose solver
-    /// warm start and chart are not in the checkpoint yet).
+    /// Whether a run of this job hands checkpoints to an observer that asks for them: every time
+    /// integration does (the banded contact path and the contact-region chart included: the
+    /// solver's warm start and the chart's grid are in the checkpoint); an analysis of modes or
+    /// forced response reruns whole.
     pub fn checkpoints(&self) -> bool {
         match &self.kind {
             JobKind::Wave(j) => !j.is_analysis(),
-            JobKind::Linear(j) => {
-                let lumped = matches!(j.scheme, LinearSchemeChoice::Alpha(_));
-                j.region.is_none() && !uses_banded(&j.model, j.lcp.kind, lumped)
-            }
             _ => true,
         }
     }
@@ -784,6 +780,14 @@ fn run_linear_job(
         Some(r) => {
             let records = j.steps / j.output.every.max(1) + 2;
             let mut region = ContactRegion::new(observer, r.first, r.x.clone(), r.delta, records);
+            if let Some(state) = resume.map(Checkpoint::region_state).transpose()?.flatten() {
+                region.restore(state)?;
+            } else if resume.is_some() {
+                return Err(CheckpointError::Mismatch(
+                    "a checkpoint without the contact-region grid, this job draws one".into(),
+                )
+                .into());
+            }
             let stats = run_linear_from(
                 &j.model,
                 scheme.as_mut(),

@@ -154,6 +154,45 @@ proptest! {
         agree(&mut solver, &s, &ImpulseMap::Direct, &rows, &b2);
     }
 
+    /// S a Z-matrix (an M-matrix: a mass plus a stiffness with non-positive couplings) and
+    /// one sign of G, the structure whose block pivots converge monotonically and whose
+    /// shrinking contact regions leap: the obstacle problem of a string, with a smooth
+    /// penetrating bump in b (a contact region wider than the solution's) and noise.
+    #[test]
+    fn z_matrix_direct_map_equals_lemke(
+        n in 8usize..90,
+        kd in 1usize..3,
+        off in prop::collection::vec(-1.0f64..-0.01, 1..40),
+        shift in 1e-4f64..0.5,
+        sign in prop_oneof![Just(1.0f64), Just(-1.0)],
+        mask in prop::collection::vec(prop::bool::weighted(0.9), 1..12),
+        bump in (0.1f64..3.0, 0.0f64..1.0, 0.05f64..0.5, -0.5f64..0.5),
+        noise in prop::collection::vec(-0.05f64..0.05, 90),
+    ) {
+        let s = banded_spd(n, kd, &off, shift);
+        let rows = pick_rows(n, &mask, &[sign]);
+        prop_assume!(!rows.is_empty());
+        let (depth, centre, width, lift) = bump;
+        let b: Vec<f64> = rows
+            .iter()
+            .map(|&(i, _)| {
+                let u = (i as f64 / n as f64 - centre) / width;
+                lift - depth * (-u * u).exp() + noise[i]
+            })
+            .collect();
+        let mut solver = BandedActiveSet::new(s.clone(), ImpulseMap::Direct);
+        agree(&mut solver, &s, &ImpulseMap::Direct, &rows, &b);
+        // Warm-started from that solution, on the bump moved along.
+        let b2: Vec<f64> = rows
+            .iter()
+            .map(|&(i, _)| {
+                let u = (i as f64 / n as f64 - centre - 0.1) / width;
+                lift - depth * (-u * u).exp() + noise[(i + 7) % 90]
+            })
+            .collect();
+        agree(&mut solver, &s, &ImpulseMap::Direct, &rows, &b2);
+    }
+
     #[test]
     fn filtered_map_equals_lemke(
         n in 2usize..24,

@@ -187,6 +187,38 @@ fn soi2_resumes_bit_for_bit() {
     resumes_bit_for_bit(&example("pendulum_lagrangian.toml", 200, 2), 17, 120);
 }
 
+/// `example(name, steps, every)` with `from` replaced by `to` in its text.
+fn example_edited(name: &str, steps: u64, every: u64, from: &str, to: &str) -> JobSpec {
+    let path = format!("{}/../../examples/{name}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains(from), "{name} has no {from:?}");
+    let mut spec: JobSpec = toml::from_str(&text.replace(from, to)).unwrap();
+    let time = spec.time.as_mut().unwrap();
+    time.t_end = Some(time.t_end.unwrap().min(steps as f64 * time.h));
+    spec.output.every = every;
+    spec
+}
+
+#[test]
+fn banded_contacts_and_the_contact_region_resume_bit_for_bit() {
+    // The string on its bridge: the banded solver's warm start (the active dofs of its last
+    // solution) and the contact-region grid are in the checkpoint. The first impacts are
+    // near step 300; the checkpoints land while the string rides the bridge.
+    let spec = example("string_bridge.toml", 1200, 3);
+    assert!(Job::from_spec(&spec).unwrap().checkpoints());
+    assert_eq!(resumes_bit_for_bit(&spec, 150, 800), 750);
+    // The nonsmooth HHT on the same string (the filtered impulse map).
+    let hht = example_edited(
+        "string_bridge.toml",
+        1200,
+        3,
+        "scheme = \"moreau_jean\"\ntheta = 0.5",
+        "scheme = \"ns_hht\"\nalpha = 0.1",
+    );
+    assert!(Job::from_spec(&hht).unwrap().checkpoints());
+    assert_eq!(resumes_bit_for_bit(&hht, 130, 700), 650);
+}
+
 #[test]
 fn wfem_resumes_bit_for_bit() {
     resumes_bit_for_bit(&example("wfem_dep_bar.toml", 2000, 9), 301, 1500);

@@ -72,7 +72,7 @@
 
 use super::{LinearScheme, LinearState, SchemeState, StepError, StepReport};
 use crate::band::{BandCholesky, BandError, SymBand};
-use crate::banded_contact::{BandedImpulse, uses_banded};
+use crate::banded_contact::{BandedImpulse, restore_warm_start, uses_banded};
 use crate::checkpoint::CheckpointError;
 use crate::contact::{IndexSet, IndexSetRule, LcpStats};
 use crate::energy::EnergyTerms;
@@ -1447,6 +1447,7 @@ impl LinearScheme for NonsmoothAlpha {
             core: self.core.checkpoint_state(),
             index_set: self.index_set.clone(),
             lcp_m: self.lcp_m.clone(),
+            banded_warm: self.banded.as_ref().map(|b| b.impulse.warm_start()),
         }))
     }
 
@@ -1457,7 +1458,9 @@ impl LinearScheme for NonsmoothAlpha {
                     core,
                     index_set,
                     lcp_m,
+                    banded_warm,
                 } = *s;
+                restore_warm_start(self.banded.as_mut().map(|b| &mut b.impulse), banded_warm)?;
                 self.core.restore_checkpoint_state(core)?;
                 self.index_set = index_set;
                 self.lcp_m = lcp_m;
@@ -1614,6 +1617,8 @@ pub struct AlphaState {
     core: AlphaCoreState,
     index_set: IndexSet,
     lcp_m: Vec<f64>,
+    /// The banded solver's warm start (the banded contact path only).
+    banded_warm: Option<Vec<bool>>,
 }
 
 impl AlphaCore {

@@ -38,7 +38,7 @@
 
 use super::{LinearScheme, LinearState, SchemeState, StepError, StepReport};
 use crate::band::{BandCholesky, BandError, SymBand};
-use crate::banded_contact::{BandedImpulse, uses_banded};
+use crate::banded_contact::{BandedImpulse, restore_warm_start, uses_banded};
 use crate::checkpoint::CheckpointError;
 use crate::contact::{Delassus, FrictionDelassus, IndexSet, IndexSetRule};
 use crate::energy::EnergyTerms;
@@ -400,8 +400,9 @@ impl LinearScheme for MoreauJean {
 }
 
 /// What [`MoreauJean`] carries between steps: the energy and load cached at the end of the last
-/// step, the scratch vectors (F at θ keeps its last value) and the index set with its round-off
-/// levels.
+/// step, the scratch vectors (F at θ keeps its last value), the index set with its round-off
+/// levels and, on the banded contact path, the solver's warm start (the active dofs of its last
+/// solution).
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct MoreauJeanState {
     last_energy: Option<(u64, f64, f64)>,
@@ -409,6 +410,7 @@ pub struct MoreauJeanState {
     f_next_t: f64,
     scratch: Scratch,
     index_set: IndexSet,
+    banded_warm: Option<Vec<bool>>,
 }
 
 impl MoreauJean {
@@ -419,6 +421,7 @@ impl MoreauJean {
             f_next_t: self.f_next_t,
             scratch: self.scratch.clone(),
             index_set: self.index_set.clone(),
+            banded_warm: self.banded.as_ref().map(BandedImpulse::warm_start),
         }
     }
 
@@ -430,6 +433,7 @@ impl MoreauJean {
                 self.f_next.len()
             )));
         }
+        restore_warm_start(self.banded.as_mut(), s.banded_warm)?;
         self.last_energy = s.last_energy;
         self.f_next = s.f_next;
         self.f_next_t = s.f_next_t;

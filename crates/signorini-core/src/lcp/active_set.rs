@@ -24,13 +24,42 @@
 //! contacts are those of 𝒜 with P_α < 0 and those outside with w_α < 0; exchange all of them
 //! (a block pivot) while their number decreases, and after [`BLOCK_TRIES`] block pivots without
 //! a decrease exchange only the infeasible contact of least index (Murty's rule, finite for a
-//! P-matrix W, Murty 1974) until it does. Each iteration is one banded factorisation and solve;
-//! a warm start from the last step's 𝒜 (a lasting contact region changes by a few nodes per
-//! step) ends most steps in one or two, and an 𝒜 equal to the factorised one reuses its
-//! factor. The iteration budget is [`LcpOptions::max_iterations`]; exhausting it, or a singular
-//! exchanged system, is an [`LcpError`].
+//! P-matrix W, Murty 1974) until it does. A warm start from the last step's 𝒜 (a lasting
+//! contact region changes by a few nodes per step) ends most steps in one or two iterations,
+//! and an 𝒜 equal to the factorised one reuses its factor. The iteration budget is
+//! [`LcpOptions::max_iterations`]; exhausting it, or a singular exchanged system, is an
+//! [`LcpError`].
 //!
-//! The complementarity error is that of every solver here, `‖min(P, w)‖_∞ / max(1, ‖b‖_∞)`
+//! # A moving contact region
+//!
+//! When the wave crosses many nodes per step (a string of 10⁵ nodes at h = 2·10⁻⁵ s: c h/Δx =
+//! 200), the contacts predicted to close (the index set, w < 0 at P = 0) form a region hundreds
+//! of nodes wider than the one that takes impulses: the first pivot activates all of it, and
+//! the next ones find P < 0 only at its edges, one contact per edge per pivot, while P in its
+//! interior stays positive — the region shrinks by two contacts per iteration, the count of
+//! infeasible contacts stalls, and Murty's single pivots would halve even that pace. Three
+//! things keep such a step cheap:
+//!
+//! * **The window.** The unknowns outside `[first contact − kd, last contact + kd]` are free
+//!   dofs whose equations touch no contact column and no right-hand side: they are condensed
+//!   once onto the window's edges (the Schur complement of S's leading block is
+//!   `S₂₂ − L₂₁L₂₁ᵀ` with L the Cholesky factor of S, and likewise for its trailing block with
+//!   the factor of S in reverse order, both computed once), and solved once at the end. An
+//!   iteration costs O(window · kd²) instead of O(n · kd²).
+//! * **Monotone pivots.** With R D = I, S a Z-matrix (off-diagonals ≤ 0, as for a mass plus
+//!   a string's or a bar's stiffness) and one sign of G, W⁻¹ is an M-matrix (a Schur complement
+//!   of one), for which the block pivots converge monotonically from any start
+//!   (Hintermüller, Ito & Kunisch 2002, §3): the pivots go on while the count stalls (up to
+//!   k of them, then Murty's rule as above).
+//! * **Leaps.** In that case, while an iteration only removes contacts, each retreating edge
+//!   (an exchanged contact with an inactive neighbour on one side) takes the next `reach − 1`
+//!   active contacts inwards along with it, `reach` doubling at each such iteration; a leap too
+//!   far shows as contacts that join again, and `reach` falls to a quarter. After [`MAX_LEAPS`]
+//!   leaps too far the pivots go on without leaping. Any 𝒜 is a legitimate guess: the answer is
+//!   the exact solution of the last 𝒜's system with every sign checked, the same as without
+//!   leaps (W is a P-matrix: the LCP's solution is unique).
+//!
+//! //! The complementarity error is that of every solver here, `‖min(P, w)‖_∞ / max(1, ‖b‖_∞)`
 //! ([`crate::lcp`]), on the contacts of the problem.
 
 use super::{LcpError, LcpOptions};
@@ -38,6 +67,10 @@ use crate::band::SymBand;
 
 /// Block pivots in a row without fewer infeasible contacts before Murty's single pivot.
 pub const BLOCK_TRIES: usize = 3;
+
+/// Leaps of a shrinking contact region that went too far before the block pivots go on
+/// without leaping (see the [module](self) documentation).
+pub const MAX_LEAPS: usize = 8;
 
 /// How the impulse enters the velocity equation of the step.
 #[derive(Debug, Clone)]
@@ -74,8 +107,14 @@ pub struct BandedActiveSet {
     map: ImpulseMap,
     /// The active dofs of the last solution (warm start).
     warm: Vec<bool>,
-    /// The active dofs of `lu`, and the factor.
-    lu: Option<(Vec<bool>, BandLu)>,
+    /// The window (first and last dof) and active dofs of `lu`, and the factor.
+    lu: Option<(usize, usize, Vec<bool>, BandLu)>,
+    /// Cholesky factors of S and of S with its dofs in reverse order: their leading blocks
+    /// condense the free dofs on either side of the window ([`BandChol::corner`]).
+    chol: Option<(BandChol, BandChol)>,
+    /// S is a Z-matrix (off-diagonals ≤ 0) and the map is `Direct`: with one sign of G the
+    /// block pivots converge monotonically (see the [module](self) documentation).
+    z_matrix: bool,
     /// Active flags per dof of the current iterate, and the row of each dof (usize::MAX: none).
     act: Vec<bool>,
     row_of: Vec<usize>,
@@ -83,14 +122,22 @@ pub struct BandedActiveSet {
 }
 
 impl BandedActiveSet {
-    /// A solver for `S x = (R D) G P` (n = order of S).
+    /// A solver for `S x = (R D) G P` (n = order of S). S is symmetric positive definite for
+    /// every scheme here; were it not, its Cholesky factors are missing and every system is
+    /// solved on the whole range of dofs.
     pub fn new(s: SymBand, map: ImpulseMap) -> Self {
         let n = s.n();
+        let kd = s.kd();
+        let z_matrix = matches!(map, ImpulseMap::Direct)
+            && (0..n).all(|i| (i.saturating_sub(kd)..i).all(|j| s.get(i, j) <= 0.0));
+        let chol = BandChol::of(&s, false).zip(BandChol::of(&s, true));
         Self {
             s,
             map,
             warm: vec![false; n],
             lu: None,
+            chol,
+            z_matrix,
             act: vec![false; n],
             row_of: vec![usize::MAX; n],
             rhs: vec![0.0; n],
@@ -127,7 +174,8 @@ impl BandedActiveSet {
                 ..Default::default()
             })
         } else {
-            self.iterate(rows, b, options, scale, p, x)
+            let window = self.window(rows);
+            self.iterate(rows, b, options, scale, window, p, x)
         };
         for &(dof, _) in rows {
             self.row_of[dof] = usize::MAX;
@@ -137,27 +185,80 @@ impl BandedActiveSet {
         result
     }
 
+    /// The active dofs the next solve starts from (those of the last solution).
+    pub fn warm_start(&self) -> &[bool] {
+        &self.warm
+    }
+
+    /// Sets the active dofs the next solve starts from (a resumed run: those a checkpoint
+    /// saved from [`BandedActiveSet::warm_start`]); `false` for another number of dofs.
+    pub fn set_warm_start(&mut self, warm: &[bool]) -> bool {
+        if warm.len() != self.warm.len() {
+            return false;
+        }
+        self.warm.copy_from_slice(warm);
+        true
+    }
+
+    /// Half-width of the band of the exchanged system: that of S and R.
+    fn kd(&self) -> usize {
+        match &self.map {
+            ImpulseMap::Direct => self.s.kd(),
+            ImpulseMap::Filtered { r, .. } => self.s.kd().max(r.kd()),
+        }
+    }
+
+    /// The first and last dof of the window the iterations solve on: the dofs of the
+    /// contacts and [`BandedActiveSet::kd`] more on each side. The equations of the dofs
+    /// outside touch no contact's column and have no right-hand side, so they are condensed
+    /// onto the window's edges (the Schur complements of S's leading and trailing blocks,
+    /// [`BandChol::corner`]) and solved once at the end ([`BandChol::solve_outer`]): an
+    /// iteration costs O(window · bandwidth²) instead of O(n · bandwidth²).
+    fn window(&self, rows: &[(usize, f64)]) -> (usize, usize) {
+        let n = self.s.n();
+        if self.chol.is_none() {
+            return (0, n - 1);
+        }
+        let (lo, hi) = rows
+            .iter()
+            .fold((usize::MAX, 0), |(lo, hi), &(d, _)| (lo.min(d), hi.max(d)));
+        let kd = self.kd();
+        (lo.saturating_sub(kd), (hi + kd).min(n - 1))
+    }
+
+    #[allow(clippy::too_many_arguments)]
     fn iterate(
         &mut self,
         rows: &[(usize, f64)],
         b: &[f64],
         options: &LcpOptions,
         scale: f64,
+        window: (usize, usize),
         p: &mut [f64],
         x: &mut [f64],
     ) -> Result<ActiveSetStats, LcpError> {
         let k = rows.len();
         // Infeasibilities below this level are round-off: exchanging them would cycle.
         let tau = 1e-3 * options.tolerance * scale;
+        // W⁻¹ is an M-matrix (S a Z-matrix, R D = I, one sign of G): block pivots converge
+        // monotonically, in at most k of them, whether or not the count of infeasible
+        // contacts falls at each (Hintermüller, Ito & Kunisch 2002, §3, the M-matrix case);
+        // the count stalls while a contact region shrinks by its two edge contacts per
+        // pivot, and Murty's single pivots would only halve that pace.
+        let monotone = self.z_matrix
+            && (rows.iter().all(|&(_, c)| c > 0.0) || rows.iter().all(|&(_, c)| c < 0.0));
+        let patience = if monotone { k } else { BLOCK_TRIES };
         let mut active = 0;
         for &(dof, _) in rows {
             self.act[dof] = self.warm[dof];
             active += usize::from(self.warm[dof]);
         }
         let (mut best, mut tries) = (usize::MAX, 0);
+        let (mut reach, mut leaps) = (1, 0);
         let mut w = vec![0.0; k];
+        let mut flip = vec![false; k];
         for iteration in 1..=options.max_iterations {
-            self.solve_active(rows, b, active, p, x)?;
+            self.solve_active(rows, b, active, window, p, x)?;
             let mut infeasible = 0;
             let mut least = usize::MAX;
             for (r, &(dof, coef)) in rows.iter().enumerate() {
@@ -186,6 +287,7 @@ impl BandedActiveSet {
                         tolerance: options.tolerance,
                     });
                 }
+                self.solve_outside(window, x);
                 return Ok(ActiveSetStats {
                     size: k,
                     iterations: iteration,
@@ -199,14 +301,32 @@ impl BandedActiveSet {
             } else {
                 tries += 1;
             }
-            let block = tries < BLOCK_TRIES;
+            let block = tries < patience;
             for (r, &(dof, _)) in rows.iter().enumerate() {
-                let bad = if self.act[dof] {
+                flip[r] = if self.act[dof] {
                     p[r] < -tau
                 } else {
                     w[r] < -tau
-                };
-                if bad && (block || r == least) {
+                } && (block || r == least);
+            }
+            if monotone && block && leaps < MAX_LEAPS {
+                // Only edges retreat (no contact joins): the region shrinks by `reach`
+                // contacts per edge, doubling while it keeps shrinking; a leap too far shows
+                // as contacts that join again at the next pivot, and `reach` falls to a quarter.
+                let joins = rows
+                    .iter()
+                    .zip(&flip)
+                    .any(|(&(dof, _), &f)| f && !self.act[dof]);
+                if joins {
+                    leaps += usize::from(reach > 1);
+                    reach = (reach / 4).max(1);
+                } else {
+                    self.leap(rows, &mut flip, reach);
+                    reach = (2 * reach).min(k);
+                }
+            }
+            for (r, &(dof, _)) in rows.iter().enumerate() {
+                if flip[r] {
                     self.act[dof] = !self.act[dof];
                     if self.act[dof] {
                         active += 1;
@@ -229,42 +349,68 @@ impl BandedActiveSet {
         })
     }
 
-    /// x and P for the current active flags: the banded system with the columns of the active
-    /// dofs exchanged for their impulses.
+    /// Extends each retreating edge of the active contacts (a flipped active contact with
+    /// an inactive neighbour in `rows` on one side and an active one on the other) by the
+    /// `reach − 1` next active contacts inwards.
+    fn leap(&self, rows: &[(usize, f64)], flip: &mut [bool], reach: usize) {
+        let k = rows.len();
+        let on = |r: usize| self.act[rows[r].0];
+        let edges: Vec<usize> = (0..k).filter(|&r| flip[r] && on(r)).collect();
+        // Active and staying so before any extension.
+        let kept: Vec<bool> = (0..k).map(|r| on(r) && !flip[r]).collect();
+        for r in edges {
+            let left = r > 0 && kept[r - 1];
+            let right = r + 1 < k && kept[r + 1];
+            if right && !left {
+                for i in (r + 1..k).take(reach - 1).take_while(|&i| kept[i]) {
+                    flip[i] = true;
+                }
+            } else if left && !right {
+                for i in (0..r).rev().take(reach - 1).take_while(|&i| kept[i]) {
+                    flip[i] = true;
+                }
+            }
+        }
+    }
+
+    /// x on the window and P for the current active flags: the banded system with the
+    /// columns of the active dofs exchanged for their impulses, condensed onto the window.
     fn solve_active(
         &mut self,
         rows: &[(usize, f64)],
         b: &[f64],
         active: usize,
+        (lo, hi): (usize, usize),
         p: &mut [f64],
         x: &mut [f64],
     ) -> Result<(), LcpError> {
         let n = self.s.n();
         p[..rows.len()].fill(0.0);
         if active == 0 {
-            x.fill(0.0);
+            x[lo..=hi].fill(0.0);
             return Ok(());
         }
-        let reuse = matches!(&self.lu, Some((flags, _)) if *flags == self.act);
+        let reuse = matches!(&self.lu, Some((a, b, flags, _)) if (*a, *b) == (lo, hi) && *flags == self.act);
         if !reuse {
-            let lu = self.factor_active(rows)?;
-            self.lu = Some((self.act.clone(), lu));
+            let lu = self.factor_active(rows, (lo, hi))?;
+            self.lu = Some((lo, hi, self.act.clone(), lu));
         }
-        // Right-hand side −Σ_{j active} S_ij x_j with x_j = −b_α / g_α.
+        // Right-hand side −Σ_{j active} S_ij x_j with x_j = −b_α / g_α (rows in the window).
         let kd = self.s.kd();
-        self.rhs.fill(0.0);
+        let rhs = &mut self.rhs[..hi - lo + 1];
+        rhs.fill(0.0);
         for (r, &(dof, coef)) in rows.iter().enumerate() {
             if self.act[dof] {
                 let xj = -b[r] / coef;
                 for i in dof.saturating_sub(kd)..(dof + kd + 1).min(n) {
-                    self.rhs[i] -= self.s.get(i, dof) * xj;
+                    rhs[i - lo] -= self.s.get(i, dof) * xj;
                 }
             }
         }
-        if let Some((_, lu)) = &self.lu {
-            lu.solve_in_place(&mut self.rhs);
+        if let Some((_, _, _, lu)) = &self.lu {
+            lu.solve_in_place(rhs);
         }
-        x.copy_from_slice(&self.rhs);
+        x[lo..=hi].copy_from_slice(rhs);
         for (r, &(dof, coef)) in rows.iter().enumerate() {
             if self.act[dof] {
                 p[r] = x[dof];
@@ -274,35 +420,166 @@ impl BandedActiveSet {
         Ok(())
     }
 
-    fn factor_active(&self, rows: &[(usize, f64)]) -> Result<BandLu, LcpError> {
-        let n = self.s.n();
-        let kd = match &self.map {
-            ImpulseMap::Direct => self.s.kd(),
-            ImpulseMap::Filtered { r, .. } => self.s.kd().max(r.kd()),
-        };
-        let mut a = BandLu::zeros(n, kd, kd);
-        for j in 0..n {
-            let lo = j.saturating_sub(kd);
-            let hi = (j + kd + 1).min(n);
+    /// The exchanged system on the window `lo..=hi`, minus the Schur complements of the free
+    /// dofs outside it.
+    fn factor_active(
+        &self,
+        rows: &[(usize, f64)],
+        (lo, hi): (usize, usize),
+    ) -> Result<BandLu, LcpError> {
+        let kd = self.kd();
+        let mut a = BandLu::zeros(hi - lo + 1, kd, kd);
+        for j in lo..=hi {
+            let top = j.saturating_sub(kd).max(lo);
+            let bottom = (j + kd).min(hi);
             if self.act[j] {
                 let coef = rows[self.row_of[j]].1;
                 match &self.map {
-                    ImpulseMap::Direct => a.set(j, j, -coef),
+                    ImpulseMap::Direct => a.set(j - lo, j - lo, -coef),
                     ImpulseMap::Filtered { r, d } => {
-                        for i in lo..hi {
-                            a.set(i, j, -r.get(i, j) * d[j] * coef);
+                        for i in top..=bottom {
+                            a.set(i - lo, j - lo, -r.get(i, j) * d[j] * coef);
                         }
                     }
                 }
             } else {
-                for i in lo..hi {
-                    a.set(i, j, self.s.get(i, j));
+                for i in top..=bottom {
+                    a.set(i - lo, j - lo, self.s.get(i, j));
+                }
+            }
+        }
+        if let Some((chol, rev)) = &self.chol {
+            // The corners are columns of free dofs: the contacts are kd dofs inside.
+            let (n, ks) = (self.s.n(), self.s.kd());
+            let m = hi - lo + 1;
+            if lo > 0 {
+                for i in 0..ks.min(m) {
+                    for j in 0..ks.min(m) {
+                        a.add(i, j, -chol.corner(lo, i, j));
+                    }
+                }
+            }
+            if hi + 1 < n {
+                let size = n - 1 - hi;
+                for i in 0..ks.min(m) {
+                    for j in 0..ks.min(m) {
+                        a.add(m - 1 - i, m - 1 - j, -rev.corner(size, i, j));
+                    }
                 }
             }
         }
         a.factor()
-            .map_err(|dof| LcpError::SingularActiveSet { dof })?;
+            .map_err(|col| LcpError::SingularActiveSet { dof: col + lo })?;
         Ok(a)
+    }
+
+    /// x on the free dofs outside the window `lo..=hi`, from x on it: `S_OO x_O = −S_OI x_I`.
+    fn solve_outside(&self, (lo, hi): (usize, usize), x: &mut [f64]) {
+        if let Some((chol, rev)) = &self.chol {
+            let n = self.s.n();
+            chol.solve_outer(&self.s, lo, x, |i| i);
+            rev.solve_outer(&self.s, n - 1 - hi, x, |i| n - 1 - i);
+        }
+    }
+}
+
+/// The lower Cholesky factor L of a symmetric positive definite band matrix S (`S = L Lᵀ`),
+/// or of S with its dofs in reverse order. Its leading block of order a is the factor of S's
+/// leading block, so it solves the free dofs before a window (and, reversed, after one).
+#[derive(Debug, Clone)]
+struct BandChol {
+    n: usize,
+    kd: usize,
+    /// Row i, entries L_ij for j = i − kd … i, at `i (kd + 1) + kd + j − i`.
+    l: Vec<f64>,
+    /// 1/L_ii.
+    inv: Vec<f64>,
+}
+
+impl BandChol {
+    /// The factor of S (`reversed`: of S_{n−1−i, n−1−j}); `None` if S is not positive definite.
+    fn of(s: &SymBand, reversed: bool) -> Option<Self> {
+        let (n, kd) = (s.n(), s.kd());
+        let get = |i: usize, j: usize| {
+            if reversed {
+                s.get(n - 1 - i, n - 1 - j)
+            } else {
+                s.get(i, j)
+            }
+        };
+        let mut c = Self {
+            n,
+            kd,
+            l: vec![0.0; n * (kd + 1)],
+            inv: vec![0.0; n],
+        };
+        for i in 0..n {
+            for j in i.saturating_sub(kd)..=i {
+                let mut sum = get(i, j);
+                for k in i.saturating_sub(kd)..j {
+                    sum -= c.get(i, k) * c.get(j, k);
+                }
+                let v = if i == j {
+                    if !(sum > 0.0 && sum.is_finite()) {
+                        return None;
+                    }
+                    let d = sum.sqrt();
+                    c.inv[i] = 1.0 / d;
+                    d
+                } else {
+                    sum * c.inv[j]
+                };
+                c.l[i * (kd + 1) + kd + j - i] = v;
+            }
+        }
+        Some(c)
+    }
+
+    /// L_ij (zero outside the band; j ≤ i).
+    fn get(&self, i: usize, j: usize) -> f64 {
+        if j + self.kd < i {
+            0.0
+        } else {
+            self.l[i * (self.kd + 1) + self.kd + j - i]
+        }
+    }
+
+    /// Entry (a + i, a + j) (i, j < kd) of what eliminating the leading block of order a
+    /// takes off the trailing one, `S_{2,1} S_{1,1}⁻¹ S_{1,2} = L_{2,1} L_{2,1}ᵀ`.
+    fn corner(&self, a: usize, i: usize, j: usize) -> f64 {
+        let (ri, rj) = (a + i, a + j);
+        (ri.max(rj).saturating_sub(self.kd)..a)
+            .map(|k| self.get(ri, k) * self.get(rj, k))
+            .sum()
+    }
+
+    /// Solves the leading block of order a for the free dofs `dof(0..a)` given x on the dofs
+    /// after them: `S_11 x_1 = −S_12 x_2` (the right-hand side lives on the last kd rows).
+    fn solve_outer(&self, s: &SymBand, a: usize, x: &mut [f64], dof: impl Fn(usize) -> usize) {
+        if a == 0 {
+            return;
+        }
+        let kd = self.kd;
+        let first = a.saturating_sub(kd);
+        // Forward: L y = −S_12 x_2, zero before `first`.
+        for i in first..a {
+            let mut y = 0.0;
+            for j in a..(i + kd + 1).min(self.n) {
+                y -= s.get(dof(i), dof(j)) * x[dof(j)];
+            }
+            for k in i.saturating_sub(kd).max(first)..i {
+                y -= self.get(i, k) * x[dof(k)];
+            }
+            x[dof(i)] = y * self.inv[i];
+        }
+        // Backward: Lᵀ x_1 = y.
+        for i in (0..a).rev() {
+            let mut v = if i >= first { x[dof(i)] } else { 0.0 };
+            for k in i + 1..(i + kd + 1).min(a) {
+                v -= self.get(k, i) * x[dof(k)];
+            }
+            x[dof(i)] = v * self.inv[i];
+        }
     }
 }
 
@@ -333,6 +610,8 @@ struct BandLu {
     /// Leading dimension 2 kl + ku + 1: entry (i, j) at `j ld + kl + ku + i − j`.
     ab: Vec<f64>,
     pivots: Vec<usize>,
+    /// 1/U_jj: a solve multiplies (a division in its dependency chain would bound its speed).
+    inv: Vec<f64>,
 }
 
 impl BandLu {
@@ -343,6 +622,7 @@ impl BandLu {
             ku,
             ab: vec![0.0; n * (2 * kl + ku + 1)],
             pivots: vec![0; n],
+            inv: vec![0.0; n],
         }
     }
 
@@ -353,6 +633,11 @@ impl BandLu {
     fn set(&mut self, i: usize, j: usize, a: f64) {
         let k = self.idx(i, j);
         self.ab[k] = a;
+    }
+
+    fn add(&mut self, i: usize, j: usize, a: f64) {
+        let k = self.idx(i, j);
+        self.ab[k] += a;
     }
 
     /// Factorises in place; `Err(j)` when column j has no non-zero pivot.
@@ -380,6 +665,7 @@ impl BandLu {
                 }
             }
             let inv = 1.0 / pv;
+            self.inv[j] = inv;
             for i in j + 1..=last {
                 let k = self.idx(i, j);
                 self.ab[k] *= inv;
@@ -416,7 +702,7 @@ impl BandLu {
             }
         }
         for j in (0..n).rev() {
-            b[j] /= self.ab[self.idx(j, j)];
+            b[j] *= self.inv[j];
             let bj = b[j];
             if bj != 0.0 {
                 for i in j.saturating_sub(ku)..j {
