@@ -8,7 +8,7 @@
 //! * extend(t₁ → t₂) gives the rows after t₁ of one run to t₂ and its summary bit for bit;
 //! * calls in the wrong state answer 409 naming the state, an unknown id 404, a job that writes
 //!   no checkpoints is refused with the reason; a paused job survives a restart, can be
-//!   cancelled, and is not purged.
+//!   cancelled, and is not purged; a study's parent is refused, its children are paused.
 
 mod common;
 
@@ -431,4 +431,65 @@ async fn extend_equals_one_longer_run() {
         .expect_err("running");
     assert_eq!(e.code(), tonic::Code::FailedPrecondition);
     assert!(e.message().contains("is running"), "{}", e.message());
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_study_parent_is_not_paused_its_children_are() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let opts = Options {
+        workers: 1,
+        max_steps: Some(1_000_000_000),
+        ..Options::default()
+    };
+    let server = TestServer::start(&dir.path().join("store.db"), &opts);
+    let spec = r#"{"study": {
+        "reference": "exact",
+        "base": {"model": {"scene": "bouncing_ball"}, "time": {"h": 1e-6, "t_end": 100.0},
+                 "output": {"every": 1000000}},
+        "schemes": [{"scheme": "moreau_jean", "theta": 0.5}, {"scheme": "moreau_jean", "theta": 1.0}],
+        "grid": {"time.h": [1e-6, 5e-7]}}}"#;
+    let (code, body) = server.http("POST", "/v1/jobs", Some(spec), None).await;
+    assert_eq!(code, 201, "{body}");
+    let parent = body["id"].as_str().expect("id").to_string();
+    let (code, body) = server
+        .http("GET", &format!("/v1/jobs/{parent}/children"), None, None)
+        .await;
+    assert_eq!(code, 200, "{body}");
+    let kids = body["jobs"].as_array().expect("children").clone();
+    assert_eq!(kids.len(), 4);
+    for route in ["pause", "extend"] {
+        let (code, body) = server
+            .http(
+                "POST",
+                &format!("/v1/jobs/{parent}/{route}"),
+                Some(r#"{"t_end":200.0}"#),
+                None,
+            )
+            .await;
+        assert_eq!(code, 409, "{route}: {body}");
+        assert!(
+            body["error"]["reason"]
+                .as_str()
+                .is_some_and(|r| r.contains("no run of its own")),
+            "{body}"
+        );
+    }
+    // The last child waits in the queue: parked at once; cancelled, it counts as ended.
+    let last = kids[3]["id"].as_str().expect("id").to_string();
+    let (code, body) = server
+        .http("POST", &format!("/v1/jobs/{last}/pause"), None, None)
+        .await;
+    assert_eq!(code, 200, "{body}");
+    assert_eq!(body["state"], "paused");
+    assert_eq!(status(&server, &parent).await["progress"]["step"], 0);
+    let (code, body) = server
+        .http("DELETE", &format!("/v1/jobs/{last}"), None, None)
+        .await;
+    assert_eq!(code, 200, "{body}");
+    assert_eq!(body["state"], "cancelled");
+    assert_eq!(status(&server, &parent).await["progress"]["step"], 1);
+    let (code, body) = server
+        .http("DELETE", &format!("/v1/jobs/{parent}"), None, None)
+        .await;
+    assert_eq!(code, 200, "{body}");
 }

@@ -36,6 +36,9 @@ use std::sync::atomic::Ordering;
 /// Why a job of this kind cannot be paused or extended.
 const NO_CHECKPOINTS: &str = "its scheme family writes no checkpoints (an analysis, or a linear job on the banded contact path or drawing a contact region: docs/checkpoints.md), so it could only rerun from step 0";
 
+/// Why a study's parent job cannot be paused or extended.
+const NO_RUN_OF_ITS_OWN: &str = "a study has no run of its own: pause, resume or extend its children (GET /v1/jobs/{id}/children)";
+
 /// Parks a running job whose run stopped after its pause checkpoint: the store marks it paused
 /// with the progress of that checkpoint, and its watchers get the status.
 pub(super) fn park(inner: &Inner, live: &Arc<LiveJob>) {
@@ -104,6 +107,9 @@ impl Engine {
         let live = lock(&self.inner.live).get(id).cloned();
         let Some(live) = live else {
             let view = self.status(id)?;
+            if self.inner.store.is_study(id)? {
+                return Err(wrong_state(&view, NO_RUN_OF_ITS_OWN));
+            }
             return match view.state {
                 JobState::Queued | JobState::Running => {
                     // With a shared store: queued for any replica, or running on another one.
@@ -239,6 +245,8 @@ impl Engine {
         tracing::info!(%id, "cancelled while paused");
         self.inner.sink.send(JobEvent::Status(view.clone()));
         self.inner.sink.send(JobEvent::Closed(id.to_string()));
+        // A study's child counts as ended for its parent.
+        super::study::child_ended(&self.inner, id);
         Ok(Some(view))
     }
 
@@ -270,6 +278,9 @@ impl Engine {
             check_id(n)?;
         }
         let first = self.status(id)?;
+        if self.inner.store.is_study(id)? {
+            return Err(wrong_state(&first, NO_RUN_OF_ITS_OWN));
+        }
         if first.state != JobState::Succeeded {
             return Err(wrong_state(&first, "only a succeeded job can be extended"));
         }
