@@ -97,6 +97,7 @@ async fn pause_then_resume_equals_an_uninterrupted_run_for_every_scheme_family()
         ("rocking_block_ns_generalized_alpha.toml", 80.0, 500), // user-model generalized-α
         ("pendulum_soi2.toml", 100.0, 500),                     // SOI2
         ("wfem_dep_bar.toml", 300.0, 1000),                     // WFEM
+        ("string_bridge.toml", 30.0, 50), // banded contact path, contact region
     ];
     for (k, (name, factor, every)) in families.into_iter().enumerate() {
         let spec = longer(name, factor, every);
@@ -419,6 +420,20 @@ async fn extend_equals_one_longer_run() {
     let s = wait_terminal(&mut client, "bar-to-6").await;
     assert_eq!(s.state, pb::JobState::Succeeded as i32, "{s:?}");
     assert_eq!(s.progress.expect("progress").step, 6000);
+    // A run drawing a contact region sizes the chart's time buckets by its length: refused.
+    submit(&server, &longer("string_bridge.toml", 0.05, 5), "bridge").await;
+    let s = wait_terminal(&mut client, "bridge").await;
+    assert_eq!(s.state, pb::JobState::Succeeded as i32, "{s:?}");
+    let e = client
+        .extend_job(pb::ExtendJobRequest {
+            id: "bridge".into(),
+            t_end: 0.06,
+            new_id: None,
+        })
+        .await
+        .expect_err("a contact region");
+    assert_eq!(e.code(), tonic::Code::FailedPrecondition);
+    assert!(e.message().contains("contact region"), "{}", e.message());
     submit(&server, &longer("bar.toml", 300.0, 1000), "running").await;
     poll_until(&server, "running", |s| s["state"] == "running").await;
     let e = client

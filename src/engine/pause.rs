@@ -34,7 +34,7 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering;
 
 /// Why a job of this kind cannot be paused or extended.
-const NO_CHECKPOINTS: &str = "its scheme family writes no checkpoints (an analysis, or a linear job on the banded contact path or drawing a contact region: docs/checkpoints.md), so it could only rerun from step 0";
+const NO_CHECKPOINTS: &str = "an analysis (forced response, nonsmooth modes) writes no checkpoints (docs/checkpoints.md), so it could only rerun from step 0";
 
 /// Why a study's parent job cannot be paused or extended.
 const NO_RUN_OF_ITS_OWN: &str = "a study has no run of its own: pause, resume or extend its children (GET /v1/jobs/{id}/children)";
@@ -307,6 +307,12 @@ impl Engine {
                         "a WFEM job extends from a recorded step only: it ended on step {step}, not a multiple of output.every = {} (WFEM sums the works since the last record)",
                         spec.output.every
                     ),
+                ));
+            }
+            _ if first_job.draws_contact_region() => {
+                return Err(wrong_state(
+                    &first,
+                    "a job drawing a contact region cannot be extended bit for bit: the chart's time buckets are sized by the run's length, so a run to a later t_end draws another grid; submit the longer run instead",
                 ));
             }
             _ => {}

@@ -496,6 +496,12 @@ impl Job {
         }
     }
 
+    /// True when the run draws the `contact_region` chart: its time buckets are sized by the
+    /// run's length, so such a run cannot be continued to a later end with the same chart.
+    pub fn draws_contact_region(&self) -> bool {
+        matches!(&self.kind, JobKind::Linear(j) if j.region.is_some())
+    }
+
     /// Size of the job.
     pub fn size(&self) -> JobSize {
         match &self.kind {
