@@ -476,6 +476,26 @@ async fn a_study_whose_base_is_a_file_is_refused_naming_study_base() {
     assert_eq!(code, 400, "{body}");
     let field = body["error"]["field"].as_str().unwrap();
     assert!(field.starts_with("study.schemes[0] at time.h=-1"), "{body}");
+    // More runs than the server's queue holds (64 in the tests): refused naming `study`.
+    let hs: Vec<String> = (1..=65)
+        .map(|k| format!("{:?}", 1e-3 / f64::from(k)))
+        .collect();
+    let big = format!(
+        r#"{{"study": {{"reference": "exact",
+        "base": {{"model": {{"scene": "bouncing_ball"}}, "time": {{"h": 1e-3, "t_end": 0.1}}}},
+        "schemes": [{{"scheme": "moreau_jean"}}], "grid": {{"time.h": [{}]}}}}}}"#,
+        hs.join(", ")
+    );
+    let (code, body) = server.http("POST", "/v1/jobs", Some(&big), None).await;
+    assert_eq!(code, 400, "{body}");
+    assert_eq!(body["error"]["field"], "study", "{body}");
+    assert!(
+        body["error"]["reason"]
+            .as_str()
+            .unwrap()
+            .contains("65 runs"),
+        "{body}"
+    );
     let (code, list) = server.http("GET", "/v1/jobs", None, None).await;
     assert_eq!(code, 200);
     assert_eq!(list["jobs"], serde_json::json!([]), "nothing queued");

@@ -85,6 +85,18 @@ pub(super) fn submit(
             SpecError::new(format!("study: run {k} ({name}): {}", e.field), e.reason)
         })?;
     }
+    if jobs.len() > inner.queue_limit {
+        return Err(SpecError::new(
+            "study",
+            format!(
+                "{} runs, more than this server's queue holds ({} jobs, --queue-limit): split \
+                 the study, or run it with `signorini run`",
+                jobs.len(),
+                inner.queue_limit
+            ),
+        )
+        .into());
+    }
     let id = id.unwrap_or_else(new_id);
     let created_ms = now_ms();
     let lives: Vec<Arc<super::LiveJob>> = jobs
