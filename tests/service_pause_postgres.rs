@@ -9,15 +9,10 @@ mod common;
 
 use common::fingerprint::{fingerprint, fingerprint_without, result};
 use common::pg::Postgres;
-use common::{Options, PATIENCE, TestServer, submit_json};
+use common::{Options, TestServer, has_ended, poll_job, submit_json};
 use signorini::proto::v1 as pb;
-use signorini::proto::v1::simulation_client::SimulationClient;
 use signorini::spec_file::{Format, parse};
 use std::path::Path;
-use std::time::Duration;
-use tonic::transport::Channel;
-
-type Client = SimulationClient<Channel>;
 
 fn replica(url: &str, name: &str) -> TestServer {
     let opts = Options {
@@ -43,28 +38,6 @@ fn long_bar() -> String {
     serde_json::to_string(&spec).expect("JSON")
 }
 
-/// Polls `GetJob` until `done` holds.
-async fn poll(
-    client: &mut Client,
-    id: &str,
-    done: impl Fn(&pb::JobStatus) -> bool,
-) -> pb::JobStatus {
-    let fut = async {
-        loop {
-            let s = client
-                .get_job(pb::GetJobRequest { id: id.to_string() })
-                .await
-                .expect("GetJob")
-                .into_inner();
-            if done(&s) {
-                return s;
-            }
-            tokio::time::sleep(Duration::from_millis(20)).await;
-        }
-    };
-    tokio::time::timeout(PATIENCE, fut).await.expect("in time")
-}
-
 fn step(s: &pb::JobStatus) -> u64 {
     s.progress.as_ref().map_or(0, |p| p.step)
 }
@@ -80,7 +53,7 @@ async fn a_job_paused_through_another_replica_resumes_anywhere_bit_for_bit() {
     submit_json(&mut to_a, long_bar(), Some("paused"))
         .await
         .expect("submit");
-    let s = poll(&mut to_a, "paused", |s| {
+    let s = poll_job(&mut to_a, "paused", |s| {
         s.state == pb::JobState::Running as i32 && step(s) >= 50_000
     })
     .await;
@@ -94,7 +67,7 @@ async fn a_job_paused_through_another_replica_resumes_anywhere_bit_for_bit() {
         })
         .await
         .expect("PauseJob");
-    let s = poll(other, "paused", |s| s.state != pb::JobState::Running as i32).await;
+    let s = poll_job(other, "paused", |s| s.state != pb::JobState::Running as i32).await;
     assert_eq!(s.state, pb::JobState::Paused as i32, "{s:?}");
     let at = pg.psql("pause", "SELECT step FROM checkpoints WHERE id = 'paused'");
     assert_eq!(at, step(&s).to_string(), "the checkpoint of the pause");
@@ -146,7 +119,7 @@ async fn a_job_paused_through_another_replica_resumes_anywhere_bit_for_bit() {
         .into_inner();
     assert_eq!(s.state, pb::JobState::Queued as i32, "{s:?}");
     for id in ["paused", "whole"] {
-        let s = poll(&mut to_a, id, |s| s.state >= pb::JobState::Succeeded as i32).await;
+        let s = poll_job(&mut to_a, id, has_ended).await;
         assert_eq!(s.state, pb::JobState::Succeeded as i32, "{id}: {s:?}");
     }
     // Claimed twice (before and after the pause), continued from the checkpoint.
@@ -178,7 +151,7 @@ async fn a_job_paused_through_another_replica_resumes_anywhere_bit_for_bit() {
         .await
         .expect("submit");
     for id in ["longer", "to-1600"] {
-        let s = poll(&mut to_a, id, |s| s.state >= pb::JobState::Succeeded as i32).await;
+        let s = poll_job(&mut to_a, id, has_ended).await;
         assert_eq!(s.state, pb::JobState::Succeeded as i32, "{id}: {s:?}");
     }
     let (ext, full) = (

@@ -7,13 +7,13 @@
 mod common;
 
 use common::pg::Postgres;
-use common::{Options, PATIENCE, TestServer, ball_json, free_port, submit_json};
+use common::{
+    Options, PATIENCE, TestServer, ball_json, free_port, has_ended, poll_job, submit_json,
+};
 use prost::Message;
 use signorini::proto::v1 as pb;
-use signorini::proto::v1::simulation_client::SimulationClient;
 use std::path::Path;
 use std::time::Duration;
-use tonic::transport::Channel;
 
 /// Lease of the test replicas (short, so a killed replica's job is claimed again soon).
 const LEASE_SECS: &str = "2";
@@ -27,26 +27,6 @@ fn replica(url: &str, name: &str, extra: &[&str]) -> TestServer {
         ..Options::default()
     };
     TestServer::start_with(Path::new(url), &opts, &args)
-}
-
-/// Polls `GetJob` (which any replica answers from the store) until the job has ended.
-async fn poll_terminal(client: &mut SimulationClient<Channel>, id: &str) -> pb::JobStatus {
-    let fut = async {
-        loop {
-            let s = client
-                .get_job(pb::GetJobRequest { id: id.to_string() })
-                .await
-                .expect("GetJob")
-                .into_inner();
-            if s.state >= pb::JobState::Succeeded as i32 {
-                return s;
-            }
-            tokio::time::sleep(Duration::from_millis(50)).await;
-        }
-    };
-    tokio::time::timeout(PATIENCE, fut)
-        .await
-        .expect("job did not end in time")
 }
 
 /// Polls the store until `sql` (one value) gives `want`.
@@ -97,7 +77,7 @@ async fn two_replicas_share_one_queue_and_run_each_job_exactly_once() {
     let last = common::wait_terminal(&mut to_b, &ids[39]).await;
     assert_eq!(last.state, pb::JobState::Succeeded as i32, "{last:?}");
     for id in &ids {
-        let s = poll_terminal(&mut to_b, id).await;
+        let s = poll_job(&mut to_b, id, has_ended).await;
         assert_eq!(s.state, pb::JobState::Succeeded as i32, "{id}: {s:?}");
     }
 
@@ -198,7 +178,7 @@ async fn a_replica_killed_mid_job_loses_its_lease_and_the_other_finishes_the_job
     let s = common::wait_terminal(&mut client, "long").await;
     assert_eq!(s.state, pb::JobState::Succeeded as i32, "{s:?}");
     for id in &short {
-        let s = poll_terminal(&mut client, id).await;
+        let s = poll_job(&mut client, id, has_ended).await;
         assert_eq!(s.state, pb::JobState::Succeeded as i32, "{id}: {s:?}");
     }
     let survivor_name = if owner == "a" { "b" } else { "a" };
@@ -322,7 +302,7 @@ async fn frames_of_a_job_on_either_replica_reach_a_subscriber_through_a_router()
             .expect("no status in time")
             .expect("subscriber closed");
         let s = pb::JobStatus::decode(&*sample.payload().to_bytes()).expect("a JobStatus");
-        if s.state >= pb::JobState::Succeeded as i32 {
+        if has_ended(&s) {
             break s;
         }
     };
@@ -330,7 +310,7 @@ async fn frames_of_a_job_on_either_replica_reach_a_subscriber_through_a_router()
     let owner = pg.psql("frames", "SELECT owner FROM jobs WHERE id = 'watched'");
     assert!(owner == "a" || owner == "b", "{owner}");
     let mut to_b = b.grpc().await;
-    poll_terminal(&mut to_b, "other").await;
+    poll_job(&mut to_b, "other", has_ended).await;
     drop((to_a, to_b));
     subscriber.close().await.expect("closing the subscriber");
     drop((a, b));

@@ -34,7 +34,7 @@ async fn watch_from(
                 pb::watch_frame::Frame::Energy(e) => energy.push(e),
                 pb::watch_frame::Frame::State(s) => state.push(s),
                 pb::watch_frame::Frame::Status(s) => {
-                    if s.state >= pb::JobState::Succeeded as i32 {
+                    if common::has_ended(&s) {
                         assert!(
                             stream.message().await.expect("end").is_none(),
                             "ends after the final status"

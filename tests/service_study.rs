@@ -8,17 +8,15 @@
 mod common;
 
 use common::pg::Postgres;
-use common::{Options, PATIENCE, TestServer, submit_json};
+use common::{Options, PATIENCE, TestServer, has_ended, poll_job, submit_json};
 use quick_xml::Reader;
 use quick_xml::events::Event;
 use serde_json::Value;
 use signorini::proto::v1 as pb;
-use signorini::proto::v1::simulation_client::SimulationClient;
 use signorini::spec_file::{self, Format};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
-use tonic::transport::Channel;
 
 /// The DEP bar study of the examples: 3 schemes × 4 (N, h = Δx/c) against the exact solution.
 fn dep_bar_study() -> PathBuf {
@@ -86,26 +84,6 @@ async fn http_wait(server: &TestServer, id: &str) -> (Value, Vec<(u64, u64)>) {
         .await
         .expect("the study did not end in time");
     (status, seen)
-}
-
-/// Polls gRPC `GetJob` until the job has ended.
-async fn grpc_wait(client: &mut SimulationClient<Channel>, id: &str) -> pb::JobStatus {
-    let fut = async {
-        loop {
-            let s = client
-                .get_job(pb::GetJobRequest { id: id.to_string() })
-                .await
-                .expect("GetJob")
-                .into_inner();
-            if s.state >= pb::JobState::Succeeded as i32 {
-                return s;
-            }
-            tokio::time::sleep(Duration::from_millis(20)).await;
-        }
-    };
-    tokio::time::timeout(PATIENCE, fut)
-        .await
-        .expect("the study did not end in time")
 }
 
 /// The service's summary and `study` table agree with the CLI's summary.json and study.csv:
@@ -299,7 +277,7 @@ async fn a_dep_bar_study_over_http_and_grpc_reports_what_the_cli_does() {
         .await
         .expect("SubmitJob");
     assert_eq!(gid, "dep-bar-study");
-    let status = grpc_wait(&mut client, &gid).await;
+    let status = poll_job(&mut client, &gid, has_ended).await;
     assert_eq!(status.state, pb::JobState::Succeeded as i32, "{status:?}");
     let listed = client
         .list_children(pb::ListChildrenRequest { id: gid.clone() })

@@ -158,7 +158,7 @@ async fn grpc_watch_job_frames_equal_get_result_and_end_with_the_final_state() {
                 let step = s.progress.expect("progress").step;
                 assert!(step >= last_progress, "progress goes forward");
                 last_progress = step;
-                let terminal = s.state >= pb::JobState::Succeeded as i32;
+                let terminal = common::has_ended(s);
                 assert_eq!(
                     terminal,
                     i + 1 == frames.len(),

@@ -385,6 +385,39 @@ pub async fn collect_until_last(
     }
 }
 
+/// True for a status that will not change any more: succeeded, failed or cancelled. Not for a
+/// paused job, whose enum value (`JOB_STATE_PAUSED = 6`) comes after theirs.
+pub fn has_ended(s: &pb::JobStatus) -> bool {
+    matches!(
+        pb::JobState::try_from(s.state),
+        Ok(pb::JobState::Succeeded | pb::JobState::Failed | pb::JobState::Cancelled)
+    )
+}
+
+/// Polls gRPC `GetJob` (which any replica answers from the store) until `done` holds.
+pub async fn poll_job(
+    client: &mut SimulationClient<Channel>,
+    id: &str,
+    done: impl Fn(&pb::JobStatus) -> bool,
+) -> pb::JobStatus {
+    let fut = async {
+        loop {
+            let s = client
+                .get_job(pb::GetJobRequest { id: id.to_string() })
+                .await
+                .expect("GetJob")
+                .into_inner();
+            if done(&s) {
+                return s;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    };
+    tokio::time::timeout(PATIENCE, fut)
+        .await
+        .unwrap_or_else(|_| panic!("job {id}: not done in time"))
+}
+
 /// Follows gRPC `WatchJob` until the job's terminal status; returns it.
 pub async fn wait_terminal(client: &mut SimulationClient<Channel>, id: &str) -> pb::JobStatus {
     let fut = async {
@@ -397,14 +430,10 @@ pub async fn wait_terminal(client: &mut SimulationClient<Channel>, id: &str) -> 
             .expect("WatchJob")
             .into_inner();
         while let Some(frame) = stream.message().await.expect("WatchJob stream") {
-            if let Some(pb::watch_frame::Frame::Status(s)) = frame.frame {
-                let st = pb::JobState::try_from(s.state).unwrap_or(pb::JobState::Unspecified);
-                if matches!(
-                    st,
-                    pb::JobState::Succeeded | pb::JobState::Failed | pb::JobState::Cancelled
-                ) {
-                    return s;
-                }
+            if let Some(pb::watch_frame::Frame::Status(s)) = frame.frame
+                && has_ended(&s)
+            {
+                return s;
             }
         }
         panic!("WatchJob ended before a terminal status");
