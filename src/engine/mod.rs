@@ -74,6 +74,10 @@ struct LiveJob {
     t_bits: AtomicU64,
     ended: watch::Sender<bool>,
     recent: Mutex<Recent>,
+    /// A study's child, or maybe one: its end updates the parent's progress. False only when
+    /// the job is known to have no parent (a submission, an extension, a claim that says so),
+    /// which spares ordinary jobs that store statement.
+    study_child: bool,
 }
 
 impl LiveJob {
@@ -281,6 +285,7 @@ impl Engine {
                         view.name.clone(),
                         job,
                         view.created_ms,
+                        true,
                     ));
                     lock(&inner.live).insert(view.id.clone(), live.clone());
                     lock(&inner.queue).push_back(live);
@@ -346,7 +351,13 @@ impl Engine {
         let spec_json = spec_value.to_string();
         let id = id.unwrap_or_else(new_id);
         let created_ms = now_ms();
-        let live = Arc::new(new_live(id.clone(), spec.name.clone(), job, created_ms));
+        let live = Arc::new(new_live(
+            id.clone(),
+            spec.name.clone(),
+            job,
+            created_ms,
+            false,
+        ));
         if let Some(q) = self.inner.store.shared() {
             // The store queues it (and tells every replica); a worker of any replica claims it.
             if q.queued()? >= self.inner.queue_limit as u64 {
@@ -531,7 +542,9 @@ impl Engine {
             self.inner.sink.send(JobEvent::Status(view.clone()));
             self.inner.sink.send(JobEvent::Closed(id.to_string()));
             live.ended.send_replace(true);
-            study::child_ended(&self.inner, id);
+            if live.study_child {
+                study::child_ended(&self.inner, id);
+            }
             return Ok(view);
         }
         Ok(live.view())
@@ -669,7 +682,13 @@ impl Drop for Series {
     }
 }
 
-fn new_live(id: String, name: Option<String>, job: Job, created_ms: u64) -> LiveJob {
+fn new_live(
+    id: String,
+    name: Option<String>,
+    job: Job,
+    created_ms: u64,
+    study_child: bool,
+) -> LiveJob {
     let total = job.size().steps;
     LiveJob {
         id,
@@ -685,6 +704,7 @@ fn new_live(id: String, name: Option<String>, job: Job, created_ms: u64) -> Live
         t_bits: AtomicU64::new(0),
         ended: watch::channel(false).0,
         recent: Mutex::new(Recent::default()),
+        study_child,
     }
 }
 
@@ -765,6 +785,7 @@ fn adopt(inner: &Inner, claim: Claim) -> Option<Arc<LiveJob>> {
         spec_json,
         attempt,
         cancel_requested,
+        study_child,
     } = claim;
     let built = crate::spec_file::parse(&spec_json, crate::spec_file::Format::Json)
         .and_then(|spec| Job::from_spec(&spec));
@@ -781,7 +802,9 @@ fn adopt(inner: &Inner, claim: Claim) -> Option<Arc<LiveJob>> {
                 tracing::error!(id = %failed.id, "store: {e}");
             }
             inner.sink.send(JobEvent::Status(failed.clone()));
-            study::child_ended(inner, &failed.id);
+            if study_child {
+                study::child_ended(inner, &failed.id);
+            }
             inner.sink.send(JobEvent::Closed(failed.id));
             return None;
         }
@@ -792,6 +815,7 @@ fn adopt(inner: &Inner, claim: Claim) -> Option<Arc<LiveJob>> {
         view.name.clone(),
         job,
         view.created_ms,
+        study_child,
     ));
     if cancel_requested {
         live.cancel.store(true, Ordering::Release);
@@ -1062,5 +1086,7 @@ fn end_job(
     inner.sink.send(JobEvent::Status(view));
     inner.sink.send(JobEvent::Closed(live.id.clone()));
     live.ended.send_replace(true);
-    study::child_ended(inner, &live.id);
+    if live.study_child {
+        study::child_ended(inner, &live.id);
+    }
 }

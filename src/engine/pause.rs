@@ -222,6 +222,7 @@ impl Engine {
             view.name.clone(),
             job,
             view.created_ms,
+            true,
         ));
         live.done.store(view.done, Ordering::Relaxed);
         live.t_bits.store(view.t.to_bits(), Ordering::Relaxed);
@@ -354,7 +355,13 @@ impl Engine {
         check_limits(&job, &self.inner.limits)?;
         let spec_json = spec_value.to_string();
         let new = chosen.unwrap_or_else(new_id);
-        let live = Arc::new(new_live(new.clone(), next.name.clone(), job, now_ms()));
+        let live = Arc::new(new_live(
+            new.clone(),
+            next.name.clone(),
+            job,
+            now_ms(),
+            false,
+        ));
         if let Some(q) = self.inner.store.shared() {
             if q.queued()? >= self.inner.queue_limit as u64 {
                 return Err(ApiError::QueueFull {

@@ -107,6 +107,7 @@ pub(super) fn submit(
                 Some(name.clone()),
                 (*job).clone(),
                 created_ms,
+                true,
             ))
         })
         .collect();

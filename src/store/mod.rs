@@ -496,6 +496,8 @@ pub struct Claim {
     pub attempt: u64,
     /// A client asked to cancel it (while the replica that held it before was dying).
     pub cancel_requested: bool,
+    /// It is a study's child (its end updates the parent's progress).
+    pub study_child: bool,
 }
 
 /// The progress of a job a replica runs, sent with each heartbeat.

@@ -939,7 +939,8 @@ impl SharedQueue for PgStore {
                                 lease_until = now() + make_interval(secs => $2),
                                 started_ms = $3, done = 0, t = 0
                          FROM next WHERE j.id = next.id
-                         RETURNING {}, j.spec_json, j.attempt, j.cancel_requested)
+                         RETURNING {}, j.spec_json, j.attempt, j.cancel_requested,
+                                   j.parent IS NOT NULL)
                          SELECT * FROM claimed",
                         JOB_COLUMNS
                             .split(", ")
@@ -961,6 +962,7 @@ impl SharedQueue for PgStore {
                 spec_json: r.try_get(11).map_err(pg)?,
                 attempt: r.try_get::<_, i64>(12).map_err(pg)? as u64,
                 cancel_requested: r.try_get(13).map_err(pg)?,
+                study_child: r.try_get(14).map_err(pg)?,
             }))
         })
     }
