@@ -447,9 +447,15 @@ impl Engine {
             .flatten();
         let live = lock(&self.inner.live);
         Ok(JobPage {
+            // A live job's view has its latest progress; but a stored end is final (a job is
+            // stored as ended a moment before it leaves the live jobs, and a page listed by
+            // state must not show it as running then).
             jobs: rows
                 .into_iter()
-                .map(|(_, v)| live.get(&v.id).map_or(v, |l| l.view()))
+                .map(|(_, v)| match live.get(&v.id) {
+                    Some(l) if !v.state.is_terminal() => l.view(),
+                    _ => v,
+                })
                 .collect(),
             next_page_token,
         })
