@@ -26,14 +26,15 @@ fn replica(url: &str, name: &str) -> TestServer {
     )
 }
 
-/// `examples/bar.toml` (Moreau–Jean) to t = 1500 (1.5·10⁶ steps, a few seconds), recording
-/// every 1000th step.
+/// `examples/bar.toml` (Moreau–Jean) to t = 6000 (6·10⁶ steps, seconds even on a quiet machine,
+/// so a pause sent through the other replica reaches it at a heartbeat well before its end),
+/// recording every 1000th step.
 fn long_bar() -> String {
     let path = format!("{}/examples/bar.toml", env!("CARGO_MANIFEST_DIR"));
     let text = std::fs::read_to_string(path).expect("example");
     let mut spec = parse(&text, Format::Toml).expect("example spec");
     let time = spec.time.as_mut().expect("time");
-    (time.t_end, time.steps) = (Some(1500.0), None);
+    (time.t_end, time.steps) = (Some(6000.0), None);
     spec.output.every = 1000;
     serde_json::to_string(&spec).expect("JSON")
 }
@@ -134,11 +135,11 @@ async fn a_job_paused_through_another_replica_resumes_anywhere_bit_for_bit() {
     assert_eq!(paused.step, whole.step);
     assert_eq!(fingerprint(&paused), fingerprint(&whole));
 
-    // Extend the whole run from its final state (t = 1500) to 1600, on either replica.
+    // Extend the whole run from its final state (t = 6000) to 6100, on either replica.
     let r = to_b
         .extend_job(pb::ExtendJobRequest {
             id: "whole".into(),
-            t_end: 1600.0,
+            t_end: 6100.0,
             new_id: Some("longer".into()),
         })
         .await
@@ -146,22 +147,22 @@ async fn a_job_paused_through_another_replica_resumes_anywhere_bit_for_bit() {
         .into_inner();
     assert_eq!(r.extends, "whole");
     let mut spec: serde_json::Value = serde_json::from_str(&long_bar()).expect("spec");
-    spec["time"]["t_end"] = 1600.0.into();
-    submit_json(&mut to_a, spec.to_string(), Some("to-1600"))
+    spec["time"]["t_end"] = 6100.0.into();
+    submit_json(&mut to_a, spec.to_string(), Some("to-6100"))
         .await
         .expect("submit");
-    for id in ["longer", "to-1600"] {
+    for id in ["longer", "to-6100"] {
         let s = poll_job(&mut to_a, id, has_ended).await;
         assert_eq!(s.state, pb::JobState::Succeeded as i32, "{id}: {s:?}");
     }
     let (ext, full) = (
         result(&mut to_a, "longer").await,
-        result(&mut to_b, "to-1600").await,
+        result(&mut to_b, "to-6100").await,
     );
     let after = full
         .step
         .iter()
-        .position(|&k| k > 1_500_000)
+        .position(|&k| k > 6_000_000)
         .expect("rows after t1");
     let tail = pb::JobResult {
         step: full.step[after..].to_vec(),
