@@ -86,6 +86,14 @@ pub struct JobView {
 }
 
 impl JobView {
+    /// The error's field and reason as the store's two nullable columns.
+    pub fn error_parts(&self) -> (Option<&str>, Option<&str>) {
+        match &self.error {
+            Some((f, r)) => (Some(f.as_str()), Some(r.as_str())),
+            None => (None, None),
+        }
+    }
+
     /// Fraction done in [0, 1].
     pub fn fraction(&self) -> f64 {
         Progress {

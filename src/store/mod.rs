@@ -212,7 +212,8 @@ pub(crate) struct FigureJson {
 }
 
 /// The JSON texts of a result's summary, columns, tables and figures, as both backends store
-/// them.
+/// them (all empty for an end without a result).
+#[derive(Default)]
 pub(crate) struct ResultTexts {
     pub summary: String,
     pub columns: String,

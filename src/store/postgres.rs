@@ -327,10 +327,7 @@ impl PgStore {
         let result = result.map(|r| (ResultTexts::of(r), r.clone()));
         self.with(move |mut c| async move {
             let tx = c.transaction().await.map_err(pg)?;
-            let (field, reason) = match &row.error {
-                Some((f, r)) => (Some(f.as_str()), Some(r.as_str())),
-                None => (None, None),
-            };
+            let (field, reason) = row.error_parts();
             let attempt: Option<i64> = tx
                 .query_opt(
                     "UPDATE jobs SET state = $2, finished_ms = $3, error_field = $4, error_reason = $5,
@@ -652,17 +649,9 @@ impl Backend for PgStore {
         let texts = result.map(ResultTexts::of);
         let partial = result.is_some_and(|r| r.partial);
         self.with(move |c| async move {
-            let (field, reason) = match &row.error {
-                Some((f, r)) => (Some(f.as_str()), Some(r.as_str())),
-                None => (None, None),
-            };
+            let (field, reason) = row.error_parts();
             let has_result = texts.is_some();
-            let texts = texts.unwrap_or(ResultTexts {
-                summary: String::new(),
-                columns: String::new(),
-                tables: String::new(),
-                figures: String::new(),
-            });
+            let texts = texts.unwrap_or_default();
             let st = c
                 .prepare_cached(
                     "WITH done AS (

@@ -386,10 +386,7 @@ impl Backend for SqliteStore {
                 )?;
             }
         }
-        let (field, reason) = match &row.error {
-            Some((f, r)) => (Some(f.as_str()), Some(r.as_str())),
-            None => (None, None),
-        };
+        let (field, reason) = row.error_parts();
         tx.execute(
             "UPDATE jobs SET state = ?2, finished_ms = ?3, error_field = ?4, error_reason = ?5, done = ?6, total = ?7, t = ?8
              WHERE id = ?1",

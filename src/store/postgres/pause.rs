@@ -170,32 +170,21 @@ impl PauseStore for PgStore {
     }
 
     fn extends(&self, id: &str) -> Result<Option<String>, StoreError> {
-        let id = id.to_string();
-        self.with(move |c| async move {
-            let row = c
-                .query_opt(
-                    &c.prepare_cached("SELECT extends FROM extensions WHERE id = $1")
-                        .await
-                        .map_err(pg)?,
-                    &[&id],
-                )
-                .await
-                .map_err(pg)?;
-            row.map(|r| r.try_get::<_, String>(0).map_err(pg))
-                .transpose()
-        })
+        self.text_of("SELECT extends FROM extensions WHERE id = $1", id)
     }
 
     fn spec_json(&self, id: &str) -> Result<Option<String>, StoreError> {
+        self.text_of("SELECT spec_json FROM jobs WHERE id = $1", id)
+    }
+}
+
+impl PgStore {
+    /// The text in the first column of the row `sql` selects for `id`, if any.
+    fn text_of(&self, sql: &'static str, id: &str) -> Result<Option<String>, StoreError> {
         let id = id.to_string();
         self.with(move |c| async move {
             let row = c
-                .query_opt(
-                    &c.prepare_cached("SELECT spec_json FROM jobs WHERE id = $1")
-                        .await
-                        .map_err(pg)?,
-                    &[&id],
-                )
+                .query_opt(&c.prepare_cached(sql).await.map_err(pg)?, &[&id])
                 .await
                 .map_err(pg)?;
             row.map(|r| r.try_get::<_, String>(0).map_err(pg))

@@ -164,17 +164,9 @@ impl StudyStore for PgStore {
         let row = row.clone();
         let texts = result.map(ResultTexts::of);
         self.with(move |c| async move {
-            let (field, reason) = match &row.error {
-                Some((f, r)) => (Some(f.as_str()), Some(r.as_str())),
-                None => (None, None),
-            };
+            let (field, reason) = row.error_parts();
             let has_result = texts.is_some();
-            let texts = texts.unwrap_or(ResultTexts {
-                summary: String::new(),
-                columns: String::new(),
-                tables: String::new(),
-                figures: String::new(),
-            });
+            let texts = texts.unwrap_or_default();
             let done = c
                 .query_opt(
                     &c.prepare_cached(

@@ -139,10 +139,7 @@ impl StudyStore for SqliteStore {
     ) -> Result<bool, StoreError> {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
-        let (field, reason) = match &row.error {
-            Some((f, r)) => (Some(f.as_str()), Some(r.as_str())),
-            None => (None, None),
-        };
+        let (field, reason) = row.error_parts();
         let n = tx.execute(
             "UPDATE jobs SET state = ?2, finished_ms = ?3, error_field = ?4, error_reason = ?5, done = ?6, total = ?7, t = ?8
              WHERE id = ?1 AND state = 'running' AND children > 0",
