@@ -59,6 +59,16 @@ impl JobState {
     }
 }
 
+/// Where a job comes from, as `GetJob` reports it besides its status: the study it is a run of,
+/// and the succeeded job it continues.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Lineage {
+    /// The study (parent job) the job is a run of.
+    pub parent: Option<String>,
+    /// The succeeded job the job continues (an extension).
+    pub extends: Option<String>,
+}
+
 /// A job's status: what `GetJob` reports, what the store keeps besides the spec, and what a
 /// status event carries.
 #[derive(Debug, Clone, PartialEq)]

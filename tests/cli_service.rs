@@ -1,7 +1,8 @@
 //! The client commands as a user runs them against a real server (issue 13, part 5): `watch`
 //! with its stdout on a pipe prints line-wise progress and the final status; `watch --json`
 //! whose reader goes away (`| head -1`) ends quietly with status 0; `submit --wait` prints the id,
-//! then the final status, and fails for a job that does not succeed.
+//! then the final status, and fails for a job that does not succeed; `pause`, `resume`, `extend`
+//! and `children` reach the lifecycle routes.
 
 mod common;
 
@@ -278,4 +279,133 @@ async fn watch_reports_a_spoofed_final_status_as_an_error() {
     assert_eq!(s.state, pb::JobState::Running as i32, "the job runs on");
     answering.abort();
     let _ = stranger.close().await;
+}
+
+/// Runs the CLI with `args` against `server`; its stdout, after asserting it succeeded.
+fn run_ok(server: &TestServer, args: &[&str]) -> String {
+    let out = signorini()
+        .args(args)
+        .args(["--server", &server.grpc_url])
+        .output()
+        .expect("signorini");
+    assert!(
+        out.status.success(),
+        "signorini {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).expect("utf-8")
+}
+
+/// The JSON a command printed.
+fn json_of(text: &str) -> serde_json::Value {
+    serde_json::from_str(text).unwrap_or_else(|e| panic!("{e}: {text}"))
+}
+
+/// `pause`, `resume`, `extend` and `children` as a user types them: a running job parks and is
+/// queued again; a succeeded job is extended to a later time (`status` names the job it
+/// extends); a study's runs are listed and each names its study.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn pause_resume_extend_and_children_from_the_command_line() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&dir.path().join("s.db"), &Options::default());
+
+    let long = dir.path().join("long.json");
+    std::fs::write(&long, ball_json(1e-6, 50_000_000, 1000)).expect("spec");
+    let long = long.to_str().expect("path");
+    assert_eq!(run_ok(&server, &["submit", "--id", "long", long]), "long\n");
+    let mut client = server.grpc().await;
+    wait_running(&mut client, "long", 1).await;
+    let paused = json_of(&run_ok(&server, &["pause", "long"]));
+    assert_eq!(paused["state"], "paused", "{paused}");
+    let step = paused["progress"]["step"].as_u64().expect("step");
+    assert!(step > 0, "{paused}");
+    let resumed = json_of(&run_ok(&server, &["resume", "long"]));
+    assert!(
+        ["queued", "running"].contains(&resumed["state"].as_str().expect("state")),
+        "{resumed}"
+    );
+    // Paused again only once it runs from its checkpoint, past the step it parked at.
+    wait_running(&mut client, "long", step + 1).await;
+    let cancelled = json_of(&run_ok(&server, &["cancel", "long"]));
+    assert_eq!(cancelled["state"], "cancelled", "{cancelled}");
+    // A job that is not paused cannot be resumed: the state is named.
+    let out = signorini()
+        .args(["resume", "long", "--server", &server.grpc_url])
+        .output()
+        .expect("signorini resume");
+    assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("FailedPrecondition") && stderr.contains("cancelled"),
+        "{stderr}"
+    );
+
+    let first = dir.path().join("first.json");
+    std::fs::write(
+        &first,
+        r#"{"model":{"scene":"bouncing_ball","restitution":0.8},"time":{"h":1e-3,"t_end":1.0},"output":{"every":10}}"#,
+    )
+    .expect("spec");
+    run_ok(
+        &server,
+        &[
+            "submit",
+            "--wait",
+            "--id",
+            "first",
+            first.to_str().expect("path"),
+        ],
+    );
+    let text = run_ok(
+        &server,
+        &[
+            "extend", "first", "--t-end", "2.0", "--new-id", "second", "--wait",
+        ],
+    );
+    let (id, end) = text.split_once('\n').expect("the id, then the status");
+    assert_eq!(id, "second");
+    let end = json_of(end);
+    assert_eq!(
+        (end["state"].as_str(), end["progress"]["step"].as_u64()),
+        (Some("succeeded"), Some(2000)),
+        "{end}"
+    );
+    let second = json_of(&run_ok(&server, &["status", "second"]));
+    assert_eq!(second["extends"], "first", "{second}");
+    assert!(second.get("parent").is_none(), "{second}");
+
+    let study = dir.path().join("study.json");
+    std::fs::write(
+        &study,
+        r#"{"study": {"reference": "exact",
+            "base": {"model": {"scene": "bouncing_ball"}, "time": {"h": 1e-3, "t_end": 0.5}},
+            "schemes": [{"scheme": "moreau_jean", "theta": 0.5}],
+            "grid": {"time.h": [1e-3, 5e-4]}}}"#,
+    )
+    .expect("spec");
+    run_ok(
+        &server,
+        &[
+            "submit",
+            "--wait",
+            "--id",
+            "study",
+            study.to_str().expect("path"),
+        ],
+    );
+    let kids = json_of(&run_ok(&server, &["children", "study", "--json"]));
+    let kids = kids["jobs"].as_array().expect("jobs");
+    assert_eq!(kids.len(), 2, "{kids:?}");
+    for kid in kids {
+        assert_eq!(kid["state"], "succeeded", "{kid}");
+        let id = kid["id"].as_str().expect("id");
+        let status = json_of(&run_ok(&server, &["status", id]));
+        assert_eq!(status["parent"], "study", "{status}");
+    }
+    let lines = run_ok(&server, &["children", "study"]);
+    assert_eq!(lines.lines().count(), 2, "{lines}");
+    assert!(
+        lines.lines().all(|l| l.contains("\tsucceeded\t100.0%")),
+        "{lines}"
+    );
 }

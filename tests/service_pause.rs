@@ -420,6 +420,18 @@ async fn extend_equals_one_longer_run() {
     let s = wait_terminal(&mut client, "bar-to-6").await;
     assert_eq!(s.state, pb::JobState::Succeeded as i32, "{s:?}");
     assert_eq!(s.progress.expect("progress").step, 6000);
+    // GetJob names the job an extension continues.
+    let s = client
+        .get_job(pb::GetJobRequest {
+            id: "bar-to-6".into(),
+        })
+        .await
+        .expect("GetJob")
+        .into_inner();
+    assert_eq!(
+        (s.extends.as_deref(), s.parent.as_deref()),
+        (Some("first-bar"), None)
+    );
     // A run drawing a contact region sizes the chart's time buckets by its length: refused.
     submit(&server, &longer("string_bridge.toml", 0.05, 5), "bridge").await;
     let s = wait_terminal(&mut client, "bridge").await;
@@ -491,6 +503,20 @@ async fn a_study_parent_is_not_paused_its_children_are() {
     }
     // The last child waits in the queue: parked at once; cancelled, it counts as ended.
     let last = kids[3]["id"].as_str().expect("id").to_string();
+    // A run names its study, over HTTP and gRPC; the study names none.
+    assert_eq!(status(&server, &last).await["parent"], parent.as_str());
+    assert!(status(&server, &parent).await.get("parent").is_none());
+    let s = server
+        .grpc()
+        .await
+        .get_job(pb::GetJobRequest { id: last.clone() })
+        .await
+        .expect("GetJob")
+        .into_inner();
+    assert_eq!(
+        (s.parent.as_deref(), s.extends.as_deref()),
+        (Some(parent.as_str()), None)
+    );
     let (code, body) = server
         .http("POST", &format!("/v1/jobs/{last}/pause"), None, None)
         .await;

@@ -528,6 +528,18 @@ async fn a_study_on_two_postgres_replicas_runs_its_children_on_both() {
         "children on both replicas: {owners}"
     );
     assert_eq!(counts.iter().map(|c| c.1).sum::<u64>(), 12);
+    // Each run names its study on either replica (the PostgreSQL `parent` column).
+    for child in children_of(&b, &id).await {
+        let child = child["id"].as_str().expect("id");
+        let (code, body) = a
+            .http("GET", &format!("/v1/jobs/{child}"), None, None)
+            .await;
+        assert_eq!(
+            (code, &body["parent"]),
+            (200, &Value::from(id.as_str())),
+            "{body}"
+        );
+    }
     let (code, result) = a
         .http("GET", &format!("/v1/jobs/{id}/result"), None, None)
         .await;

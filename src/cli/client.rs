@@ -1,13 +1,14 @@
-//! Client commands: `submit`, `status`, `watch`, `result`, `cancel`, `capabilities`.
+//! Client commands: `submit`, `status`, `watch`, `result`, `cancel`, `list`, `children`, `delete`,
+//! `capabilities`.
 //! They talk gRPC to a running `signorini serve`; `watch` subscribes to the job's zenoh keys.
 
 use crate::output::{CsvSteps, FinishedRun, clear_results, write_run_files};
 use crate::proto::encode::{status_from_proto, tables_from_proto};
 use crate::proto::v1 as pb;
 use crate::proto::v1::simulation_client::SimulationClient;
-use crate::server::json::{FrameJson, StatusJson};
+use crate::server::json::{FrameJson, StatusJson, status_with_lineage};
 use crate::spec_file::{self, Format};
-use crate::status::JobView;
+use crate::status::{JobView, Lineage};
 use crate::stream::{self, ZenohOptions};
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
@@ -32,7 +33,8 @@ pub struct Connection {
         global = true
     )]
     pub server: String,
-    /// Bearer token for submit and cancel.
+    /// Bearer token for the commands that change jobs (submit, cancel, pause, resume, extend,
+    /// delete).
     #[arg(long, env = "SIGNORINI_TOKEN", hide_env_values = true, global = true)]
     pub token: Option<String>,
 }
@@ -62,7 +64,7 @@ pub struct SubmitArgs {
     pub conn: Connection,
 }
 
-/// `signorini status` / `cancel`.
+/// `signorini status` / `cancel` / `pause` / `resume` / `delete`.
 #[derive(Debug, Args)]
 pub struct IdArgs {
     /// Job id.
@@ -84,6 +86,18 @@ pub struct ListArgs {
     #[arg(long, default_value = "")]
     pub page_token: String,
     /// Print the page as JSON (`{"jobs": [status…], "next_page_token"}`).
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub conn: Connection,
+}
+
+/// `signorini children`.
+#[derive(Debug, Args)]
+pub struct ChildrenArgs {
+    /// The study's (parent) job id.
+    pub id: String,
+    /// Print them as JSON (`{"jobs": [status…], "next_page_token": null}`).
     #[arg(long)]
     pub json: bool,
     #[command(flatten)]
@@ -143,7 +157,7 @@ pub struct CapabilitiesArgs {
 /// Largest gRPC message accepted (results of long runs are large).
 pub const MAX_MESSAGE: usize = 1 << 30;
 
-fn runtime() -> Result<tokio::runtime::Runtime> {
+pub(super) fn runtime() -> Result<tokio::runtime::Runtime> {
     tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -151,14 +165,14 @@ fn runtime() -> Result<tokio::runtime::Runtime> {
         .context("starting tokio")
 }
 
-async fn client(conn: &Connection) -> Result<SimulationClient<Channel>> {
+pub(super) async fn client(conn: &Connection) -> Result<SimulationClient<Channel>> {
     let c = SimulationClient::connect(conn.server.clone())
         .await
         .with_context(|| format!("connecting to {}", conn.server))?;
     Ok(c.max_decoding_message_size(MAX_MESSAGE))
 }
 
-fn with_token<T>(conn: &Connection, msg: T) -> Result<tonic::Request<T>> {
+pub(super) fn with_token<T>(conn: &Connection, msg: T) -> Result<tonic::Request<T>> {
     let mut req = tonic::Request::new(msg);
     if let Some(t) = &conn.token {
         req.metadata_mut().insert(
@@ -169,16 +183,21 @@ fn with_token<T>(conn: &Connection, msg: T) -> Result<tonic::Request<T>> {
     Ok(req)
 }
 
-fn status_error(s: tonic::Status) -> anyhow::Error {
+pub(super) fn status_error(s: tonic::Status) -> anyhow::Error {
     anyhow!("{:?}: {}", s.code(), s.message())
 }
 
-/// Prints a status as pretty JSON (the shape of `GET /v1/jobs/{id}`).
-fn print_status(s: pb::JobStatus) -> Result<()> {
+/// Prints a status as pretty JSON (the shape of `GET /v1/jobs/{id}`, with `parent` and
+/// `extends` when `GetJob` set them).
+pub(super) fn print_status(mut s: pb::JobStatus) -> Result<()> {
+    let lineage = Lineage {
+        parent: s.parent.take(),
+        extends: s.extends.take(),
+    };
     let view = status_from_proto(s)?;
     println!(
         "{}",
-        serde_json::to_string_pretty(&StatusJson::from(&view))?
+        serde_json::to_string_pretty(&status_with_lineage(&view, lineage))?
     );
     Ok(())
 }
@@ -211,32 +230,10 @@ pub fn submit(args: SubmitArgs) -> Result<()> {
             .map_err(status_error)?;
         let id = resp.into_inner().id;
         println!("{id}");
-        if !args.wait {
-            return Ok(id);
+        if args.wait {
+            wait_ended(&mut c, &id).await?;
         }
-        let mut frames = c
-            .watch_job(pb::WatchJobRequest {
-                id: id.clone(),
-                from_seq: None,
-            })
-            .await
-            .map_err(status_error)?
-            .into_inner();
-        while let Some(frame) = frames.message().await.map_err(status_error)? {
-            if let Some(pb::watch_frame::Frame::Status(s)) = frame.frame {
-                let view = status_from_proto(s)?;
-                if view.state.is_terminal() {
-                    println!(
-                        "{}",
-                        serde_json::to_string_pretty(&StatusJson::from(&view))?
-                    );
-                    return ended_ok(&view).map(|()| id);
-                }
-            }
-        }
-        Err(anyhow!(
-            "the server closed the stream of job {id} before it ended"
-        ))
+        Ok::<_, anyhow::Error>(id)
     })?;
     if args.watch {
         return watch(WatchArgs {
@@ -248,6 +245,34 @@ pub fn submit(args: SubmitArgs) -> Result<()> {
         });
     }
     Ok(())
+}
+
+/// Follows job `id` over `WatchJob` until it ends, prints its final status, and answers as
+/// [`ended_ok`] (`submit --wait`, `extend --wait`).
+pub(super) async fn wait_ended(c: &mut SimulationClient<Channel>, id: &str) -> Result<()> {
+    let mut frames = c
+        .watch_job(pb::WatchJobRequest {
+            id: id.to_string(),
+            from_seq: None,
+        })
+        .await
+        .map_err(status_error)?
+        .into_inner();
+    while let Some(frame) = frames.message().await.map_err(status_error)? {
+        if let Some(pb::watch_frame::Frame::Status(s)) = frame.frame {
+            let view = status_from_proto(s)?;
+            if view.state.is_terminal() {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&StatusJson::from(&view))?
+                );
+                return ended_ok(&view);
+            }
+        }
+    }
+    Err(anyhow!(
+        "the server closed the stream of job {id} before it ended"
+    ))
 }
 
 /// Ok for a succeeded job; an error with the state (and the reason of a failure) otherwise.
@@ -337,16 +362,38 @@ pub fn list(args: ListArgs) -> Result<()> {
         .map_err(status_error)
         .map(tonic::Response::into_inner)
     })?;
-    let jobs = page
-        .jobs
+    print_jobs(page.jobs, &page.next_page_token, args.json)?;
+    if !args.json && !page.next_page_token.is_empty() {
+        eprintln!("more: signorini list --page-token {}", page.next_page_token);
+    }
+    Ok(())
+}
+
+/// `children`: the runs of a study, in study order (the reference run first, if any), as
+/// `list` prints a page.
+pub fn children(args: ChildrenArgs) -> Result<()> {
+    let jobs = runtime()?.block_on(async {
+        let mut c = client(&args.conn).await?;
+        c.list_children(pb::ListChildrenRequest { id: args.id })
+            .await
+            .map_err(status_error)
+            .map(|r| r.into_inner().jobs)
+    })?;
+    print_jobs(jobs, "", args.json)
+}
+
+/// Prints jobs one per line (id, state, progress, name), or with `json` as
+/// `{"jobs": [status…], "next_page_token"}` (null when `next` is empty).
+fn print_jobs(jobs: Vec<pb::JobStatus>, next: &str, json: bool) -> Result<()> {
+    let jobs = jobs
         .into_iter()
         .map(status_from_proto)
         .collect::<Result<Vec<_>>>()?;
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     let printed: Result<()> = (|| {
-        if args.json {
+        if json {
             let jobs: Vec<StatusJson> = jobs.iter().map(StatusJson::from).collect();
-            let next = (!page.next_page_token.is_empty()).then_some(&page.next_page_token);
+            let next = (!next.is_empty()).then_some(next);
             writeln!(
                 out,
                 "{}",
@@ -367,11 +414,7 @@ pub fn list(args: ListArgs) -> Result<()> {
         out.flush()?;
         Ok(())
     })();
-    quiet_on_broken_pipe(printed)?;
-    if !args.json && !page.next_page_token.is_empty() {
-        eprintln!("more: signorini list --page-token {}", page.next_page_token);
-    }
-    Ok(())
+    quiet_on_broken_pipe(printed)
 }
 
 /// `delete`: removes a finished job and its result from the server.

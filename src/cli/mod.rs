@@ -3,6 +3,7 @@
 pub mod check;
 pub mod client;
 mod compare;
+mod lifecycle;
 mod run;
 mod schema;
 pub mod serve;
@@ -35,8 +36,16 @@ pub enum Command {
     Watch(client::WatchArgs),
     /// Fetch a finished job's result (its summary, or with --out the files `run` writes).
     Result(client::ResultArgs),
-    /// Cancel a queued or running job.
+    /// Cancel a queued, running or paused job.
     Cancel(client::IdArgs),
+    /// Pause a job: a running one checkpoints after its next step and parks; `resume` goes on.
+    Pause(client::IdArgs),
+    /// Queue a paused job again; it continues from its checkpoint.
+    Resume(client::IdArgs),
+    /// Continue a succeeded job from its final state to a later `--t-end`, as a new job.
+    Extend(lifecycle::ExtendArgs),
+    /// List the runs of a study (a job with `[study]`), the reference run first.
+    Children(client::ChildrenArgs),
     /// List jobs, newest first, one page at a time (`--state`, `--limit`, `--page-token`).
     List(client::ListArgs),
     /// Remove a finished job and its result from the server.
@@ -61,6 +70,10 @@ pub fn dispatch(cli: Cli) -> Result<()> {
         Command::Watch(args) => client::watch(args),
         Command::Result(args) => client::result(args),
         Command::Cancel(args) => client::cancel(args),
+        Command::Pause(args) => lifecycle::pause(args),
+        Command::Resume(args) => lifecycle::resume(args),
+        Command::Extend(args) => lifecycle::extend(args),
+        Command::Children(args) => client::children(args),
         Command::List(args) => client::list(args),
         Command::Delete(args) => client::delete(args),
         Command::Capabilities(args) => client::capabilities(args),

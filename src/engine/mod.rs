@@ -22,7 +22,7 @@ mod study;
 use crate::config::Limits;
 use crate::error::ApiError;
 use crate::output::finish_run;
-use crate::status::{JobState, JobView};
+use crate::status::{JobState, JobView, Lineage};
 use crate::store::{
     Beat, BeatReply, CancelOutcome, ChunkMeta, Claim, SeriesChunk, SharedQueue, Store, StoreError,
     StoredResult,
@@ -400,6 +400,14 @@ impl Engine {
             .store
             .get(id)?
             .ok_or_else(|| ApiError::NotFound { id: id.into() })
+    }
+
+    /// The study job `id` is a run of and the job it extends (`GetJob`'s `parent` and `extends`).
+    pub fn lineage(&self, id: &str) -> Result<Lineage, ApiError> {
+        Ok(Lineage {
+            parent: self.inner.store.parent(id)?,
+            extends: self.inner.store.extends(id)?,
+        })
     }
 
     /// True for a job this replica does not hold while its store's queue is shared: queued for

@@ -262,11 +262,6 @@ impl Engine {
         }
     }
 
-    /// The job that job `id` extends, if it is an extension.
-    pub fn extends(&self, id: &str) -> Result<Option<String>, ApiError> {
-        Ok(self.inner.store.extends(id)?)
-    }
-
     /// A new job continuing succeeded job `id` from its final state to `t_end` (with id
     /// `new_id` if given): its id. `t_end` must lie after the first job's end, by one step at
     /// least (else [`ApiError::Invalid`] naming `t_end`); the first job must have succeeded and

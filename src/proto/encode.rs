@@ -65,6 +65,8 @@ pub fn status_to_proto(v: &JobView) -> pb::JobStatus {
         created_ms: *created_ms,
         started_ms: *started_ms,
         finished_ms: *finished_ms,
+        parent: None,
+        extends: None,
     }
 }
 
@@ -79,6 +81,8 @@ pub fn status_from_proto(s: pb::JobStatus) -> Result<JobView> {
         created_ms,
         started_ms,
         finished_ms,
+        parent: _,
+        extends: _,
     } = s;
     let pb::Progress {
         step,

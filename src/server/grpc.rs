@@ -13,6 +13,7 @@ use crate::proto::encode::{
 use crate::proto::v1 as pb;
 use crate::proto::v1::simulation_server::Simulation;
 use crate::spec_file::{self, Format};
+use crate::status::Lineage;
 use crate::store::StoredResult;
 use std::pin::Pin;
 use tokio_stream::{Stream, StreamExt};
@@ -210,7 +211,12 @@ impl Simulation for SimulationService {
     ) -> Result<Response<pb::JobStatus>, Status> {
         let pb::GetJobRequest { id } = req.into_inner();
         let view = self.state.engine.status(&id).map_err(to_status)?;
-        Ok(Response::new(status_to_proto(&view)))
+        let Lineage { parent, extends } = self.state.engine.lineage(&id).map_err(to_status)?;
+        Ok(Response::new(pb::JobStatus {
+            parent,
+            extends,
+            ..status_to_proto(&view)
+        }))
     }
 
     async fn list_jobs(

@@ -3,7 +3,7 @@
 //! Errors are `{"error": {"field", "reason"}}` with a status code per [`ApiError`] kind.
 
 use super::AppState;
-use super::json::{FrameJson, StatusJson};
+use super::json::{FrameJson, StatusJson, status_with_lineage};
 use super::results::{self, Cut, CutRequest, write_csv, write_json, write_npz};
 use crate::engine::events::JobEvent;
 use crate::error::ApiError;
@@ -204,15 +204,8 @@ async fn get_job(
     Path(id): Path<String>,
 ) -> Result<Response, ApiError> {
     let view = state.engine.status(&id)?;
-    // An extension names the job it continues.
-    match state.engine.extends(&id)? {
-        Some(first) => {
-            let mut body = json!(StatusJson::from(&view));
-            body["extends"] = Value::String(first);
-            Ok(Json(body).into_response())
-        }
-        None => Ok(status_body(&view)),
-    }
+    let lineage = state.engine.lineage(&id)?;
+    Ok(Json(status_with_lineage(&view, lineage)).into_response())
 }
 
 /// `?purge=true` of `DELETE /v1/jobs/{id}`.

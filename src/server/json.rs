@@ -1,8 +1,10 @@
 //! The one JSON encoding of a job's status and of its step frames, used by every HTTP route
-//! (`GET /v1/jobs/{id}`, the list, cancel, SSE) and by the CLI (`status`, `cancel`, `watch`).
+//! (`GET /v1/jobs/{id}`, the list, cancel, SSE) and by the CLI (`status`, `cancel`, `watch`,
+//! `pause`, `resume`, `children`).
 
-use crate::status::JobView;
+use crate::status::{JobView, Lineage};
 use serde::Serialize;
+use serde_json::{Value, json};
 
 /// A status: `{"id", "name", "state", "progress": {"step", "total", "t", "fraction"}, "error":
 /// {"field", "reason"} or null, "created_ms", "started_ms", "finished_ms"}`.
@@ -53,6 +55,19 @@ impl<'a> From<&'a JobView> for StatusJson<'a> {
             finished_ms: v.finished_ms,
         }
     }
+}
+
+/// A status with where the job comes from (`GET /v1/jobs/{id}`): [`StatusJson`] plus `parent`
+/// (the study it is a run of) and `extends` (the job it continues), each when there is one.
+pub fn status_with_lineage(v: &JobView, lineage: Lineage) -> Value {
+    let mut body = json!(StatusJson::from(v));
+    let Lineage { parent, extends } = lineage;
+    for (key, value) in [("parent", parent), ("extends", extends)] {
+        if let Some(v) = value {
+            body[key] = Value::String(v);
+        }
+    }
+    body
 }
 
 /// Consecutive steps of some columns of a run: `{"kind", "id", "seq", "columns", "step", "t",

@@ -1,14 +1,17 @@
 """The Python client against the real service: typed and file submits, a watched job whose
 streamed energy equals the stored result bit for bit (over zenoh and over gRPC), a cancel, and a
-bad spec raising SpecError with the field's name."""
+bad spec raising SpecError with the field's name, a study's runs, pause/resume bit for bit and
+extend."""
 
 import pathlib
+import time
 import uuid
 
+import grpc
 import numpy as np
 import pytest
 
-from signorini import Client, SignoriniError, SpecError, spec_pb2
+from signorini import Client, SignoriniError, SpecError, spec_pb2, state_name
 from conftest import REPO, TOKEN
 
 BALL = REPO / "examples" / "bouncing_ball.toml"
@@ -159,8 +162,43 @@ def test_a_study_runs_as_child_jobs_and_reports_its_orders(client):
     children = client.children(job)
     assert len(children) == 12 and all(c.state == 3 for c in children)
     assert client.children(children[0].id) == []
+    assert client.status(children[0].id).parent == job and not client.status(job).HasField("parent")
     r = client.result(job)
     assert r.summary["kind"] == "study" and r.summary["runs"] == 12
     orders = {o["scheme"]: o["order"] for o in r.summary["orders"]}
     # docs/study.md: WFEM first order, Moreau–Jean θ = ½ ≈ 0.71 on this study.
     assert abs(orders["wfem"] - 1.0) < 0.01 and abs(orders["moreau_jean"] - 0.707) < 0.01
+
+
+def test_pause_and_resume_equal_an_uninterrupted_run_and_extend_continues_it(client):
+    spec = {"model": {"scene": "bouncing_ball", "restitution": 0.8},
+            "time": {"h": 1e-6, "steps": 10_000_000}, "output": {"every": 10_000}}
+    job = client.submit(spec)
+    deadline = time.monotonic() + 60
+    while client.status(job).progress.step == 0:
+        assert time.monotonic() < deadline, "the job did not start"
+        time.sleep(0.01)
+    paused = client.pause(job)
+    assert state_name(paused) == "paused" and 0 < paused.progress.step < 10_000_000
+    assert state_name(client.status(job)) == "paused"
+    assert state_name(client.resume(job)) in ("queued", "running")
+    with pytest.raises(SignoriniError) as e:
+        client.resume(job)  # no longer paused
+    assert e.value.code == grpc.StatusCode.FAILED_PRECONDITION
+    assert state_name(client.wait(job, timeout=120)) == "succeeded"
+    whole = client.submit(spec)
+    assert state_name(client.wait(whole, timeout=120)) == "succeeded"
+    a, b = client.result(job), client.result(whole)
+    assert a.columns.keys() == b.columns.keys() and "energy" in a.columns
+    for column in a.columns:
+        assert np.array_equal(a[column], b[column]), column
+    for key in ("energy_final", "work_contact_total", "max_abs_balance_residual", "impacts"):
+        assert a.summary[key] == b.summary[key], key
+
+    longer = client.extend(job, 10.5, id="extended")
+    assert longer == "extended"
+    status = client.wait(longer, timeout=120)
+    assert state_name(status) == "succeeded" and status.progress.step == 10_500_000
+    assert client.status(longer).extends == job
+    r = client.result(longer)
+    assert r.summary["extends"] == job and r["step"][0] > 10_000_000

@@ -180,7 +180,11 @@ impl PauseStore for PgStore {
 
 impl PgStore {
     /// The text in the first column of the row `sql` selects for `id`, if any.
-    fn text_of(&self, sql: &'static str, id: &str) -> Result<Option<String>, StoreError> {
+    pub(super) fn text_of(
+        &self,
+        sql: &'static str,
+        id: &str,
+    ) -> Result<Option<String>, StoreError> {
         let id = id.to_string();
         self.with(move |c| async move {
             let row = c

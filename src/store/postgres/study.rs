@@ -94,19 +94,17 @@ impl StudyStore for PgStore {
     }
 
     fn study_spec(&self, id: &str) -> Result<Option<String>, StoreError> {
-        let id = id.to_string();
-        self.with(move |c| async move {
-            c.query_opt(
-                &c.prepare_cached("SELECT spec_json FROM jobs WHERE id = $1 AND children > 0")
-                    .await
-                    .map_err(pg)?,
-                &[&id],
-            )
-            .await
-            .map_err(pg)?
-            .map(|r| r.try_get(0).map_err(pg))
-            .transpose()
-        })
+        self.text_of(
+            "SELECT spec_json FROM jobs WHERE id = $1 AND children > 0",
+            id,
+        )
+    }
+
+    fn parent(&self, id: &str) -> Result<Option<String>, StoreError> {
+        self.text_of(
+            "SELECT parent FROM jobs WHERE id = $1 AND parent IS NOT NULL",
+            id,
+        )
     }
 
     fn children(&self, parent: &str) -> Result<Vec<JobView>, StoreError> {

@@ -285,8 +285,28 @@ class Client:
         return self._call("GetJob", service_pb2.GetJobRequest(id=job_id))
 
     def cancel(self, job_id: str) -> service_pb2.JobStatus:
-        """Cancels a queued or running job."""
+        """Cancels a queued, running or paused job."""
         return self._call("CancelJob", service_pb2.CancelJobRequest(id=job_id))
+
+    def pause(self, job_id: str) -> service_pb2.JobStatus:
+        """Pauses a job: a running one writes a checkpoint after its next step and parks, a
+        queued one parks at once; either is left "paused" until `resume`."""
+        return self._call("PauseJob", service_pb2.PauseJobRequest(id=job_id))
+
+    def resume(self, job_id: str) -> service_pb2.JobStatus:
+        """Queues a paused job again; it continues from its checkpoint, bit for bit as if it
+        had never stopped."""
+        return self._call("ResumeJob", service_pb2.ResumeJobRequest(id=job_id))
+
+    def extend(self, job_id: str, t_end: float, *, id: str | None = None) -> str:
+        """A new job continuing the succeeded job `job_id` from its final state to `t_end`
+        (after its own end); returns the new job's id. Its result holds the rows after the
+        first job's end, its summary the whole run's energy ledger, and `status(new).extends`
+        names `job_id`."""
+        request = service_pb2.ExtendJobRequest(id=job_id, t_end=t_end)
+        if id is not None:
+            request.new_id = id
+        return self._call("ExtendJob", request).id
 
     def jobs(self, state: str | None = None, page_size: int = 100) -> Iterator[service_pb2.JobStatus]:
         """The service's jobs, newest first (only those in `state`, e.g. "running"), fetched
