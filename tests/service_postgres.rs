@@ -2,7 +2,8 @@
 //! process with one worker, on a private PostgreSQL server (common::pg): the queue is shared
 //! (each job claimed and run exactly once, by either replica), a replica killed with SIGKILL
 //! loses its lease and its job completes on the other from its last checkpoint, any replica
-//! answers for any job, and frames cross a zenoh router.
+//! answers for any job, and frames cross a zenoh router (to a subscriber, and to `WatchJob` and
+//! SSE on the replica that does not run the job).
 
 mod common;
 
@@ -311,7 +312,96 @@ async fn frames_of_a_job_on_either_replica_reach_a_subscriber_through_a_router()
     assert!(owner == "a" || owner == "b", "{owner}");
     let mut to_b = b.grpc().await;
     poll_job(&mut to_b, "other", has_ended).await;
-    drop((to_a, to_b));
+
+    // WatchJob and the SSE route of the replica that does not run a job stream its frames
+    // (from the other replica, through the router), equal to the stored result.
+    const STEPS: u64 = 20_000_000;
+    submit_json(&mut to_a, ball_json(1e-6, STEPS, 10_000), Some("remote"))
+        .await
+        .expect("submit remote");
+    let owner = poll_sql(
+        &pg,
+        "frames",
+        "SELECT owner FROM jobs WHERE id = 'remote'",
+        |o| !o.is_empty(),
+    )
+    .await;
+    let (runner, watcher) = if owner == "a" { (&a, &b) } else { (&b, &a) };
+    let mut watching = watcher.grpc().await;
+    let sse_addr = watcher.http;
+    let sse = tokio::spawn(async move {
+        let (mut energy, mut last) = (0, None);
+        common::read_sse(sse_addr, "/v1/jobs/remote/events", |e| {
+            if e.event == "energy" {
+                energy += 1;
+            }
+            let ended = e.event == "status" && e.data["finished_ms"].as_u64() > Some(0);
+            if ended {
+                last = Some(e.data["state"].clone());
+            }
+            !ended
+        })
+        .await;
+        (energy, last)
+    });
+    let mut frames = watching
+        .watch_job(pb::WatchJobRequest {
+            id: "remote".into(),
+            from_seq: None,
+        })
+        .await
+        .expect("WatchJob")
+        .into_inner();
+    let (mut watched, mut end) = (Vec::new(), None);
+    while let Some(frame) = tokio::time::timeout(PATIENCE, frames.message())
+        .await
+        .expect("a frame in time")
+        .expect("WatchJob stream")
+    {
+        match frame.frame {
+            Some(pb::watch_frame::Frame::Energy(f)) => watched.push(f),
+            Some(pb::watch_frame::Frame::Status(s)) if has_ended(&s) => end = Some(s),
+            _ => {}
+        }
+    }
+    let end = end.expect("the final status");
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    let last = watched
+        .last()
+        .expect("energy frames from the other replica");
+    assert!(last.last, "{last:?}");
+    let max_step = watched.iter().flat_map(|f| f.step.iter().copied()).max();
+    assert_eq!(max_step, Some(STEPS));
+    // Every watched row equals the stored one.
+    let stored = runner
+        .http("GET", "/v1/jobs/remote/result", None, None)
+        .await
+        .1;
+    let steps = &stored["steps"];
+    let row_of = |step: u64| {
+        steps["step"]
+            .as_array()
+            .expect("step column")
+            .iter()
+            .position(|s| s.as_u64() == Some(step))
+            .expect("a stored row")
+    };
+    for f in &watched {
+        for (i, &step) in f.step.iter().enumerate() {
+            let row = row_of(step);
+            for (c, column) in f.columns.iter().enumerate() {
+                assert_eq!(
+                    steps[column.as_str()][row].as_f64(),
+                    Some(f.values[i * f.columns.len() + c]),
+                    "{column} at step {step}"
+                );
+            }
+        }
+    }
+    let (sse_energy, sse_end) = sse.await.expect("SSE reader");
+    assert!(sse_energy > 0, "no energy event over SSE");
+    assert_eq!(sse_end, Some(serde_json::Value::from("succeeded")));
+    drop((to_a, to_b, watching));
     subscriber.close().await.expect("closing the subscriber");
     drop((a, b));
     router.close().await.expect("closing the router");

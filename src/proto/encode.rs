@@ -133,6 +133,38 @@ pub fn step_frames(b: &StepBatch) -> (Option<pb::StepFrame>, Option<pb::StepFram
     (frame(energy), frame(state))
 }
 
+/// A step frame received from zenoh → a step batch holding its columns as the energy group
+/// (`energy`) or the state group, the other group empty: the inverse of [`step_frames`] for one
+/// frame.
+pub fn step_batch_from_frame(f: pb::StepFrame, energy: bool) -> StepBatch {
+    let pb::StepFrame {
+        id,
+        seq,
+        columns,
+        step,
+        t,
+        values,
+        computed_unix_ns,
+        last,
+    } = f;
+    let group = ColumnGroup { columns, values };
+    let (energy, state) = if energy {
+        (group, ColumnGroup::default())
+    } else {
+        (ColumnGroup::default(), group)
+    };
+    StepBatch {
+        id,
+        seq,
+        step,
+        t,
+        computed_unix_ns,
+        energy,
+        state,
+        last,
+    }
+}
+
 /// Tables → proto.
 pub fn tables_to_proto(tables: &[Table]) -> Vec<pb::Table> {
     tables

@@ -6,6 +6,7 @@ pub mod grpc;
 pub mod http;
 pub mod json;
 mod pause;
+mod remote;
 pub mod results;
 mod study;
 
@@ -31,6 +32,8 @@ pub struct AppState {
     pub engine: Engine,
     token: Option<Arc<str>>,
     events: broadcast::Sender<Arc<JobEvent>>,
+    /// This replica's zenoh session (frames of jobs running on other replicas come through it).
+    session: zenoh::Session,
     rate: Arc<Mutex<(Instant, u64)>>,
 }
 
@@ -69,14 +72,26 @@ impl AppState {
         let only = id.to_string();
         let events = BroadcastStream::new(rx)
             .filter_map(move |msg| msg.ok().filter(|event| event.job_id() == only));
-        // Queued, or running on another replica (a shared store): its events go out there;
-        // here its status is read from the store until it ends. Otherwise nothing is polled.
-        let polled = if self.engine.runs_elsewhere(id) {
-            poll_status(self.engine.clone(), id.to_string(), current.clone())
+        // Queued, or running on another replica (a shared store): its events go out there and
+        // reach this replica's zenoh session when the replicas share a zenoh network; its
+        // status is also read from the store until it ends, and the store's final status waits
+        // a moment for the last frames, which the other replica publishes before its final
+        // status. Otherwise nothing is polled.
+        let events: EventStream = if self.engine.runs_elsewhere(id) {
+            let polled = poll_status(self.engine.clone(), id.to_string(), current.clone()).then(
+                |event| async move {
+                    if matches!(&*event, JobEvent::Status(s) if s.state.is_terminal()) {
+                        tokio::time::sleep(LAST_FRAMES_GRACE).await;
+                    }
+                    event
+                },
+            );
+            let remote = remote::events(self.session.clone(), id.to_string());
+            Box::pin(events.merge(remote).merge(polled))
         } else {
-            tokio_stream::wrappers::ReceiverStream::new(tokio::sync::mpsc::channel(1).1)
+            Box::pin(events)
         };
-        Ok((current, Some(until_terminal(events.merge(polled), encode))))
+        Ok((current, Some(until_terminal(events, encode))))
     }
 
     /// A job's history from batch `from_seq` on, then its live events, each encoded by
@@ -295,6 +310,7 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
         engine: engine.clone(),
         token: cfg.token.as_deref().map(Arc::from),
         events: streamer.sender(),
+        session: session.clone(),
         rate: Arc::new(Mutex::new((Instant::now(), 0))),
     };
 
@@ -363,6 +379,13 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
 /// dropping its sender right after the terminal status, or stops when the client goes away.
 /// How often a watcher of a job that runs on another replica reads its status from the store.
 const STATUS_POLL: Duration = Duration::from_millis(250);
+
+/// A job's events, from whichever sources.
+type EventStream = std::pin::Pin<Box<dyn Stream<Item = Arc<JobEvent>> + Send>>;
+
+/// How long a final status read from the store waits for the frames another replica published
+/// before it (they come through zenoh, the status through the store).
+const LAST_FRAMES_GRACE: Duration = Duration::from_millis(500);
 
 /// A job's status read from the store every [`STATUS_POLL`], as a status event each time it
 /// changed from `last`, until it ends (or the receiver goes).
