@@ -327,7 +327,6 @@ async fn frames_of_a_job_on_either_replica_reach_a_subscriber_through_a_router()
     )
     .await;
     let (runner, watcher) = if owner == "a" { (&a, &b) } else { (&b, &a) };
-    let mut watching = watcher.grpc().await;
     let sse_addr = watcher.http;
     let sse = tokio::spawn(async move {
         let (mut energy, mut last) = (0, None);
@@ -344,28 +343,16 @@ async fn frames_of_a_job_on_either_replica_reach_a_subscriber_through_a_router()
         .await;
         (energy, last)
     });
-    let mut frames = watching
-        .watch_job(pb::WatchJobRequest {
-            id: "remote".into(),
-            from_seq: None,
-        })
-        .await
-        .expect("WatchJob")
-        .into_inner();
-    let (mut watched, mut end) = (Vec::new(), None);
-    while let Some(frame) = tokio::time::timeout(PATIENCE, frames.message())
-        .await
-        .expect("a frame in time")
-        .expect("WatchJob stream")
-    {
-        match frame.frame {
-            Some(pb::watch_frame::Frame::Energy(f)) => watched.push(f),
-            Some(pb::watch_frame::Frame::Status(s)) if has_ended(&s) => end = Some(s),
-            _ => {}
-        }
-    }
-    let end = end.expect("the final status");
-    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    // Live, and replayed from the first batch (the stored history, then the live frames).
+    let (mut live, mut replayed) = (watcher.grpc().await, watcher.grpc().await);
+    let (watched, replayed) = tokio::join!(
+        watch_energy(&mut live, None),
+        watch_energy(&mut replayed, Some(0))
+    );
+    assert!(
+        !replayed.is_empty(),
+        "no frame replayed from the other replica"
+    );
     let last = watched
         .last()
         .expect("energy frames from the other replica");
@@ -401,8 +388,41 @@ async fn frames_of_a_job_on_either_replica_reach_a_subscriber_through_a_router()
     let (sse_energy, sse_end) = sse.await.expect("SSE reader");
     assert!(sse_energy > 0, "no energy event over SSE");
     assert_eq!(sse_end, Some(serde_json::Value::from("succeeded")));
-    drop((to_a, to_b, watching));
+    drop((to_a, to_b));
     subscriber.close().await.expect("closing the subscriber");
     drop((a, b));
     router.close().await.expect("closing the router");
+}
+
+/// The energy frames `WatchJob` (from batch `from_seq`, if given) streams for job `remote` until
+/// its final status, which must be `succeeded`.
+async fn watch_energy(
+    client: &mut signorini::proto::v1::simulation_client::SimulationClient<
+        tonic::transport::Channel,
+    >,
+    from_seq: Option<u64>,
+) -> Vec<pb::StepFrame> {
+    let mut frames = client
+        .watch_job(pb::WatchJobRequest {
+            id: "remote".into(),
+            from_seq,
+        })
+        .await
+        .expect("WatchJob")
+        .into_inner();
+    let (mut energy, mut end) = (Vec::new(), None);
+    while let Some(frame) = tokio::time::timeout(PATIENCE, frames.message())
+        .await
+        .expect("a frame in time")
+        .expect("WatchJob stream")
+    {
+        match frame.frame {
+            Some(pb::watch_frame::Frame::Energy(f)) => energy.push(f),
+            Some(pb::watch_frame::Frame::Status(s)) if has_ended(&s) => end = Some(s),
+            _ => {}
+        }
+    }
+    let end = end.expect("the final status");
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    energy
 }

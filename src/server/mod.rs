@@ -23,6 +23,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::sync::broadcast;
 use tokio_stream::wrappers::BroadcastStream;
+use tokio_stream::wrappers::errors::BroadcastStreamRecvError;
 use tokio_stream::{Stream, StreamExt};
 
 /// What every handler shares.
@@ -69,29 +70,45 @@ impl AppState {
         if current.state.is_terminal() {
             return Ok((current, None));
         }
-        let only = id.to_string();
-        let events = BroadcastStream::new(rx)
-            .filter_map(move |msg| msg.ok().filter(|event| event.job_id() == only));
-        // Queued, or running on another replica (a shared store): its events go out there and
-        // reach this replica's zenoh session when the replicas share a zenoh network; its
-        // status is also read from the store until it ends, and the store's final status waits
-        // a moment for the last frames, which the other replica publishes before its final
-        // status. Otherwise nothing is polled.
-        let events: EventStream = if self.engine.runs_elsewhere(id) {
-            let polled = poll_status(self.engine.clone(), id.to_string(), current.clone()).then(
-                |event| async move {
-                    if matches!(&*event, JobEvent::Status(s) if s.state.is_terminal()) {
-                        tokio::time::sleep(LAST_FRAMES_GRACE).await;
-                    }
-                    event
-                },
-            );
-            let remote = remote::events(self.session.clone(), id.to_string());
-            Box::pin(events.merge(remote).merge(polled))
-        } else {
-            Box::pin(events)
-        };
+        let events = self.live_events(id, rx, &current);
         Ok((current, Some(until_terminal(events, encode))))
+    }
+
+    /// The live events of job `id`: this replica's (from `rx`, subscribed before `current`
+    /// was read) and, for a job queued or running on another replica (a shared store), what
+    /// that replica publishes on zenoh, received when the replicas share a zenoh network, with
+    /// its status read from the store until it ends (a final status read there waits a moment
+    /// for the last frames, which the other replica publishes before its final status). When
+    /// `rx` lags (events dropped for a slow reader), the job's status is read so that its end
+    /// is not lost.
+    fn live_events(
+        &self,
+        id: &str,
+        rx: broadcast::Receiver<Arc<JobEvent>>,
+        current: &JobView,
+    ) -> EventStream {
+        let (only, engine) = (id.to_string(), self.engine.clone());
+        let local = BroadcastStream::new(rx).filter_map(move |msg| match msg {
+            Ok(event) => (event.job_id() == only).then_some(event),
+            Err(BroadcastStreamRecvError::Lagged(_)) => engine
+                .status(&only)
+                .ok()
+                .filter(|v| v.state.is_terminal())
+                .map(|v| Arc::new(JobEvent::Status(v))),
+        });
+        if !self.engine.runs_elsewhere(id) {
+            return Box::pin(local);
+        }
+        let polled = poll_status(self.engine.clone(), id.to_string(), current.clone()).then(
+            |event| async move {
+                if matches!(&*event, JobEvent::Status(s) if s.state.is_terminal()) {
+                    tokio::time::sleep(LAST_FRAMES_GRACE).await;
+                }
+                event
+            },
+        );
+        let remote = remote::events(self.session.clone(), id.to_string());
+        Box::pin(local.merge(remote).merge(polled))
     }
 
     /// A job's history from batch `from_seq` on, then its live events, each encoded by
@@ -105,9 +122,9 @@ impl AppState {
         from_seq: u64,
         encode: impl Fn(&JobEvent) -> Vec<T> + Send + 'static,
     ) -> Result<impl Stream<Item = T> + Send + 'static, ApiError> {
-        let mut rx = self.events.subscribe();
+        let rx = self.events.subscribe();
         let (view, history) = self.engine.history(id)?;
-        let engine = self.engine.clone();
+        let mut live = self.live_events(id, rx, &view);
         let id = id.to_string();
         let (tx, out) = tokio::sync::mpsc::channel(16);
         tokio::spawn(async move {
@@ -149,32 +166,18 @@ impl AppState {
             }
             loop {
                 let event = tokio::select! {
-                    e = rx.recv() => e,
+                    e = live.next() => e,
                     () = tx.closed() => return,
                 };
-                match event {
-                    Ok(event) if event.job_id() == id => {
-                        if let JobEvent::Steps(b) = &*event
-                            && last_seq.is_some_and(|l| b.seq <= l)
-                        {
-                            continue;
-                        }
-                        let done = matches!(&*event, JobEvent::Status(s) if s.state.is_terminal());
-                        if send_all(encode(&event)).await.is_err() || done {
-                            return;
-                        }
-                    }
-                    Ok(_) => {}
-                    Err(broadcast::error::RecvError::Lagged(_)) => {
-                        // Events were dropped for this slow reader: the end must not be.
-                        if let Ok(v) = engine.status(&id)
-                            && v.state.is_terminal()
-                        {
-                            let _ = send_all(encode(&JobEvent::Status(v))).await;
-                            return;
-                        }
-                    }
-                    Err(broadcast::error::RecvError::Closed) => return,
+                let Some(event) = event else { return };
+                if let JobEvent::Steps(b) = &*event
+                    && last_seq.is_some_and(|l| b.seq <= l)
+                {
+                    continue;
+                }
+                let done = matches!(&*event, JobEvent::Status(s) if s.state.is_terminal());
+                if send_all(encode(&event)).await.is_err() || done {
+                    return;
                 }
             }
         });
