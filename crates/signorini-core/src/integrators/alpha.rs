@@ -761,9 +761,10 @@ impl AlphaCore {
     /// Completes a step whose a_{k+1}, q_{k+1}, v_{k+1} are in `s.a`, `s.q`, `s.v` (and, for a
     /// baseline, λ_{k+1} in `nxt.lambda`): history, filters, energy terms, then the new state.
     ///
-    /// Three product sweeps (M a, K q, C v at t_{k+1}), then one sweep ([`finish_sweep`]) for
-    /// the z filter, every sum of the balance (works, quadratic terms, ΔH) and the sums of H;
-    /// the new a, q, v are swapped in, not copied.
+    /// The products at t_{k+1} (K q; M a for a consistent mass, C v with damping), then two
+    /// passes ([`finish_sweep`]: q with the z filter, a and v) for every sum of the balance
+    /// (works, quadratic terms, ΔH) and the sums of H; the new a, q, v are swapped in, not
+    /// copied.
     pub fn finish(
         &mut self,
         model: &LinearModel,
@@ -1368,9 +1369,10 @@ const fn used<const FILTER: u8, const LUMPED: bool, const PART: u8>(s: usize) ->
     }
 }
 
-/// The terms of one dof (or four, [`F4`]) for [`finish_sweep`] from `x` = (q, q_k, v, v_k, a,
-/// a_k, Kq, (Kq)_k, Ma, (Ma)_k, γF + (1 − γ)F_k, z_k, (Kz)_k, M_ii) (no index: t_{k+1}); returns the
-/// terms of the sums and (z, Kz, Δv, v + v_k) at t_{k+1}.
+/// The terms of one dof (or four, [`F4`]) of one part (`PART`) for [`finish_sweep`] from
+/// `x` = (q, q_k, v, v_k, a, a_k, Kq, (Kq)_k, Ma, (Ma)_k, γF + (1 − γ)F_k, z_k, (Kz)_k, M_ii)
+/// (no index: t_{k+1}); returns the terms of the part's sums and (z, Kz, Δv, v + v_k) at
+/// t_{k+1} (the part's entries; the others zero).
 #[inline(always)]
 fn dof<const FILTER: u8, const LUMPED: bool, const PART: u8, T: Lane>(
     k: &SweepCoefficients,
