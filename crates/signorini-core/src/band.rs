@@ -552,10 +552,16 @@ impl Twisted {
     }
 
     /// Solves A x = b in place: N w = b from both ends, scaled by Γ⁻¹ on the way, then Nᵀ x = Γ⁻¹w
-    /// from m outwards. The two chains of each sweep are interleaved in one loop; `each(i, x_i)`
-    /// is called as x_i is found (work that hides in the latency of the chains).
-    fn solve_then(&self, b: &mut [f64], mut each: impl FnMut(usize, f64)) {
+    /// from m outwards. The two chains of each sweep are interleaved in one loop; the back sweep
+    /// also adds `c[j] x_i` to `y[j][i]` as it finds x_i (a corrector such as q += c x, work that
+    /// hides in the latency of the chains). `y[j]` has at least n elements.
+    ///
+    /// The back sweep runs on sub-slices of one length, indexed by one counter, so that the
+    /// loop holds no bounds checks and no iterator state (with the updates, a chain of zipped,
+    /// reversed and enumerated iterators left its state on the stack and doubled the sweep).
+    fn solve_axpy<const K: usize>(&self, b: &mut [f64], c: [f64; K], y: [&mut [f64]; K]) {
         let m = self.m;
+        let n = b.len();
         let (top, rest) = b.split_at_mut(m);
         let Some((mid, bot)) = rest.split_first_mut() else {
             return;
@@ -567,52 +573,79 @@ impl Twisted {
         // (Both chains run min(m, n − 1 − m) steps together; `take` keeps zip from consuming
         // an element of the longer one.)
         let k = top.len().min(bot.len());
-        let (mut y, mut z) = (0.0, 0.0);
+        let (mut y0, mut z0) = (0.0, 0.0);
         let mut ti = top.iter_mut().zip(lo_t).zip(inv_t);
         let mut bi = bot.iter_mut().zip(up_b).zip(inv_b).rev();
         for (((bt, l), wt), ((bb, u), wb)) in (&mut ti).take(k).zip((&mut bi).take(k)) {
-            y = *bt - l * y;
-            z = *bb - u * z;
-            *bt = y * wt;
-            *bb = z * wb;
+            y0 = *bt - l * y0;
+            z0 = *bb - u * z0;
+            *bt = y0 * wt;
+            *bb = z0 * wb;
         }
         for ((bt, l), wt) in ti {
-            y = *bt - l * y;
-            *bt = y * wt;
+            y0 = *bt - l * y0;
+            *bt = y0 * wt;
         }
         for ((bb, u), wb) in bi {
-            z = *bb - u * z;
-            *bb = z * wb;
+            z0 = *bb - u * z0;
+            *bb = z0 * wb;
         }
         // Twist row: x_m = (b_m − l_m w_{m−1} − u_m w_{m+1}) / γ_m.
-        let xm = (*mid - self.lo[m] * y - self.up[m] * z) * self.inv[m];
+        let xm = (*mid - self.lo[m] * y0 - self.up[m] * z0) * self.inv[m];
         *mid = xm;
-        each(m, xm);
-        // x_i = Γ⁻¹w_i − l_{i+1} x_{i+1} upwards and x_j = Γ⁻¹w_j − u_{j−1} x_{j−1} downwards.
+        // The updated vectors split like b: dofs below m (`yt`), m, above m (`yb`).
+        let mut split = y.map(|v| {
+            let (t, r) = v[..n].split_at_mut(m);
+            let (v_m, b) = r.split_first_mut().expect("m < n");
+            (t, v_m, b)
+        });
+        for (j, (_, v_m, _)) in split.iter_mut().enumerate() {
+            **v_m += c[j] * xm;
+        }
+        let (mut yt, mut yb) = (
+            split.each_mut().map(|(t, _, _)| std::mem::take(t)),
+            split.map(|(_, _, b)| b),
+        );
+        // x_i = Γ⁻¹w_i − l_{i+1} x_{i+1} upwards (i = m − 1 − s) and x_j = Γ⁻¹w_j − u_{j−1} x_{j−1}
+        // downwards (j = m + 1 + s), s = 0, 1, …: the first k rows of each side together on
+        // slices of length k (the top one read backwards), then what is left of the longer side.
         let (mut xt, mut xb) = (xm, xm);
-        let mut ti = top
-            .iter_mut()
-            .enumerate()
-            .rev()
-            .zip(self.lo[1..=m].iter().rev());
-        let mut bi = bot.iter_mut().enumerate().zip(&self.up[m..]);
-        for (((i, bt), l), ((j, bb), u)) in (&mut ti).take(k).zip((&mut bi).take(k)) {
-            xt = *bt - l * xt;
-            xb = *bb - u * xb;
-            *bt = xt;
-            *bb = xb;
-            each(i, xt);
-            each(m + 1 + j, xb);
+        {
+            let (tt, lt) = (&mut top[m - k..], &self.lo[m - k + 1..=m]);
+            let (bb, ub) = (&mut bot[..k], &self.up[m..m + k]);
+            let yt: [&mut [f64]; K] = yt.each_mut().map(|v| &mut v[m - k..]);
+            let yb: [&mut [f64]; K] = yb.each_mut().map(|v| &mut v[..k]);
+            for s in 0..k {
+                let i = k - 1 - s;
+                xt = tt[i] - lt[i] * xt;
+                xb = bb[s] - ub[s] * xb;
+                tt[i] = xt;
+                bb[s] = xb;
+                for j in 0..K {
+                    yt[j][i] += c[j] * xt;
+                    yb[j][s] += c[j] * xb;
+                }
+            }
         }
-        for ((i, bt), l) in ti {
-            xt = *bt - l * xt;
-            *bt = xt;
-            each(i, xt);
+        let r = m - k;
+        let (tt, lt) = (&mut top[..r], &self.lo[1..=r]);
+        let yt: [&mut [f64]; K] = yt.map(|v| &mut v[..r]);
+        for i in (0..r).rev() {
+            xt = tt[i] - lt[i] * xt;
+            tt[i] = xt;
+            for j in 0..K {
+                yt[j][i] += c[j] * xt;
+            }
         }
-        for ((j, bb), u) in bi {
-            xb = *bb - u * xb;
-            *bb = xb;
-            each(m + 1 + j, xb);
+        let r = bot.len() - k;
+        let (bb, ub) = (&mut bot[k..], &self.up[m + k..m + k + r]);
+        let yb: [&mut [f64]; K] = yb.map(|v| &mut v[k..k + r]);
+        for s in 0..r {
+            xb = bb[s] - ub[s] * xb;
+            bb[s] = xb;
+            for j in 0..K {
+                yb[j][s] += c[j] * xb;
+            }
         }
     }
 }
@@ -639,17 +672,22 @@ impl BandCholesky {
 
     /// Solves A x = b in place (b becomes x).
     pub fn solve_in_place(&self, b: &mut [f64]) {
-        self.solve_in_place_then(b, |_, _| {});
+        self.solve_in_place_axpy(b, [], []);
     }
 
-    /// Solves A x = b in place and calls `each(i, x_i)` once for every i (in no fixed order):
-    /// with the twisted factor as the back sweep finds x_i, so that an update by x (a corrector
-    /// such as q += c x) costs no sweep of its own.
-    pub fn solve_in_place_then(&self, b: &mut [f64], mut each: impl FnMut(usize, f64)) {
+    /// Solves A x = b in place and adds `c[j] x` to `y[j]` (each of at least n elements): with
+    /// the twisted factor in the back sweep, as x_i is found, so that a corrector such as
+    /// q += c x costs no sweep of its own.
+    pub fn solve_in_place_axpy<const K: usize>(
+        &self,
+        b: &mut [f64],
+        c: [f64; K],
+        y: [&mut [f64]; K],
+    ) {
         let (n, kd) = (self.n, self.kd);
         let b = &mut b[..n];
         if let Some(t) = &self.twisted {
-            t.solve_then(b, each);
+            t.solve_axpy(b, c, y);
             return;
         }
         match kd {
@@ -696,8 +734,10 @@ impl BandCholesky {
                 }
             }
         }
-        for (i, x) in b.iter().enumerate() {
-            each(i, *x);
+        for (cj, yj) in c.iter().zip(y) {
+            for (yi, x) in yj[..n].iter_mut().zip(&*b) {
+                *yi += cj * x;
+            }
         }
     }
 }

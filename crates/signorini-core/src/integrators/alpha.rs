@@ -401,11 +401,34 @@ pub(crate) struct Coefficients {
     pub xy_filters: bool,
 }
 
+/// The α_M M a_k term of a row of (53), for the const parameter `MASS` of [`predict_sweep`] and
+/// [`predict_general`]: none (α_M = 0), m∘a_k with the diagonal m of a lumped mass (the product
+/// `SymBand::mul_into` forms), or the stored M a_k of a consistent mass.
+const NO_MASS: u8 = 0;
+const LUMPED: u8 = 1;
+const PRODUCT: u8 = 2;
+
+/// Calls `$f::<MASS, DAMPED>(args)` for the runtime mass term and damping flag.
+macro_rules! with_terms {
+    ($mass:expr, $damped:expr, $f:ident($($arg:expr),* $(,)?)) => {
+        match ($mass, $damped) {
+            (NO_MASS, false) => $f::<NO_MASS, false>($($arg),*),
+            (NO_MASS, true) => $f::<NO_MASS, true>($($arg),*),
+            (LUMPED, false) => $f::<LUMPED, false>($($arg),*),
+            (LUMPED, true) => $f::<LUMPED, true>($($arg),*),
+            (_, false) => $f::<PRODUCT, false>($($arg),*),
+            (_, true) => $f::<PRODUCT, true>($($arg),*),
+        }
+    };
+}
+
 /// Per-step history of the smooth part at t_k (one of two buffers swapped every step).
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) struct Frame {
     pub a: Vec<f64>,
-    /// M a; kept by the steps for a consistent mass only (see `AlphaCore::lumped`).
+    /// M a, for a consistent mass; empty for a lumped mass, where M a = m∘a is formed where
+    /// it is read (see `AlphaCore::lumped`). Checkpoints of earlier builds hold a stale copy
+    /// there, which a restore drops.
     pub ma: Vec<f64>,
     pub kq: Vec<f64>,
     pub cv: Vec<f64>,
@@ -421,11 +444,13 @@ pub(crate) struct Frame {
 }
 
 impl Frame {
-    fn zeros(n: usize, m: usize) -> Self {
+    /// A frame of zeros for n dofs and m contacts; `ma` of n entries for a consistent mass,
+    /// empty for a lumped one.
+    fn zeros(n: usize, m: usize, lumped: bool) -> Self {
         let z = vec![0.0; n];
         Self {
             a: z.clone(),
-            ma: z.clone(),
+            ma: if lumped { Vec::new() } else { z.clone() },
             kq: z.clone(),
             cv: z.clone(),
             f: z.clone(),
@@ -464,9 +489,14 @@ pub(crate) struct AlphaCore {
     has_damping: bool,
     /// F has a time-varying part (else the y filter stays exactly zero and is skipped).
     varying_load: bool,
-    /// `nxt.f` holds the (constant) load: set by the first predictor of a run with
-    /// `varying_load` false, so that later steps do not copy F again.
+    /// `nxt.f`, `f_rhs` and `f_work` hold the (constant) load: set by the first predictor of a
+    /// run with `varying_load` false, so that later steps do not evaluate F again.
     f_ready: bool,
+    /// The load part of the right-hand side of (53), `(1−α_L) F_{k+1} + α_L F_k` (formed once
+    /// per run for a constant load, else by each predictor).
+    f_rhs: Vec<f64>,
+    /// The load of the external work (56), `γ F_{k+1} + (1−γ) F_k` (likewise).
+    f_work: Vec<f64>,
     /// M is diagonal (lumped): M a is formed as m∘a where it is needed, and the frames' `ma`
     /// is not kept up to date (one sweep and two history vectors fewer per step).
     lumped: bool,
@@ -509,6 +539,7 @@ impl AlphaCore {
             (0.0, 0.0)
         };
         let (n, m) = (model.dofs(), model.contacts.len());
+        let lumped = model.mass.kd() == 0;
         let z = vec![0.0; n];
         Ok(Self {
             h,
@@ -519,11 +550,13 @@ impl AlphaCore {
             has_damping: !model.damping.is_zero(),
             varying_load: !model.force.harmonic.is_empty(),
             f_ready: false,
-            lumped: model.mass.kd() == 0,
+            f_rhs: z.clone(),
+            f_work: z.clone(),
+            lumped,
             s_factor,
             m_factor,
-            cur: Frame::zeros(n, m),
-            nxt: Frame::zeros(n, m),
+            cur: Frame::zeros(n, m, lumped),
+            nxt: Frame::zeros(n, m, lumped),
             cur_step: None,
             s: Scratch {
                 a: z.clone(),
@@ -548,7 +581,9 @@ impl AlphaCore {
             frame.a[i] = frame.f[i] - frame.kq[i] - frame.cv[i];
         }
         self.m_factor.solve_in_place(&mut frame.a);
-        model.mass.mul_into(&frame.a, &mut frame.ma);
+        if !self.lumped {
+            model.mass.mul_into(&frame.a, &mut frame.ma);
+        }
         for v in [
             &mut frame.z,
             &mut frame.kz,
@@ -564,7 +599,7 @@ impl AlphaCore {
     /// Makes `cur` describe `state` (a consistent start unless the last step produced it).
     pub fn ensure_history(&mut self, model: &LinearModel, state: &LinearState) {
         if self.cur_step != Some(state.step) {
-            let mut frame = std::mem::replace(&mut self.cur, Frame::zeros(0, 0));
+            let mut frame = std::mem::replace(&mut self.cur, Frame::zeros(0, 0, true));
             self.start_frame(model, state, &mut frame);
             self.cur = frame;
             self.cur_step = Some(state.step);
@@ -615,7 +650,7 @@ impl AlphaCore {
         if self.cur_step == Some(state.step) {
             self.algorithmic_energy_of(model, state, &self.cur)
         } else {
-            let mut frame = Frame::zeros(model.dofs(), model.contacts.len());
+            let mut frame = Frame::zeros(model.dofs(), model.contacts.len(), self.lumped);
             self.start_frame(model, state, &mut frame);
             self.algorithmic_energy_of(model, state, &frame)
         }
@@ -634,74 +669,71 @@ impl AlphaCore {
         let (beta, gamma) = (self.c.beta, self.c.gamma);
         let w = self.c.weights;
         let t_next = (state.step + 1) as f64 * h;
-        // A constant load is the same at every t: evaluated once into each frame.
+        // A constant load is the same at every t: evaluated once into each frame, and its
+        // combinations for (53) and (56) formed once.
         if self.varying_load || !self.f_ready {
             model.force.eval_into(t_next, &mut self.nxt.f);
+            let f0 = if self.varying_load {
+                &self.cur.f
+            } else {
+                &self.nxt.f
+            };
+            let (g1, g0) = (gamma, 1.0 - gamma);
+            for (((fr, fw), f1), f0) in self
+                .f_rhs
+                .iter_mut()
+                .zip(&mut self.f_work)
+                .zip(&self.nxt.f)
+                .zip(f0)
+            {
+                *fr = (1.0 - w.load) * f1 + w.load * f0;
+                *fw = g1 * f1 + g0 * f0;
+            }
             self.f_ready = !self.varying_load;
         }
         let n = state.q.len();
-        let (cur, nxt, s) = (&self.cur, &self.nxt, &mut self.s);
+        let (cur, s) = (&self.cur, &mut self.s);
         // Predictors q̂ = q_k + h v_k + h²(½ − β) a_k (in s.q), v̂ = v_k + h(1 − γ) a_k (in s.v).
         let cq = h * h * (0.5 - beta);
         let cv = h * (1.0 - gamma);
-        // A constant load: F_k and F_{k+1} are the same values, read once.
-        let f0 = if self.varying_load { &cur.f } else { &nxt.f };
+        let rows = RowCoefficients {
+            cv,
+            mass: w.mass,
+            damping: w.damping,
+            stiffness: [w.stiffness, 1.0 - w.stiffness],
+        };
+        // Which terms of (53) a row has: α_M M a_k (lumped: m∘a) and α_C C v_k only when they
+        // are not zero.
+        let (mass, m) = match (w.mass != 0.0, self.lumped) {
+            (false, _) => (NO_MASS, &cur.a[..n]),
+            (true, true) => (LUMPED, &model.mass.band(0)[..n]),
+            (true, false) => (PRODUCT, &cur.ma[..n]),
+        };
+        let damped = self.has_damping && w.damping != 0.0;
+        let sweep = PredictSweep {
+            q: &state.q[..n],
+            v: &state.v[..n],
+            a: &cur.a[..n],
+            f_rhs: &self.f_rhs[..n],
+            cv: &cur.cv[..n],
+            kq: &cur.kq[..n],
+            k0: &model.stiffness.band(0)[..n],
+            k1: &model.stiffness.band(1.min(model.stiffness.kd()))[..n],
+            q_hat: &mut s.q[..n],
+            v_hat: &mut s.v[..n],
+            b: &mut s.a[..n],
+        };
+        let c = [h, cq];
         if model.stiffness.kd() == 1 && n >= 2 {
             // Tridiagonal K: predictors, K q̂ and b in one sweep.
-            let sweep = PredictSweep {
-                q: &state.q[..n],
-                v: &state.v[..n],
-                a: &cur.a[..n],
-                ma: &cur.ma[..n],
-                mass: &model.mass.band(0)[..n],
-                f1: &nxt.f[..n],
-                f0: &f0[..n],
-                cv: &cur.cv[..n],
-                kq: &cur.kq[..n],
-                k0: &model.stiffness.band(0)[..n],
-                k1: &model.stiffness.band(1)[..n],
-                q_hat: &mut s.q[..n],
-                v_hat: &mut s.v[..n],
-                b: &mut s.a[..n],
-            };
-            let c = [h, cq, cv];
-            if self.lumped {
-                predict_sweep::<true>(sweep, c, w);
-            } else {
-                predict_sweep::<false>(sweep, c, w);
-            }
+            with_terms!(mass, damped, predict_sweep(sweep, m, c, rows));
         } else {
-            for (((sq, sv), (q, v)), a) in s.q[..n]
-                .iter_mut()
-                .zip(&mut s.v[..n])
-                .zip(state.q[..n].iter().zip(&state.v[..n]))
-                .zip(&cur.a[..n])
-            {
-                *sq = q + h * v + cq * a;
-                *sv = v + cv * a;
-            }
-            // b = (1−α_L) F_{k+1} + α_L F_k − α_M M a_k − α_C C v_k − α_K K q_k − (1−α_C) C v̂ − (1−α_K) K q̂.
-            model.stiffness.mul_into(&s.q, &mut s.tmp);
-            if self.lumped {
-                let m = model.mass.band(0);
-                for (((b, (f1, f0)), ((a, m), cv)), (kq, kqh)) in s.a[..n]
-                    .iter_mut()
-                    .zip(nxt.f[..n].iter().zip(&f0[..n]))
-                    .zip(cur.a[..n].iter().zip(&m[..n]).zip(&cur.cv[..n]))
-                    .zip(cur.kq[..n].iter().zip(&s.tmp[..n]))
-                {
-                    *b = rhs_row(w, [*f1, *f0, m * a, *cv, *kq, *kqh]);
-                }
-            } else {
-                for (((b, (f1, f0)), (ma, cv)), (kq, kqh)) in s.a[..n]
-                    .iter_mut()
-                    .zip(nxt.f[..n].iter().zip(&f0[..n]))
-                    .zip(cur.ma[..n].iter().zip(&cur.cv[..n]))
-                    .zip(cur.kq[..n].iter().zip(&s.tmp[..n]))
-                {
-                    *b = rhs_row(w, [*f1, *f0, *ma, *cv, *kq, *kqh]);
-                }
-            }
+            let tmp = &mut s.tmp[..n];
+            with_terms!(
+                mass,
+                damped,
+                predict_general(sweep, m, c, rows, &model.stiffness, tmp)
+            );
         }
         if self.has_damping {
             model.damping.mul_into(&s.v, &mut s.tmp);
@@ -718,21 +750,21 @@ impl AlphaCore {
             }
         }
         // Solve S a_{k+1} = b, with (25f), (25g) q = q̂ + h²β a, v = v̂ + hγ a in its back sweep.
-        let (ca, cva) = (h * h * beta, h * gamma);
-        let (q, v) = (&mut s.q[..n], &mut s.v[..n]);
-        self.s_factor.solve_in_place_then(&mut s.a, |i, a| {
-            q[i] += ca * a;
-            v[i] += cva * a;
-        });
+        self.s_factor.solve_in_place_axpy(
+            &mut s.a,
+            [h * h * beta, h * gamma],
+            [&mut s.q, &mut s.v],
+        );
         t_next
     }
 
     /// Completes a step whose a_{k+1}, q_{k+1}, v_{k+1} are in `s.a`, `s.q`, `s.v` (and, for a
     /// baseline, λ_{k+1} in `nxt.lambda`): history, filters, energy terms, then the new state.
     ///
-    /// Three product sweeps (M a, K q, C v at t_{k+1}), then one sweep ([`finish_sweep`]) for
-    /// the z filter, every sum of the balance (works, quadratic terms, ΔH) and the sums of H;
-    /// the new a, q, v are swapped in, not copied.
+    /// The products at t_{k+1} (K q; M a for a consistent mass, C v with damping), then two
+    /// passes ([`finish_sweep`]: q with the z filter, a and v) for every sum of the balance
+    /// (works, quadratic terms, ΔH) and the sums of H; the new a, q, v are swapped in, not
+    /// copied.
     pub fn finish(
         &mut self,
         model: &LinearModel,
@@ -757,10 +789,10 @@ impl AlphaCore {
         let ratio = self.ratio;
         let xy = self.filters && self.c.xy_filters;
         // Filters (48), (52): (½+ν) z_{k+1} + (½−ν) z_k = ν Δq (and K z, C x, y alike),
-        // multiplied by 1/(½+ν) (one division per step, not two per dof). z and K z are
-        // updated in the sweep below.
-        let (ip, mz) = if self.filters {
-            (1.0 / (0.5 + nu), 0.5 - nu)
+        // divided by ½+ν once per step: z_{k+1} = c_n Δq − c_m z_k. z and K z are updated in
+        // the sweep below; with α_m = 0 (HHT, ν = ½) c_m = 0 and z_{k+1} = ½ Δq.
+        let (cn, cm) = if self.filters {
+            (nu / (0.5 + nu), (0.5 - nu) / (0.5 + nu))
         } else {
             (0.0, 0.0)
         };
@@ -774,7 +806,7 @@ impl AlphaCore {
                     .zip(&nxt.cv[..n])
                     .zip(&cur.cv[..n])
                 {
-                    *x1 = (nu * (c1 - c0) - mz * x0) * ip;
+                    *x1 = cn * (c1 - c0) - cm * x0;
                 }
             }
             if xy && self.varying_load {
@@ -784,12 +816,12 @@ impl AlphaCore {
                     .zip(&nxt.f[..n])
                     .zip(&cur.f[..n])
                 {
-                    *y1 = (nu * (f1 - f0) - mz * y0) * ip;
+                    *y1 = cn * (f1 - f0) - cm * y0;
                 }
             }
             if xy {
                 for a in 0..nxt.lambda.len() {
-                    nxt.ylam[a] = (nu * (nxt.lambda[a] - cur.lambda[a]) - mz * cur.ylam[a]) * ip;
+                    nxt.ylam[a] = cn * (nxt.lambda[a] - cur.lambda[a]) - cm * cur.ylam[a];
                 }
             }
         }
@@ -804,7 +836,6 @@ impl AlphaCore {
         } else {
             (&nxt.ma, &cur.ma)
         };
-        let f0 = if self.varying_load { &cur.f } else { &nxt.f };
         let sweep = Sweep {
             q1: &s.q[..n],
             q0: &state.q[..n],
@@ -816,8 +847,7 @@ impl AlphaCore {
             kq0: &cur.kq[..n],
             ma1: &ma1[..n],
             ma0: &ma0[..n],
-            f1: &nxt.f[..n],
-            f0: &f0[..n],
+            fw: &self.f_work[..n],
             z0: &cur.z[..n],
             kz0: &cur.kz[..n],
             mass: &model.mass.band(0)[..n],
@@ -825,15 +855,22 @@ impl AlphaCore {
             kz1: &mut nxt.kz[..n],
             dv: &mut s.tmp[..n],
             sv: &mut s.tmp2[..n],
-            g: [g1, g0],
-            filter: [nu, mz, ip],
+            filter: [cn, cm],
         };
-        let sums = match (self.filters, lumped) {
-            (true, true) => finish_sweep::<true, true>(sweep),
-            (true, false) => finish_sweep::<true, false>(sweep),
-            (false, true) => finish_sweep::<false, true>(sweep),
-            (false, false) => finish_sweep::<false, false>(sweep),
+        let mut sweep = sweep;
+        // The q part depends on the filter only, the a, v part on the mass only.
+        let q_part = match (self.filters, cm != 0.0) {
+            (false, _) => finish_sweep::<NO_FILTER, false, PART_Q>(&mut sweep),
+            (true, false) => finish_sweep::<MEMORYLESS_FILTER, false, PART_Q>(&mut sweep),
+            (true, true) => finish_sweep::<FILTER_WITH_MEMORY, false, PART_Q>(&mut sweep),
         };
+        let av_part = if lumped {
+            finish_sweep::<NO_FILTER, true, PART_AV>(&mut sweep)
+        } else {
+            finish_sweep::<NO_FILTER, false, PART_AV>(&mut sweep)
+        };
+        // Each sum is formed by one part (the other's entry is zero).
+        let sums: [f64; SUMS] = std::array::from_fn(|s| q_part[s] + av_part[s]);
         let mut work_ext = sums[S_WORK_EXT];
         let mut work_damping = 0.0;
         if ry != 0.0 {
@@ -924,18 +961,47 @@ impl AlphaCore {
     }
 }
 
-/// The vectors of [`predict_sweep`], all of length n ≥ 2: the state and history at t_k, the
-/// loads, the diagonals of a tridiagonal K (`k1[i]` = K[i][i−1]) and the outputs q̂, v̂, b.
+/// The coefficients of a predictor row ([`predict_row`]): h(1 − γ), α_M, α_C, (α_K, 1 − α_K).
+#[derive(Debug, Clone, Copy)]
+struct RowCoefficients {
+    cv: f64,
+    mass: f64,
+    damping: f64,
+    stiffness: [f64; 2],
+}
+
+/// One row (or two, [`F2`]) of the predictor (25g) without a_{k+1} and of the right-hand side of
+/// (53) from `x` = (v_k, a_k, (1−α_L) F_{k+1} + α_L F_k, M_ii or (M a)_k, (C v)_k, (K q)_k,
+/// K q̂): returns (v̂, b) with `b = F − α_M M a_k − α_C C v_k − α_K K q_k − (1−α_K) K q̂` (the
+/// C v̂ term is subtracted by the caller). Terms that are zero (`MASS` = [`NO_MASS`], `DAMPED`
+/// false) are left out: subtracting a zero changes no value.
+#[inline(always)]
+fn predict_row<const MASS: u8, const DAMPED: bool, T: Lane>(r: RowCoefficients, x: [T; 7]) -> (T, T)
+where
+    f64: std::ops::Mul<T, Output = T>,
+{
+    let [v, a, f, m, cv, kq, kqh] = x;
+    let v_hat = v + r.cv * a;
+    let mut b = f;
+    if MASS == LUMPED {
+        b = b - r.mass * (m * a);
+    } else if MASS == PRODUCT {
+        b = b - r.mass * m;
+    }
+    if DAMPED {
+        b = b - r.damping * cv;
+    }
+    (v_hat, b - r.stiffness[0] * kq - r.stiffness[1] * kqh)
+}
+
+/// The vectors of [`predict_sweep`] and [`predict_general`], all of length n: the state and
+/// history at t_k, the load part of (53), the diagonals of a tridiagonal K (`k1[i]` =
+/// K[i][i−1]; not read by [`predict_general`]) and the outputs q̂, v̂, b.
 struct PredictSweep<'a> {
     q: &'a [f64],
     v: &'a [f64],
     a: &'a [f64],
-    /// (M a)_k, read for a consistent mass only.
-    ma: &'a [f64],
-    /// Diagonal of M, read for a lumped mass only.
-    mass: &'a [f64],
-    f1: &'a [f64],
-    f0: &'a [f64],
+    f_rhs: &'a [f64],
     cv: &'a [f64],
     kq: &'a [f64],
     k0: &'a [f64],
@@ -946,49 +1012,119 @@ struct PredictSweep<'a> {
 }
 
 /// The predictors (25f), (25g) without a_{k+1} and the right-hand side of (53) for a tridiagonal
-/// K in one sweep, `c` = (h, h²(½ − β), h(1 − γ)): q̂_j is formed again for rows j ± 1 (the same
-/// arithmetic as stored, so K q̂ is the product [`SymBand::mul_into`] forms), and no vector
-/// holds K q̂. Without damping the C v̂ term is added by the caller.
-fn predict_sweep<const LUMPED: bool>(p: PredictSweep<'_>, c: [f64; 3], w: Weighting) {
+/// K (n ≥ 2) in one sweep, `c` = (h, h²(½ − β)), `m` the diagonal of M or M a_k as `MASS` says
+/// (not read for [`NO_MASS`]). The rows 1 … n − 2 go in pairs (i, i + 1) on two lanes ([`F2`]):
+/// q̂ of a pair is formed once and kept for the next pair, which reads its upper value as
+/// q̂_{i−1}, and the pair after gives q̂_{i+2}; K q̂ is formed row by row with the arithmetic of
+/// [`SymBand::mul_into`] and b with that of [`predict_row`], so every value is the one a
+/// stored q̂ and a separate product give.
+fn predict_sweep<const MASS: u8, const DAMPED: bool>(
+    p: PredictSweep<'_>,
+    m: &[f64],
+    c: [f64; 2],
+    r: RowCoefficients,
+) {
     let n = p.q.len();
-    let [h, cq, cv] = c;
-    let (q, v, a) = (&p.q[..n], &p.v[..n], &p.a[..n]);
-    let (ma, mass, f1, f0) = (&p.ma[..n], &p.mass[..n], &p.f1[..n], &p.f0[..n]);
-    let (cv0, kq0, k0, k1) = (&p.cv[..n], &p.kq[..n], &p.k0[..n], &p.k1[..n]);
+    let [h, cq] = c;
+    let (q, v, a, m) = (&p.q[..n], &p.v[..n], &p.a[..n], &m[..n]);
+    let (f, cv, kq) = (&p.f_rhs[..n], &p.cv[..n], &p.kq[..n]);
+    let (k0, k1) = (&p.k0[..n], &p.k1[..n]);
     let (q_hat, v_hat, b) = (&mut p.q_hat[..n], &mut p.v_hat[..n], &mut p.b[..n]);
     let qh = [0, 1, n - 2, n - 1].map(|j| q[j] + h * v[j] + cq * a[j]);
-    let ma_at = |i: usize| if LUMPED { mass[i] * a[i] } else { ma[i] };
-    let rows = [
+    let row = |i: usize, kqh: f64| {
+        predict_row::<MASS, DAMPED, f64>(r, [v[i], a[i], f[i], m[i], cv[i], kq[i], kqh])
+    };
+    // Rows 0 and n − 1: two terms of K q̂.
+    for (i, kqh, qi) in [
         (0, k0[0] * qh[0] + k1[1] * qh[1], qh[0]),
         (n - 1, k1[n - 1] * qh[2] + k0[n - 1] * qh[3], qh[3]),
-    ];
-    for (i, kqh, qi) in rows {
+    ] {
         q_hat[i] = qi;
-        v_hat[i] = v[i] + cv * a[i];
-        b[i] = rhs_row(w, [f1[i], f0[i], ma_at(i), cv0[i], kq0[i], kqh]);
+        (v_hat[i], b[i]) = row(i, kqh);
     }
-    for i in 1..n - 1 {
-        let ql = q[i - 1] + h * v[i - 1] + cq * a[i - 1];
-        let qi = q[i] + h * v[i] + cq * a[i];
-        let qu = q[i + 1] + h * v[i + 1] + cq * a[i + 1];
-        q_hat[i] = qi;
-        v_hat[i] = v[i] + cv * a[i];
-        let ma_i = if LUMPED { mass[i] * a[i] } else { ma[i] };
-        let kqh = k1[i] * ql + k0[i] * qi + k1[i + 1] * qu;
-        b[i] = rhs_row(w, [f1[i], f0[i], ma_i, cv0[i], kq0[i], kqh]);
+    let pairs = (n - 2) / 2;
+    // The pairs (1, 2), (3, 4), …: every chunk slice has `pairs` elements (K[i+1][i] from
+    // `k1[2..]`), so the loop indexes without bounds checks.
+    fn two(x: &[f64], from: usize, pairs: usize) -> &[[f64; 2]] {
+        &x[from..].as_chunks::<2>().0[..pairs]
+    }
+    let (qc, vc, ac, mc) = (
+        two(q, 1, pairs),
+        two(v, 1, pairs),
+        two(a, 1, pairs),
+        two(m, 1, pairs),
+    );
+    let (fc, cvc, kqc) = (two(f, 1, pairs), two(cv, 1, pairs), two(kq, 1, pairs));
+    let (k0c, klc, kuc) = (two(k0, 1, pairs), two(k1, 1, pairs), two(k1, 2, pairs));
+    let (qhc, vhc, bc) = (
+        &mut q_hat[1..].as_chunks_mut::<2>().0[..pairs],
+        &mut v_hat[1..].as_chunks_mut::<2>().0[..pairs],
+        &mut b[1..].as_chunks_mut::<2>().0[..pairs],
+    );
+    let pair_at = |c: usize| Fx(qc[c]) + h * Fx(vc[c]) + cq * Fx(ac[c]);
+    // q̂ below the pair, of the pair, and above it (the first row of the next pair, or for
+    // the last pair q̂_{n−1} (n even) or q̂_{n−2} (n odd)).
+    let mut below = qh[0];
+    let mut cur = if pairs > 0 { pair_at(0) } else { Fx::default() };
+    let last_above = if n.is_multiple_of(2) { qh[3] } else { qh[2] };
+    for c in 0..pairs {
+        let (next, above) = if c + 1 < pairs {
+            let x = pair_at(c + 1);
+            (x, x.0[0])
+        } else {
+            (Fx::default(), last_above)
+        };
+        let [lo, hi] = cur.0;
+        let kqh = Fx(klc[c]) * Fx([below, lo]) + Fx(k0c[c]) * cur + Fx(kuc[c]) * Fx([hi, above]);
+        let x = [
+            Fx(vc[c]),
+            Fx(ac[c]),
+            Fx(fc[c]),
+            Fx(mc[c]),
+            Fx(cvc[c]),
+            Fx(kqc[c]),
+            kqh,
+        ];
+        let (vh, bb) = predict_row::<MASS, DAMPED, F2>(r, x);
+        (qhc[c], vhc[c], bc[c]) = (cur.0, vh.0, bb.0);
+        below = hi;
+        cur = next;
+    }
+    if !n.is_multiple_of(2) && n >= 3 {
+        // Row n − 2 of an odd n, after the pairs.
+        let i = n - 2;
+        let kqh = k1[i] * below + k0[i] * qh[2] + k1[i + 1] * qh[3];
+        q_hat[i] = qh[2];
+        (v_hat[i], b[i]) = row(i, kqh);
     }
 }
 
-/// One row of the right-hand side of (53) from (F_{k+1}, F_k, (M a)_k, (C v)_k, (K q)_k, K q̂)
-/// (the C v̂ term is subtracted by the caller).
-#[inline(always)]
-fn rhs_row(w: Weighting, x: [f64; 6]) -> f64 {
-    let [f1, f0, ma, cv, kq, kqh] = x;
-    (1.0 - w.load) * f1 + w.load * f0
-        - w.mass * ma
-        - w.damping * cv
-        - w.stiffness * kq
-        - (1.0 - w.stiffness) * kqh
+/// The predictors and the right-hand side of (53) for any banded K (what [`predict_sweep`]
+/// does for a tridiagonal one): q̂ stored, K q̂ formed by [`SymBand::mul_into`] into `tmp`.
+fn predict_general<const MASS: u8, const DAMPED: bool>(
+    p: PredictSweep<'_>,
+    m: &[f64],
+    c: [f64; 2],
+    r: RowCoefficients,
+    stiffness: &SymBand,
+    tmp: &mut [f64],
+) {
+    let n = p.q.len();
+    let [h, cq] = c;
+    for ((qh, q), (v, a)) in p.q_hat[..n]
+        .iter_mut()
+        .zip(&p.q[..n])
+        .zip(p.v[..n].iter().zip(&p.a[..n]))
+    {
+        *qh = q + h * v + cq * a;
+    }
+    stiffness.mul_into(p.q_hat, tmp);
+    let (v, a, m, f) = (&p.v[..n], &p.a[..n], &m[..n], &p.f_rhs[..n]);
+    let (cv, kq, kqh) = (&p.cv[..n], &p.kq[..n], &tmp[..n]);
+    for (i, (vh, b)) in p.v_hat[..n].iter_mut().zip(&mut p.b[..n]).enumerate() {
+        (*vh, *b) =
+            predict_row::<MASS, DAMPED, f64>(r, [v[i], a[i], f[i], m[i], cv[i], kq[i], kqh[i]]);
+    }
 }
 
 /// The vectors [`finish_sweep`] reads (t_{k+1}: `…1`, t_k: `…0`) and writes, all of length n.
@@ -1003,8 +1139,8 @@ struct Sweep<'a> {
     kq0: &'a [f64],
     ma1: &'a [f64],
     ma0: &'a [f64],
-    f1: &'a [f64],
-    f0: &'a [f64],
+    /// γ F_{k+1} + (1 − γ) F_k.
+    fw: &'a [f64],
     z0: &'a [f64],
     kz0: &'a [f64],
     /// Diagonal of M (read for a lumped mass only, where `ma1`, `ma0` are not).
@@ -1014,10 +1150,8 @@ struct Sweep<'a> {
     /// v_{k+1} − v_k and v_{k+1} + v_k (written for a consistent mass only).
     dv: &'a mut [f64],
     sv: &'a mut [f64],
-    /// γ, 1 − γ.
-    g: [f64; 2],
-    /// ν, ½ − ν, 1/(½ + ν).
-    filter: [f64; 3],
+    /// c_n = ν/(½ + ν), c_m = (½ − ν)/(½ + ν).
+    filter: [f64; 2],
 }
 
 const S_WORK_EXT: usize = 0;
@@ -1034,20 +1168,33 @@ const S_D_ZTERM: usize = 10;
 const S_ZTERM: usize = 11;
 const SUMS: usize = 12;
 
-/// One sweep over the dofs for the z filter (48) and the sums of a step (Lemma 2):
-/// `Δqᵀ F_{k,γ}`, `‖Δq‖²_K`, `(q_{k+1} + q_k)ᵀ K Δq`, `‖Δa‖²_M`, `(a_{k+1} + a_k)ᵀ M Δa`,
-/// `qᵀKq`, `aᵀMa` (at t_{k+1}), with a lumped mass `(v_{k+1} + v_k)ᵀ M Δv` and `vᵀMv`, with the
-/// filters `‖Δz‖²_K`, `(z_{k+1} + z_k)ᵀ K Δz` and `zᵀKz`. The sums of H run in four
-/// interleaved partial sums (by dof index mod 4, the order of `dot` and `SymBand::quad`, so H
-/// agrees bit for bit with [`AlphaCore::algorithmic_energy`]), the others in two: round-off
-/// differences only from the sequential sums.
-fn finish_sweep<const FILTERS: bool, const LUMPED: bool>(w: Sweep<'_>) -> [f64; SUMS] {
+/// Which sums a pass of [`finish_sweep`] forms: those of q (with the z filter), or of a and v.
+const PART_Q: u8 = 0;
+const PART_AV: u8 = 1;
+
+/// The z filter of a [`finish_sweep`]: none (ν = 0 or η = 0), z_{k+1} = c_n Δq (c_m = 0, α_m = 0),
+/// or z_{k+1} = c_n Δq − c_m z_k.
+const NO_FILTER: u8 = 0;
+const MEMORYLESS_FILTER: u8 = 1;
+const FILTER_WITH_MEMORY: u8 = 2;
+
+/// One pass over the dofs for part of the sums of a step (Lemma 2). `PART_Q`: the z filter (48),
+/// `Δqᵀ F_{k,γ}`, `‖Δq‖²_K`, `(q_{k+1} + q_k)ᵀ K Δq`, `qᵀKq` (at t_{k+1}) and, with the
+/// filters, `‖Δz‖²_K`, `(z_{k+1} + z_k)ᵀ K Δz` and `zᵀKz`. `PART_AV`: `‖Δa‖²_M`,
+/// `(a_{k+1} + a_k)ᵀ M Δa`, `aᵀMa` and, with a lumped mass, `(v_{k+1} + v_k)ᵀ M Δv` and `vᵀMv`
+/// (with a consistent mass Δv and v_{k+1} + v_k for `SymBand::quad`). The two parts read
+/// disjoint vectors, so splitting them costs no memory traffic, and each keeps its sums in
+/// registers (all twelve in one loop did not fit the sixteen vector registers and were kept
+/// in memory). The sums of H run in four interleaved partial sums (by dof index mod 4, the
+/// order of `dot` and `SymBand::quad`, so H agrees bit for bit with
+/// [`AlphaCore::algorithmic_energy`]), the others in two: round-off differences only from the
+/// sequential sums. Returns the part's sums (the others zero).
+fn finish_sweep<const FILTER: u8, const LUMPED: bool, const PART: u8>(
+    w: &mut Sweep<'_>,
+) -> [f64; SUMS] {
     let n = w.q1.len();
     let m = n / 4;
-    let k = SweepCoefficients {
-        g: w.g,
-        filter: w.filter,
-    };
+    let k = SweepCoefficients { filter: w.filter };
     // The dofs 0..4m as chunks of four (one lane per dof index mod 4): every chunk slice has
     // the same length m, so the loop below indexes without bounds checks and vectorises.
     fn quads(x: &[f64], m: usize) -> &[[f64; 4]] {
@@ -1064,13 +1211,12 @@ fn finish_sweep<const FILTERS: bool, const LUMPED: bool>(w: Sweep<'_>) -> [f64; 
         quads(w.kq0, m),
         quads(w.ma1, m),
         quads(w.ma0, m),
-        quads(w.f1, m),
-        quads(w.f0, m),
+        quads(w.fw, m),
         quads(w.z0, m),
         quads(w.kz0, m),
         quads(w.mass, m),
     ];
-    let (z1, kz1, dvs, svs) = (w.z1, w.kz1, w.dv, w.sv);
+    let (z1, kz1, dvs, svs) = (&mut *w.z1, &mut *w.kz1, &mut *w.dv, &mut *w.sv);
     let (z1q, kz1q, dvq, svq) = (
         &mut z1[..n].as_chunks_mut::<4>().0[..m],
         &mut kz1[..n].as_chunks_mut::<4>().0[..m],
@@ -1078,14 +1224,14 @@ fn finish_sweep<const FILTERS: bool, const LUMPED: bool>(w: Sweep<'_>) -> [f64; 
         &mut svs[..n].as_chunks_mut::<4>().0[..m],
     );
     // The sums of H in four lanes (the order of `dot` and `SymBand::quad`), the others in two
-    // (lanes l and l + 2 added first): twelve sums in four lanes would not fit the registers.
+    // (lanes l and l + 2 added first).
     let mut lanes = [F4::default(); SUMS];
     let mut pairs = [[0.0; 2]; SUMS];
     for c in 0..m {
-        let x = std::array::from_fn(|j| F4(ins[j][c]));
-        let (t, out) = dof::<FILTERS, LUMPED, F4>(&k, x);
+        let x = std::array::from_fn(|j| Fx(ins[j][c]));
+        let (t, out) = dof::<FILTER, LUMPED, PART, F4>(&k, x);
         for s in 0..SUMS {
-            if !used::<FILTERS, LUMPED>(s) {
+            if !used::<FILTER, LUMPED, PART>(s) {
                 continue;
             }
             if of_h(s) {
@@ -1095,39 +1241,40 @@ fn finish_sweep<const FILTERS: bool, const LUMPED: bool>(w: Sweep<'_>) -> [f64; 
                 pairs[s] = [pairs[s][0] + (u[0] + u[2]), pairs[s][1] + (u[1] + u[3])];
             }
         }
-        if FILTERS {
+        if FILTER != NO_FILTER && PART == PART_Q {
             z1q[c] = out[0].0;
             kz1q[c] = out[1].0;
         }
-        if !LUMPED {
+        if !LUMPED && PART == PART_AV {
             dvq[c] = out[2].0;
             svq[c] = out[3].0;
         }
     }
     let mut tail = [0.0; SUMS];
     let all = [
-        w.q1, w.q0, w.v1, w.v0, w.a1, w.a0, w.kq1, w.kq0, w.ma1, w.ma0, w.f1, w.f0, w.z0, w.kz0,
-        w.mass,
+        w.q1, w.q0, w.v1, w.v0, w.a1, w.a0, w.kq1, w.kq0, w.ma1, w.ma0, w.fw, w.z0, w.kz0, w.mass,
     ];
     for i in 4 * m..n {
         let x = std::array::from_fn(|j| all[j][i]);
-        let (t, out) = dof::<FILTERS, LUMPED, f64>(&k, x);
+        let (t, out) = dof::<FILTER, LUMPED, PART, f64>(&k, x);
         for (s, acc) in tail.iter_mut().enumerate() {
-            if used::<FILTERS, LUMPED>(s) {
+            if used::<FILTER, LUMPED, PART>(s) {
                 *acc += t[s];
             }
         }
-        if FILTERS {
+        if FILTER != NO_FILTER && PART == PART_Q {
             z1[i] = out[0];
             kz1[i] = out[1];
         }
-        if !LUMPED {
+        if !LUMPED && PART == PART_AV {
             dvs[i] = out[2];
             svs[i] = out[3];
         }
     }
     std::array::from_fn(|s| {
-        if of_h(s) {
+        if !used::<FILTER, LUMPED, PART>(s) {
+            0.0
+        } else if of_h(s) {
             let l = lanes[s].0;
             (l[0] + l[2]) + (l[1] + l[3]) + tail[s]
         } else {
@@ -1142,44 +1289,55 @@ const fn of_h(s: usize) -> bool {
     matches!(s, S_STRAIN | S_ATERM | S_KIN | S_ZTERM)
 }
 
-/// Four dofs at once, lane l for the dof index ≡ l mod 4: element-wise arithmetic that the
+/// L dofs at once, lane l for the l-th dof of a chunk: element-wise arithmetic that the
 /// compiler maps to vector instructions (each lane computes exactly what a scalar would).
-#[derive(Debug, Clone, Copy, Default)]
-struct F4([f64; 4]);
+#[derive(Debug, Clone, Copy)]
+struct Fx<const L: usize>([f64; L]);
 
-impl std::ops::Add for F4 {
-    type Output = F4;
-    #[inline(always)]
-    fn add(self, o: F4) -> F4 {
-        F4(std::array::from_fn(|l| self.0[l] + o.0[l]))
+/// Four dofs (lane l for the dof index ≡ l mod 4), the finish sweep's unit.
+type F4 = Fx<4>;
+/// Two dofs, the predictor sweep's unit.
+type F2 = Fx<2>;
+
+impl<const L: usize> Default for Fx<L> {
+    fn default() -> Self {
+        Fx([0.0; L])
     }
 }
 
-impl std::ops::Sub for F4 {
-    type Output = F4;
+impl<const L: usize> std::ops::Add for Fx<L> {
+    type Output = Self;
     #[inline(always)]
-    fn sub(self, o: F4) -> F4 {
-        F4(std::array::from_fn(|l| self.0[l] - o.0[l]))
+    fn add(self, o: Self) -> Self {
+        Fx(std::array::from_fn(|l| self.0[l] + o.0[l]))
     }
 }
 
-impl std::ops::Mul for F4 {
-    type Output = F4;
+impl<const L: usize> std::ops::Sub for Fx<L> {
+    type Output = Self;
     #[inline(always)]
-    fn mul(self, o: F4) -> F4 {
-        F4(std::array::from_fn(|l| self.0[l] * o.0[l]))
+    fn sub(self, o: Self) -> Self {
+        Fx(std::array::from_fn(|l| self.0[l] - o.0[l]))
     }
 }
 
-impl std::ops::Mul<F4> for f64 {
-    type Output = F4;
+impl<const L: usize> std::ops::Mul for Fx<L> {
+    type Output = Self;
     #[inline(always)]
-    fn mul(self, o: F4) -> F4 {
-        F4(o.0.map(|x| self * x))
+    fn mul(self, o: Self) -> Self {
+        Fx(std::array::from_fn(|l| self.0[l] * o.0[l]))
     }
 }
 
-/// What [`dof`] computes with: one dof (f64) or four ([`F4`]).
+impl<const L: usize> std::ops::Mul<Fx<L>> for f64 {
+    type Output = Fx<L>;
+    #[inline(always)]
+    fn mul(self, o: Fx<L>) -> Fx<L> {
+        Fx(o.0.map(|x| self * x))
+    }
+}
+
+/// What [`dof`] and [`predict_row`] compute with: one dof (f64) or several ([`Fx`]).
 trait Lane:
     Copy
     + Default
@@ -1192,32 +1350,33 @@ where
 }
 
 impl Lane for f64 {}
-impl Lane for F4 {}
+impl<const L: usize> Lane for Fx<L> {}
 
-/// The coefficients of [`dof`]: γ, 1 − γ and ν, ½ − ν, 1/(½ + ν).
+/// The coefficients of [`dof`]: c_n = ν/(½ + ν), c_m = (½ − ν)/(½ + ν).
 struct SweepCoefficients {
-    g: [f64; 2],
-    filter: [f64; 3],
+    filter: [f64; 2],
 }
 
-/// Whether sum `s` is formed by the variant (the filter sums with filters, the kinetic sums
-/// with a lumped mass).
+/// Whether sum `s` is formed by the variant and the part (the filter sums with filters, the
+/// kinetic sums with a lumped mass).
 #[inline(always)]
-const fn used<const FILTERS: bool, const LUMPED: bool>(s: usize) -> bool {
+const fn used<const FILTER: u8, const LUMPED: bool, const PART: u8>(s: usize) -> bool {
     match s {
-        S_D_KIN | S_KIN => LUMPED,
-        S_DZ_K_DZ | S_D_ZTERM | S_ZTERM => FILTERS,
-        _ => true,
+        S_WORK_EXT | S_DQ_K_DQ | S_D_STRAIN | S_STRAIN => PART == PART_Q,
+        S_DZ_K_DZ | S_D_ZTERM | S_ZTERM => FILTER != NO_FILTER && PART == PART_Q,
+        S_D_KIN | S_KIN => LUMPED && PART == PART_AV,
+        _ => PART == PART_AV,
     }
 }
 
-/// The terms of one dof (or four, [`F4`]) for [`finish_sweep`] from `x` = (q, q_k, v, v_k, a,
-/// a_k, Kq, (Kq)_k, Ma, (Ma)_k, F, F_k, z_k, (Kz)_k, M_ii) (no index: t_{k+1}); returns the
-/// terms of the sums and (z, Kz, Δv, v + v_k) at t_{k+1}.
+/// The terms of one dof (or four, [`F4`]) of one part (`PART`) for [`finish_sweep`] from
+/// `x` = (q, q_k, v, v_k, a, a_k, Kq, (Kq)_k, Ma, (Ma)_k, γF + (1 − γ)F_k, z_k, (Kz)_k, M_ii)
+/// (no index: t_{k+1}); returns the terms of the part's sums and (z, Kz, Δv, v + v_k) at
+/// t_{k+1} (the part's entries; the others zero).
 #[inline(always)]
-fn dof<const FILTERS: bool, const LUMPED: bool, T: Lane>(
+fn dof<const FILTER: u8, const LUMPED: bool, const PART: u8, T: Lane>(
     k: &SweepCoefficients,
-    x: [T; 15],
+    x: [T; 14],
 ) -> ([T; SUMS], [T; 4])
 where
     f64: std::ops::Mul<T, Output = T>,
@@ -1233,46 +1392,54 @@ where
         kq0,
         ma1,
         ma0,
-        f1,
-        f0,
+        fw,
         z0,
         kz0,
         mass,
     ] = x;
-    // A lumped mass: M a = m∘a (the product `SymBand::mul_into` forms), `ma` not read.
-    let (ma1, ma0) = if LUMPED {
-        (mass * a1, mass * a0)
-    } else {
-        (ma1, ma0)
-    };
-    let [g1, g0] = k.g;
-    let [nu, mz, ip] = k.filter;
     let mut t = [T::default(); SUMS];
-    let dq = q1 - q0;
-    t[S_WORK_EXT] = dq * (g1 * f1 + g0 * f0);
-    let dkq = kq1 - kq0;
-    t[S_DQ_K_DQ] = dq * dkq;
-    t[S_D_STRAIN] = (q1 + q0) * dkq;
-    let dma = ma1 - ma0;
-    t[S_DA_M_DA] = (a1 - a0) * dma;
-    t[S_D_ATERM] = (a1 + a0) * dma;
-    t[S_STRAIN] = q1 * kq1;
-    t[S_ATERM] = a1 * ma1;
-    let (dv, sv) = (v1 - v0, v1 + v0);
-    if LUMPED {
-        t[S_D_KIN] = mass * sv * dv;
-        t[S_KIN] = mass * v1 * v1;
+    let mut out = [T::default(); 4];
+    if PART == PART_Q {
+        let [cn, cm] = k.filter;
+        let dq = q1 - q0;
+        t[S_WORK_EXT] = dq * fw;
+        let dkq = kq1 - kq0;
+        t[S_DQ_K_DQ] = dq * dkq;
+        t[S_D_STRAIN] = (q1 + q0) * dkq;
+        t[S_STRAIN] = q1 * kq1;
+        if FILTER != NO_FILTER {
+            let (z, kz) = if FILTER == FILTER_WITH_MEMORY {
+                (cn * dq - cm * z0, cn * dkq - cm * kz0)
+            } else {
+                (cn * dq, cn * dkq)
+            };
+            let dkz = kz - kz0;
+            t[S_DZ_K_DZ] = (z - z0) * dkz;
+            t[S_D_ZTERM] = (z + z0) * dkz;
+            t[S_ZTERM] = z * kz;
+            out[0] = z;
+            out[1] = kz;
+        }
+    } else {
+        // A lumped mass: M a = m∘a (the product `SymBand::mul_into` forms), `ma` not read.
+        let (ma1, ma0) = if LUMPED {
+            (mass * a1, mass * a0)
+        } else {
+            (ma1, ma0)
+        };
+        let dma = ma1 - ma0;
+        t[S_DA_M_DA] = (a1 - a0) * dma;
+        t[S_D_ATERM] = (a1 + a0) * dma;
+        t[S_ATERM] = a1 * ma1;
+        let (dv, sv) = (v1 - v0, v1 + v0);
+        if LUMPED {
+            t[S_D_KIN] = mass * sv * dv;
+            t[S_KIN] = mass * v1 * v1;
+        }
+        out[2] = dv;
+        out[3] = sv;
     }
-    let (mut z, mut kz) = (T::default(), T::default());
-    if FILTERS {
-        z = ip * (nu * dq - mz * z0);
-        kz = ip * (nu * dkq - mz * kz0);
-        let dkz = kz - kz0;
-        t[S_DZ_K_DZ] = (z - z0) * dkz;
-        t[S_D_ZTERM] = (z + z0) * dkz;
-        t[S_ZTERM] = z * kz;
-    }
-    (t, [z, kz, dv, sv])
+    (t, out)
 }
 
 fn dot(x: &[f64], y: &[f64]) -> f64 {
@@ -1635,8 +1802,14 @@ impl AlphaCore {
         &mut self,
         s: AlphaCoreState,
     ) -> Result<(), CheckpointError> {
-        let fits =
-            |f: &Frame, g: &Frame| f.a.len() == g.a.len() && f.lambda.len() == g.lambda.len();
+        // M a is kept for a consistent mass only; a lumped-mass checkpoint of an earlier build
+        // holds a stale copy, dropped here so that the state is the one a run keeps.
+        let lumped = self.lumped;
+        let fits = |f: &Frame, g: &Frame| {
+            f.a.len() == g.a.len()
+                && f.lambda.len() == g.lambda.len()
+                && (lumped || f.ma.len() == g.ma.len())
+        };
         if !fits(&s.cur, &self.cur) || !fits(&s.nxt, &self.nxt) || s.s.a.len() != self.s.a.len() {
             return Err(CheckpointError::Mismatch(format!(
                 "α-family state of {} dofs, the model has {}",
@@ -1644,8 +1817,13 @@ impl AlphaCore {
                 self.cur.a.len()
             )));
         }
-        self.cur = s.cur;
-        self.nxt = s.nxt;
+        let (mut cur, mut nxt) = (s.cur, s.nxt);
+        if lumped {
+            cur.ma = Vec::new();
+            nxt.ma = Vec::new();
+        }
+        self.cur = cur;
+        self.nxt = nxt;
         self.cur_step = s.cur_step;
         self.s = s.s;
         self.f_ready = false;
