@@ -13,6 +13,7 @@
 //! cargo bench -p signorini-core --bench string_contacts            # N = 10³, 10⁴, 10⁵
 //! cargo bench -p signorini-core --bench string_contacts -- 10000   # chosen N
 //! cargo bench -p signorini-core --bench string_contacts -- --siconos 10 100   # Siconos' window
+//! cargo bench -p signorini-core --bench string_contacts -- 100000 --scheme moreau_jean --case pressed
 //! ```
 //!
 //! `--siconos` times only Moreau–Jean on the `plucked` string over the window of
@@ -175,8 +176,19 @@ fn siconos_window(n: usize) {
     );
 }
 
+/// The value after `--name` on the command line, if any.
+fn flag(name: &str) -> Option<String> {
+    let args: Vec<String> = std::env::args().collect();
+    args.iter()
+        .position(|a| a == name)
+        .and_then(|i| args.get(i + 1).cloned())
+}
+
 fn main() {
     let siconos = std::env::args().any(|a| a == "--siconos");
+    // `--scheme moreau_jean|ns_hht` and `--case pressed|plucked` restrict the runs (for a
+    // profile of one case; the free step of the scheme is always timed, for the ratio).
+    let (only_scheme, only_case) = (flag("--scheme"), flag("--case"));
     let args: Vec<usize> = std::env::args()
         .skip(1)
         .filter_map(|a| a.parse().ok())
@@ -196,8 +208,14 @@ fn main() {
         // About 2·10⁷ node-steps per run: 20 000 steps at N = 10³, 200 at N = 10⁵.
         let steps = (20_000_000 / n as u64).clamp(100, 20_000);
         for scheme in ["moreau_jean", "ns_hht"] {
+            if only_scheme.as_deref().is_some_and(|s| s != scheme) {
+                continue;
+            }
             let mut free_step = f64::NAN;
             for case in ["free", "pressed", "plucked"] {
+                if case != "free" && only_case.as_deref().is_some_and(|c| c != case) {
+                    continue;
+                }
                 let model = scene(n, case);
                 let make = |m: &LinearModel| -> Box<dyn LinearScheme> {
                     if scheme == "moreau_jean" {

@@ -9,7 +9,7 @@
 
 use crate::band::SymBand;
 use crate::checkpoint::CheckpointError;
-use crate::contact::{IndexSet, LcpStats};
+use crate::contact::{IndexSet, LcpStats, UnitContacts};
 use crate::lcp::active_set::{BandedActiveSet, ImpulseMap, unit_columns};
 use crate::lcp::{AUTO_LEMKE_MAX, LcpError, LcpOptions, LcpSolverKind};
 use crate::model::LinearModel;
@@ -57,10 +57,11 @@ pub struct BandedImpulse {
     solver: BandedActiveSet,
     /// Column of G of each contact of the model: (dof, coefficient).
     unit: Vec<(usize, f64)>,
+    /// The same contacts in arrays, when each column is one entry and no obstacle moves.
+    units: Option<UnitContacts>,
     rows: Vec<(usize, f64)>,
     p: Vec<f64>,
     x: Vec<f64>,
-    levels: Vec<f64>,
 }
 
 impl BandedImpulse {
@@ -80,16 +81,21 @@ impl BandedImpulse {
         Self {
             solver: BandedActiveSet::new(s, map),
             unit,
+            units: UnitContacts::of(&model.contacts),
             rows: Vec::new(),
             p: Vec::new(),
             x: vec![0.0; model.dofs()],
-            levels: Vec::new(),
         }
     }
 
     /// Contact α's column of G, `(dof, coefficient)`.
     pub fn unit(&self, alpha: usize) -> (usize, f64) {
         self.unit[alpha]
+    }
+
+    /// The contacts in arrays ([`UnitContacts`]), when they allow it.
+    pub fn units(&self) -> Option<&UnitContacts> {
+        self.units.as_ref()
     }
 
     /// The active dofs the next solve starts from (what a checkpoint keeps of the solver:
@@ -151,14 +157,14 @@ impl BandedImpulse {
                 error: s.error,
             }
         };
-        self.levels.clear();
-        for (r, &a) in index_set.active.iter().enumerate() {
-            impulse[a] = self.p[r];
-            let (dof, coef) = self.rows[r];
-            self.levels
-                .push(64.0 * f64::EPSILON * (index_set.rhs[r].abs() + (coef * self.x[dof]).abs()));
+        for (&a, &p) in index_set.active.iter().zip(&self.p) {
+            impulse[a] = p;
         }
-        index_set.record_levels(&self.levels, step);
+        let (rows, x) = (&self.rows, &self.x);
+        index_set.record_levels_by(step, |r, b| {
+            let (dof, coef) = rows[r];
+            64.0 * f64::EPSILON * (b.abs() + (coef * x[dof]).abs())
+        });
         Ok(stats)
     }
 }

@@ -150,6 +150,45 @@ impl IndexSet {
         }
     }
 
+    /// [`IndexSet::assemble`] for [`UnitContacts`], in one pass: the index set of the step from
+    /// step `k` (state `q`, `v` at time `t`, step `h`) by `rule`, with the free local velocity
+    /// `U_free = Gᵀ(v + dv)` (Moreau–Jean: dv the free velocity change). The same values, bit
+    /// for bit, as `assemble` with `u_free = c.project(v) + c.project(dv) + c.w_rate(t + h)`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn assemble_unit(
+        &mut self,
+        rule: &IndexSetRule,
+        contacts: &UnitContacts,
+        k: u64,
+        q: &[f64],
+        v: &[f64],
+        dv: &[f64],
+        t: f64,
+        h: f64,
+    ) {
+        self.active.clear();
+        self.rhs.clear();
+        let fresh = self.roundoff_step == k;
+        let gamma_h = rule.gamma * h;
+        for a in 0..contacts.len() {
+            let (d, c, w) = (contacts.dof[a], contacts.coef[a], contacts.w[a]);
+            let u_tol = if fresh { self.roundoff[a] } else { 0.0 };
+            let g_tol = if self.friction { (t + h) * u_tol } else { 0.0 };
+            let cv = c * v[d];
+            // U_k = (Gᵀv)_α + ẇ_α (ẇ = 0).
+            let u_k = cv + 0.0;
+            let on = match rule.activation {
+                Activation::GapAndVelocity => c * q[d] + h * cv + w <= g_tol && u_k <= u_tol,
+                Activation::PredictedGap => c * q[d] + w + gamma_h * u_k <= 0.0,
+            };
+            if on {
+                self.active.push(a);
+                self.rhs
+                    .push((cv + c * dv[d]) + 0.0 + contacts.restitution[a] * u_k);
+            }
+        }
+    }
+
     /// Records the round-off level of the local velocities the LCP of step `step` produced:
     /// `U^α_{k+1} = b_α + (W P)_α` loses `ε (|b_α| + Σ_β |W_αβ P_β|)` to cancellation; 64 times
     /// that is kept for each active contact, zero elsewhere. `w` is the scheme's contact matrix
@@ -168,6 +207,16 @@ impl IndexSet {
         self.roundoff_step = step;
     }
 
+    /// Records the round-off level `level(r, b_r)` of each active contact's local velocity at
+    /// the end of step `step` (r its place in `active`, b_r its right-hand side).
+    pub fn record_levels_by(&mut self, step: u64, mut level: impl FnMut(usize, f64) -> f64) {
+        self.roundoff.fill(0.0);
+        for (r, (&a, &b)) in self.active.iter().zip(&self.rhs).enumerate() {
+            self.roundoff[a] = level(r, b);
+        }
+        self.roundoff_step = step;
+    }
+
     /// Records given round-off levels of the local velocities of step `step`, one per active
     /// contact in the order of `active` (the friction problem's, [`FrictionDelassus`]).
     pub fn record_levels(&mut self, levels: &[f64], step: u64) {
@@ -176,6 +225,75 @@ impl IndexSet {
             self.roundoff[a] = l;
         }
         self.roundoff_step = step;
+    }
+}
+
+/// Contacts whose column of G is one entry and whose obstacle does not move (a string or a bar
+/// against a distributed obstacle), in arrays: what the per-contact passes of a step read
+/// without the indirection of each [`Contact`]'s own list. Every value they give is the one
+/// [`Contact`]'s methods give, operation for operation: a one-term projection is its term
+/// (`Sum` starts from −0), `w = offset + 0` and `ẇ = 0` without motion.
+#[derive(Debug, Clone)]
+pub struct UnitContacts {
+    dof: Vec<usize>,
+    coef: Vec<f64>,
+    /// w_α (constant).
+    w: Vec<f64>,
+    restitution: Vec<f64>,
+}
+
+impl UnitContacts {
+    /// The arrays of `contacts`, or `None` when one has a column of more than one entry or a
+    /// moving obstacle.
+    pub fn of(contacts: &[Contact]) -> Option<Self> {
+        let single = |c: &Contact| (c.g.len() == 1 && c.motion.is_none()).then(|| c.g[0]);
+        let columns: Vec<(usize, f64)> = contacts.iter().map(single).collect::<Option<_>>()?;
+        Some(Self {
+            dof: columns.iter().map(|&(d, _)| d).collect(),
+            coef: columns.iter().map(|&(_, c)| c).collect(),
+            w: contacts.iter().map(|c| c.w(0.0)).collect(),
+            restitution: contacts.iter().map(|c| c.restitution).collect(),
+        })
+    }
+
+    /// Number of contacts.
+    pub fn len(&self) -> usize {
+        self.dof.len()
+    }
+
+    /// True without contacts.
+    pub fn is_empty(&self) -> bool {
+        self.dof.is_empty()
+    }
+
+    /// Contact α's column of G, `(dof, coefficient)`.
+    pub fn column(&self, alpha: usize) -> (usize, f64) {
+        (self.dof[alpha], self.coef[alpha])
+    }
+
+    /// Gaps [`Contact::gap`] and local velocities [`Contact::local_velocity`] of every contact
+    /// at (q, v), in one pass.
+    pub fn fill(&self, q: &[f64], v: &[f64], gap: &mut [f64], velocity: &mut [f64]) {
+        let m = self.len();
+        for ((((g, u), &d), &c), &w) in gap[..m]
+            .iter_mut()
+            .zip(&mut velocity[..m])
+            .zip(&self.dof)
+            .zip(&self.coef)
+            .zip(&self.w)
+        {
+            *g = c * q[d] + w;
+            *u = c * v[d] + 0.0;
+        }
+    }
+
+    /// `Σ_{α ∈ active} P_α (Gᵀ x)_α`, summed in the order of `active` (the contact work of a
+    /// step, as the sum over [`Contact::project`] gives it).
+    pub fn work(&self, active: &[usize], impulse: &[f64], x: &[f64]) -> f64 {
+        active
+            .iter()
+            .map(|&a| impulse[a] * (self.coef[a] * x[self.dof[a]]))
+            .sum()
     }
 }
 
@@ -407,5 +525,70 @@ impl FrictionDelassus {
             iterations: sol.iterations,
             error: sol.error,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The arrays give the index set, its right-hand side and the contact columns of the
+    /// record bit for bit as the generic passes over [`Contact`] do, under both rules.
+    #[test]
+    fn unit_contacts_equal_the_generic_passes_bit_for_bit() {
+        let n = 40;
+        let f = |i: usize, a: f64| ((i as f64) * a).sin() * 1e-3;
+        let contacts: Vec<Contact> = (0..n)
+            .map(|i| Contact {
+                g: vec![(n - 1 - i, if i % 3 == 0 { -1.0 } else { 0.7 })],
+                offset: if i % 5 == 0 { -0.0 } else { f(i, 0.3) },
+                motion: None,
+                restitution: (i % 4) as f64 / 4.0,
+            })
+            .collect();
+        let units = UnitContacts::of(&contacts).unwrap();
+        let (q, v, dv): (Vec<f64>, Vec<f64>, Vec<f64>) = (
+            (0..n).map(|i| f(i, 1.1)).collect(),
+            (0..n)
+                .map(|i| if i % 7 == 0 { -0.0 } else { f(i, 2.3) })
+                .collect(),
+            (0..n).map(|i| f(i, 0.7)).collect(),
+        );
+        let (t, h) = (0.25, 1e-2);
+        for activation in [Activation::GapAndVelocity, Activation::PredictedGap] {
+            let rule = IndexSetRule {
+                activation,
+                gamma: 0.8,
+            };
+            let u_free = |c: &Contact| c.project(&v) + c.project(&dv) + c.w_rate(t + h);
+            // Round-off levels of a last step on the first index set, which the sign test reads.
+            let mut generic = IndexSet::new(n);
+            generic.assemble(&rule, &contacts, 3, &q, &v, t, h, u_free);
+            let levels: Vec<f64> = (0..generic.active.len()).map(|r| f(r, 0.5).abs()).collect();
+            generic.record_levels(&levels, 3);
+            let mut unit = generic.clone();
+            generic.assemble(&rule, &contacts, 3, &q, &v, t, h, u_free);
+            unit.assemble_unit(&rule, &units, 3, &q, &v, &dv, t, h);
+            assert!(!generic.active.is_empty() && generic.active.len() < n);
+            assert_eq!(generic.active, unit.active);
+            let bits = |x: &[f64]| x.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&generic.rhs), bits(&unit.rhs));
+        }
+        let (mut gap, mut vel) = (vec![0.0; n], vec![0.0; n]);
+        units.fill(&q, &v, &mut gap, &mut vel);
+        for (a, c) in contacts.iter().enumerate() {
+            assert_eq!(gap[a].to_bits(), c.gap(&q, t).to_bits());
+            assert_eq!(vel[a].to_bits(), c.local_velocity(&v, t).to_bits());
+        }
+        let active: Vec<usize> = (0..n).step_by(3).collect();
+        let impulse: Vec<f64> = (0..n).map(|i| f(i, 0.9).abs()).collect();
+        let generic: f64 = active
+            .iter()
+            .map(|&a| impulse[a] * contacts[a].project(&v))
+            .sum();
+        assert_eq!(
+            units.work(&active, &impulse, &v).to_bits(),
+            generic.to_bits()
+        );
     }
 }

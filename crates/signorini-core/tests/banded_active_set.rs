@@ -193,6 +193,41 @@ proptest! {
         agree(&mut solver, &s, &ImpulseMap::Direct, &rows, &b2);
     }
 
+    /// Every dof a contact and every contact pressed (the settled region of a string on its
+    /// obstacle): b = −Gᵀ S⁻¹ G P with P > 0, so the solution has every contact active, x
+    /// prescribed on every dof and P = (S x)_dof / g, the path with no system to solve; rows
+    /// in dof order and in reverse; a warm re-solve takes one iteration on the kept factor.
+    #[test]
+    fn every_dof_pressed_equals_lemke(
+        n in 2usize..40,
+        kd in 1usize..4,
+        off in prop::collection::vec(-1.0f64..1.0, 1..40),
+        shift in 0.05f64..2.0,
+        signs in prop::collection::vec(prop_oneof![Just(1.0f64), Just(-1.0), 0.3f64..3.0], 1..8),
+        target in prop::collection::vec(0.1f64..2.0, 40),
+        reverse in any::<bool>(),
+    ) {
+        let s = banded_spd(n, kd, &off, shift);
+        let mut rows: Vec<(usize, f64)> = (0..n).map(|i| (i, signs[i % signs.len()])).collect();
+        if reverse {
+            rows.reverse();
+        }
+        let mut x = vec![0.0; n];
+        for (r, &(i, g)) in rows.iter().enumerate() {
+            x[i] = g * target[r];
+        }
+        s.cholesky().unwrap().solve_in_place(&mut x);
+        let b: Vec<f64> = rows.iter().map(|&(i, g)| -g * x[i]).collect();
+        let mut solver = BandedActiveSet::new(s.clone(), ImpulseMap::Direct);
+        agree(&mut solver, &s, &ImpulseMap::Direct, &rows, &b);
+        let (mut p, mut xs) = (vec![0.0; n], vec![0.0; n]);
+        let stats = solver.solve(&rows, &b, &LcpOptions::default(), &mut p, &mut xs).unwrap();
+        prop_assert_eq!((stats.iterations, stats.active), (1, n));
+        for (r, &t) in target[..n].iter().enumerate() {
+            prop_assert!((p[r] - t).abs() <= 1e-9 * 2.0, "P[{}] = {} for {}", r, p[r], t);
+        }
+    }
+
     #[test]
     fn filtered_map_equals_lemke(
         n in 2usize..24,

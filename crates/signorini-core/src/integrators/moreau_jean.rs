@@ -237,16 +237,30 @@ impl LinearScheme for MoreauJean {
         // Index set (24) (or the predicted-gap rule) and the impulse LCP (21c)–(21d):
         // U_free = Gᵀ(v_k + Δv_free) + ẇ(t_{k+1}); the impulse adds Ŵ⁻¹ G P to Δv.
         let dv = &s.dv;
-        self.index_set.assemble(
-            &self.params.index_set,
-            &model.contacts,
-            state.step,
-            &state.q,
-            &state.v,
-            t_k,
-            h,
-            |c| c.project(&state.v) + c.project(dv) + c.w_rate(t_next),
-        );
+        let units = self.banded.as_ref().and_then(BandedImpulse::units);
+        if let Some(units) = units {
+            self.index_set.assemble_unit(
+                &self.params.index_set,
+                units,
+                state.step,
+                &state.q,
+                &state.v,
+                dv,
+                t_k,
+                h,
+            );
+        } else {
+            self.index_set.assemble(
+                &self.params.index_set,
+                &model.contacts,
+                state.step,
+                &state.q,
+                &state.v,
+                t_k,
+                h,
+                |c| c.project(&state.v) + c.project(dv) + c.w_rate(t_next),
+            );
+        }
         let friction = self.friction.as_mut().filter(|_| {
             self.index_set
                 .active
@@ -345,12 +359,16 @@ impl LinearScheme for MoreauJean {
         } else {
             0.0
         };
-        let work_contact: f64 = self
-            .index_set
-            .active
-            .iter()
-            .map(|&a| report.impulse[a] * model.contacts[a].project(&s.v_pos))
-            .sum();
+        let units = self.banded.as_ref().and_then(BandedImpulse::units);
+        let work_contact: f64 = match units {
+            Some(u) => u.work(&self.index_set.active, &report.impulse, &s.v_pos),
+            None => self
+                .index_set
+                .active
+                .iter()
+                .map(|&a| report.impulse[a] * model.contacts[a].project(&s.v_pos))
+                .sum(),
+        };
         let work_friction: f64 = if self.friction.is_some() {
             self.index_set
                 .active
@@ -394,7 +412,15 @@ impl LinearScheme for MoreauJean {
                 - work_friction
                 - numerical_dissipation,
         };
-        report.fill_contacts(model, &state.q, &state.v, t_next);
+        match units.filter(|_| model.friction.is_empty()) {
+            Some(u) => u.fill(
+                &state.q,
+                &state.v,
+                &mut report.gap,
+                &mut report.local_velocity,
+            ),
+            None => report.fill_contacts(model, &state.q, &state.v, t_next),
+        }
         Ok(())
     }
 }

@@ -14,6 +14,10 @@
 //! and P = 0 elsewhere, the n equations `S x − R D G P = 0` are one banded system in the
 //! unknowns x (free dofs) and P_𝒜 (the columns of the prescribed dofs exchanged), of the
 //! bandwidth of S and R, solved by banded LU with partial pivoting in O(n · bandwidth²).
+//! With `R D = I` and S positive definite (Moreau–Jean) the same system splits: the free rows
+//! `S_FF x_F = −S_F𝒜 x_𝒜` are S with the rows and columns of 𝒜 replaced by the identity's
+//! (positive definite, banded Cholesky, no pivoting), and the rows of 𝒜 give
+//! `P_α = (S x)_dof / g_α`, one banded product.
 //!
 //! # The method
 //!
@@ -59,7 +63,7 @@
 //!   the exact solution of the last 𝒜's system with every sign checked, the same as without
 //!   leaps (W is a P-matrix: the LCP's solution is unique).
 //!
-//! //! The complementarity error is that of every solver here, `‖min(P, w)‖_∞ / max(1, ‖b‖_∞)`
+//! The complementarity error is that of every solver here, `‖min(P, w)‖_∞ / max(1, ‖b‖_∞)`
 //! ([`crate::lcp`]), on the contacts of the problem.
 
 use super::{LcpError, LcpOptions};
@@ -104,21 +108,56 @@ pub struct ActiveSetStats {
 #[derive(Debug, Clone)]
 pub struct BandedActiveSet {
     s: SymBand,
+    /// The lower diagonals of S, entry (i, i − k) at `k n + i` (the products of the reduced
+    /// solve run along them).
+    lower: Vec<f64>,
     map: ImpulseMap,
     /// The active dofs of the last solution (warm start).
     warm: Vec<bool>,
-    /// The window (first and last dof) and active dofs of `lu`, and the factor.
-    lu: Option<(usize, usize, Vec<bool>, BandLu)>,
+    /// The last factorisation, reused while the window and its active dofs stay the same.
+    factor: Option<Factored>,
     /// Cholesky factors of S and of S with its dofs in reverse order: their leading blocks
     /// condense the free dofs on either side of the window ([`BandChol::corner`]).
     chol: Option<(BandChol, BandChol)>,
     /// S is a Z-matrix (off-diagonals ≤ 0) and the map is `Direct`: with one sign of G the
     /// block pivots converge monotonically (see the [module](self) documentation).
     z_matrix: bool,
+    /// The rows of the current problem are on consecutive dofs in increasing order.
+    in_order: bool,
     /// Active flags per dof of the current iterate, and the row of each dof (usize::MAX: none).
     act: Vec<bool>,
     row_of: Vec<usize>,
     rhs: Vec<f64>,
+    /// The prescribed x of the active dofs on the window, zero elsewhere (the reduced solve).
+    fixed: Vec<f64>,
+    /// Per contact: w and the exchange flags of the current iterate.
+    w: Vec<f64>,
+    flip: Vec<bool>,
+}
+
+/// A factorised system of the active-set iterations, for one window and its active dofs.
+#[derive(Debug, Clone)]
+struct Factored {
+    lo: usize,
+    hi: usize,
+    /// The active flags of the window's dofs.
+    flags: Vec<bool>,
+    /// How many of them are free.
+    free: usize,
+    system: System,
+}
+
+/// How the system of an iterate is factorised.
+#[derive(Debug, Clone)]
+enum System {
+    /// The exchanged system (columns of the active dofs exchanged for their impulses), banded
+    /// LU with partial pivoting: any map, any S.
+    Exchanged(BandLu),
+    /// `Direct` map and S positive definite: S on the window with the rows and columns of the
+    /// active dofs replaced by the identity's (their x is prescribed), minus the Schur
+    /// complements of the free dofs outside, is positive definite; its Cholesky factor gives x
+    /// on the window, and `P_α = (S x)_dof / g_α` (the row of an active dof in `S x = G P`).
+    Reduced(BandChol),
 }
 
 impl BandedActiveSet {
@@ -131,16 +170,27 @@ impl BandedActiveSet {
         let z_matrix = matches!(map, ImpulseMap::Direct)
             && (0..n).all(|i| (i.saturating_sub(kd)..i).all(|j| s.get(i, j) <= 0.0));
         let chol = BandChol::of(&s, false).zip(BandChol::of(&s, true));
+        let mut lower = vec![0.0; n * (kd + 1)];
+        for k in 0..=kd {
+            for i in k..n {
+                lower[k * n + i] = s.get(i, i - k);
+            }
+        }
         Self {
             s,
+            lower,
             map,
             warm: vec![false; n],
-            lu: None,
+            factor: None,
             chol,
             z_matrix,
+            in_order: false,
             act: vec![false; n],
             row_of: vec![usize::MAX; n],
             rhs: vec![0.0; n],
+            fixed: vec![0.0; n],
+            w: Vec::new(),
+            flip: Vec::new(),
         }
     }
 
@@ -160,26 +210,48 @@ impl BandedActiveSet {
         x: &mut [f64],
     ) -> Result<ActiveSetStats, LcpError> {
         let k = rows.len();
-        p[..k].fill(0.0);
-        x.fill(0.0);
-        for (r, &(dof, _)) in rows.iter().enumerate() {
+        // One pass over the contacts: the row of each dof, the warm start as the first guess,
+        // the scale of b, whether P = 0 solves it, the bounds of the window and the signs of G.
+        let (mut scale, mut nonnegative, mut active) = (1.0f64, true, 0);
+        let (mut first, mut last) = (usize::MAX, 0);
+        let (mut positive, mut negative) = (true, true);
+        let mut in_order = true;
+        let dof0 = rows.first().map_or(0, |&(d, _)| d);
+        for (r, (&(dof, coef), &bi)) in rows.iter().zip(&b[..k]).enumerate() {
+            in_order &= dof == dof0 + r;
             self.row_of[dof] = r;
-            self.act[dof] = false;
+            self.act[dof] = self.warm[dof];
+            active += usize::from(self.warm[dof]);
+            scale = scale.max(bi.abs());
+            nonnegative &= bi >= 0.0;
+            first = first.min(dof);
+            last = last.max(dof);
+            positive &= coef > 0.0;
+            negative &= coef < 0.0;
         }
-        let scale = b.iter().fold(1.0f64, |s, a| s.max(a.abs()));
-        let result = if b.iter().all(|&bi| bi >= 0.0) {
+        self.in_order = in_order;
+        let result = if nonnegative {
             // P = 0 solves it (as for the dense solvers).
+            p[..k].fill(0.0);
+            x.fill(0.0);
             Ok(ActiveSetStats {
                 size: k,
                 ..Default::default()
             })
         } else {
-            let window = self.window(rows);
-            self.iterate(rows, b, options, scale, window, p, x)
+            let window = self.window(first, last);
+            // W⁻¹ is an M-matrix (S a Z-matrix, R D = I, one sign of G): block pivots converge
+            // monotonically, in at most k of them, whether or not the count of infeasible
+            // contacts falls at each (Hintermüller, Ito & Kunisch 2002, §3, the M-matrix
+            // case); the count stalls while a contact region shrinks by its two edge contacts
+            // per pivot, and Murty's single pivots would only halve that pace.
+            let monotone = self.z_matrix && (positive || negative);
+            self.iterate(rows, b, options, scale, window, monotone, active, p, x)
         };
+        let solved = result.is_ok() && !nonnegative;
         for &(dof, _) in rows {
             self.row_of[dof] = usize::MAX;
-            self.warm[dof] = self.act[dof] && result.is_ok();
+            self.warm[dof] = self.act[dof] && solved;
             self.act[dof] = false;
         }
         result
@@ -209,23 +281,21 @@ impl BandedActiveSet {
     }
 
     /// The first and last dof of the window the iterations solve on: the dofs of the
-    /// contacts and [`BandedActiveSet::kd`] more on each side. The equations of the dofs
+    /// contacts (`first` to `last`) and [`BandedActiveSet::kd`] more on each side. The equations of the dofs
     /// outside touch no contact's column and have no right-hand side, so they are condensed
     /// onto the window's edges (the Schur complements of S's leading and trailing blocks,
     /// [`BandChol::corner`]) and solved once at the end ([`BandChol::solve_outer`]): an
     /// iteration costs O(window · bandwidth²) instead of O(n · bandwidth²).
-    fn window(&self, rows: &[(usize, f64)]) -> (usize, usize) {
+    fn window(&self, first: usize, last: usize) -> (usize, usize) {
         let n = self.s.n();
         if self.chol.is_none() {
             return (0, n - 1);
         }
-        let (lo, hi) = rows
-            .iter()
-            .fold((usize::MAX, 0), |(lo, hi), &(d, _)| (lo.min(d), hi.max(d)));
         let kd = self.kd();
-        (lo.saturating_sub(kd), (hi + kd).min(n - 1))
+        (first.saturating_sub(kd), (last + kd).min(n - 1))
     }
 
+    /// The pivots from the warm start (`active` contacts), with the solver's scratch.
     #[allow(clippy::too_many_arguments)]
     fn iterate(
         &mut self,
@@ -234,29 +304,54 @@ impl BandedActiveSet {
         options: &LcpOptions,
         scale: f64,
         window: (usize, usize),
+        monotone: bool,
+        active: usize,
         p: &mut [f64],
         x: &mut [f64],
     ) -> Result<ActiveSetStats, LcpError> {
         let k = rows.len();
         // Infeasibilities below this level are round-off: exchanging them would cycle.
         let tau = 1e-3 * options.tolerance * scale;
-        // W⁻¹ is an M-matrix (S a Z-matrix, R D = I, one sign of G): block pivots converge
-        // monotonically, in at most k of them, whether or not the count of infeasible
-        // contacts falls at each (Hintermüller, Ito & Kunisch 2002, §3, the M-matrix case);
-        // the count stalls while a contact region shrinks by its two edge contacts per
-        // pivot, and Murty's single pivots would only halve that pace.
-        let monotone = self.z_matrix
-            && (rows.iter().all(|&(_, c)| c > 0.0) || rows.iter().all(|&(_, c)| c < 0.0));
         let patience = if monotone { k } else { BLOCK_TRIES };
-        let mut active = 0;
-        for &(dof, _) in rows {
-            self.act[dof] = self.warm[dof];
-            active += usize::from(self.warm[dof]);
-        }
+        let mut w = std::mem::take(&mut self.w);
+        let mut flip = std::mem::take(&mut self.flip);
+        w.resize(k, 0.0);
+        flip.resize(k, false);
+        let result = self.pivot(
+            rows,
+            b,
+            options,
+            (scale, tau),
+            window,
+            (patience, monotone),
+            active,
+            p,
+            x,
+            (&mut w[..k], &mut flip[..k]),
+        );
+        self.w = w;
+        self.flip = flip;
+        result
+    }
+
+    /// The pivots of [`BandedActiveSet::iterate`] from its active flags, with its scratch.
+    #[allow(clippy::too_many_arguments)]
+    fn pivot(
+        &mut self,
+        rows: &[(usize, f64)],
+        b: &[f64],
+        options: &LcpOptions,
+        (scale, tau): (f64, f64),
+        window: (usize, usize),
+        (patience, monotone): (usize, bool),
+        mut active: usize,
+        p: &mut [f64],
+        x: &mut [f64],
+        (w, flip): (&mut [f64], &mut [bool]),
+    ) -> Result<ActiveSetStats, LcpError> {
+        let k = rows.len();
         let (mut best, mut tries) = (usize::MAX, 0);
         let (mut reach, mut leaps) = (1, 0);
-        let mut w = vec![0.0; k];
-        let mut flip = vec![false; k];
         for iteration in 1..=options.max_iterations {
             self.solve_active(rows, b, active, window, p, x)?;
             let mut infeasible = 0;
@@ -276,7 +371,7 @@ impl BandedActiveSet {
             if infeasible == 0 {
                 let error = p[..k]
                     .iter()
-                    .zip(&w)
+                    .zip(w.iter())
                     .fold(0.0f64, |e, (&pi, &wi)| e.max(pi.min(wi).abs()))
                     / scale;
                 if error > options.tolerance {
@@ -315,13 +410,13 @@ impl BandedActiveSet {
                 // as contacts that join again at the next pivot, and `reach` falls to a quarter.
                 let joins = rows
                     .iter()
-                    .zip(&flip)
+                    .zip(flip.iter())
                     .any(|(&(dof, _), &f)| f && !self.act[dof]);
                 if joins {
                     leaps += usize::from(reach > 1);
                     reach = (reach / 4).max(1);
                 } else {
-                    self.leap(rows, &mut flip, reach);
+                    self.leap(rows, flip, reach);
                     reach = (2 * reach).min(k);
                 }
             }
@@ -338,7 +433,7 @@ impl BandedActiveSet {
         }
         let error = p[..k]
             .iter()
-            .zip(&w)
+            .zip(w.iter())
             .fold(0.0f64, |e, (&pi, &wi)| e.max(pi.min(wi).abs()))
             / scale;
         Err(LcpError::NotConverged {
@@ -373,8 +468,11 @@ impl BandedActiveSet {
         }
     }
 
-    /// x on the window and P for the current active flags: the banded system with the
-    /// columns of the active dofs exchanged for their impulses, condensed onto the window.
+    /// x on the window and P for the current active flags, condensed onto the window: the
+    /// reduced positive definite system ([`System::Reduced`]) when the map is `Direct` and S
+    /// positive definite, else the exchanged system ([`System::Exchanged`]). The factor of
+    /// the last iterate is reused when the window and its active dofs are the same (a settled
+    /// contact region: the warm start of the next step is the last solution).
     fn solve_active(
         &mut self,
         rows: &[(usize, f64)],
@@ -384,45 +482,175 @@ impl BandedActiveSet {
         p: &mut [f64],
         x: &mut [f64],
     ) -> Result<(), LcpError> {
-        let n = self.s.n();
-        p[..rows.len()].fill(0.0);
         if active == 0 {
+            p[..rows.len()].fill(0.0);
             x[lo..=hi].fill(0.0);
             return Ok(());
         }
-        let reuse = matches!(&self.lu, Some((a, b, flags, _)) if (*a, *b) == (lo, hi) && *flags == self.act);
+        let flags = &self.act[lo..=hi];
+        let reuse = matches!(&self.factor, Some(f) if (f.lo, f.hi) == (lo, hi) && f.flags == flags);
         if !reuse {
-            let lu = self.factor_active(rows, (lo, hi))?;
-            self.lu = Some((lo, hi, self.act.clone(), lu));
+            let system = if matches!(self.map, ImpulseMap::Direct) && self.chol.is_some() {
+                System::Reduced(self.factor_reduced((lo, hi))?)
+            } else {
+                System::Exchanged(self.factor_exchanged(rows, (lo, hi))?)
+            };
+            let mut flags = self.factor.take().map(|f| f.flags).unwrap_or_default();
+            flags.clear();
+            flags.extend_from_slice(&self.act[lo..=hi]);
+            let free = flags.iter().filter(|&&a| !a).count();
+            self.factor = Some(Factored {
+                lo,
+                hi,
+                flags,
+                free,
+                system,
+            });
         }
-        // Right-hand side −Σ_{j active} S_ij x_j with x_j = −b_α / g_α (rows in the window).
-        let kd = self.s.kd();
-        let rhs = &mut self.rhs[..hi - lo + 1];
-        rhs.fill(0.0);
-        for (r, &(dof, coef)) in rows.iter().enumerate() {
-            if self.act[dof] {
-                let xj = -b[r] / coef;
-                for i in dof.saturating_sub(kd)..(dof + kd + 1).min(n) {
-                    rhs[i - lo] -= self.s.get(i, dof) * xj;
+        let Self {
+            s,
+            lower,
+            in_order,
+            act,
+            factor,
+            rhs,
+            fixed,
+            ..
+        } = self;
+        let Some(factored) = factor else {
+            return Ok(());
+        };
+        let m = hi - lo + 1;
+        let rhs = &mut rhs[..m];
+        match &factored.system {
+            System::Reduced(_) if factored.free == 0 => {
+                // Every dof is a contact's and active (a settled region without a gap: the
+                // window is all dofs): x = x_A, nothing to solve, P = (S x)_A / g_A.
+                let xw = &mut x[lo..=hi];
+                let (n, kd) = (s.n(), s.kd());
+                if *in_order {
+                    // Row r on dof lo + r: vector passes.
+                    for ((xi, &(_, coef)), &br) in xw.iter_mut().zip(rows).zip(b) {
+                        *xi = -br / coef;
+                    }
+                    band_mul(lower, n, kd, lo, xw, rhs);
+                    for ((pr, &(_, coef)), &y) in p.iter_mut().zip(rows).zip(rhs.iter()) {
+                        *pr = y / coef;
+                    }
+                } else {
+                    for (&(dof, coef), &br) in rows.iter().zip(b) {
+                        xw[dof - lo] = -br / coef;
+                    }
+                    for (pr, &(dof, coef)) in p.iter_mut().zip(rows) {
+                        *pr = band_row(lower, n, kd, dof, lo, xw) / coef;
+                    }
                 }
             }
-        }
-        if let Some((_, _, _, lu)) = &self.lu {
-            lu.solve_in_place(rhs);
-        }
-        x[lo..=hi].copy_from_slice(rhs);
-        for (r, &(dof, coef)) in rows.iter().enumerate() {
-            if self.act[dof] {
-                p[r] = x[dof];
-                x[dof] = -b[r] / coef;
+            System::Reduced(chol) => {
+                // x_A = −b_A / g_A prescribed; S'x = r with r = x_A on the active rows and
+                // −(S x_A) on the free ones; then P_α = (S x)_dof / g_α.
+                p[..rows.len()].fill(0.0);
+                let fixed = &mut fixed[..m];
+                fixed.fill(0.0);
+                for (r, &(dof, coef)) in rows.iter().enumerate() {
+                    if act[dof] {
+                        fixed[dof - lo] = -b[r] / coef;
+                    }
+                }
+                let (n, kd) = (s.n(), s.kd());
+                band_mul(lower, n, kd, lo, fixed, rhs);
+                for ((ri, &fi), &a) in rhs.iter_mut().zip(fixed.iter()).zip(&act[lo..=hi]) {
+                    *ri = if a { fi } else { -*ri };
+                }
+                chol.solve_in_place(rhs);
+                let xw = &mut x[lo..=hi];
+                xw.copy_from_slice(rhs);
+                for (r, &(dof, coef)) in rows.iter().enumerate() {
+                    if act[dof] {
+                        xw[dof - lo] = fixed[dof - lo];
+                        p[r] = band_row(lower, n, kd, dof, lo, xw) / coef;
+                    }
+                }
+            }
+            System::Exchanged(lu) => {
+                // Right-hand side −Σ_{j active} S_ij x_j with x_j = −b_α / g_α.
+                p[..rows.len()].fill(0.0);
+                let (n, kd) = (s.n(), s.kd());
+                rhs.fill(0.0);
+                for (r, &(dof, coef)) in rows.iter().enumerate() {
+                    if act[dof] {
+                        let xj = -b[r] / coef;
+                        for i in dof.saturating_sub(kd)..(dof + kd + 1).min(n) {
+                            rhs[i - lo] -= s.get(i, dof) * xj;
+                        }
+                    }
+                }
+                lu.solve_in_place(rhs);
+                x[lo..=hi].copy_from_slice(rhs);
+                for (r, &(dof, coef)) in rows.iter().enumerate() {
+                    if act[dof] {
+                        p[r] = x[dof];
+                        x[dof] = -b[r] / coef;
+                    }
+                }
             }
         }
         Ok(())
     }
 
-    /// The exchanged system on the window `lo..=hi`, minus the Schur complements of the free
+    /// The Schur complements of the free dofs outside the window `lo..=hi` (m dofs), as
+    /// `add(i, j, −value)` on window-local indices of its leading and trailing ks × ks corners.
+    fn corners(&self, (lo, hi): (usize, usize), mut add: impl FnMut(usize, usize, f64)) {
+        if let Some((chol, rev)) = &self.chol {
+            // The corners are entries of free dofs: the contacts are kd dofs inside.
+            let (n, ks) = (self.s.n(), self.s.kd());
+            let m = hi - lo + 1;
+            if lo > 0 {
+                for i in 0..ks.min(m) {
+                    for j in 0..ks.min(m) {
+                        add(i, j, -chol.corner(lo, i, j));
+                    }
+                }
+            }
+            if hi + 1 < n {
+                let size = n - 1 - hi;
+                for i in 0..ks.min(m) {
+                    for j in 0..ks.min(m) {
+                        add(m - 1 - i, m - 1 - j, -rev.corner(size, i, j));
+                    }
+                }
+            }
+        }
+    }
+
+    /// [`System::Reduced`] on the window `lo..=hi`: S with the rows and columns of the active
+    /// dofs replaced by the identity's, minus the Schur complements of the free dofs outside.
+    fn factor_reduced(&self, (lo, hi): (usize, usize)) -> Result<BandChol, LcpError> {
+        let (m, kd) = (hi - lo + 1, self.s.kd());
+        // Row i, entries i − kd … i, as BandChol stores them.
+        let mut a = vec![0.0; m * (kd + 1)];
+        let at = |i: usize, j: usize| i * (kd + 1) + kd + j - i;
+        for i in 0..m {
+            for j in i.saturating_sub(kd)..=i {
+                let (di, dj) = (lo + i, lo + j);
+                a[at(i, j)] = if self.act[di] || self.act[dj] {
+                    if i == j { 1.0 } else { 0.0 }
+                } else {
+                    self.s.get(di, dj)
+                };
+            }
+        }
+        self.corners((lo, hi), |i, j, v| {
+            if j <= i {
+                a[at(i, j)] += v;
+            }
+        });
+        BandChol::from_lower(m, kd, a).map_err(|row| LcpError::SingularActiveSet { dof: row + lo })
+    }
+
+    /// [`System::Exchanged`] on the window `lo..=hi`, minus the Schur complements of the free
     /// dofs outside it.
-    fn factor_active(
+    fn factor_exchanged(
         &self,
         rows: &[(usize, f64)],
         (lo, hi): (usize, usize),
@@ -448,26 +676,7 @@ impl BandedActiveSet {
                 }
             }
         }
-        if let Some((chol, rev)) = &self.chol {
-            // The corners are columns of free dofs: the contacts are kd dofs inside.
-            let (n, ks) = (self.s.n(), self.s.kd());
-            let m = hi - lo + 1;
-            if lo > 0 {
-                for i in 0..ks.min(m) {
-                    for j in 0..ks.min(m) {
-                        a.add(i, j, -chol.corner(lo, i, j));
-                    }
-                }
-            }
-            if hi + 1 < n {
-                let size = n - 1 - hi;
-                for i in 0..ks.min(m) {
-                    for j in 0..ks.min(m) {
-                        a.add(m - 1 - i, m - 1 - j, -rev.corner(size, i, j));
-                    }
-                }
-            }
-        }
+        self.corners((lo, hi), |i, j, v| a.add(i, j, v));
         a.factor()
             .map_err(|col| LcpError::SingularActiveSet { dof: col + lo })?;
         Ok(a)
@@ -500,28 +709,38 @@ impl BandChol {
     /// The factor of S (`reversed`: of S_{n−1−i, n−1−j}); `None` if S is not positive definite.
     fn of(s: &SymBand, reversed: bool) -> Option<Self> {
         let (n, kd) = (s.n(), s.kd());
-        let get = |i: usize, j: usize| {
-            if reversed {
-                s.get(n - 1 - i, n - 1 - j)
-            } else {
-                s.get(i, j)
+        let mut a = vec![0.0; n * (kd + 1)];
+        for i in 0..n {
+            for j in i.saturating_sub(kd)..=i {
+                a[i * (kd + 1) + kd + j - i] = if reversed {
+                    s.get(n - 1 - i, n - 1 - j)
+                } else {
+                    s.get(i, j)
+                };
             }
-        };
+        }
+        Self::from_lower(n, kd, a).ok()
+    }
+
+    /// The factor of the symmetric matrix of order n whose lower band (row i, entries
+    /// i − kd … i) is `a`, stored as the factor is (`i (kd + 1) + kd + j − i`), factorised in
+    /// its place; `Err(i)` when the pivot of row i is not positive.
+    fn from_lower(n: usize, kd: usize, a: Vec<f64>) -> Result<Self, usize> {
         let mut c = Self {
             n,
             kd,
-            l: vec![0.0; n * (kd + 1)],
+            l: a,
             inv: vec![0.0; n],
         };
         for i in 0..n {
             for j in i.saturating_sub(kd)..=i {
-                let mut sum = get(i, j);
+                let mut sum = c.l[i * (kd + 1) + kd + j - i];
                 for k in i.saturating_sub(kd)..j {
                     sum -= c.get(i, k) * c.get(j, k);
                 }
                 let v = if i == j {
                     if !(sum > 0.0 && sum.is_finite()) {
-                        return None;
+                        return Err(i);
                     }
                     let d = sum.sqrt();
                     c.inv[i] = 1.0 / d;
@@ -532,7 +751,45 @@ impl BandChol {
                 c.l[i * (kd + 1) + kd + j - i] = v;
             }
         }
-        Some(c)
+        Ok(c)
+    }
+
+    /// Solves `L Lᵀ x = b` in place.
+    // Band algorithms read best with the indices of the matrix they walk.
+    #[allow(clippy::needless_range_loop)]
+    fn solve_in_place(&self, b: &mut [f64]) {
+        let (n, kd) = (self.n, self.kd);
+        let b = &mut b[..n];
+        let w = kd + 1;
+        if kd == 1 {
+            // Tridiagonal: one recurrence each way.
+            let mut prev = 0.0;
+            for (i, bi) in b.iter_mut().enumerate() {
+                prev = (*bi - self.l[i * w] * prev) * self.inv[i];
+                *bi = prev;
+            }
+            let mut next = 0.0;
+            for i in (0..n).rev() {
+                let sub = if i + 1 < n { self.l[(i + 1) * w] } else { 0.0 };
+                next = (b[i] - sub * next) * self.inv[i];
+                b[i] = next;
+            }
+            return;
+        }
+        for i in 0..n {
+            let mut s = b[i];
+            for k in i.saturating_sub(kd)..i {
+                s -= self.l[i * w + kd + k - i] * b[k];
+            }
+            b[i] = s * self.inv[i];
+        }
+        for i in (0..n).rev() {
+            let mut s = b[i];
+            for k in i + 1..(i + kd + 1).min(n) {
+                s -= self.l[k * w + kd + i - k] * b[k];
+            }
+            b[i] = s * self.inv[i];
+        }
     }
 
     /// L_ij (zero outside the band; j ≤ i).
@@ -581,6 +838,41 @@ impl BandChol {
             x[dof(i)] = v * self.inv[i];
         }
     }
+}
+
+/// `y = S x` on the window of m = x.len() dofs from `lo` (S's entries inside the window only),
+/// with `lower` the lower diagonals of S of order n, entry (i, i − k) at `k n + i`.
+fn band_mul(lower: &[f64], n: usize, kd: usize, lo: usize, x: &[f64], y: &mut [f64]) {
+    let m = x.len();
+    for ((yi, a), xi) in y.iter_mut().zip(&lower[lo..lo + m]).zip(x) {
+        *yi = a * xi;
+    }
+    for k in 1..=kd.min(m.saturating_sub(1)) {
+        // S(lo + i, lo + i − k) for i = k … m − 1.
+        let d = &lower[k * n + lo + k..k * n + lo + m];
+        for ((yi, a), xj) in y[k..].iter_mut().zip(d).zip(&x[..m - k]) {
+            *yi += a * xj;
+        }
+        for ((yj, a), xi) in y[..m - k].iter_mut().zip(d).zip(&x[k..]) {
+            *yj += a * xi;
+        }
+    }
+}
+
+/// `(S x)_dof` with x given on the window from `lo` (which holds dof's band), `lower` as in
+/// [`band_mul`].
+#[inline]
+fn band_row(lower: &[f64], n: usize, kd: usize, dof: usize, lo: usize, x: &[f64]) -> f64 {
+    let mut sum = lower[dof] * x[dof - lo];
+    for k in 1..=kd {
+        if dof >= k {
+            sum += lower[k * n + dof] * x[dof - k - lo];
+        }
+        if dof + k < n {
+            sum += lower[k * n + dof + k] * x[dof + k - lo];
+        }
+    }
+    sum
 }
 
 /// Whether every contact's column of G is one dof and no two share a dof (the structure
