@@ -29,9 +29,9 @@
 //! thread, including the server's async handlers, without nesting runtimes.
 
 use super::{
-    Backend, Beat, BeatReply, CancelOutcome, ChunkMeta, Claim, ResultTexts, SeriesChunk,
-    SharedQueue, StoreError, StoredResult, batches_blob, check_index, decode_chunk, f64s_to_blob,
-    split_series, u64s_to_blob,
+    Backend, Beat, BeatReply, CancelOutcome, ChunkMeta, Claim, JobEnd, ResultTexts, SeriesChunk,
+    SharedQueue, StoreError, StoredResult, batches_blob, check_index, decode_chunk, end_by_calls,
+    f64s_to_blob, split_series, u64s_to_blob,
 };
 use crate::status::{JobState, JobView};
 use deadpool_postgres::{Manager, ManagerConfig, Pool, RecyclingMethod, Transaction};
@@ -697,6 +697,109 @@ impl Backend for PgStore {
         })
     }
 
+    fn end(&self, end: &JobEnd<'_>) -> Result<(), StoreError> {
+        if end.result.is_some_and(|r| !r.steps.is_empty()) {
+            return end_by_calls(self, end);
+        }
+        // The usual end: one statement, one round trip. Everything in it hangs on `done`, the
+        // end of the job while this replica still holds it, so a replica that lost its lease
+        // stores nothing (not even the checkpoint delete: the checkpoint is the new owner's).
+        let row = end.view.clone();
+        let owner = self.replica.clone();
+        let texts = end.result.map(ResultTexts::of);
+        let partial = end.result.is_some_and(|r| r.partial);
+        let (chunk, first_row, rows) = match end.rows {
+            Some((chunk, first_row, rows)) => (chunk as i64, first_row as i64, rows.clone()),
+            None => (0, 0, SeriesChunk::default()),
+        };
+        let (kept_step, kept_bytes) = match end.final_state {
+            Some((_, step, bytes)) => (Some(step as i64), Some(bytes.to_vec())),
+            None => (None, None),
+        };
+        self.with(move |c| async move {
+            let (field, reason) = row.error_parts();
+            let has_result = texts.is_some();
+            let texts = texts.unwrap_or_default();
+            let n_rows = rows.steps.len() as i64;
+            let step_first = rows.steps.first().map_or(0, |&s| s as i64);
+            let step_last = rows.steps.last().map_or(0, |&s| s as i64);
+            let blobs = (
+                u64s_to_blob(&rows.steps),
+                f64s_to_blob(&rows.t),
+                f64s_to_blob(&rows.values),
+                batches_blob(&rows),
+            );
+            let st = c
+                .prepare_cached(
+                    "WITH done AS (
+                        UPDATE jobs SET state = $2, finished_ms = $3, error_field = $4, error_reason = $5,
+                               done = $6, total = $7, t = $8, lease_until = NULL
+                        WHERE id = $1 AND state = 'running' AND owner = $9 RETURNING attempt),
+                     res AS (
+                        INSERT INTO results (id, attempt, summary_json, columns_json, tables_json, figures_json, partial)
+                        SELECT $1, attempt, $10, $11, $12, $13, $14 FROM done WHERE $15
+                        ON CONFLICT (id, attempt) DO NOTHING),
+                     chunk AS (
+                        INSERT INTO result_chunks (id, attempt, chunk, first_row, rows, step_first, step_last, steps, t, vals, batches)
+                        SELECT $1, attempt, $16, $17, $18, $19, $20, $21, $22, $23, $24 FROM done WHERE $18::BIGINT > 0
+                        ON CONFLICT (id, attempt, chunk) DO NOTHING),
+                     kept AS (
+                        INSERT INTO final_states (id, step, bytes)
+                        SELECT $1, s.step, s.bytes FROM done, (
+                            SELECT $25::BIGINT AS step, $26::BYTEA AS bytes WHERE $25::BIGINT IS NOT NULL
+                            UNION ALL
+                            SELECT step, bytes FROM checkpoints
+                            WHERE id = $1 AND step = $6::BIGINT AND $25::BIGINT IS NULL) s
+                        WHERE $2::TEXT = 'succeeded'
+                        ON CONFLICT (id) DO UPDATE SET step = EXCLUDED.step, bytes = EXCLUDED.bytes),
+                     dropped AS (
+                        DELETE FROM checkpoints WHERE id = $1 AND EXISTS (SELECT 1 FROM done))
+                     SELECT attempt FROM done",
+                )
+                .await
+                .map_err(pg)?;
+            let owned = c
+                .query_opt(
+                    &st,
+                    &[
+                        &row.id,
+                        &row.state.as_str(),
+                        &(row.finished_ms as i64),
+                        &field,
+                        &reason,
+                        &(row.done as i64),
+                        &(row.total as i64),
+                        &row.t,
+                        &owner,
+                        &texts.summary,
+                        &texts.columns,
+                        &texts.tables,
+                        &texts.figures,
+                        &partial,
+                        &has_result,
+                        &chunk,
+                        &first_row,
+                        &n_rows,
+                        &step_first,
+                        &step_last,
+                        &blobs.0,
+                        &blobs.1,
+                        &blobs.2,
+                        &blobs.3,
+                        &kept_step,
+                        &kept_bytes,
+                    ],
+                )
+                .await
+                .map_err(pg)?
+                .is_some();
+            if !owned {
+                return Err(StoreError::LeaseLost { id: row.id });
+            }
+            Ok(())
+        })
+    }
+
     fn get(&self, id: &str) -> Result<Option<JobView>, StoreError> {
         let id = id.to_string();
         self.with(move |c| async move {
@@ -913,6 +1016,9 @@ impl SharedQueue for PgStore {
         self.lease
     }
 
+    /// The claim also answers what the run would ask next: the job's checkpoint and the job it
+    /// extends; without a checkpoint it drops the rows earlier attempts stored (the run starts
+    /// from step 0), in the same statement.
     fn claim(&self, started_ms: u64) -> Result<Option<Claim>, StoreError> {
         let (owner, lease) = (self.replica.clone(), self.lease_secs());
         self.with(move |c| async move {
@@ -929,8 +1035,14 @@ impl SharedQueue for PgStore {
                                 started_ms = $3, done = 0, t = 0
                          FROM next WHERE j.id = next.id
                          RETURNING {}, j.spec_json, j.attempt, j.cancel_requested,
-                                   j.parent IS NOT NULL)
-                         SELECT * FROM claimed",
+                                   j.parent IS NOT NULL),
+                         cleared AS (
+                         DELETE FROM result_chunks r USING claimed c
+                         WHERE r.id = c.id AND r.attempt < c.attempt
+                           AND NOT EXISTS (SELECT 1 FROM checkpoints k WHERE k.id = c.id))
+                         SELECT c.*, k.attempt, k.step, k.bytes, e.extends
+                         FROM claimed c LEFT JOIN checkpoints k ON k.id = c.id
+                              LEFT JOIN extensions e ON e.id = c.id",
                         JOB_COLUMNS
                             .split(", ")
                             .map(|c| format!("j.{c}"))
@@ -952,6 +1064,15 @@ impl SharedQueue for PgStore {
                 attempt: r.try_get::<_, i64>(12).map_err(pg)? as u64,
                 cancel_requested: r.try_get(13).map_err(pg)?,
                 study_child: r.try_get(14).map_err(pg)?,
+                checkpoint: match r.try_get::<_, Option<i64>>(15).map_err(pg)? {
+                    Some(attempt) => Some((
+                        attempt as u64,
+                        r.try_get::<_, i64>(16).map_err(pg)? as u64,
+                        r.try_get(17).map_err(pg)?,
+                    )),
+                    None => None,
+                },
+                extends: r.try_get(18).map_err(pg)?,
             }))
         })
     }
