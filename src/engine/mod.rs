@@ -24,8 +24,8 @@ use crate::error::ApiError;
 use crate::output::finish_run;
 use crate::status::{JobState, JobView};
 use crate::store::{
-    Beat, BeatReply, CancelOutcome, ChunkMeta, Claim, JobEnd, SeriesChunk, SharedQueue, Store,
-    StoreError, StoredResult,
+    Beat, BeatReply, CancelOutcome, ChunkMeta, Claim, Enqueued, JobEnd, SeriesChunk, SharedQueue,
+    Store, StoreError, StoredResult,
 };
 use events::{EventSink, JobEvent, StreamStats};
 use ids::{new_id, now_ms};
@@ -388,13 +388,14 @@ impl Engine {
         ));
         if let Some(q) = self.inner.store.shared() {
             // The store queues it (and tells every replica); a worker of any replica claims it.
-            if q.queued()? >= self.inner.queue_limit as u64 {
-                return Err(ApiError::QueueFull {
-                    limit: self.inner.queue_limit,
-                });
-            }
-            if !self.inner.store.insert(&live.view(), &spec_json)? {
-                return Err(ApiError::AlreadyExists { id });
+            match q.enqueue(&live.view(), &spec_json, self.inner.queue_limit)? {
+                Enqueued::Queued => {}
+                Enqueued::Full => {
+                    return Err(ApiError::QueueFull {
+                        limit: self.inner.queue_limit,
+                    });
+                }
+                Enqueued::Taken => return Err(ApiError::AlreadyExists { id }),
             }
             self.inner.sink.send(JobEvent::Status(live.view()));
             return Ok(id);
@@ -778,15 +779,26 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
 pub const CLAIM_POLL: Duration = Duration::from_millis(250);
 
 fn worker_loop(inner: &Inner) {
+    // With a shared store, the job claimed together with the end of the one before.
+    let mut claimed: Option<Arc<LiveJob>> = None;
     loop {
-        let next = match inner.store.shared() {
-            Some(q) => next_claim(inner, q),
-            None => next_job(inner),
+        let next = match (claimed.take(), inner.store.shared()) {
+            (Some(live), Some(q)) if inner.shutdown.load(Ordering::Acquire) => {
+                // Not started: back to the queue, for any replica.
+                if let Err(e) = q.release(&live.id) {
+                    tracing::error!(id = %live.id, "store: {e}");
+                }
+                lock(&inner.live).remove(&live.id);
+                None
+            }
+            (Some(live), _) => Some(live),
+            (None, Some(q)) => next_claim(inner, q),
+            (None, None) => next_job(inner),
         };
         let Some(live) = next else {
             return;
         };
-        run_one(inner, &live);
+        claimed = run_one(inner, &live);
     }
 }
 
@@ -917,7 +929,8 @@ fn heartbeat_loop(inner: &Inner) {
     }
 }
 
-fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
+/// Runs a job to its end; with a shared store, returns the next job, claimed with the end.
+fn run_one(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
     let started = now_ms();
     live.started_ms.store(started, Ordering::Relaxed);
     live.running.store(true, Ordering::Release);
@@ -972,8 +985,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
                 error: Some(("store".into(), e.to_string())),
                 ..live.ended_view(JobState::Failed)
             };
-            end_job(inner, live, view, Ending::bare(), last_batch);
-            return;
+            return end_job(inner, live, view, Ending::bare(), last_batch);
         }
     };
     // What a failed or cancelled run recorded is kept, marked partial.
@@ -1003,7 +1015,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
         {
             store_rest(live, &mut observer);
             pause::park(inner, live);
-            return;
+            return None;
         }
         Ok(Err(RunError::Stopped { .. })) if !live.cancel.load(Ordering::Acquire) => {
             // Server shutdown: leave the job `running` in the store; the next start re-runs it
@@ -1015,7 +1027,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
             {
                 tracing::error!(id = %live.id, "store: {e}");
             }
-            return;
+            return None;
         }
         Ok(Err(RunError::Stopped { .. })) => (JobState::Cancelled, None, partial()),
         Ok(Err(e)) => (
@@ -1039,7 +1051,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
         rows: true,
         final_state,
     };
-    end_job(inner, live, view, ending, last_batch);
+    end_job(inner, live, view, ending, last_batch)
 }
 
 /// Stores the rows a stopped run recorded after its last stored chunk (a run that stops to be
@@ -1143,14 +1155,16 @@ fn resume_point(inner: &Inner, live: &LiveJob) -> Option<ResumePoint> {
 }
 
 /// Stores a job's end (its last rows, its result, its final state: one store call), then
-/// tells the world: the last step batch, the final status, the end of the job's events.
+/// tells the world: the last step batch, the final status, the end of the job's events. With a
+/// shared store (unless shutting down), the worker's next job is claimed in the same round
+/// trip, and returned.
 fn end_job(
     inner: &Inner,
     live: &Arc<LiveJob>,
     mut view: JobView,
     ending: Ending,
     last_batch: JobEvent,
-) {
+) -> Option<Arc<LiveJob>> {
     // Under the buffer's lock, as a chunk is stored while a job runs: a reader of the history
     // sees each row once.
     let mut recent = lock(&live.recent);
@@ -1168,7 +1182,18 @@ fn end_job(
             .as_ref()
             .map(|(attempt, step, bytes)| (*attempt, *step, bytes.as_slice())),
     };
-    match inner.store.end(&end) {
+    let shared = inner
+        .store
+        .shared()
+        .filter(|_| !inner.shutdown.load(Ordering::Acquire));
+    let (stored, claimed) = match shared {
+        Some(q) => {
+            let (stored, claimed) = q.end_and_claim(&end, now_ms());
+            (stored, Some(claimed))
+        }
+        None => (inner.store.end(&end), None),
+    };
+    match stored {
         Ok(()) => {
             if rows.is_some() {
                 recent.stored();
@@ -1181,7 +1206,7 @@ fn end_job(
             lock(&inner.live).remove(&live.id);
             inner.sink.send(JobEvent::Closed(live.id.clone()));
             live.ended.send_replace(true);
-            return;
+            return claimed.and_then(|c| take_claim(inner, c));
         }
         Err(e) => {
             tracing::error!(id = %live.id, "store: {e}");
@@ -1205,5 +1230,18 @@ fn end_job(
     live.ended.send_replace(true);
     if live.study_child {
         study::child_ended(inner, &live.id);
+    }
+    claimed.and_then(|c| take_claim(inner, c))
+}
+
+/// The job a claim made with a job's end took, made live (`None` when there was none).
+fn take_claim(inner: &Inner, claimed: Result<Option<Claim>, StoreError>) -> Option<Arc<LiveJob>> {
+    match claimed {
+        Ok(Some(claim)) => adopt(inner, claim),
+        Ok(None) => None,
+        Err(e) => {
+            tracing::error!("claiming a job: {e}");
+            None
+        }
     }
 }

@@ -591,6 +591,17 @@ pub enum BeatReply {
     Lost,
 }
 
+/// What [`SharedQueue::enqueue`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Enqueued {
+    /// The job is queued.
+    Queued,
+    /// The queue holds its limit of jobs already: nothing was stored.
+    Full,
+    /// A job has this id already: nothing was stored.
+    Taken,
+}
+
 /// How a cancel request for a job run by the shared queue ended.
 #[derive(Debug, Clone, PartialEq)]
 pub enum CancelOutcome {
@@ -614,6 +625,20 @@ pub trait SharedQueue: Send + Sync {
 
     /// Claims the next job (started now, at `started_ms`), if any.
     fn claim(&self, started_ms: u64) -> Result<Option<Claim>, StoreError>;
+
+    /// Queues a new job (its status and spec, as [`Backend::insert`] takes them), announced to
+    /// every replica, unless `limit` jobs are queued already: one round trip.
+    fn enqueue(&self, row: &JobView, spec_json: &str, limit: usize)
+    -> Result<Enqueued, StoreError>;
+
+    /// Ends a job ([`Backend::end`]) and claims the next one ([`SharedQueue::claim`]), in one
+    /// round trip where the store can: the end's outcome and the claim's. The end is stored
+    /// first; a lost lease on the ended job does not stop the claim.
+    fn end_and_claim(
+        &self,
+        end: &JobEnd<'_>,
+        started_ms: u64,
+    ) -> (Result<(), StoreError>, Result<Option<Claim>, StoreError>);
 
     /// Renews the leases of the jobs this replica runs, recording their progress.
     fn heartbeat(&self, beats: &[Beat]) -> Result<Vec<(String, BeatReply)>, StoreError>;
