@@ -24,8 +24,8 @@ use crate::error::ApiError;
 use crate::output::finish_run;
 use crate::status::{JobState, JobView, Lineage};
 use crate::store::{
-    Beat, BeatReply, CancelOutcome, ChunkMeta, Claim, SeriesChunk, SharedQueue, Store, StoreError,
-    StoredResult,
+    Beat, BeatReply, CancelOutcome, ChunkMeta, Claim, Enqueued, JobEnd, SeriesChunk, SharedQueue,
+    Store, StoreError, StoredResult,
 };
 use events::{EventSink, JobEvent, StreamStats};
 use ids::{new_id, now_ms};
@@ -58,6 +58,18 @@ struct Recent {
     rows: SeriesChunk,
 }
 
+impl Recent {
+    /// The rows held here are now the series' next stored chunk.
+    fn stored(&mut self) {
+        self.chunks += 1;
+        self.first_row += self.rows.steps.len() as u64;
+        self.rows.steps.clear();
+        self.rows.t.clear();
+        self.rows.values.clear();
+        self.rows.batches.clear();
+    }
+}
+
 /// A queued or running job.
 struct LiveJob {
     id: String,
@@ -78,6 +90,22 @@ struct LiveJob {
     /// the job is known to have no parent (a submission, an extension, a claim that says so),
     /// which spares ordinary jobs that store statement.
     study_child: bool,
+    /// What the claim of a job from a shared queue already read of its stored past (so its
+    /// run does not ask again); `None` for a job of this process's own queue.
+    claimed: Option<Claimed>,
+}
+
+/// A checkpoint as the store keeps it: (attempt, step, bytes).
+type StoredCheckpoint = (u64, u64, Vec<u8>);
+
+/// What a claim read with the job ([`Claim::checkpoint`], [`Claim::extends`]).
+#[derive(Debug)]
+struct Claimed {
+    /// The job's checkpoint, if any: (attempt, step, bytes). Without one, the claim dropped
+    /// the rows of earlier attempts.
+    checkpoint: Option<StoredCheckpoint>,
+    /// The job it extends.
+    extends: Option<String>,
 }
 
 impl LiveJob {
@@ -360,13 +388,14 @@ impl Engine {
         ));
         if let Some(q) = self.inner.store.shared() {
             // The store queues it (and tells every replica); a worker of any replica claims it.
-            if q.queued()? >= self.inner.queue_limit as u64 {
-                return Err(ApiError::QueueFull {
-                    limit: self.inner.queue_limit,
-                });
-            }
-            if !self.inner.store.insert(&live.view(), &spec_json)? {
-                return Err(ApiError::AlreadyExists { id });
+            match q.enqueue(&live.view(), &spec_json, self.inner.queue_limit)? {
+                Enqueued::Queued => {}
+                Enqueued::Full => {
+                    return Err(ApiError::QueueFull {
+                        limit: self.inner.queue_limit,
+                    });
+                }
+                Enqueued::Taken => return Err(ApiError::AlreadyExists { id }),
             }
             self.inner.sink.send(JobEvent::Status(live.view()));
             return Ok(id);
@@ -719,6 +748,7 @@ fn new_live(
         ended: watch::channel(false).0,
         recent: Mutex::new(Recent::default()),
         study_child,
+        claimed: None,
     }
 }
 
@@ -757,15 +787,26 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
 pub const CLAIM_POLL: Duration = Duration::from_millis(250);
 
 fn worker_loop(inner: &Inner) {
+    // With a shared store, the job claimed together with the end of the one before.
+    let mut claimed: Option<Arc<LiveJob>> = None;
     loop {
-        let next = match inner.store.shared() {
-            Some(q) => next_claim(inner, q),
-            None => next_job(inner),
+        let next = match (claimed.take(), inner.store.shared()) {
+            (Some(live), Some(q)) if inner.shutdown.load(Ordering::Acquire) => {
+                // Not started: back to the queue, for any replica.
+                if let Err(e) = q.release(&live.id) {
+                    tracing::error!(id = %live.id, "store: {e}");
+                }
+                lock(&inner.live).remove(&live.id);
+                None
+            }
+            (Some(live), _) => Some(live),
+            (None, Some(q)) => next_claim(inner, q),
+            (None, None) => next_job(inner),
         };
         let Some(live) = next else {
             return;
         };
-        run_one(inner, &live);
+        claimed = run_one(inner, &live);
     }
 }
 
@@ -800,6 +841,8 @@ fn adopt(inner: &Inner, claim: Claim) -> Option<Arc<LiveJob>> {
         attempt,
         cancel_requested,
         study_child,
+        checkpoint,
+        extends,
     } = claim;
     let built = crate::spec_file::parse(&spec_json, crate::spec_file::Format::Json)
         .and_then(|spec| Job::from_spec(&spec));
@@ -824,13 +867,19 @@ fn adopt(inner: &Inner, claim: Claim) -> Option<Arc<LiveJob>> {
         }
     };
     tracing::info!(id = %view.id, attempt, "claimed");
-    let live = Arc::new(new_live(
-        view.id.clone(),
-        view.name.clone(),
-        job,
-        view.created_ms,
-        study_child,
-    ));
+    let live = Arc::new(LiveJob {
+        claimed: Some(Claimed {
+            checkpoint,
+            extends,
+        }),
+        ..new_live(
+            view.id.clone(),
+            view.name.clone(),
+            job,
+            view.created_ms,
+            study_child,
+        )
+    });
     if cancel_requested {
         live.cancel.store(true, Ordering::Release);
     }
@@ -888,7 +937,8 @@ fn heartbeat_loop(inner: &Inner) {
     }
 }
 
-fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
+/// Runs a job to its end; with a shared store, returns the next job, claimed with the end.
+fn run_one(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
     let started = now_ms();
     live.started_ms.store(started, Ordering::Relaxed);
     live.running.store(true, Ordering::Release);
@@ -898,7 +948,13 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     // A job run again after a restart continues from its last checkpoint, or else starts its
     // series afresh.
     let resume = resume_point(inner, live);
+    // A claim that found no checkpoint has dropped the earlier attempts' rows itself.
+    let cleared = live
+        .claimed
+        .as_ref()
+        .is_some_and(|c| c.checkpoint.is_none());
     if resume.is_none()
+        && !cleared
         && let Err(e) = inner.store.clear_series(&live.id)
     {
         tracing::error!(id = %live.id, "store: {e}");
@@ -927,16 +983,17 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
     // The last batch goes out after the result is stored: whoever saw it can fetch the result.
     let last_batch = observer.last_batch();
     observer.count_steps();
-    let columns = match observer.finish_series() {
-        Ok(columns) => columns,
+    // The rows recorded since the last stored chunk, and the checkpoint after the last step,
+    // are stored with the job's end, in one store call.
+    let (columns, final_state) = match observer.end_parts() {
+        Ok(parts) => parts,
         Err(e) => {
             tracing::error!(id = %live.id, "store: {e}");
             let view = JobView {
                 error: Some(("store".into(), e.to_string())),
                 ..live.ended_view(JobState::Failed)
             };
-            end_job(inner, live, view, None, last_batch);
-            return;
+            return end_job(inner, live, view, Ending::bare(), last_batch);
         }
     };
     // What a failed or cancelled run recorded is kept, marked partial.
@@ -951,7 +1008,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
         Ok(Ok(output)) => {
             let mut run = finish_run(output, wall);
             run.summary.insert("cpu_s".into(), cpu_s.into());
-            pause::mark_extension(inner, &live.id, &mut run.summary);
+            pause::mark_extension(inner, live, &mut run.summary);
             let result = StoredResult {
                 summary: run.summary,
                 columns: columns.clone(),
@@ -964,19 +1021,21 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
         Ok(Err(RunError::Stopped { .. }))
             if !live.cancel.load(Ordering::Acquire) && live.pause.load(Ordering::Acquire) =>
         {
+            store_rest(live, &mut observer);
             pause::park(inner, live);
-            return;
+            return None;
         }
         Ok(Err(RunError::Stopped { .. })) if !live.cancel.load(Ordering::Acquire) => {
             // Server shutdown: leave the job `running` in the store; the next start re-runs it
             // (a shared store's queue takes it back now, for any replica).
+            store_rest(live, &mut observer);
             tracing::info!(id = %live.id, "interrupted by shutdown");
             if let Some(q) = inner.store.shared()
                 && let Err(e) = q.release(&live.id)
             {
                 tracing::error!(id = %live.id, "store: {e}");
             }
-            return;
+            return None;
         }
         Ok(Err(RunError::Stopped { .. })) => (JobState::Cancelled, None, partial()),
         Ok(Err(e)) => (
@@ -995,7 +1054,42 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) {
         error,
         ..live.ended_view(state)
     };
-    end_job(inner, live, view, result, last_batch);
+    let ending = Ending {
+        result,
+        rows: true,
+        final_state,
+    };
+    end_job(inner, live, view, ending, last_batch)
+}
+
+/// Stores the rows a stopped run recorded after its last stored chunk (a run that stops to be
+/// continued: its series stays in the store).
+fn store_rest(live: &LiveJob, observer: &mut ServiceObserver<'_>) {
+    if let Err(e) = observer.finish_series() {
+        tracing::error!(id = %live.id, "store: {e}");
+    }
+}
+
+/// What a job's end stores besides its status.
+struct Ending {
+    /// Its result.
+    result: Option<StoredResult>,
+    /// Whether the rows recorded after the last stored chunk are stored (not after a store
+    /// error, whose series stays as stored).
+    rows: bool,
+    /// The checkpoint the run wrote after its last step: (attempt, step, bytes).
+    final_state: Option<StoredCheckpoint>,
+}
+
+impl Ending {
+    /// An end with nothing but the status.
+    fn bare() -> Ending {
+        Ending {
+            result: None,
+            rows: false,
+            final_state: None,
+        }
+    }
 }
 
 /// Where an interrupted job continues: its checkpoint, the attempt that continues it, and the
@@ -1011,7 +1105,11 @@ struct ResumePoint {
 /// cannot be used (damaged, of another format or spec) is logged, dropped, and the job runs
 /// again from step 0.
 fn resume_point(inner: &Inner, live: &LiveJob) -> Option<ResumePoint> {
-    let (attempt, step, bytes) = match inner.store.load_checkpoint(&live.id) {
+    let stored = match &live.claimed {
+        Some(c) => Ok(c.checkpoint.clone()),
+        None => inner.store.load_checkpoint(&live.id),
+    };
+    let (attempt, step, bytes) = match stored {
         Ok(Some(found)) => found,
         Ok(None) => return None,
         Err(e) => {
@@ -1064,36 +1162,74 @@ fn resume_point(inner: &Inner, live: &LiveJob) -> Option<ResumePoint> {
     })
 }
 
-/// Stores a job's end (and its result), then tells the world: the last step batch, the final
-/// status, the end of the job's events.
+/// Stores a job's end (its last rows, its result, its final state: one store call), then
+/// tells the world: the last step batch, the final status, the end of the job's events. With a
+/// shared store (unless shutting down), the worker's next job is claimed in the same round
+/// trip, and returned.
 fn end_job(
     inner: &Inner,
     live: &Arc<LiveJob>,
     mut view: JobView,
-    result: Option<StoredResult>,
+    ending: Ending,
     last_batch: JobEvent,
-) {
-    if let Err(e) = inner.store.finish(&view, result.as_ref()) {
-        if let StoreError::LeaseLost { .. } = e {
+) -> Option<Arc<LiveJob>> {
+    // Under the buffer's lock, as a chunk is stored while a job runs: a reader of the history
+    // sees each row once.
+    let mut recent = lock(&live.recent);
+    let rows = (ending.rows && !recent.rows.steps.is_empty()).then_some((
+        recent.chunks,
+        recent.first_row,
+        &recent.rows,
+    ));
+    let end = JobEnd {
+        view: &view,
+        result: ending.result.as_ref(),
+        rows,
+        final_state: ending
+            .final_state
+            .as_ref()
+            .map(|(attempt, step, bytes)| (*attempt, *step, bytes.as_slice())),
+    };
+    let shared = inner
+        .store
+        .shared()
+        .filter(|_| !inner.shutdown.load(Ordering::Acquire));
+    let (stored, claimed) = match shared {
+        Some(q) => {
+            let (stored, claimed) = q.end_and_claim(&end, now_ms());
+            (stored, Some(claimed))
+        }
+        None => (inner.store.end(&end), None),
+    };
+    match stored {
+        Ok(()) => {
+            if rows.is_some() {
+                recent.stored();
+            }
+        }
+        Err(e @ StoreError::LeaseLost { .. }) => {
+            drop(recent);
             // Another replica runs the job now: its end is that replica's to tell.
             tracing::warn!(id = %live.id, "{e}");
             lock(&inner.live).remove(&live.id);
             inner.sink.send(JobEvent::Closed(live.id.clone()));
             live.ended.send_replace(true);
-            return;
+            return claimed.and_then(|c| take_claim(inner, c));
         }
-        tracing::error!(id = %live.id, "store: {e}");
-        view.state = JobState::Failed;
-        view.error = Some(("store".into(), e.to_string()));
+        Err(e) => {
+            tracing::error!(id = %live.id, "store: {e}");
+            view.state = JobState::Failed;
+            view.error = Some(("store".into(), e.to_string()));
+            // The end as a failure, without what could not be stored.
+            if let Err(e) = inner.store.finish(&view, None) {
+                tracing::error!(id = %live.id, "store: {e}");
+            }
+            if let Err(e) = inner.store.delete_checkpoint(&live.id) {
+                tracing::error!(id = %live.id, "store: {e}");
+            }
+        }
     }
-    // An ended job is not resumed: its checkpoint goes (a succeeded one's, written after its
-    // last step, is first kept as its final state, which `extend` continues from).
-    if view.state == JobState::Succeeded {
-        pause::keep_final_state(inner, &view);
-    }
-    if let Err(e) = inner.store.delete_checkpoint(&live.id) {
-        tracing::error!(id = %live.id, "store: {e}");
-    }
+    drop(recent);
     lock(&inner.live).remove(&live.id);
     inner.sink.send(last_batch);
     tracing::info!(id = %live.id, state = view.state.as_str(), "finished");
@@ -1102,5 +1238,18 @@ fn end_job(
     live.ended.send_replace(true);
     if live.study_child {
         study::child_ended(inner, &live.id);
+    }
+    claimed.and_then(|c| take_claim(inner, c))
+}
+
+/// The job a claim made with a job's end took, made live (`None` when there was none).
+fn take_claim(inner: &Inner, claimed: Result<Option<Claim>, StoreError>) -> Option<Arc<LiveJob>> {
+    match claimed {
+        Ok(Some(claim)) => adopt(inner, claim),
+        Ok(None) => None,
+        Err(e) => {
+            tracing::error!("claiming a job: {e}");
+            None
+        }
     }
 }

@@ -9,7 +9,7 @@
 
 use super::events::{ColumnGroup, JobEvent, StepBatch, split_columns};
 use super::ids::now_ns;
-use super::{Inner, LiveJob, Recent, lock};
+use super::{Inner, LiveJob, Recent, StoredCheckpoint, lock};
 use crate::store::{ChunkMeta, StoreError, chunk_rows};
 use signorini_core::checkpoint::Checkpoint;
 use signorini_core::observer::{Columns, Observer, Progress, StepRecord};
@@ -46,6 +46,10 @@ pub(super) struct ServiceObserver<'a> {
     /// A resumed run: the last chunk of the series stored before, whose last batch number the
     /// next batch follows (read once the columns are known).
     resumed_after: Option<ChunkMeta>,
+    /// The checkpoint written after the run's last step, kept back to be stored with the
+    /// job's end in one store call (with the rows recorded since the last stored chunk):
+    /// (attempt, step, bytes).
+    final_state: Option<StoredCheckpoint>,
 }
 
 /// When and as which attempt a run checkpoints.
@@ -57,6 +61,8 @@ struct Checkpoints {
     /// A checkpoint was written after the server began to shut down, or after a pause was
     /// asked: the run stops before its next record or progress.
     final_written: bool,
+    /// The checkpoint due is the one after the run's last step.
+    at_end: bool,
 }
 
 /// The columns `idx` of `rows` (row-major, `n` columns) from row `from` on.
@@ -82,6 +88,7 @@ impl<'a> ServiceObserver<'a> {
                 last: Instant::now(),
                 attempt: 0,
                 final_written: false,
+                at_end: false,
             }),
             _ => None,
         };
@@ -99,6 +106,7 @@ impl<'a> ServiceObserver<'a> {
             uncounted: 0,
             checkpoints,
             resumed_after: None,
+            final_state: None,
         }
     }
 
@@ -173,12 +181,7 @@ impl<'a> ServiceObserver<'a> {
             recent.first_row,
             &recent.rows,
         )?;
-        recent.chunks += 1;
-        recent.first_row += recent.rows.steps.len() as u64;
-        recent.rows.steps.clear();
-        recent.rows.t.clear();
-        recent.rows.values.clear();
-        recent.rows.batches.clear();
+        recent.stored();
         self.batch_from = 0;
         Ok(())
     }
@@ -187,6 +190,20 @@ impl<'a> ServiceObserver<'a> {
     /// stops there.
     fn stops_after_checkpoint(&self) -> bool {
         self.checkpoints.as_ref().is_some_and(|c| c.final_written)
+    }
+
+    /// What the job's end stores besides its status, once the run is over: the column names
+    /// (empty for a run that recorded no series) and the checkpoint kept back after the last
+    /// step; or why the series could not be stored. The rows not yet stored stay in the job's
+    /// buffer, which the end stores.
+    pub(super) fn end_parts(
+        &mut self,
+    ) -> Result<(Vec<String>, Option<StoredCheckpoint>), StoreError> {
+        if let Some(e) = self.store_error.take() {
+            return Err(e);
+        }
+        let columns = lock(&self.live.recent).columns.clone();
+        Ok((columns, self.final_state.take()))
     }
 
     /// Stores the last recorded rows and returns the column names (empty for a run that
@@ -278,9 +295,10 @@ impl Observer for ServiceObserver<'_> {
     }
 
     fn checkpoint_due(&mut self, p: Progress) -> bool {
-        let Some(c) = &self.checkpoints else {
+        let Some(c) = &mut self.checkpoints else {
             return false;
         };
+        c.at_end = p.done == p.total;
         self.inner.shutdown.load(Ordering::Relaxed)
             || self.live.pause.load(Ordering::Relaxed)
             // After the last step: the final state a succeeded job keeps (for `extend`).
@@ -291,7 +309,24 @@ impl Observer for ServiceObserver<'_> {
 
     /// Stores the rows recorded so far (sending the pending batch first), then the checkpoint
     /// that counts them: a resumed run finds its series exactly up to its checkpoint.
+    ///
+    /// The checkpoint after the last step (unless a shutdown or a pause asked for it) is kept
+    /// back instead: the job's end stores it with the last rows, in the same store call.
     fn checkpoint(&mut self, checkpoint: &mut Checkpoint) {
+        let stopping =
+            self.inner.shutdown.load(Ordering::Relaxed) || self.live.pause.load(Ordering::Relaxed);
+        if let Some(c) = &self.checkpoints
+            && c.at_end
+            && !stopping
+        {
+            match checkpoint.encode() {
+                Ok(bytes) => self.final_state = Some((c.attempt, checkpoint.step(), bytes)),
+                Err(e) => {
+                    tracing::warn!(id = %self.live.id, step = checkpoint.step(), "checkpoint not saved: {e}")
+                }
+            }
+            return;
+        }
         let saved = {
             let mut recent = lock(&self.live.recent);
             self.flush(&mut recent);

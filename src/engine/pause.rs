@@ -12,11 +12,12 @@
 //!   equals an uninterrupted run's bit for bit.
 //! * **Extend** makes a new job that continues a succeeded job to a later `t_end`. A succeeded
 //!   job that checkpoints keeps the checkpoint written after its last step as its final state
-//!   ([`keep_final_state`]); the new job's spec is the first's with `time.t_end` set (and
-//!   `time.steps` cleared), and it starts from that final state, which the spec hash accepts
-//!   because it leaves out the run's end (`signorini_core::job::spec_hash`). Its result holds
-//!   the rows after the first job's end (the first job's result holds the rows up to it) and its
-//!   summary, the whole run's, names the first job (`extends`).
+//!   (stored with the job's end, `Backend::end`); the new job's spec is the first's with
+//!   `time.t_end` set (and `time.steps` cleared), and it starts from that final state, which
+//!   the spec hash accepts because it leaves out the run's end
+//!   (`signorini_core::job::spec_hash`). Its result holds the rows after the first job's end
+//!   (the first job's result holds the rows up to it) and its summary, the whole run's, names
+//!   the first job (`extends`).
 //!
 //! A job whose scheme family writes no checkpoints (`Job::checkpoints`: analyses, the banded
 //! contact path, a contact region) is refused: it could only be rerun from step 0.
@@ -59,18 +60,15 @@ pub(super) fn park(inner: &Inner, live: &Arc<LiveJob>) {
     live.ended.send_replace(true);
 }
 
-/// Keeps the checkpoint a job that just succeeded wrote after its last step as its final state
-/// (a job without one, which writes no checkpoints, keeps nothing).
-pub(super) fn keep_final_state(inner: &Inner, view: &JobView) {
-    match inner.store.keep_final_state(&view.id, view.done) {
-        Ok(kept) => tracing::debug!(id = %view.id, kept, "final state"),
-        Err(e) => tracing::error!(id = %view.id, "store: {e}"),
-    }
-}
-
-/// Names the job an extension continues in its summary (`extends`).
-pub(super) fn mark_extension(inner: &Inner, id: &str, summary: &mut Map<String, Value>) {
-    match inner.store.extends(id) {
+/// Names the job an extension continues in its summary (`extends`), as its claim read it from
+/// a shared store, or else asking the store.
+pub(super) fn mark_extension(inner: &Inner, live: &LiveJob, summary: &mut Map<String, Value>) {
+    let id = &live.id;
+    let extends = match &live.claimed {
+        Some(c) => Ok(c.extends.clone()),
+        None => inner.store.extends(id),
+    };
+    match extends {
         Ok(Some(first)) => {
             summary.insert("extends".into(), Value::String(first));
         }

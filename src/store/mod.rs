@@ -458,6 +458,18 @@ pub trait Backend: StudyStore + Send + Sync + pause::PauseStore {
     /// Forgets a job's checkpoint (it ended, or its checkpoint cannot be used).
     fn delete_checkpoint(&self, id: &str) -> Result<(), StoreError>;
 
+    /// Ends a job in one call: stores the rows its run recorded and had not stored yet, the
+    /// checkpoint its run wrote after its last step (if it kept it back for this call), its end
+    /// and result ([`Backend::finish`]); for a success keeps that checkpoint as the final state
+    /// (`extend` continues from it), and forgets the job's running checkpoint. By default the
+    /// separate calls, in this order (an error storing the rows or the end is returned; one
+    /// keeping the checkpoint or the final state, or deleting the checkpoint, is logged, as it
+    /// costs only a later `extend` or resume); PostgreSQL makes it one statement, one round
+    /// trip, all or nothing.
+    fn end(&self, end: &JobEnd<'_>) -> Result<(), StoreError> {
+        end_by_calls(self, end)
+    }
+
     /// Keeps the first `rows` rows of a job's stored series (a job resumed from a checkpoint
     /// that had recorded that many) and drops the chunks after them. A checkpoint is saved
     /// right after a chunk, so its row count is a chunk boundary; a chunk across it is refused.
@@ -485,6 +497,50 @@ pub trait Backend: StudyStore + Send + Sync + pause::PauseStore {
     }
 }
 
+/// The end of a job, stored by [`Backend::end`].
+#[derive(Debug, Clone, Copy)]
+pub struct JobEnd<'a> {
+    /// Its final status (a terminal state).
+    pub view: &'a JobView,
+    /// Its result (a success's, or the partial series of a failed or cancelled run).
+    pub result: Option<&'a StoredResult>,
+    /// The rows the run recorded after its last stored chunk: (chunk number, index of its
+    /// first row in the series, the rows).
+    pub rows: Option<(u64, u64, &'a SeriesChunk)>,
+    /// The checkpoint the run wrote after its last step and kept back for this call:
+    /// (attempt, step, bytes), as [`Backend::save_checkpoint`] takes them.
+    pub final_state: Option<(u64, u64, &'a [u8])>,
+}
+
+/// [`Backend::end`] as the separate calls it stands for.
+pub(crate) fn end_by_calls<B: Backend + ?Sized>(
+    store: &B,
+    end: &JobEnd<'_>,
+) -> Result<(), StoreError> {
+    let id = &end.view.id;
+    if let Some((chunk, first_row, rows)) = end.rows {
+        store.append_chunk(id, chunk, first_row, rows)?;
+    }
+    // A checkpoint, a final state not kept, a checkpoint not deleted cost only a later
+    // `extend` or resume: logged, the end stands.
+    if let Some((attempt, step, bytes)) = end.final_state
+        && let Err(e) = store.save_checkpoint(id, attempt, step, bytes)
+    {
+        tracing::warn!(%id, step, "checkpoint not saved: {e}");
+    }
+    store.finish(end.view, end.result)?;
+    if end.view.state == JobState::Succeeded {
+        match store.keep_final_state(id, end.view.done) {
+            Ok(kept) => tracing::debug!(%id, kept, "final state"),
+            Err(e) => tracing::error!(%id, "store: {e}"),
+        }
+    }
+    if let Err(e) = store.delete_checkpoint(id) {
+        tracing::error!(%id, "store: {e}");
+    }
+    Ok(())
+}
+
 /// A job a replica has claimed from the shared queue.
 #[derive(Debug, Clone)]
 pub struct Claim {
@@ -499,6 +555,13 @@ pub struct Claim {
     pub cancel_requested: bool,
     /// It is a study's child (its end updates the parent's progress).
     pub study_child: bool,
+    /// Its latest checkpoint, read by the claim: (attempt, step, bytes), as
+    /// [`Backend::load_checkpoint`] answers. When there is none, the claim has also dropped the
+    /// rows earlier attempts stored ([`Backend::clear_series`]).
+    pub checkpoint: Option<(u64, u64, Vec<u8>)>,
+    /// The job it continues, when it is an extension (as [`pause::PauseStore::extends`]
+    /// answers).
+    pub extends: Option<String>,
 }
 
 /// The progress of a job a replica runs, sent with each heartbeat.
@@ -528,6 +591,17 @@ pub enum BeatReply {
     Lost,
 }
 
+/// What [`SharedQueue::enqueue`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Enqueued {
+    /// The job is queued.
+    Queued,
+    /// The queue holds its limit of jobs already: nothing was stored.
+    Full,
+    /// A job has this id already: nothing was stored.
+    Taken,
+}
+
 /// How a cancel request for a job run by the shared queue ended.
 #[derive(Debug, Clone, PartialEq)]
 pub enum CancelOutcome {
@@ -551,6 +625,20 @@ pub trait SharedQueue: Send + Sync {
 
     /// Claims the next job (started now, at `started_ms`), if any.
     fn claim(&self, started_ms: u64) -> Result<Option<Claim>, StoreError>;
+
+    /// Queues a new job (its status and spec, as [`Backend::insert`] takes them), announced to
+    /// every replica, unless `limit` jobs are queued already: one round trip.
+    fn enqueue(&self, row: &JobView, spec_json: &str, limit: usize)
+    -> Result<Enqueued, StoreError>;
+
+    /// Ends a job ([`Backend::end`]) and claims the next one ([`SharedQueue::claim`]), in one
+    /// round trip where the store can: the end's outcome and the claim's. The end is stored
+    /// first; a lost lease on the ended job does not stop the claim.
+    fn end_and_claim(
+        &self,
+        end: &JobEnd<'_>,
+        started_ms: u64,
+    ) -> (Result<(), StoreError>, Result<Option<Claim>, StoreError>);
 
     /// Renews the leases of the jobs this replica runs, recording their progress.
     fn heartbeat(&self, beats: &[Beat]) -> Result<Vec<(String, BeatReply)>, StoreError>;

@@ -29,9 +29,9 @@
 //! thread, including the server's async handlers, without nesting runtimes.
 
 use super::{
-    Backend, Beat, BeatReply, CancelOutcome, ChunkMeta, Claim, ResultTexts, SeriesChunk,
-    SharedQueue, StoreError, StoredResult, batches_blob, check_index, decode_chunk, f64s_to_blob,
-    split_series, u64s_to_blob,
+    Backend, Beat, BeatReply, CancelOutcome, ChunkMeta, Claim, Enqueued, JobEnd, ResultTexts,
+    SeriesChunk, SharedQueue, StoreError, StoredResult, batches_blob, check_index, decode_chunk,
+    end_by_calls, f64s_to_blob, split_series, u64s_to_blob,
 };
 use crate::status::{JobState, JobView};
 use deadpool_postgres::{Manager, ManagerConfig, Pool, RecyclingMethod, Transaction};
@@ -434,6 +434,205 @@ async fn insert_chunk(
     Ok(())
 }
 
+/// The owned arguments of the end statement (sent to the store's runtime).
+struct EndArgs {
+    row: JobView,
+    texts: Option<ResultTexts>,
+    partial: bool,
+    chunk: i64,
+    first_row: i64,
+    rows: SeriesChunk,
+    kept_step: Option<i64>,
+    kept_bytes: Option<Vec<u8>>,
+}
+
+impl EndArgs {
+    fn of(end: &JobEnd<'_>) -> EndArgs {
+        let (chunk, first_row, rows) = match end.rows {
+            Some((chunk, first_row, rows)) => (chunk as i64, first_row as i64, rows.clone()),
+            None => (0, 0, SeriesChunk::default()),
+        };
+        let (kept_step, kept_bytes) = match end.final_state {
+            Some((_, step, bytes)) => (Some(step as i64), Some(bytes.to_vec())),
+            None => (None, None),
+        };
+        EndArgs {
+            row: end.view.clone(),
+            texts: end.result.map(ResultTexts::of),
+            partial: end.result.is_some_and(|r| r.partial),
+            chunk,
+            first_row,
+            rows,
+            kept_step,
+            kept_bytes,
+        }
+    }
+}
+
+/// [`Backend::end`] of a result without rows of its own, as one statement: the end of the job
+/// while replica `owner` still holds it (`done`), and hanging on it the result, the last rows,
+/// the final state (the checkpoint after the last step, given or else the stored one at that
+/// step) and the checkpoint delete, so a replica that lost its lease stores nothing (not even
+/// the delete: the checkpoint is the new owner's).
+async fn store_end(
+    c: &deadpool_postgres::Object,
+    owner: &str,
+    args: EndArgs,
+) -> Result<(), StoreError> {
+    let EndArgs {
+        row,
+        texts,
+        partial,
+        chunk,
+        first_row,
+        rows,
+        kept_step,
+        kept_bytes,
+    } = args;
+    let (field, reason) = row.error_parts();
+    let has_result = texts.is_some();
+    let texts = texts.unwrap_or_default();
+    let n_rows = rows.steps.len() as i64;
+    let step_first = rows.steps.first().map_or(0, |&s| s as i64);
+    let step_last = rows.steps.last().map_or(0, |&s| s as i64);
+    let blobs = (
+        u64s_to_blob(&rows.steps),
+        f64s_to_blob(&rows.t),
+        f64s_to_blob(&rows.values),
+        batches_blob(&rows),
+    );
+    let st = c
+            .prepare_cached(
+                "WITH done AS (
+                    UPDATE jobs SET state = $2, finished_ms = $3, error_field = $4, error_reason = $5,
+                           done = $6, total = $7, t = $8, lease_until = NULL
+                    WHERE id = $1 AND state = 'running' AND owner = $9 RETURNING attempt),
+                 res AS (
+                    INSERT INTO results (id, attempt, summary_json, columns_json, tables_json, figures_json, partial)
+                    SELECT $1, attempt, $10, $11, $12, $13, $14 FROM done WHERE $15
+                    ON CONFLICT (id, attempt) DO NOTHING),
+                 chunk AS (
+                    INSERT INTO result_chunks (id, attempt, chunk, first_row, rows, step_first, step_last, steps, t, vals, batches)
+                    SELECT $1, attempt, $16, $17, $18, $19, $20, $21, $22, $23, $24 FROM done WHERE $18::BIGINT > 0
+                    ON CONFLICT (id, attempt, chunk) DO NOTHING),
+                 kept AS (
+                    INSERT INTO final_states (id, step, bytes)
+                    SELECT $1, s.step, s.bytes FROM done, (
+                        SELECT $25::BIGINT AS step, $26::BYTEA AS bytes WHERE $25::BIGINT IS NOT NULL
+                        UNION ALL
+                        SELECT step, bytes FROM checkpoints
+                        WHERE id = $1 AND step = $6::BIGINT AND $25::BIGINT IS NULL) s
+                    WHERE $2::TEXT = 'succeeded'
+                    ON CONFLICT (id) DO UPDATE SET step = EXCLUDED.step, bytes = EXCLUDED.bytes),
+                 dropped AS (
+                    DELETE FROM checkpoints WHERE id = $1 AND EXISTS (SELECT 1 FROM done))
+                 SELECT attempt FROM done",
+            )
+            .await
+            .map_err(pg)?;
+    let owned = c
+        .query_opt(
+            &st,
+            &[
+                &row.id,
+                &row.state.as_str(),
+                &(row.finished_ms as i64),
+                &field,
+                &reason,
+                &(row.done as i64),
+                &(row.total as i64),
+                &row.t,
+                &owner,
+                &texts.summary,
+                &texts.columns,
+                &texts.tables,
+                &texts.figures,
+                &partial,
+                &has_result,
+                &chunk,
+                &first_row,
+                &n_rows,
+                &step_first,
+                &step_last,
+                &blobs.0,
+                &blobs.1,
+                &blobs.2,
+                &blobs.3,
+                &kept_step,
+                &kept_bytes,
+            ],
+        )
+        .await
+        .map_err(pg)?
+        .is_some();
+    if !owned {
+        return Err(StoreError::LeaseLost { id: row.id });
+    }
+    Ok(())
+}
+
+/// Claims the next job for replica `owner` under a lease of `lease` seconds, started at
+/// `started_ms` ([`SharedQueue::claim`]).
+async fn claim_next(
+    c: &deadpool_postgres::Object,
+    owner: &str,
+    lease: f64,
+    started_ms: u64,
+) -> Result<Option<Claim>, StoreError> {
+    let Some(r) = c
+        .query_opt(
+            &c.prepare_cached(&format!(
+                "WITH next AS (
+                        SELECT id FROM jobs
+                        WHERE state = 'queued' OR (state = 'running' AND lease_until < now())
+                        ORDER BY seq LIMIT 1 FOR UPDATE SKIP LOCKED),
+                     claimed AS (
+                     UPDATE jobs j SET state = 'running', owner = $1, attempt = j.attempt + 1,
+                            lease_until = now() + make_interval(secs => $2),
+                            started_ms = $3, done = 0, t = 0
+                     FROM next WHERE j.id = next.id
+                     RETURNING {}, j.spec_json, j.attempt, j.cancel_requested,
+                               j.parent IS NOT NULL),
+                     cleared AS (
+                     DELETE FROM result_chunks r USING claimed c
+                     WHERE r.id = c.id AND r.attempt < c.attempt
+                       AND NOT EXISTS (SELECT 1 FROM checkpoints k WHERE k.id = c.id))
+                     SELECT c.*, k.attempt, k.step, k.bytes, e.extends
+                     FROM claimed c LEFT JOIN checkpoints k ON k.id = c.id
+                          LEFT JOIN extensions e ON e.id = c.id",
+                JOB_COLUMNS
+                    .split(", ")
+                    .map(|c| format!("j.{c}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ))
+            .await
+            .map_err(pg)?,
+            &[&owner, &lease, &(started_ms as i64)],
+        )
+        .await
+        .map_err(pg)?
+    else {
+        return Ok(None);
+    };
+    Ok(Some(Claim {
+        view: view(&r)?,
+        spec_json: r.try_get(11).map_err(pg)?,
+        attempt: r.try_get::<_, i64>(12).map_err(pg)? as u64,
+        cancel_requested: r.try_get(13).map_err(pg)?,
+        study_child: r.try_get(14).map_err(pg)?,
+        checkpoint: match r.try_get::<_, Option<i64>>(15).map_err(pg)? {
+            Some(attempt) => Some((
+                attempt as u64,
+                r.try_get::<_, i64>(16).map_err(pg)? as u64,
+                r.try_get(17).map_err(pg)?,
+            )),
+            None => None,
+        },
+        extends: r.try_get(18).map_err(pg)?,
+    }))
+}
+
 impl Backend for PgStore {
     fn insert(&self, row: &JobView, spec_json: &str) -> Result<bool, StoreError> {
         let (id, name, spec) = (row.id.clone(), row.name.clone(), spec_json.to_string());
@@ -697,6 +896,14 @@ impl Backend for PgStore {
         })
     }
 
+    fn end(&self, end: &JobEnd<'_>) -> Result<(), StoreError> {
+        if end.result.is_some_and(|r| !r.steps.is_empty()) {
+            return end_by_calls(self, end);
+        }
+        let (args, owner) = (EndArgs::of(end), self.replica.clone());
+        self.with(move |c| async move { store_end(&c, &owner, args).await })
+    }
+
     fn get(&self, id: &str) -> Result<Option<JobView>, StoreError> {
         let id = id.to_string();
         self.with(move |c| async move {
@@ -913,47 +1120,38 @@ impl SharedQueue for PgStore {
         self.lease
     }
 
+    /// The claim also answers what the run would ask next: the job's checkpoint and the job it
+    /// extends; without a checkpoint it drops the rows earlier attempts stored (the run starts
+    /// from step 0), in the same statement.
     fn claim(&self, started_ms: u64) -> Result<Option<Claim>, StoreError> {
         let (owner, lease) = (self.replica.clone(), self.lease_secs());
-        self.with(move |c| async move {
-            let Some(r) = c
-                .query_opt(
-                    &c.prepare_cached(&format!(
-                        "WITH next AS (
-                            SELECT id FROM jobs
-                            WHERE state = 'queued' OR (state = 'running' AND lease_until < now())
-                            ORDER BY seq LIMIT 1 FOR UPDATE SKIP LOCKED),
-                         claimed AS (
-                         UPDATE jobs j SET state = 'running', owner = $1, attempt = j.attempt + 1,
-                                lease_until = now() + make_interval(secs => $2),
-                                started_ms = $3, done = 0, t = 0
-                         FROM next WHERE j.id = next.id
-                         RETURNING {}, j.spec_json, j.attempt, j.cancel_requested,
-                                   j.parent IS NOT NULL)
-                         SELECT * FROM claimed",
-                        JOB_COLUMNS
-                            .split(", ")
-                            .map(|c| format!("j.{c}"))
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    ))
-                    .await
-                    .map_err(pg)?,
-                    &[&owner, &lease, &(started_ms as i64)],
-                )
-                .await
-                .map_err(pg)?
-            else {
-                return Ok(None);
-            };
-            Ok(Some(Claim {
-                view: view(&r)?,
-                spec_json: r.try_get(11).map_err(pg)?,
-                attempt: r.try_get::<_, i64>(12).map_err(pg)? as u64,
-                cancel_requested: r.try_get(13).map_err(pg)?,
-                study_child: r.try_get(14).map_err(pg)?,
-            }))
-        })
+        self.with(move |c| async move { claim_next(&c, &owner, lease, started_ms).await })
+    }
+
+    /// The end and the claim go out together on one connection (pipelined: one round trip),
+    /// each its own statement and transaction, the end first.
+    fn end_and_claim(
+        &self,
+        end: &JobEnd<'_>,
+        started_ms: u64,
+    ) -> (Result<(), StoreError>, Result<Option<Claim>, StoreError>) {
+        if end.result.is_some_and(|r| !r.steps.is_empty()) {
+            return (end_by_calls(self, end), self.claim(started_ms));
+        }
+        let (args, owner, lease) = (EndArgs::of(end), self.replica.clone(), self.lease_secs());
+        let both = self.with(move |c| async move {
+            // Prepared (once per connection) before, so the two executions are sent back to
+            // back without waiting for each other.
+            let (ended, claimed) = tokio::join!(
+                store_end(&c, &owner, args),
+                claim_next(&c, &owner, lease, started_ms)
+            );
+            Ok((ended, claimed))
+        });
+        match both {
+            Ok(both) => both,
+            Err(e) => (Err(e), Ok(None)),
+        }
     }
 
     fn heartbeat(&self, beats: &[Beat]) -> Result<Vec<(String, BeatReply)>, StoreError> {
@@ -1044,6 +1242,46 @@ impl SharedQueue for PgStore {
                 CancelOutcome::Requested
             } else {
                 CancelOutcome::NotLive
+            })
+        })
+    }
+
+    fn enqueue(
+        &self,
+        row: &JobView,
+        spec_json: &str,
+        limit: usize,
+    ) -> Result<Enqueued, StoreError> {
+        let (id, name, spec) = (row.id.clone(), row.name.clone(), spec_json.to_string());
+        let (state, created, total) = (row.state.as_str(), row.created_ms as i64, row.total as i64);
+        let limit = limit as i64;
+        self.with(move |c| async move {
+            // Counted, inserted and announced in one statement: the notification goes at
+            // commit.
+            let r = c
+                .query_one(
+                    &c.prepare_cached(&format!(
+                        "WITH queue AS (
+                            SELECT COUNT(*) >= $7 AS at_limit FROM jobs WHERE state = 'queued'),
+                         ins AS (
+                            INSERT INTO jobs (id, name, spec_json, state, created_ms, total)
+                            SELECT $1, $2, $3, $4, $5, $6 FROM queue WHERE NOT queue.at_limit
+                            ON CONFLICT (id) DO NOTHING RETURNING id),
+                         told AS (SELECT pg_notify('{CHANNEL}', id) FROM ins)
+                         SELECT queue.at_limit, (SELECT COUNT(*) FROM told) FROM queue"
+                    ))
+                    .await
+                    .map_err(pg)?,
+                    &[&id, &name, &spec, &state, &created, &total, &limit],
+                )
+                .await
+                .map_err(pg)?;
+            let full: bool = r.try_get(0).map_err(pg)?;
+            let inserted: i64 = r.try_get(1).map_err(pg)?;
+            Ok(match (full, inserted) {
+                (true, _) => Enqueued::Full,
+                (false, 0) => Enqueued::Taken,
+                _ => Enqueued::Queued,
             })
         })
     }
