@@ -8,8 +8,11 @@
 //! 2 replicas × 1 worker (the jobs all submitted to the first replica). For each: jobs/s from the
 //! first submission to the last job's end, the mean busy time of a job (claim to stored end,
 //! from its `started_ms`/`finished_ms`), the overhead per job outside runs
-//! (workers × elapsed / jobs − busy), and with PostgreSQL the median gap between a replica's job
-//! end and its next claim (the claim overhead; one worker per replica makes it exact).
+//! (workers × elapsed / jobs − busy), with PostgreSQL the median gap between a replica's job
+//! end and its next claim (the claim overhead; one worker per replica makes it exact), and the
+//! CPU time per job of the machine, split into the servers, this benchmark and the rest (the
+//! PostgreSQL server on an otherwise idle machine). The end is awaited with two one-row pages
+//! (`state=queued`, `state=running`), so that waiting costs the servers and the store little.
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -26,6 +29,8 @@ struct Figures {
     busy_ms: f64,
     overhead_ms: f64,
     claim_gap_ms: Option<f64>,
+    /// CPU ms per job: the machine, the servers, the benchmark, the rest (PostgreSQL).
+    cpu_ms: [f64; 4],
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -47,6 +52,7 @@ async fn measure(
 ) -> Figures {
     let mut client = servers[0].grpc().await;
     let spec = ball_json(1e-4, steps, 100);
+    let cpu = CpuTicks::now(servers);
     let started = Instant::now();
     for k in 0..jobs {
         submit_json(&mut client, spec.clone(), Some(&format!("b{k:05}")))
@@ -55,6 +61,29 @@ async fn measure(
     }
     let submitted = started.elapsed();
     let reader = servers.last().expect("a server");
+    // Until no job is queued or running (two one-row pages), then the whole list once: the
+    // wait itself costs the servers and the store little.
+    loop {
+        let mut pending = false;
+        for state in ["queued", "running"] {
+            let (status, body) = reader
+                .http(
+                    "GET",
+                    &format!("/v1/jobs?state={state}&limit=1"),
+                    None,
+                    None,
+                )
+                .await;
+            assert_eq!(status, 200, "{body}");
+            pending |= body["jobs"].as_array().is_some_and(|j| !j.is_empty());
+        }
+        if !pending {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    let elapsed = started.elapsed().as_secs_f64();
+    let cpu = cpu.since(servers);
     let listed = loop {
         let mut done = Vec::new();
         let mut token = String::new();
@@ -79,7 +108,6 @@ async fn measure(
         }
         tokio::time::sleep(Duration::from_millis(20)).await;
     };
-    let elapsed = started.elapsed().as_secs_f64();
     let ms = |j: &serde_json::Value, k: &str| j[k].as_f64().expect("a time");
     let busy: Vec<f64> = listed
         .iter()
@@ -93,7 +121,69 @@ async fn measure(
         busy_ms: mean_busy,
         overhead_ms: workers as f64 * elapsed * 1e3 / jobs as f64 - mean_busy,
         claim_gap_ms: None,
+        cpu_ms: cpu.map(|t| t / jobs as f64 * 1e3 / TICKS_PER_S),
     }
+}
+
+/// Clock ticks per second of `/proc` CPU times (USER_HZ, 100 on Linux).
+const TICKS_PER_S: f64 = 100.0;
+
+/// CPU time so far, in clock ticks: the whole machine's busy time (`/proc/stat`), the servers'
+/// processes and this benchmark's own (`/proc/PID/stat`, user + system).
+#[derive(Clone, Copy)]
+struct CpuTicks {
+    machine: f64,
+    servers: f64,
+    bench: f64,
+}
+
+impl CpuTicks {
+    fn now(servers: &[TestServer]) -> CpuTicks {
+        let stat = std::fs::read_to_string("/proc/stat").expect("/proc/stat");
+        let ticks: Vec<f64> = stat
+            .lines()
+            .next()
+            .expect("the cpu line")
+            .split_whitespace()
+            .skip(1)
+            .map(|x| x.parse().expect("a tick count"))
+            .collect();
+        // user nice system idle iowait irq softirq steal …: busy is all but idle and iowait.
+        let machine = ticks.iter().take(8).sum::<f64>() - ticks[3] - ticks[4];
+        CpuTicks {
+            machine,
+            servers: servers
+                .iter()
+                .map(|s| process_ticks(&s.pid().to_string()))
+                .sum(),
+            bench: process_ticks("self"),
+        }
+    }
+
+    /// The CPU used since `self`, split as [machine, servers, bench, the rest] (the rest is the
+    /// PostgreSQL server's processes on an otherwise idle machine).
+    fn since(self, servers: &[TestServer]) -> [f64; 4] {
+        let now = CpuTicks::now(servers);
+        let (machine, servers, bench) = (
+            now.machine - self.machine,
+            now.servers - self.servers,
+            now.bench - self.bench,
+        );
+        [machine, servers, bench, machine - servers - bench]
+    }
+}
+
+/// User + system clock ticks of process `pid` (`self` for this one).
+fn process_ticks(pid: &str) -> f64 {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).expect("/proc/PID/stat");
+    let fields: Vec<&str> = stat
+        .rsplit_once(')')
+        .expect("comm")
+        .1
+        .split_whitespace()
+        .collect();
+    // After the command: state (field 3) … utime (14) and stime (15).
+    fields[11].parse::<f64>().expect("utime") + fields[12].parse::<f64>().expect("stime")
 }
 
 /// Median gap between one replica's job end and its next claim (PostgreSQL, one worker per
@@ -206,6 +296,14 @@ fn main() {
             "{}: {:+.1} % throughput against SQLite",
             f.label,
             100.0 * (f.jobs_per_s / sqlite - 1.0)
+        );
+    }
+    println!("CPU ms per job: machine = servers + bench client + the rest (PostgreSQL)");
+    for f in &figures {
+        let [machine, servers, bench, rest] = f.cpu_ms;
+        println!(
+            "{:<36} {machine:>6.2} = {servers:.2} + {bench:.2} + {rest:.2}",
+            f.label
         );
     }
     println!(

@@ -115,6 +115,14 @@ async fn two_replicas_share_one_queue_and_run_each_job_exactly_once() {
         steps,
         (0..=200).map(|k| f64::from(k * 100)).collect::<Vec<_>>()
     );
+    // The series are stored uncompressed (migration 0005: pglz cost CPU, saved little).
+    assert_eq!(
+        pg.psql(
+            "queue",
+            "SELECT count(*), count(pg_column_compression(vals)) FROM result_chunks"
+        ),
+        "40|0"
+    );
 }
 
 /// Steps a server computed (`signorini_steps_total` of `/metrics`).

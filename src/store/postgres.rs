@@ -65,6 +65,11 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
         "0004_pause",
         include_str!("../../migrations/postgres/0004_pause.sql"),
     ),
+    (
+        5,
+        "0005_uncompressed_series",
+        include_str!("../../migrations/postgres/0005_uncompressed_series.sql"),
+    ),
 ];
 
 /// Advisory lock key held while migrating ("sgnrn" in ASCII).
