@@ -433,10 +433,7 @@ impl Engine {
 
     /// The study job `id` is a run of and the job it extends (`GetJob`'s `parent` and `extends`).
     pub fn lineage(&self, id: &str) -> Result<Lineage, ApiError> {
-        Ok(Lineage {
-            parent: self.inner.store.parent(id)?,
-            extends: self.inner.store.extends(id)?,
-        })
+        Ok(self.inner.store.lineage(id)?)
     }
 
     /// True for a job this replica does not hold while its store's queue is shared: queued for

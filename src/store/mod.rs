@@ -15,7 +15,7 @@ pub mod postgres;
 pub mod sqlite;
 mod study;
 
-use crate::status::{JobState, JobView};
+use crate::status::{JobState, JobView, Lineage};
 use serde_json::{Map, Value};
 use signorini_core::outcome::Table;
 use signorini_figures::Figure;
@@ -401,6 +401,10 @@ pub trait Backend: StudyStore + Send + Sync + pause::PauseStore {
 
     /// One job's status.
     fn get(&self, id: &str) -> Result<Option<JobView>, StoreError>;
+
+    /// Where job `id` comes from, in one query: the study it is a run of and the job it extends
+    /// (both `None` for an unknown id).
+    fn lineage(&self, id: &str) -> Result<Lineage, StoreError>;
 
     /// One page of jobs, newest first: at most `limit`, only those in `state` if given, only
     /// those older than the job numbered `before` if given. Each comes with its number (the

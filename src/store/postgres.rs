@@ -33,7 +33,7 @@ use super::{
     SeriesChunk, SharedQueue, StoreError, StoredResult, batches_blob, check_index, decode_chunk,
     end_by_calls, f64s_to_blob, split_series, u64s_to_blob,
 };
-use crate::status::{JobState, JobView};
+use crate::status::{JobState, JobView, Lineage};
 use deadpool_postgres::{Manager, ManagerConfig, Pool, RecyclingMethod, Transaction};
 use std::future::Future;
 use std::sync::{Arc, Condvar, Mutex};
@@ -922,6 +922,31 @@ impl Backend for PgStore {
             .map_err(pg)?
             .map(|r| view(&r))
             .transpose()
+        })
+    }
+
+    fn lineage(&self, id: &str) -> Result<Lineage, StoreError> {
+        let id = id.to_string();
+        self.with(move |c| async move {
+            let row = c
+                .query_opt(
+                    &c.prepare_cached(
+                        "SELECT j.parent, e.extends FROM jobs j LEFT JOIN extensions e ON e.id = j.id
+                         WHERE j.id = $1",
+                    )
+                    .await
+                    .map_err(pg)?,
+                    &[&id],
+                )
+                .await
+                .map_err(pg)?;
+            Ok(match row {
+                Some(r) => Lineage {
+                    parent: r.try_get(0).map_err(pg)?,
+                    extends: r.try_get(1).map_err(pg)?,
+                },
+                None => Lineage::default(),
+            })
         })
     }
 

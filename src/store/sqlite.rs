@@ -19,7 +19,7 @@ use super::{
     Backend, ChunkMeta, ResultTexts, SeriesChunk, StoreError, StoredResult, batches_blob,
     check_index, decode_chunk, decode_f64s, decode_u64s, f64s_to_blob, split_series, u64s_to_blob,
 };
-use crate::status::{JobState, JobView};
+use crate::status::{JobState, JobView, Lineage};
 use rusqlite::{Connection, OptionalExtension, params};
 use std::path::Path;
 use std::sync::Mutex;
@@ -416,6 +416,24 @@ impl Backend for SqliteStore {
             )
             .optional()?;
         Ok(row.map(finish_row).transpose()?.map(|(view, _)| view))
+    }
+
+    fn lineage(&self, id: &str) -> Result<Lineage, StoreError> {
+        let row = self
+            .conn()
+            .query_row(
+                "SELECT j.parent, e.extends FROM jobs j LEFT JOIN extensions e ON e.id = j.id
+                 WHERE j.id = ?1",
+                [id],
+                |r| {
+                    Ok(Lineage {
+                        parent: r.get(0)?,
+                        extends: r.get(1)?,
+                    })
+                },
+            )
+            .optional()?;
+        Ok(row.unwrap_or_default())
     }
 
     /// One page of jobs, newest first: at most `limit`, only those in `state` if given, only

@@ -28,9 +28,6 @@ pub trait StudyStore {
     /// The spec (JSON) of a study's parent job; `None` when `id` is not one.
     fn study_spec(&self, id: &str) -> Result<Option<String>, StoreError>;
 
-    /// The study (parent job) that job `id` is a run of, if any.
-    fn parent(&self, id: &str) -> Result<Option<String>, StoreError>;
-
     /// The children of a parent job, in the order they were submitted (the reference run
     /// first, if any, then the study's runs); empty for any other job.
     fn children(&self, parent: &str) -> Result<Vec<JobView>, StoreError>;

@@ -100,13 +100,6 @@ impl StudyStore for PgStore {
         )
     }
 
-    fn parent(&self, id: &str) -> Result<Option<String>, StoreError> {
-        self.text_of(
-            "SELECT parent FROM jobs WHERE id = $1 AND parent IS NOT NULL",
-            id,
-        )
-    }
-
     fn children(&self, parent: &str) -> Result<Vec<JobView>, StoreError> {
         let parent = parent.to_string();
         self.with(move |c| async move {

@@ -92,17 +92,6 @@ impl StudyStore for SqliteStore {
             .optional()?)
     }
 
-    fn parent(&self, id: &str) -> Result<Option<String>, StoreError> {
-        Ok(self
-            .conn()
-            .query_row(
-                "SELECT parent FROM jobs WHERE id = ?1 AND parent IS NOT NULL",
-                [id],
-                |r| r.get(0),
-            )
-            .optional()?)
-    }
-
     fn children(&self, parent: &str) -> Result<Vec<JobView>, StoreError> {
         let conn = self.conn();
         let mut stmt = conn.prepare(&format!(
