@@ -12,7 +12,7 @@
 
 mod common;
 
-use common::fingerprint::{fingerprint, fingerprint_without, result};
+use common::fingerprint::{fingerprint, fingerprint_without, result, rows_after};
 use common::{Options, PATIENCE, TestServer, occupy_the_worker, submit_json, wait_terminal};
 use serde_json::Value;
 use signorini::proto::v1 as pb;
@@ -359,25 +359,8 @@ async fn extends_bit_for_bit(server: &TestServer, name: &str, every: u64, t2: f6
     let summary: Value = serde_json::from_str(&ext_r.summary_json).expect("summary");
     assert_eq!(summary["extends"], first.as_str());
     // The extension holds the rows after t₁: the long run's from the first step after n₁.
-    let after = whole_r
-        .step
-        .iter()
-        .position(|&k| k > n1)
-        .expect("rows after t1");
-    assert_eq!(ext_r.step, whole_r.step[after..]);
-    let tail = pb::JobResult {
-        step: whole_r.step[after..].to_vec(),
-        t: whole_r.t[after..].to_vec(),
-        series: whole_r
-            .series
-            .iter()
-            .map(|s| pb::Series {
-                column: s.column.clone(),
-                values: s.values[after..].to_vec(),
-            })
-            .collect(),
-        ..whole_r.clone()
-    };
+    let tail = rows_after(&whole_r, n1);
+    assert_eq!(ext_r.step, tail.step);
     // Every column (the energy ledger included), the summary and the figures.
     assert_eq!(
         fingerprint_without(&ext_r, &["extends"]),

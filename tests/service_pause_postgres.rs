@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::fingerprint::{fingerprint, fingerprint_without, result};
+use common::fingerprint::{fingerprint, fingerprint_without, result, rows_after};
 use common::pg::Postgres;
 use common::{Options, TestServer, has_ended, poll_job, submit_json};
 use signorini::proto::v1 as pb;
@@ -159,24 +159,7 @@ async fn a_job_paused_through_another_replica_resumes_anywhere_bit_for_bit() {
         result(&mut to_a, "longer").await,
         result(&mut to_b, "to-6100").await,
     );
-    let after = full
-        .step
-        .iter()
-        .position(|&k| k > 6_000_000)
-        .expect("rows after t1");
-    let tail = pb::JobResult {
-        step: full.step[after..].to_vec(),
-        t: full.t[after..].to_vec(),
-        series: full
-            .series
-            .iter()
-            .map(|s| pb::Series {
-                column: s.column.clone(),
-                values: s.values[after..].to_vec(),
-            })
-            .collect(),
-        ..full.clone()
-    };
+    let tail = rows_after(&full, 6_000_000);
     assert_eq!(ext.step, tail.step);
     assert_eq!(fingerprint_without(&ext, &["extends"]), fingerprint(&tail));
 }

@@ -48,3 +48,26 @@ pub async fn result(client: &mut SimulationClient<Channel>, id: &str) -> pb::Job
         .expect("result")
         .into_inner()
 }
+
+/// A result cut to its rows after step `n` (the rows an extension from step `n` records), the
+/// summary, tables and figures unchanged.
+pub fn rows_after(r: &pb::JobResult, n: u64) -> pb::JobResult {
+    let after = r
+        .step
+        .iter()
+        .position(|&k| k > n)
+        .expect("rows after the step");
+    pb::JobResult {
+        step: r.step[after..].to_vec(),
+        t: r.t[after..].to_vec(),
+        series: r
+            .series
+            .iter()
+            .map(|s| pb::Series {
+                column: s.column.clone(),
+                values: s.values[after..].to_vec(),
+            })
+            .collect(),
+        ..r.clone()
+    }
+}
