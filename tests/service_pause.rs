@@ -13,7 +13,9 @@
 mod common;
 
 use common::fingerprint::{fingerprint, fingerprint_without, result, rows_after};
-use common::{Options, PATIENCE, TestServer, occupy_the_worker, submit_json, wait_terminal};
+use common::{
+    LONG_BALL_STUDY, Options, PATIENCE, TestServer, occupy_the_worker, submit_json, wait_terminal,
+};
 use serde_json::Value;
 use signorini::proto::v1 as pb;
 use signorini::spec_file::{Format, parse};
@@ -452,13 +454,9 @@ async fn a_study_parent_is_not_paused_its_children_are() {
         ..Options::default()
     };
     let server = TestServer::start(&dir.path().join("store.db"), &opts);
-    let spec = r#"{"study": {
-        "reference": "exact",
-        "base": {"model": {"scene": "bouncing_ball"}, "time": {"h": 1e-6, "t_end": 100.0},
-                 "output": {"every": 1000000}},
-        "schemes": [{"scheme": "moreau_jean", "theta": 0.5}, {"scheme": "moreau_jean", "theta": 1.0}],
-        "grid": {"time.h": [1e-6, 5e-7]}}}"#;
-    let (code, body) = server.http("POST", "/v1/jobs", Some(spec), None).await;
+    let (code, body) = server
+        .http("POST", "/v1/jobs", Some(LONG_BALL_STUDY), None)
+        .await;
     assert_eq!(code, 201, "{body}");
     let parent = body["id"].as_str().expect("id").to_string();
     let (code, body) = server

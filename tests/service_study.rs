@@ -8,7 +8,7 @@
 mod common;
 
 use common::pg::Postgres;
-use common::{Options, PATIENCE, TestServer, has_ended, poll_job, submit_json};
+use common::{LONG_BALL_STUDY, Options, PATIENCE, TestServer, has_ended, poll_job, submit_json};
 use quick_xml::Reader;
 use quick_xml::events::Event;
 use serde_json::Value;
@@ -348,13 +348,9 @@ async fn cancelling_a_study_cancels_its_children_and_purging_it_purges_them() {
         ..Options::default()
     };
     let server = TestServer::start(&dir.path().join("store.db"), &opts);
-    let spec = r#"{"study": {
-        "reference": "exact",
-        "base": {"model": {"scene": "bouncing_ball"}, "time": {"h": 1e-6, "t_end": 100.0},
-                 "output": {"every": 1000000}},
-        "schemes": [{"scheme": "moreau_jean", "theta": 0.5}, {"scheme": "moreau_jean", "theta": 1.0}],
-        "grid": {"time.h": [1e-6, 5e-7]}}}"#;
-    let (code, body) = server.http("POST", "/v1/jobs", Some(spec), None).await;
+    let (code, body) = server
+        .http("POST", "/v1/jobs", Some(LONG_BALL_STUDY), None)
+        .await;
     assert_eq!(code, 201, "{body}");
     let id = body["id"].as_str().unwrap().to_string();
     // Wait until the first child runs.

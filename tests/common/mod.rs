@@ -473,6 +473,15 @@ pub async fn wait_running(client: &mut SimulationClient<Channel>, id: &str, step
         .expect("job did not start in time");
 }
 
+/// A study of four long bouncing-ball runs (10⁸ and 2·10⁸ steps, two schemes) against the exact
+/// solution: its children are still running or queued when a test acts on them.
+pub const LONG_BALL_STUDY: &str = r#"{"study": {
+    "reference": "exact",
+    "base": {"model": {"scene": "bouncing_ball"}, "time": {"h": 1e-6, "t_end": 100.0},
+             "output": {"every": 1000000}},
+    "schemes": [{"scheme": "moreau_jean", "theta": 0.5}, {"scheme": "moreau_jean", "theta": 1.0}],
+    "grid": {"time.h": [1e-6, 5e-7]}}}"#;
+
 /// A bouncing-ball spec in JSON.
 pub fn ball_json(h: f64, steps: u64, every: u64) -> String {
     format!(
