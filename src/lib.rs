@@ -5,6 +5,7 @@ pub mod cli;
 pub mod config;
 pub mod engine;
 pub mod error;
+pub mod lifecycle;
 pub mod output;
 pub mod proto;
 pub mod server;

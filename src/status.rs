@@ -52,10 +52,7 @@ impl JobState {
 
     /// True when the job will not change any more.
     pub fn is_terminal(self) -> bool {
-        matches!(
-            self,
-            JobState::Succeeded | JobState::Failed | JobState::Cancelled
-        )
+        crate::lifecycle::ENDED.contains(&self)
     }
 }
 

@@ -6,7 +6,7 @@
 
 use super::events::{ColumnGroup, StepBatch, split_columns};
 use super::{Engine, Series, lock};
-use crate::error::ApiError;
+use crate::engine::EngineError;
 use crate::status::JobView;
 use crate::store::SeriesChunk;
 
@@ -27,7 +27,7 @@ impl Engine {
     /// A job's status and its history, taken together: every row recorded so far is in the
     /// history exactly once (a running job's buffer and the store's chunk index are read under
     /// the buffer's lock, which its observer holds while it moves rows to the store).
-    pub fn history(&self, id: &str) -> Result<(JobView, History), ApiError> {
+    pub fn history(&self, id: &str) -> Result<(JobView, History), EngineError> {
         let mut stored = self.reader(id);
         let live = lock(&self.inner.live).get(id).cloned();
         if let Some(live) = live {
@@ -100,7 +100,7 @@ impl History {
         &self,
         from_seq: u64,
         mut send: impl FnMut(StepBatch) -> bool,
-    ) -> Result<Option<u64>, ApiError> {
+    ) -> Result<Option<u64>, EngineError> {
         let (energy, state) = split_columns(&self.columns);
         let n = self.columns.len();
         let make = |chunk: &SeriesChunk, first_row: u64, (seq, start, end): (u64, u64, u64)| {

@@ -1,6 +1,6 @@
 //! Job ids and the wall clock of the service.
 
-use crate::error::ApiError;
+use crate::engine::EngineError;
 use signorini_core::spec::SpecError;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{SystemTime, UNIX_EPOCH};
@@ -20,14 +20,14 @@ pub(crate) fn now_ns() -> u64 {
 }
 
 /// Checks a client-chosen id: 1–64 of `[A-Za-z0-9_-]` (safe in a zenoh key and a URL).
-pub fn check_id(id: &str) -> Result<(), ApiError> {
+pub fn check_id(id: &str) -> Result<(), EngineError> {
     if id.is_empty()
         || id.len() > 64
         || !id
             .bytes()
             .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
     {
-        return Err(ApiError::Invalid(SpecError::new(
+        return Err(EngineError::Invalid(SpecError::new(
             "id",
             "1 to 64 characters among A-Z a-z 0-9 _ -",
         )));

@@ -3,45 +3,48 @@
 //! status and results in the [`Store`]. It speaks no wire format: what happens to a job leaves as
 //! [`JobEvent`]s, which the adapters (`crate::stream`, `crate::server`) encode.
 //!
-//! With a shared store (PostgreSQL) the queue is the store's: workers claim jobs from it under a
-//! lease that a heartbeat thread renews (with the progress of the jobs this replica runs, and
-//! the cancel requests made on other replicas), and idle workers wait for the store's
-//! notification of a new job or [`CLAIM_POLL`], whichever comes first.
+//! Jobs wait in a [`queue::Queue`]: this process's own (SQLite store) or, with a shared store
+//! (PostgreSQL), the store's, from which workers claim jobs under a lease that a heartbeat
+//! thread renews (with the progress of the jobs this replica runs, and the cancel requests made
+//! on other replicas); idle workers wait for the store's notification of a new job or
+//! [`CLAIM_POLL`], whichever comes first. The engine asks the queue, never which one it is.
 //!
 //! Cancellation is an `AtomicBool` the run's observer reads after every step, so a running job
 //! stops within one step of the call. Progress (step, t, fraction) lives in atomics read by
 //! `GetJob` and is sent as a status event about every 200 ms.
 
+mod error;
 pub mod events;
 mod history;
 pub mod ids;
 mod observer;
 mod pause;
+mod queue;
+mod stop;
 mod study;
 
 use crate::config::Limits;
-use crate::error::ApiError;
 use crate::output::finish_run;
 use crate::status::{JobState, JobView, Lineage};
-use crate::store::{
-    Beat, BeatReply, CancelOutcome, ChunkMeta, Claim, Enqueued, JobEnd, SeriesChunk, SharedQueue,
-    Store, StoreError, StoredResult,
-};
+use crate::store::{ChunkMeta, Claim, JobEnd, SeriesChunk, Store, StoreError, StoredResult};
 use events::{EventSink, JobEvent, StreamStats};
 use ids::{new_id, now_ms};
 use observer::ServiceObserver;
 use signorini_core::job::{self, Job};
 use signorini_core::outcome::RunError;
 use signorini_core::spec::{JobSpec, SpecError};
-use std::collections::{HashMap, VecDeque};
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Instant;
+use stop::{StopReason, StopRequest};
 use tokio::sync::watch;
 
+pub use error::EngineError;
 pub use history::History;
 pub use ids::check_id;
+pub use queue::CLAIM_POLL;
 
 /// The rows of a running job not yet in the store, and the batches they went out in: filled by
 /// the job's observer, copied by readers of the job's history under the same lock (a chunk is
@@ -76,9 +79,8 @@ struct LiveJob {
     name: Option<String>,
     job: Job,
     created_ms: u64,
-    cancel: AtomicBool,
-    /// A pause was asked: the run writes a checkpoint after its next step and stops there.
-    pause: AtomicBool,
+    /// The stop asked of its run (cancel, pause, lost lease), read by its observer.
+    stop: StopRequest,
     running: AtomicBool,
     started_ms: AtomicU64,
     done: AtomicU64,
@@ -150,15 +152,15 @@ struct Inner {
     store: Store,
     limits: Limits,
     queue_limit: usize,
-    queue: Mutex<VecDeque<Arc<LiveJob>>>,
-    wake: Condvar,
+    /// Where jobs wait for a worker.
+    queue: Box<dyn queue::Queue>,
     live: Mutex<HashMap<String, Arc<LiveJob>>>,
     sink: EventSink,
     shutdown: AtomicBool,
     counters: Counters,
     workers: usize,
     /// Results being streamed, with their number of readers: a purge waits until none is left
-    /// (it answers [`ApiError::BeingRead`]), so no stream is cut mid-body.
+    /// (it answers [`EngineError::BeingRead`]), so no stream is cut mid-body.
     readers: Mutex<HashMap<String, usize>>,
 }
 
@@ -287,72 +289,59 @@ impl Engine {
         queue_limit: usize,
         workers: usize,
         sink: EventSink,
-    ) -> Result<Engine, ApiError> {
-        let recovered = store.recover()?;
+    ) -> Result<Engine, EngineError> {
+        let mut recovered = Vec::new();
+        for (view, spec_json) in store.recover()? {
+            let built = crate::spec_file::parse(&spec_json, crate::spec_file::Format::Json)
+                .and_then(|spec| Job::from_spec(&spec));
+            match built {
+                Ok(job) => {
+                    tracing::info!(id = %view.id, "re-queued after restart");
+                    recovered.push(Arc::new(new_live(
+                        view.id.clone(),
+                        view.name.clone(),
+                        job,
+                        view.created_ms,
+                        true,
+                    )));
+                }
+                Err(e) => {
+                    store.finish(&failed_spec(view, e, "no longer valid after restart"), None)?;
+                }
+            }
+        }
+        let live = recovered
+            .iter()
+            .map(|l| (l.id.clone(), l.clone()))
+            .collect();
         let inner = Arc::new(Inner {
+            queue: queue::for_store(&store, recovered),
             store,
             limits,
             queue_limit,
-            queue: Mutex::new(VecDeque::new()),
-            wake: Condvar::new(),
-            live: Mutex::new(HashMap::new()),
+            live: Mutex::new(live),
             sink,
             shutdown: AtomicBool::new(false),
             counters: Counters::default(),
             workers,
             readers: Mutex::new(HashMap::new()),
         });
-        for (view, spec_json) in recovered {
-            let built = crate::spec_file::parse(&spec_json, crate::spec_file::Format::Json)
-                .and_then(|spec| Job::from_spec(&spec));
-            match built {
-                Ok(job) => {
-                    tracing::info!(id = %view.id, "re-queued after restart");
-                    let live = Arc::new(new_live(
-                        view.id.clone(),
-                        view.name.clone(),
-                        job,
-                        view.created_ms,
-                        true,
-                    ));
-                    lock(&inner.live).insert(view.id.clone(), live.clone());
-                    lock(&inner.queue).push_back(live);
-                }
-                Err(e) => {
-                    let mut failed = view;
-                    failed.state = JobState::Failed;
-                    failed.finished_ms = now_ms();
-                    failed.error = Some((
-                        e.field,
-                        format!("no longer valid after restart: {}", e.reason),
-                    ));
-                    inner.store.finish(&failed, None)?;
-                }
-            }
-        }
         let engine = Engine {
             inner,
             threads: Arc::new(Mutex::new(Vec::new())),
         };
-        if let Some(q) = engine.inner.store.shared() {
-            tracing::info!(
-                replica = q.replica(),
-                lease_s = q.lease().as_secs_f64(),
-                "shared queue"
-            );
-            let inner = engine.inner.clone();
-            let handle = std::thread::Builder::new()
-                .name("signorini-heartbeat".into())
-                .spawn(move || heartbeat_loop(&inner))
-                .map_err(|e| ApiError::Internal(format!("spawning the heartbeat: {e}")))?;
-            lock(&engine.threads).push(handle);
-        }
+        let upkeep = engine
+            .inner
+            .queue
+            .spawn_upkeep(engine.inner.clone())
+            .map_err(|e| EngineError::Internal(format!("spawning the heartbeat: {e}")))?;
+        lock(&engine.threads).extend(upkeep);
         for k in 0..workers {
             let inner = engine.inner.clone();
             let handle = std::thread::Builder::new()
                 .name(format!("signorini-worker-{k}"))
                 .spawn(move || worker_loop(&inner))
-                .map_err(|e| ApiError::Internal(format!("spawning worker: {e}")))?;
+                .map_err(|e| EngineError::Internal(format!("spawning worker: {e}")))?;
             lock(&engine.threads).push(handle);
         }
         let sweeper = study::spawn_sweeper(&engine)?;
@@ -361,15 +350,15 @@ impl Engine {
     }
 
     /// Validates, checks limits and queues a job. Returns its id.
-    pub fn submit(&self, spec: &JobSpec, id: Option<String>) -> Result<String, ApiError> {
+    pub fn submit(&self, spec: &JobSpec, id: Option<String>) -> Result<String, EngineError> {
         if self.inner.shutdown.load(Ordering::Acquire) {
-            return Err(ApiError::Unavailable);
+            return Err(EngineError::Unavailable);
         }
         if let Some(id) = &id {
             check_id(id)?;
         }
         let spec_value =
-            serde_json::to_value(spec).map_err(|e| ApiError::Internal(e.to_string()))?;
+            serde_json::to_value(spec).map_err(|e| EngineError::Internal(e.to_string()))?;
         check_text(&spec_value, "")?;
         if spec.study.is_some() {
             return study::submit(self, spec, spec_value.to_string(), id);
@@ -386,60 +375,30 @@ impl Engine {
             created_ms,
             false,
         ));
-        if let Some(q) = self.inner.store.shared() {
-            // The store queues it (and tells every replica); a worker of any replica claims it.
-            match q.enqueue(&live.view(), &spec_json, self.inner.queue_limit)? {
-                Enqueued::Queued => {}
-                Enqueued::Full => {
-                    return Err(ApiError::QueueFull {
-                        limit: self.inner.queue_limit,
-                    });
-                }
-                Enqueued::Taken => return Err(ApiError::AlreadyExists { id }),
-            }
-            self.inner.sink.send(JobEvent::Status(live.view()));
-            return Ok(id);
-        }
-        {
-            let mut queue = lock(&self.inner.queue);
-            if queue.len() >= self.inner.queue_limit {
-                return Err(ApiError::QueueFull {
-                    limit: self.inner.queue_limit,
-                });
-            }
-            if !self.inner.store.insert(&live.view(), &spec_json)? {
-                return Err(ApiError::AlreadyExists { id });
-            }
-            lock(&self.inner.live).insert(id.clone(), live.clone());
-            // Queued before a worker can take the job (it takes jobs under this lock), so the
-            // `queued` status cannot go out after `running`.
-            self.inner.sink.send(JobEvent::Status(live.view()));
-            queue.push_back(live.clone());
-        }
-        self.inner.wake.notify_one();
+        self.inner.queue.submit(&self.inner, live, &spec_json)?;
         Ok(id)
     }
 
     /// A job's status.
-    pub fn status(&self, id: &str) -> Result<JobView, ApiError> {
+    pub fn status(&self, id: &str) -> Result<JobView, EngineError> {
         if let Some(live) = lock(&self.inner.live).get(id) {
             return Ok(live.view());
         }
         self.inner
             .store
             .get(id)?
-            .ok_or_else(|| ApiError::NotFound { id: id.into() })
+            .ok_or_else(|| EngineError::NotFound { id: id.into() })
     }
 
     /// The study job `id` is a run of and the job it extends (`GetJob`'s `parent` and `extends`).
-    pub fn lineage(&self, id: &str) -> Result<Lineage, ApiError> {
+    pub fn lineage(&self, id: &str) -> Result<Lineage, EngineError> {
         Ok(self.inner.store.lineage(id)?)
     }
 
     /// True for a job this replica does not hold while its store's queue is shared: queued for
     /// any replica, or running on another one (its events go out there).
     pub fn runs_elsewhere(&self, id: &str) -> bool {
-        self.inner.store.shared().is_some() && !lock(&self.inner.live).contains_key(id)
+        self.inner.queue.others_run_jobs() && !lock(&self.inner.live).contains_key(id)
     }
 
     /// The status if the job exists (for the zenoh status queryable).
@@ -455,7 +414,7 @@ impl Engine {
         state: Option<JobState>,
         page_token: &str,
         limit: usize,
-    ) -> Result<JobPage, ApiError> {
+    ) -> Result<JobPage, EngineError> {
         let before = if page_token.is_empty() {
             None
         } else {
@@ -497,7 +456,7 @@ impl Engine {
 
     /// Removes the finished jobs that ended more than `retain` ago, with their results
     /// (blocking); the number removed.
-    pub fn expire(&self, retain: std::time::Duration) -> Result<usize, ApiError> {
+    pub fn expire(&self, retain: std::time::Duration) -> Result<usize, EngineError> {
         let cutoff = now_ms().saturating_sub(retain.as_millis() as u64);
         let ids = self.inner.store.finished_before(cutoff)?;
         let mut removed = 0;
@@ -505,7 +464,7 @@ impl Engine {
             match self.delete(id) {
                 Ok(()) => removed += 1,
                 // Purged meanwhile by a client; or being read: removed at a later sweep.
-                Err(ApiError::NotFound { .. } | ApiError::BeingRead { .. }) => {}
+                Err(EngineError::NotFound { .. } | EngineError::BeingRead { .. }) => {}
                 Err(e) => return Err(e),
             }
         }
@@ -514,9 +473,9 @@ impl Engine {
 
     /// Removes a finished job and its result from the store; a queued or running job must be
     /// cancelled first, and a result being streamed must be read to its end.
-    pub fn delete(&self, id: &str) -> Result<(), ApiError> {
+    pub fn delete(&self, id: &str) -> Result<(), EngineError> {
         if let Some(live) = lock(&self.inner.live).get(id) {
-            return Err(ApiError::Unfinished {
+            return Err(EngineError::Unfinished {
                 id: id.into(),
                 state: live.view().state.as_str(),
             });
@@ -527,7 +486,7 @@ impl Engine {
         // Held over the removal: no reader opens the result in between.
         let readers = lock(&self.inner.readers);
         if let Some(&n) = readers.get(id) {
-            return Err(ApiError::BeingRead {
+            return Err(EngineError::BeingRead {
                 id: id.into(),
                 readers: n,
             });
@@ -535,11 +494,11 @@ impl Engine {
         if !self.inner.store.delete(id)? {
             // A shared store keeps a job another replica still runs.
             return Err(match self.inner.store.get(id)? {
-                Some(v) if !v.state.is_terminal() => ApiError::Unfinished {
+                Some(v) if !v.state.is_terminal() => EngineError::Unfinished {
                     id: id.into(),
                     state: v.state.as_str(),
                 },
-                _ => ApiError::NotFound { id: id.into() },
+                _ => EngineError::NotFound { id: id.into() },
             });
         }
         tracing::info!(%id, "purged");
@@ -548,7 +507,7 @@ impl Engine {
 
     /// Cancels a job. A queued job ends at once; a running one stops at the end of its current
     /// step: await [`Engine::ended`] for that. Finished jobs are left as they are.
-    pub fn cancel(&self, id: &str) -> Result<JobView, ApiError> {
+    pub fn cancel(&self, id: &str) -> Result<JobView, EngineError> {
         let live = lock(&self.inner.live).get(id).cloned();
         let Some(live) = live else {
             if let Some(view) = self.cancel_study(id)? {
@@ -557,24 +516,17 @@ impl Engine {
             if let Some(view) = self.cancel_paused(id)? {
                 return Ok(view);
             }
-            if let Some(q) = self.inner.store.shared() {
-                // Queued, or running on another replica (stopped at its next heartbeat).
-                if let CancelOutcome::Cancelled(view) = q.request_cancel(id, now_ms())? {
-                    self.inner.sink.send(JobEvent::Status(view.clone()));
-                    self.inner.sink.send(JobEvent::Closed(id.to_string()));
-                    study::child_ended(&self.inner, id);
-                    return Ok(view);
-                }
+            // Queued for another replica, or running on one (stopped at its next heartbeat).
+            if let Some(view) = self.inner.queue.cancel_elsewhere(id)? {
+                self.inner.sink.send(JobEvent::Status(view.clone()));
+                self.inner.sink.send(JobEvent::Closed(id.to_string()));
+                study::child_ended(&self.inner, id);
+                return Ok(view);
             }
             return self.status(id);
         };
-        live.cancel.store(true, Ordering::Release);
-        let was_queued = {
-            let mut queue = lock(&self.inner.queue);
-            let before = queue.len();
-            queue.retain(|j| j.id != id);
-            queue.len() != before
-        };
+        live.stop.ask(StopReason::Cancel);
+        let was_queued = self.inner.queue.withdraw(id);
         if was_queued {
             let view = live.ended_view(JobState::Cancelled);
             self.inner.store.finish(&view, None)?;
@@ -598,9 +550,9 @@ impl Engine {
     /// The result of a finished job without its series: a succeeded job's, or the partial one
     /// a failed or cancelled run left (`partial` set). The series is read with
     /// [`Engine::series`], chunk by chunk.
-    pub fn result_head(&self, id: &str) -> Result<(JobView, StoredResult), ApiError> {
+    pub fn result_head(&self, id: &str) -> Result<(JobView, StoredResult), EngineError> {
         let view = self.status(id)?;
-        let no_result = || ApiError::NoResult {
+        let no_result = || EngineError::NoResult {
             id: id.into(),
             state: view.state.as_str(),
         };
@@ -610,7 +562,7 @@ impl Engine {
         match self.inner.store.result_head(id)? {
             Some(head) => Ok((view, head)),
             None if view.state == JobState::Succeeded => {
-                Err(ApiError::Internal(format!("result of {id} missing")))
+                Err(EngineError::Internal(format!("result of {id} missing")))
             }
             None => Err(no_result()),
         }
@@ -619,7 +571,7 @@ impl Engine {
     /// A finished job's result, as [`Engine::result_head`], with its stored series opened for
     /// reading: until the [`Series`] is dropped the job cannot be purged, so a stream of it is
     /// never cut by a concurrent `DELETE …?purge=true` or the retention sweep.
-    pub fn open_result(&self, id: &str) -> Result<(JobView, StoredResult, Series), ApiError> {
+    pub fn open_result(&self, id: &str) -> Result<(JobView, StoredResult, Series), EngineError> {
         // Registered before the reads: a purge from here on waits for the drop.
         let mut series = self.reader(id);
         let (view, head) = self.result_head(id)?;
@@ -641,16 +593,13 @@ impl Engine {
     }
 
     /// Jobs per state (from the store).
-    pub fn counts(&self) -> Result<Vec<(JobState, u64)>, ApiError> {
+    pub fn counts(&self) -> Result<Vec<(JobState, u64)>, EngineError> {
         Ok(self.inner.store.counts()?)
     }
 
     /// Jobs waiting for a worker (of any replica, with a shared store).
-    pub fn queue_depth(&self) -> Result<usize, ApiError> {
-        match self.inner.store.shared() {
-            Some(q) => Ok(q.queued()? as usize),
-            None => Ok(lock(&self.inner.queue).len()),
-        }
+    pub fn queue_depth(&self) -> Result<usize, EngineError> {
+        Ok(self.inner.queue.depth()?)
     }
 
     /// Worker threads.
@@ -673,10 +622,7 @@ impl Engine {
     /// worker threads. Blocking: call from a blocking context.
     pub fn shutdown(&self) {
         self.inner.shutdown.store(true, Ordering::Release);
-        self.inner.wake.notify_all();
-        if let Some(q) = self.inner.store.shared() {
-            q.wake();
-        }
+        self.inner.queue.wake_all();
         let threads: Vec<_> = lock(&self.threads).drain(..).collect();
         for t in threads {
             let _ = t.join();
@@ -705,7 +651,7 @@ impl Series {
     }
 
     /// One chunk's rows.
-    pub fn read(&self, meta: &ChunkMeta) -> Result<SeriesChunk, ApiError> {
+    pub fn read(&self, meta: &ChunkMeta) -> Result<SeriesChunk, EngineError> {
         Ok(self.inner.store.read_chunk(&self.id, meta, self.columns)?)
     }
 }
@@ -735,8 +681,7 @@ fn new_live(
         name,
         job,
         created_ms,
-        cancel: AtomicBool::new(false),
-        pause: AtomicBool::new(false),
+        stop: StopRequest::default(),
         running: AtomicBool::new(false),
         started_ms: AtomicU64::new(0),
         done: AtomicU64::new(0),
@@ -746,19 +691,6 @@ fn new_live(
         recent: Mutex::new(Recent::default()),
         study_child,
         claimed: None,
-    }
-}
-
-fn next_job(inner: &Inner) -> Option<Arc<LiveJob>> {
-    let mut queue = lock(&inner.queue);
-    loop {
-        if inner.shutdown.load(Ordering::Acquire) {
-            return None;
-        }
-        if let Some(j) = queue.pop_front() {
-            return Some(j);
-        }
-        queue = inner.wake.wait(queue).unwrap_or_else(|p| p.into_inner());
     }
 }
 
@@ -779,53 +711,26 @@ fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
         .unwrap_or_else(|| "a panic without a message".into())
 }
 
-/// Longest wait of an idle worker between two claims on a shared store (a notification of a
-/// new job wakes it sooner; a lease that ran out is only found this way).
-pub const CLAIM_POLL: Duration = Duration::from_millis(250);
-
 fn worker_loop(inner: &Inner) {
-    // With a shared store, the job claimed together with the end of the one before.
+    // The job the queue claimed together with the end of the one before.
     let mut claimed: Option<Arc<LiveJob>> = None;
     loop {
-        let next = match (claimed.take(), inner.store.shared()) {
-            (Some(live), Some(q)) if inner.shutdown.load(Ordering::Acquire) => {
+        let next = match claimed.take() {
+            Some(live) if inner.shutdown.load(Ordering::Acquire) => {
                 // Not started: back to the queue, for any replica.
-                if let Err(e) = q.release(&live.id) {
+                if let Err(e) = inner.queue.release(&live.id) {
                     tracing::error!(id = %live.id, "store: {e}");
                 }
                 lock(&inner.live).remove(&live.id);
                 None
             }
-            (Some(live), _) => Some(live),
-            (None, Some(q)) => next_claim(inner, q),
-            (None, None) => next_job(inner),
+            Some(live) => Some(live),
+            None => inner.queue.next(inner),
         };
         let Some(live) = next else {
             return;
         };
         claimed = run_one(inner, &live);
-    }
-}
-
-/// The next job claimed from the shared queue (`None` at shutdown).
-fn next_claim(inner: &Inner, q: &dyn SharedQueue) -> Option<Arc<LiveJob>> {
-    loop {
-        if inner.shutdown.load(Ordering::Acquire) {
-            return None;
-        }
-        let seen = q.ticket();
-        match q.claim(now_ms()) {
-            Ok(Some(claim)) => {
-                if let Some(live) = adopt(inner, claim) {
-                    return Some(live);
-                }
-            }
-            Ok(None) => q.wait(seen, CLAIM_POLL),
-            Err(e) => {
-                tracing::error!("claiming a job: {e}");
-                std::thread::sleep(CLAIM_POLL);
-            }
-        }
     }
 }
 
@@ -846,12 +751,7 @@ fn adopt(inner: &Inner, claim: Claim) -> Option<Arc<LiveJob>> {
     let job = match built {
         Ok(job) => job,
         Err(e) => {
-            let failed = JobView {
-                state: JobState::Failed,
-                finished_ms: now_ms(),
-                error: Some((e.field, format!("not valid on this replica: {}", e.reason))),
-                ..view
-            };
+            let failed = failed_spec(view, e, "not valid on this replica");
             if let Err(e) = inner.store.finish(&failed, None) {
                 tracing::error!(id = %failed.id, "store: {e}");
             }
@@ -878,60 +778,10 @@ fn adopt(inner: &Inner, claim: Claim) -> Option<Arc<LiveJob>> {
         )
     });
     if cancel_requested {
-        live.cancel.store(true, Ordering::Release);
+        live.stop.ask(StopReason::Cancel);
     }
     lock(&inner.live).insert(view.id.clone(), live.clone());
     Some(live)
-}
-
-/// Renews this replica's leases about four times per lease, with the progress of its running
-/// jobs; stops a job whose cancel was asked on another replica, or whose lease was lost.
-fn heartbeat_loop(inner: &Inner) {
-    let Some(q) = inner.store.shared() else {
-        return;
-    };
-    let every = q.lease() / 4;
-    let mut last = Instant::now();
-    while !inner.shutdown.load(Ordering::Acquire) {
-        std::thread::sleep(Duration::from_millis(20).min(every));
-        if last.elapsed() < every {
-            continue;
-        }
-        last = Instant::now();
-        let running: Vec<Arc<LiveJob>> = lock(&inner.live)
-            .values()
-            .filter(|l| l.running.load(Ordering::Acquire))
-            .cloned()
-            .collect();
-        let beats: Vec<Beat> = running
-            .iter()
-            .map(|l| Beat {
-                id: l.id.clone(),
-                done: l.done.load(Ordering::Relaxed),
-                total: l.total.load(Ordering::Relaxed),
-                t: f64::from_bits(l.t_bits.load(Ordering::Relaxed)),
-            })
-            .collect();
-        match q.heartbeat(&beats) {
-            Ok(replies) => {
-                for (id, reply) in replies {
-                    let Some(live) = running.iter().find(|l| l.id == id) else {
-                        continue;
-                    };
-                    match reply {
-                        BeatReply::Held => {}
-                        BeatReply::CancelRequested => live.cancel.store(true, Ordering::Release),
-                        BeatReply::PauseRequested => live.pause.store(true, Ordering::Release),
-                        BeatReply::Lost => {
-                            tracing::warn!(%id, "lease lost: another replica runs the job now");
-                            live.cancel.store(true, Ordering::Release);
-                        }
-                    }
-                }
-            }
-            Err(e) => tracing::error!("heartbeat: {e}"),
-        }
-    }
 }
 
 /// Runs a job to its end; with a shared store, returns the next job, claimed with the end.
@@ -1015,26 +865,38 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
             };
             (JobState::Succeeded, None, Some(result))
         }
-        Ok(Err(RunError::Stopped { .. }))
-            if !live.cancel.load(Ordering::Acquire) && live.pause.load(Ordering::Acquire) =>
-        {
-            store_rest(live, &mut observer);
-            pause::park(inner, live);
-            return None;
-        }
-        Ok(Err(RunError::Stopped { .. })) if !live.cancel.load(Ordering::Acquire) => {
-            // Server shutdown: leave the job `running` in the store; the next start re-runs it
-            // (a shared store's queue takes it back now, for any replica).
-            store_rest(live, &mut observer);
-            tracing::info!(id = %live.id, "interrupted by shutdown");
-            if let Some(q) = inner.store.shared()
-                && let Err(e) = q.release(&live.id)
-            {
-                tracing::error!(id = %live.id, "store: {e}");
+        Ok(Err(RunError::Stopped { step })) => match observer.stop_reason() {
+            Some(StopReason::Pause) => {
+                store_rest(live, &mut observer);
+                pause::park(inner, live);
+                return None;
             }
-            return None;
-        }
-        Ok(Err(RunError::Stopped { .. })) => (JobState::Cancelled, None, partial()),
+            Some(StopReason::Shutdown) => {
+                // Leave the job `running` in the store; the next start re-runs it (a shared
+                // store's queue takes it back now, for any replica).
+                store_rest(live, &mut observer);
+                tracing::info!(id = %live.id, "interrupted by shutdown");
+                if let Err(e) = inner.queue.release(&live.id) {
+                    tracing::error!(id = %live.id, "store: {e}");
+                }
+                return None;
+            }
+            Some(StopReason::LeaseLost) => {
+                // Another replica runs the job now: nothing of this run is stored.
+                let lost = StoreError::LeaseLost {
+                    id: live.id.clone(),
+                };
+                drop_lost(inner, live, &lost);
+                return None;
+            }
+            Some(StopReason::Cancel) => (JobState::Cancelled, None, partial()),
+            None => {
+                let reason = format!(
+                    "internal error (a bug: please report it with the spec): the run stopped at step {step} without being asked to"
+                );
+                (JobState::Failed, Some(("run".into(), reason)), partial())
+            }
+        },
         Ok(Err(e)) => (
             JobState::Failed,
             Some(("run".into(), e.to_string())),
@@ -1187,17 +1049,7 @@ fn end_job(
             .as_ref()
             .map(|(attempt, step, bytes)| (*attempt, *step, bytes.as_slice())),
     };
-    let shared = inner
-        .store
-        .shared()
-        .filter(|_| !inner.shutdown.load(Ordering::Acquire));
-    let (stored, claimed) = match shared {
-        Some(q) => {
-            let (stored, claimed) = q.end_and_claim(&end, now_ms());
-            (stored, Some(claimed))
-        }
-        None => (inner.store.end(&end), None),
-    };
+    let (stored, claimed) = inner.queue.end(inner, &end);
     match stored {
         Ok(()) => {
             if rows.is_some() {
@@ -1206,12 +1058,8 @@ fn end_job(
         }
         Err(e @ StoreError::LeaseLost { .. }) => {
             drop(recent);
-            // Another replica runs the job now: its end is that replica's to tell.
-            tracing::warn!(id = %live.id, "{e}");
-            lock(&inner.live).remove(&live.id);
-            inner.sink.send(JobEvent::Closed(live.id.clone()));
-            live.ended.send_replace(true);
-            return claimed.and_then(|c| take_claim(inner, c));
+            drop_lost(inner, live, &e);
+            return take_claim(inner, claimed);
         }
         Err(e) => {
             tracing::error!(id = %live.id, "store: {e}");
@@ -1236,7 +1084,27 @@ fn end_job(
     if live.study_child {
         study::child_ended(inner, &live.id);
     }
-    claimed.and_then(|c| take_claim(inner, c))
+    take_claim(inner, claimed)
+}
+
+/// Job `view` failed now because its stored spec no longer builds into a job: the error names
+/// the spec's field, its reason after `why` ("no longer valid after restart").
+fn failed_spec(view: JobView, e: SpecError, why: &str) -> JobView {
+    JobView {
+        state: JobState::Failed,
+        finished_ms: now_ms(),
+        error: Some((e.field, format!("{why}: {}", e.reason))),
+        ..view
+    }
+}
+
+/// Lets go of a job another replica runs now (this one lost its lease): its end is that
+/// replica's to tell, so only this replica's watchers are told that its events end here.
+fn drop_lost(inner: &Inner, live: &LiveJob, lost: &StoreError) {
+    tracing::warn!(id = %live.id, "{lost}");
+    lock(&inner.live).remove(&live.id);
+    inner.sink.send(JobEvent::Closed(live.id.clone()));
+    live.ended.send_replace(true);
 }
 
 /// The job a claim made with a job's end took, made live (`None` when there was none).

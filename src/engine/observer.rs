@@ -9,6 +9,7 @@
 
 use super::events::{ColumnGroup, JobEvent, StepBatch, split_columns};
 use super::ids::now_ns;
+use super::stop::StopReason;
 use super::{Inner, LiveJob, Recent, StoredCheckpoint, lock};
 use crate::store::{ChunkMeta, StoreError, chunk_rows};
 use signorini_core::checkpoint::Checkpoint;
@@ -50,6 +51,9 @@ pub(super) struct ServiceObserver<'a> {
     /// job's end in one store call (with the rows recorded since the last stored chunk):
     /// (attempt, step, bytes).
     final_state: Option<StoredCheckpoint>,
+    /// Why this observer stopped the run, recorded when it broke it (`None` while it runs, and
+    /// after a store failure, which [`ServiceObserver::end_parts`] reports).
+    stopped: Option<StopReason>,
 }
 
 /// When and as which attempt a run checkpoints.
@@ -59,8 +63,8 @@ struct Checkpoints {
     /// The run's attempt number (0 for the first run, one more per resume).
     attempt: u64,
     /// A checkpoint was written after the server began to shut down, or after a pause was
-    /// asked: the run stops before its next record or progress.
-    final_written: bool,
+    /// asked (which of the two): the run stops before its next record or progress.
+    final_written: Option<StopReason>,
     /// The checkpoint due is the one after the run's last step.
     at_end: bool,
 }
@@ -87,7 +91,7 @@ impl<'a> ServiceObserver<'a> {
                 period,
                 last: Instant::now(),
                 attempt: 0,
-                final_written: false,
+                final_written: None,
                 at_end: false,
             }),
             _ => None,
@@ -107,6 +111,7 @@ impl<'a> ServiceObserver<'a> {
             checkpoints,
             resumed_after: None,
             final_state: None,
+            stopped: None,
         }
     }
 
@@ -186,10 +191,36 @@ impl<'a> ServiceObserver<'a> {
         Ok(())
     }
 
-    /// True once a checkpoint was written after a shutdown began or a pause was asked: the run
-    /// stops there.
-    fn stops_after_checkpoint(&self) -> bool {
-        self.checkpoints.as_ref().is_some_and(|c| c.final_written)
+    /// Why the run stops after the checkpoint it has just written: a shutdown began or a pause
+    /// was asked before it.
+    fn after_checkpoint(&self) -> Option<StopReason> {
+        self.checkpoints.as_ref().and_then(|c| c.final_written)
+    }
+
+    /// A pause asked, or else the server shutting down: what makes a run stop at its next
+    /// checkpoint (at once, for a run that writes none).
+    fn stopping(&self) -> Option<StopReason> {
+        match self.live.stop.asked() {
+            Some(StopReason::Pause) => Some(StopReason::Pause),
+            _ => self
+                .inner
+                .shutdown
+                .load(Ordering::Relaxed)
+                .then_some(StopReason::Shutdown),
+        }
+    }
+
+    /// Stops the run for `reason`, or for a stronger one asked meanwhile (a cancel, a lost
+    /// lease), and records which.
+    fn stop(&mut self, reason: StopReason) -> ControlFlow<()> {
+        let asked = self.live.stop.asked().filter(|&a| a > reason);
+        self.stopped = Some(asked.unwrap_or(reason));
+        ControlFlow::Break(())
+    }
+
+    /// Why this observer stopped the run (`None` if it did not, or for a store failure).
+    pub(super) fn stop_reason(&self) -> Option<StopReason> {
+        self.stopped
     }
 
     /// What the job's end stores besides its status, once the run is over: the column names
@@ -244,9 +275,9 @@ impl Observer for ServiceObserver<'_> {
     }
 
     fn observe(&mut self, record: &StepRecord<'_>) -> ControlFlow<()> {
-        if self.stops_after_checkpoint() {
+        if let Some(reason) = self.after_checkpoint() {
             // Nothing after the last checkpoint is recorded: the run continues from it.
-            return ControlFlow::Break(());
+            return self.stop(reason);
         }
         let stamp = now_ns();
         let mut recent = lock(&self.live.recent);
@@ -270,9 +301,9 @@ impl Observer for ServiceObserver<'_> {
     }
 
     fn progress(&mut self, p: Progress) -> ControlFlow<()> {
-        if self.stops_after_checkpoint() {
+        if let Some(reason) = self.after_checkpoint() {
             // The progress stays at the checkpoint's step, where the run continues.
-            return ControlFlow::Break(());
+            return self.stop(reason);
         }
         self.live.done.store(p.done, Ordering::Relaxed);
         self.live.total.store(p.total, Ordering::Relaxed);
@@ -283,24 +314,30 @@ impl Observer for ServiceObserver<'_> {
             self.last_status = Instant::now();
             self.inner.sink.offer(JobEvent::Status(self.live.view()));
         }
+        if let Some(reason @ (StopReason::Cancel | StopReason::LeaseLost)) = self.live.stop.asked()
+        {
+            return self.stop(reason);
+        }
         // At shutdown or at a pause, a run that checkpoints stops after its next checkpoint
         // (above); one that does not stops now.
-        let shutdown = (self.inner.shutdown.load(Ordering::Relaxed)
-            || self.live.pause.load(Ordering::Relaxed))
-            && self.checkpoints.is_none();
-        if self.live.cancel.load(Ordering::Relaxed) || shutdown || self.store_error.is_some() {
+        if self.checkpoints.is_none()
+            && let Some(reason) = self.stopping()
+        {
+            return self.stop(reason);
+        }
+        if self.store_error.is_some() {
             return ControlFlow::Break(());
         }
         ControlFlow::Continue(())
     }
 
     fn checkpoint_due(&mut self, p: Progress) -> bool {
+        let stopping = self.stopping().is_some();
         let Some(c) = &mut self.checkpoints else {
             return false;
         };
         c.at_end = p.done == p.total;
-        self.inner.shutdown.load(Ordering::Relaxed)
-            || self.live.pause.load(Ordering::Relaxed)
+        stopping
             // After the last step: the final state a succeeded job keeps (for `extend`).
             || p.done == p.total
             || c.period.steps.is_some_and(|n| p.done.is_multiple_of(n))
@@ -313,11 +350,10 @@ impl Observer for ServiceObserver<'_> {
     /// The checkpoint after the last step (unless a shutdown or a pause asked for it) is kept
     /// back instead: the job's end stores it with the last rows, in the same store call.
     fn checkpoint(&mut self, checkpoint: &mut Checkpoint) {
-        let stopping =
-            self.inner.shutdown.load(Ordering::Relaxed) || self.live.pause.load(Ordering::Relaxed);
+        let stopping = self.stopping();
         if let Some(c) = &self.checkpoints
             && c.at_end
-            && !stopping
+            && stopping.is_none()
         {
             match checkpoint.encode() {
                 Ok(bytes) => self.final_state = Some((c.attempt, checkpoint.step(), bytes)),
@@ -345,8 +381,7 @@ impl Observer for ServiceObserver<'_> {
             Ok(()) => {
                 if let Some(c) = &mut self.checkpoints {
                     c.last = Instant::now();
-                    c.final_written = self.inner.shutdown.load(Ordering::Relaxed)
-                        || self.live.pause.load(Ordering::Relaxed);
+                    c.final_written = stopping;
                 }
             }
             Err(e) => {

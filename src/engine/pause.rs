@@ -23,9 +23,9 @@
 //! contact path, a contact region) is refused: it could only be rerun from step 0.
 
 use super::{Engine, Inner, LiveJob, check_limits, check_text, lock, new_live};
+use crate::engine::EngineError;
 use crate::engine::events::JobEvent;
 use crate::engine::ids::{check_id, new_id, now_ms};
-use crate::error::ApiError;
 use crate::spec_file::{Format, parse};
 use crate::status::{JobState, JobView};
 use serde_json::{Map, Value};
@@ -77,8 +77,8 @@ pub(super) fn mark_extension(inner: &Inner, live: &LiveJob, summary: &mut Map<St
     }
 }
 
-fn wrong_state(view: &JobView, reason: impl Into<String>) -> ApiError {
-    ApiError::WrongState {
+fn wrong_state(view: &JobView, reason: impl Into<String>) -> EngineError {
+    EngineError::WrongState {
         id: view.id.clone(),
         state: view.state.as_str(),
         reason: reason.into(),
@@ -87,12 +87,12 @@ fn wrong_state(view: &JobView, reason: impl Into<String>) -> ApiError {
 
 impl Engine {
     /// A job's spec as stored, built into a job (the error names the field).
-    fn stored_job(&self, id: &str) -> Result<(Job, signorini_core::spec::JobSpec), ApiError> {
+    fn stored_job(&self, id: &str) -> Result<(Job, signorini_core::spec::JobSpec), EngineError> {
         let json = self
             .inner
             .store
             .spec_json(id)?
-            .ok_or_else(|| ApiError::NotFound { id: id.into() })?;
+            .ok_or_else(|| EngineError::NotFound { id: id.into() })?;
         let spec = parse(&json, Format::Json)?;
         Ok((Job::from_spec(&spec)?, spec))
     }
@@ -100,8 +100,8 @@ impl Engine {
     /// Pauses a job: a queued one is parked at once (its status, `paused`, is returned); a
     /// running one is asked to stop after a checkpoint at its next step (its status, still
     /// `running`, is returned: await [`Engine::ended`] for the pause). Another state, or a job
-    /// that writes no checkpoints, is refused ([`ApiError::WrongState`]).
-    pub fn pause(&self, id: &str) -> Result<JobView, ApiError> {
+    /// that writes no checkpoints, is refused ([`EngineError::WrongState`]).
+    pub fn pause(&self, id: &str) -> Result<JobView, EngineError> {
         let live = lock(&self.inner.live).get(id).cloned();
         let Some(live) = live else {
             let view = self.status(id)?;
@@ -148,15 +148,9 @@ impl Engine {
                 format!("it cannot be paused: {NO_CHECKPOINTS}"),
             ));
         }
-        let was_queued = {
-            let mut queue = lock(&self.inner.queue);
-            let before = queue.len();
-            queue.retain(|j| j.id != id);
-            queue.len() != before
-        };
-        if !was_queued {
+        if !self.inner.queue.withdraw(id) {
             // Running: its observer checkpoints after the next step and stops the run.
-            live.pause.store(true, Ordering::Release);
+            live.stop.ask(super::stop::StopReason::Pause);
             return Ok(live.view());
         }
         let view = JobView {
@@ -174,70 +168,26 @@ impl Engine {
 
     /// Queues a paused job again: it continues from its checkpoint (or starts, if it was paused
     /// before it ran). Its status, now `queued`. Another state is refused
-    /// ([`ApiError::WrongState`]).
-    pub fn resume(&self, id: &str) -> Result<JobView, ApiError> {
+    /// ([`EngineError::WrongState`]).
+    pub fn resume(&self, id: &str) -> Result<JobView, EngineError> {
         if self.inner.shutdown.load(Ordering::Acquire) {
-            return Err(ApiError::Unavailable);
+            return Err(EngineError::Unavailable);
         }
-        let shared = self.inner.store.shared().is_some();
         // Checked before the job leaves `paused`, so a refused resume changes nothing.
-        let queued = match self.inner.store.shared() {
-            Some(q) => q.queued()? as usize,
-            None => lock(&self.inner.queue).len(),
-        };
-        if queued >= self.inner.queue_limit {
-            return Err(ApiError::QueueFull {
-                limit: self.inner.queue_limit,
-            });
+        if self.inner.queue.depth()? >= self.inner.queue_limit {
+            return Err(super::queue::full(&self.inner));
         }
         let Some((view, spec_json)) = self.inner.store.unpark(id)? else {
             let view = self.status(id)?;
             return Err(wrong_state(&view, "only a paused job can be resumed"));
         };
         tracing::info!(%id, step = view.done, "resumed: queued again");
-        if shared {
-            // Any replica claims it (the store announced it).
-            self.inner.sink.send(JobEvent::Status(view.clone()));
-            return Ok(view);
-        }
-        let job = match parse(&spec_json, Format::Json).and_then(|spec| Job::from_spec(&spec)) {
-            Ok(job) => job,
-            Err(e) => {
-                let failed = JobView {
-                    state: JobState::Failed,
-                    finished_ms: now_ms(),
-                    error: Some((e.field, format!("no longer valid: {}", e.reason))),
-                    ..view
-                };
-                self.inner.store.finish(&failed, None)?;
-                self.inner.sink.send(JobEvent::Status(failed.clone()));
-                self.inner.sink.send(JobEvent::Closed(id.to_string()));
-                return Ok(failed);
-            }
-        };
-        let live = Arc::new(new_live(
-            view.id.clone(),
-            view.name.clone(),
-            job,
-            view.created_ms,
-            true,
-        ));
-        live.done.store(view.done, Ordering::Relaxed);
-        live.t_bits.store(view.t.to_bits(), Ordering::Relaxed);
-        let status = live.view();
-        {
-            let mut queue = lock(&self.inner.queue);
-            lock(&self.inner.live).insert(id.to_string(), live.clone());
-            self.inner.sink.send(JobEvent::Status(status.clone()));
-            queue.push_back(live);
-        }
-        self.inner.wake.notify_one();
-        Ok(status)
+        self.inner.queue.resumed(&self.inner, view, &spec_json)
     }
 
     /// Cancels a paused job (called by [`Engine::cancel`] for a job this process does not hold):
     /// its status, now `cancelled`; `None` when the job is not paused.
-    pub(super) fn cancel_paused(&self, id: &str) -> Result<Option<JobView>, ApiError> {
+    pub(super) fn cancel_paused(&self, id: &str) -> Result<Option<JobView>, EngineError> {
         let Some(view) = self.inner.store.cancel_parked(id, now_ms())? else {
             return Ok(None);
         };
@@ -250,9 +200,9 @@ impl Engine {
     }
 
     /// Refuses to remove a paused job (cancel it first), as for a queued or running one.
-    pub(super) fn refuse_paused_delete(&self, id: &str) -> Result<(), ApiError> {
+    pub(super) fn refuse_paused_delete(&self, id: &str) -> Result<(), EngineError> {
         match self.inner.store.get(id)? {
-            Some(v) if v.state == JobState::Paused => Err(ApiError::Unfinished {
+            Some(v) if v.state == JobState::Paused => Err(EngineError::Unfinished {
                 id: id.into(),
                 state: v.state.as_str(),
             }),
@@ -262,11 +212,16 @@ impl Engine {
 
     /// A new job continuing succeeded job `id` from its final state to `t_end` (with id
     /// `new_id` if given): its id. `t_end` must lie after the first job's end, by one step at
-    /// least (else [`ApiError::Invalid`] naming `t_end`); the first job must have succeeded and
-    /// kept its final state (else [`ApiError::WrongState`]).
-    pub fn extend(&self, id: &str, t_end: f64, chosen: Option<String>) -> Result<String, ApiError> {
+    /// least (else [`EngineError::Invalid`] naming `t_end`); the first job must have succeeded and
+    /// kept its final state (else [`EngineError::WrongState`]).
+    pub fn extend(
+        &self,
+        id: &str,
+        t_end: f64,
+        chosen: Option<String>,
+    ) -> Result<String, EngineError> {
         if self.inner.shutdown.load(Ordering::Acquire) {
-            return Err(ApiError::Unavailable);
+            return Err(EngineError::Unavailable);
         }
         if let Some(n) = &chosen {
             check_id(n)?;
@@ -325,7 +280,7 @@ impl Engine {
         let time = next
             .time
             .as_mut()
-            .ok_or_else(|| ApiError::Internal(format!("job {id} has no time section")))?;
+            .ok_or_else(|| EngineError::Internal(format!("job {id} has no time section")))?;
         time.t_end = Some(t_end);
         time.steps = None;
         let job = Job::from_spec(&next)?;
@@ -341,9 +296,9 @@ impl Engine {
         }
         // The final state must continue the new job (the same spec but for its end).
         job.read_checkpoint(&bytes)
-            .map_err(|e| ApiError::Internal(format!("the final state of job {id}: {e}")))?;
+            .map_err(|e| EngineError::Internal(format!("the final state of job {id}: {e}")))?;
         let spec_value =
-            serde_json::to_value(&next).map_err(|e| ApiError::Internal(e.to_string()))?;
+            serde_json::to_value(&next).map_err(|e| EngineError::Internal(e.to_string()))?;
         check_text(&spec_value, "")?;
         check_limits(&job, &self.inner.limits)?;
         let spec_json = spec_value.to_string();
@@ -355,57 +310,32 @@ impl Engine {
             now_ms(),
             false,
         ));
-        if let Some(q) = self.inner.store.shared() {
-            if q.queued()? >= self.inner.queue_limit as u64 {
-                return Err(ApiError::QueueFull {
-                    limit: self.inner.queue_limit,
-                });
-            }
-            // Inserted paused (no replica claims it), linked, then queued and announced.
-            let parked = JobView {
-                state: JobState::Paused,
-                ..live.view()
-            };
+        // Inserted paused (no worker takes it), linked to the job it continues, then queued.
+        let parked = JobView {
+            state: JobState::Paused,
+            ..live.view()
+        };
+        self.inner.queue.enqueue(&self.inner, &[live], &mut || {
             if !self.inner.store.insert(&parked, &spec_json)? {
-                return Err(ApiError::AlreadyExists { id: new });
+                return Err(EngineError::AlreadyExists { id: new.clone() });
             }
             self.link(id, &new)?;
-            if let Some((view, _)) = self.inner.store.unpark(&new)? {
-                self.inner.sink.send(JobEvent::Status(view));
-            }
-            tracing::info!(%id, extension = %new, t_end, "extended");
-            return Ok(new);
-        }
-        {
-            let mut queue = lock(&self.inner.queue);
-            if queue.len() >= self.inner.queue_limit {
-                return Err(ApiError::QueueFull {
-                    limit: self.inner.queue_limit,
-                });
-            }
-            if !self.inner.store.insert(&live.view(), &spec_json)? {
-                return Err(ApiError::AlreadyExists { id: new });
-            }
-            // Linked before a worker can take it (workers take jobs under the queue's lock).
-            self.link(id, &new)?;
-            lock(&self.inner.live).insert(new.clone(), live.clone());
-            self.inner.sink.send(JobEvent::Status(live.view()));
-            queue.push_back(live);
-        }
-        self.inner.wake.notify_one();
+            self.inner.store.unpark(&new)?;
+            Ok(())
+        })?;
         tracing::info!(%id, extension = %new, t_end, "extended");
         Ok(new)
     }
 
     /// Links extension `new` to job `first`, or removes `new` again when `first`'s final state
     /// went meanwhile (purged).
-    fn link(&self, first: &str, new: &str) -> Result<(), ApiError> {
+    fn link(&self, first: &str, new: &str) -> Result<(), EngineError> {
         if self.inner.store.link_extension(first, new)? {
             return Ok(());
         }
         // A shared store removes finished jobs only: the parked one is cancelled first.
         self.inner.store.cancel_parked(new, now_ms())?;
         self.inner.store.delete(new)?;
-        Err(ApiError::NotFound { id: first.into() })
+        Err(EngineError::NotFound { id: first.into() })
     }
 }

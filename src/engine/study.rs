@@ -18,7 +18,7 @@
 //! `cancelled` (no result). Purging a finished parent purges its children with it.
 
 use super::{Engine, Inner, JobEvent, MAX_NAME_BYTES, check_limits, lock, new_live, now_ms};
-use crate::error::ApiError;
+use crate::engine::EngineError;
 use crate::spec_file::{self, Format};
 use crate::status::{JobState, JobView};
 use crate::store::StoredResult;
@@ -65,7 +65,7 @@ pub(super) fn submit(
     spec: &JobSpec,
     spec_json: String,
     id: Option<String>,
-) -> Result<String, ApiError> {
+) -> Result<String, EngineError> {
     let inner = &engine.inner;
     let base = inline_base(spec)?;
     let study_spec = spec
@@ -116,7 +116,7 @@ pub(super) fn submit(
         .map(|l| {
             serde_json::to_string(l.job.spec())
                 .map(|s| (l.view(), s))
-                .map_err(|e| ApiError::Internal(e.to_string()))
+                .map_err(|e| EngineError::Internal(e.to_string()))
         })
         .collect::<Result<_, _>>()?;
     let parent = JobView {
@@ -131,42 +131,13 @@ pub(super) fn submit(
         started_ms: created_ms,
         finished_ms: 0,
     };
-    let full = |queued: u64| queued + children.len() as u64 > inner.queue_limit as u64;
-    if let Some(q) = inner.store.shared() {
-        if full(q.queued()?) {
-            return Err(ApiError::QueueFull {
-                limit: inner.queue_limit,
-            });
-        }
+    inner.queue.enqueue(inner, &lives, &mut || {
         if !inner.store.insert_study(&parent, &spec_json, &children)? {
-            return Err(ApiError::AlreadyExists { id });
+            return Err(EngineError::AlreadyExists { id: id.clone() });
         }
-        inner.sink.send(JobEvent::Status(parent));
-        for l in &lives {
-            inner.sink.send(JobEvent::Status(l.view()));
-        }
-        tracing::info!(%id, runs = lives.len(), "study queued");
-        return Ok(id);
-    }
-    {
-        let mut queue = lock(&inner.queue);
-        if full(queue.len() as u64) {
-            return Err(ApiError::QueueFull {
-                limit: inner.queue_limit,
-            });
-        }
-        if !inner.store.insert_study(&parent, &spec_json, &children)? {
-            return Err(ApiError::AlreadyExists { id });
-        }
-        inner.sink.send(JobEvent::Status(parent));
-        let mut live = lock(&inner.live);
-        for l in &lives {
-            live.insert(l.id.clone(), l.clone());
-            inner.sink.send(JobEvent::Status(l.view()));
-            queue.push_back(l.clone());
-        }
-    }
-    inner.wake.notify_all();
+        inner.sink.send(JobEvent::Status(parent.clone()));
+        Ok(())
+    })?;
     tracing::info!(%id, runs = lives.len(), "study queued");
     Ok(id)
 }
@@ -352,7 +323,7 @@ fn sweep(inner: &Inner) {
 }
 
 /// Starts the sweep thread (a first sweep at once).
-pub(super) fn spawn_sweeper(engine: &Engine) -> Result<JoinHandle<()>, ApiError> {
+pub(super) fn spawn_sweeper(engine: &Engine) -> Result<JoinHandle<()>, EngineError> {
     let inner = engine.inner.clone();
     std::thread::Builder::new()
         .name("signorini-studies".into())
@@ -366,13 +337,13 @@ pub(super) fn spawn_sweeper(engine: &Engine) -> Result<JoinHandle<()>, ApiError>
                 std::thread::sleep(Duration::from_millis(50));
             }
         })
-        .map_err(|e| ApiError::Internal(format!("spawning the study sweep: {e}")))
+        .map_err(|e| EngineError::Internal(format!("spawning the study sweep: {e}")))
 }
 
 impl Engine {
     /// The children of a study's parent job, in study order (the reference run first, if
     /// any); empty for any other job.
-    pub fn children(&self, id: &str) -> Result<Vec<JobView>, ApiError> {
+    pub fn children(&self, id: &str) -> Result<Vec<JobView>, EngineError> {
         // The parent must exist (a live child has a stored row too).
         self.status(id)?;
         let live = lock(&self.inner.live);
@@ -387,7 +358,7 @@ impl Engine {
 
     /// Cancels a study's parent job: its queued and running children are cancelled and it
     /// ends `cancelled`. `None` when `id` is no study.
-    pub(super) fn cancel_study(&self, id: &str) -> Result<Option<JobView>, ApiError> {
+    pub(super) fn cancel_study(&self, id: &str) -> Result<Option<JobView>, EngineError> {
         if !self.inner.store.is_study(id)? {
             return Ok(None);
         }
@@ -395,7 +366,7 @@ impl Engine {
             .inner
             .store
             .get(id)?
-            .ok_or_else(|| ApiError::NotFound { id: id.into() })?;
+            .ok_or_else(|| EngineError::NotFound { id: id.into() })?;
         if view.state.is_terminal() {
             return Ok(Some(view));
         }
@@ -419,20 +390,20 @@ impl Engine {
     }
 
     /// Before a study's parent is purged: its children are purged (it must have ended).
-    pub(super) fn delete_children(&self, id: &str) -> Result<(), ApiError> {
+    pub(super) fn delete_children(&self, id: &str) -> Result<(), EngineError> {
         if !self.inner.store.is_study(id)? {
             return Ok(());
         }
         let view = self.status(id)?;
         if !view.state.is_terminal() {
-            return Err(ApiError::Unfinished {
+            return Err(EngineError::Unfinished {
                 id: id.into(),
                 state: view.state.as_str(),
             });
         }
         for child in self.inner.store.children(id)? {
             match self.delete(&child.id) {
-                Ok(()) | Err(ApiError::NotFound { .. }) => {}
+                Ok(()) | Err(EngineError::NotFound { .. }) => {}
                 Err(e) => return Err(e),
             }
         }

@@ -5,6 +5,7 @@
 use super::AppState;
 use super::convert;
 use super::results::{Cut, CutRequest};
+use crate::engine::EngineError;
 use crate::engine::events::JobEvent;
 use crate::error::ApiError;
 use crate::proto::encode::{
@@ -39,27 +40,37 @@ impl SimulationService {
     }
 }
 
+/// [`EngineError`] → gRPC code: the one place the engine's errors meet gRPC.
+fn engine_code(e: &EngineError) -> Code {
+    match e {
+        EngineError::Invalid(_) => Code::InvalidArgument,
+        EngineError::NotFound { .. } => Code::NotFound,
+        EngineError::AlreadyExists { .. } => Code::AlreadyExists,
+        EngineError::QueueFull { .. } => Code::ResourceExhausted,
+        EngineError::NoResult { .. }
+        | EngineError::Unfinished { .. }
+        | EngineError::BeingRead { .. }
+        | EngineError::WrongState { .. } => Code::FailedPrecondition,
+        EngineError::Unavailable => Code::Unavailable,
+        EngineError::Store(_) | EngineError::Internal(_) => Code::Internal,
+    }
+}
+
 /// [`ApiError`] → gRPC status; the message is `field: reason`, the field also in metadata
 /// `x-error-field`.
-pub fn to_status(e: ApiError) -> Status {
+pub fn to_status(e: impl Into<ApiError>) -> Status {
+    let e = e.into();
     let code = match &e {
+        ApiError::Engine(e) => engine_code(e),
         ApiError::Invalid(_) => Code::InvalidArgument,
-        ApiError::NotFound { .. } | ApiError::NoFigure { .. } | ApiError::NoRoute { .. } => {
-            Code::NotFound
-        }
+        ApiError::NoFigure { .. } | ApiError::NoRoute { .. } => Code::NotFound,
         ApiError::MethodNotAllowed { .. } => Code::Unimplemented,
         ApiError::Body {
             too_large: true, ..
         } => Code::ResourceExhausted,
         ApiError::Body { .. } => Code::InvalidArgument,
-        ApiError::AlreadyExists { .. } => Code::AlreadyExists,
-        ApiError::QueueFull { .. } | ApiError::TooLarge { .. } => Code::ResourceExhausted,
-        ApiError::NoResult { .. } | ApiError::Unfinished { .. } | ApiError::BeingRead { .. } => {
-            Code::FailedPrecondition
-        }
-        ApiError::WrongState { .. } => Code::FailedPrecondition,
+        ApiError::TooLarge { .. } => Code::ResourceExhausted,
         ApiError::Unauthenticated => Code::Unauthenticated,
-        ApiError::Unavailable => Code::Unavailable,
         ApiError::Internal(_) => Code::Internal,
     };
     if code == Code::Internal {
@@ -124,10 +135,14 @@ fn stream_result(state: &AppState, id: String, req: CutRequest) -> ResultStream 
             tx.blocking_send(Ok(pb::ResultChunk { part: Some(part) }))
                 .map_err(|_| std::io::Error::new(std::io::ErrorKind::BrokenPipe, "client gone"))
         };
-        let opened = engine.open_result(&id).and_then(|(view, head, series)| {
-            let cut = Cut::new(&head, &series, &req)?;
-            Ok((view, head, series, cut))
-        });
+        let opened =
+            engine
+                .open_result(&id)
+                .map_err(ApiError::from)
+                .and_then(|(view, head, series)| {
+                    let cut = Cut::new(&head, &series, &req)?;
+                    Ok((view, head, series, cut))
+                });
         let (view, head, series, cut) = match opened {
             Ok(o) => o,
             Err(e) => {
@@ -366,10 +381,11 @@ impl Simulation for SimulationService {
             if head.partial {
                 // A client of this call takes what it gets for the whole run: partial rows only
                 // go out through StreamResult and HTTP, marked.
-                return Err(ApiError::NoResult {
+                return Err(EngineError::NoResult {
                     id,
                     state: view.state.as_str(),
-                });
+                }
+                .into());
             }
             let cut = Cut::new(&head, &series, &req)?;
             let bytes = cut.rows() * (cut.names.len() as u64 + 2) * 8;

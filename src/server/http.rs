@@ -5,6 +5,7 @@
 use super::AppState;
 use super::json::{FrameJson, StatusJson, status_with_lineage};
 use super::results::{self, Cut, CutRequest, write_csv, write_json, write_npz};
+use crate::engine::EngineError;
 use crate::engine::events::JobEvent;
 use crate::error::ApiError;
 use crate::spec_file::{self, Format};
@@ -26,27 +27,35 @@ use std::io::{self, Write};
 use std::time::Duration;
 use tokio_stream::StreamExt;
 
+/// [`EngineError`] → HTTP status: the one place the engine's errors meet HTTP.
+fn engine_status(e: &EngineError) -> StatusCode {
+    match e {
+        EngineError::Invalid(_) => StatusCode::BAD_REQUEST,
+        EngineError::NotFound { .. } => StatusCode::NOT_FOUND,
+        EngineError::AlreadyExists { .. }
+        | EngineError::NoResult { .. }
+        | EngineError::Unfinished { .. }
+        | EngineError::WrongState { .. }
+        | EngineError::BeingRead { .. } => StatusCode::CONFLICT,
+        EngineError::QueueFull { .. } => StatusCode::TOO_MANY_REQUESTS,
+        EngineError::Unavailable => StatusCode::SERVICE_UNAVAILABLE,
+        EngineError::Store(_) | EngineError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
+    }
+}
+
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         let code = match &self {
+            ApiError::Engine(e) => engine_status(e),
             ApiError::Invalid(_) => StatusCode::BAD_REQUEST,
-            ApiError::NotFound { .. } | ApiError::NoFigure { .. } | ApiError::NoRoute { .. } => {
-                StatusCode::NOT_FOUND
-            }
+            ApiError::NoFigure { .. } | ApiError::NoRoute { .. } => StatusCode::NOT_FOUND,
             ApiError::MethodNotAllowed { .. } => StatusCode::METHOD_NOT_ALLOWED,
             ApiError::Body {
                 too_large: true, ..
             } => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::Body { .. } => StatusCode::BAD_REQUEST,
-            ApiError::AlreadyExists { .. }
-            | ApiError::NoResult { .. }
-            | ApiError::Unfinished { .. }
-            | ApiError::WrongState { .. }
-            | ApiError::BeingRead { .. } => StatusCode::CONFLICT,
-            ApiError::QueueFull { .. } => StatusCode::TOO_MANY_REQUESTS,
             ApiError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::Unauthenticated => StatusCode::UNAUTHORIZED,
-            ApiError::Unavailable => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
         };
         if code.is_server_error() {
@@ -92,7 +101,9 @@ pub fn router(state: AppState) -> Router {
         .with_state(state)
 }
 
-fn authorize(state: &AppState, headers: &HeaderMap) -> Result<(), ApiError> {
+/// Checks the `Authorization` header of an HTTP request ([`AppState::authorize`]): every
+/// mutating route, this module's and `super::pause`'s, calls it.
+pub(super) fn authorize(state: &AppState, headers: &HeaderMap) -> Result<(), ApiError> {
     let given = headers
         .get(header::AUTHORIZATION)
         .and_then(|v| v.to_str().ok());
@@ -240,9 +251,9 @@ async fn cancel_job(
 /// A finished job's result without its series, read off the async executor.
 async fn load_result(state: &AppState, id: String) -> Result<(JobView, StoredResult), ApiError> {
     let engine = state.engine.clone();
-    tokio::task::spawn_blocking(move || engine.result_head(&id))
+    Ok(tokio::task::spawn_blocking(move || engine.result_head(&id))
         .await
-        .map_err(|e| ApiError::Internal(e.to_string()))?
+        .map_err(|e| ApiError::Internal(e.to_string()))??)
 }
 
 /// `?format=json|csv|npz&columns=a,b&every=N&from=S&to=S` of `GET /v1/jobs/{id}/result`.

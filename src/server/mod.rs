@@ -194,7 +194,7 @@ impl AppState {
         if let Some(mut rx) = ended {
             let _ = tokio::time::timeout(Duration::from_secs(5), rx.wait_for(|ended| *ended)).await;
         }
-        self.engine.status(id)
+        Ok(self.engine.status(id)?)
     }
 
     /// Steps per second since the previous call.

@@ -3,16 +3,16 @@
 //! `PauseJob`, `ResumeJob`, `ExtendJob` (which forward here).
 
 use super::AppState;
+use super::http::authorize;
 use super::json::StatusJson;
 use crate::error::ApiError;
 use crate::status::JobView;
 use axum::Json;
 use axum::extract::rejection::StringRejection;
 use axum::extract::{Path, State};
-use axum::http::{HeaderMap, StatusCode, header};
+use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
-use serde::Deserialize;
-use serde_json::{Value, json};
+use serde_json::{Map, Value, json};
 use signorini_core::spec::SpecError;
 use std::time::Duration;
 
@@ -36,16 +36,16 @@ impl AppState {
         if let Some(mut rx) = ended {
             let _ = tokio::time::timeout(PAUSE_WAIT, rx.wait_for(|ended| *ended)).await;
         }
-        self.engine.status(id)
+        Ok(self.engine.status(id)?)
     }
 
     /// Queues a paused job again: its status.
     pub async fn resume_job(&self, id: &str) -> Result<JobView, ApiError> {
         let engine = self.engine.clone();
         let job = id.to_string();
-        tokio::task::spawn_blocking(move || engine.resume(&job))
+        Ok(tokio::task::spawn_blocking(move || engine.resume(&job))
             .await
-            .map_err(|e| ApiError::Internal(e.to_string()))?
+            .map_err(|e| ApiError::Internal(e.to_string()))??)
     }
 
     /// Extends a succeeded job to `t_end`: the new job's id.
@@ -57,17 +57,12 @@ impl AppState {
     ) -> Result<String, ApiError> {
         let engine = self.engine.clone();
         let job = id.to_string();
-        tokio::task::spawn_blocking(move || engine.extend(&job, t_end, new_id))
-            .await
-            .map_err(|e| ApiError::Internal(e.to_string()))?
+        Ok(
+            tokio::task::spawn_blocking(move || engine.extend(&job, t_end, new_id))
+                .await
+                .map_err(|e| ApiError::Internal(e.to_string()))??,
+        )
     }
-}
-
-fn authorize(state: &AppState, headers: &HeaderMap) -> Result<(), ApiError> {
-    let given = headers
-        .get(header::AUTHORIZATION)
-        .and_then(|v| v.to_str().ok());
-    state.authorize(given)
 }
 
 /// `POST /v1/jobs/{id}/pause`: the job's status (`paused`, or `running` until a slow step
@@ -95,15 +90,44 @@ pub(super) async fn resume_job(
     Ok(Json(StatusJson::from(&view)).into_response())
 }
 
-/// The body of `POST /v1/jobs/{id}/extend`.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// The body of `POST /v1/jobs/{id}/extend`: `{"t_end": T}`, optionally with `"id"`.
+#[derive(Debug, PartialEq)]
 struct ExtendBody {
     /// The new final time.
     t_end: f64,
     /// Optional client-chosen id of the new job.
-    #[serde(default)]
     id: Option<String>,
+}
+
+impl ExtendBody {
+    /// Reads the body field by field, so the error names the field that is wrong (`t_end`,
+    /// `id`, an unknown key), or `body` when the text is no JSON object.
+    fn parse(body: &str) -> Result<ExtendBody, SpecError> {
+        let fields: Map<String, Value> =
+            serde_json::from_str(body).map_err(|e| SpecError::new("body", e.to_string()))?;
+        let (mut t_end, mut id) = (None, None);
+        for (key, value) in fields {
+            match (key.as_str(), value) {
+                ("t_end", Value::Number(n)) => t_end = n.as_f64(),
+                ("t_end", other) => {
+                    return Err(SpecError::new("t_end", format!("a number, got {other}")));
+                }
+                ("id", Value::String(s)) => id = Some(s),
+                ("id", Value::Null) => id = None,
+                ("id", other) => {
+                    return Err(SpecError::new("id", format!("a string, got {other}")));
+                }
+                (other, _) => {
+                    return Err(SpecError::new(
+                        other,
+                        "unknown field: the body takes t_end and id",
+                    ));
+                }
+            }
+        }
+        let t_end = t_end.ok_or_else(|| SpecError::new("t_end", "missing"))?;
+        Ok(ExtendBody { t_end, id })
+    }
 }
 
 /// `POST /v1/jobs/{id}/extend` with `{"t_end": T}` (and optionally `"id"`): 201 with `{"id":
@@ -117,17 +141,34 @@ pub(super) async fn extend_job(
 ) -> Result<(StatusCode, Json<Value>), ApiError> {
     authorize(&state, &headers)?;
     let body = body?;
-    let ExtendBody { t_end, id: new_id } = serde_json::from_str(&body).map_err(|e| {
-        let field = if e.to_string().contains("t_end") {
-            "t_end"
-        } else {
-            "body"
-        };
-        SpecError::new(field, e.to_string())
-    })?;
+    let ExtendBody { t_end, id: new_id } = ExtendBody::parse(&body)?;
     let new = state.extend_job(&id, t_end, new_id).await?;
     Ok((
         StatusCode::CREATED,
         Json(json!({ "id": new, "extends": id })),
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ExtendBody;
+
+    #[test]
+    fn the_extend_body_names_the_wrong_field() {
+        let ok = ExtendBody::parse(r#"{"t_end": 8.5, "id": "next"}"#).expect("valid");
+        assert_eq!(
+            ok,
+            ExtendBody {
+                t_end: 8.5,
+                id: Some("next".into())
+            }
+        );
+        let field = |body: &str| ExtendBody::parse(body).expect_err(body).field;
+        assert_eq!(field(r#"{"t_end": "late"}"#), "t_end");
+        assert_eq!(field(r#"{"id": "next"}"#), "t_end");
+        assert_eq!(field(r#"{"t_end": 2, "id": 7}"#), "id");
+        assert_eq!(field(r#"{"t_end": 2, "t_stop": 3}"#), "t_stop");
+        assert_eq!(field("[2]"), "body");
+        assert_eq!(field("not json"), "body");
+    }
 }

@@ -13,9 +13,9 @@ use serde_json::{Value, json};
 /// The children of `id`, read off the async executor.
 pub(super) async fn children(state: &AppState, id: String) -> Result<Vec<JobView>, ApiError> {
     let engine = state.engine.clone();
-    tokio::task::spawn_blocking(move || engine.children(&id))
+    Ok(tokio::task::spawn_blocking(move || engine.children(&id))
         .await
-        .map_err(|e| ApiError::Internal(e.to_string()))?
+        .map_err(|e| ApiError::Internal(e.to_string()))??)
 }
 
 /// `GET /v1/jobs/{id}/children`: `{"jobs": [status…]}`, in study order (the reference run

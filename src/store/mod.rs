@@ -20,6 +20,7 @@ use serde_json::{Map, Value};
 use signorini_core::outcome::Table;
 use signorini_figures::Figure;
 use std::path::Path;
+use std::sync::Arc;
 use std::time::Duration;
 use thiserror::Error;
 
@@ -479,11 +480,6 @@ pub trait Backend: StudyStore + Send + Sync + pause::PauseStore {
     /// right after a chunk, so its row count is a chunk boundary; a chunk across it is refused.
     fn truncate_series(&self, id: &str, rows: u64) -> Result<(), StoreError>;
 
-    /// The queue shared by replicas, when this store holds one (PostgreSQL).
-    fn shared(&self) -> Option<&dyn SharedQueue> {
-        None
-    }
-
     /// A job's whole result, its series read chunk by chunk into memory: for tests and small
     /// results only (the servers stream series with [`Backend::series_index`] and
     /// [`Backend::read_chunk`]).
@@ -666,9 +662,11 @@ pub trait SharedQueue: Send + Sync {
     fn wake(&self);
 }
 
-/// The store a server runs on: one of the backends.
+/// The store a server runs on: one of the backends, and the queue it shares between replicas
+/// when it holds one (PostgreSQL).
 pub struct Store {
-    backend: Box<dyn Backend>,
+    backend: Arc<dyn Backend>,
+    queue: Option<Arc<dyn SharedQueue>>,
 }
 
 impl std::ops::Deref for Store {
@@ -718,7 +716,8 @@ impl Store {
     /// store.
     pub fn open(path: &Path) -> Result<Store, StoreError> {
         Ok(Store {
-            backend: Box::new(sqlite::SqliteStore::open(path)?),
+            backend: Arc::new(sqlite::SqliteStore::open(path)?),
+            queue: None,
         })
     }
 
@@ -730,13 +729,20 @@ impl Store {
         connections: usize,
         lease: Duration,
     ) -> Result<Store, StoreError> {
+        let store = Arc::new(postgres::PgStore::connect(
+            url,
+            replica,
+            connections,
+            lease,
+        )?);
         Ok(Store {
-            backend: Box::new(postgres::PgStore::connect(
-                url,
-                replica,
-                connections,
-                lease,
-            )?),
+            backend: store.clone(),
+            queue: Some(store),
         })
+    }
+
+    /// The queue this store shares between replicas, if it holds one (PostgreSQL).
+    pub fn shared_queue(&self) -> Option<Arc<dyn SharedQueue>> {
+        self.queue.clone()
     }
 }

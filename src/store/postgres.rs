@@ -33,10 +33,11 @@ use super::{
     SeriesChunk, SharedQueue, StoreError, StoredResult, batches_blob, check_index, decode_chunk,
     end_by_calls, f64s_to_blob, split_series, u64s_to_blob,
 };
+use crate::lifecycle::{ENDED, Transition, in_sql, is_sql, literal};
 use crate::status::{JobState, JobView, Lineage};
 use deadpool_postgres::{Manager, ManagerConfig, Pool, RecyclingMethod, Transaction};
 use std::future::Future;
-use std::sync::{Arc, Condvar, Mutex};
+use std::sync::{Arc, Condvar, LazyLock, Mutex};
 use std::time::Duration;
 use tokio_postgres::{AsyncMessage, NoTls, Row};
 
@@ -80,6 +81,29 @@ const CHANNEL: &str = "signorini_jobs";
 
 /// The status columns of `jobs`, in the order [`view`] reads them.
 const JOB_COLUMNS: &str = "id, name, state, created_ms, started_ms, finished_ms, error_field, error_reason, done, total, t";
+
+/// The SQL condition that replica `owner` (a statement parameter, `$5`) holds the job: it runs
+/// it under its lease.
+fn held_by(owner: &str) -> String {
+    format!("owner = {owner} AND {}", is_sql("state", JobState::Running))
+}
+
+/// Raises flag `column` (`cancel_requested`, `pause_requested`) of job `id` if it is running,
+/// for the replica running it to read at its next heartbeat: true when it was.
+async fn ask_running(
+    c: &deadpool_postgres::Object,
+    column: &str,
+    id: &str,
+) -> Result<bool, StoreError> {
+    let st = c
+        .prepare_cached(&format!(
+            "UPDATE jobs SET {column} = TRUE WHERE id = $1 AND {}",
+            is_sql("state", JobState::Running)
+        ))
+        .await
+        .map_err(pg)?;
+    Ok(c.execute(&st, &[&id]).await.map_err(pg)? == 1)
+}
 
 fn pg(e: tokio_postgres::Error) -> StoreError {
     StoreError::Postgres(match e.as_db_error() {
@@ -335,9 +359,12 @@ impl PgStore {
             let (field, reason) = row.error_parts();
             let attempt: Option<i64> = tx
                 .query_opt(
-                    "UPDATE jobs SET state = $2, finished_ms = $3, error_field = $4, error_reason = $5,
-                            done = $6, total = $7, t = $8, lease_until = NULL
-                     WHERE id = $1 AND state = 'running' AND owner = $9 RETURNING attempt",
+                    &format!(
+                        "UPDATE jobs SET state = $2, finished_ms = $3, error_field = $4, error_reason = $5,
+                                done = $6, total = $7, t = $8, lease_until = NULL
+                         WHERE id = $1 AND {} AND owner = $9 RETURNING attempt",
+                        Transition::End.from_sql()
+                    ),
                     &[
                         &row.id,
                         &row.state.as_str(),
@@ -506,12 +533,12 @@ async fn store_end(
         f64s_to_blob(&rows.values),
         batches_blob(&rows),
     );
-    let st = c
-            .prepare_cached(
-                "WITH done AS (
+    static END: LazyLock<String> = LazyLock::new(|| {
+        format!(
+            "WITH done AS (
                     UPDATE jobs SET state = $2, finished_ms = $3, error_field = $4, error_reason = $5,
                            done = $6, total = $7, t = $8, lease_until = NULL
-                    WHERE id = $1 AND state = 'running' AND owner = $9 RETURNING attempt),
+                    WHERE id = $1 AND {} AND owner = $9 RETURNING attempt),
                  res AS (
                     INSERT INTO results (id, attempt, summary_json, columns_json, tables_json, figures_json, partial)
                     SELECT $1, attempt, $10, $11, $12, $13, $14 FROM done WHERE $15
@@ -527,14 +554,16 @@ async fn store_end(
                         UNION ALL
                         SELECT step, bytes FROM checkpoints
                         WHERE id = $1 AND step = $6::BIGINT AND $25::BIGINT IS NULL) s
-                    WHERE $2::TEXT = 'succeeded'
+                    WHERE $2::TEXT = {}
                     ON CONFLICT (id) DO UPDATE SET step = EXCLUDED.step, bytes = EXCLUDED.bytes),
                  dropped AS (
                     DELETE FROM checkpoints WHERE id = $1 AND EXISTS (SELECT 1 FROM done))
                  SELECT attempt FROM done",
-            )
-            .await
-            .map_err(pg)?;
+            Transition::End.from_sql(),
+            literal(JobState::Succeeded),
+        )
+    });
+    let st = c.prepare_cached(&END).await.map_err(pg)?;
     let owned = c
         .query_opt(
             &st,
@@ -584,15 +613,14 @@ async fn claim_next(
     lease: f64,
     started_ms: u64,
 ) -> Result<Option<Claim>, StoreError> {
-    let Some(r) = c
-        .query_opt(
-            &c.prepare_cached(&format!(
-                "WITH next AS (
+    static CLAIM: LazyLock<String> = LazyLock::new(|| {
+        format!(
+            "WITH next AS (
                         SELECT id FROM jobs
-                        WHERE state = 'queued' OR (state = 'running' AND lease_until < now())
+                        WHERE {} OR ({} AND lease_until < now())
                         ORDER BY seq LIMIT 1 FOR UPDATE SKIP LOCKED),
                      claimed AS (
-                     UPDATE jobs j SET state = 'running', owner = $1, attempt = j.attempt + 1,
+                     UPDATE jobs j SET state = {}, owner = $1, attempt = j.attempt + 1,
                             lease_until = now() + make_interval(secs => $2),
                             started_ms = $3, done = 0, t = 0
                      FROM next WHERE j.id = next.id
@@ -605,14 +633,19 @@ async fn claim_next(
                      SELECT c.*, k.attempt, k.step, k.bytes, e.extends
                      FROM claimed c LEFT JOIN checkpoints k ON k.id = c.id
                           LEFT JOIN extensions e ON e.id = c.id",
-                JOB_COLUMNS
-                    .split(", ")
-                    .map(|c| format!("j.{c}"))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ))
-            .await
-            .map_err(pg)?,
+            Transition::Claim.from_sql(),
+            Transition::Takeover.from_sql(),
+            Transition::Claim.to_sql(),
+            JOB_COLUMNS
+                .split(", ")
+                .map(|c| format!("j.{c}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    });
+    let Some(r) = c
+        .query_opt(
+            &c.prepare_cached(&CLAIM).await.map_err(pg)?,
             &[&owner, &lease, &(started_ms as i64)],
         )
         .await
@@ -693,14 +726,15 @@ impl Backend for PgStore {
         self.with(move |c| async move {
             // Only while this replica holds the job (a zombie's checkpoint would replace the
             // one the new owner continues from).
-            let st = c
-                .prepare_cached(
+            static SAVE: LazyLock<String> = LazyLock::new(|| {
+                format!(
                     "INSERT INTO checkpoints (id, attempt, step, bytes)
-                     SELECT id, $2, $3, $4 FROM jobs WHERE id = $1 AND owner = $5 AND state = 'running' FOR SHARE
+                     SELECT id, $2, $3, $4 FROM jobs WHERE id = $1 AND {} FOR SHARE
                      ON CONFLICT (id) DO UPDATE SET attempt = EXCLUDED.attempt, step = EXCLUDED.step, bytes = EXCLUDED.bytes",
+                    held_by("$5")
                 )
-                .await
-                .map_err(pg)?;
+            });
+            let st = c.prepare_cached(&SAVE).await.map_err(pg)?;
             let n = c
                 .execute(&st, &[&id, &(attempt as i64), &(step as i64), &bytes, &owner])
                 .await
@@ -751,7 +785,10 @@ impl Backend for PgStore {
             let tx = c.transaction().await.map_err(pg)?;
             let attempt: i64 = match tx
                 .query_opt(
-                    "SELECT attempt FROM jobs WHERE id = $1 AND owner = $2 AND state = 'running' FOR SHARE",
+                    &format!(
+                        "SELECT attempt FROM jobs WHERE id = $1 AND {} FOR SHARE",
+                        held_by("$2")
+                    ),
                     &[&id, &owner],
                 )
                 .await
@@ -811,15 +848,21 @@ impl Backend for PgStore {
             batches_blob(rows),
         );
         let n_rows = rows.steps.len() as i64;
+        static APPEND: LazyLock<String> = LazyLock::new(|| {
+            format!(
+                "INSERT INTO result_chunks (id, attempt, chunk, first_row, rows, step_first, step_last, steps, t, vals, batches)
+                 SELECT id, attempt, $2, $3, $4, $5, $6, $7, $8, $9, $10 FROM jobs
+                 WHERE id = $1 AND {} FOR SHARE
+                 ON CONFLICT (id, attempt, chunk) DO NOTHING",
+                held_by("$11")
+            )
+        });
         self.with(move |c| async move {
             // Written only while this replica holds the job (FOR SHARE waits for a claim in
             // progress and sees its outcome).
             let n = c
                 .execute(
-                    &c.prepare_cached("INSERT INTO result_chunks (id, attempt, chunk, first_row, rows, step_first, step_last, steps, t, vals, batches)
-                     SELECT id, attempt, $2, $3, $4, $5, $6, $7, $8, $9, $10 FROM jobs
-                     WHERE id = $1 AND owner = $11 AND state = 'running' FOR SHARE
-                     ON CONFLICT (id, attempt, chunk) DO NOTHING").await.map_err(pg)?,
+                    &c.prepare_cached(&APPEND).await.map_err(pg)?,
                     &[
                         &id,
                         &(chunk as i64),
@@ -856,20 +899,21 @@ impl Backend for PgStore {
             let (field, reason) = row.error_parts();
             let has_result = texts.is_some();
             let texts = texts.unwrap_or_default();
-            let st = c
-                .prepare_cached(
+            static FINISH: LazyLock<String> = LazyLock::new(|| {
+                format!(
                     "WITH done AS (
                         UPDATE jobs SET state = $2, finished_ms = $3, error_field = $4, error_reason = $5,
                                done = $6, total = $7, t = $8, lease_until = NULL
-                        WHERE id = $1 AND state = 'running' AND owner = $9 RETURNING attempt),
+                        WHERE id = $1 AND {} AND owner = $9 RETURNING attempt),
                      ins AS (
                         INSERT INTO results (id, attempt, summary_json, columns_json, tables_json, figures_json, partial)
                         SELECT $1, attempt, $10, $11, $12, $13, $14 FROM done WHERE $15
                         ON CONFLICT (id, attempt) DO NOTHING)
                      SELECT attempt FROM done",
+                    Transition::End.from_sql()
                 )
-                .await
-                .map_err(pg)?;
+            });
+            let st = c.prepare_cached(&FINISH).await.map_err(pg)?;
             let owned = c
                 .query_opt(
                     &st,
@@ -980,7 +1024,12 @@ impl Backend for PgStore {
     fn finished_before(&self, cutoff_ms: u64) -> Result<Vec<String>, StoreError> {
         self.with(move |c| async move {
             c.query(
-                &c.prepare_cached("SELECT id FROM jobs WHERE state IN ('succeeded', 'failed', 'cancelled') AND finished_ms < $1").await.map_err(pg)?,
+                &c.prepare_cached(&format!(
+                    "SELECT id FROM jobs WHERE state IN {} AND finished_ms < $1",
+                    in_sql(&ENDED)
+                ))
+                .await
+                .map_err(pg)?,
                 &[&(cutoff_ms as i64)],
             )
             .await
@@ -998,7 +1047,12 @@ impl Backend for PgStore {
         self.with(move |c| async move {
             let n = c
                 .execute(
-                    &c.prepare_cached("DELETE FROM jobs WHERE id = $1 AND state IN ('succeeded', 'failed', 'cancelled')").await.map_err(pg)?,
+                    &c.prepare_cached(&format!(
+                        "DELETE FROM jobs WHERE id = $1 AND state IN {}",
+                        in_sql(&ENDED)
+                    ))
+                    .await
+                    .map_err(pg)?,
                     &[&id],
                 )
                 .await
@@ -1135,10 +1189,6 @@ impl Backend for PgStore {
             )
         })
     }
-
-    fn shared(&self) -> Option<&dyn SharedQueue> {
-        Some(self)
-    }
 }
 
 impl SharedQueue for PgStore {
@@ -1193,14 +1243,20 @@ impl SharedQueue for PgStore {
         let done: Vec<i64> = beats.iter().map(|b| b.done as i64).collect();
         let total: Vec<i64> = beats.iter().map(|b| b.total as i64).collect();
         let t: Vec<f64> = beats.iter().map(|b| b.t).collect();
+        static BEAT: LazyLock<String> = LazyLock::new(|| {
+            format!(
+                "UPDATE jobs j SET lease_until = now() + make_interval(secs => $2),
+                        done = u.done, total = u.total, t = u.t
+                 FROM unnest($3::TEXT[], $4::BIGINT[], $5::BIGINT[], $6::FLOAT8[]) AS u(id, done, total, t)
+                 WHERE j.id = u.id AND j.owner = $1 AND {}
+                 RETURNING j.id, j.cancel_requested, j.pause_requested",
+                is_sql("j.state", JobState::Running)
+            )
+        });
         self.with(move |c| async move {
             let rows = c
                 .query(
-                    &c.prepare_cached("UPDATE jobs j SET lease_until = now() + make_interval(secs => $2),
-                            done = u.done, total = u.total, t = u.t
-                     FROM unnest($3::TEXT[], $4::BIGINT[], $5::BIGINT[], $6::FLOAT8[]) AS u(id, done, total, t)
-                     WHERE j.id = u.id AND j.owner = $1 AND j.state = 'running'
-                     RETURNING j.id, j.cancel_requested, j.pause_requested").await.map_err(pg)?,
+                    &c.prepare_cached(&BEAT).await.map_err(pg)?,
                     &[&owner, &lease, &ids, &done, &total, &t],
                 )
                 .await
@@ -1232,11 +1288,15 @@ impl SharedQueue for PgStore {
         self.with(move |c| async move {
             c.query(
                 &c.prepare_cached(&format!(
-                    "WITH released AS (
-                        UPDATE jobs SET state = 'queued', owner = NULL, lease_until = NULL, started_ms = 0
-                        WHERE id = $1 AND owner = $2 AND state = 'running' RETURNING id)
-                     SELECT pg_notify('{CHANNEL}', id) FROM released"
-                )).await.map_err(pg)?,
+                    "WITH released AS ({} RETURNING id)
+                     SELECT pg_notify('{CHANNEL}', id) FROM released",
+                    Transition::Release.update_sql(
+                        "owner = NULL, lease_until = NULL, started_ms = 0",
+                        "id = $1 AND owner = $2"
+                    ),
+                ))
+                .await
+                .map_err(pg)?,
                 &[&id, &owner],
             )
             .await
@@ -1251,9 +1311,11 @@ impl SharedQueue for PgStore {
             if let Some(r) = c
                 .query_opt(
                     &c.prepare_cached(&format!(
-                        "UPDATE jobs SET state = 'cancelled', finished_ms = $2
-                         WHERE id = $1 AND state = 'queued' RETURNING {JOB_COLUMNS}"
-                    )).await.map_err(pg)?,
+                        "{} RETURNING {JOB_COLUMNS}",
+                        Transition::CancelQueued.update_sql("finished_ms = $2", "id = $1"),
+                    ))
+                    .await
+                    .map_err(pg)?,
                     &[&id, &(finished_ms as i64)],
                 )
                 .await
@@ -1261,14 +1323,7 @@ impl SharedQueue for PgStore {
             {
                 return Ok(CancelOutcome::Cancelled(view(&r)?));
             }
-            let n = c
-                .execute(
-                    &c.prepare_cached("UPDATE jobs SET cancel_requested = TRUE WHERE id = $1 AND state = 'running'").await.map_err(pg)?,
-                    &[&id],
-                )
-                .await
-                .map_err(pg)?;
-            Ok(if n == 1 {
+            Ok(if ask_running(&c, "cancel_requested", &id).await? {
                 CancelOutcome::Requested
             } else {
                 CancelOutcome::NotLive
@@ -1285,23 +1340,25 @@ impl SharedQueue for PgStore {
         let (id, name, spec) = (row.id.clone(), row.name.clone(), spec_json.to_string());
         let (state, created, total) = (row.state.as_str(), row.created_ms as i64, row.total as i64);
         let limit = limit as i64;
+        static ENQUEUE: LazyLock<String> = LazyLock::new(|| {
+            format!(
+                "WITH queue AS (
+                    SELECT COUNT(*) >= $7 AS at_limit FROM jobs WHERE {}),
+                 ins AS (
+                    INSERT INTO jobs (id, name, spec_json, state, created_ms, total)
+                    SELECT $1, $2, $3, $4, $5, $6 FROM queue WHERE NOT queue.at_limit
+                    ON CONFLICT (id) DO NOTHING RETURNING id),
+                 told AS (SELECT pg_notify('{CHANNEL}', id) FROM ins)
+                 SELECT queue.at_limit, (SELECT COUNT(*) FROM told) FROM queue",
+                is_sql("state", JobState::Queued)
+            )
+        });
         self.with(move |c| async move {
             // Counted, inserted and announced in one statement: the notification goes at
             // commit.
             let r = c
                 .query_one(
-                    &c.prepare_cached(&format!(
-                        "WITH queue AS (
-                            SELECT COUNT(*) >= $7 AS at_limit FROM jobs WHERE state = 'queued'),
-                         ins AS (
-                            INSERT INTO jobs (id, name, spec_json, state, created_ms, total)
-                            SELECT $1, $2, $3, $4, $5, $6 FROM queue WHERE NOT queue.at_limit
-                            ON CONFLICT (id) DO NOTHING RETURNING id),
-                         told AS (SELECT pg_notify('{CHANNEL}', id) FROM ins)
-                         SELECT queue.at_limit, (SELECT COUNT(*) FROM told) FROM queue"
-                    ))
-                    .await
-                    .map_err(pg)?,
+                    &c.prepare_cached(&ENQUEUE).await.map_err(pg)?,
                     &[&id, &name, &spec, &state, &created, &total, &limit],
                 )
                 .await
@@ -1320,9 +1377,12 @@ impl SharedQueue for PgStore {
         self.with(move |c| async move {
             let r = c
                 .query_one(
-                    &c.prepare_cached("SELECT COUNT(*) FROM jobs WHERE state = 'queued'")
-                        .await
-                        .map_err(pg)?,
+                    &c.prepare_cached(&format!(
+                        "SELECT COUNT(*) FROM jobs WHERE {}",
+                        is_sql("state", JobState::Queued)
+                    ))
+                    .await
+                    .map_err(pg)?,
                     &[],
                 )
                 .await

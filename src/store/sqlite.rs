@@ -19,6 +19,7 @@ use super::{
     Backend, ChunkMeta, ResultTexts, SeriesChunk, StoreError, StoredResult, batches_blob,
     check_index, decode_chunk, decode_f64s, decode_u64s, f64s_to_blob, split_series, u64s_to_blob,
 };
+use crate::lifecycle::{ENDED, Transition, in_sql};
 use crate::status::{JobState, JobView, Lineage};
 use rusqlite::{Connection, OptionalExtension, params};
 use std::path::Path;
@@ -323,7 +324,7 @@ impl Backend for SqliteStore {
     /// Marks a job running.
     fn set_running(&self, id: &str, started_ms: u64) -> Result<(), StoreError> {
         self.conn().execute(
-            "UPDATE jobs SET state = 'running', started_ms = ?2 WHERE id = ?1",
+            &Transition::Claim.update_sql("started_ms = ?2", "id = ?1"),
             params![id, started_ms as i64],
         )?;
         Ok(())
@@ -464,9 +465,10 @@ impl Backend for SqliteStore {
     /// The finished jobs (succeeded, failed, cancelled) that ended before `cutoff_ms`.
     fn finished_before(&self, cutoff_ms: u64) -> Result<Vec<String>, StoreError> {
         let conn = self.conn();
-        let mut stmt = conn.prepare(
-            "SELECT id FROM jobs WHERE state IN ('succeeded', 'failed', 'cancelled') AND finished_ms < ?1",
-        )?;
+        let mut stmt = conn.prepare(&format!(
+            "SELECT id FROM jobs WHERE state IN {} AND finished_ms < ?1",
+            in_sql(&ENDED)
+        ))?;
         let ids = stmt
             .query_map([cutoff_ms as i64], |r| r.get::<_, String>(0))?
             .collect::<Result<Vec<_>, _>>()?;
@@ -560,7 +562,7 @@ impl Backend for SqliteStore {
         self.conn().execute(
             // A study's parent stays `running`: its children are re-queued, and the engine
             // completes it once they have all ended.
-            "UPDATE jobs SET state = 'queued', started_ms = 0 WHERE state = 'running' AND children = 0",
+            &Transition::Release.update_sql("started_ms = 0", "children = 0"),
             [],
         )?;
         Ok(self

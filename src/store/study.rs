@@ -7,9 +7,6 @@
 use super::{StoreError, StoredResult};
 use crate::status::JobView;
 
-/// The terminal states, as SQL (a child in one of them has ended).
-pub(crate) const ENDED: &str = "('succeeded', 'failed', 'cancelled')";
-
 /// What the engine asks of the store for studies.
 pub trait StudyStore {
     /// Records a study in one transaction: the parent `running` (its `total` the number of

@@ -3,8 +3,9 @@
 //! `extensions`. Every change of state is one conditional statement, so two replicas (or a
 //! pause racing a cancel) never both win.
 
-use super::{CHANNEL, JOB_COLUMNS, PgStore, pg, view};
-use crate::status::JobView;
+use super::{CHANNEL, JOB_COLUMNS, PgStore, ask_running, pg, view};
+use crate::lifecycle::{Transition, is_sql};
+use crate::status::{JobState, JobView};
 use crate::store::StoreError;
 use crate::store::pause::PauseStore;
 
@@ -15,11 +16,10 @@ impl PauseStore for PgStore {
         self.with(move |c| async move {
             let n = c
                 .execute(
-                    &c.prepare_cached(
-                        "UPDATE jobs SET state = 'paused', done = $2, total = $3, t = $4,
-                            owner = NULL, lease_until = NULL, pause_requested = FALSE
-                         WHERE id = $1 AND (state = 'queued' OR (state = 'running' AND owner = $5))",
-                    )
+                    &c.prepare_cached(&Transition::Pause.update_sql(
+                        "done = $2, total = $3, t = $4, owner = NULL, lease_until = NULL, pause_requested = FALSE",
+                        &format!("id = $1 AND ({} OR owner = $5)", is_sql("state", JobState::Queued)),
+                    ))
                     .await
                     .map_err(pg)?,
                     &[&id, &done, &total, &t, &owner],
@@ -37,10 +37,10 @@ impl PauseStore for PgStore {
             let row = c
                 .query_opt(
                     &c.prepare_cached(&format!(
-                        "WITH up AS (
-                            UPDATE jobs SET state = 'queued', started_ms = 0, pause_requested = FALSE
-                            WHERE id = $1 AND state = 'paused' RETURNING {JOB_COLUMNS}, spec_json)
-                         SELECT up.*, pg_notify('{CHANNEL}', up.id) FROM up"
+                        "WITH up AS ({} RETURNING {JOB_COLUMNS}, spec_json)
+                         SELECT up.*, pg_notify('{CHANNEL}', up.id) FROM up",
+                        Transition::Resume
+                            .update_sql("started_ms = 0, pause_requested = FALSE", "id = $1"),
                     ))
                     .await
                     .map_err(pg)?,
@@ -60,8 +60,9 @@ impl PauseStore for PgStore {
             let row = tx
                 .query_opt(
                     &format!(
-                        "UPDATE jobs SET state = 'cancelled', finished_ms = $2, pause_requested = FALSE
-                         WHERE id = $1 AND state = 'paused' RETURNING {JOB_COLUMNS}"
+                        "{} RETURNING {JOB_COLUMNS}",
+                        Transition::CancelPaused
+                            .update_sql("finished_ms = $2, pause_requested = FALSE", "id = $1"),
                     ),
                     &[&id, &(finished_ms as i64)],
                 )
@@ -83,20 +84,7 @@ impl PauseStore for PgStore {
 
     fn request_pause(&self, id: &str) -> Result<bool, StoreError> {
         let id = id.to_string();
-        self.with(move |c| async move {
-            let n = c
-                .execute(
-                    &c.prepare_cached(
-                        "UPDATE jobs SET pause_requested = TRUE WHERE id = $1 AND state = 'running'",
-                    )
-                    .await
-                    .map_err(pg)?,
-                    &[&id],
-                )
-                .await
-                .map_err(pg)?;
-            Ok(n == 1)
-        })
+        self.with(move |c| async move { ask_running(&c, "pause_requested", &id).await })
     }
 
     fn keep_final_state(&self, id: &str, step: u64) -> Result<bool, StoreError> {

@@ -3,8 +3,8 @@
 //! see the last child end, one writes the report.
 
 use super::{CHANNEL, JOB_COLUMNS, PgStore, pg, view};
+use crate::lifecycle::{ENDED, Transition, in_sql};
 use crate::status::JobView;
-use crate::store::study::ENDED;
 use crate::store::{ResultTexts, StoreError, StoredResult, StudyStore};
 
 impl StudyStore for PgStore {
@@ -132,9 +132,11 @@ impl StudyStore for PgStore {
             c.query_opt(
                 &c.prepare_cached(&format!(
                     "UPDATE jobs p SET done = GREATEST(p.done,
-                            (SELECT COUNT(*) FROM jobs c WHERE c.parent = p.id AND c.state IN {ENDED}))
-                     FROM jobs k WHERE k.id = $1 AND p.id = k.parent AND p.state = 'running' AND p.children > 0
-                     RETURNING {columns}"
+                            (SELECT COUNT(*) FROM jobs c WHERE c.parent = p.id AND c.state IN {}))
+                     FROM jobs k WHERE k.id = $1 AND p.id = k.parent AND p.{} AND p.children > 0
+                     RETURNING {columns}",
+                    in_sql(&ENDED),
+                    Transition::EndStudy.from_sql(),
                 ))
                 .await
                 .map_err(pg)?,
@@ -160,17 +162,18 @@ impl StudyStore for PgStore {
             let texts = texts.unwrap_or_default();
             let done = c
                 .query_opt(
-                    &c.prepare_cached(
+                    &c.prepare_cached(&format!(
                         "WITH done AS (
                             UPDATE jobs SET state = $2, finished_ms = $3, error_field = $4, error_reason = $5,
                                    done = $6, total = $7, t = $8
-                            WHERE id = $1 AND state = 'running' AND children > 0 RETURNING attempt),
+                            WHERE id = $1 AND {} AND children > 0 RETURNING attempt),
                          ins AS (
                             INSERT INTO results (id, attempt, summary_json, columns_json, tables_json, figures_json, partial)
                             SELECT $1, attempt, $9, $10, $11, $12, FALSE FROM done WHERE $13
                             ON CONFLICT (id, attempt) DO NOTHING)
                          SELECT attempt FROM done",
-                    )
+                        Transition::EndStudy.from_sql(),
+                    ))
                     .await
                     .map_err(pg)?,
                     &[
@@ -199,9 +202,11 @@ impl StudyStore for PgStore {
         self.with(move |c| async move {
             c.query(
                 &c.prepare_cached(&format!(
-                    "SELECT p.id FROM jobs p WHERE p.children > 0 AND p.state = 'running'
-                     AND NOT EXISTS (SELECT 1 FROM jobs c WHERE c.parent = p.id AND c.state NOT IN {ENDED})
-                     ORDER BY p.seq"
+                    "SELECT p.id FROM jobs p WHERE p.children > 0 AND p.{}
+                     AND NOT EXISTS (SELECT 1 FROM jobs c WHERE c.parent = p.id AND c.state NOT IN {})
+                     ORDER BY p.seq",
+                    Transition::EndStudy.from_sql(),
+                    in_sql(&ENDED),
                 ))
                 .await
                 .map_err(pg)?,

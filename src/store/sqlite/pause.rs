@@ -2,6 +2,7 @@
 //! a succeeded job kept after its last step) and `extensions (id, extends)`.
 
 use super::{JOB_COLUMNS, SqliteStore, finish_row, row_to_job};
+use crate::lifecycle::Transition;
 use crate::status::JobView;
 use crate::store::StoreError;
 use crate::store::pause::PauseStore;
@@ -47,8 +48,7 @@ impl SqliteStore {
 impl PauseStore for SqliteStore {
     fn park(&self, row: &JobView) -> Result<bool, StoreError> {
         let n = self.conn().execute(
-            "UPDATE jobs SET state = 'paused', done = ?2, total = ?3, t = ?4
-             WHERE id = ?1 AND state IN ('queued', 'running')",
+            &Transition::Pause.update_sql("done = ?2, total = ?3, t = ?4", "id = ?1"),
             params![row.id, row.done as i64, row.total as i64, row.t],
         )?;
         Ok(n == 1)
@@ -57,10 +57,7 @@ impl PauseStore for SqliteStore {
     fn unpark(&self, id: &str) -> Result<Option<(JobView, String)>, StoreError> {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
-        let n = tx.execute(
-            "UPDATE jobs SET state = 'queued' WHERE id = ?1 AND state = 'paused'",
-            [id],
-        )?;
+        let n = tx.execute(&Transition::Resume.update_sql("", "id = ?1"), [id])?;
         if n == 0 {
             return Ok(None);
         }
@@ -73,7 +70,7 @@ impl PauseStore for SqliteStore {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
         let n = tx.execute(
-            "UPDATE jobs SET state = 'cancelled', finished_ms = ?2 WHERE id = ?1 AND state = 'paused'",
+            &Transition::CancelPaused.update_sql("finished_ms = ?2", "id = ?1"),
             params![id, finished_ms as i64],
         )?;
         if n == 0 {

@@ -2,8 +2,8 @@
 //! an earlier schema by [`migrate`].
 
 use super::{JOB_COLUMNS, SqliteStore, finish_row, row_to_job};
+use crate::lifecycle::{ENDED, Transition, in_sql};
 use crate::status::JobView;
-use crate::store::study::ENDED;
 use crate::store::{ResultTexts, StoreError, StoredResult, StudyStore};
 use rusqlite::{Connection, OptionalExtension, params};
 
@@ -114,8 +114,10 @@ impl StudyStore for SqliteStore {
         };
         let n = conn.execute(
             &format!(
-                "UPDATE jobs SET done = (SELECT COUNT(*) FROM jobs c WHERE c.parent = ?1 AND c.state IN {ENDED})
-                 WHERE id = ?1 AND state = 'running' AND children > 0"
+                "UPDATE jobs SET done = (SELECT COUNT(*) FROM jobs c WHERE c.parent = ?1 AND c.state IN {})
+                 WHERE id = ?1 AND {} AND children > 0",
+                in_sql(&ENDED),
+                Transition::EndStudy.from_sql()
             ),
             [&parent],
         )?;
@@ -141,8 +143,11 @@ impl StudyStore for SqliteStore {
         let tx = conn.transaction()?;
         let (field, reason) = row.error_parts();
         let n = tx.execute(
-            "UPDATE jobs SET state = ?2, finished_ms = ?3, error_field = ?4, error_reason = ?5, done = ?6, total = ?7, t = ?8
-             WHERE id = ?1 AND state = 'running' AND children > 0",
+            &format!(
+                "UPDATE jobs SET state = ?2, finished_ms = ?3, error_field = ?4, error_reason = ?5, done = ?6, total = ?7, t = ?8
+                 WHERE id = ?1 AND {} AND children > 0",
+                Transition::EndStudy.from_sql()
+            ),
             params![
                 row.id,
                 row.state.as_str(),
@@ -179,9 +184,11 @@ impl StudyStore for SqliteStore {
     fn studies_to_finish(&self) -> Result<Vec<String>, StoreError> {
         let conn = self.conn();
         let mut stmt = conn.prepare(&format!(
-            "SELECT p.id FROM jobs p WHERE p.children > 0 AND p.state = 'running'
-             AND NOT EXISTS (SELECT 1 FROM jobs c WHERE c.parent = p.id AND c.state NOT IN {ENDED})
-             ORDER BY p.seq"
+            "SELECT p.id FROM jobs p WHERE p.children > 0 AND p.{}
+             AND NOT EXISTS (SELECT 1 FROM jobs c WHERE c.parent = p.id AND c.state NOT IN {})
+             ORDER BY p.seq",
+            Transition::EndStudy.from_sql(),
+            in_sql(&ENDED)
         ))?;
         let ids = stmt
             .query_map([], |r| r.get::<_, String>(0))?
