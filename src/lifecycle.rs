@@ -136,6 +136,18 @@ impl Transition {
     }
 }
 
+/// The count of jobs in every state, in [`JobState::ALL`]'s order, from the `(state, count)`
+/// rows a store's `GROUP BY state` gave (a state without a row counts 0).
+pub fn per_state(rows: &[(String, u64)]) -> Vec<(JobState, u64)> {
+    JobState::ALL
+        .into_iter()
+        .map(|s| {
+            let n = rows.iter().find(|(name, _)| name == s.as_str());
+            (s, n.map_or(0, |(_, c)| *c))
+        })
+        .collect()
+}
+
 /// The SQL literal of a state: `'queued'`.
 pub fn literal(state: JobState) -> String {
     format!("'{}'", state.as_str())
@@ -229,6 +241,16 @@ mod tests {
             Transition::Pause.update_sql("done = $2", "id = $1"),
             "UPDATE jobs SET state = 'paused', done = $2 WHERE id = $1 AND state IN ('queued', 'running')"
         );
+    }
+
+    #[test]
+    fn counts_cover_every_state() {
+        let rows = [("running".to_string(), 2), ("failed".to_string(), 5)];
+        let counts = per_state(&rows);
+        assert_eq!(counts.len(), 6);
+        assert_eq!(counts[0], (JobState::Queued, 0));
+        assert_eq!(counts[1], (JobState::Running, 2));
+        assert_eq!(counts[3], (JobState::Failed, 5));
     }
 
     #[test]

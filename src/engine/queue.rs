@@ -136,7 +136,7 @@ impl Queue for LocalQueue {
         spec_json: &str,
     ) -> Result<(), EngineError> {
         let id = live.id.clone();
-        self.enqueue(inner, &[live.clone()], &mut || {
+        self.enqueue(inner, std::slice::from_ref(&live), &mut || {
             if inner.store.insert(&live.view(), spec_json)? {
                 Ok(())
             } else {

@@ -33,7 +33,7 @@ use super::{
     SeriesChunk, SharedQueue, StoreError, StoredResult, batches_blob, check_index, decode_chunk,
     end_by_calls, f64s_to_blob, split_series, u64s_to_blob,
 };
-use crate::lifecycle::{ENDED, Transition, in_sql, is_sql, literal};
+use crate::lifecycle::{ENDED, Transition, in_sql, is_sql, literal, per_state};
 use crate::status::{JobState, JobView, Lineage};
 use deadpool_postgres::{Manager, ManagerConfig, Pool, RecyclingMethod, Transaction};
 use std::future::Future;
@@ -1086,17 +1086,7 @@ impl Backend for PgStore {
             })
             .collect()
         })?;
-        Ok(JobState::ALL
-            .into_iter()
-            .map(|s| {
-                (
-                    s,
-                    rows.iter()
-                        .find(|(n, _)| n == s.as_str())
-                        .map_or(0, |(_, c)| *c),
-                )
-            })
-            .collect())
+        Ok(per_state(&rows))
     }
 
     fn result_head(&self, id: &str) -> Result<Option<StoredResult>, StoreError> {

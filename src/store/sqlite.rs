@@ -19,7 +19,7 @@ use super::{
     Backend, ChunkMeta, ResultTexts, SeriesChunk, StoreError, StoredResult, batches_blob,
     check_index, decode_chunk, decode_f64s, decode_u64s, f64s_to_blob, split_series, u64s_to_blob,
 };
-use crate::lifecycle::{ENDED, Transition, in_sql};
+use crate::lifecycle::{ENDED, Transition, in_sql, per_state};
 use crate::status::{JobState, JobView, Lineage};
 use rusqlite::{Connection, OptionalExtension, params};
 use std::path::Path;
@@ -581,17 +581,7 @@ impl Backend for SqliteStore {
                 Ok((r.get::<_, String>(0)?, r.get::<_, i64>(1)? as u64))
             })?
             .collect::<Result<Vec<_>, _>>()?;
-        Ok(JobState::ALL
-            .into_iter()
-            .map(|s| {
-                (
-                    s,
-                    rows.iter()
-                        .find(|(n, _)| n == s.as_str())
-                        .map_or(0, |(_, c)| *c),
-                )
-            })
-            .collect())
+        Ok(per_state(&rows))
     }
 
     /// A job's result without its series (`steps`, `t`, `values` empty): summary, columns,
