@@ -13,8 +13,9 @@
 //! rebuilt from the spec (factorisations, Delassus operators, compiled models) is stored: a
 //! resumed run rebuilds it bit for bit from the same spec, which the header's spec hash pins.
 //!
-//! This module is a leaf: each run loop encodes its own state into the checkpoint as a tagged
-//! section ([`RunKind`] and bytes) and decodes it back, so no loop depends on another.
+//! This module is a leaf: the time-stepping driver ([`crate::stepping::run`]) encodes a family's
+//! memory into the checkpoint as a tagged section ([`RunKind`] and bytes) and decodes it back,
+//! so no family depends on another.
 //!
 //! # Format (version [`FORMAT_VERSION`])
 //!

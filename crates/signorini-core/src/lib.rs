@@ -28,6 +28,7 @@ pub mod outcome;
 pub mod scenes;
 pub mod soi2;
 pub mod spec;
+pub mod stepping;
 pub mod study;
 pub mod trace;
 pub mod wfem;

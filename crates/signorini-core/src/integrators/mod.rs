@@ -14,9 +14,9 @@ use crate::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS, EnergyTerms};
 use crate::friction::FrictionError;
 use crate::lcp::LcpError;
 use crate::model::LinearModel;
-use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::observer::{Columns, Observer};
+use crate::stepping::{self, StepTime, StopReason, TimeStepping};
 use serde::{Deserialize, Serialize};
-use std::ops::ControlFlow;
 use thiserror::Error;
 
 /// State of a linear model at t_k.
@@ -172,8 +172,9 @@ impl SchemeState {
     }
 }
 
-/// What [`run_linear`] carries from one step to the next: the state, the running statistics,
-/// the previous impulses (impact count), the last step's report and the scheme's state.
+/// What [`run_linear`] carries from one step to the next (the memory of a linear run, as a
+/// checkpoint holds it): the state, the running statistics, the previous impulses (impact
+/// count), the last step's report and the scheme's state.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub(crate) struct LinearRun {
     pub(crate) state: LinearState,
@@ -300,94 +301,91 @@ pub(crate) fn run_linear_from(
     observer: &mut dyn Observer,
     resume: Option<&Checkpoint>,
 ) -> Result<LinearRunStats, RunStop> {
-    let m = model.contacts.len();
-    let friction = model.has_friction();
-    let columns = linear_columns(m, friction, &output.probes);
-    observer.start(&columns);
-    let every = output.every.max(1);
-    let mut report = StepReport::with_contacts(m);
-    report.fill_contacts(model, &state.q, &state.v, state.t);
-    let (kin, strain) = model.energy(&state.q, &state.v);
-    report.energy = EnergyTerms {
-        kinetic: kin,
-        strain,
-        algorithmic_energy: scheme.algorithmic_energy(model, state),
-        ..Default::default()
-    };
-    let e0 = kin + strain;
-    let mut stats = LinearRunStats {
-        t_end: state.t,
-        energy_initial: e0,
-        energy_final: e0,
-        energy_max: e0,
-        algorithmic_energy_max: report.energy.algorithmic_energy.abs(),
-        work_friction_total: friction.then_some(0.0),
-        ..Default::default()
-    };
-    let mut row = Vec::with_capacity(columns.len());
-    let mut previous_impulse = vec![0.0; m];
-    let record =
-        |report: &StepReport, stats: &LinearRunStats, state: &LinearState, row: &mut Vec<f64>| {
-            row.clear();
-            row.extend_from_slice(&report.energy.values());
-            row.extend([
-                stats.work_ext_total,
-                stats.work_damping_total,
-                stats.work_contact_total,
-            ]);
-            if let Some(total) = stats.work_friction_total {
-                row.extend([report.work_friction, total]);
-            }
-            for a in 0..m {
-                row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
-                if friction {
-                    row.extend([report.tangent_impulse[a], report.tangent_velocity[a]]);
-                }
-            }
-            for &j in &output.probes {
-                row.extend([state.q[j], state.v[j]]);
-            }
+    let mut run = LinearStepping::new(model, scheme, state, steps, &output.probes);
+    match stepping::run(&mut run, output.every, observer, resume)? {
+        StopReason::Finished { .. } => Ok(run.stats),
+        StopReason::Observer { step } => Err(RunStop::Stopped { step }),
+    }
+}
+
+/// A linear scheme on its model and state, as [`stepping::run`] drives it: the state, the
+/// running statistics, the previous impulses (impact count) and the last step's report.
+struct LinearStepping<'a> {
+    model: &'a LinearModel,
+    scheme: &'a mut dyn LinearScheme,
+    state: &'a mut LinearState,
+    steps: u64,
+    probes: &'a [usize],
+    friction: bool,
+    report: StepReport,
+    stats: LinearRunStats,
+    previous_impulse: Vec<f64>,
+}
+
+impl<'a> LinearStepping<'a> {
+    /// The run of `steps` steps from `state`, with its initial report and statistics.
+    fn new(
+        model: &'a LinearModel,
+        scheme: &'a mut dyn LinearScheme,
+        state: &'a mut LinearState,
+        steps: u64,
+        probes: &'a [usize],
+    ) -> Self {
+        let m = model.contacts.len();
+        let friction = model.has_friction();
+        let mut report = StepReport::with_contacts(m);
+        report.fill_contacts(model, &state.q, &state.v, state.t);
+        let (kin, strain) = model.energy(&state.q, &state.v);
+        report.energy = EnergyTerms {
+            kinetic: kin,
+            strain,
+            algorithmic_energy: scheme.algorithmic_energy(model, state),
+            ..Default::default()
         };
-    let first = match resume {
-        Some(c) => {
-            let run: LinearRun = c.run_state(RunKind::Linear)?;
-            let k = run.state.step;
-            if run.state.q.len() != state.q.len() || run.previous_impulse.len() != m {
-                return Err(CheckpointError::Mismatch(format!(
-                    "a linear state of {} dofs, the model has {}",
-                    run.state.q.len(),
-                    state.q.len()
-                ))
-                .into());
-            }
-            let LinearRun {
-                state: s,
-                stats: st,
-                previous_impulse: p,
-                report: r,
-                scheme: sc,
-            } = run;
-            scheme.restore_state(sc)?;
-            (*state, stats, previous_impulse, report) = (s, st, p, r);
-            k + 1
+        let e0 = kin + strain;
+        let stats = LinearRunStats {
+            t_end: state.t,
+            energy_initial: e0,
+            energy_final: e0,
+            energy_max: e0,
+            algorithmic_energy_max: report.energy.algorithmic_energy.abs(),
+            work_friction_total: friction.then_some(0.0),
+            ..Default::default()
+        };
+        Self {
+            model,
+            scheme,
+            state,
+            steps,
+            probes,
+            friction,
+            report,
+            stats,
+            previous_impulse: vec![0.0; m],
         }
-        None => {
-            record(&report, &stats, state, &mut row);
-            if observer
-                .observe(&StepRecord {
-                    step: state.step,
-                    t: state.t,
-                    values: &row,
-                })
-                .is_break()
-            {
-                return Err(RunStop::Stopped { step: 0 });
-            }
-            1
-        }
-    };
-    for k in first..=steps {
-        scheme.step(model, state, &mut report)?;
+    }
+}
+
+impl TimeStepping for LinearStepping<'_> {
+    type Memory = LinearRun;
+    type Error = RunStop;
+    const RUN: RunKind = RunKind::Linear;
+
+    fn columns(&self) -> Columns {
+        linear_columns(self.model.contacts.len(), self.friction, self.probes)
+    }
+
+    fn total_steps(&self) -> u64 {
+        self.steps
+    }
+
+    fn is_done(&mut self, k: u64) -> bool {
+        k >= self.steps
+    }
+
+    fn step(&mut self, k: u64) -> Result<(), RunStop> {
+        let (state, report, stats) = (&mut *self.state, &mut self.report, &mut self.stats);
+        self.scheme.step(self.model, state, report)?;
         let e = &report.energy;
         if !(e.energy().is_finite() && e.algorithmic_energy.is_finite()) {
             return Err(StepError::NotFinite {
@@ -416,41 +414,69 @@ pub(crate) fn run_linear_from(
         stats.algorithmic_energy_max = stats.algorithmic_energy_max.max(e.algorithmic_energy.abs());
         stats.lcp_max_error = stats.lcp_max_error.max(report.lcp.error);
         stats.lcp_solves += u64::from(report.lcp.size > 0);
-        for (p_old, &p) in previous_impulse.iter_mut().zip(&report.impulse) {
+        for (p_old, &p) in self.previous_impulse.iter_mut().zip(&report.impulse) {
             stats.impacts += u64::from(p > 0.0 && *p_old <= 0.0);
             *p_old = p;
         }
-        if k % every == 0 || k == steps {
-            record(&report, &stats, state, &mut row);
-            if observer
-                .observe(&StepRecord {
-                    step: state.step,
-                    t: state.t,
-                    values: &row,
-                })
-                .is_break()
-            {
-                return Err(RunStop::Stopped { step: k });
-            }
-        }
-        let progress = Progress {
-            done: k,
-            total: steps,
-            t: state.t,
-        };
-        if let ControlFlow::Break(()) = observer.progress(progress) {
-            return Err(RunStop::Stopped { step: k });
-        }
-        if observer.checkpoint_due(progress) {
-            let run = LinearRun {
-                state: state.clone(),
-                stats: stats.clone(),
-                previous_impulse: previous_impulse.clone(),
-                report: report.clone(),
-                scheme: scheme.save_state(),
-            };
-            observer.checkpoint(&mut Checkpoint::new(k, RunKind::Linear, &run)?);
+        Ok(())
+    }
+
+    fn now(&self) -> StepTime {
+        StepTime {
+            step: self.state.step,
+            t: self.state.t,
         }
     }
-    Ok(stats)
+
+    fn record(&mut self, row: &mut Vec<f64>) -> Result<(), RunStop> {
+        let (report, stats, state) = (&self.report, &self.stats, &self.state);
+        row.clear();
+        row.extend_from_slice(&report.energy.values());
+        row.extend([
+            stats.work_ext_total,
+            stats.work_damping_total,
+            stats.work_contact_total,
+        ]);
+        if let Some(total) = stats.work_friction_total {
+            row.extend([report.work_friction, total]);
+        }
+        for a in 0..self.model.contacts.len() {
+            row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
+            if self.friction {
+                row.extend([report.tangent_impulse[a], report.tangent_velocity[a]]);
+            }
+        }
+        for &j in self.probes {
+            row.extend([state.q[j], state.v[j]]);
+        }
+        Ok(())
+    }
+
+    fn memory(&self) -> LinearRun {
+        LinearRun {
+            state: self.state.clone(),
+            stats: self.stats.clone(),
+            previous_impulse: self.previous_impulse.clone(),
+            report: self.report.clone(),
+            scheme: self.scheme.save_state(),
+        }
+    }
+
+    fn restore(&mut self, run: LinearRun) -> Result<(), RunStop> {
+        let m = self.model.contacts.len();
+        if run.state.q.len() != self.state.q.len() || run.previous_impulse.len() != m {
+            return Err(CheckpointError::Mismatch(format!(
+                "a linear state of {} dofs, the model has {}",
+                run.state.q.len(),
+                self.state.q.len()
+            ))
+            .into());
+        }
+        self.scheme.restore_state(run.scheme)?;
+        *self.state = run.state;
+        self.stats = run.stats;
+        self.previous_impulse = run.previous_impulse;
+        self.report = run.report;
+        Ok(())
+    }
 }

@@ -10,15 +10,16 @@ use super::{
     ConstrainedModel, GlobalErrors, Soi2Error, check_consistency, check_constraint_rank,
     constraint_residuals, dist2, kinetic_energy,
 };
+use crate::checkpoint::{Checkpoint, CheckpointError, RunKind};
 use crate::integrators::OutputOptions;
 use crate::lagrangian::UserModel;
-use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::observer::{Columns, Observer};
 use crate::outcome::Soi2Summary;
 use crate::spec::{
     IntegratorSpec, JobSpec, ModelSpec, NewtonSpec, Probes, Soi2GeneralizedAlphaSpec,
     Soi2NewtonSpec, SpecError, StartSpec, mismatch,
 };
-use std::ops::ControlFlow;
+use crate::stepping::{self, StepTime, StopReason, TimeStepping};
 
 // ---------------------------------------------------------------------------------------------
 // Integrator specs (the types are in `crate::spec::integrator`)
@@ -300,176 +301,50 @@ pub(crate) fn integrate_from<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized
     adjust: bool,
     output: &Soi2Output,
     observer: &mut dyn Observer,
-    resume: Option<&crate::checkpoint::Checkpoint>,
+    resume: Option<&Checkpoint>,
 ) -> Result<(Soi2State, Soi2Stats), Soi2Error> {
-    let mut cache = NewtonCache::new(newton);
-    let dims = model.dims();
-    let n = dims.n;
+    let state = method::initial_state(model, method, start, sizes.steps().next().unwrap_or(1.0))?;
+    let mut run = Soi2Stepping {
+        model,
+        method,
+        adjust,
+        probes: &output.probes,
+        total: sizes.count(),
+        sizes: sizes.steps().peekable(),
+        e0: 0.0,
+        k: 0,
+        res: constraint_residuals(model, state.t, &state.y, &state.z),
+        stats: Soi2Stats::default(),
+        cache: NewtonCache::new(newton),
+        fd0: vec![0.0; state.y.len()],
+        fd1: vec![0.0; state.y.len()],
+        h: 0.0,
+        h_last: 0.0,
+        wd: 0.0,
+        iterations: 0,
+        state,
+    };
+    let e0 = run.kinetic() + run.potential();
+    (run.e0, run.stats) = (
+        e0,
+        Soi2Stats {
+            t_end: run.state.t,
+            energy_initial: e0,
+            energy_final: e0,
+            ..Default::default()
+        },
+    );
+    let s = &run.state;
+    model.damping_force(s.t, &s.y, &s.z, &mut run.fd0);
+    if let StopReason::Observer { step } = stepping::run(&mut run, output.every, observer, resume)?
+    {
+        return Err(Soi2Error::Stopped { step });
+    }
+    let (state, mut stats) = (run.state, run.stats);
     let alpha = method.coefficients.alpha();
-    let cols = columns(dims, &output.probes);
-    observer.start(&cols);
-    let every = output.every.max(1);
-    let total = sizes.count();
-    let mut state =
-        method::initial_state(model, method, start, sizes.steps().next().unwrap_or(1.0))?;
-    let potential = |s: &Soi2State| model.potential(s.t, &s.y);
-    let kinetic = |s: &Soi2State| kinetic_energy(model, s.t, &s.y, &s.z);
-    let (k0, p0) = (kinetic(&state), potential(&state));
-    let mut stats = Soi2Stats {
-        t_end: state.t,
-        energy_initial: k0 + p0,
-        energy_final: k0 + p0,
-        ..Default::default()
-    };
-    let e0 = k0 + p0;
-    let mut row = Vec::with_capacity(cols.len());
-    let mut fd0 = vec![0.0; n];
-    let mut fd1 = vec![0.0; n];
-    model.damping_force(state.t, &state.y, &state.z, &mut fd0);
-    let record = |row: &mut Vec<f64>,
-                  s: &Soi2State,
-                  h: f64,
-                  kin: f64,
-                  pot: f64,
-                  wd: f64,
-                  wdt: f64,
-                  res: [f64; 3],
-                  it: usize| {
-        row.clear();
-        row.extend([
-            h,
-            kin,
-            pot,
-            kin + pot,
-            wd,
-            wdt,
-            wd,
-            kin + pot - e0 - wdt,
-            res[0],
-            res[1],
-            res[2],
-            it as f64,
-        ]);
-        row.extend_from_slice(&s.lambda);
-        row.extend_from_slice(&s.psi);
-        for &j in &output.probes {
-            row.extend([s.y[j], s.z[j]]);
-        }
-    };
-    let mut steps = sizes.steps().peekable();
-    let mut k = 0u64;
-    let mut h_last = 0.0;
-    match resume {
-        Some(c) => {
-            let run: Soi2Run = c.run_state(crate::checkpoint::RunKind::Soi2)?;
-            if run.state.y.len() != n || run.fd0.len() != n {
-                return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
-                    "a SOI2 state of {} coordinates, the model has {n}",
-                    run.state.y.len()
-                ))
-                .into());
-            }
-            let r = run;
-            (k, state, stats, cache, fd0, h_last) =
-                (r.k, r.state, r.stats, r.cache, r.fd0, r.h_last);
-            // The schedule's position: the k sizes already stepped.
-            if k > 0 && steps.nth((k - 1) as usize).is_none() {
-                return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
-                    "a checkpoint after step {k}, the schedule has fewer steps"
-                ))
-                .into());
-            }
-        }
-        None => {
-            let res0 = constraint_residuals(model, state.t, &state.y, &state.z);
-            record(&mut row, &state, 0.0, k0, p0, 0.0, 0.0, res0, 0);
-            if observer
-                .observe(&StepRecord {
-                    step: 0,
-                    t: state.t,
-                    values: &row,
-                })
-                .is_break()
-            {
-                return Err(Soi2Error::Stopped { step: 0 });
-            }
-        }
-    }
-    while let Some(h) = steps.next() {
-        k += 1;
-        h_last = h;
-        if adjust {
-            method::adjust_for_step(&mut state, alpha, h); // (14a)–(14b)
-        }
-        let result = method::solve_step_with(model, method, &state, h, &mut cache)?;
-        let info = result.info;
-        let y_old = state.y.clone();
-        method::commit(&mut state, result, h);
-        model.damping_force(state.t, &state.y, &state.z, &mut fd1);
-        // Trapezoidal work of the damping forces over the step.
-        let wd: f64 = (0..n)
-            .map(|i| 0.5 * (fd0[i] + fd1[i]) * (state.y[i] - y_old[i]))
-            .sum();
-        std::mem::swap(&mut fd0, &mut fd1);
-        stats.work_damping_total += wd;
-        let res = constraint_residuals(model, state.t, &state.y, &state.z);
-        stats.max_position_residual = stats.max_position_residual.max(res[0]);
-        stats.max_velocity_residual = stats.max_velocity_residual.max(res[1]);
-        stats.max_nonholonomic_residual = stats.max_nonholonomic_residual.max(res[2]);
-        stats.newton_iterations += info.iterations as u64;
-        stats.newton_iterations_max = stats.newton_iterations_max.max(info.iterations);
-        stats.steps = k;
-        stats.newton_jacobians = cache.jacobians;
-        stats.t_end = state.t;
-        if k.is_multiple_of(every) || steps.peek().is_none() {
-            let (kin, pot) = (kinetic(&state), potential(&state));
-            stats.energy_final = kin + pot;
-            record(
-                &mut row,
-                &state,
-                h,
-                kin,
-                pot,
-                wd,
-                stats.work_damping_total,
-                res,
-                info.iterations,
-            );
-            if observer
-                .observe(&StepRecord {
-                    step: k,
-                    t: state.t,
-                    values: &row,
-                })
-                .is_break()
-            {
-                return Err(Soi2Error::Stopped { step: k });
-            }
-        }
-        let progress = Progress {
-            done: k,
-            total,
-            t: state.t,
-        };
-        if let ControlFlow::Break(()) = observer.progress(progress) {
-            return Err(Soi2Error::Stopped { step: k });
-        }
-        if observer.checkpoint_due(progress) {
-            let run = Soi2Run {
-                k,
-                state: state.clone(),
-                stats: stats.clone(),
-                cache: cache.clone(),
-                fd0: fd0.clone(),
-                h_last,
-            };
-            let kind = crate::checkpoint::RunKind::Soi2;
-            observer.checkpoint(&mut crate::checkpoint::Checkpoint::new(k, kind, &run)?);
-        }
-    }
     stats.errors = model.exact(state.t).map(|ex| {
         let a_ex = model
-            .exact(state.t + alpha * h_last)
+            .exact(state.t + alpha * run.h_last)
             .map(|e| e.a)
             .unwrap_or(ex.a);
         GlobalErrors {
@@ -481,6 +356,183 @@ pub(crate) fn integrate_from<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized
         }
     });
     Ok((state, stats))
+}
+
+/// A SOI2 method on its model, state and step sizes, as [`stepping::run`] drives it: the memory
+/// of [`Soi2Run`], the remaining step sizes (a step count or an end time; each step may have
+/// its own h) and what the last step measured, for its record.
+struct Soi2Stepping<'a, M: ?Sized, I: Iterator<Item = f64>> {
+    model: &'a M,
+    method: &'a Method,
+    adjust: bool,
+    probes: &'a [usize],
+    total: u64,
+    sizes: std::iter::Peekable<I>,
+    /// Mechanical energy at t₀.
+    e0: f64,
+    k: u64,
+    state: Soi2State,
+    stats: Soi2Stats,
+    cache: NewtonCache,
+    /// Damping force at t_k.
+    fd0: Vec<f64>,
+    /// Damping force at t_{k+1} (scratch).
+    fd1: Vec<f64>,
+    /// The last step's h (0 before the first step), its damping work, constraint residuals and
+    /// Newton iterations.
+    h: f64,
+    h_last: f64,
+    wd: f64,
+    res: [f64; 3],
+    iterations: usize,
+}
+
+impl<M: ConstrainedModel + ?Sized, I: Iterator<Item = f64>> Soi2Stepping<'_, M, I> {
+    fn kinetic(&self) -> f64 {
+        let s = &self.state;
+        kinetic_energy(self.model, s.t, &s.y, &s.z)
+    }
+
+    fn potential(&self) -> f64 {
+        self.model.potential(self.state.t, &self.state.y)
+    }
+}
+
+impl<M: ConstrainedModel + ?Sized, I: Iterator<Item = f64>> TimeStepping
+    for Soi2Stepping<'_, M, I>
+{
+    type Memory = Soi2Run;
+    type Error = Soi2Error;
+    const RUN: RunKind = RunKind::Soi2;
+
+    fn columns(&self) -> Columns {
+        columns(self.model.dims(), self.probes)
+    }
+
+    fn total_steps(&self) -> u64 {
+        self.total
+    }
+
+    fn is_done(&mut self, _k: u64) -> bool {
+        self.sizes.peek().is_none()
+    }
+
+    fn step(&mut self, k: u64) -> Result<(), Soi2Error> {
+        // The driver steps only after `is_done` found a next size.
+        let Some(h) = self.sizes.next() else {
+            return Ok(());
+        };
+        let (model, state, stats) = (self.model, &mut self.state, &mut self.stats);
+        self.k = k;
+        self.h = h;
+        self.h_last = h;
+        if self.adjust {
+            method::adjust_for_step(state, self.method.coefficients.alpha(), h); // (14a)–(14b)
+        }
+        let result = method::solve_step_with(model, self.method, state, h, &mut self.cache)?;
+        let info = result.info;
+        let y_old = state.y.clone();
+        method::commit(state, result, h);
+        model.damping_force(state.t, &state.y, &state.z, &mut self.fd1);
+        let (fd0, fd1) = (&self.fd0, &self.fd1);
+        // Trapezoidal work of the damping forces over the step.
+        let wd: f64 = (0..y_old.len())
+            .map(|i| 0.5 * (fd0[i] + fd1[i]) * (state.y[i] - y_old[i]))
+            .sum();
+        std::mem::swap(&mut self.fd0, &mut self.fd1);
+        self.wd = wd;
+        stats.work_damping_total += wd;
+        let res = constraint_residuals(model, state.t, &state.y, &state.z);
+        self.res = res;
+        stats.max_position_residual = stats.max_position_residual.max(res[0]);
+        stats.max_velocity_residual = stats.max_velocity_residual.max(res[1]);
+        stats.max_nonholonomic_residual = stats.max_nonholonomic_residual.max(res[2]);
+        stats.newton_iterations += info.iterations as u64;
+        stats.newton_iterations_max = stats.newton_iterations_max.max(info.iterations);
+        self.iterations = info.iterations;
+        stats.steps = k;
+        stats.newton_jacobians = self.cache.jacobians;
+        stats.t_end = state.t;
+        Ok(())
+    }
+
+    fn now(&self) -> StepTime {
+        StepTime {
+            step: self.k,
+            t: self.state.t,
+        }
+    }
+
+    fn record(&mut self, row: &mut Vec<f64>) -> Result<(), Soi2Error> {
+        let (kin, pot) = (self.kinetic(), self.potential());
+        self.stats.energy_final = kin + pot;
+        let (s, wd, wdt, res) = (
+            &self.state,
+            self.wd,
+            self.stats.work_damping_total,
+            self.res,
+        );
+        row.clear();
+        row.extend([
+            self.h,
+            kin,
+            pot,
+            kin + pot,
+            wd,
+            wdt,
+            wd,
+            kin + pot - self.e0 - wdt,
+            res[0],
+            res[1],
+            res[2],
+            self.iterations as f64,
+        ]);
+        row.extend_from_slice(&s.lambda);
+        row.extend_from_slice(&s.psi);
+        for &j in self.probes {
+            row.extend([s.y[j], s.z[j]]);
+        }
+        Ok(())
+    }
+
+    fn memory(&self) -> Soi2Run {
+        Soi2Run {
+            k: self.k,
+            state: self.state.clone(),
+            stats: self.stats.clone(),
+            cache: self.cache.clone(),
+            fd0: self.fd0.clone(),
+            h_last: self.h_last,
+        }
+    }
+
+    fn restore(&mut self, run: Soi2Run) -> Result<(), Soi2Error> {
+        let n = self.state.y.len();
+        if run.state.y.len() != n || run.fd0.len() != n {
+            return Err(CheckpointError::Mismatch(format!(
+                "a SOI2 state of {} coordinates, the model has {n}",
+                run.state.y.len()
+            ))
+            .into());
+        }
+        let k = run.k;
+        (
+            self.k,
+            self.state,
+            self.stats,
+            self.cache,
+            self.fd0,
+            self.h_last,
+        ) = (k, run.state, run.stats, run.cache, run.fd0, run.h_last);
+        // The schedule's position: the k sizes already stepped.
+        if k > 0 && self.sizes.nth((k - 1) as usize).is_none() {
+            return Err(CheckpointError::Mismatch(format!(
+                "a checkpoint after step {k}, the schedule has fewer steps"
+            ))
+            .into());
+        }
+        Ok(())
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -836,7 +888,7 @@ impl Soi2Job {
     pub(crate) fn run_from(
         &self,
         observer: &mut dyn Observer,
-        resume: Option<&crate::checkpoint::Checkpoint>,
+        resume: Option<&Checkpoint>,
     ) -> Result<Soi2Summary, Soi2Error> {
         let sizes = &self.schedule;
         let (state, stats) = match &self.model {

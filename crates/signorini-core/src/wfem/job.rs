@@ -1,17 +1,18 @@
 //! Jobs on wave finite elements: time integration (`scheme = "wfem"`), nonsmooth modal analysis
 //! and forced-response sweeps (`[analysis]`). [`crate::job::Job::from_spec`] dispatches here.
 
-use super::{WaveBar, WaveState, step};
+use super::{StepTerms, WaveBar, WaveState, step};
+use crate::checkpoint::{Checkpoint, CheckpointError, RunKind};
 use crate::energy::{CUMULATIVE_COLUMNS, ENERGY_COLUMNS};
 use crate::integrators::StepError;
 use crate::modal::{self, ForcedResponseJob, ModalJob};
-use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::observer::{Columns, Observer};
 use crate::outcome::{
     RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader, WaveRunStats, WaveSummary,
 };
 use crate::scenes::Bar;
 use crate::spec::{AnalysisSpec, JobSpec, ModelSpec, Probes, SpecError};
-use std::ops::ControlFlow;
+use crate::stepping::{self, StepTime, StopReason, TimeStepping};
 
 /// A validated job on wave finite elements.
 #[derive(Debug, Clone)]
@@ -126,7 +127,7 @@ impl WaveJob {
         header: SummaryHeader,
         threads: usize,
         observer: &mut dyn Observer,
-        resume: Option<&crate::checkpoint::Checkpoint>,
+        resume: Option<&Checkpoint>,
     ) -> Result<RunOutput, RunError> {
         match self {
             WaveJob::Integrate { bar, steps, every } => {
@@ -139,7 +140,7 @@ impl WaveJob {
                 })
             }
             WaveJob::Modes(_) | WaveJob::Forced(_) if resume.is_some() => {
-                Err(crate::checkpoint::CheckpointError::Unsupported("analysis").into())
+                Err(CheckpointError::Unsupported("analysis").into())
             }
             WaveJob::Modes(m) => modal::run_modes(m, header, threads, observer),
             WaveJob::Forced(f) => modal::forced::run_forced(f, header, threads, observer),
@@ -205,44 +206,121 @@ pub(crate) fn run_wave_from(
     steps: u64,
     every: u64,
     observer: &mut dyn Observer,
-    resume: Option<&crate::checkpoint::Checkpoint>,
+    resume: Option<&Checkpoint>,
 ) -> Result<WaveRunStats, RunError> {
-    let columns = wave_columns();
-    observer.start(&columns);
-    let every = every.max(1);
-    let dt = bar.dt();
-    let (kin, strain) = state.energies(bar);
-    let mut e_prev = kin + strain;
-    let mut stats = WaveRunStats {
-        energy_initial: e_prev,
-        energy_final: e_prev,
-        ..Default::default()
-    };
-    let mut row = Vec::with_capacity(columns.len());
-    let (mut w_ext, mut w_damp, mut w_contact) = (0.0, 0.0, 0.0);
-    let mut last = super::StepTerms::default();
-    let mut was_contact = false;
-    let push_row = |row: &mut Vec<f64>,
-                    kin: f64,
-                    strain: f64,
-                    works: [f64; 3],
-                    residual: f64,
-                    totals: [f64; 3],
-                    state: &WaveState,
-                    terms: &super::StepTerms| {
+    let mut run = WaveStepping::new(bar, state, steps);
+    match stepping::run(&mut run, every, observer, resume)? {
+        StopReason::Finished { .. } => {
+            let mut stats = run.stats;
+            stats.steps = steps;
+            stats.t_end = run.state.step as f64 * bar.dt();
+            stats.energy_final = run.e_prev;
+            Ok(stats)
+        }
+        StopReason::Observer { step } => Err(RunError::Stopped { step }),
+    }
+}
+
+/// Algorithm 2 on a bar and its state, as [`stepping::run`] drives it: the memory of
+/// [`WaveRun`] and the terms of the last step (which the next record reads).
+struct WaveStepping<'a> {
+    bar: &'a WaveBar,
+    state: &'a mut WaveState,
+    steps: u64,
+    stats: WaveRunStats,
+    e_prev: f64,
+    works: [f64; 3],
+    was_contact: bool,
+    last: StepTerms,
+}
+
+impl<'a> WaveStepping<'a> {
+    fn new(bar: &'a WaveBar, state: &'a mut WaveState, steps: u64) -> Self {
+        let (kin, strain) = state.energies(bar);
+        let e_prev = kin + strain;
+        Self {
+            bar,
+            state,
+            steps,
+            stats: WaveRunStats {
+                energy_initial: e_prev,
+                energy_final: e_prev,
+                ..Default::default()
+            },
+            e_prev,
+            works: [0.0; 3],
+            was_contact: false,
+            last: StepTerms::default(),
+        }
+    }
+}
+
+impl TimeStepping for WaveStepping<'_> {
+    type Memory = WaveRun;
+    type Error = RunError;
+    const RUN: RunKind = RunKind::Wave;
+
+    fn columns(&self) -> Columns {
+        wave_columns()
+    }
+
+    fn total_steps(&self) -> u64 {
+        self.steps
+    }
+
+    fn is_done(&mut self, k: u64) -> bool {
+        k >= self.steps
+    }
+
+    fn step(&mut self, _k: u64) -> Result<(), RunError> {
+        let last = step(self.bar, self.state);
+        let stats = &mut self.stats;
+        self.works[0] += last.work_ext;
+        self.works[1] += last.work_damping;
+        self.works[2] += last.work_contact;
+        stats.work_ext_total += last.work_ext;
+        stats.work_damping_total += last.work_damping;
+        stats.work_contact_total += last.work_contact;
+        stats.closures += u64::from(last.contact && !self.was_contact);
+        stats.contact_steps += u64::from(last.contact);
+        self.was_contact = last.contact;
+        self.last = last;
+        Ok(())
+    }
+
+    fn now(&self) -> StepTime {
+        StepTime {
+            step: self.state.step,
+            t: self.state.step as f64 * self.bar.dt(),
+        }
+    }
+
+    /// The energies now, the works summed since the previous record and
+    /// `balance_residual = ΔE − work_ext − work_damping − work_contact` over that interval.
+    fn record(&mut self, row: &mut Vec<f64>) -> Result<(), RunError> {
+        let (bar, state, terms) = (self.bar, &*self.state, &self.last);
+        let dt = bar.dt();
+        let (kin, strain) = state.energies(bar);
+        let e = kin + strain;
+        if !e.is_finite() || !state.u_right.is_finite() {
+            return Err(StepError::NotFinite {
+                step: state.step,
+                t: state.step as f64 * dt,
+            }
+            .into());
+        }
+        let [w_ext, w_damp, w_contact] = self.works;
+        let residual = (e - self.e_prev) - (w_ext + w_damp + w_contact);
+        let stats = &mut self.stats;
+        stats.max_abs_balance_residual = stats.max_abs_balance_residual.max(residual.abs());
+        self.e_prev = e;
         row.clear();
+        row.extend([kin, strain, e, w_ext, w_damp, w_contact, 0.0, e, residual]);
         row.extend([
-            kin,
-            strain,
-            kin + strain,
-            works[0],
-            works[1],
-            works[2],
-            0.0,
-            kin + strain,
-            residual,
+            stats.work_ext_total,
+            stats.work_damping_total,
+            stats.work_contact_total,
         ]);
-        row.extend(totals);
         let gap = bar.gap + bar.wall(state.step as f64 * dt) - state.u_right;
         row.extend([
             gap,
@@ -251,110 +329,32 @@ pub(crate) fn run_wave_from(
             state.u_right,
             bar.area * terms.contact_stress,
         ]);
-    };
-    let first = match resume {
-        Some(c) => {
-            let run: WaveRun = c.run_state(crate::checkpoint::RunKind::Wave)?;
-            if !run.state.fits(state) {
-                return Err(crate::checkpoint::CheckpointError::Mismatch(
-                    "a WFEM state of another number of cells".to_string(),
-                )
-                .into());
-            }
-            let r = run;
-            let k = r.state.step;
-            (*state, stats, e_prev, was_contact) = (r.state, r.stats, r.e_prev, r.was_contact);
-            [w_ext, w_damp, w_contact] = r.works;
-            k + 1
-        }
-        None => {
-            push_row(&mut row, kin, strain, [0.0; 3], 0.0, [0.0; 3], state, &last);
-            if observer
-                .observe(&StepRecord {
-                    step: state.step,
-                    t: state.step as f64 * dt,
-                    values: &row,
-                })
-                .is_break()
-            {
-                return Err(RunError::Stopped { step: 0 });
-            }
-            1
-        }
-    };
-    for k in first..=steps {
-        last = step(bar, state);
-        w_ext += last.work_ext;
-        w_damp += last.work_damping;
-        w_contact += last.work_contact;
-        stats.work_ext_total += last.work_ext;
-        stats.work_damping_total += last.work_damping;
-        stats.work_contact_total += last.work_contact;
-        stats.closures += u64::from(last.contact && !was_contact);
-        stats.contact_steps += u64::from(last.contact);
-        was_contact = last.contact;
-        if k % every == 0 || k == steps {
-            let (kin, strain) = state.energies(bar);
-            let e = kin + strain;
-            if !e.is_finite() || !state.u_right.is_finite() {
-                return Err(StepError::NotFinite {
-                    step: state.step,
-                    t: state.step as f64 * dt,
-                }
-                .into());
-            }
-            let residual = (e - e_prev) - (w_ext + w_damp + w_contact);
-            stats.max_abs_balance_residual = stats.max_abs_balance_residual.max(residual.abs());
-            e_prev = e;
-            let totals = [
-                stats.work_ext_total,
-                stats.work_damping_total,
-                stats.work_contact_total,
-            ];
-            push_row(
-                &mut row,
-                kin,
-                strain,
-                [w_ext, w_damp, w_contact],
-                residual,
-                totals,
-                state,
-                &last,
-            );
-            (w_ext, w_damp, w_contact) = (0.0, 0.0, 0.0);
-            if observer
-                .observe(&StepRecord {
-                    step: state.step,
-                    t: state.step as f64 * dt,
-                    values: &row,
-                })
-                .is_break()
-            {
-                return Err(RunError::Stopped { step: k });
-            }
-        }
-        let progress = Progress {
-            done: k,
-            total: steps,
-            t: state.step as f64 * dt,
-        };
-        if let ControlFlow::Break(()) = observer.progress(progress) {
-            return Err(RunError::Stopped { step: k });
-        }
-        if observer.checkpoint_due(progress) {
-            let run = WaveRun {
-                state: state.clone(),
-                stats: stats.clone(),
-                e_prev,
-                works: [w_ext, w_damp, w_contact],
-                was_contact,
-            };
-            let kind = crate::checkpoint::RunKind::Wave;
-            observer.checkpoint(&mut crate::checkpoint::Checkpoint::new(k, kind, &run)?);
+        self.works = [0.0; 3];
+        Ok(())
+    }
+
+    fn memory(&self) -> WaveRun {
+        WaveRun {
+            state: self.state.clone(),
+            stats: self.stats.clone(),
+            e_prev: self.e_prev,
+            works: self.works,
+            was_contact: self.was_contact,
         }
     }
-    stats.steps = steps;
-    stats.t_end = state.step as f64 * dt;
-    stats.energy_final = e_prev;
-    Ok(stats)
+
+    fn restore(&mut self, run: WaveRun) -> Result<(), RunError> {
+        if !run.state.fits(self.state) {
+            return Err(CheckpointError::Mismatch(
+                "a WFEM state of another number of cells".to_string(),
+            )
+            .into());
+        }
+        *self.state = run.state;
+        self.stats = run.stats;
+        self.e_prev = run.e_prev;
+        self.works = run.works;
+        self.was_contact = run.was_contact;
+        Ok(())
+    }
 }
