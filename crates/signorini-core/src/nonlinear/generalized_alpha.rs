@@ -66,15 +66,16 @@ use super::moreau_jean::{
     NewtonOptions, NonlinearRunStats, NonlinearRunStop, NonlinearState, NonlinearStepError,
     NonlinearStepReport, ParamError, StepAt,
 };
+use crate::checkpoint::RunKind;
 use crate::contact::LcpStats;
 use crate::dense::{amax, dot, kinetic, lu_factor};
 use crate::integrators::OutputOptions;
 use crate::lagrangian::UserModel;
 use crate::lcp::{LcpOptions, MixedLcp, MixedLcpError, MixedSolution, solve_mixed};
-use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::observer::{Columns, Observer};
 use crate::soi2::{ConstrainedModel, Dual64};
+use crate::stepping::{self, StepTime, StopReason, TimeStepping};
 use nalgebra::{DMatrix, DVector};
-use std::ops::ControlFlow;
 
 /// A [`LagrangianSystem`] with bilateral holonomic joints g(q, t) = 0 (nb of them). The
 /// defaults describe a system without joints.
@@ -1025,7 +1026,8 @@ pub(crate) struct NsAlphaRun {
     memory: Option<NsAlphaMemory>,
 }
 
-/// [`run_ns_alpha`], or its continuation from a checkpoint's `resume`.
+/// [`run_ns_alpha`], or its continuation from a checkpoint's `resume`, through the
+/// time-stepping driver ([`stepping::run`]).
 pub(crate) fn run_ns_alpha_from<S: JointedSystem + ?Sized>(
     system: &S,
     scheme: &mut NonsmoothGeneralizedAlpha,
@@ -1035,39 +1037,132 @@ pub(crate) fn run_ns_alpha_from<S: JointedSystem + ?Sized>(
     observer: &mut dyn Observer,
     resume: Option<&crate::checkpoint::Checkpoint>,
 ) -> Result<NsAlphaRunStats, NonlinearRunStop> {
-    let (n, m, nb) = (system.dofs(), system.contacts(), system.joints());
+    let n = system.dofs();
     if let Some(&probe) = output.probes.iter().find(|&&j| j >= n) {
         return Err(NonlinearRunStop::Probe { probe, dofs: n });
     }
-    let columns = ns_alpha_columns(m, nb, &output.probes);
-    observer.start(&columns);
-    let every = output.every.max(1);
-    let mut report = NsAlphaStepReport::of_state(system, state);
-    if nb > 0 {
-        // The multipliers of the start, from the consistent accelerations.
-        if let Some((_, lambda)) = scheme.consistent(system, state.t, &state.q, &state.v) {
-            report.lambda = lambda;
+    let mut run = NsAlphaStepping::new(system, scheme, state, steps, &output.probes);
+    match stepping::run(&mut run, output.every, observer, resume)? {
+        StopReason::Finished { .. } => Ok(run.stats),
+        StopReason::Observer { step } => Err(NonlinearRunStop::Stopped { step }),
+    }
+}
+
+/// The scheme on its system and state, as [`stepping::run`] drives it: the state, the running
+/// statistics, the previous impulses (impact count) and the last step's report.
+struct NsAlphaStepping<'a, S: JointedSystem + ?Sized> {
+    system: &'a S,
+    scheme: &'a mut NonsmoothGeneralizedAlpha,
+    state: &'a mut NonlinearState,
+    steps: u64,
+    probes: &'a [usize],
+    report: NsAlphaStepReport,
+    stats: NsAlphaRunStats,
+    previous_impulse: Vec<f64>,
+    newton_total: u64,
+}
+
+impl<'a, S: JointedSystem + ?Sized> NsAlphaStepping<'a, S> {
+    /// The run of `steps` steps from `state`, with its initial report (the multipliers of the
+    /// consistent start) and statistics.
+    fn new(
+        system: &'a S,
+        scheme: &'a mut NonsmoothGeneralizedAlpha,
+        state: &'a mut NonlinearState,
+        steps: u64,
+        probes: &'a [usize],
+    ) -> Self {
+        let mut report = NsAlphaStepReport::of_state(system, state);
+        if system.joints() > 0 {
+            // The multipliers of the start, from the consistent accelerations.
+            if let Some((_, lambda)) = scheme.consistent(system, state.t, &state.q, &state.v) {
+                report.lambda = lambda;
+            }
+        }
+        let e0 = report.base.energy();
+        let stats = NsAlphaRunStats {
+            base: NonlinearRunStats {
+                t_end: state.t,
+                energy_initial: e0,
+                energy_final: e0,
+                energy_max: e0,
+                ..Default::default()
+            },
+            max_position_residual: report.position_residual,
+            max_velocity_residual: report.velocity_residual,
+            max_penetration: report.penetration,
+            ..Default::default()
+        };
+        Self {
+            previous_impulse: vec![0.0; system.contacts()],
+            system,
+            scheme,
+            state,
+            steps,
+            probes,
+            report,
+            stats,
+            newton_total: 0,
         }
     }
-    let e0 = report.base.energy();
-    let mut stats = NsAlphaRunStats {
-        base: NonlinearRunStats {
-            t_end: state.t,
-            energy_initial: e0,
-            energy_final: e0,
-            energy_max: e0,
-            ..Default::default()
-        },
-        max_position_residual: report.position_residual,
-        max_velocity_residual: report.velocity_residual,
-        max_penetration: report.penetration,
-        ..Default::default()
-    };
-    let mut row = Vec::with_capacity(columns.len());
-    let record = |r: &NsAlphaStepReport,
-                  stats: &NsAlphaRunStats,
-                  state: &NonlinearState,
-                  row: &mut Vec<f64>| {
+}
+
+impl<S: JointedSystem + ?Sized> TimeStepping for NsAlphaStepping<'_, S> {
+    type Memory = NsAlphaRun;
+    type Error = NonlinearRunStop;
+    const RUN: RunKind = RunKind::NsAlpha;
+
+    fn columns(&self) -> Columns {
+        ns_alpha_columns(self.system.contacts(), self.system.joints(), self.probes)
+    }
+
+    fn total_steps(&self) -> u64 {
+        self.steps
+    }
+
+    fn is_done(&mut self, k: u64) -> bool {
+        k >= self.steps
+    }
+
+    fn step(&mut self, k: u64) -> Result<(), NonlinearRunStop> {
+        let (report, stats) = (&mut self.report, &mut self.stats);
+        self.scheme.step(self.system, self.state, report)?;
+        let b = &mut stats.base;
+        b.steps = k;
+        b.t_end = self.state.t;
+        b.work_ext_total += report.base.work_ext;
+        b.work_contact_total += report.base.work_contact;
+        b.max_abs_energy_error = b.max_abs_energy_error.max(report.base.energy_error.abs());
+        b.energy_final = report.base.energy();
+        b.energy_max = b.energy_max.max(report.base.energy());
+        b.lcp_max_error = b.lcp_max_error.max(report.base.lcp.error);
+        b.lcp_solves += u64::from(report.base.lcp.size > 0);
+        b.lcp_max_size = b.lcp_max_size.max(report.base.lcp.size);
+        b.newton_iterations_max = b.newton_iterations_max.max(report.base.newton_iterations);
+        self.newton_total += report.base.newton_iterations as u64;
+        b.newton_iterations_mean = self.newton_total as f64 / k as f64;
+        for (p_old, &p) in self.previous_impulse.iter_mut().zip(&report.base.impulse) {
+            b.impacts += u64::from(p > 0.0 && *p_old <= 0.0);
+            *p_old = p;
+        }
+        stats.max_position_residual = stats.max_position_residual.max(report.position_residual);
+        stats.max_velocity_residual = stats.max_velocity_residual.max(report.velocity_residual);
+        stats.max_penetration = stats.max_penetration.max(report.penetration);
+        stats.position_iterations_max = stats
+            .position_iterations_max
+            .max(report.position_iterations);
+        Ok(())
+    }
+
+    fn now(&self) -> StepTime {
+        StepTime {
+            step: self.state.step,
+            t: self.state.t,
+        }
+    }
+
+    fn record(&mut self, row: &mut Vec<f64>) -> Result<(), NonlinearRunStop> {
+        let (r, stats) = (&self.report, &self.stats);
         let b = &r.base;
         row.clear();
         row.extend([
@@ -1083,99 +1178,41 @@ pub(crate) fn run_ns_alpha_from<S: JointedSystem + ?Sized>(
             b.newton_iterations as f64,
             r.position_iterations as f64,
         ]);
-        for a in 0..m {
+        for a in 0..self.system.contacts() {
             row.extend([b.gap[a], b.local_velocity[a], b.impulse[a]]);
         }
         row.extend_from_slice(&r.lambda);
         row.extend([r.position_residual, r.velocity_residual]);
-        for &j in &output.probes {
-            row.extend([state.q[j], state.v[j]]);
+        for &j in self.probes {
+            row.extend([self.state.q[j], self.state.v[j]]);
         }
-    };
-    let observed = |observer: &mut dyn Observer, state: &NonlinearState, row: &[f64]| {
-        observer.observe(&StepRecord {
-            step: state.step,
-            t: state.t,
-            values: row,
-        })
-    };
-    let mut previous_impulse = vec![0.0; m];
-    let mut newton_total = 0u64;
-    let first = match resume {
-        Some(c) => {
-            let run: NsAlphaRun = c.run_state(crate::checkpoint::RunKind::NsAlpha)?;
-            let k = run.state.step;
-            if run.state.q.len() != n || run.previous_impulse.len() != m {
-                return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
-                    "an ns_generalized_alpha state of {} coordinates, the system has {n}",
-                    run.state.q.len()
-                ))
-                .into());
-            }
-            scheme.restore(run.memory)?;
-            (*state, stats, previous_impulse, newton_total) =
-                (run.state, run.stats, run.previous_impulse, run.newton_total);
-            k + 1
-        }
-        None => {
-            record(&report, &stats, state, &mut row);
-            if observed(observer, state, &row).is_break() {
-                return Err(NonlinearRunStop::Stopped { step: 0 });
-            }
-            1
-        }
-    };
-    for k in first..=steps {
-        scheme.step(system, state, &mut report)?;
-        let b = &mut stats.base;
-        b.steps = k;
-        b.t_end = state.t;
-        b.work_ext_total += report.base.work_ext;
-        b.work_contact_total += report.base.work_contact;
-        b.max_abs_energy_error = b.max_abs_energy_error.max(report.base.energy_error.abs());
-        b.energy_final = report.base.energy();
-        b.energy_max = b.energy_max.max(report.base.energy());
-        b.lcp_max_error = b.lcp_max_error.max(report.base.lcp.error);
-        b.lcp_solves += u64::from(report.base.lcp.size > 0);
-        b.lcp_max_size = b.lcp_max_size.max(report.base.lcp.size);
-        b.newton_iterations_max = b.newton_iterations_max.max(report.base.newton_iterations);
-        newton_total += report.base.newton_iterations as u64;
-        b.newton_iterations_mean = newton_total as f64 / k as f64;
-        for (p_old, &p) in previous_impulse.iter_mut().zip(&report.base.impulse) {
-            b.impacts += u64::from(p > 0.0 && *p_old <= 0.0);
-            *p_old = p;
-        }
-        stats.max_position_residual = stats.max_position_residual.max(report.position_residual);
-        stats.max_velocity_residual = stats.max_velocity_residual.max(report.velocity_residual);
-        stats.max_penetration = stats.max_penetration.max(report.penetration);
-        stats.position_iterations_max = stats
-            .position_iterations_max
-            .max(report.position_iterations);
-        if k % every == 0 || k == steps {
-            record(&report, &stats, state, &mut row);
-            if observed(observer, state, &row).is_break() {
-                return Err(NonlinearRunStop::Stopped { step: k });
-            }
-        }
-        let progress = Progress {
-            done: k,
-            total: steps,
-            t: state.t,
-        };
-        if let ControlFlow::Break(()) = observer.progress(progress) {
-            return Err(NonlinearRunStop::Stopped { step: k });
-        }
-        if observer.checkpoint_due(progress) {
-            let run = NsAlphaRun {
-                state: state.clone(),
-                stats: stats.clone(),
-                previous_impulse: previous_impulse.clone(),
-                newton_total,
-                memory: scheme.memory().cloned(),
-            };
-            let kind = crate::checkpoint::RunKind::NsAlpha;
-            observer.checkpoint(&mut crate::checkpoint::Checkpoint::new(k, kind, &run)?);
+        Ok(())
+    }
+
+    fn memory(&self) -> NsAlphaRun {
+        NsAlphaRun {
+            state: self.state.clone(),
+            stats: self.stats.clone(),
+            previous_impulse: self.previous_impulse.clone(),
+            newton_total: self.newton_total,
+            memory: self.scheme.memory().cloned(),
         }
     }
-    Ok(stats)
+
+    fn restore(&mut self, run: NsAlphaRun) -> Result<(), NonlinearRunStop> {
+        let (n, m) = (self.system.dofs(), self.system.contacts());
+        if run.state.q.len() != n || run.previous_impulse.len() != m {
+            return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
+                "an ns_generalized_alpha state of {} coordinates, the system has {n}",
+                run.state.q.len()
+            ))
+            .into());
+        }
+        self.scheme.restore(run.memory)?;
+        *self.state = run.state;
+        self.stats = run.stats;
+        self.previous_impulse = run.previous_impulse;
+        self.newton_total = run.newton_total;
+        Ok(())
+    }
 }

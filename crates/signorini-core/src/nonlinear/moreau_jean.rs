@@ -100,14 +100,15 @@
 //! strict test (its results are unchanged).
 
 use super::LagrangianSystem;
+use crate::checkpoint::RunKind;
 use crate::contact::{Activation, IndexSetRule, LcpStats};
 use crate::dense::{dot, kinetic, lu_factor};
 use crate::friction::{self, FrictionError, FrictionProblem};
 use crate::integrators::OutputOptions;
 use crate::lcp::{self, Lcp, LcpError, LcpOptions};
-use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::observer::{Columns, Observer};
+use crate::stepping::{self, StepTime, StopReason, TimeStepping};
 use nalgebra::{DMatrix, DVector};
-use std::ops::ControlFlow;
 use thiserror::Error;
 
 /// Names of the per-step energy columns of a nonlinear run, in output order.
@@ -1263,7 +1264,8 @@ pub(crate) struct NonlinearRun {
     memory: MoreauJeanMemory,
 }
 
-/// [`run_nonlinear`], or its continuation from a checkpoint's `resume`.
+/// [`run_nonlinear`], or its continuation from a checkpoint's `resume`, through the
+/// time-stepping driver ([`stepping::run`]).
 pub(crate) fn run_nonlinear_from<S: LagrangianSystem + ?Sized>(
     system: &S,
     scheme: &mut NonlinearMoreauJean,
@@ -1273,109 +1275,97 @@ pub(crate) fn run_nonlinear_from<S: LagrangianSystem + ?Sized>(
     observer: &mut dyn Observer,
     resume: Option<&crate::checkpoint::Checkpoint>,
 ) -> Result<NonlinearRunStats, NonlinearRunStop> {
-    let (n, m) = (system.dofs(), system.contacts());
+    let n = system.dofs();
     if let Some(&probe) = output.probes.iter().find(|&&j| j >= n) {
         return Err(NonlinearRunStop::Probe { probe, dofs: n });
     }
-    let friction = has_friction(system);
-    let columns = nonlinear_columns(m, friction, &output.probes);
-    observer.start(&columns);
-    let every = output.every.max(1);
-    let mut report = NonlinearStepReport::of_state(system, state);
-    let e0 = report.energy();
-    let mut stats = NonlinearRunStats {
-        t_end: state.t,
-        energy_initial: e0,
-        energy_final: e0,
-        energy_max: e0,
-        work_friction_total: friction.then_some(0.0),
-        ..Default::default()
-    };
-    let mut row = Vec::with_capacity(columns.len());
-    let mut previous_impulse = vec![0.0; m];
-    let mut newton_total = 0u64;
-    let mut work_friction_total = 0.0;
-    let record = |report: &NonlinearStepReport,
-                  stats: &NonlinearRunStats,
-                  state: &NonlinearState,
-                  work_friction_total: f64,
-                  row: &mut Vec<f64>| {
-        row.clear();
-        row.extend([
-            report.kinetic,
-            report.potential,
-            report.energy(),
-            report.work_ext,
-            report.work_contact,
-            report.energy_error,
-            stats.work_ext_total,
-            stats.work_contact_total,
-            report.newton_iterations as f64,
-        ]);
-        if friction {
-            row.extend([report.work_friction, work_friction_total]);
+    let mut run = NonlinearStepping::new(system, scheme, state, steps, &output.probes);
+    match stepping::run(&mut run, output.every, observer, resume)? {
+        StopReason::Finished { .. } => Ok(run.stats),
+        StopReason::Observer { step } => Err(NonlinearRunStop::Stopped { step }),
+    }
+}
+
+/// The nonlinear Moreau–Jean scheme on its system and state, as [`stepping::run`] drives it:
+/// the state, the running statistics and sums, the previous impulses (impact count) and the
+/// last step's report.
+struct NonlinearStepping<'a, S: LagrangianSystem + ?Sized> {
+    system: &'a S,
+    scheme: &'a mut NonlinearMoreauJean,
+    state: &'a mut NonlinearState,
+    steps: u64,
+    probes: &'a [usize],
+    friction: bool,
+    report: NonlinearStepReport,
+    stats: NonlinearRunStats,
+    previous_impulse: Vec<f64>,
+    newton_total: u64,
+    work_friction_total: f64,
+}
+
+impl<'a, S: LagrangianSystem + ?Sized> NonlinearStepping<'a, S> {
+    /// The run of `steps` steps from `state`, with its initial report and statistics.
+    fn new(
+        system: &'a S,
+        scheme: &'a mut NonlinearMoreauJean,
+        state: &'a mut NonlinearState,
+        steps: u64,
+        probes: &'a [usize],
+    ) -> Self {
+        let friction = has_friction(system);
+        let report = NonlinearStepReport::of_state(system, state);
+        let e0 = report.energy();
+        let stats = NonlinearRunStats {
+            t_end: state.t,
+            energy_initial: e0,
+            energy_final: e0,
+            energy_max: e0,
+            work_friction_total: friction.then_some(0.0),
+            ..Default::default()
+        };
+        Self {
+            previous_impulse: vec![0.0; system.contacts()],
+            system,
+            scheme,
+            state,
+            steps,
+            probes,
+            friction,
+            report,
+            stats,
+            newton_total: 0,
+            work_friction_total: 0.0,
         }
-        for a in 0..m {
-            row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
-            if friction {
-                row.extend([report.tangent_impulse[a], report.tangent_velocity[a]]);
-            }
-        }
-        for &j in &output.probes {
-            row.extend([state.q[j], state.v[j]]);
-        }
-    };
-    let observed = |observer: &mut dyn Observer, state: &NonlinearState, row: &[f64]| {
-        observer.observe(&StepRecord {
-            step: state.step,
-            t: state.t,
-            values: row,
-        })
-    };
-    let first = match resume {
-        Some(c) => {
-            let run: NonlinearRun = c.run_state(crate::checkpoint::RunKind::Nonlinear)?;
-            let k = run.state.step;
-            if run.state.q.len() != n || run.previous_impulse.len() != m {
-                return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
-                    "a nonlinear state of {} coordinates, the system has {n}",
-                    run.state.q.len()
-                ))
-                .into());
-            }
-            scheme.restore(run.memory)?;
-            (
-                *state,
-                stats,
-                previous_impulse,
-                newton_total,
-                work_friction_total,
-            ) = (
-                run.state,
-                run.stats,
-                run.previous_impulse,
-                run.newton_total,
-                run.work_friction_total,
-            );
-            k + 1
-        }
-        None => {
-            record(&report, &stats, state, 0.0, &mut row);
-            if observed(observer, state, &row).is_break() {
-                return Err(NonlinearRunStop::Stopped { step: 0 });
-            }
-            1
-        }
-    };
-    for k in first..=steps {
-        scheme.step(system, state, &mut report)?;
+    }
+}
+
+impl<S: LagrangianSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
+    type Memory = NonlinearRun;
+    type Error = NonlinearRunStop;
+    const RUN: RunKind = RunKind::Nonlinear;
+
+    fn columns(&self) -> Columns {
+        nonlinear_columns(self.system.contacts(), self.friction, self.probes)
+    }
+
+    fn total_steps(&self) -> u64 {
+        self.steps
+    }
+
+    fn is_done(&mut self, k: u64) -> bool {
+        k >= self.steps
+    }
+
+    fn step(&mut self, k: u64) -> Result<(), NonlinearRunStop> {
+        let (report, stats) = (&mut self.report, &mut self.stats);
+        self.scheme.step(self.system, self.state, report)?;
         stats.steps = k;
-        stats.t_end = state.t;
+        stats.t_end = self.state.t;
         stats.work_ext_total += report.work_ext;
         stats.work_contact_total += report.work_contact;
-        if friction {
-            work_friction_total += report.work_friction;
-            stats.work_friction_total = Some(work_friction_total);
+        if self.friction {
+            self.work_friction_total += report.work_friction;
+            stats.work_friction_total = Some(self.work_friction_total);
             stats.work_friction_max = Some(
                 stats
                     .work_friction_max
@@ -1389,38 +1379,77 @@ pub(crate) fn run_nonlinear_from<S: LagrangianSystem + ?Sized>(
         stats.lcp_solves += u64::from(report.lcp.size > 0);
         stats.lcp_max_size = stats.lcp_max_size.max(report.lcp.size);
         stats.newton_iterations_max = stats.newton_iterations_max.max(report.newton_iterations);
-        newton_total += report.newton_iterations as u64;
-        stats.newton_iterations_mean = newton_total as f64 / k as f64;
-        for (p_old, &p) in previous_impulse.iter_mut().zip(&report.impulse) {
+        self.newton_total += report.newton_iterations as u64;
+        stats.newton_iterations_mean = self.newton_total as f64 / k as f64;
+        for (p_old, &p) in self.previous_impulse.iter_mut().zip(&report.impulse) {
             stats.impacts += u64::from(p > 0.0 && *p_old <= 0.0);
             *p_old = p;
         }
-        if k % every == 0 || k == steps {
-            record(&report, &stats, state, work_friction_total, &mut row);
-            if observed(observer, state, &row).is_break() {
-                return Err(NonlinearRunStop::Stopped { step: k });
-            }
-        }
-        let progress = Progress {
-            done: k,
-            total: steps,
-            t: state.t,
-        };
-        if let ControlFlow::Break(()) = observer.progress(progress) {
-            return Err(NonlinearRunStop::Stopped { step: k });
-        }
-        if observer.checkpoint_due(progress) {
-            let run = NonlinearRun {
-                state: state.clone(),
-                stats: stats.clone(),
-                previous_impulse: previous_impulse.clone(),
-                newton_total,
-                work_friction_total,
-                memory: scheme.memory().clone(),
-            };
-            let kind = crate::checkpoint::RunKind::Nonlinear;
-            observer.checkpoint(&mut crate::checkpoint::Checkpoint::new(k, kind, &run)?);
+        Ok(())
+    }
+
+    fn now(&self) -> StepTime {
+        StepTime {
+            step: self.state.step,
+            t: self.state.t,
         }
     }
-    Ok(stats)
+
+    fn record(&mut self, row: &mut Vec<f64>) -> Result<(), NonlinearRunStop> {
+        let (report, stats) = (&self.report, &self.stats);
+        row.clear();
+        row.extend([
+            report.kinetic,
+            report.potential,
+            report.energy(),
+            report.work_ext,
+            report.work_contact,
+            report.energy_error,
+            stats.work_ext_total,
+            stats.work_contact_total,
+            report.newton_iterations as f64,
+        ]);
+        if self.friction {
+            row.extend([report.work_friction, self.work_friction_total]);
+        }
+        for a in 0..self.system.contacts() {
+            row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
+            if self.friction {
+                row.extend([report.tangent_impulse[a], report.tangent_velocity[a]]);
+            }
+        }
+        for &j in self.probes {
+            row.extend([self.state.q[j], self.state.v[j]]);
+        }
+        Ok(())
+    }
+
+    fn memory(&self) -> NonlinearRun {
+        NonlinearRun {
+            state: self.state.clone(),
+            stats: self.stats.clone(),
+            previous_impulse: self.previous_impulse.clone(),
+            newton_total: self.newton_total,
+            work_friction_total: self.work_friction_total,
+            memory: self.scheme.memory().clone(),
+        }
+    }
+
+    fn restore(&mut self, run: NonlinearRun) -> Result<(), NonlinearRunStop> {
+        let (n, m) = (self.system.dofs(), self.system.contacts());
+        if run.state.q.len() != n || run.previous_impulse.len() != m {
+            return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
+                "a nonlinear state of {} coordinates, the system has {n}",
+                run.state.q.len()
+            ))
+            .into());
+        }
+        self.scheme.restore(run.memory)?;
+        *self.state = run.state;
+        self.stats = run.stats;
+        self.previous_impulse = run.previous_impulse;
+        self.newton_total = run.newton_total;
+        self.work_friction_total = run.work_friction_total;
+        Ok(())
+    }
 }
