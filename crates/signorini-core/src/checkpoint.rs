@@ -38,7 +38,9 @@ use thiserror::Error;
 /// Version of the checkpoint format this build writes and reads. Version 2 added the banded
 /// contact solver's warm start to the Moreau–Jean and α-family states and the
 /// `contact_region` chart's grid ([`crate::contact_region`]); version 1 is refused
-/// ([`CheckpointError::Version`]).
+/// ([`CheckpointError::Version`]). The run loop's state has a version of its own per
+/// [`RunKind`] ([`RunKind::state_version`]), so that one family's state can change without
+/// refusing the checkpoints of the others.
 pub const FORMAT_VERSION: u32 = 2;
 
 const MAGIC: &[u8; 8] = b"SIGNCKPT";
@@ -64,6 +66,19 @@ pub enum CheckpointError {
         /// The version this build reads.
         expected: u32,
         /// The checkpoint's version.
+        found: u32,
+    },
+    /// The run loop's state was written in another version of its kind
+    /// ([`RunKind::state_version`]).
+    #[error(
+        "checkpoint of a {kind} run with state version {found}, this build reads version {expected}: rerun the job from the start"
+    )]
+    StateVersion {
+        /// The run kind's name.
+        kind: &'static str,
+        /// The version this build reads for the kind.
+        expected: u32,
+        /// The checkpoint's.
         found: u32,
     },
     /// Written by a run of another spec.
@@ -103,6 +118,10 @@ pub struct Checkpoint {
     records: u64,
     spec_hash: u64,
     kind: RunKind,
+    /// Version of the run loop's state ([`RunKind::state_version`]); absent, hence 1, in the
+    /// checkpoints written before it existed.
+    #[serde(default = "first_state_version")]
+    state_version: u32,
     /// The run loop's state (MessagePack of its own state type).
     #[serde(with = "serde_bytes")]
     run: Vec<u8>,
@@ -142,6 +161,24 @@ impl RunKind {
     }
 }
 
+impl RunKind {
+    /// Version of the run loop's state this build writes and reads for the kind. The nonlinear
+    /// Moreau–Jean and ns_generalized_alpha states are at version 2: it keeps only what the
+    /// next step reads (the scheme's memory), where version 1 also held the last step's report
+    /// and, for Moreau–Jean, its scratch buffers (mass matrix, Jacobians, Delassus operator).
+    /// The other kinds are at version 1.
+    pub fn state_version(self) -> u32 {
+        match self {
+            RunKind::Nonlinear | RunKind::NsAlpha => 2,
+            RunKind::Linear | RunKind::Soi2 | RunKind::Wave => 1,
+        }
+    }
+}
+
+fn first_state_version() -> u32 {
+    1
+}
+
 /// `value` as MessagePack (structs as maps).
 fn to_bytes<T: Serialize>(value: &T) -> Result<Vec<u8>, CheckpointError> {
     rmp_serde::to_vec_named(value).map_err(|e| CheckpointError::Encode(e.to_string()))
@@ -164,6 +201,7 @@ impl Checkpoint {
             records: 0,
             spec_hash: 0,
             kind,
+            state_version: kind.state_version(),
             run: to_bytes(run)?,
             trace: None,
             region: None,
@@ -207,6 +245,13 @@ impl Checkpoint {
                 self.kind.name(),
                 kind.name()
             )));
+        }
+        if self.state_version != kind.state_version() {
+            return Err(CheckpointError::StateVersion {
+                kind: kind.name(),
+                expected: kind.state_version(),
+                found: self.state_version,
+            });
         }
         from_bytes(&self.run)
     }
@@ -316,6 +361,73 @@ pub(crate) fn fnv1a(bytes: &[u8]) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The envelope as written before run states had versions: no `state_version` field.
+    #[derive(Serialize)]
+    struct Unversioned {
+        step: u64,
+        records: u64,
+        spec_hash: u64,
+        kind: RunKind,
+        #[serde(with = "serde_bytes")]
+        run: Vec<u8>,
+        #[serde(with = "serde_bytes")]
+        trace: Option<Vec<u8>>,
+        #[serde(with = "serde_bytes")]
+        region: Option<Vec<u8>>,
+    }
+
+    /// The bytes of an unversioned checkpoint of a `kind` run, header included.
+    fn unversioned(kind: RunKind, spec_hash: u64) -> Vec<u8> {
+        let payload = to_bytes(&Unversioned {
+            step: 3,
+            records: 4,
+            spec_hash,
+            kind,
+            run: to_bytes(&7u64).unwrap(),
+            trace: None,
+            region: None,
+        })
+        .unwrap();
+        let mut out = MAGIC.to_vec();
+        out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+        out.extend_from_slice(&spec_hash.to_le_bytes());
+        out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+        out.extend_from_slice(&fnv1a(&payload).to_le_bytes());
+        out.extend_from_slice(&payload);
+        out
+    }
+
+    /// A checkpoint of a nonlinear Moreau–Jean or ns_generalized_alpha run written before their
+    /// states dropped the scratch buffers (state version 1) is refused, naming both versions; a
+    /// linear one of the same envelope still loads.
+    #[test]
+    fn an_old_nonlinear_state_is_refused_naming_the_versions() {
+        for kind in [RunKind::Nonlinear, RunKind::NsAlpha] {
+            let old = Checkpoint::decode(&unversioned(kind, 42), 42).unwrap();
+            let err = old.run_state::<u64>(kind).unwrap_err();
+            assert_eq!(
+                err,
+                CheckpointError::StateVersion {
+                    kind: kind.name(),
+                    expected: 2,
+                    found: 1
+                }
+            );
+            let text = err.to_string();
+            assert!(
+                text.contains("state version 1") && text.contains("reads version 2"),
+                "{text}"
+            );
+            // A checkpoint written now carries version 2 and loads.
+            let new = Checkpoint::new(3, kind, &7u64).unwrap();
+            let bytes = new.encode().unwrap();
+            let read = Checkpoint::decode(&bytes, 0).unwrap();
+            assert_eq!(read.run_state::<u64>(kind).unwrap(), 7);
+        }
+        let linear = Checkpoint::decode(&unversioned(RunKind::Linear, 42), 42).unwrap();
+        assert_eq!(linear.run_state::<u64>(RunKind::Linear).unwrap(), 7);
+    }
 
     #[test]
     fn fnv1a_matches_the_published_test_vectors() {

@@ -357,6 +357,7 @@ fn lagrangian_ns_alpha(l: &LagrangianSpec, spec: &JobSpec) -> Result<JobKind, Sp
         gamma: alpha.gamma,
         newton: NewtonOptions::default(),
     };
+    refuse_friction(l, "ns_generalized_alpha")?;
     check_joint_start(&model)?;
     let (steps, lcp, output) = lagrangian_run_settings(spec, &model)?;
     let scheme = NonsmoothGeneralizedAlpha::new(&model, params, steps.h, lcp)
@@ -368,6 +369,26 @@ fn lagrangian_ns_alpha(l: &LagrangianSpec, spec: &JobSpec) -> Result<JobKind, Sp
         steps: steps.count(),
         output,
     })))
+}
+
+/// Refuses a `lagrangian` model with Coulomb friction on some contact under `scheme`, which
+/// solves the frictionless impact law only: the friction would otherwise be dropped without a
+/// word (the run identical to μ = 0, no friction columns).
+fn refuse_friction(l: &LagrangianSpec, scheme: &str) -> Result<(), SpecError> {
+    let Some((i, mu)) = l
+        .contacts
+        .iter()
+        .enumerate()
+        .find_map(|(i, c)| c.friction.filter(|&mu| mu > 0.0).map(|mu| (i, mu)))
+    else {
+        return Ok(());
+    };
+    Err(SpecError::new(
+        "integrator.scheme",
+        format!(
+            "{scheme} does not take Coulomb friction (model.contacts[{i}].friction = {mu}): its velocity stage solves the frictionless impact law only; run a model with friction (and without joints) with moreau_jean"
+        ),
+    ))
 }
 
 /// The joints of a user model at its start: G(q0) of full row rank (`model.constraints`), and

@@ -12,6 +12,7 @@ pub mod capabilities;
 pub mod checkpoint;
 pub mod contact;
 pub mod contact_region;
+pub(crate) mod dense;
 pub mod energy;
 pub mod expr;
 pub mod friction;

@@ -13,10 +13,12 @@
 pub mod active_set;
 mod enumeration;
 mod lemke;
+pub mod mixed;
 mod pgs;
 
 pub use enumeration::{ENUMERATION_MAX, solve_enumeration};
 pub use lemke::solve_lemke;
+pub use mixed::{MixedLcp, MixedLcpError, MixedSolution, solve_mixed};
 pub use pgs::solve_pgs;
 
 use schemars::JsonSchema;

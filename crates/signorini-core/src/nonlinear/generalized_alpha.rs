@@ -47,31 +47,35 @@
 //! nonlinear Moreau–Jean scheme does): S = [M − hγ' ∂F/∂v − h²β' ∂F/∂q, Gᵀ; G, 0] with
 //! γ' = γ(1 − α_f)/(1 − α_m), β' = β(1 − α_f)/(1 − α_m), so the smooth stage converges linearly
 //! at a rate O(h). The position stage uses the exact derivative of g(q̃ + M̃⁻¹C̃ᵀν) in ν,
-//! C(q^i) M̃⁻¹ C̃ᵀ (quadratic convergence). The mixed LCPs eliminate the joint rows by their
-//! Schur complement (the joints must be independent) and hand the contact rows to `lcp::solve`.
+//! C(q^i) M̃⁻¹ C̃ᵀ (quadratic convergence). The mixed LCPs are plain problems for
+//! [`crate::lcp::solve_mixed`], which eliminates the joint rows by their Schur complement (the
+//! joints must be independent) and hands the contact rows to `lcp::solve`.
 //!
 //! Energy (as for the nonlinear Moreau–Jean scheme): `kinetic` = ½ vᵀM(q)v, `potential` =
 //! V(q, t), `work_ext` = ½(f_k + f_{k+1})·(q_{k+1} − q_k) (the applied forces, trapezoidal
 //! against the displacement, so that a position correction is counted with the rest of the
 //! step), `work_contact` = Σ_{α∈I} Λ_α H_α(q_{k+1})·½(ṽ + v_{k+1}) — the change of kinetic
 //! energy the contact impulses make, exactly (for a fixed obstacle ½(U_{k+1} + Ũ)Λ, ≤ 0 at an
-//! impact since U_{k+1} = −e U_k) — `work_friction` = 0 (frictionless) and `energy_error` =
+//! impact since U_{k+1} = −e U_k) — `work_friction` = 0 (frictionless: a model with friction
+//! is refused, `integrator.scheme`) and `energy_error` =
 //! ΔE − work_ext − work_contact: the error of the smooth stage, of the position correction and
 //! of the joint projection. Without contacts it shrinks as h² over a fixed time.
 
 use super::LagrangianSystem;
 use super::moreau_jean::{
     NewtonOptions, NonlinearRunStats, NonlinearRunStop, NonlinearState, NonlinearStepError,
-    NonlinearStepReport, ParamError,
+    NonlinearStepReport, ParamError, StepAt,
 };
+use crate::checkpoint::RunKind;
 use crate::contact::LcpStats;
+use crate::dense::{amax, dot, kinetic, lu_factor};
 use crate::integrators::OutputOptions;
 use crate::lagrangian::UserModel;
-use crate::lcp::{self, Lcp, LcpError, LcpOptions};
-use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::lcp::{LcpOptions, MixedLcp, MixedLcpError, MixedSolution, solve_mixed};
+use crate::observer::{Columns, Observer};
 use crate::soi2::{ConstrainedModel, Dual64};
+use crate::stepping::{self, StepTime, StopReason, TimeStepping};
 use nalgebra::{DMatrix, DVector};
-use std::ops::ControlFlow;
 
 /// A [`LagrangianSystem`] with bilateral holonomic joints g(q, t) = 0 (nb of them). The
 /// defaults describe a system without joints.
@@ -215,9 +219,12 @@ impl NsAlphaStepReport {
     }
 }
 
-/// The end of a step, kept as the start of the next.
+/// What the next step of the scheme reads besides the state: the end of the last step, kept as
+/// the start of the next (a_k, q̈_k, λ_k, f_k and E_k, with the state they belong to: a state
+/// changed between steps is made consistent afresh). This is all a checkpoint keeps of the
+/// scheme; its Newton matrices and Delassus operators are rebuilt by each step.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-struct Memory {
+pub(crate) struct NsAlphaMemory {
     step: u64,
     t: f64,
     q: Vec<f64>,
@@ -240,13 +247,30 @@ pub struct NonsmoothGeneralizedAlpha {
     n: usize,
     m: usize,
     nb: usize,
-    last: Option<Memory>,
+    last: Option<NsAlphaMemory>,
 }
 
-/// Why a mixed LCP failed.
-enum MixedError {
-    Singular,
-    Lcp(LcpError),
+/// What the smooth stage hands to the corrections: a_{k+1}, q̈_{k+1}, λ_{k+1}, the predicted
+/// q̃ and ṽ, M(q̃) and G(q̃), and its Newton iterates.
+struct SmoothStage {
+    a1: Vec<f64>,
+    acc: Vec<f64>,
+    lambda: Vec<f64>,
+    qt: Vec<f64>,
+    vt: Vec<f64>,
+    mass: Vec<f64>,
+    gj: Vec<f64>,
+    iterations: usize,
+}
+
+/// What the velocity stage hands to the end of the step: v_{k+1}, M(q_{k+1}), H(q_{k+1}),
+/// ∂g/∂t(q_{k+1}, t_{k+1}) and the contact work.
+struct VelocityStage {
+    v: Vec<f64>,
+    mass: Vec<f64>,
+    hj: Vec<f64>,
+    rates1: Vec<f64>,
+    work_contact: f64,
 }
 
 /// A row-major matrix as an nalgebra matrix.
@@ -254,88 +278,28 @@ fn mat(rows: usize, cols: usize, data: &[f64]) -> DMatrix<f64> {
     DMatrix::from_row_slice(rows, cols, data)
 }
 
-fn amax(x: &[f64]) -> f64 {
-    x.iter().fold(0.0f64, |m, v| m.max(v.abs()))
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
-/// ½ vᵀ M v, M row-major.
-fn kinetic(mass: &[f64], v: &[f64]) -> f64 {
-    let n = v.len();
-    0.5 * (0..n)
-        .map(|i| v[i] * dot(&mass[i * n..(i + 1) * n], v))
-        .sum::<f64>()
-}
-
-/// LU factors of `w`, or `None` when a pivot is ≤ n ε times the largest entry of its column of
-/// `w` (singular to working precision) or not finite.
-fn factor(w: DMatrix<f64>) -> Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>> {
-    let n = w.nrows();
-    let column_max: Vec<f64> = w.column_iter().map(|c| c.amax()).collect();
-    let lu = w.lu();
-    let u = lu.u();
-    let singular = (0..n).any(|j| {
-        let p = u[(j, j)].abs();
-        !p.is_finite() || p <= n as f64 * f64::EPSILON * column_max[j]
-    });
-    (!singular).then_some(lu)
-}
-
-/// Solves `0 ≤ D z + b ⊥ z_I ≥ 0` with the first `nb` rows equalities (z_B free): the joint
-/// rows are eliminated by their Schur complement and the rest is an LCP.
-fn mixed_lcp(
+/// The mixed LCP of the joint rows (equalities) and the contact rows, its failure named for
+/// Newton iteration `iteration` of step `at`.
+fn solve_mixed_at(
     d: &DMatrix<f64>,
     b: &[f64],
     nb: usize,
     options: &LcpOptions,
-) -> Result<(Vec<f64>, LcpStats), MixedError> {
-    let k = b.len();
-    let nu = k - nb;
-    if nb == 0 {
-        let data: Vec<f64> = (0..k * k).map(|r| d[(r / k, r % k)]).collect();
-        let sol = lcp::solve(Lcp { m: &data, q: b }, options).map_err(MixedError::Lcp)?;
-        let stats = LcpStats {
-            size: k,
-            iterations: sol.iterations,
-            error: sol.error,
-        };
-        return Ok((sol.z, stats));
-    }
-    let lu = factor(d.view((0, 0), (nb, nb)).into_owned()).ok_or(MixedError::Singular)?;
-    let b_b = DVector::from_column_slice(&b[..nb]);
-    let y = lu.solve(&b_b).ok_or(MixedError::Singular)?;
-    if nu == 0 {
-        return Ok(((-y).as_slice().to_vec(), LcpStats::default()));
-    }
-    let d_bi = d.view((0, nb), (nb, nu)).into_owned();
-    let x = lu.solve(&d_bi).ok_or(MixedError::Singular)?;
-    let d_ib = d.view((nb, 0), (nu, nb));
-    let schur = d.view((nb, nb), (nu, nu)) - d_ib * &x;
-    let q_i = DVector::from_column_slice(&b[nb..]) - d_ib * &y;
-    let data: Vec<f64> = (0..nu * nu).map(|r| schur[(r / nu, r % nu)]).collect();
-    let sol = lcp::solve(
-        Lcp {
-            m: &data,
-            q: q_i.as_slice(),
+    at: StepAt,
+    iteration: usize,
+) -> Result<MixedSolution, NonlinearStepError> {
+    solve_mixed(
+        MixedLcp {
+            d,
+            b,
+            equalities: nb,
         },
         options,
     )
-    .map_err(MixedError::Lcp)?;
-    let z_i = DVector::from_column_slice(&sol.z);
-    let z_b = -(y + x * &z_i);
-    let mut z = z_b.as_slice().to_vec();
-    z.extend_from_slice(&sol.z);
-    Ok((
-        z,
-        LcpStats {
-            size: nu,
-            iterations: sol.iterations,
-            error: sol.error,
-        },
-    ))
+    .map_err(|e| match e {
+        MixedLcpError::Singular { .. } => at.singular(iteration),
+        MixedLcpError::Lcp(source) => at.lcp(source),
+    })
 }
 
 impl NonsmoothGeneralizedAlpha {
@@ -404,6 +368,31 @@ impl NonsmoothGeneralizedAlpha {
         &self.params
     }
 
+    /// What the next step reads besides the state (for a checkpoint).
+    pub(crate) fn memory(&self) -> Option<&NsAlphaMemory> {
+        self.last.as_ref()
+    }
+
+    /// Restores the memory of a checkpoint; refused when it does not fit the system.
+    pub(crate) fn restore(
+        &mut self,
+        memory: Option<NsAlphaMemory>,
+    ) -> Result<(), crate::checkpoint::CheckpointError> {
+        if let Some(e) = &memory
+            && (e.q.len() != self.n || e.lambda.len() != self.nb)
+        {
+            return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
+                "an ns_generalized_alpha memory of {} coordinates and {} joints, the system has {} and {}",
+                e.q.len(),
+                e.lambda.len(),
+                self.n,
+                self.nb
+            )));
+        }
+        self.last = memory;
+        Ok(())
+    }
+
     /// q̈ and λ at (t, q, v) from the smooth equations with the joints at acceleration level:
     /// `[M Gᵀ; G 0][q̈; λ] = [F; −κ]` (the consistent start, a_0 = q̈_0).
     fn consistent<S: JointedSystem + ?Sized>(
@@ -429,7 +418,7 @@ impl NonsmoothGeneralizedAlpha {
             (false, false) => 0.0,
         });
         let rhs = DVector::from_fn(n + nb, |i, _| if i < n { f[i] } else { -kappa[i - n] });
-        let x = factor(k)?.solve(&rhs)?;
+        let x = lu_factor(k)?.solve(&rhs)?;
         if x.iter().any(|x| !x.is_finite()) {
             return None;
         }
@@ -437,14 +426,87 @@ impl NonsmoothGeneralizedAlpha {
     }
 
     /// Advances `state` by one step, writing the step's terms into `report` (sized by
-    /// [`NsAlphaStepReport::of_state`]).
+    /// [`NsAlphaStepReport::of_state`]). The phases (module documentation): the start of the
+    /// step, the smooth stage (the free state of the generalized-α predictor with Newton on
+    /// (q̈, λ)), the index set of the predicted gaps, the position stage, the velocity stage
+    /// (the one-step nonsmooth problem of Newton's impact law) and the update of the state
+    /// with the step's energy terms.
     pub fn step<S: JointedSystem + ?Sized>(
         &mut self,
         system: &S,
         state: &mut NonlinearState,
         report: &mut NsAlphaStepReport,
     ) -> Result<(), NonlinearStepError> {
-        let (h, n, m, nb) = (self.h, self.n, self.m, self.nb);
+        let step = state.step + 1;
+        let at = StepAt {
+            step,
+            t: (step as f64) * self.h,
+        };
+        let start = self.start_of_step(system, state, at)?;
+        let smooth = self.smooth_stage(system, &start, at)?;
+        // Index set: contacts whose predicted gap g(q̃, t_{k+1}) is ≤ 0.
+        let mut gaps = vec![0.0; self.m];
+        system.gaps(at.t, &smooth.qt, &mut gaps);
+        at.check(&gaps, "a gap g(q, t)")?;
+        let mut active: Vec<usize> = (0..self.m).filter(|&a| gaps[a] <= 0.0).collect();
+        let (q, position_iterations) =
+            self.position_stage(system, &start, &smooth, &mut active, at)?;
+        report.position_iterations = position_iterations;
+        let velocity =
+            self.velocity_stage(system, state.t, &start, &smooth, &q, &active, report, at)?;
+        self.finish(system, state, start, smooth, q, velocity, report, at)
+    }
+
+    /// The start of the step, kept from the last one or made consistent afresh.
+    fn start_of_step<S: JointedSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        state: &NonlinearState,
+        at: StepAt,
+    ) -> Result<NsAlphaMemory, NonlinearStepError> {
+        let (n, t_k) = (self.n, state.t);
+        if let Some(e) = self.last.take()
+            && e.step == state.step
+            && e.t == state.t
+            && e.q == state.q
+            && e.v == state.v
+        {
+            return Ok(e);
+        }
+        let (acc, lambda) = self
+            .consistent(system, t_k, &state.q, &state.v)
+            .ok_or_else(|| at.singular(0))?;
+        let mut applied = vec![0.0; n];
+        system.applied_forces(t_k, &state.q, &state.v, &mut applied);
+        at.check(&applied, "the applied forces f(t, q, v)")?;
+        let mut mass = vec![0.0; n * n];
+        system.mass(&state.q, &mut mass);
+        let energy = kinetic(&mass, &state.v) + system.potential(t_k, &state.q);
+        if !energy.is_finite() {
+            return Err(at.not_finite("the energy"));
+        }
+        Ok(NsAlphaMemory {
+            step: state.step,
+            t: t_k,
+            q: state.q.clone(),
+            v: state.v.clone(),
+            a: acc.clone(),
+            acc,
+            lambda,
+            applied,
+            energy,
+        })
+    }
+
+    /// The smooth stage: the generalized-α predictor q̃, ṽ of a_{k+1} and Newton on
+    /// (q̈_{k+1}, λ_{k+1}) with the joints at acceleration level (module documentation).
+    fn smooth_stage<S: JointedSystem + ?Sized>(
+        &self,
+        system: &S,
+        start: &NsAlphaMemory,
+        at: StepAt,
+    ) -> Result<SmoothStage, NonlinearStepError> {
+        let (h, n, nb, t1) = (self.h, self.n, self.nb, at.t);
         let NsAlphaParams {
             alpha_m,
             alpha_f,
@@ -452,179 +514,110 @@ impl NonsmoothGeneralizedAlpha {
             gamma,
             newton,
         } = self.params;
-        let t_k = state.t;
-        let step = state.step + 1;
-        let t1 = (step as f64) * h;
-        let not_finite = |what| NonlinearStepError::NotFinite { step, t: t1, what };
-        let check = |x: &[f64], what| {
-            if x.iter().all(|a| a.is_finite()) {
-                Ok(())
-            } else {
-                Err(not_finite(what))
-            }
-        };
-        let singular = |iteration| NonlinearStepError::Singular {
-            step,
-            t: t1,
-            iteration,
-        };
-        let lcp_error = |source| NonlinearStepError::Lcp {
-            step,
-            t: t1,
-            source,
-        };
-
-        // The start of the step, kept from the last one or made consistent afresh.
-        let start = match self.last.take() {
-            Some(e)
-                if e.step == state.step && e.t == state.t && e.q == state.q && e.v == state.v =>
-            {
-                e
-            }
-            _ => {
-                let (acc, lambda) = self
-                    .consistent(system, t_k, &state.q, &state.v)
-                    .ok_or_else(|| singular(0))?;
-                let mut applied = vec![0.0; n];
-                system.applied_forces(t_k, &state.q, &state.v, &mut applied);
-                check(&applied, "the applied forces f(t, q, v)")?;
-                let mut mass = vec![0.0; n * n];
-                system.mass(&state.q, &mut mass);
-                let energy = kinetic(&mass, &state.v) + system.potential(t_k, &state.q);
-                if !energy.is_finite() {
-                    return Err(not_finite("the energy"));
-                }
-                Memory {
-                    step: state.step,
-                    t: t_k,
-                    q: state.q.clone(),
-                    v: state.v.clone(),
-                    a: acc.clone(),
-                    acc,
-                    lambda,
-                    applied,
-                    energy,
-                }
-            }
-        };
-
-        // Smooth stage: Newton on (q̈_{k+1}, λ_{k+1}).
         let c_a = (1.0 - alpha_f) / (1.0 - alpha_m);
         let (bp, gp) = (h * h * beta * c_a, h * gamma * c_a);
-        let mut acc = start.acc.clone();
-        let mut lambda = start.lambda.clone();
-        let mut a1 = vec![0.0; n];
-        let mut qt = vec![0.0; n];
-        let mut vt = vec![0.0; n];
-        let mut mass = vec![0.0; n * n];
+        let mut x = SmoothStage {
+            a1: vec![0.0; n],
+            acc: start.acc.clone(),
+            lambda: start.lambda.clone(),
+            qt: vec![0.0; n],
+            vt: vec![0.0; n],
+            mass: vec![0.0; n * n],
+            gj: vec![0.0; nb * n],
+            iterations: 0,
+        };
         let mut f = vec![0.0; n];
-        let mut gj = vec![0.0; nb * n];
         let mut kappa = vec![0.0; nb];
         let (mut dfdq, mut dfdv) = (vec![0.0; n * n], vec![0.0; n * n]);
-        let mut iterations = 0;
         loop {
             for i in 0..n {
-                a1[i] = ((1.0 - alpha_f) * acc[i] + alpha_f * start.acc[i] - alpha_m * start.a[i])
+                x.a1[i] = ((1.0 - alpha_f) * x.acc[i] + alpha_f * start.acc[i]
+                    - alpha_m * start.a[i])
                     / (1.0 - alpha_m);
-                qt[i] = start.q[i]
+                x.qt[i] = start.q[i]
                     + h * start.v[i]
-                    + h * h * ((0.5 - beta) * start.a[i] + beta * a1[i]);
-                vt[i] = start.v[i] + h * ((1.0 - gamma) * start.a[i] + gamma * a1[i]);
+                    + h * h * ((0.5 - beta) * start.a[i] + beta * x.a1[i]);
+                x.vt[i] = start.v[i] + h * ((1.0 - gamma) * start.a[i] + gamma * x.a1[i]);
             }
-            system.mass(&qt, &mut mass);
-            check(&mass, "M(q)")?;
-            system.forces(t1, &qt, &vt, &mut f);
-            check(&f, "F(t, q, v)")?;
-            system.joint_jacobian(t1, &qt, &mut gj);
-            system.joint_curvature(t1, &qt, &vt, &mut kappa);
-            check(&gj, "the joint Jacobian")?;
-            check(&kappa, "the joints' curvature term")?;
-            let mut r = vec![0.0; n + nb];
-            let (mut r1, mut s1, mut r2, mut s2) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
-            for i in 0..n {
-                let ma = dot(&mass[i * n..(i + 1) * n], &acc);
-                let (mut gl, mut gl_abs) = (0.0, 0.0);
-                for (j, &l) in lambda.iter().enumerate() {
-                    let x = gj[j * n + i] * l;
-                    gl += x;
-                    gl_abs += x.abs();
-                }
-                r[i] = ma + gl - f[i];
-                r1 = r1.max(r[i].abs());
-                s1 = s1.max(ma.abs() + gl_abs + f[i].abs());
-            }
-            for j in 0..nb {
-                let ga = dot(&gj[j * n..(j + 1) * n], &acc);
-                r[n + j] = ga + kappa[j];
-                r2 = r2.max(r[n + j].abs());
-                s2 = s2.max(ga.abs() + kappa[j].abs());
-            }
-            let rel = |r: f64, s: f64| if r == 0.0 { 0.0 } else { r / s };
-            let residual = rel(r1, s1).max(rel(r2, s2));
+            system.mass(&x.qt, &mut x.mass);
+            at.check(&x.mass, "M(q)")?;
+            system.forces(t1, &x.qt, &x.vt, &mut f);
+            at.check(&f, "F(t, q, v)")?;
+            system.joint_jacobian(t1, &x.qt, &mut x.gj);
+            system.joint_curvature(t1, &x.qt, &x.vt, &mut kappa);
+            at.check(&x.gj, "the joint Jacobian")?;
+            at.check(&kappa, "the joints' curvature term")?;
+            let (r, residual) = smooth_residual(&x, &f, &kappa, n, nb);
             if !residual.is_finite() {
-                return Err(not_finite("the Newton residual"));
+                return Err(at.not_finite("the Newton residual"));
             }
             if residual <= newton.tolerance {
-                break;
+                return Ok(x);
             }
-            if iterations == newton.max_iterations {
+            if x.iterations == newton.max_iterations {
                 return Err(NonlinearStepError::NewtonNotConverged {
-                    step,
+                    step: at.step,
                     t: t1,
-                    iterations,
+                    iterations: x.iterations,
                     residual,
                     tolerance: newton.tolerance,
                 });
             }
-            iterations += 1;
-            system.force_jacobians(t1, &qt, &vt, &mut dfdq, &mut dfdv);
-            check(&dfdq, "∂F/∂q")?;
-            check(&dfdv, "∂F/∂v")?;
+            x.iterations += 1;
+            system.force_jacobians(t1, &x.qt, &x.vt, &mut dfdq, &mut dfdv);
+            at.check(&dfdq, "∂F/∂q")?;
+            at.check(&dfdv, "∂F/∂v")?;
             let s = DMatrix::from_fn(n + nb, n + nb, |i, j| match (i < n, j < n) {
                 (true, true) => {
-                    let x = i * n + j;
-                    mass[x] - gp * dfdv[x] - bp * dfdq[x]
+                    let k = i * n + j;
+                    x.mass[k] - gp * dfdv[k] - bp * dfdq[k]
                 }
-                (true, false) => gj[(j - n) * n + i],
-                (false, true) => gj[(i - n) * n + j],
+                (true, false) => x.gj[(j - n) * n + i],
+                (false, true) => x.gj[(i - n) * n + j],
                 (false, false) => 0.0,
             });
-            let lu = factor(s).ok_or_else(|| singular(iterations))?;
+            let lu = lu_factor(s).ok_or_else(|| at.singular(x.iterations))?;
             let dx = lu
                 .solve(&DVector::from_column_slice(&r))
-                .ok_or_else(|| singular(iterations))?;
+                .ok_or_else(|| at.singular(x.iterations))?;
             for i in 0..n {
-                acc[i] -= dx[i];
+                x.acc[i] -= dx[i];
             }
             for j in 0..nb {
-                lambda[j] -= dx[n + j];
+                x.lambda[j] -= dx[n + j];
             }
         }
-        let mass_t = mass.clone();
+    }
 
-        // Index set: contacts whose predicted gap g(q̃, t_{k+1}) is ≤ 0.
+    /// The position stage: q = q̃ + M(q̃)⁻¹ C(q̃)ᵀ ν with g = 0 on the joints and
+    /// 0 ≤ g_α ⊥ ν_α ≥ 0 on the index set; a contact outside it that the correction pushed into
+    /// its obstacle joins it and the stage starts again. Returns q_{k+1} and the iterates.
+    fn position_stage<S: JointedSystem + ?Sized>(
+        &self,
+        system: &S,
+        start: &NsAlphaMemory,
+        smooth: &SmoothStage,
+        active: &mut Vec<usize>,
+        at: StepAt,
+    ) -> Result<(Vec<f64>, usize), NonlinearStepError> {
+        let (n, m, nb, t1) = (self.n, self.m, self.nb, at.t);
+        let qt = &smooth.qt;
         let mut gaps = vec![0.0; m];
-        system.gaps(t1, &qt, &mut gaps);
-        check(&gaps, "a gap g(q, t)")?;
-        let mut active: Vec<usize> = (0..m).filter(|&a| gaps[a] <= 0.0).collect();
         let mut hj = vec![0.0; m * n];
-
-        // Position stage: q = q̃ + M(q̃)⁻¹ C(q̃)ᵀ ν.
         let mut q = qt.clone();
         let mut position_iterations = 0;
-        let m_lu = factor(mat(n, n, &mass_t)).ok_or_else(|| singular(0))?;
-        let mut gb = vec![0.0; nb];
+        let m_lu = lu_factor(mat(n, n, &smooth.mass)).ok_or_else(|| at.singular(0))?;
         loop {
             let k = nb + active.len();
             if k == 0 {
                 break;
             }
             // C̃ rows and Y = M̃⁻¹ C̃ᵀ (n×k).
-            system.gap_jacobian(t1, &qt, &mut hj);
-            check(&hj, "the gap Jacobian")?;
-            let rows_t = constraint_rows(&gj, &hj, &active, n);
+            system.gap_jacobian(t1, qt, &mut hj);
+            at.check(&hj, "the gap Jacobian")?;
+            let rows_t = constraint_rows(&smooth.gj, &hj, active, n);
             let ct = mat(k, n, &rows_t);
-            let y = m_lu.solve(&ct.transpose()).ok_or_else(|| singular(0))?;
+            let y = m_lu.solve(&ct.transpose()).ok_or_else(|| at.singular(0))?;
             let scale = (0..k)
                 .map(|r| {
                     (0..n)
@@ -632,72 +625,12 @@ impl NonsmoothGeneralizedAlpha {
                         .sum::<f64>()
                 })
                 .fold(0.0f64, f64::max);
-            let tol = newton.tolerance * scale;
-            let mut nu = DVector::zeros(k);
-            q.copy_from_slice(&qt);
-            let mut h_q = vec![0.0; m * n];
-            let mut g_q = vec![0.0; nb * n];
-            let mut iter = 0;
-            loop {
-                system.joint_values(t1, &q, &mut gb);
-                system.gaps(t1, &q, &mut gaps);
-                check(&gb, "a joint g(q, t)")?;
-                check(&gaps, "a gap g(q, t)")?;
-                let mut c = Vec::with_capacity(k);
-                c.extend_from_slice(&gb);
-                c.extend(active.iter().map(|&a| gaps[a]));
-                let violation = (0..k)
-                    .map(|r| {
-                        if r < nb || nu[r] > 0.0 {
-                            c[r].abs()
-                        } else {
-                            (-c[r]).max(0.0)
-                        }
-                    })
-                    .fold(0.0f64, f64::max);
-                // With joints, one iterate at least: the drift of the smooth stage is then
-                // removed to round-off rather than left below the tolerance.
-                if violation <= tol && (iter > 0 || nb == 0) {
-                    break;
-                }
-                if iter == newton.max_iterations {
-                    return Err(NonlinearStepError::NewtonNotConverged {
-                        step,
-                        t: t1,
-                        iterations: iter,
-                        residual: violation / scale,
-                        tolerance: newton.tolerance,
-                    });
-                }
-                iter += 1;
-                system.joint_jacobian(t1, &q, &mut g_q);
-                system.gap_jacobian(t1, &q, &mut h_q);
-                check(&g_q, "the joint Jacobian")?;
-                check(&h_q, "the gap Jacobian")?;
-                let rows = mat(k, n, &constraint_rows(&g_q, &h_q, &active, n));
-                let d = &rows * &y;
-                let b = DVector::from_vec(c) - &d * &nu;
-                let (z, _) = mixed_lcp(&d, b.as_slice(), nb, &self.lcp).map_err(|e| match e {
-                    MixedError::Singular => singular(iter),
-                    MixedError::Lcp(source) => lcp_error(source),
-                })?;
-                let nu_new = DVector::from_vec(z);
-                let dq = &y * (&nu_new - &nu);
-                nu = nu_new;
-                let q_new = DVector::from_column_slice(&qt) + &y * &nu;
-                q.copy_from_slice(q_new.as_slice());
-                check(&q, "the corrected positions")?;
-                let size = q.iter().fold(0.0f64, |s, x| s.max(x.abs()));
-                if dq.amax() <= 4.0 * f64::EPSILON * size {
-                    // The correction is at round-off: nothing more to gain.
-                    system.gaps(t1, &q, &mut gaps);
-                    break;
-                }
-            }
-            position_iterations += iter;
+            position_iterations +=
+                self.project_positions(system, qt, active, &y, scale, &mut q, &mut gaps, at)?;
             // A contact outside the index set that the correction pushed into its obstacle
             // joins it, and the stage starts again.
             system.gaps(t1, &q, &mut gaps);
+            let tol = self.params.newton.tolerance * scale;
             let joined: Vec<usize> = (0..m)
                 .filter(|a| !active.contains(a) && gaps[*a] < -tol)
                 .collect();
@@ -707,20 +640,119 @@ impl NonsmoothGeneralizedAlpha {
             active.extend(joined);
             active.sort_unstable();
         }
+        Ok((q, position_iterations))
+    }
 
-        // Velocity stage at q_{k+1}: v = ṽ + M⁻¹ Cᵀ Λ.
-        system.mass(&q, &mut mass);
-        check(&mass, "M(q)")?;
-        system.joint_jacobian(t1, &q, &mut gj);
-        system.gap_jacobian(t1, &q, &mut hj);
-        check(&gj, "the joint Jacobian")?;
-        check(&hj, "the gap Jacobian")?;
+    /// Newton on ν for one index set: each iterate solves the mixed LCP of the constraints
+    /// linearised at q^i with the exact derivative C(q^i) M̃⁻¹ C̃ᵀ = C(q^i) Y, until the
+    /// violation is below `tolerance × scale` (one iterate at least with joints, so that the
+    /// drift of the smooth stage is removed to round-off) or the correction is at round-off.
+    /// Returns the iterates.
+    #[allow(clippy::too_many_arguments)]
+    fn project_positions<S: JointedSystem + ?Sized>(
+        &self,
+        system: &S,
+        qt: &[f64],
+        active: &[usize],
+        y: &DMatrix<f64>,
+        scale: f64,
+        q: &mut [f64],
+        gaps: &mut [f64],
+        at: StepAt,
+    ) -> Result<usize, NonlinearStepError> {
+        let (n, m, nb, t1, newton) = (self.n, self.m, self.nb, at.t, self.params.newton);
+        let k = nb + active.len();
+        let tol = newton.tolerance * scale;
+        let mut nu = DVector::zeros(k);
+        q.copy_from_slice(qt);
+        let mut gb = vec![0.0; nb];
+        let mut h_q = vec![0.0; m * n];
+        let mut g_q = vec![0.0; nb * n];
+        let mut iter = 0;
+        loop {
+            system.joint_values(t1, q, &mut gb);
+            system.gaps(t1, q, gaps);
+            at.check(&gb, "a joint g(q, t)")?;
+            at.check(gaps, "a gap g(q, t)")?;
+            let mut c = Vec::with_capacity(k);
+            c.extend_from_slice(&gb);
+            c.extend(active.iter().map(|&a| gaps[a]));
+            let violation = (0..k)
+                .map(|r| {
+                    if r < nb || nu[r] > 0.0 {
+                        c[r].abs()
+                    } else {
+                        (-c[r]).max(0.0)
+                    }
+                })
+                .fold(0.0f64, f64::max);
+            if violation <= tol && (iter > 0 || nb == 0) {
+                return Ok(iter);
+            }
+            if iter == newton.max_iterations {
+                return Err(NonlinearStepError::NewtonNotConverged {
+                    step: at.step,
+                    t: t1,
+                    iterations: iter,
+                    residual: violation / scale,
+                    tolerance: newton.tolerance,
+                });
+            }
+            iter += 1;
+            system.joint_jacobian(t1, q, &mut g_q);
+            system.gap_jacobian(t1, q, &mut h_q);
+            at.check(&g_q, "the joint Jacobian")?;
+            at.check(&h_q, "the gap Jacobian")?;
+            let rows = mat(k, n, &constraint_rows(&g_q, &h_q, active, n));
+            let d = &rows * y;
+            let b = DVector::from_vec(c) - &d * &nu;
+            let sol = solve_mixed_at(&d, b.as_slice(), nb, &self.lcp, at, iter)?;
+            let nu_new = DVector::from_vec(sol.z);
+            let dq = y * (&nu_new - &nu);
+            nu = nu_new;
+            let q_new = DVector::from_column_slice(qt) + y * &nu;
+            q.copy_from_slice(q_new.as_slice());
+            at.check(q, "the corrected positions")?;
+            let size = q.iter().fold(0.0f64, |s, x| s.max(x.abs()));
+            if dq.amax() <= 4.0 * f64::EPSILON * size {
+                // The correction is at round-off: nothing more to gain.
+                system.gaps(t1, q, gaps);
+                return Ok(iter);
+            }
+        }
+    }
+
+    /// The velocity stage at q_{k+1}: v = ṽ + M⁻¹ Cᵀ Λ with G v + g_t = 0 and Newton's impact
+    /// law 0 ≤ U_{k+1} + e U_k ⊥ Λ ≥ 0 on the index set (one mixed LCP), and the contact work.
+    #[allow(clippy::too_many_arguments)]
+    fn velocity_stage<S: JointedSystem + ?Sized>(
+        &self,
+        system: &S,
+        t_k: f64,
+        start: &NsAlphaMemory,
+        smooth: &SmoothStage,
+        q: &[f64],
+        active: &[usize],
+        report: &mut NsAlphaStepReport,
+        at: StepAt,
+    ) -> Result<VelocityStage, NonlinearStepError> {
+        let (n, m, nb, t1) = (self.n, self.m, self.nb, at.t);
+        let mut mass = vec![0.0; n * n];
+        system.mass(q, &mut mass);
+        at.check(&mass, "M(q)")?;
+        let mut gj = vec![0.0; nb * n];
+        let mut hj = vec![0.0; m * n];
+        system.joint_jacobian(t1, q, &mut gj);
+        system.gap_jacobian(t1, q, &mut hj);
+        at.check(&gj, "the joint Jacobian")?;
+        at.check(&hj, "the gap Jacobian")?;
         let mut rates1 = vec![0.0; m];
         let mut rates0 = vec![0.0; m];
-        system.gap_rates(t1, &q, &mut rates1);
-        system.gap_rates(t_k, &q, &mut rates0);
-        check(&rates1, "∂g/∂t")?;
-        check(&rates0, "∂g/∂t")?;
+        system.gap_rates(t1, q, &mut rates1);
+        system.gap_rates(t_k, q, &mut rates0);
+        at.check(&rates1, "∂g/∂t")?;
+        at.check(&rates0, "∂g/∂t")?;
+        let vt = &smooth.vt;
         let mut v = vt.clone();
         let k = nb + active.len();
         report.base.impulse.fill(0.0);
@@ -730,46 +762,80 @@ impl NonsmoothGeneralizedAlpha {
         report.in_index_set.fill(false);
         let mut work_contact = 0.0;
         if k > 0 {
-            let rows = mat(k, n, &constraint_rows(&gj, &hj, &active, n));
-            let m_lu = factor(mat(n, n, &mass)).ok_or_else(|| singular(0))?;
-            let y = m_lu.solve(&rows.transpose()).ok_or_else(|| singular(0))?;
+            let rows = mat(k, n, &constraint_rows(&gj, &hj, active, n));
+            let m_lu = lu_factor(mat(n, n, &mass)).ok_or_else(|| at.singular(0))?;
+            let y = m_lu
+                .solve(&rows.transpose())
+                .ok_or_else(|| at.singular(0))?;
             let d = &rows * &y;
             let mut b = vec![0.0; k];
             let mut joint_rate = vec![0.0; nb];
-            system.joint_rates(t1, &q, &vt, &mut joint_rate);
+            system.joint_rates(t1, q, vt, &mut joint_rate);
             b[..nb].copy_from_slice(&joint_rate);
             for (r, &a) in active.iter().enumerate() {
                 let row = &hj[a * n..(a + 1) * n];
                 let u_k = dot(row, &start.v) + rates0[a];
                 report.local_velocity_before[a] = u_k;
                 report.in_index_set[a] = true;
-                b[nb + r] = dot(row, &vt) + rates1[a] + system.restitution(a) * u_k;
+                b[nb + r] = dot(row, vt) + rates1[a] + system.restitution(a) * u_k;
             }
-            let (z, stats) = mixed_lcp(&d, &b, nb, &self.lcp).map_err(|e| match e {
-                MixedError::Singular => singular(0),
-                MixedError::Lcp(source) => lcp_error(source),
-            })?;
-            let dv = &y * DVector::from_column_slice(&z);
+            let sol = solve_mixed_at(&d, &b, nb, &self.lcp, at, 0)?;
+            let z = &sol.z;
+            let dv = &y * DVector::from_column_slice(z);
             for (vi, d) in v.iter_mut().zip(dv.iter()) {
                 *vi += d;
             }
-            check(&v, "the velocities")?;
+            at.check(&v, "the velocities")?;
             report.joint_impulse.copy_from_slice(&z[..nb]);
             for (r, &a) in active.iter().enumerate() {
                 let p = z[nb + r];
                 report.base.impulse[a] = p;
                 if p != 0.0 {
                     let row = &hj[a * n..(a + 1) * n];
-                    work_contact += p * 0.5 * (dot(row, &vt) + dot(row, &v));
+                    work_contact += p * 0.5 * (dot(row, vt) + dot(row, &v));
                 }
             }
-            report.base.lcp = stats;
+            report.base.lcp = LcpStats {
+                size: sol.size,
+                iterations: sol.iterations,
+                error: sol.error,
+            };
         }
+        Ok(VelocityStage {
+            v,
+            mass,
+            hj,
+            rates1,
+            work_contact,
+        })
+    }
 
-        // The end of the step.
+    /// The end of the step: the applied forces and the works, the energy, the gaps, local
+    /// velocities and joint residuals of the report; the end kept as the next step's start,
+    /// and the state updated.
+    #[allow(clippy::too_many_arguments)]
+    fn finish<S: JointedSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        state: &mut NonlinearState,
+        start: NsAlphaMemory,
+        smooth: SmoothStage,
+        q: Vec<f64>,
+        velocity: VelocityStage,
+        report: &mut NsAlphaStepReport,
+        at: StepAt,
+    ) -> Result<(), NonlinearStepError> {
+        let (n, nb, t1) = (self.n, self.nb, at.t);
+        let VelocityStage {
+            v,
+            mass,
+            hj,
+            rates1,
+            work_contact,
+        } = velocity;
         let mut applied = vec![0.0; n];
         system.applied_forces(t1, &q, &v, &mut applied);
-        check(&applied, "the applied forces f(t, q, v)")?;
+        at.check(&applied, "the applied forces f(t, q, v)")?;
         let work_ext: f64 = (0..n)
             .map(|i| 0.5 * (start.applied[i] + applied[i]) * (q[i] - start.q[i]))
             .sum();
@@ -778,43 +844,76 @@ impl NonsmoothGeneralizedAlpha {
         base.potential = system.potential(t1, &q);
         let energy = base.energy();
         if !energy.is_finite() {
-            return Err(not_finite("the energy"));
+            return Err(at.not_finite("the energy"));
         }
         base.work_ext = work_ext;
         base.work_contact = work_contact;
         base.energy_error = (energy - start.energy) - work_ext - work_contact;
-        base.newton_iterations = iterations;
+        base.newton_iterations = smooth.iterations;
         system.gaps(t1, &q, &mut base.gap);
-        check(&base.gap, "a gap g(q, t)")?;
+        at.check(&base.gap, "a gap g(q, t)")?;
         for (a, u) in base.local_velocity.iter_mut().enumerate() {
             *u = dot(&hj[a * n..(a + 1) * n], &v) + rates1[a];
         }
         report.penetration = base.gap.iter().fold(0.0f64, |p, &x| p.max(-x));
+        let mut gb = vec![0.0; nb];
         system.joint_values(t1, &q, &mut gb);
         report.position_residual = amax(&gb);
         let mut jr = vec![0.0; nb];
         system.joint_rates(t1, &q, &v, &mut jr);
         report.velocity_residual = amax(&jr);
-        report.lambda.copy_from_slice(&lambda);
-        report.position_iterations = position_iterations;
+        report.lambda.copy_from_slice(&smooth.lambda);
 
-        self.last = Some(Memory {
-            step,
+        self.last = Some(NsAlphaMemory {
+            step: at.step,
             t: t1,
             q: q.clone(),
             v: v.clone(),
-            a: a1,
-            acc,
-            lambda,
+            a: smooth.a1,
+            acc: smooth.acc,
+            lambda: smooth.lambda,
             applied,
             energy,
         });
         state.q.copy_from_slice(&q);
         state.v.copy_from_slice(&v);
         state.t = t1;
-        state.step = step;
+        state.step = at.step;
         Ok(())
     }
+}
+
+/// The smooth stage's residual r = (M q̈ + Gᵀλ − F, G q̈ + κ) at the iterate, and its size:
+/// the larger of the two blocks' largest entries, each relative to the size of its terms.
+fn smooth_residual(
+    x: &SmoothStage,
+    f: &[f64],
+    kappa: &[f64],
+    n: usize,
+    nb: usize,
+) -> (Vec<f64>, f64) {
+    let mut r = vec![0.0; n + nb];
+    let (mut r1, mut s1, mut r2, mut s2) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    for i in 0..n {
+        let ma = dot(&x.mass[i * n..(i + 1) * n], &x.acc);
+        let (mut gl, mut gl_abs) = (0.0, 0.0);
+        for (j, &l) in x.lambda.iter().enumerate() {
+            let t = x.gj[j * n + i] * l;
+            gl += t;
+            gl_abs += t.abs();
+        }
+        r[i] = ma + gl - f[i];
+        r1 = r1.max(r[i].abs());
+        s1 = s1.max(ma.abs() + gl_abs + f[i].abs());
+    }
+    for j in 0..nb {
+        let ga = dot(&x.gj[j * n..(j + 1) * n], &x.acc);
+        r[n + j] = ga + kappa[j];
+        r2 = r2.max(r[n + j].abs());
+        s2 = s2.max(ga.abs() + kappa[j].abs());
+    }
+    let rel = |r: f64, s: f64| if r == 0.0 { 0.0 } else { r / s };
+    (r, rel(r1, s1).max(rel(r2, s2)))
 }
 
 /// The rows C = [G; H_I] (joints, then the contacts of `active`), row-major.
@@ -914,20 +1013,21 @@ pub fn run_ns_alpha<S: JointedSystem + ?Sized>(
     run_ns_alpha_from(system, scheme, state, steps, output, observer, None)
 }
 
-/// What [`run_ns_alpha`] carries from one step to the next: the state, the running statistics,
-/// the previous impulses, the last step's report and the scheme's memory of its end (a_k, q̈_k,
-/// λ_k, the applied forces and the energy).
+/// What [`run_ns_alpha`] carries from one step to the next, and all a checkpoint holds of it:
+/// the state, the running statistics, the previous impulses and the scheme's memory of the end
+/// of the last step ([`NsAlphaMemory`]: a_k, q̈_k, λ_k, the applied forces and the energy). The
+/// step's report is rebuilt by the next step.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) struct NsAlphaRun {
     pub(crate) state: NonlinearState,
     stats: NsAlphaRunStats,
     previous_impulse: Vec<f64>,
     newton_total: u64,
-    report: NsAlphaStepReport,
-    last: Option<Memory>,
+    memory: Option<NsAlphaMemory>,
 }
 
-/// [`run_ns_alpha`], or its continuation from a checkpoint's `resume`.
+/// [`run_ns_alpha`], or its continuation from a checkpoint's `resume`, through the
+/// time-stepping driver ([`stepping::run`]).
 pub(crate) fn run_ns_alpha_from<S: JointedSystem + ?Sized>(
     system: &S,
     scheme: &mut NonsmoothGeneralizedAlpha,
@@ -937,39 +1037,132 @@ pub(crate) fn run_ns_alpha_from<S: JointedSystem + ?Sized>(
     observer: &mut dyn Observer,
     resume: Option<&crate::checkpoint::Checkpoint>,
 ) -> Result<NsAlphaRunStats, NonlinearRunStop> {
-    let (n, m, nb) = (system.dofs(), system.contacts(), system.joints());
+    let n = system.dofs();
     if let Some(&probe) = output.probes.iter().find(|&&j| j >= n) {
         return Err(NonlinearRunStop::Probe { probe, dofs: n });
     }
-    let columns = ns_alpha_columns(m, nb, &output.probes);
-    observer.start(&columns);
-    let every = output.every.max(1);
-    let mut report = NsAlphaStepReport::of_state(system, state);
-    if nb > 0 {
-        // The multipliers of the start, from the consistent accelerations.
-        if let Some((_, lambda)) = scheme.consistent(system, state.t, &state.q, &state.v) {
-            report.lambda = lambda;
+    let mut run = NsAlphaStepping::new(system, scheme, state, steps, &output.probes);
+    match stepping::run(&mut run, output.every, observer, resume)? {
+        StopReason::Finished { .. } => Ok(run.stats),
+        StopReason::Observer { step } => Err(NonlinearRunStop::Stopped { step }),
+    }
+}
+
+/// The scheme on its system and state, as [`stepping::run`] drives it: the state, the running
+/// statistics, the previous impulses (impact count) and the last step's report.
+struct NsAlphaStepping<'a, S: JointedSystem + ?Sized> {
+    system: &'a S,
+    scheme: &'a mut NonsmoothGeneralizedAlpha,
+    state: &'a mut NonlinearState,
+    steps: u64,
+    probes: &'a [usize],
+    report: NsAlphaStepReport,
+    stats: NsAlphaRunStats,
+    previous_impulse: Vec<f64>,
+    newton_total: u64,
+}
+
+impl<'a, S: JointedSystem + ?Sized> NsAlphaStepping<'a, S> {
+    /// The run of `steps` steps from `state`, with its initial report (the multipliers of the
+    /// consistent start) and statistics.
+    fn new(
+        system: &'a S,
+        scheme: &'a mut NonsmoothGeneralizedAlpha,
+        state: &'a mut NonlinearState,
+        steps: u64,
+        probes: &'a [usize],
+    ) -> Self {
+        let mut report = NsAlphaStepReport::of_state(system, state);
+        if system.joints() > 0 {
+            // The multipliers of the start, from the consistent accelerations.
+            if let Some((_, lambda)) = scheme.consistent(system, state.t, &state.q, &state.v) {
+                report.lambda = lambda;
+            }
+        }
+        let e0 = report.base.energy();
+        let stats = NsAlphaRunStats {
+            base: NonlinearRunStats {
+                t_end: state.t,
+                energy_initial: e0,
+                energy_final: e0,
+                energy_max: e0,
+                ..Default::default()
+            },
+            max_position_residual: report.position_residual,
+            max_velocity_residual: report.velocity_residual,
+            max_penetration: report.penetration,
+            ..Default::default()
+        };
+        Self {
+            previous_impulse: vec![0.0; system.contacts()],
+            system,
+            scheme,
+            state,
+            steps,
+            probes,
+            report,
+            stats,
+            newton_total: 0,
         }
     }
-    let e0 = report.base.energy();
-    let mut stats = NsAlphaRunStats {
-        base: NonlinearRunStats {
-            t_end: state.t,
-            energy_initial: e0,
-            energy_final: e0,
-            energy_max: e0,
-            ..Default::default()
-        },
-        max_position_residual: report.position_residual,
-        max_velocity_residual: report.velocity_residual,
-        max_penetration: report.penetration,
-        ..Default::default()
-    };
-    let mut row = Vec::with_capacity(columns.len());
-    let record = |r: &NsAlphaStepReport,
-                  stats: &NsAlphaRunStats,
-                  state: &NonlinearState,
-                  row: &mut Vec<f64>| {
+}
+
+impl<S: JointedSystem + ?Sized> TimeStepping for NsAlphaStepping<'_, S> {
+    type Memory = NsAlphaRun;
+    type Error = NonlinearRunStop;
+    const RUN: RunKind = RunKind::NsAlpha;
+
+    fn columns(&self) -> Columns {
+        ns_alpha_columns(self.system.contacts(), self.system.joints(), self.probes)
+    }
+
+    fn total_steps(&self) -> u64 {
+        self.steps
+    }
+
+    fn is_done(&mut self, k: u64) -> bool {
+        k >= self.steps
+    }
+
+    fn step(&mut self, k: u64) -> Result<(), NonlinearRunStop> {
+        let (report, stats) = (&mut self.report, &mut self.stats);
+        self.scheme.step(self.system, self.state, report)?;
+        let b = &mut stats.base;
+        b.steps = k;
+        b.t_end = self.state.t;
+        b.work_ext_total += report.base.work_ext;
+        b.work_contact_total += report.base.work_contact;
+        b.max_abs_energy_error = b.max_abs_energy_error.max(report.base.energy_error.abs());
+        b.energy_final = report.base.energy();
+        b.energy_max = b.energy_max.max(report.base.energy());
+        b.lcp_max_error = b.lcp_max_error.max(report.base.lcp.error);
+        b.lcp_solves += u64::from(report.base.lcp.size > 0);
+        b.lcp_max_size = b.lcp_max_size.max(report.base.lcp.size);
+        b.newton_iterations_max = b.newton_iterations_max.max(report.base.newton_iterations);
+        self.newton_total += report.base.newton_iterations as u64;
+        b.newton_iterations_mean = self.newton_total as f64 / k as f64;
+        for (p_old, &p) in self.previous_impulse.iter_mut().zip(&report.base.impulse) {
+            b.impacts += u64::from(p > 0.0 && *p_old <= 0.0);
+            *p_old = p;
+        }
+        stats.max_position_residual = stats.max_position_residual.max(report.position_residual);
+        stats.max_velocity_residual = stats.max_velocity_residual.max(report.velocity_residual);
+        stats.max_penetration = stats.max_penetration.max(report.penetration);
+        stats.position_iterations_max = stats
+            .position_iterations_max
+            .max(report.position_iterations);
+        Ok(())
+    }
+
+    fn now(&self) -> StepTime {
+        StepTime {
+            step: self.state.step,
+            t: self.state.t,
+        }
+    }
+
+    fn record(&mut self, row: &mut Vec<f64>) -> Result<(), NonlinearRunStop> {
+        let (r, stats) = (&self.report, &self.stats);
         let b = &r.base;
         row.clear();
         row.extend([
@@ -985,106 +1178,41 @@ pub(crate) fn run_ns_alpha_from<S: JointedSystem + ?Sized>(
             b.newton_iterations as f64,
             r.position_iterations as f64,
         ]);
-        for a in 0..m {
+        for a in 0..self.system.contacts() {
             row.extend([b.gap[a], b.local_velocity[a], b.impulse[a]]);
         }
         row.extend_from_slice(&r.lambda);
         row.extend([r.position_residual, r.velocity_residual]);
-        for &j in &output.probes {
-            row.extend([state.q[j], state.v[j]]);
+        for &j in self.probes {
+            row.extend([self.state.q[j], self.state.v[j]]);
         }
-    };
-    let observed = |observer: &mut dyn Observer, state: &NonlinearState, row: &[f64]| {
-        observer.observe(&StepRecord {
-            step: state.step,
-            t: state.t,
-            values: row,
-        })
-    };
-    let mut previous_impulse = vec![0.0; m];
-    let mut newton_total = 0u64;
-    let first = match resume {
-        Some(c) => {
-            let run: NsAlphaRun = c.run_state(crate::checkpoint::RunKind::NsAlpha)?;
-            let k = run.state.step;
-            if run.state.q.len() != n || run.previous_impulse.len() != m {
-                return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
-                    "an ns_generalized_alpha state of {} coordinates, the system has {n}",
-                    run.state.q.len()
-                ))
-                .into());
-            }
-            let r = run;
-            (*state, stats, previous_impulse, newton_total, report) = (
-                r.state,
-                r.stats,
-                r.previous_impulse,
-                r.newton_total,
-                r.report,
-            );
-            scheme.last = r.last;
-            k + 1
-        }
-        None => {
-            record(&report, &stats, state, &mut row);
-            if observed(observer, state, &row).is_break() {
-                return Err(NonlinearRunStop::Stopped { step: 0 });
-            }
-            1
-        }
-    };
-    for k in first..=steps {
-        scheme.step(system, state, &mut report)?;
-        let b = &mut stats.base;
-        b.steps = k;
-        b.t_end = state.t;
-        b.work_ext_total += report.base.work_ext;
-        b.work_contact_total += report.base.work_contact;
-        b.max_abs_energy_error = b.max_abs_energy_error.max(report.base.energy_error.abs());
-        b.energy_final = report.base.energy();
-        b.energy_max = b.energy_max.max(report.base.energy());
-        b.lcp_max_error = b.lcp_max_error.max(report.base.lcp.error);
-        b.lcp_solves += u64::from(report.base.lcp.size > 0);
-        b.lcp_max_size = b.lcp_max_size.max(report.base.lcp.size);
-        b.newton_iterations_max = b.newton_iterations_max.max(report.base.newton_iterations);
-        newton_total += report.base.newton_iterations as u64;
-        b.newton_iterations_mean = newton_total as f64 / k as f64;
-        for (p_old, &p) in previous_impulse.iter_mut().zip(&report.base.impulse) {
-            b.impacts += u64::from(p > 0.0 && *p_old <= 0.0);
-            *p_old = p;
-        }
-        stats.max_position_residual = stats.max_position_residual.max(report.position_residual);
-        stats.max_velocity_residual = stats.max_velocity_residual.max(report.velocity_residual);
-        stats.max_penetration = stats.max_penetration.max(report.penetration);
-        stats.position_iterations_max = stats
-            .position_iterations_max
-            .max(report.position_iterations);
-        if k % every == 0 || k == steps {
-            record(&report, &stats, state, &mut row);
-            if observed(observer, state, &row).is_break() {
-                return Err(NonlinearRunStop::Stopped { step: k });
-            }
-        }
-        let progress = Progress {
-            done: k,
-            total: steps,
-            t: state.t,
-        };
-        if let ControlFlow::Break(()) = observer.progress(progress) {
-            return Err(NonlinearRunStop::Stopped { step: k });
-        }
-        if observer.checkpoint_due(progress) {
-            let run = NsAlphaRun {
-                state: state.clone(),
-                stats: stats.clone(),
-                previous_impulse: previous_impulse.clone(),
-                newton_total,
-                report: report.clone(),
-                last: scheme.last.clone(),
-            };
-            let kind = crate::checkpoint::RunKind::NsAlpha;
-            observer.checkpoint(&mut crate::checkpoint::Checkpoint::new(k, kind, &run)?);
+        Ok(())
+    }
+
+    fn memory(&self) -> NsAlphaRun {
+        NsAlphaRun {
+            state: self.state.clone(),
+            stats: self.stats.clone(),
+            previous_impulse: self.previous_impulse.clone(),
+            newton_total: self.newton_total,
+            memory: self.scheme.memory().cloned(),
         }
     }
-    Ok(stats)
+
+    fn restore(&mut self, run: NsAlphaRun) -> Result<(), NonlinearRunStop> {
+        let (n, m) = (self.system.dofs(), self.system.contacts());
+        if run.state.q.len() != n || run.previous_impulse.len() != m {
+            return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
+                "an ns_generalized_alpha state of {} coordinates, the system has {n}",
+                run.state.q.len()
+            ))
+            .into());
+        }
+        self.scheme.restore(run.memory)?;
+        *self.state = run.state;
+        self.stats = run.stats;
+        self.previous_impulse = run.previous_impulse;
+        self.newton_total = run.newton_total;
+        Ok(())
+    }
 }

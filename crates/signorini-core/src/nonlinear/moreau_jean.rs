@@ -100,13 +100,15 @@
 //! strict test (its results are unchanged).
 
 use super::LagrangianSystem;
+use crate::checkpoint::RunKind;
 use crate::contact::{Activation, IndexSetRule, LcpStats};
+use crate::dense::{dot, kinetic, lu_factor};
 use crate::friction::{self, FrictionError, FrictionProblem};
 use crate::integrators::OutputOptions;
 use crate::lcp::{self, Lcp, LcpError, LcpOptions};
-use crate::observer::{Columns, Observer, Progress, StepRecord};
+use crate::observer::{Columns, Observer};
+use crate::stepping::{self, StepTime, StopReason, TimeStepping};
 use nalgebra::{DMatrix, DVector};
-use std::ops::ControlFlow;
 use thiserror::Error;
 
 /// Names of the per-step energy columns of a nonlinear run, in output order.
@@ -355,8 +357,74 @@ struct EndOfStep {
     energy: f64,
 }
 
-/// The nonlinear Moreau–Jean scheme for one system and one step size. Holds its parameters and
-/// scratch buffers; the state comes in explicitly.
+/// What the next step of the scheme reads besides the state (q_k, v_k): the end of the last
+/// step (F_k, f_k, g(q_k), U_t,k, E_k) and the round-off levels of its local velocities, which
+/// the sign test of the index set (24) reads. This, and nothing of [`Scratch`], is what a
+/// checkpoint keeps of the scheme.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub(crate) struct MoreauJeanMemory {
+    last: Option<EndOfStep>,
+    /// Step whose end state `roundoff` belongs to (`u64::MAX`: none yet).
+    roundoff_step: u64,
+    /// Round-off level of U^α at the end of that step (zero when inactive).
+    roundoff: Vec<f64>,
+}
+
+/// Where a step is going (its number k + 1 and time t_{k+1}), for the errors of its phases.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct StepAt {
+    pub(crate) step: u64,
+    pub(crate) t: f64,
+}
+
+impl StepAt {
+    /// A value of the system or of the state is not finite.
+    pub(crate) fn not_finite(self, what: &'static str) -> NonlinearStepError {
+        NonlinearStepError::NotFinite {
+            step: self.step,
+            t: self.t,
+            what,
+        }
+    }
+
+    /// Refuses `x` unless every entry is finite.
+    pub(crate) fn check(self, x: &[f64], what: &'static str) -> Result<(), NonlinearStepError> {
+        if x.iter().all(|a| a.is_finite()) {
+            Ok(())
+        } else {
+            Err(self.not_finite(what))
+        }
+    }
+
+    /// The iteration matrix of Newton iteration `iteration` is singular.
+    pub(crate) fn singular(self, iteration: usize) -> NonlinearStepError {
+        NonlinearStepError::Singular {
+            step: self.step,
+            t: self.t,
+            iteration,
+        }
+    }
+
+    /// The impulse LCP failed.
+    pub(crate) fn lcp(self, source: LcpError) -> NonlinearStepError {
+        NonlinearStepError::Lcp {
+            step: self.step,
+            t: self.t,
+            source,
+        }
+    }
+}
+
+/// What Newton's loop of a step hands to its end: its iterates and the impulses' works of the
+/// last one.
+struct NewtonOutcome {
+    iterations: usize,
+    work_contact: f64,
+    work_friction: f64,
+}
+
+/// The nonlinear Moreau–Jean scheme for one system and one step size. Holds its parameters, its
+/// memory of the last step and scratch buffers; the state comes in explicitly.
 #[derive(Debug, Clone)]
 pub struct NonlinearMoreauJean {
     params: NonlinearMoreauJeanParams,
@@ -368,15 +436,12 @@ pub struct NonlinearMoreauJean {
     mu: Vec<f64>,
     /// Whether some contact has μ > 0 (the tangent rows are then formed where needed).
     friction: bool,
-    last: Option<EndOfStep>,
-    /// Step whose end state `roundoff` belongs to (`u64::MAX`: none yet).
-    roundoff_step: u64,
-    /// Round-off level of U^α at the end of that step (zero when inactive).
-    roundoff: Vec<f64>,
+    memory: MoreauJeanMemory,
     s: Scratch,
 }
 
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+/// The buffers one step works in; nothing here is read by the next step.
+#[derive(Debug, Clone)]
 struct Scratch {
     mass: Vec<f64>,
     dfdq: Vec<f64>,
@@ -413,8 +478,6 @@ struct Scratch {
     friction_q: Vec<f64>,
     friction_mu: Vec<f64>,
     solution: Vec<f64>,
-    /// max_i |W_ij| per column j of the iteration matrix.
-    column_max: Vec<f64>,
 }
 
 impl NonlinearMoreauJean {
@@ -461,9 +524,11 @@ impl NonlinearMoreauJean {
             m,
             mu,
             friction,
-            last: None,
-            roundoff_step: u64::MAX,
-            roundoff: z(m),
+            memory: MoreauJeanMemory {
+                last: None,
+                roundoff_step: u64::MAX,
+                roundoff: z(m),
+            },
             s: Scratch {
                 mass: z(n * n),
                 dfdq: z(n * n),
@@ -490,7 +555,6 @@ impl NonlinearMoreauJean {
                 friction_q: Vec::with_capacity(2 * fm),
                 friction_mu: Vec::with_capacity(fm),
                 solution: Vec::with_capacity(2 * m),
-                column_max: Vec::with_capacity(n),
             },
         })
     }
@@ -500,365 +564,473 @@ impl NonlinearMoreauJean {
         self.h
     }
 
+    /// What the next step reads besides the state (for a checkpoint).
+    pub(crate) fn memory(&self) -> &MoreauJeanMemory {
+        &self.memory
+    }
+
+    /// Restores the memory of a checkpoint; refused when it does not fit the system.
+    pub(crate) fn restore(
+        &mut self,
+        memory: MoreauJeanMemory,
+    ) -> Result<(), crate::checkpoint::CheckpointError> {
+        if memory.roundoff.len() != self.m {
+            return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
+                "a nonlinear Moreau–Jean memory of {} contacts, the system has {}",
+                memory.roundoff.len(),
+                self.m
+            )));
+        }
+        self.memory = memory;
+        Ok(())
+    }
+
     /// Advances `state` by one step, writing the step's terms into `report` (sized by
-    /// [`NonlinearStepReport::of_state`]).
+    /// [`NonlinearStepReport::of_state`]). The phases, in Siconos' words: the start of the step
+    /// (kept from the last one), the free state of iterate 0, Newton's loop (per iterate: the
+    /// iteration matrix, the free velocity, the index set, the one-step nonsmooth problem, the
+    /// works and the new iterate), the round-off levels of the index set, and the update of the
+    /// state with the step's energy terms.
     pub fn step<S: LagrangianSystem + ?Sized>(
         &mut self,
         system: &S,
         state: &mut NonlinearState,
         report: &mut NonlinearStepReport,
     ) -> Result<(), NonlinearStepError> {
-        let (h, theta, n, m) = (self.h, self.params.theta, self.n, self.m);
-        let t_k = state.t;
         let step = state.step + 1;
-        let t_next = (step as f64) * h;
-        let not_finite = |what| NonlinearStepError::NotFinite {
+        let at = StepAt {
             step,
-            t: t_next,
-            what,
+            t: (step as f64) * self.h,
         };
-        let check = |x: &[f64], what| {
-            if x.iter().all(|a| a.is_finite()) {
-                Ok(())
-            } else {
-                Err(not_finite(what))
-            }
-        };
+        let start = self.start_of_step(system, state, at)?;
+        self.free_state(system, state, at)?;
+        let newton = self.newton(system, state, &start, report, at)?;
+        self.keep_roundoff(step);
+        self.finish(system, state, start, newton, report, at)
+    }
 
-        // The start of the step: F_k, f_k, g(q_k, t_k) and E_k (kept from the last step).
-        let start = match self.last.take() {
-            Some(e)
-                if e.step == state.step && e.t == state.t && e.q == state.q && e.v == state.v =>
-            {
-                e
-            }
-            _ => {
-                let mut e = EndOfStep {
-                    step: state.step,
-                    t: t_k,
-                    q: state.q.clone(),
-                    v: state.v.clone(),
-                    forces: vec![0.0; n],
-                    applied: vec![0.0; n],
-                    gaps: vec![0.0; m],
-                    tangent_velocity: Vec::new(),
-                    energy: 0.0,
-                };
-                system.forces(t_k, &state.q, &state.v, &mut e.forces);
-                check(&e.forces, "F(t, q, v)")?;
-                system.applied_forces(t_k, &state.q, &state.v, &mut e.applied);
-                check(&e.applied, "the applied forces f(t, q, v)")?;
-                system.gaps(t_k, &state.q, &mut e.gaps);
-                check(&e.gaps, "a gap g(q, t)")?;
-                system.mass(&state.q, &mut self.s.mass);
-                e.energy = kinetic(&self.s.mass, &state.v) + system.potential(t_k, &state.q);
-                if self.friction {
-                    e.tangent_velocity = vec![0.0; m];
-                    system.tangent_jacobian(t_k, &state.q, &mut self.s.tjac);
-                    check(&self.s.tjac, "the tangent Jacobian")?;
-                    system.tangent_rates(t_k, &state.q, &mut e.tangent_velocity);
-                    for (a, u) in e.tangent_velocity.iter_mut().enumerate() {
-                        *u += dot(&self.s.tjac[a * n..(a + 1) * n], &state.v);
-                    }
-                    check(&e.tangent_velocity, "a tangential velocity")?;
-                }
-                if !e.energy.is_finite() {
-                    return Err(not_finite("the energy"));
-                }
-                e
-            }
+    /// The start of the step: F_k, f_k, g(q_k, t_k), U_t,k and E_k, kept from the last step
+    /// when `state` is its end, evaluated afresh otherwise.
+    fn start_of_step<S: LagrangianSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        state: &NonlinearState,
+        at: StepAt,
+    ) -> Result<EndOfStep, NonlinearStepError> {
+        let (n, m, t_k) = (self.n, self.m, state.t);
+        if let Some(e) = self.memory.last.take()
+            && e.step == state.step
+            && e.t == state.t
+            && e.q == state.q
+            && e.v == state.v
+        {
+            return Ok(e);
+        }
+        let mut e = EndOfStep {
+            step: state.step,
+            t: t_k,
+            q: state.q.clone(),
+            v: state.v.clone(),
+            forces: vec![0.0; n],
+            applied: vec![0.0; n],
+            gaps: vec![0.0; m],
+            tangent_velocity: Vec::new(),
+            energy: 0.0,
         };
+        system.forces(t_k, &state.q, &state.v, &mut e.forces);
+        at.check(&e.forces, "F(t, q, v)")?;
+        system.applied_forces(t_k, &state.q, &state.v, &mut e.applied);
+        at.check(&e.applied, "the applied forces f(t, q, v)")?;
+        system.gaps(t_k, &state.q, &mut e.gaps);
+        at.check(&e.gaps, "a gap g(q, t)")?;
+        system.mass(&state.q, &mut self.s.mass);
+        e.energy = kinetic(&self.s.mass, &state.v) + system.potential(t_k, &state.q);
+        if self.friction {
+            e.tangent_velocity = vec![0.0; m];
+            system.tangent_jacobian(t_k, &state.q, &mut self.s.tjac);
+            at.check(&self.s.tjac, "the tangent Jacobian")?;
+            system.tangent_rates(t_k, &state.q, &mut e.tangent_velocity);
+            for (a, u) in e.tangent_velocity.iter_mut().enumerate() {
+                *u += dot(&self.s.tjac[a * n..(a + 1) * n], &state.v);
+            }
+            at.check(&e.tangent_velocity, "a tangential velocity")?;
+        }
+        if !e.energy.is_finite() {
+            return Err(at.not_finite("the energy"));
+        }
+        Ok(e)
+    }
 
-        let s = &mut self.s;
-        let params = &self.params;
-        // Iterate 0: v^0 = v_k, q^0 = q_k + h v_k.
+    /// The free state of iterate 0: v^0 = v_k, q^0 = q_k + h v_k, M(q^0), F(t_{k+1}, q^0, v^0),
+    /// and q_k + h v_k, the point (24) predicts the gaps at.
+    fn free_state<S: LagrangianSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        state: &NonlinearState,
+        at: StepAt,
+    ) -> Result<(), NonlinearStepError> {
+        let (h, theta, s) = (self.h, self.params.theta, &mut self.s);
         s.dv.fill(0.0);
         position(&state.q, &state.v, &s.dv, h, theta, &mut s.q);
         s.v.copy_from_slice(&state.v);
         system.mass(&s.q, &mut s.mass);
-        check(&s.mass, "M(q)")?;
-        system.forces(t_next, &s.q, &s.v, &mut s.forces);
-        check(&s.forces, "F(t, q, v)")?;
-        // q_k + h v_k, the point (24) predicts the gaps at.
+        at.check(&s.mass, "M(q)")?;
+        system.forces(at.t, &s.q, &s.v, &mut s.forces);
+        at.check(&s.forces, "F(t, q, v)")?;
         for ((p, q), v) in s.predicted.iter_mut().zip(&state.q).zip(&state.v) {
             *p = q + h * v;
         }
+        Ok(())
+    }
 
-        s.member.fill(false);
-        let mut iterations = 0;
+    /// Newton's method on v_{k+1} (module documentation): per iterate the iteration matrix,
+    /// the free velocity, the index set, the one-step nonsmooth problem, the works and the new
+    /// iterate, until the residual is below the tolerance.
+    fn newton<S: LagrangianSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        state: &NonlinearState,
+        start: &EndOfStep,
+        report: &mut NonlinearStepReport,
+        at: StepAt,
+    ) -> Result<NewtonOutcome, NonlinearStepError> {
+        let newton = self.params.newton;
+        self.s.member.fill(false);
+        let mut outcome = NewtonOutcome {
+            iterations: 0,
+            work_contact: 0.0,
+            work_friction: 0.0,
+        };
         let mut residual = f64::INFINITY;
-        let mut work_contact = 0.0;
-        let mut work_friction = 0.0;
         report.impulse.fill(0.0);
         report.tangent_impulse.fill(0.0);
         report.lcp = LcpStats::default();
-        while iterations < params.newton.max_iterations {
-            iterations += 1;
-            // W^i and its LU factors.
-            system.force_jacobians(t_next, &s.q, &s.v, &mut s.dfdq, &mut s.dfdv);
-            check(&s.dfdq, "∂F/∂q")?;
-            check(&s.dfdv, "∂F/∂v")?;
-            let (cv, cq) = (h * theta, h * h * theta * theta);
-            let w = DMatrix::from_fn(n, n, |i, j| {
-                let r = i * n + j;
-                s.mass[r] - cv * s.dfdv[r] - cq * s.dfdq[r]
-            });
-            s.column_max.clear();
-            s.column_max.extend(w.column_iter().map(|c| c.amax()));
-            let lu = w.lu();
-            if singular(&lu.u(), &s.column_max) {
-                return Err(NonlinearStepError::Singular {
-                    step,
-                    t: t_next,
-                    iteration: iterations,
-                });
+        while outcome.iterations < newton.max_iterations {
+            outcome.iterations += 1;
+            let lu = self.iteration_matrix(system, at, outcome.iterations)?;
+            self.free_velocity(&lu, start, at)?;
+            self.update_index_set(system, state, start, report, at)?;
+            if !self.s.active.is_empty() {
+                self.one_step_problem(system, &lu, state, report, at)?;
             }
-            let solve = |b: &mut [f64]| {
-                let mut x = DVector::from_column_slice(b);
-                lu.solve_mut(&mut x);
-                b.copy_from_slice(x.as_slice());
-            };
-
-            // Free velocity: Δv_free = Δv^i − W⁻¹ R_free(v^i).
-            for i in 0..n {
-                let md = dot(&s.mass[i * n..(i + 1) * n], &s.dv);
-                let f_theta = (1.0 - theta) * start.forces[i] + theta * s.forces[i];
-                s.residual[i] = md - h * f_theta;
-            }
-            solve(&mut s.residual);
-            for (d, r) in s.dv.iter_mut().zip(&s.residual) {
-                *d -= r;
-            }
-            check(&s.dv, "the free velocity")?;
-
-            // Index set and impulse LCP with the gaps linearised at q^i.
-            report.impulse.fill(0.0);
-            report.tangent_impulse.fill(0.0);
-            report.lcp = LcpStats::default();
-            s.friction_step = false;
-            s.active.clear();
-            s.rhs.clear();
-            if m > 0 {
-                system.gap_jacobian(t_next, &s.q, &mut s.jac);
-                check(&s.jac, "the gap Jacobian")?;
-                system.gaps(t_next, &s.q, &mut s.gaps);
-                check(&s.gaps, "a gap g(q, t)")?;
-                system.gap_rates(t_next, &s.q, &mut s.rates_next);
-                system.gap_rates(t_k, &s.q, &mut s.rates_k);
-                check(&s.rates_next, "∂g/∂t")?;
-                check(&s.rates_k, "∂g/∂t")?;
-                for a in 0..m {
-                    let row = &s.jac[a * n..(a + 1) * n];
-                    let u_k = dot(row, &state.v) + s.rates_k[a];
-                    let active = s.member[a]
-                        || match params.index_set.activation {
-                            Activation::GapAndVelocity => {
-                                let u_tol = if self.roundoff_step == state.step {
-                                    self.roundoff[a]
-                                } else {
-                                    0.0
-                                };
-                                let shift: f64 =
-                                    (0..n).map(|i| row[i] * (s.predicted[i] - s.q[i])).sum();
-                                // With friction, a lasting contact keeps its place when its
-                                // predicted gap is within t × the velocity round-off (the
-                                // drift that round-off in U can have put into q): dropping it
-                                // for one step would drop its friction too (module
-                                // documentation).
-                                let gap_tol = if self.friction { t_next * u_tol } else { 0.0 };
-                                s.gaps[a] + shift <= gap_tol && u_k <= u_tol
-                            }
-                            Activation::PredictedGap => {
-                                start.gaps[a] + params.index_set.gamma * h * u_k <= 0.0
-                            }
-                        };
-                    if active {
-                        s.member[a] = true;
-                        s.active.push(a);
-                        let u_free = dot(row, &state.v) + dot(row, &s.dv) + s.rates_next[a];
-                        s.rhs.push(u_free + system.restitution(a) * u_k);
-                    }
-                }
-            }
-            if !s.active.is_empty() {
-                let k = s.active.len();
-                // With friction on some active contact, the rows of the one-step problem are
-                // (H_α, T_α) per contact, in the order (n_1, t_1, n_2, t_2, …); otherwise H_α.
-                let friction_step = self.friction && s.active.iter().any(|&a| self.mu[a] > 0.0);
-                s.friction_step = friction_step;
-                if friction_step {
-                    system.tangent_jacobian(t_next, &s.q, &mut s.tjac);
-                    check(&s.tjac, "the tangent Jacobian")?;
-                    system.tangent_rates(t_next, &s.q, &mut s.trates);
-                    check(&s.trates, "∂τ/∂t")?;
-                }
-                let rows = if friction_step { 2 } else { 1 };
-                let kk = rows * k;
-                s.columns.clear();
-                for &a in &s.active {
-                    for r in 0..rows {
-                        let src = if r == 0 { &s.jac } else { &s.tjac };
-                        let start_col = s.columns.len();
-                        s.columns.extend_from_slice(&src[a * n..(a + 1) * n]);
-                        solve(&mut s.columns[start_col..]);
-                    }
-                }
-                s.delassus.clear();
-                for &a in &s.active {
-                    for r in 0..rows {
-                        let src = if r == 0 { &s.jac } else { &s.tjac };
-                        let row = &src[a * n..(a + 1) * n];
-                        for c in 0..kk {
-                            s.delassus.push(dot(row, &s.columns[c * n..(c + 1) * n]));
-                        }
-                    }
-                }
-                check(&s.delassus, "the Delassus operator")?;
-                s.solution.clear();
-                let (iterations, error) = if friction_step {
-                    // Free local velocity: normal rows U_free + e U_k, tangent rows
-                    // T(q^i)(v_k + Δv_free) + ∂τ/∂t(t_{k+1}).
-                    s.friction_q.clear();
-                    s.friction_mu.clear();
-                    for (r, &a) in s.active.iter().enumerate() {
-                        let row = &s.tjac[a * n..(a + 1) * n];
-                        s.friction_q.push(s.rhs[r]);
-                        s.friction_q
-                            .push(dot(row, &state.v) + dot(row, &s.dv) + s.trates[a]);
-                        s.friction_mu.push(self.mu[a]);
-                    }
-                    let sol = friction::solve_friction(
-                        FrictionProblem {
-                            w: &s.delassus,
-                            q: &s.friction_q,
-                            mu: &s.friction_mu,
-                        },
-                        &self.lcp,
-                    )
-                    .map_err(|source| NonlinearStepError::Friction {
-                        step,
-                        t: t_next,
-                        source,
-                    })?;
-                    s.solution.extend_from_slice(&sol.p);
-                    (sol.iterations, sol.error)
-                } else {
-                    let sol = lcp::solve(
-                        Lcp {
-                            m: &s.delassus,
-                            q: &s.rhs,
-                        },
-                        &self.lcp,
-                    )
-                    .map_err(|source| NonlinearStepError::Lcp {
-                        step,
-                        t: t_next,
-                        source,
-                    })?;
-                    s.solution.extend_from_slice(&sol.z);
-                    (sol.iterations, sol.error)
-                };
-                for (c, &p) in s.solution.iter().enumerate() {
-                    let a = s.active[c / rows];
-                    if c % rows == 0 {
-                        report.impulse[a] = p;
-                    } else {
-                        report.tangent_impulse[a] = p;
-                    }
-                    if p != 0.0 {
-                        for (d, col) in s.dv.iter_mut().zip(&s.columns[c * n..(c + 1) * n]) {
-                            *d += p * col;
-                        }
-                    }
-                }
-                report.lcp = LcpStats {
-                    size: k,
-                    iterations,
-                    error,
-                };
-            }
-            // Contact and friction works with the H and T of this solve, against
-            // v_{k+θ} = v_k + θ Δv.
-            work_contact = 0.0;
-            work_friction = 0.0;
-            for &a in &s.active {
-                let p = report.impulse[a];
-                if p != 0.0 {
-                    let row = &s.jac[a * n..(a + 1) * n];
-                    let u: f64 = (0..n)
-                        .map(|i| row[i] * (state.v[i] + theta * s.dv[i]))
-                        .sum();
-                    work_contact += p * u;
-                }
-                let pt = report.tangent_impulse[a];
-                if s.friction_step && pt != 0.0 {
-                    // θ U_t,{k+1} (the velocity of this solve, on which Coulomb's law holds)
-                    // + (1 − θ) U_t,k (the end of the last step).
-                    let row = &s.tjac[a * n..(a + 1) * n];
-                    let u_next = dot(row, &state.v) + dot(row, &s.dv) + s.trates[a];
-                    work_friction +=
-                        pt * (theta * u_next + (1.0 - theta) * start.tangent_velocity[a]);
-                }
-            }
-
-            // The new iterate and its residual R(v^{i+1}) with M, F, H at q^{i+1}.
-            position(&state.q, &state.v, &s.dv, h, theta, &mut s.q);
-            for ((v, vk), d) in s.v.iter_mut().zip(&state.v).zip(&s.dv) {
-                *v = vk + d;
-            }
-            system.mass(&s.q, &mut s.mass);
-            check(&s.mass, "M(q)")?;
-            system.forces(t_next, &s.q, &s.v, &mut s.forces);
-            check(&s.forces, "F(t, q, v)")?;
-            if m > 0 {
-                system.gap_jacobian(t_next, &s.q, &mut s.jac);
-                check(&s.jac, "the gap Jacobian")?;
-            }
-            if s.friction_step {
-                system.tangent_jacobian(t_next, &s.q, &mut s.tjac);
-                check(&s.tjac, "the tangent Jacobian")?;
-            }
-            let (mut r_max, mut scale) = (0.0f64, 0.0f64);
-            for i in 0..n {
-                let md = dot(&s.mass[i * n..(i + 1) * n], &s.dv);
-                let (fk, f1) = ((1.0 - theta) * start.forces[i], theta * s.forces[i]);
-                let (mut hp, mut hp_abs) = (0.0, 0.0);
-                for &a in &s.active {
-                    let t = s.jac[a * n + i] * report.impulse[a];
-                    hp += t;
-                    hp_abs += t.abs();
-                    if s.friction_step {
-                        let t = s.tjac[a * n + i] * report.tangent_impulse[a];
-                        hp += t;
-                        hp_abs += t.abs();
-                    }
-                }
-                let r = md - h * (fk + f1) - hp;
-                r_max = r_max.max(r.abs());
-                scale = scale.max(md.abs() + h * (fk.abs() + f1.abs()) + hp_abs);
-            }
-            residual = if r_max == 0.0 { 0.0 } else { r_max / scale };
-            if !residual.is_finite() {
-                return Err(not_finite("the Newton residual"));
-            }
-            if residual <= params.newton.tolerance {
+            (outcome.work_contact, outcome.work_friction) = self.works(state, start, report);
+            residual = self.next_iterate(system, state, start, report, at)?;
+            if residual <= newton.tolerance {
                 break;
             }
         }
-        if residual > params.newton.tolerance {
+        if residual > newton.tolerance {
             return Err(NonlinearStepError::NewtonNotConverged {
-                step,
-                t: t_next,
-                iterations,
+                step: at.step,
+                t: at.t,
+                iterations: outcome.iterations,
                 residual,
-                tolerance: params.newton.tolerance,
+                tolerance: newton.tolerance,
             });
         }
+        Ok(outcome)
+    }
 
-        // Round-off level of the LCP's local velocities (normal rows), for the sign test of the
-        // next step. With friction the solver couples each normal row to its tangent row (the
-        // Lemke tableau of the reformulation pivots on both), so the level counts both rows.
-        self.roundoff.fill(0.0);
+    /// W^i = M(q^i) − hθ ∂F/∂v − h²θ² ∂F/∂q at (t_{k+1}, q^i, v^i), factorised by LU.
+    fn iteration_matrix<S: LagrangianSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        at: StepAt,
+        iteration: usize,
+    ) -> Result<Lu, NonlinearStepError> {
+        let (h, theta, n, s) = (self.h, self.params.theta, self.n, &mut self.s);
+        system.force_jacobians(at.t, &s.q, &s.v, &mut s.dfdq, &mut s.dfdv);
+        at.check(&s.dfdq, "∂F/∂q")?;
+        at.check(&s.dfdv, "∂F/∂v")?;
+        let (cv, cq) = (h * theta, h * h * theta * theta);
+        let w = DMatrix::from_fn(n, n, |i, j| {
+            let r = i * n + j;
+            s.mass[r] - cv * s.dfdv[r] - cq * s.dfdq[r]
+        });
+        lu_factor(w).ok_or(at.singular(iteration))
+    }
+
+    /// The free velocity Δv_free = Δv^i − (W^i)⁻¹ R_free(v^i).
+    fn free_velocity(
+        &mut self,
+        lu: &Lu,
+        start: &EndOfStep,
+        at: StepAt,
+    ) -> Result<(), NonlinearStepError> {
+        let (h, theta, n, s) = (self.h, self.params.theta, self.n, &mut self.s);
+        for i in 0..n {
+            let md = dot(&s.mass[i * n..(i + 1) * n], &s.dv);
+            let f_theta = (1.0 - theta) * start.forces[i] + theta * s.forces[i];
+            s.residual[i] = md - h * f_theta;
+        }
+        solve_in_place(lu, &mut s.residual);
+        for (d, r) in s.dv.iter_mut().zip(&s.residual) {
+            *d -= r;
+        }
+        at.check(&s.dv, "the free velocity")
+    }
+
+    /// The index set of the iterate, with the gaps linearised at q^i (module documentation),
+    /// and the right-hand side U_free + e U_k of its contacts' normal rows.
+    fn update_index_set<S: LagrangianSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        state: &NonlinearState,
+        start: &EndOfStep,
+        report: &mut NonlinearStepReport,
+        at: StepAt,
+    ) -> Result<(), NonlinearStepError> {
+        let (h, n, m) = (self.h, self.n, self.m);
+        let (params, memory, s) = (&self.params, &self.memory, &mut self.s);
+        report.impulse.fill(0.0);
+        report.tangent_impulse.fill(0.0);
+        report.lcp = LcpStats::default();
+        s.friction_step = false;
+        s.active.clear();
+        s.rhs.clear();
+        if m == 0 {
+            return Ok(());
+        }
+        let t_k = state.t;
+        system.gap_jacobian(at.t, &s.q, &mut s.jac);
+        at.check(&s.jac, "the gap Jacobian")?;
+        system.gaps(at.t, &s.q, &mut s.gaps);
+        at.check(&s.gaps, "a gap g(q, t)")?;
+        system.gap_rates(at.t, &s.q, &mut s.rates_next);
+        system.gap_rates(t_k, &s.q, &mut s.rates_k);
+        at.check(&s.rates_next, "∂g/∂t")?;
+        at.check(&s.rates_k, "∂g/∂t")?;
+        for a in 0..m {
+            let row = &s.jac[a * n..(a + 1) * n];
+            let u_k = dot(row, &state.v) + s.rates_k[a];
+            let active = s.member[a]
+                || match params.index_set.activation {
+                    Activation::GapAndVelocity => {
+                        let u_tol = if memory.roundoff_step == state.step {
+                            memory.roundoff[a]
+                        } else {
+                            0.0
+                        };
+                        let shift: f64 = (0..n).map(|i| row[i] * (s.predicted[i] - s.q[i])).sum();
+                        // With friction, a lasting contact keeps its place when its predicted
+                        // gap is within t × the velocity round-off (the drift that round-off
+                        // in U can have put into q): dropping it for one step would drop its
+                        // friction too (module documentation).
+                        let gap_tol = if self.friction { at.t * u_tol } else { 0.0 };
+                        s.gaps[a] + shift <= gap_tol && u_k <= u_tol
+                    }
+                    Activation::PredictedGap => {
+                        start.gaps[a] + params.index_set.gamma * h * u_k <= 0.0
+                    }
+                };
+            if active {
+                s.member[a] = true;
+                s.active.push(a);
+                let u_free = dot(row, &state.v) + dot(row, &s.dv) + s.rates_next[a];
+                s.rhs.push(u_free + system.restitution(a) * u_k);
+            }
+        }
+        Ok(())
+    }
+
+    /// The one-step nonsmooth problem on the index set: the Delassus operator
+    /// [H; T](W^i)⁻¹[H; T]ᵀ, the LCP (or, with friction on an active contact, the planar
+    /// friction problem), and the impulse's velocity (W^i)⁻¹(Hᵀ P_n + Tᵀ P_t) added to Δv.
+    fn one_step_problem<S: LagrangianSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        lu: &Lu,
+        state: &NonlinearState,
+        report: &mut NonlinearStepReport,
+        at: StepAt,
+    ) -> Result<(), NonlinearStepError> {
+        let n = self.n;
+        let s = &mut self.s;
+        let k = s.active.len();
+        // With friction on some active contact, the rows of the one-step problem are
+        // (H_α, T_α) per contact, in the order (n_1, t_1, n_2, t_2, …); otherwise H_α.
+        let friction_step = self.friction && s.active.iter().any(|&a| self.mu[a] > 0.0);
+        s.friction_step = friction_step;
+        if friction_step {
+            system.tangent_jacobian(at.t, &s.q, &mut s.tjac);
+            at.check(&s.tjac, "the tangent Jacobian")?;
+            system.tangent_rates(at.t, &s.q, &mut s.trates);
+            at.check(&s.trates, "∂τ/∂t")?;
+        }
+        let rows = if friction_step { 2 } else { 1 };
+        let kk = rows * k;
+        s.columns.clear();
+        for &a in &s.active {
+            for r in 0..rows {
+                let src = if r == 0 { &s.jac } else { &s.tjac };
+                let start_col = s.columns.len();
+                s.columns.extend_from_slice(&src[a * n..(a + 1) * n]);
+                solve_in_place(lu, &mut s.columns[start_col..]);
+            }
+        }
+        s.delassus.clear();
+        for &a in &s.active {
+            for r in 0..rows {
+                let src = if r == 0 { &s.jac } else { &s.tjac };
+                let row = &src[a * n..(a + 1) * n];
+                for c in 0..kk {
+                    s.delassus.push(dot(row, &s.columns[c * n..(c + 1) * n]));
+                }
+            }
+        }
+        at.check(&s.delassus, "the Delassus operator")?;
+        s.solution.clear();
+        let (iterations, error) = if friction_step {
+            // Free local velocity: normal rows U_free + e U_k, tangent rows
+            // T(q^i)(v_k + Δv_free) + ∂τ/∂t(t_{k+1}).
+            s.friction_q.clear();
+            s.friction_mu.clear();
+            for (r, &a) in s.active.iter().enumerate() {
+                let row = &s.tjac[a * n..(a + 1) * n];
+                s.friction_q.push(s.rhs[r]);
+                s.friction_q
+                    .push(dot(row, &state.v) + dot(row, &s.dv) + s.trates[a]);
+                s.friction_mu.push(self.mu[a]);
+            }
+            let sol = friction::solve_friction(
+                FrictionProblem {
+                    w: &s.delassus,
+                    q: &s.friction_q,
+                    mu: &s.friction_mu,
+                },
+                &self.lcp,
+            )
+            .map_err(|source| NonlinearStepError::Friction {
+                step: at.step,
+                t: at.t,
+                source,
+            })?;
+            s.solution.extend_from_slice(&sol.p);
+            (sol.iterations, sol.error)
+        } else {
+            let sol = lcp::solve(
+                Lcp {
+                    m: &s.delassus,
+                    q: &s.rhs,
+                },
+                &self.lcp,
+            )
+            .map_err(|source| at.lcp(source))?;
+            s.solution.extend_from_slice(&sol.z);
+            (sol.iterations, sol.error)
+        };
+        for (c, &p) in s.solution.iter().enumerate() {
+            let a = s.active[c / rows];
+            if c % rows == 0 {
+                report.impulse[a] = p;
+            } else {
+                report.tangent_impulse[a] = p;
+            }
+            if p != 0.0 {
+                for (d, col) in s.dv.iter_mut().zip(&s.columns[c * n..(c + 1) * n]) {
+                    *d += p * col;
+                }
+            }
+        }
+        report.lcp = LcpStats {
+            size: k,
+            iterations,
+            error,
+        };
+        Ok(())
+    }
+
+    /// The contact and friction works (work_contact, work_friction) of the iterate, with the
+    /// H and T of its solve, against v_{k+θ} = v_k + θ Δv (module documentation).
+    fn works(
+        &self,
+        state: &NonlinearState,
+        start: &EndOfStep,
+        report: &NonlinearStepReport,
+    ) -> (f64, f64) {
+        let (theta, n, s) = (self.params.theta, self.n, &self.s);
+        let mut work_contact = 0.0;
+        let mut work_friction = 0.0;
+        for &a in &s.active {
+            let p = report.impulse[a];
+            if p != 0.0 {
+                let row = &s.jac[a * n..(a + 1) * n];
+                let u: f64 = (0..n)
+                    .map(|i| row[i] * (state.v[i] + theta * s.dv[i]))
+                    .sum();
+                work_contact += p * u;
+            }
+            let pt = report.tangent_impulse[a];
+            if s.friction_step && pt != 0.0 {
+                // θ U_t,{k+1} (the velocity of this solve, on which Coulomb's law holds)
+                // + (1 − θ) U_t,k (the end of the last step).
+                let row = &s.tjac[a * n..(a + 1) * n];
+                let u_next = dot(row, &state.v) + dot(row, &s.dv) + s.trates[a];
+                work_friction += pt * (theta * u_next + (1.0 - theta) * start.tangent_velocity[a]);
+            }
+        }
+        (work_contact, work_friction)
+    }
+
+    /// The new iterate q^{i+1}, v^{i+1} and its relative residual R(v^{i+1}), with M, F, H
+    /// and T all at q^{i+1}.
+    fn next_iterate<S: LagrangianSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        state: &NonlinearState,
+        start: &EndOfStep,
+        report: &NonlinearStepReport,
+        at: StepAt,
+    ) -> Result<f64, NonlinearStepError> {
+        let (h, theta, n, m, s) = (self.h, self.params.theta, self.n, self.m, &mut self.s);
+        position(&state.q, &state.v, &s.dv, h, theta, &mut s.q);
+        for ((v, vk), d) in s.v.iter_mut().zip(&state.v).zip(&s.dv) {
+            *v = vk + d;
+        }
+        system.mass(&s.q, &mut s.mass);
+        at.check(&s.mass, "M(q)")?;
+        system.forces(at.t, &s.q, &s.v, &mut s.forces);
+        at.check(&s.forces, "F(t, q, v)")?;
+        if m > 0 {
+            system.gap_jacobian(at.t, &s.q, &mut s.jac);
+            at.check(&s.jac, "the gap Jacobian")?;
+        }
+        if s.friction_step {
+            system.tangent_jacobian(at.t, &s.q, &mut s.tjac);
+            at.check(&s.tjac, "the tangent Jacobian")?;
+        }
+        let (mut r_max, mut scale) = (0.0f64, 0.0f64);
+        for i in 0..n {
+            let md = dot(&s.mass[i * n..(i + 1) * n], &s.dv);
+            let (fk, f1) = ((1.0 - theta) * start.forces[i], theta * s.forces[i]);
+            let (mut hp, mut hp_abs) = (0.0, 0.0);
+            for &a in &s.active {
+                let t = s.jac[a * n + i] * report.impulse[a];
+                hp += t;
+                hp_abs += t.abs();
+                if s.friction_step {
+                    let t = s.tjac[a * n + i] * report.tangent_impulse[a];
+                    hp += t;
+                    hp_abs += t.abs();
+                }
+            }
+            let r = md - h * (fk + f1) - hp;
+            r_max = r_max.max(r.abs());
+            scale = scale.max(md.abs() + h * (fk.abs() + f1.abs()) + hp_abs);
+        }
+        let residual = if r_max == 0.0 { 0.0 } else { r_max / scale };
+        if !residual.is_finite() {
+            return Err(at.not_finite("the Newton residual"));
+        }
+        Ok(residual)
+    }
+
+    /// Round-off level of the last solve's local velocities (normal rows), for the sign test of
+    /// the next step. With friction the solver couples each normal row to its tangent row (the
+    /// Lemke tableau of the reformulation pivots on both), so the level counts both rows.
+    fn keep_roundoff(&mut self, step: u64) {
+        let (s, memory) = (&self.s, &mut self.memory);
+        memory.roundoff.fill(0.0);
         let rows = if s.friction_step { 2 } else { 1 };
         let kk = rows * s.active.len();
         for (r, &a) in s.active.iter().enumerate() {
@@ -874,13 +1046,25 @@ impl NonlinearMoreauJean {
                 };
                 level += b.abs() + wp;
             }
-            self.roundoff[a] = 64.0 * f64::EPSILON * level;
+            memory.roundoff[a] = 64.0 * f64::EPSILON * level;
         }
-        self.roundoff_step = step;
+        memory.roundoff_step = step;
+    }
 
-        // The end of the step: applied forces and works, energy, gaps and local velocities.
-        system.applied_forces(t_next, &s.q, &s.v, &mut s.applied);
-        check(&s.applied, "the applied forces f(t, q, v)")?;
+    /// The end of the step: the applied forces and the works, the energy, the gaps and local
+    /// velocities of the report; the end kept as the next step's start, and the state updated.
+    fn finish<S: LagrangianSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        state: &mut NonlinearState,
+        start: EndOfStep,
+        newton: NewtonOutcome,
+        report: &mut NonlinearStepReport,
+        at: StepAt,
+    ) -> Result<(), NonlinearStepError> {
+        let (h, theta, n, s) = (self.h, self.params.theta, self.n, &mut self.s);
+        system.applied_forces(at.t, &s.q, &s.v, &mut s.applied);
+        at.check(&s.applied, "the applied forces f(t, q, v)")?;
         let mut work_ext = 0.0;
         for i in 0..n {
             let f_theta = (1.0 - theta) * start.applied[i] + theta * s.applied[i];
@@ -888,34 +1072,39 @@ impl NonlinearMoreauJean {
         }
         work_ext *= h;
         report.kinetic = kinetic(&s.mass, &s.v);
-        report.potential = system.potential(t_next, &s.q);
+        report.potential = system.potential(at.t, &s.q);
         let energy = report.energy();
         if !energy.is_finite() {
-            return Err(not_finite("the energy"));
+            return Err(at.not_finite("the energy"));
         }
+        let NewtonOutcome {
+            iterations,
+            work_contact,
+            work_friction,
+        } = newton;
         report.work_ext = work_ext;
         report.work_contact = work_contact;
         report.work_friction = work_friction;
         report.energy_error = (energy - start.energy) - work_ext - work_contact - work_friction;
         report.newton_iterations = iterations;
-        system.gaps(t_next, &s.q, &mut report.gap);
-        check(&report.gap, "a gap g(q, t)")?;
-        system.gap_rates(t_next, &s.q, &mut report.local_velocity);
+        system.gaps(at.t, &s.q, &mut report.gap);
+        at.check(&report.gap, "a gap g(q, t)")?;
+        system.gap_rates(at.t, &s.q, &mut report.local_velocity);
         for (a, u) in report.local_velocity.iter_mut().enumerate() {
             *u += dot(&s.jac[a * n..(a + 1) * n], &s.v);
         }
         if self.friction {
-            system.tangent_jacobian(t_next, &s.q, &mut s.tjac);
-            check(&s.tjac, "the tangent Jacobian")?;
-            system.tangent_rates(t_next, &s.q, &mut report.tangent_velocity);
+            system.tangent_jacobian(at.t, &s.q, &mut s.tjac);
+            at.check(&s.tjac, "the tangent Jacobian")?;
+            system.tangent_rates(at.t, &s.q, &mut report.tangent_velocity);
             for (a, u) in report.tangent_velocity.iter_mut().enumerate() {
                 *u += dot(&s.tjac[a * n..(a + 1) * n], &s.v);
             }
         }
 
         let mut end = start;
-        end.step = step;
-        end.t = t_next;
+        end.step = at.step;
+        end.t = at.t;
         end.q.copy_from_slice(&s.q);
         end.v.copy_from_slice(&s.v);
         end.forces.copy_from_slice(&s.forces);
@@ -926,13 +1115,23 @@ impl NonlinearMoreauJean {
                 .copy_from_slice(&report.tangent_velocity);
         }
         end.energy = energy;
-        self.last = Some(end);
+        self.memory.last = Some(end);
         state.q.copy_from_slice(&s.q);
         state.v.copy_from_slice(&s.v);
-        state.t = t_next;
-        state.step = step;
+        state.t = at.t;
+        state.step = at.step;
         Ok(())
     }
+}
+
+/// LU factors of an iteration matrix.
+pub(crate) type Lu = nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>;
+
+/// b ← W⁻¹ b with the LU factors of W.
+fn solve_in_place(lu: &Lu, b: &mut [f64]) {
+    let mut x = DVector::from_column_slice(b);
+    lu.solve_mut(&mut x);
+    b.copy_from_slice(x.as_slice());
 }
 
 /// q = q_k + h (v_k + θ Δv), in the same floating-point order as the linear scheme.
@@ -945,29 +1144,6 @@ fn position(q_k: &[f64], v_k: &[f64], dv: &[f64], h: f64, theta: f64, out: &mut 
 /// Whether some contact of `system` has μ > 0.
 pub fn has_friction<S: LagrangianSystem + ?Sized>(system: &S) -> bool {
     (0..system.contacts()).any(|a| system.friction(a) > 0.0)
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
-/// ½ vᵀ M v, M row-major.
-fn kinetic(mass: &[f64], v: &[f64]) -> f64 {
-    let n = v.len();
-    0.5 * (0..n)
-        .map(|i| v[i] * dot(&mass[i * n..(i + 1) * n], v))
-        .sum::<f64>()
-}
-
-/// Is W singular to working precision? Its LU factor U has a pivot |U_jj| ≤ n ε max_i |W_ij|
-/// (relative to its own column of W, so that scaling a coordinate, e.g. a mass of 1e-7 next to
-/// one of 1e3, does not make W look singular), or a pivot that is not finite.
-fn singular(u: &DMatrix<f64>, column_max: &[f64]) -> bool {
-    let n = u.nrows();
-    (0..n).any(|j| {
-        let p = u[(j, j)].abs();
-        !p.is_finite() || p <= n as f64 * f64::EPSILON * column_max[j]
-    })
 }
 
 /// What a nonlinear run measured over all its steps (recorded or not); its fields are those of
@@ -1074,9 +1250,10 @@ pub fn run_nonlinear<S: LagrangianSystem + ?Sized>(
     run_nonlinear_from(system, scheme, state, steps, output, observer, None)
 }
 
-/// What [`run_nonlinear`] carries from one step to the next: the state, the running statistics
-/// and sums, the previous impulses, the last step's report and the scheme's memory of it (the
-/// end-of-step values, the round-off levels of the index set, the scratch vectors).
+/// What [`run_nonlinear`] carries from one step to the next, and all a checkpoint holds of it:
+/// the state, the running statistics and sums, the previous impulses and the scheme's memory
+/// ([`MoreauJeanMemory`]). The step's report is rebuilt by the next step and the scheme's
+/// scratch (M, the iteration matrix, the Delassus operator) is never stored.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) struct NonlinearRun {
     pub(crate) state: NonlinearState,
@@ -1084,14 +1261,11 @@ pub(crate) struct NonlinearRun {
     previous_impulse: Vec<f64>,
     newton_total: u64,
     work_friction_total: f64,
-    report: NonlinearStepReport,
-    last: Option<EndOfStep>,
-    roundoff_step: u64,
-    roundoff: Vec<f64>,
-    scratch: Scratch,
+    memory: MoreauJeanMemory,
 }
 
-/// [`run_nonlinear`], or its continuation from a checkpoint's `resume`.
+/// [`run_nonlinear`], or its continuation from a checkpoint's `resume`, through the
+/// time-stepping driver ([`stepping::run`]).
 pub(crate) fn run_nonlinear_from<S: LagrangianSystem + ?Sized>(
     system: &S,
     scheme: &mut NonlinearMoreauJean,
@@ -1101,113 +1275,97 @@ pub(crate) fn run_nonlinear_from<S: LagrangianSystem + ?Sized>(
     observer: &mut dyn Observer,
     resume: Option<&crate::checkpoint::Checkpoint>,
 ) -> Result<NonlinearRunStats, NonlinearRunStop> {
-    let (n, m) = (system.dofs(), system.contacts());
+    let n = system.dofs();
     if let Some(&probe) = output.probes.iter().find(|&&j| j >= n) {
         return Err(NonlinearRunStop::Probe { probe, dofs: n });
     }
-    let friction = has_friction(system);
-    let columns = nonlinear_columns(m, friction, &output.probes);
-    observer.start(&columns);
-    let every = output.every.max(1);
-    let mut report = NonlinearStepReport::of_state(system, state);
-    let e0 = report.energy();
-    let mut stats = NonlinearRunStats {
-        t_end: state.t,
-        energy_initial: e0,
-        energy_final: e0,
-        energy_max: e0,
-        work_friction_total: friction.then_some(0.0),
-        ..Default::default()
-    };
-    let mut row = Vec::with_capacity(columns.len());
-    let mut previous_impulse = vec![0.0; m];
-    let mut newton_total = 0u64;
-    let mut work_friction_total = 0.0;
-    let record = |report: &NonlinearStepReport,
-                  stats: &NonlinearRunStats,
-                  state: &NonlinearState,
-                  work_friction_total: f64,
-                  row: &mut Vec<f64>| {
-        row.clear();
-        row.extend([
-            report.kinetic,
-            report.potential,
-            report.energy(),
-            report.work_ext,
-            report.work_contact,
-            report.energy_error,
-            stats.work_ext_total,
-            stats.work_contact_total,
-            report.newton_iterations as f64,
-        ]);
-        if friction {
-            row.extend([report.work_friction, work_friction_total]);
+    let mut run = NonlinearStepping::new(system, scheme, state, steps, &output.probes);
+    match stepping::run(&mut run, output.every, observer, resume)? {
+        StopReason::Finished { .. } => Ok(run.stats),
+        StopReason::Observer { step } => Err(NonlinearRunStop::Stopped { step }),
+    }
+}
+
+/// The nonlinear Moreau–Jean scheme on its system and state, as [`stepping::run`] drives it:
+/// the state, the running statistics and sums, the previous impulses (impact count) and the
+/// last step's report.
+struct NonlinearStepping<'a, S: LagrangianSystem + ?Sized> {
+    system: &'a S,
+    scheme: &'a mut NonlinearMoreauJean,
+    state: &'a mut NonlinearState,
+    steps: u64,
+    probes: &'a [usize],
+    friction: bool,
+    report: NonlinearStepReport,
+    stats: NonlinearRunStats,
+    previous_impulse: Vec<f64>,
+    newton_total: u64,
+    work_friction_total: f64,
+}
+
+impl<'a, S: LagrangianSystem + ?Sized> NonlinearStepping<'a, S> {
+    /// The run of `steps` steps from `state`, with its initial report and statistics.
+    fn new(
+        system: &'a S,
+        scheme: &'a mut NonlinearMoreauJean,
+        state: &'a mut NonlinearState,
+        steps: u64,
+        probes: &'a [usize],
+    ) -> Self {
+        let friction = has_friction(system);
+        let report = NonlinearStepReport::of_state(system, state);
+        let e0 = report.energy();
+        let stats = NonlinearRunStats {
+            t_end: state.t,
+            energy_initial: e0,
+            energy_final: e0,
+            energy_max: e0,
+            work_friction_total: friction.then_some(0.0),
+            ..Default::default()
+        };
+        Self {
+            previous_impulse: vec![0.0; system.contacts()],
+            system,
+            scheme,
+            state,
+            steps,
+            probes,
+            friction,
+            report,
+            stats,
+            newton_total: 0,
+            work_friction_total: 0.0,
         }
-        for a in 0..m {
-            row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
-            if friction {
-                row.extend([report.tangent_impulse[a], report.tangent_velocity[a]]);
-            }
-        }
-        for &j in &output.probes {
-            row.extend([state.q[j], state.v[j]]);
-        }
-    };
-    let observed = |observer: &mut dyn Observer, state: &NonlinearState, row: &[f64]| {
-        observer.observe(&StepRecord {
-            step: state.step,
-            t: state.t,
-            values: row,
-        })
-    };
-    let first = match resume {
-        Some(c) => {
-            let run: NonlinearRun = c.run_state(crate::checkpoint::RunKind::Nonlinear)?;
-            let k = run.state.step;
-            if run.state.q.len() != n || run.roundoff.len() != scheme.roundoff.len() {
-                return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
-                    "a nonlinear state of {} coordinates, the system has {n}",
-                    run.state.q.len()
-                ))
-                .into());
-            }
-            let r = run;
-            (
-                *state,
-                stats,
-                previous_impulse,
-                newton_total,
-                work_friction_total,
-                report,
-            ) = (
-                r.state,
-                r.stats,
-                r.previous_impulse,
-                r.newton_total,
-                r.work_friction_total,
-                r.report,
-            );
-            (scheme.last, scheme.roundoff_step, scheme.roundoff, scheme.s) =
-                (r.last, r.roundoff_step, r.roundoff, r.scratch);
-            k + 1
-        }
-        None => {
-            record(&report, &stats, state, 0.0, &mut row);
-            if observed(observer, state, &row).is_break() {
-                return Err(NonlinearRunStop::Stopped { step: 0 });
-            }
-            1
-        }
-    };
-    for k in first..=steps {
-        scheme.step(system, state, &mut report)?;
+    }
+}
+
+impl<S: LagrangianSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
+    type Memory = NonlinearRun;
+    type Error = NonlinearRunStop;
+    const RUN: RunKind = RunKind::Nonlinear;
+
+    fn columns(&self) -> Columns {
+        nonlinear_columns(self.system.contacts(), self.friction, self.probes)
+    }
+
+    fn total_steps(&self) -> u64 {
+        self.steps
+    }
+
+    fn is_done(&mut self, k: u64) -> bool {
+        k >= self.steps
+    }
+
+    fn step(&mut self, k: u64) -> Result<(), NonlinearRunStop> {
+        let (report, stats) = (&mut self.report, &mut self.stats);
+        self.scheme.step(self.system, self.state, report)?;
         stats.steps = k;
-        stats.t_end = state.t;
+        stats.t_end = self.state.t;
         stats.work_ext_total += report.work_ext;
         stats.work_contact_total += report.work_contact;
-        if friction {
-            work_friction_total += report.work_friction;
-            stats.work_friction_total = Some(work_friction_total);
+        if self.friction {
+            self.work_friction_total += report.work_friction;
+            stats.work_friction_total = Some(self.work_friction_total);
             stats.work_friction_max = Some(
                 stats
                     .work_friction_max
@@ -1221,42 +1379,77 @@ pub(crate) fn run_nonlinear_from<S: LagrangianSystem + ?Sized>(
         stats.lcp_solves += u64::from(report.lcp.size > 0);
         stats.lcp_max_size = stats.lcp_max_size.max(report.lcp.size);
         stats.newton_iterations_max = stats.newton_iterations_max.max(report.newton_iterations);
-        newton_total += report.newton_iterations as u64;
-        stats.newton_iterations_mean = newton_total as f64 / k as f64;
-        for (p_old, &p) in previous_impulse.iter_mut().zip(&report.impulse) {
+        self.newton_total += report.newton_iterations as u64;
+        stats.newton_iterations_mean = self.newton_total as f64 / k as f64;
+        for (p_old, &p) in self.previous_impulse.iter_mut().zip(&report.impulse) {
             stats.impacts += u64::from(p > 0.0 && *p_old <= 0.0);
             *p_old = p;
         }
-        if k % every == 0 || k == steps {
-            record(&report, &stats, state, work_friction_total, &mut row);
-            if observed(observer, state, &row).is_break() {
-                return Err(NonlinearRunStop::Stopped { step: k });
-            }
-        }
-        let progress = Progress {
-            done: k,
-            total: steps,
-            t: state.t,
-        };
-        if let ControlFlow::Break(()) = observer.progress(progress) {
-            return Err(NonlinearRunStop::Stopped { step: k });
-        }
-        if observer.checkpoint_due(progress) {
-            let run = NonlinearRun {
-                state: state.clone(),
-                stats: stats.clone(),
-                previous_impulse: previous_impulse.clone(),
-                newton_total,
-                work_friction_total,
-                report: report.clone(),
-                last: scheme.last.clone(),
-                roundoff_step: scheme.roundoff_step,
-                roundoff: scheme.roundoff.clone(),
-                scratch: scheme.s.clone(),
-            };
-            let kind = crate::checkpoint::RunKind::Nonlinear;
-            observer.checkpoint(&mut crate::checkpoint::Checkpoint::new(k, kind, &run)?);
+        Ok(())
+    }
+
+    fn now(&self) -> StepTime {
+        StepTime {
+            step: self.state.step,
+            t: self.state.t,
         }
     }
-    Ok(stats)
+
+    fn record(&mut self, row: &mut Vec<f64>) -> Result<(), NonlinearRunStop> {
+        let (report, stats) = (&self.report, &self.stats);
+        row.clear();
+        row.extend([
+            report.kinetic,
+            report.potential,
+            report.energy(),
+            report.work_ext,
+            report.work_contact,
+            report.energy_error,
+            stats.work_ext_total,
+            stats.work_contact_total,
+            report.newton_iterations as f64,
+        ]);
+        if self.friction {
+            row.extend([report.work_friction, self.work_friction_total]);
+        }
+        for a in 0..self.system.contacts() {
+            row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
+            if self.friction {
+                row.extend([report.tangent_impulse[a], report.tangent_velocity[a]]);
+            }
+        }
+        for &j in self.probes {
+            row.extend([self.state.q[j], self.state.v[j]]);
+        }
+        Ok(())
+    }
+
+    fn memory(&self) -> NonlinearRun {
+        NonlinearRun {
+            state: self.state.clone(),
+            stats: self.stats.clone(),
+            previous_impulse: self.previous_impulse.clone(),
+            newton_total: self.newton_total,
+            work_friction_total: self.work_friction_total,
+            memory: self.scheme.memory().clone(),
+        }
+    }
+
+    fn restore(&mut self, run: NonlinearRun) -> Result<(), NonlinearRunStop> {
+        let (n, m) = (self.system.dofs(), self.system.contacts());
+        if run.state.q.len() != n || run.previous_impulse.len() != m {
+            return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
+                "a nonlinear state of {} coordinates, the system has {n}",
+                run.state.q.len()
+            ))
+            .into());
+        }
+        self.scheme.restore(run.memory)?;
+        *self.state = run.state;
+        self.stats = run.stats;
+        self.previous_impulse = run.previous_impulse;
+        self.newton_total = run.newton_total;
+        self.work_friction_total = run.work_friction_total;
+        Ok(())
+    }
 }

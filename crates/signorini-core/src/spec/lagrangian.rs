@@ -84,7 +84,8 @@ pub struct UserContactSpec {
     pub restitution: f64,
     /// Coulomb friction coefficient μ ≥ 0 (default 0: frictionless); μ > 0 needs `tangent`.
     /// The step then solves the planar friction problem (`contact_solver.kind`: lemke on the
-    /// LCP reformulation, pgs the nonsmooth Gauss–Seidel, auto by size).
+    /// LCP reformulation, pgs the nonsmooth Gauss–Seidel, auto by size). Taken by
+    /// `moreau_jean`; `ns_generalized_alpha` refuses μ > 0 (its impact law is frictionless).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 0.0))]
     pub friction: Option<f64>,

@@ -1,0 +1,172 @@
+//! The mixed LCP of a step with bilateral and unilateral rows (Siconos' numerics calls it an
+//! MLCP): with the first `equalities` rows B free and the rest I complementary,
+//!
+//! ```text
+//! 0 = D_BB z_B + D_BI z_I + b_B,
+//! 0 ≤ w_I = D_IB z_B + D_II z_I + b_I ⊥ z_I ≥ 0.
+//! ```
+//!
+//! The equality rows are eliminated by their Schur complement, z_B = −D_BB⁻¹(b_B + D_BI z_I),
+//! which leaves the LCP `0 ≤ (D_II − D_IB D_BB⁻¹ D_BI) z_I + b_I − D_IB D_BB⁻¹ b_B ⊥ z_I ≥ 0`
+//! for [`super::solve`]. D_BB must be regular (independent equality rows); nothing else is
+//! asked of D beyond what the chosen LCP solver asks of the Schur complement.
+
+use super::{Lcp, LcpError, LcpOptions};
+use crate::dense::lu_factor;
+use nalgebra::{DMatrix, DVector};
+use thiserror::Error;
+
+/// A mixed LCP: `d` square of size `b.len()`, its first `equalities` rows the equalities.
+#[derive(Debug, Clone, Copy)]
+pub struct MixedLcp<'a> {
+    /// The matrix D.
+    pub d: &'a DMatrix<f64>,
+    /// The vector b.
+    pub b: &'a [f64],
+    /// Number of equality rows (the first ones), 0 ≤ equalities ≤ b.len().
+    pub equalities: usize,
+}
+
+/// A solution: z = (z_B, z_I) with the diagnostics of the LCP on the complementarity rows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MixedSolution {
+    /// z_B then z_I.
+    pub z: Vec<f64>,
+    /// Complementarity rows (the LCP's size; 0 when there are none).
+    pub size: usize,
+    /// Iterations of the LCP solver.
+    pub iterations: usize,
+    /// Complementarity error of the LCP solve ([`super`] module documentation).
+    pub error: f64,
+}
+
+/// Why a mixed LCP failed.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum MixedLcpError {
+    /// D_BB is singular to working precision (dependent equality rows).
+    #[error("the block of the {equalities} equality rows is singular")]
+    Singular {
+        /// Number of equality rows.
+        equalities: usize,
+    },
+    /// The LCP on the complementarity rows failed.
+    #[error(transparent)]
+    Lcp(#[from] LcpError),
+}
+
+/// Solves `problem` (module documentation) with the LCP solver of `options`.
+pub fn solve_mixed(
+    problem: MixedLcp<'_>,
+    options: &LcpOptions,
+) -> Result<MixedSolution, MixedLcpError> {
+    let MixedLcp { d, b, equalities } = problem;
+    let nb = equalities;
+    let k = b.len();
+    let nu = k - nb;
+    if nb == 0 {
+        let data: Vec<f64> = (0..k * k).map(|r| d[(r / k, r % k)]).collect();
+        let sol = super::solve(Lcp { m: &data, q: b }, options)?;
+        return Ok(MixedSolution {
+            z: sol.z,
+            size: k,
+            iterations: sol.iterations,
+            error: sol.error,
+        });
+    }
+    let singular = MixedLcpError::Singular { equalities: nb };
+    let lu = lu_factor(d.view((0, 0), (nb, nb)).into_owned()).ok_or(singular.clone())?;
+    let b_b = DVector::from_column_slice(&b[..nb]);
+    let y = lu.solve(&b_b).ok_or(singular.clone())?;
+    if nu == 0 {
+        return Ok(MixedSolution {
+            z: (-y).as_slice().to_vec(),
+            size: 0,
+            iterations: 0,
+            error: 0.0,
+        });
+    }
+    let d_bi = d.view((0, nb), (nb, nu)).into_owned();
+    let x = lu.solve(&d_bi).ok_or(singular)?;
+    let d_ib = d.view((nb, 0), (nu, nb));
+    let schur = d.view((nb, nb), (nu, nu)) - d_ib * &x;
+    let q_i = DVector::from_column_slice(&b[nb..]) - d_ib * &y;
+    let data: Vec<f64> = (0..nu * nu).map(|r| schur[(r / nu, r % nu)]).collect();
+    let sol = super::solve(
+        Lcp {
+            m: &data,
+            q: q_i.as_slice(),
+        },
+        options,
+    )?;
+    let z_i = DVector::from_column_slice(&sol.z);
+    let z_b = -(y + x * &z_i);
+    let mut z = z_b.as_slice().to_vec();
+    z.extend_from_slice(&sol.z);
+    Ok(MixedSolution {
+        z,
+        size: nu,
+        iterations: sol.iterations,
+        error: sol.error,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One equality and one unilateral row, solved by hand: D = [[2, 1], [1, 2]], b = (−1, −3).
+    /// Elimination: z_B = (1 − z_I)/2; the Schur complement is 2 − ½ = 3/2 and its right-hand
+    /// side −3 + ½ = −5/2, so z_I = 5/3 > 0 with w_I = 0, and z_B = −1/3.
+    #[test]
+    fn one_equality_and_one_active_contact() {
+        let d = DMatrix::from_row_slice(2, 2, &[2.0, 1.0, 1.0, 2.0]);
+        let sol = solve_mixed(
+            MixedLcp {
+                d: &d,
+                b: &[-1.0, -3.0],
+                equalities: 1,
+            },
+            &LcpOptions::default(),
+        )
+        .unwrap();
+        assert!((sol.z[0] + 1.0 / 3.0).abs() < 1e-14, "{:?}", sol.z);
+        assert!((sol.z[1] - 5.0 / 3.0).abs() < 1e-14, "{:?}", sol.z);
+        assert_eq!(sol.size, 1);
+        // Both rows hold: the equality to round-off, the contact with w_I = 0.
+        let w0 = 2.0 * sol.z[0] + sol.z[1] - 1.0;
+        let w1 = sol.z[0] + 2.0 * sol.z[1] - 3.0;
+        assert!(w0.abs() < 1e-14 && w1.abs() < 1e-14, "{w0} {w1}");
+    }
+
+    /// The same rows with b_I ≥ 0 after elimination: the contact stays open (z_I = 0) and the
+    /// equality alone fixes z_B = −b_B / D_BB.
+    #[test]
+    fn an_open_contact_leaves_the_equality_alone() {
+        let d = DMatrix::from_row_slice(2, 2, &[2.0, 1.0, 1.0, 2.0]);
+        let sol = solve_mixed(
+            MixedLcp {
+                d: &d,
+                b: &[-1.0, 3.0],
+                equalities: 1,
+            },
+            &LcpOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(sol.z, vec![0.5, 0.0]);
+    }
+
+    #[test]
+    fn dependent_equalities_are_refused() {
+        let d = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]);
+        let err = solve_mixed(
+            MixedLcp {
+                d: &d,
+                b: &[1.0, 1.0],
+                equalities: 2,
+            },
+            &LcpOptions::default(),
+        )
+        .unwrap_err();
+        assert_eq!(err, MixedLcpError::Singular { equalities: 2 });
+    }
+}
