@@ -6,6 +6,7 @@ pub mod config;
 pub mod engine;
 pub mod error;
 pub mod output;
+pub mod problem_file;
 pub mod proto;
 pub mod server;
 pub mod spec_file;
