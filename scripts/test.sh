@@ -6,7 +6,8 @@ cargo --version
 # System parts some tests need, installed from the distribution when missing (apt-get, as root
 # or through sudo): Chromium drives the pages the service serves (tests/service_browser.rs);
 # PostgreSQL's binaries start the private servers of the PostgreSQL store's tests
-# (tests/service_postgres*.rs).
+# (tests/service_postgres*.rs); the HDF5 library is linked by the FCLib reader of `signorini
+# solve` (src/problem_file/fclib.rs, through hdf5-metno).
 install() { # PACKAGE…
   echo "installing $* from the distribution"
   local sudo=""
@@ -17,6 +18,7 @@ install() { # PACKAGE…
 }
 [ -n "${SIGNORINI_CHROMIUM:-}" ] || command -v chromium >/dev/null 2>&1 || install chromium
 ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || install postgresql
+[ -e /usr/include/hdf5/serial/hdf5.h ] || [ -e /usr/include/hdf5.h ] || install libhdf5-dev
 scripts/check_core_purity.sh
 cargo test --workspace
 # The Python client (clients/python), installed as a user would, against the binary just built.

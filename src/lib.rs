@@ -7,6 +7,7 @@ pub mod engine;
 pub mod error;
 pub mod lifecycle;
 pub mod output;
+pub mod problem_file;
 pub mod proto;
 pub mod server;
 pub mod spec_file;

@@ -7,6 +7,7 @@ mod lifecycle;
 mod run;
 mod schema;
 pub mod serve;
+mod solve;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -58,6 +59,8 @@ pub enum Command {
     Compare(compare::CompareArgs),
     /// The CI gate: run specs and check their [check] bounds (exit 0 hold, 1 fail, 2 bad spec).
     Check(check::CheckArgs),
+    /// Solve one-step friction problem files (Siconos `.dat`, FCLib HDF5) with the FC3D solvers.
+    Solve(solve::SolveArgs),
 }
 
 /// Runs the chosen subcommand.
@@ -80,5 +83,6 @@ pub fn dispatch(cli: Cli) -> Result<()> {
         Command::Schema(args) => schema::schema(args),
         Command::Compare(args) => compare::compare(args),
         Command::Check(args) => check::check(args),
+        Command::Solve(args) => solve::solve(args),
     }
 }

@@ -432,3 +432,47 @@ proptest! {
         }
     }
 }
+
+/// Lemke's tableau is sized before it is allocated (issue 28: the 7 002-contact granular problem
+/// aborted the process asking for 12.6 GB): an LCP of size n needs 8 n (2n + 2) bytes and is
+/// refused above the limit; the planar reformulation of m contacts adds its 4m×4m matrix, so 1 700
+/// contacts (6 800 unknowns: 740 MB of tableau and 370 MB of matrix) exceed the 1 GiB default.
+#[test]
+fn lemke_refuses_a_tableau_that_would_not_fit() {
+    use signorini_core::lcp::{DEFAULT_TABLEAU_LIMIT, LcpError, solve_lemke_within, tableau_bytes};
+    assert_eq!(tableau_bytes(28_008), 12_551_617_152);
+    let m = [2.0, 1.0, 1.0, 2.0];
+    let q = [-1.0, -1.0];
+    let lcp = Lcp { m: &m, q: &q };
+    let refused = solve_lemke_within(lcp, &options(LcpSolverKind::Lemke), 95);
+    assert_eq!(
+        refused,
+        Err(LcpError::TooLargeForMemory {
+            solver: "lemke",
+            size: 2,
+            bytes: 96,
+            limit: 95
+        })
+    );
+    assert!(solve_lemke_within(lcp, &options(LcpSolverKind::Lemke), 96).is_ok());
+    // The planar reformulation: refused before W's 1 700 contacts are even looked at beyond
+    // their count (W is a zero-filled slice of the right length).
+    let contacts = 1_700;
+    let w = vec![0.0; 4 * contacts * contacts];
+    let mut q = vec![0.0; 2 * contacts];
+    q[0] = -1.0;
+    let mu = vec![0.5; contacts];
+    let problem = FrictionProblem {
+        w: &w,
+        q: &q,
+        mu: &mu,
+    };
+    let n4 = 4 * contacts;
+    match solve_friction_lemke(problem, &options(LcpSolverKind::Lemke)) {
+        Err(FrictionError::Lcp(LcpError::TooLargeForMemory { bytes, limit, .. })) => {
+            assert_eq!(bytes, 8 * n4 * n4 + tableau_bytes(n4));
+            assert_eq!(limit, DEFAULT_TABLEAU_LIMIT);
+        }
+        other => panic!("{other:?}"),
+    }
+}

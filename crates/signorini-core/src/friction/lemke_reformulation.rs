@@ -31,10 +31,11 @@
 //! never an approximate one.
 
 use super::{FrictionError, FrictionProblem, FrictionSolution};
-use crate::lcp::{Lcp, LcpOptions, solve_lemke};
+use crate::lcp::{DEFAULT_TABLEAU_LIMIT, Lcp, LcpError, LcpOptions, solve_lemke, tableau_bytes};
 
 /// Solves the friction problem by Lemke's method on the LCP reformulation (module
-/// documentation), then maps `(P_n, β⁺ − β⁻)` back (projected on K_μ, which only removes round-off). `iterations` counts Lemke's pivots; the
+/// documentation; refused with [`LcpError::TooLargeForMemory`] when the reformulated matrix and
+/// the tableau together would exceed [`DEFAULT_TABLEAU_LIMIT`]), then maps `(P_n, β⁺ − β⁻)` back (projected on K_μ, which only removes round-off). `iterations` counts Lemke's pivots; the
 /// reported error is the natural map of the friction problem, checked against
 /// `options.tolerance` (`options.kind` is ignored).
 pub fn solve_friction_lemke(
@@ -48,6 +49,20 @@ pub fn solve_friction_lemke(
     let m = problem.contacts();
     let n2 = 2 * m;
     let n4 = 4 * m;
+    // The 4m×4m reformulated matrix and Lemke's 4m × (8m + 2) tableau, both dense: refused
+    // before either is allocated when together they exceed Lemke's limit.
+    let bytes = n4
+        .saturating_mul(n4)
+        .saturating_mul(std::mem::size_of::<f64>())
+        .saturating_add(tableau_bytes(n4));
+    if bytes > DEFAULT_TABLEAU_LIMIT {
+        return Err(FrictionError::Lcp(LcpError::TooLargeForMemory {
+            solver: "lemke",
+            size: n4,
+            bytes,
+            limit: DEFAULT_TABLEAU_LIMIT,
+        }));
+    }
     let w = |i: usize, j: usize| problem.w[i * n2 + j];
     let mut mat = vec![0.0; n4 * n4];
     let mut q = vec![0.0; n4];

@@ -17,7 +17,7 @@ pub mod mixed;
 mod pgs;
 
 pub use enumeration::{ENUMERATION_MAX, solve_enumeration};
-pub use lemke::solve_lemke;
+pub use lemke::{DEFAULT_TABLEAU_LIMIT, solve_lemke, solve_lemke_within, tableau_bytes};
 pub use mixed::{MixedLcp, MixedLcpError, MixedSolution, solve_mixed};
 pub use pgs::solve_pgs;
 
@@ -121,6 +121,19 @@ pub enum LcpError {
         solver: &'static str,
         /// What it solves.
         solves: &'static str,
+    },
+    /// A dense or tableau method would need more memory than its limit: refused before
+    /// anything is allocated.
+    #[error("{solver} on {size} unknowns needs {bytes} bytes, more than its limit of {limit}")]
+    TooLargeForMemory {
+        /// Solver name.
+        solver: &'static str,
+        /// Unknowns of the problem it would solve.
+        size: usize,
+        /// Bytes it would allocate.
+        bytes: usize,
+        /// Largest allocation allowed.
+        limit: usize,
     },
     /// The problem is too large for enumeration.
     #[error("enumeration is limited to {max} unknowns, got {size}")]

@@ -1,0 +1,382 @@
+//! The three-dimensional friction problem (FC3D, Siconos' numerics) and its solvers.
+//!
+//! m contacts, each with a normal and two tangents `(n, t1, t2)`; unknowns the impulses
+//! `r = (r_n, r_t1, r_t2)` per contact. The local velocity is
+//!
+//! ```text
+//! u = W r + q
+//! ```
+//!
+//! with W the 3m×3m Delassus operator, stored block-sparse ([`BlockCsr`], 3×3 blocks), and q the
+//! free local velocity. Each contact obeys Coulomb's law with maximal dissipation on the cone
+//! `K_μ = {r : ‖r_t‖ ≤ μ r_n}`: with De Saxcé's modified velocity `û = u + μ‖u_t‖ e_n`
+//! (G. De Saxcé, Z.-Q. Feng, *New inequality and functional for contact with friction: the
+//! implicit standard material approach*, Mechanics of Structures and Machines 19(3):301–325,
+//! 1991, doi:10.1080/08905459108905146), the law is the second-order cone complementarity
+//!
+//! ```text
+//! K_μ ∋ r ⊥ û ∈ K_μ*,   equivalently   r = P_{K_μ}(r − û)
+//! ```
+//!
+//! (stick: r inside K_μ and u = 0; slide: r on the boundary, u_n = 0, r_t = −μ r_n u_t/‖u_t‖;
+//! take-off: r = 0, u_n ≥ 0). Every solve reports the error Siconos' solvers report
+//! (`fc3d_compute_error`):
+//!
+//! ```text
+//! error = ‖r − P_K(r − û)‖₂ / max(‖q‖₂, ‖r‖₂, ‖u‖₂)
+//! ```
+//!
+//! over all contacts stacked, not divided when the scale is below the machine epsilon (then it is
+//! the absolute error). It is relative: a problem of tiny q is not solved by a tiny absolute
+//! residual.
+//!
+//! Solvers ([`Fc3dSolverKind`]): the nonsmooth Gauss–Seidel over contacts
+//! ([`super::solve_fc3d_nsgs`]) and the semismooth Newton method on Alart and Curnier's function
+//! with a line search ([`super::solve_fc3d_newton`]), which does not depend on the contact ordering; `auto`
+//! chains them and [`Fc3dSolution::solver`] names the one that answered. The formulations and
+//! their comparison: V. Acary, M. Brémond, O. Huber, *On solving contact problems with Coulomb
+//! friction: formulations and numerical comparisons*, in Advanced Topics in Nonsmooth Dynamics,
+//! Springer, 2018, pp. 375–457, doi:10.1007/978-3-319-75972-2_10 (INRIA research report RR-9118).
+
+use super::block_csr::{BlockCsr, BlockCsrError};
+use thiserror::Error;
+
+/// A three-dimensional friction problem with m contacts (owned: readers of problem files hand it
+/// over).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fc3dProblem {
+    /// The Delassus operator, 3×3 blocks ordered `(n, t1, t2)` per contact.
+    pub w: BlockCsr,
+    /// Free local velocity (3m), same order.
+    pub q: Vec<f64>,
+    /// Friction coefficient per contact (m), finite and ≥ 0.
+    pub mu: Vec<f64>,
+}
+
+impl Fc3dProblem {
+    /// Number of contacts m.
+    pub fn contacts(&self) -> usize {
+        self.mu.len()
+    }
+
+    /// Checks the sizes, the friction coefficients and q.
+    pub fn validate(&self) -> Result<(), Fc3dError> {
+        let m = self.contacts();
+        if self.w.dim() != 3 || self.w.blocks() != m || self.q.len() != 3 * m {
+            return Err(Fc3dError::Dimensions {
+                contacts: m,
+                block: self.w.dim(),
+                w_blocks: self.w.blocks(),
+                q_len: self.q.len(),
+            });
+        }
+        if let Some((contact, &mu)) = self
+            .mu
+            .iter()
+            .enumerate()
+            .find(|(_, mu)| !(mu.is_finite() && **mu >= 0.0))
+        {
+            return Err(Fc3dError::InvalidFriction { contact, mu });
+        }
+        if let Some((index, &value)) = self.q.iter().enumerate().find(|(_, q)| !q.is_finite()) {
+            return Err(Fc3dError::NotFiniteQ { index, value });
+        }
+        Ok(())
+    }
+
+    /// The problem of a planar one (2×2 blocks `(n, t)`), each contact given a second tangent
+    /// that nothing couples: `W_{t2 t2} = 1`, `q_{t2} = 0`, every other entry of its row and
+    /// column 0. Then `u_{t2} = r_{t2}`, so any solution has `r_{t2} = u_{t2} = 0`, the 3D cone
+    /// restricted to `r_{t2} = 0` is the planar cone `|r_t| ≤ μ r_n`, ‖u_t‖ = |u_t|, and every
+    /// norm of the error is the planar one: the planar problem's solutions and errors are the
+    /// embedded problem's, exactly. [`Fc3dSolution::planar`] maps back.
+    pub fn from_planar(w: &BlockCsr, q: &[f64], mu: &[f64]) -> Result<Self, Fc3dError> {
+        let m = mu.len();
+        if w.dim() != 2 || w.blocks() != m || q.len() != 2 * m {
+            return Err(Fc3dError::Dimensions {
+                contacts: m,
+                block: w.dim(),
+                w_blocks: w.blocks(),
+                q_len: q.len(),
+            });
+        }
+        let lift = |i: usize| 3 * (i / 2) + i % 2;
+        let entries = w
+            .entries()
+            .map(|(i, j, x)| (lift(i), lift(j), x))
+            .chain((0..m).map(|a| (3 * a + 2, 3 * a + 2, 1.0)));
+        let w = BlockCsr::from_triplets(3, 3 * m, entries)?;
+        let q = (0..3 * m)
+            .map(|k| {
+                if k % 3 == 2 {
+                    0.0
+                } else {
+                    q[2 * (k / 3) + k % 3]
+                }
+            })
+            .collect();
+        Ok(Self {
+            w,
+            q,
+            mu: mu.to_vec(),
+        })
+    }
+
+    /// Local velocity u = W r + q.
+    pub fn local_velocity(&self, r: &[f64]) -> Vec<f64> {
+        self.w.affine(r, &self.q)
+    }
+
+    /// Siconos' relative natural-map error of `r` (module documentation).
+    pub fn error(&self, r: &[f64]) -> f64 {
+        let u = self.local_velocity(r);
+        natural_map_error(&self.mu, &self.q, r, &u)
+    }
+
+    /// Work of the friction impulses on the tangential velocities, `Σ r_t · u_t` (≤ 0 at a
+    /// solution: friction dissipates).
+    pub fn friction_work(&self, r: &[f64]) -> f64 {
+        let u = self.local_velocity(r);
+        (0..self.contacts())
+            .map(|c| r[3 * c + 1] * u[3 * c + 1] + r[3 * c + 2] * u[3 * c + 2])
+            .sum()
+    }
+}
+
+/// `‖r − P_K(r − û)‖₂ / max(‖q‖₂, ‖r‖₂, ‖u‖₂)` over all contacts (Siconos'
+/// `fc3d_compute_error`; not divided when the scale is ≤ the machine epsilon).
+pub fn natural_map_error(mu: &[f64], q: &[f64], r: &[f64], u: &[f64]) -> f64 {
+    let squared: f64 = mu
+        .iter()
+        .enumerate()
+        .map(|(c, &mu)| {
+            let (rc, uc) = (&r[3 * c..3 * c + 3], &u[3 * c..3 * c + 3]);
+            let d = contact_natural_map(mu, [rc[0], rc[1], rc[2]], [uc[0], uc[1], uc[2]]);
+            d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+        })
+        .sum();
+    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let scale = norm(q).max(norm(r)).max(norm(u));
+    if scale > f64::EPSILON {
+        squared.sqrt() / scale
+    } else {
+        squared.sqrt()
+    }
+}
+
+/// `r − P_K(r − û)` for one contact, `û = u + μ‖u_t‖ e_n`.
+pub(crate) fn contact_natural_map(mu: f64, r: [f64; 3], u: [f64; 3]) -> [f64; 3] {
+    let ut = u[1].hypot(u[2]);
+    let p = project_cone(mu, [r[0] - u[0] - mu * ut, r[1] - u[1], r[2] - u[2]]);
+    [r[0] - p[0], r[1] - p[1], r[2] - p[2]]
+}
+
+/// Euclidean projection on `K_μ = {(n, t) : ‖t‖ ≤ μ n}` (μ = 0: the half-line t = 0, n ≥ 0).
+pub(crate) fn project_cone(mu: f64, [n, t1, t2]: [f64; 3]) -> [f64; 3] {
+    let t = t1.hypot(t2);
+    if t <= mu * n {
+        [n, t1, t2]
+    } else if mu * t <= -n {
+        // In the polar cone {μ‖t‖ ≤ −n}.
+        [0.0, 0.0, 0.0]
+    } else {
+        // On the boundary ray through (1, μ t/‖t‖); here t > 0.
+        let a = (n + mu * t) / (1.0 + mu * mu);
+        [a, mu * a * t1 / t, mu * a * t2 / t]
+    }
+}
+
+/// Which FC3D solver.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Fc3dSolverKind {
+    /// Nonsmooth Gauss–Seidel for a few sweeps (fast on well-posed rigid sets), then the
+    /// semismooth Newton method from its last iterate, then Gauss–Seidel again from Newton's best
+    /// iterate with the whole budget ([`super::solve_fc3d`]).
+    #[default]
+    Auto,
+    /// Nonsmooth Gauss–Seidel over contacts ([`super::solve_fc3d_nsgs`]).
+    Nsgs,
+    /// Semismooth Newton on Alart–Curnier's function with a line search
+    /// ([`super::solve_fc3d_newton`]).
+    NewtonAlartCurnier,
+}
+
+impl Fc3dSolverKind {
+    /// The name used on the command line and in reports: `auto`, `nsgs`, `nsn_ac`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Auto => "auto",
+            Self::Nsgs => "nsgs",
+            Self::NewtonAlartCurnier => "nsn_ac",
+        }
+    }
+
+    /// The kind of a name given by [`Self::name`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        [Self::Auto, Self::Nsgs, Self::NewtonAlartCurnier]
+            .into_iter()
+            .find(|k| k.name() == name)
+    }
+}
+
+/// Solver settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fc3dOptions {
+    /// Which solver. Default `Auto`.
+    pub kind: Fc3dSolverKind,
+    /// Largest error accepted (module documentation). Default 1e-8, > 0.
+    pub tolerance: f64,
+    /// Budget of sweeps (Gauss–Seidel) or Newton iterations. Default 10 000.
+    pub max_iterations: usize,
+    /// Sweeps `Auto` gives Gauss–Seidel before it turns to Newton. Default 100.
+    pub auto_sweeps: usize,
+    /// Newton solves its linear systems with a dense LU factorisation up to this many unknowns
+    /// (3m; 8·n² bytes, 18 MB at the default 1 500), above it with restarted GMRES on the sparse
+    /// Jacobian, which is never formed densely.
+    pub dense_newton_max: usize,
+}
+
+impl Default for Fc3dOptions {
+    fn default() -> Self {
+        Self {
+            kind: Fc3dSolverKind::Auto,
+            tolerance: 1e-8,
+            max_iterations: 10_000,
+            auto_sweeps: 100,
+            dense_newton_max: 1_500,
+        }
+    }
+}
+
+/// A solution with its diagnostics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fc3dSolution {
+    /// Impulses `(r_n, r_t1, r_t2)` per contact.
+    pub r: Vec<f64>,
+    /// Local velocities `u = W r + q`.
+    pub u: Vec<f64>,
+    /// Sweeps or Newton iterations, summed over the solvers `Auto` ran.
+    pub iterations: usize,
+    /// The error of `r` (module documentation).
+    pub error: f64,
+    /// The solver that answered: `nsgs` or `nsn_ac`.
+    pub solver: &'static str,
+}
+
+impl Fc3dSolution {
+    /// `(r, u)` of a problem made by [`Fc3dProblem::from_planar`], back in `(n, t)` per contact.
+    pub fn planar(&self) -> (Vec<f64>, Vec<f64>) {
+        let drop_t2 = |v: &[f64]| {
+            v.iter()
+                .enumerate()
+                .filter(|(k, _)| k % 3 != 2)
+                .map(|(_, x)| *x)
+                .collect()
+        };
+        (drop_t2(&self.r), drop_t2(&self.u))
+    }
+}
+
+/// Why an FC3D solve failed.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum Fc3dError {
+    /// W, q and μ do not describe one problem.
+    #[error(
+        "{contacts} contacts need W of {contacts} block rows of 3×3 blocks and q of length {}, got {w_blocks} block rows of {block}×{block} blocks and q of length {q_len}",
+        3 * contacts
+    )]
+    Dimensions {
+        /// Contacts (length of μ).
+        contacts: usize,
+        /// Block size of W.
+        block: usize,
+        /// Block rows of W.
+        w_blocks: usize,
+        /// Length of q.
+        q_len: usize,
+    },
+    /// A friction coefficient is negative or not finite.
+    #[error("friction coefficient of contact {contact} is {mu}: it must be finite and ≥ 0")]
+    InvalidFriction {
+        /// Contact.
+        contact: usize,
+        /// The coefficient given.
+        mu: f64,
+    },
+    /// An entry of q is not finite.
+    #[error("q[{index}] is {value}: it must be finite")]
+    NotFiniteQ {
+        /// Index in q.
+        index: usize,
+        /// The value.
+        value: f64,
+    },
+    /// W could not be built.
+    #[error("W: {0}")]
+    Matrix(#[from] BlockCsrError),
+    /// The tolerance is not a positive number.
+    #[error("tolerance {tolerance} must be > 0")]
+    InvalidTolerance {
+        /// The tolerance given.
+        tolerance: f64,
+    },
+    /// The iteration budget ran out.
+    #[error(
+        "{solver} did not reach tolerance {tolerance:e} in {iterations} iterations (error {error:e})"
+    )]
+    NotConverged {
+        /// Solver name (for `auto`, the last one tried).
+        solver: &'static str,
+        /// Iterations done.
+        iterations: usize,
+        /// Smallest error reached.
+        error: f64,
+        /// Tolerance asked.
+        tolerance: f64,
+        /// The iterate of smallest error (a warm start for another solver).
+        best: Vec<f64>,
+    },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// P_K is the Euclidean projection on K_μ: the image is in K_μ, it is idempotent, and
+        /// x − P_K(x) is orthogonal to P_K(x) and lies in the polar cone (Moreau's decomposition).
+        #[test]
+        fn cone_projection_is_moreau_decomposition(
+            mu in 0.0f64..3.0,
+            x in prop::array::uniform3(-5.0f64..5.0),
+        ) {
+            let y = project_cone(mu, x);
+            prop_assert!(y[1].hypot(y[2]) <= mu * y[0] + 1e-12 && y[0] >= 0.0);
+            let yy = project_cone(mu, y);
+            for k in 0..3 {
+                prop_assert!((yy[k] - y[k]).abs() <= 1e-12);
+            }
+            let d = [x[0] - y[0], x[1] - y[1], x[2] - y[2]];
+            prop_assert!((d[0] * y[0] + d[1] * y[1] + d[2] * y[2]).abs() <= 1e-10);
+            prop_assert!(mu * d[1].hypot(d[2]) <= -d[0] + 1e-10);
+        }
+    }
+
+    #[test]
+    fn natural_map_vanishes_exactly_on_the_law() {
+        let zero = |mu, r, u| {
+            let d = contact_natural_map(mu, r, u);
+            d.iter().map(|x| x * x).sum::<f64>().sqrt() <= 1e-15
+        };
+        // Sliding along (3, 4)/5: r_t = −μ r_n (3, 4)/5, u_n = 0.
+        assert!(zero(0.5, [2.0, -0.6, -0.8], [0.0, 3.0, 4.0]));
+        // Sticking inside the cone with u = 0.
+        assert!(zero(0.5, [2.0, 0.3, -0.2], [0.0, 0.0, 0.0]));
+        // Take-off: r = 0, u_n > 0, any u_t.
+        assert!(zero(0.5, [0.0, 0.0, 0.0], [1.0, -4.0, 2.0]));
+        // Friction along the sliding velocity is not a solution.
+        let d = contact_natural_map(0.5, [2.0, 0.6, 0.8], [0.0, 3.0, 4.0]);
+        assert!(d.iter().map(|x| x * x).sum::<f64>().sqrt() > 0.1);
+    }
+}

@@ -1,0 +1,186 @@
+//! Nonsmooth Gauss–Seidel over contacts for the FC3D problem (M. Jean, *The non-smooth contact
+//! dynamics method*, Computer Methods in Applied Mechanics and Engineering 177:235–257, 1999,
+//! doi:10.1016/S0045-7825(98)00383-1; Acary, Brémond & Huber 2018, doi:10.1007/978-3-319-75972-2_10,
+//! §6.1).
+//!
+//! A sweep visits the contacts in order; at contact a, with the others frozen, the local problem
+//! is the one-contact problem `u_a = W_aa r_a + b_a`, `b_a = q_a + Σ_{b≠a} W_ab r_b`, with only
+//! the stored blocks of block row a of the sparse W in the sum. It is solved
+//!
+//! - exactly when it is a take-off (`b_n ≥ 0`: r_a = 0, then û_a = b_a + μ‖b_t‖e_n ∈ K_μ*) or a
+//!   stick (`−W_aa⁻¹ b_a` inside K_μ), or when μ = 0 (`r_n = −b_n / W_nn`, r_t = 0);
+//! - otherwise by the semismooth Newton method on the contact's Alart–Curnier function with a
+//!   line search (the 3×3 case of [`super::fc3d_newton`]), and when that does not converge by
+//!   De Saxcé's projection iterations `r ← P_K(r − ρ û)`, keeping whichever leaves the smaller
+//!   local natural map.
+//!
+//! Sweeps stop when the global error is ≤ the tolerance. Deterministic: fixed contact order.
+//! Convergence is not guaranteed (Coulomb friction is not monotone); a spent budget is
+//! [`Fc3dError::NotConverged`] with the best iterate.
+
+use super::fc3d::{
+    Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, contact_natural_map, natural_map_error,
+};
+use super::fc3d_newton::{alart_curnier, weight};
+use nalgebra::{Matrix3, Vector3};
+
+/// Newton iterations of the local solver.
+const LOCAL_NEWTON: usize = 30;
+/// Projection iterations of the local fallback.
+const LOCAL_PROJECTION: usize = 200;
+/// Relative size of the local Alart–Curnier residual at which the local Newton stops.
+const LOCAL_TOLERANCE: f64 = 1e-14;
+/// Relative size of the local residual below which the local Newton's answer is kept without
+/// trying the projection fallback (far below any global tolerance asked in practice).
+const LOCAL_ACCEPTED: f64 = 1e-11;
+
+/// Solves the problem by nonsmooth Gauss–Seidel (module documentation) from `start`.
+/// `iterations` counts sweeps.
+pub fn solve_fc3d_nsgs(
+    problem: &Fc3dProblem,
+    options: &Fc3dOptions,
+    start: &[f64],
+) -> Result<Fc3dSolution, Fc3dError> {
+    problem.validate()?;
+    let m = problem.contacts();
+    let diagonal: Vec<[f64; 9]> = (0..m)
+        .map(|a| {
+            let b = problem.w.diagonal_block(a);
+            [b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8]]
+        })
+        .collect();
+    let mut r = start.to_vec();
+    let mut best = (f64::INFINITY, r.clone());
+    for sweep in 1..=options.max_iterations {
+        for (a, w) in diagonal.iter().enumerate() {
+            let k = 3 * a;
+            let mut b = [problem.q[k], problem.q[k + 1], problem.q[k + 2]];
+            problem.w.add_row_product(a, &r, &mut b);
+            let ra = [r[k], r[k + 1], r[k + 2]];
+            for (i, bi) in b.iter_mut().enumerate() {
+                *bi -= w[3 * i] * ra[0] + w[3 * i + 1] * ra[1] + w[3 * i + 2] * ra[2];
+            }
+            let local = solve_local(problem.mu[a], w, b, ra);
+            r[k..k + 3].copy_from_slice(&local);
+        }
+        let u = problem.local_velocity(&r);
+        let error = natural_map_error(&problem.mu, &problem.q, &r, &u);
+        if error <= options.tolerance {
+            return Ok(Fc3dSolution {
+                r,
+                u,
+                iterations: sweep,
+                error,
+                solver: "nsgs",
+            });
+        }
+        if error < best.0 {
+            best = (error, r.clone());
+        }
+        if !error.is_finite() {
+            break;
+        }
+    }
+    Err(Fc3dError::NotConverged {
+        solver: "nsgs",
+        iterations: options.max_iterations,
+        error: best.0,
+        tolerance: options.tolerance,
+        best: best.1,
+    })
+}
+
+fn velocity(w: &[f64; 9], r: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        w[0] * r[0] + w[1] * r[1] + w[2] * r[2] + b[0],
+        w[3] * r[0] + w[4] * r[1] + w[5] * r[2] + b[1],
+        w[6] * r[0] + w[7] * r[1] + w[8] * r[2] + b[2],
+    ]
+}
+
+fn norm3(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// The local natural map's norm at r.
+fn local_residual(mu: f64, w: &[f64; 9], b: [f64; 3], r: [f64; 3]) -> f64 {
+    norm3(contact_natural_map(mu, r, velocity(w, r, b)))
+}
+
+/// Solves the one-contact problem `u = W r + b` (module documentation), from `r0`.
+pub(crate) fn solve_local(mu: f64, w: &[f64; 9], b: [f64; 3], r0: [f64; 3]) -> [f64; 3] {
+    if b[0] >= 0.0 {
+        return [0.0; 3];
+    }
+    if mu == 0.0 && w[0] > 0.0 {
+        return [-b[0] / w[0], 0.0, 0.0];
+    }
+    let wm = Matrix3::from_row_slice(w);
+    if let Some(inverse) = wm.try_inverse() {
+        let s = -(inverse * Vector3::new(b[0], b[1], b[2]));
+        if s[0] >= 0.0 && s[1].hypot(s[2]) <= mu * s[0] {
+            return [s[0], s[1], s[2]];
+        }
+    }
+    let rho = weight(w);
+    let scale = norm3(r0).max(rho * norm3(b));
+    let (newton, converged) = local_newton(mu, rho, w, b, r0, scale);
+    if converged {
+        return newton;
+    }
+    let newton_residual = local_residual(mu, w, b, newton);
+    let mut r = newton;
+    for _ in 0..LOCAL_PROJECTION {
+        let d = contact_natural_map(mu, r, velocity(w, r, b).map(|x| rho * x));
+        r = [r[0] - d[0], r[1] - d[1], r[2] - d[2]];
+    }
+    if local_residual(mu, w, b, r) < newton_residual {
+        r
+    } else {
+        newton
+    }
+}
+
+/// Semismooth Newton on the contact's Alart–Curnier function with Armijo's line search; the
+/// flag says whether ‖Φ‖ reached `LOCAL_TOLERANCE × scale`.
+fn local_newton(
+    mu: f64,
+    rho: f64,
+    w: &[f64; 9],
+    b: [f64; 3],
+    r0: [f64; 3],
+    scale: f64,
+) -> ([f64; 3], bool) {
+    let wm = Matrix3::from_row_slice(w);
+    let mut r = r0;
+    let (mut phi, mut g) = alart_curnier(mu, rho, r, velocity(w, r, b));
+    for _ in 0..LOCAL_NEWTON {
+        let size = norm3(phi);
+        if size <= LOCAL_TOLERANCE * scale {
+            return (r, true);
+        }
+        let gm = Matrix3::from_row_slice(&g);
+        let j = Matrix3::identity() - gm + gm * wm * rho;
+        let Some(d) = j.lu().solve(&Vector3::new(-phi[0], -phi[1], -phi[2])) else {
+            break;
+        };
+        let mut step = 1.0;
+        let mut moved = false;
+        while step >= 1.0 / 1024.0 {
+            let trial = [r[0] + step * d[0], r[1] + step * d[1], r[2] + step * d[2]];
+            let (trial_phi, trial_g) = alart_curnier(mu, rho, trial, velocity(w, trial, b));
+            if norm3(trial_phi).powi(2) <= (1.0 - 2e-4 * step) * size * size {
+                r = trial;
+                phi = trial_phi;
+                g = trial_g;
+                moved = true;
+                break;
+            }
+            step *= 0.5;
+        }
+        if !moved {
+            break;
+        }
+    }
+    (r, norm3(phi) <= LOCAL_ACCEPTED * scale)
+}

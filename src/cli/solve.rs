@@ -1,0 +1,146 @@
+//! `signorini solve FILE… [--solver S] [--tolerance T] [--out DIR] [--json]` (DESIGN §17): reads
+//! one-step friction problems (Siconos `.dat`, FCLib HDF5), solves each with the core's FC3D
+//! solvers (planar problems embedded exactly), prints per problem the contacts, the solver that
+//! answered, iterations, error and time, and with `--out` writes `DIR/NAME.hdf5` (FCLib layout:
+//! the local problem and `/solution/{r,u}`).
+
+use crate::problem_file::{self, fclib};
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use signorini_core::friction::{Fc3dError, Fc3dOptions, Fc3dSolverKind, solve_fc3d};
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Arguments of `solve`.
+#[derive(Debug, Args)]
+pub struct SolveArgs {
+    /// Problem files: Siconos `.dat` or FCLib HDF5 (local or global).
+    #[arg(required = true)]
+    pub files: Vec<PathBuf>,
+    /// Solver: `auto` (Gauss–Seidel, then semismooth Newton), `nsgs` or `nsn_ac`.
+    #[arg(long, default_value = "auto")]
+    pub solver: String,
+    /// Largest relative natural-map error accepted (Siconos' measure).
+    #[arg(long, default_value_t = 1e-8)]
+    pub tolerance: f64,
+    /// Budget of sweeps or Newton iterations.
+    #[arg(long, default_value_t = 10_000)]
+    pub max_iterations: usize,
+    /// Write `DIR/NAME.hdf5` (the problem and FCLib's `/solution`) for each problem solved.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// One JSON line per problem instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `solve`. Exit status: an error when a file cannot be read or a problem is not solved
+/// (after every file has been tried and reported).
+pub fn solve(args: SolveArgs) -> Result<()> {
+    let Some(kind) = Fc3dSolverKind::from_name(&args.solver) else {
+        bail!("--solver {}: unknown (auto, nsgs or nsn_ac)", args.solver);
+    };
+    if args.tolerance.is_nan() || args.tolerance <= 0.0 {
+        bail!("--tolerance {}: must be > 0", args.tolerance);
+    }
+    let options = Fc3dOptions {
+        kind,
+        tolerance: args.tolerance,
+        max_iterations: args.max_iterations,
+        ..Fc3dOptions::default()
+    };
+    if let Some(dir) = &args.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    if !args.json {
+        println!(
+            "{:<40} {:>3} {:>8} {:>7} {:>6} {:>10} {:>10}",
+            "file", "d", "contacts", "solver", "iters", "error", "seconds"
+        );
+    }
+    let mut failures = Vec::new();
+    for file in &args.files {
+        let raw = match problem_file::read(file) {
+            Ok(raw) => raw,
+            Err(e) => {
+                eprintln!("{e}");
+                failures.push(e.to_string());
+                continue;
+            }
+        };
+        let problem = raw
+            .to_fc3d()
+            .with_context(|| format!("{}", file.display()))?;
+        let start = Instant::now();
+        let outcome = solve_fc3d(&problem, &options);
+        let seconds = start.elapsed().as_secs_f64();
+        let (converged, solver, iterations, error) = match &outcome {
+            Ok(s) => (true, s.solver, s.iterations, s.error),
+            Err(Fc3dError::NotConverged {
+                solver,
+                iterations,
+                error,
+                ..
+            }) => (false, *solver, *iterations, *error),
+            Err(e) => {
+                let message = format!("{}: {e}", file.display());
+                eprintln!("{message}");
+                failures.push(message);
+                continue;
+            }
+        };
+        let name = file.display().to_string();
+        if args.json {
+            println!(
+                "{}",
+                serde_json::json!({
+                    "file": name,
+                    "dimension": raw.dimension,
+                    "contacts": raw.contacts(),
+                    "solver": solver,
+                    "converged": converged,
+                    "iterations": iterations,
+                    "error": error,
+                    "seconds": seconds,
+                })
+            );
+        } else {
+            println!(
+                "{:<40} {:>3} {:>8} {:>7} {:>6} {:>10.3e} {:>10.4}{}",
+                name,
+                raw.dimension,
+                raw.contacts(),
+                solver,
+                iterations,
+                error,
+                seconds,
+                if converged { "" } else { "  not converged" }
+            );
+        }
+        match outcome {
+            Ok(s) => {
+                if let Some(dir) = &args.out {
+                    let stem = file
+                        .file_stem()
+                        .map(|s| s.to_string_lossy().into_owned())
+                        .unwrap_or_else(|| "problem".into());
+                    let stem = stem.strip_suffix(".hdf5").unwrap_or(&stem).to_string();
+                    let (r, u) = if raw.dimension == 2 {
+                        s.planar()
+                    } else {
+                        (s.r.clone(), s.u.clone())
+                    };
+                    let target = dir.join(format!("{stem}.hdf5"));
+                    fclib::write_solution(&target, &raw, &r, &u)
+                        .map_err(|e| anyhow::anyhow!("{}: {e}", target.display()))?;
+                }
+            }
+            Err(e) => failures.push(format!("{}: {e}", file.display())),
+        }
+    }
+    if failures.is_empty() {
+        Ok(())
+    } else {
+        bail!("{} of {} problems failed", failures.len(), args.files.len())
+    }
+}
