@@ -7,7 +7,8 @@ cargo --version
 # or through sudo): Chromium drives the pages the service serves (tests/service_browser.rs);
 # PostgreSQL's binaries start the private servers of the PostgreSQL store's tests
 # (tests/service_postgres*.rs); the HDF5 library is linked by the FCLib reader of `signorini
-# solve` (src/problem_file/fclib.rs, through hdf5-metno).
+# solve` (src/problem_file/fclib.rs, through hdf5-metno), which the tests build with the optional
+# feature `hdf5` (the default build, `cargo run --release`, needs no system library).
 install() { # PACKAGE…
   echo "installing $* from the distribution"
   local sudo=""
@@ -20,7 +21,7 @@ install() { # PACKAGE…
 ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || install postgresql
 [ -e /usr/include/hdf5/serial/hdf5.h ] || [ -e /usr/include/hdf5.h ] || install libhdf5-dev
 scripts/check_core_purity.sh
-cargo test --workspace
+cargo test --workspace --features hdf5
 # The Python client (clients/python), installed as a user would, against the binary just built.
 python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore "./clients/python[test]"
 target_dir=$(cargo metadata --format-version 1 --no-deps | python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')

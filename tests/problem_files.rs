@@ -3,6 +3,9 @@
 //! scripts/friction_fixtures.py with python3-siconos), our error equal to Siconos' at Siconos'
 //! own solution, every storage format and both FCLib layouts round-trip, bad files are errors
 //! naming the file, and `signorini solve` solves the fixtures and writes FCLib's `/solution`.
+//! HDF5 is the optional feature `hdf5` (it links the system libhdf5): scripts/test.sh, hence CI,
+//! runs these with it.
+#![cfg(feature = "hdf5")]
 
 use serde_json::Value;
 use signorini::problem_file::{self, RawProblem, dat, fclib};

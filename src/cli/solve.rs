@@ -4,11 +4,11 @@
 //! answered, iterations, error and time, and with `--out` writes `DIR/NAME.hdf5` (FCLib layout:
 //! the local problem and `/solution/{r,u}`).
 
-use crate::problem_file::{self, fclib};
+use crate::problem_file::{self, RawProblem};
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use signorini_core::friction::{Fc3dError, Fc3dOptions, Fc3dSolverKind, solve_fc3d};
-use std::path::PathBuf;
+use signorini_core::friction::{Fc3dError, Fc3dOptions, Fc3dSolution, Fc3dSolverKind, solve_fc3d};
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Arguments of `solve`.
@@ -49,6 +49,12 @@ pub fn solve(args: SolveArgs) -> Result<()> {
         max_iterations: args.max_iterations,
         ..Fc3dOptions::default()
     };
+    if args.out.is_some() && !cfg!(feature = "hdf5") {
+        bail!(
+            "--out writes FCLib HDF5 files: this signorini was built without HDF5; rebuild with \
+             `cargo build --release --features hdf5` (needs the system libhdf5, Debian: libhdf5-dev)"
+        );
+    }
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -120,19 +126,7 @@ pub fn solve(args: SolveArgs) -> Result<()> {
         match outcome {
             Ok(s) => {
                 if let Some(dir) = &args.out {
-                    let stem = file
-                        .file_stem()
-                        .map(|s| s.to_string_lossy().into_owned())
-                        .unwrap_or_else(|| "problem".into());
-                    let stem = stem.strip_suffix(".hdf5").unwrap_or(&stem).to_string();
-                    let (r, u) = if raw.dimension == 2 {
-                        s.planar()
-                    } else {
-                        (s.r.clone(), s.u.clone())
-                    };
-                    let target = dir.join(format!("{stem}.hdf5"));
-                    fclib::write_solution(&target, &raw, &r, &u)
-                        .map_err(|e| anyhow::anyhow!("{}: {e}", target.display()))?;
+                    write_solution(dir, file, &raw, &s)?;
                 }
             }
             Err(e) => failures.push(format!("{}: {e}", file.display())),
@@ -143,4 +137,29 @@ pub fn solve(args: SolveArgs) -> Result<()> {
     } else {
         bail!("{} of {} problems failed", failures.len(), args.files.len())
     }
+}
+
+/// Writes `DIR/NAME.hdf5`: the problem of `file` and FCLib's `/solution` (r, u; a planar
+/// problem's own 2D components).
+#[cfg(feature = "hdf5")]
+fn write_solution(dir: &Path, file: &Path, raw: &RawProblem, s: &Fc3dSolution) -> Result<()> {
+    let stem = file
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "problem".into());
+    let stem = stem.strip_suffix(".hdf5").unwrap_or(&stem).to_string();
+    let (r, u) = if raw.dimension == 2 {
+        s.planar()
+    } else {
+        (s.r.clone(), s.u.clone())
+    };
+    let target = dir.join(format!("{stem}.hdf5"));
+    problem_file::fclib::write_solution(&target, raw, &r, &u)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", target.display()))
+}
+
+/// Without HDF5 `solve` refuses `--out` before reading any file, so this is never reached.
+#[cfg(not(feature = "hdf5"))]
+fn write_solution(dir: &Path, _: &Path, _: &RawProblem, _: &Fc3dSolution) -> Result<()> {
+    bail!("{}: writing FCLib HDF5 needs the `hdf5` feature", dir.display())
 }

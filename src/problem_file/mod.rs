@@ -3,6 +3,7 @@
 //! ([`RawProblem::to_fc3d`]); it never sees a file.
 
 pub mod dat;
+#[cfg(feature = "hdf5")]
 pub mod fclib;
 
 use signorini_core::friction::{BlockCsr, BlockCsrError, Fc3dError, Fc3dProblem};
@@ -112,8 +113,17 @@ pub enum ReadError {
         reason: String,
     },
     /// The HDF5 library failed.
+    #[cfg(feature = "hdf5")]
     #[error("HDF5: {0}")]
     Hdf5(#[from] hdf5_metno::Error),
+    /// An HDF5 file, and this binary was built without HDF5 (the cargo feature `hdf5`, which
+    /// links the system libhdf5).
+    #[cfg(not(feature = "hdf5"))]
+    #[error(
+        "an HDF5 (FCLib) file: this signorini was built without HDF5; rebuild with \
+         `cargo build --release --features hdf5` (needs the system libhdf5, Debian: libhdf5-dev)"
+    )]
+    Hdf5NotBuilt,
 }
 
 /// A problem file that could not be read: the file and the reason.
@@ -138,7 +148,10 @@ pub fn read(file: &Path) -> Result<RawProblem, ProblemFileError> {
     };
     let bytes = std::fs::read(file).map_err(|e| fail(e.into()))?;
     if bytes.starts_with(HDF5_SIGNATURE) {
-        fclib::read(file).map_err(fail)
+        #[cfg(feature = "hdf5")]
+        return fclib::read(file).map_err(fail);
+        #[cfg(not(feature = "hdf5"))]
+        return Err(fail(ReadError::Hdf5NotBuilt));
     } else {
         let text = String::from_utf8_lossy(&bytes);
         dat::parse(&text).map_err(fail)
