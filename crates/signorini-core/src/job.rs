@@ -2,6 +2,10 @@
 //! its model and integrator; [`run`] runs it, reporting to an [`Observer`], and returns the
 //! summary and any tables or figures the job makes.
 
+mod analysis;
+mod soi2;
+mod wave;
+
 use crate::band::SymBand;
 use crate::banded_contact::{banded_refusal, uses_banded};
 use crate::checkpoint::{Checkpoint, CheckpointError};
@@ -460,13 +464,13 @@ impl Job {
                     "`model` and `analysis` together: an analysis describes its own bar, so give either `model` (with `time`) or `analysis`",
                 ));
             }
-            (Some(analysis), None, _) => JobKind::Wave(Box::new(WaveJob::analysis(analysis)?)),
+            (Some(analysis), None, _) => JobKind::Wave(Box::new(wave::analysis(analysis)?)),
             (None, None, _) => return Err(SpecError::new("model", "missing section")),
             (None, Some(m), SchemeFamily::Wave) => {
-                JobKind::Wave(Box::new(WaveJob::integrate(m, spec)?))
+                JobKind::Wave(Box::new(wave::integration(m, spec)?))
             }
             (None, Some(m @ ModelSpec::Lagrangian(_)), SchemeFamily::Soi2) => {
-                JobKind::Soi2(Box::new(Soi2Job::from_spec(m, spec)?))
+                JobKind::Soi2(Box::new(soi2::soi2_job(m, spec)?))
             }
             (None, Some(ModelSpec::Lagrangian(l)), SchemeFamily::Linear)
                 if matches!(spec.integrator, IntegratorSpec::NsGeneralizedAlpha(_)) =>
@@ -477,7 +481,7 @@ impl Job {
                 lagrangian_moreau_jean(m, l, spec)?
             }
             (None, Some(m), SchemeFamily::Soi2) if m.is_constrained() => {
-                JobKind::Soi2(Box::new(Soi2Job::from_spec(m, spec)?))
+                JobKind::Soi2(Box::new(soi2::soi2_job(m, spec)?))
             }
             (None, Some(m), SchemeFamily::Linear) if !m.is_constrained() => {
                 JobKind::Linear(Box::new(LinearJob::from_spec(m, spec)?))

@@ -146,3 +146,143 @@ fn record<F: TimeStepping + ?Sized>(
         values: row,
     }))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::observer::Recorder;
+    use serde::Deserialize;
+    use std::ops::ControlFlow;
+
+    /// x_{k+1} = x_k / 2 from x_0 = 1 for `steps` steps: the smallest family.
+    struct Halving {
+        steps: u64,
+        k: u64,
+        x: f64,
+    }
+
+    #[derive(Serialize, Deserialize)]
+    struct HalvingMemory {
+        k: u64,
+        x: f64,
+    }
+
+    impl TimeStepping for Halving {
+        type Memory = HalvingMemory;
+        type Error = CheckpointError;
+        const RUN: RunKind = RunKind::Linear;
+        fn columns(&self) -> Columns {
+            Columns::new(vec!["x".to_string()])
+        }
+        fn total_steps(&self) -> u64 {
+            self.steps
+        }
+        fn is_done(&mut self, k: u64) -> bool {
+            k >= self.steps
+        }
+        fn step(&mut self, k: u64) -> Result<(), CheckpointError> {
+            (self.k, self.x) = (k, 0.5 * self.x);
+            Ok(())
+        }
+        fn now(&self) -> StepTime {
+            StepTime {
+                step: self.k,
+                t: 0.25 * self.k as f64,
+            }
+        }
+        fn record(&mut self, row: &mut Vec<f64>) -> Result<(), CheckpointError> {
+            row.clear();
+            row.push(self.x);
+            Ok(())
+        }
+        fn memory(&self) -> HalvingMemory {
+            HalvingMemory {
+                k: self.k,
+                x: self.x,
+            }
+        }
+        fn restore(&mut self, m: HalvingMemory) -> Result<(), CheckpointError> {
+            (self.k, self.x) = (m.k, m.x);
+            Ok(())
+        }
+    }
+
+    fn halving(steps: u64) -> Halving {
+        Halving {
+            steps,
+            k: 0,
+            x: 1.0,
+        }
+    }
+
+    /// Records everything, hands a checkpoint after step `at`, stops after step `stop`.
+    struct Cut {
+        rec: Recorder,
+        at: u64,
+        stop: u64,
+        kept: Option<Checkpoint>,
+    }
+
+    impl Observer for Cut {
+        fn start(&mut self, columns: &Columns) {
+            self.rec.start(columns);
+        }
+        fn observe(&mut self, record: &StepRecord<'_>) -> ControlFlow<()> {
+            self.rec.observe(record)
+        }
+        fn progress(&mut self, p: Progress) -> ControlFlow<()> {
+            if p.done >= self.stop {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        }
+        fn checkpoint_due(&mut self, p: Progress) -> bool {
+            p.done == self.at
+        }
+        fn checkpoint(&mut self, c: &mut Checkpoint) {
+            self.kept = Some(c.clone());
+        }
+    }
+
+    #[test]
+    fn records_the_initial_state_every_kth_step_and_the_last() {
+        let mut rec = Recorder::default();
+        let stop = run(&mut halving(7), 3, &mut rec, None).unwrap();
+        assert_eq!(stop, StopReason::Finished { steps: 7 });
+        assert_eq!(rec.steps, [0, 3, 6, 7]);
+        assert_eq!(rec.t, [0.0, 0.75, 1.5, 1.75]);
+        assert_eq!(rec.column("x").unwrap(), [1.0, 0.125, 0.015625, 0.0078125]);
+    }
+
+    #[test]
+    fn an_observer_stop_is_the_stop_reason_and_a_checkpoint_resumes_without_repeating_records() {
+        let mut cut = Cut {
+            rec: Recorder::default(),
+            at: 4,
+            stop: 5,
+            kept: None,
+        };
+        let stop = run(&mut halving(9), 2, &mut cut, None).unwrap();
+        assert_eq!(stop, StopReason::Observer { step: 5 });
+        assert_eq!(cut.rec.steps, [0, 2, 4]);
+        let checkpoint = cut.kept.expect("a checkpoint after step 4");
+        assert_eq!(checkpoint.step(), 4);
+        let mut rest = Recorder::default();
+        let mut resumed = halving(9);
+        let stop = run(&mut resumed, 2, &mut rest, Some(&checkpoint)).unwrap();
+        assert_eq!(stop, StopReason::Finished { steps: 9 });
+        assert_eq!(rest.steps, [6, 8, 9]);
+        assert_eq!(
+            rest.column("x").unwrap(),
+            [0.015625, 0.00390625, 0.001953125]
+        );
+        // A checkpoint of another run is refused before any step.
+        let foreign = Checkpoint::new(4, RunKind::Wave, &resumed.memory()).unwrap();
+        let refused = run(&mut halving(9), 2, &mut Recorder::default(), Some(&foreign));
+        assert!(
+            matches!(refused, Err(CheckpointError::Mismatch(_))),
+            "{refused:?}"
+        );
+    }
+}

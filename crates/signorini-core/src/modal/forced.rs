@@ -13,7 +13,6 @@ use crate::outcome::{
 };
 use crate::scenes::HarmonicSpec;
 pub use crate::spec::Excitation;
-use crate::spec::{ForcedResponseSpec, SpecError};
 use crate::wfem::{WaveBar, step};
 use std::ops::ControlFlow;
 use std::sync::Mutex;
@@ -43,67 +42,6 @@ pub struct ForcedResponseJob {
 }
 
 impl ForcedResponseJob {
-    /// Validates the spec.
-    pub fn from_spec(s: &ForcedResponseSpec) -> Result<Self, SpecError> {
-        if s.cells < 2 || s.cells > 100_000 {
-            return Err(SpecError::new(
-                "analysis.cells",
-                format!("must be in [2, 10⁵], got {}", s.cells),
-            ));
-        }
-        let mut bar = WaveBar::unit(s.cells, s.gap);
-        for (field, x, dst) in [
-            ("analysis.length", s.length, &mut bar.length),
-            ("analysis.young", s.young, &mut bar.young),
-            ("analysis.density", s.density, &mut bar.density),
-            ("analysis.area", s.area, &mut bar.area),
-        ] {
-            *dst = super::positive(field, x)?;
-        }
-        if !s.gap.is_finite() {
-            return Err(SpecError::new(
-                "analysis.gap",
-                format!("must be finite, got {}", s.gap),
-            ));
-        }
-        if !s.amplitude.is_finite() || s.amplitude == 0.0 {
-            return Err(SpecError::new(
-                "analysis.amplitude",
-                format!("must be finite and ≠ 0, got {}", s.amplitude),
-            ));
-        }
-        let omegas = s
-            .omegas
-            .clone()
-            .unwrap_or_else(|| (0..29).map(|i| 0.8 + 0.05 * i as f64).collect());
-        if omegas.is_empty() || omegas.iter().any(|w| !(w.is_finite() && *w > 0.0)) {
-            return Err(SpecError::new(
-                "analysis.omegas",
-                "must be a non-empty list of finite numbers > 0",
-            ));
-        }
-        if s.damping.is_empty() || s.damping.iter().any(|g| !(g.is_finite() && *g >= 0.0)) {
-            return Err(SpecError::new(
-                "analysis.damping",
-                "must be a non-empty list of finite numbers ≥ 0",
-            ));
-        }
-        if s.average_periods == 0 {
-            return Err(SpecError::new("analysis.average_periods", "must be ≥ 1"));
-        }
-        Ok(ForcedResponseJob {
-            cells: s.cells,
-            bar,
-            excitation: s.excitation,
-            amplitude: s.amplitude,
-            omegas,
-            damping: s.damping.clone(),
-            transient_periods: s.transient_periods,
-            average_periods: s.average_periods,
-            backbone: s.backbone,
-        })
-    }
-
     /// Number of independent runs.
     pub fn tasks(&self) -> u64 {
         (self.omegas.len() * self.damping.len()) as u64

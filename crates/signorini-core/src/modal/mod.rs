@@ -17,7 +17,6 @@ use crate::outcome::{
     BackbonePanel, Chart, EndHistory, GapScan, MarkedPoint, ModePoint, ModesSummary, RunError,
     RunOutput, RunSummary, StabilityRun, SummaryBody, SummaryHeader, Table,
 };
-use crate::spec::{ModalSpec, SpecError};
 use crate::wfem::{EndCondition, WaveBar};
 pub use forced::ForcedResponseJob;
 use kernel::{SignedPermutation, kernel_dim_closed_form};
@@ -44,79 +43,7 @@ pub struct ModalJob {
     pub all_candidates: bool,
 }
 
-fn positive(field: &str, x: f64) -> Result<f64, SpecError> {
-    if x.is_finite() && x > 0.0 {
-        Ok(x)
-    } else {
-        Err(SpecError::new(
-            field,
-            format!("must be a finite number > 0, got {x}"),
-        ))
-    }
-}
-
 impl ModalJob {
-    /// Validates the spec.
-    pub fn from_spec(s: &ModalSpec) -> Result<Self, SpecError> {
-        if s.cells < 2 || s.cells > 1_000_000 {
-            return Err(SpecError::new(
-                "analysis.cells",
-                format!("must be in [2, 10⁶], got {}", s.cells),
-            ));
-        }
-        let gaps = match (&s.gap, &s.gaps) {
-            (Some(_), Some(_)) => {
-                return Err(SpecError::new(
-                    "analysis.gaps",
-                    "give gap or gaps, not both",
-                ));
-            }
-            (Some(g), None) => vec![*g],
-            (None, Some(g)) if g.is_empty() => {
-                return Err(SpecError::new("analysis.gaps", "must not be empty"));
-            }
-            (None, Some(g)) => g.clone(),
-            (None, None) => vec![1e-3, 0.0, -1e-3],
-        };
-        if let Some(g) = gaps.iter().find(|g| !g.is_finite()) {
-            return Err(SpecError::new(
-                "analysis.gap",
-                format!("must be finite, got {g}"),
-            ));
-        }
-        let max = s.max_period_steps.unwrap_or(4 * s.cells);
-        let min = s.min_period_steps.unwrap_or(2).max(2);
-        if max < min || max > 100 * s.cells {
-            return Err(SpecError::new(
-                "analysis.max_period_steps",
-                format!(
-                    "must be in [{min}, {}] (min_period_steps … 100·cells), got {max}",
-                    100 * s.cells
-                ),
-            ));
-        }
-        if !(s.phases == 1 || s.phases == 2) {
-            return Err(SpecError::new(
-                "analysis.phases",
-                format!("must be 1 or 2, got {}", s.phases),
-            ));
-        }
-        let mut bar = WaveBar::unit(s.cells, 0.0);
-        bar.length = positive("analysis.length", s.length)?;
-        bar.young = positive("analysis.young", s.young)?;
-        bar.density = positive("analysis.density", s.density)?;
-        bar.area = positive("analysis.area", s.area)?;
-        Ok(ModalJob {
-            cells: s.cells,
-            gaps,
-            period_steps: (min, max),
-            phases: s.phases,
-            bar,
-            stability_periods: s.stability_periods,
-            all_candidates: s.all_candidates,
-        })
-    }
-
     /// Tasks (period lengths × gaps), for progress.
     pub fn tasks(&self) -> u64 {
         ((self.period_steps.1 - self.period_steps.0 + 1) * self.gaps.len()) as u64

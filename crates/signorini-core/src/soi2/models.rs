@@ -2,50 +2,9 @@
 //! scene's `[model]` parameters in the job spec and the [`ConstrainedModel`].
 
 use super::{ConstrainedModel, Dims, ExactValues, InitialValues, Scalar};
-use crate::spec::error::SpecError;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
-
-fn check_positive(field: &str, v: f64) -> Result<(), SpecError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(SpecError::new(
-            format!("model.{field}"),
-            format!("must be a finite number > 0, got {v}"),
-        ))
-    }
-}
-
-fn check_finite(field: &str, v: f64) -> Result<(), SpecError> {
-    if v.is_finite() {
-        Ok(())
-    } else {
-        Err(SpecError::new(
-            format!("model.{field}"),
-            format!("must be finite, got {v}"),
-        ))
-    }
-}
-
-fn check_override(field: &str, v: &Option<Vec<f64>>, n: usize) -> Result<(), SpecError> {
-    if let Some(v) = v {
-        if v.len() != n {
-            return Err(SpecError::new(
-                format!("model.{field}"),
-                format!("needs {n} entries, got {}", v.len()),
-            ));
-        }
-        if let Some(x) = v.iter().find(|x| !x.is_finite()) {
-            return Err(SpecError::new(
-                format!("model.{field}"),
-                format!("entries must be finite, got {x}"),
-            ));
-        }
-    }
-    Ok(())
-}
 
 /// `scene = "jay_negrut_test"`: the nonlinear test problem (15), nonconstant mass, one
 /// holonomic and one nonholonomic constraint, f nonlinear in λ and ψ. Exact solution
@@ -62,14 +21,6 @@ pub struct JayNegrutTest {
     /// z₀ override (2 entries).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub z0: Option<Vec<f64>>,
-}
-
-impl JayNegrutTest {
-    /// Checks the overrides' sizes.
-    pub fn validate(&self) -> Result<(), SpecError> {
-        check_override("y0", &self.y0, 2)?;
-        check_override("z0", &self.z0, 2)
-    }
 }
 
 impl ConstrainedModel for JayNegrutTest {
@@ -177,31 +128,6 @@ impl Default for Pendulum {
             y0: None,
             z0: None,
         }
-    }
-}
-
-impl Pendulum {
-    /// Checks the parameters.
-    pub fn validate(&self) -> Result<(), SpecError> {
-        check_positive("mass", self.mass)?;
-        check_positive("length", self.length)?;
-        for (f, v) in [("stiffness", self.stiffness), ("damping", self.damping)] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(SpecError::new(
-                    format!("model.{f}"),
-                    format!("must be a finite number ≥ 0, got {v}"),
-                ));
-            }
-        }
-        for (f, v) in [
-            ("gravity", self.gravity),
-            ("theta0", self.theta0),
-            ("omega0", self.omega0),
-        ] {
-            check_finite(f, v)?;
-        }
-        check_override("y0", &self.y0, 3)?;
-        check_override("z0", &self.z0, 3)
     }
 }
 
@@ -330,38 +256,6 @@ impl Default for SliderCrank {
             crank_angle: PI / 4.0,
             crank_speed: 6.0,
         }
-    }
-}
-
-impl SliderCrank {
-    /// Checks the parameters.
-    pub fn validate(&self) -> Result<(), SpecError> {
-        for (f, v) in [
-            ("crank_length", self.crank_length),
-            ("crank_mass", self.crank_mass),
-            ("rod_length", self.rod_length),
-            ("rod_mass", self.rod_mass),
-            ("slider_mass", self.slider_mass),
-        ] {
-            check_positive(f, v)?;
-        }
-        for (f, v) in [
-            ("gravity", self.gravity),
-            ("crank_angle", self.crank_angle),
-            ("crank_speed", self.crank_speed),
-        ] {
-            check_finite(f, v)?;
-        }
-        if self.rod_length < self.crank_length {
-            return Err(SpecError::new(
-                "model.rod_length",
-                format!(
-                    "must be ≥ crank_length ({}) for the crank to turn, got {}",
-                    self.crank_length, self.rod_length
-                ),
-            ));
-        }
-        Ok(())
     }
 }
 

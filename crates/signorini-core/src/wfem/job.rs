@@ -1,5 +1,6 @@
 //! Jobs on wave finite elements: time integration (`scheme = "wfem"`), nonsmooth modal analysis
-//! and forced-response sweeps (`[analysis]`). [`crate::job::Job::from_spec`] dispatches here.
+//! and forced-response sweeps (`[analysis]`), validated at the edge (`crate::job`) into a
+//! [`WaveJob`]; [`crate::job::Job::from_spec`] dispatches here.
 
 use super::{StepTerms, WaveBar, WaveState, step};
 use crate::checkpoint::{Checkpoint, CheckpointError, RunKind};
@@ -10,8 +11,6 @@ use crate::observer::{Columns, Observer};
 use crate::outcome::{
     RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader, WaveRunStats, WaveSummary,
 };
-use crate::scenes::Bar;
-use crate::spec::{AnalysisSpec, JobSpec, ModelSpec, Probes, SpecError};
 use crate::stepping::{self, StepTime, StopReason, TimeStepping};
 
 /// A validated job on wave finite elements.
@@ -33,67 +32,6 @@ pub enum WaveJob {
 }
 
 impl WaveJob {
-    /// The job of an `[analysis]` section.
-    pub fn analysis(analysis: &AnalysisSpec) -> Result<WaveJob, SpecError> {
-        Ok(match analysis {
-            AnalysisSpec::NonsmoothModes(m) => WaveJob::Modes(Box::new(ModalJob::from_spec(m)?)),
-            AnalysisSpec::ForcedResponse(f) => {
-                WaveJob::Forced(Box::new(ForcedResponseJob::from_spec(f)?))
-            }
-        })
-    }
-
-    /// Time integration (`scheme = "wfem"`) of the `bar` or `dep_bar` scene `model`.
-    pub fn integrate(model: &ModelSpec, spec: &JobSpec) -> Result<WaveJob, SpecError> {
-        if let ModelSpec::Bar(b) | ModelSpec::DepBar(b) = model
-            && b.obstacle.is_some()
-        {
-            return Err(SpecError::new(
-                "model.obstacle",
-                "scheme \"wfem\" takes the bar's end contact only: run a distributed obstacle with moreau_jean or the nonsmooth α-family",
-            ));
-        }
-        let bar = match model {
-            ModelSpec::Bar(b) => b.resolve(Bar::default()),
-            ModelSpec::DepBar(b) => b.resolve(Bar::doyen_ern_piperno(100)),
-            other => {
-                return Err(SpecError::new(
-                    "model.scene",
-                    format!(
-                        "scheme \"wfem\" runs the scenes \"bar\" and \"dep_bar\", not \"{}\"",
-                        other.scene()
-                    ),
-                ));
-            }
-        };
-        let bar = WaveBar::from_bar(&bar).map_err(|e| match e {
-            super::WfemError::OutOfRange { field, .. }
-            | super::WfemError::Unsupported { field, .. } => {
-                SpecError::new(format!("model.{field}"), e.to_string())
-            }
-        })?;
-        let time = spec.time_section()?;
-        let dt = bar.dt();
-        if !(time.h.is_finite() && (time.h - dt).abs() <= 1e-6 * dt) {
-            return Err(SpecError::new(
-                "time.h",
-                format!(
-                    "wave finite elements step by Δt = Δx/c = {dt:e} exactly (cells = elements), got {}",
-                    time.h
-                ),
-            ));
-        }
-        let steps = time.steps(false)?.count();
-        let output = spec.output.options(Probes::Unsupported(
-            "wave finite elements record the contact end; probes are not supported",
-        ))?;
-        Ok(WaveJob::Integrate {
-            bar,
-            steps,
-            every: output.every,
-        })
-    }
-
     /// (degrees of freedom, steps or tasks) for the service's limits.
     pub fn size(&self) -> (u64, u64) {
         match self {
