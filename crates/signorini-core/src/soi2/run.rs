@@ -125,6 +125,21 @@ pub trait StepSizes {
     fn count(&self) -> u64;
     /// The sizes in order.
     fn steps(&self) -> impl Iterator<Item = f64> + '_;
+    /// True when the sizes vary (the variable-step path: a step whose Newton fails is rejected
+    /// and retried with h/2); the last step, shortened to land on t_end, does not count.
+    fn variable(&self) -> bool {
+        let mut it = self.steps();
+        let Some(first) = it.next() else {
+            return false;
+        };
+        let mut it = it.peekable();
+        while let Some(h) = it.next() {
+            if h != first && it.peek().is_some() {
+                return true;
+            }
+        }
+        false
+    }
 }
 
 impl StepSizes for [f64] {
@@ -156,6 +171,9 @@ impl StepSizes for Schedule {
     }
     fn steps(&self) -> impl Iterator<Item = f64> + '_ {
         self.iter()
+    }
+    fn variable(&self) -> bool {
+        self.pattern.iter().any(|&p| p != self.pattern[0])
     }
 }
 
@@ -198,6 +216,16 @@ pub struct Soi2Stats {
     pub work_damping_total: f64,
     /// Global errors, for models with an exact solution.
     pub errors: Option<GlobalErrors>,
+    /// Steps whose constraint Jacobian (g_y; k_z) had lost rank at y₁ (singular positions,
+    /// redundant joints): solved by the minimum-norm path of [`super::factor`].
+    #[serde(default)]
+    pub rank_deficient_steps: u64,
+    /// The smallest numerical rank of (g_y; k_z) seen on those steps.
+    #[serde(default)]
+    pub smallest_rank: Option<usize>,
+    /// Attempts rejected for a Newton failure and retried with h/2 (variable-step runs).
+    #[serde(default)]
+    pub rejected_steps: u64,
 }
 
 /// Column names of a SOI2 run: the step h; the energies `kinetic` ½zᵀMz, `potential` V,
@@ -356,6 +384,7 @@ pub(crate) fn integrate_from<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized
             row.extend([s.y[j], s.z[j]]);
         }
     };
+    let variable = sizes.variable();
     let mut steps = sizes.steps().peekable();
     let mut k = 0u64;
     let mut h_last = 0.0;
@@ -398,13 +427,9 @@ pub(crate) fn integrate_from<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized
     while let Some(h) = steps.next() {
         k += 1;
         h_last = h;
-        if adjust {
-            method::adjust_for_step(&mut state, alpha, h); // (14a)–(14b)
-        }
-        let result = method::solve_step_with(model, method, &state, h, &mut cache)?;
-        let info = result.info;
         let y_old = state.y.clone();
-        method::commit(&mut state, result, h);
+        // (14a)–(14b) when `adjust`; a rejected attempt retried with h/2 on variable steps.
+        let info = method::advance(model, method, &mut state, h, &mut cache, adjust, variable)?;
         model.damping_force(state.t, &state.y, &state.z, &mut fd1);
         // Trapezoidal work of the damping forces over the step.
         let wd: f64 = (0..n)
@@ -420,6 +445,14 @@ pub(crate) fn integrate_from<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized
         stats.newton_iterations_max = stats.newton_iterations_max.max(info.iterations);
         stats.steps = k;
         stats.newton_jacobians = cache.jacobians;
+        stats.rejected_steps += info.rejected;
+        if let Some(rank) = info
+            .rank
+            .filter(|&r| r < dims.holonomic + dims.nonholonomic)
+        {
+            stats.rank_deficient_steps += 1;
+            stats.smallest_rank = Some(stats.smallest_rank.map_or(rank, |s| s.min(rank)));
+        }
         stats.t_end = state.t;
         if k.is_multiple_of(every) || steps.peek().is_none() {
             let (kin, pot) = (kinetic(&state), potential(&state));
@@ -646,12 +679,20 @@ fn check_model<M: ConstrainedModel>(model: &M, tol: f64) -> Result<(), SpecError
 }
 
 /// [`check_model`] for a user model, naming the spec field at fault: dependent joints
-/// (`model.constraints`), initial positions or velocities that violate them (`model.q0`,
-/// `model.v0`).
-fn check_user_model(model: &UserModel, tol: f64) -> Result<(), SpecError> {
+/// (`model.constraints`, unless the model declares `redundant_joints`), initial positions or
+/// velocities that violate them (`model.q0`, `model.v0`).
+fn check_user_model(model: &UserModel, tol: f64, redundant: bool) -> Result<(), SpecError> {
     let iv = model.initial();
-    check_constraint_rank(model, iv.t, &iv.y, &iv.z)
-        .map_err(|e| SpecError::new("model.constraints", e.to_string()))?;
+    if !redundant {
+        check_constraint_rank(model, iv.t, &iv.y, &iv.z).map_err(|e| {
+            SpecError::new(
+                "model.constraints",
+                format!(
+                    "{e}; if the joints are redundant on purpose, set `model.redundant_joints = true`"
+                ),
+            )
+        })?;
+    }
     check_consistency(model, tol).map_err(|e| {
         let field = match &e {
             Soi2Error::InconsistentInitialConditions {
@@ -675,7 +716,7 @@ impl Soi2Job {
             ModelSpec::JayNegrutTest(j) => Soi2Model::JayNegrutTest(j.clone()),
             ModelSpec::Lagrangian(l) => {
                 // The model first: its errors are reported whatever the scheme.
-                let user = UserModel::new(l)?;
+                let user = UserModel::new(l.validate()?);
                 if !l.contacts.is_empty() {
                     return Err(SpecError::new(
                         "integrator.scheme",
@@ -786,7 +827,11 @@ impl Soi2Job {
             Soi2Model::Pendulum(p) => check_model(p, consistency)?,
             Soi2Model::SliderCrank(s) => check_model(s, consistency)?,
             Soi2Model::JayNegrutTest(j) => check_model(j, consistency)?,
-            Soi2Model::User(u) => check_user_model(u, consistency)?,
+            Soi2Model::User(u) => {
+                let redundant =
+                    matches!(model_spec, ModelSpec::Lagrangian(l) if l.redundant_joints);
+                check_user_model(u, consistency, redundant)?
+            }
         }
         let OutputOptions { every, probes } = spec.output.options(Probes::Dofs(n))?;
         let output = Soi2Output { every, probes };
@@ -919,6 +964,9 @@ impl Soi2Job {
             z_final: state.z,
             lambda_final: state.lambda,
             errors: stats.errors,
+            rank_deficient_steps: stats.rank_deficient_steps,
+            smallest_rank: stats.smallest_rank,
+            rejected_steps: stats.rejected_steps,
         })
     }
 }
