@@ -180,3 +180,27 @@ rho_inf = 0.2
         "{stdout}"
     );
 }
+
+/// The IFToMM benchmarks of `examples/benchmarks/` (DESIGN §16) pass their `[check]` bounds:
+/// the reference values of A01 (elliptic functions) and A02 (its parallelogram motion), the
+/// joints on the manifold and the energy, A04 with its redundant joint; one line per bound.
+#[test]
+fn the_multibody_benchmarks_pass_their_checks() {
+    let dir = tempfile::tempdir().unwrap();
+    let junit = dir.path().join("report.xml");
+    let specs: Vec<PathBuf> = ["a01_simple_pendulum", "a02_n_four_bar", "a04_bricard"]
+        .iter()
+        .map(|n| example(&format!("benchmarks/{n}.toml")))
+        .collect();
+    let out = check(&specs, &junit);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "stdout: {stdout}");
+    // A01: 2 bounds + 8 reference values; A02: 2 + 3; A04: 2.
+    assert_eq!(
+        stdout.lines().filter(|l| l.starts_with("PASS ")).count(),
+        17,
+        "{stdout}"
+    );
+    assert!(stdout.contains("reference y_0 at t = 10"), "{stdout}");
+    assert_eq!(junit_counts(&junit), (17, 0, 0));
+}

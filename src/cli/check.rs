@@ -25,6 +25,8 @@ Each spec's [check] section gives bounds (all optional):
   max_energy_growth     largest (E - E0 - works) / max(|E0|, max|E|) (energy created)
   max_error             largest global error against the scene's exact solution
   min_order             smallest observed order (studies only)
+  max_position_residual largest position_residual (joints, SOI2 schemes)
+  [[check.reference]]   { column, t, value, tolerance }: |column(t) - value| <= tolerance
 A spec without [check] passes when its run succeeds.
 
 Exit status: 0 every bound holds, 1 a bound or a run failed, 2 a bad spec.
@@ -80,6 +82,12 @@ struct Measured {
     energy_initial: Option<f64>,
     energy_scale: f64,
     max_growth: f64,
+    position: Option<usize>,
+    max_position: f64,
+    /// Per `[[check.reference]]`: the column's index, and the recorded (|t − t_ref|, value)
+    /// nearest to the reference instant so far.
+    references: Vec<(Option<usize>, Option<(f64, f64)>)>,
+    reference_times: Vec<(String, f64)>,
 }
 
 impl Observer for Measured {
@@ -96,6 +104,12 @@ impl Observer for Measured {
             .map(|(i, _)| i)
             .collect();
         self.max_growth = f64::NEG_INFINITY;
+        self.position = find("position_residual");
+        self.references = self
+            .reference_times
+            .iter()
+            .map(|(c, _)| (find(c), None))
+            .collect();
     }
 
     fn observe(&mut self, record: &StepRecord<'_>) -> ControlFlow<()> {
@@ -115,6 +129,17 @@ impl Observer for Measured {
                 None => e - e0 - self.works.iter().map(|&w| v[w]).sum::<f64>(),
             };
             self.max_growth = self.max_growth.max(growth);
+        }
+        if let Some(i) = self.position {
+            self.max_position = self.max_position.max(v[i].abs());
+        }
+        for ((column, best), (_, t)) in self.references.iter_mut().zip(&self.reference_times) {
+            let distance = (record.t - t).abs();
+            if let Some(i) = column
+                && best.is_none_or(|(d, _)| distance < d)
+            {
+                *best = Some((distance, v[*i]));
+            }
         }
         ControlFlow::Continue(())
     }
@@ -142,6 +167,10 @@ impl Measured {
                     .filter_map(Value::as_f64)
                     .fold(0.0, f64::max)),
                 _ => Err("this scene has no exact solution to measure an error against".into()),
+            },
+            "max_position_residual" => match self.position {
+                Some(_) => Ok(self.max_position),
+                None => Err("this run reports no position_residual (no joints)".into()),
             },
             other => Err(format!("{other} is not measured by a single run")),
         }
@@ -175,7 +204,14 @@ fn check_one(path: &Path) -> Vec<Line> {
         Err(e) => return bad(e.to_string()),
     };
     let check: CheckSpec = job.spec().check.clone().unwrap_or_default();
-    let mut measured = Measured::default();
+    let mut measured = Measured {
+        reference_times: check
+            .reference
+            .iter()
+            .map(|r| (r.column.clone(), r.t))
+            .collect(),
+        ..Measured::default()
+    };
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let started = Instant::now();
     let result = job::run(&job, threads, &mut measured);
@@ -194,7 +230,7 @@ fn check_one(path: &Path) -> Vec<Line> {
     // Only the summary is read: the figures a run's charts make are not drawn here.
     let summary = output.summary.with_timing(time).to_map();
     let bounds = check.bounds();
-    if bounds.is_empty() {
+    if bounds.is_empty() && check.reference.is_empty() {
         return vec![Line {
             spec: name,
             bound: "run".into(),
@@ -202,6 +238,36 @@ fn check_one(path: &Path) -> Vec<Line> {
             time,
         }];
     }
+    let references = check
+        .reference
+        .iter()
+        .zip(&measured.references)
+        .map(|(r, got)| {
+            let bound = format!("reference {} at t = {}", r.column, r.t);
+            let outcome = match got {
+                (None, _) => Outcome::BadSpec(format!(
+                    "check.reference: this run records no column `{}`",
+                    r.column
+                )),
+                (Some(_), None) => Outcome::BadSpec("check.reference: no step was recorded".into()),
+                (Some(_), Some((_, value))) => {
+                    let error = (value - r.value).abs();
+                    Outcome::Measured {
+                        value: error,
+                        limit: r.tolerance,
+                        holds: error <= r.tolerance,
+                        relation: "≤",
+                    }
+                }
+            };
+            Line {
+                spec: name.clone(),
+                bound,
+                outcome,
+                time,
+            }
+        });
+    let references: Vec<Line> = references.collect();
     bounds
         .into_iter()
         .map(|(bound, limit)| {
@@ -221,6 +287,7 @@ fn check_one(path: &Path) -> Vec<Line> {
                 time,
             }
         })
+        .chain(references)
         .collect()
 }
 
@@ -236,7 +303,13 @@ fn check_study(path: &Path, spec: &JobSpec) -> Vec<Line> {
         time,
     };
     let check = spec.check.clone().unwrap_or_default();
-    if let Some((bound, _)) = check.bounds().into_iter().find(|(b, _)| *b != "min_order") {
+    let single_run = check
+        .bounds()
+        .into_iter()
+        .map(|(b, _)| b)
+        .chain((!check.reference.is_empty()).then_some("reference"))
+        .find(|b| *b != "min_order");
+    if let Some(bound) = single_run {
         let reason = format!(
             "check.{bound}: a study checks min_order only (each run's bounds belong in a spec of its own)"
         );

@@ -18,7 +18,7 @@ use signorini_core::soi2::method::{
 };
 use signorini_core::soi2::models::SliderCrank;
 use signorini_core::soi2::run::{End, Schedule, Soi2Output, integrate_with};
-use signorini_core::spec::{JointSpec, LagrangianSpec, Term};
+use signorini_core::spec::{JointSpec, LagrangianSpec, MassSpec, Term};
 use std::time::Instant;
 
 fn user_slider_crank(s: &SliderCrank) -> UserModel {
@@ -39,7 +39,7 @@ fn user_slider_crank(s: &SliderCrank) -> UserModel {
         .into_iter()
         .map(|(k, v)| (k.to_string(), v))
         .collect(),
-        mass: {
+        mass: MassSpec::Dense({
             let d = ["m1", "m1", "m1*r^2/12", "m2", "m2", "m2*l^2/12", "m3", "m3"];
             (0..8)
                 .map(|i| {
@@ -54,7 +54,7 @@ fn user_slider_crank(s: &SliderCrank) -> UserModel {
                         .collect()
                 })
                 .collect()
-        },
+        }),
         potential: Some("g*(m1*y1 + m2*y2 + m3*y3)".into()),
         forces: None,
         q0: iv.y,
@@ -70,9 +70,10 @@ fn user_slider_crank(s: &SliderCrank) -> UserModel {
         ]
         .map(|e| JointSpec { expr: e.into() })
         .to_vec(),
+        redundant_joints: false,
         contacts: Vec::new(),
     };
-    UserModel::new(&spec).expect("the slider-crank as a user model")
+    UserModel::new(spec.validate().expect("the slider-crank as a user model"))
 }
 
 /// Best-of-5 wall seconds of a run, and its final y.

@@ -119,7 +119,7 @@ fn model(e: f64) -> UserModel {
         panic!("a lagrangian model")
     };
     l.contacts[0].restitution = e;
-    UserModel::new(&l).expect("a valid model")
+    UserModel::new(l.validate().expect("a valid model"))
 }
 
 /// The double pendulum in angles as a user model.
@@ -135,7 +135,7 @@ fn double_pendulum() -> UserModel {
     let Some(ModelSpec::Lagrangian(l)) = spec.model else {
         panic!("a lagrangian model")
     };
-    UserModel::new(&l).expect("a valid model")
+    UserModel::new(l.validate().expect("a valid model"))
 }
 
 /// q(t_end) by RK4 on M(q) q̈ = F(q, q̇) with step `dt`.

@@ -258,7 +258,7 @@ fn lagrangian_moreau_jean(
     l: &LagrangianSpec,
     spec: &JobSpec,
 ) -> Result<JobKind, SpecError> {
-    let model = UserModel::new(l)?;
+    let model = UserModel::new(l.validate()?);
     if !matches!(spec.integrator, IntegratorSpec::MoreauJean(_)) {
         return Err(mismatch(m, spec.integrator.scheme()));
     }
@@ -340,7 +340,7 @@ fn scheme_field_error(field: &str, reason: String) -> SpecError {
 /// index set is the scheme's own (the predicted gap), so `activation` is refused. The start must
 /// satisfy the joints at velocity level, with independent joints.
 fn lagrangian_ns_alpha(l: &LagrangianSpec, spec: &JobSpec) -> Result<JobKind, SpecError> {
-    let model = UserModel::new(l)?;
+    let model = UserModel::new(l.validate()?);
     let IntegratorSpec::NsGeneralizedAlpha(p) = &spec.integrator else {
         return Err(SpecError::new(
             "integrator.scheme",
@@ -471,6 +471,15 @@ impl Job {
             }
             (None, Some(m @ ModelSpec::Lagrangian(_)), SchemeFamily::Soi2) => {
                 JobKind::Soi2(Box::new(soi2::soi2_job(m, spec)?))
+            }
+            (None, Some(ModelSpec::Lagrangian(l)), SchemeFamily::Linear) if l.redundant_joints => {
+                return Err(SpecError::new(
+                    "model.redundant_joints",
+                    format!(
+                        "`{}` does not solve rank-deficient joints: redundant joints run with soi2_generalized_alpha, soi2_hht or hht_i3",
+                        spec.integrator.scheme()
+                    ),
+                ));
             }
             (None, Some(ModelSpec::Lagrangian(l)), SchemeFamily::Linear)
                 if matches!(spec.integrator, IntegratorSpec::NsGeneralizedAlpha(_)) =>

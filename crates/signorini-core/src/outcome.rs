@@ -498,6 +498,14 @@ pub struct Soi2Summary {
     /// Global errors against the exact solution, for models that have one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub errors: Option<GlobalErrors>,
+    /// Steps whose constraint Jacobian had lost rank (singular positions, redundant joints;
+    /// DESIGN §16), solved with minimum-norm multipliers.
+    pub rank_deficient_steps: u64,
+    /// The smallest numerical rank of the constraint Jacobian on those steps (absent when none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub smallest_rank: Option<usize>,
+    /// Attempts rejected for a Newton failure and retried with h/2 (variable-step runs).
+    pub rejected_steps: u64,
 }
 
 /// Summary of a WFEM run: the bar's size and step, then what the run measured

@@ -211,7 +211,9 @@ fn error_messages_for_users() {
     }
     let deep = format!("{}x{}", "(".repeat(500), ")".repeat(500));
     assert!(err(&deep, &s).starts_with("expression nested too deeply"));
-    let long = format!("{}x", "x+".repeat(1000));
+    // Real nesting of sums is refused; a flat sum of many terms is one level (issue 27, tested
+    // in `flat_sums_and_products_are_one_level`).
+    let long = format!("{}x{}", "(x+".repeat(1000), ")".repeat(1000));
     assert!(err(&long, &s).starts_with("expression nested too deeply"));
     let minus = format!("{}x", "-".repeat(1000));
     assert!(err(&minus, &s).starts_with("expression nested too deeply"));
@@ -662,4 +664,28 @@ fn time_derivative_along_the_motion() {
     }
     let f = Expr::parse("-0.01*phi_dot", &s).expect("parse");
     assert!(f.time_derivative(3).is_none());
+}
+
+/// A flat sum or product of many terms is one level of nesting, not one per term (issue 27): a
+/// thousand-term sum, a sum with subtractions and a long product parse, evaluate to the value
+/// written and differentiate; their trees stay shallow (blocks of 32 operands added pairwise).
+#[test]
+fn flat_sums_and_products_are_one_level() {
+    let s = block();
+    let vars = [0.5, 2.0, 0.3, 0.0, 0.0, 0.0, 0.0];
+    let sum = format!("{}x", "x+".repeat(1000));
+    assert_eq!(value(&sum, &s, &vars), 1001.0 * 0.5);
+    // Alternating signs across block boundaries: Σ (x − y) over 500 pairs, plus x.
+    let signs = format!("{}x", "x-y+".repeat(500));
+    assert!((value(&signs, &s, &vars) - (500.0 * (0.5 - 2.0) + 0.5)).abs() < 1e-9);
+    // A product of 400 factors with divisions: (y/x)^200 · …
+    let product = format!("{}1", "y/x*".repeat(200));
+    assert!((value(&product, &s, &vars) / 4f64.powi(200) - 1.0).abs() < 1e-12);
+    let e = Expr::parse(&sum, &s).expect("parses");
+    let d = e.derivative(0);
+    assert_eq!(d.eval(&vars), 1001.0);
+    let tape = Tape::compile(&[e, d]);
+    let mut out = [0.0f64; 2];
+    tape.eval_into(&vars, &mut Vec::new(), &mut out);
+    assert_eq!(out, [500.5, 1001.0]);
 }

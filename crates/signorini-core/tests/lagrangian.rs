@@ -169,7 +169,7 @@ fn every_jacobian_matches_central_differences_on_every_example() {
     );
     let mut rng = Random(0x9e37_79b9_7f4a_7c15);
     for (name, spec) in &models {
-        let model = UserModel::new(spec).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let model = UserModel::new(spec.validate().unwrap_or_else(|e| panic!("{name}: {e}")));
         let n = LagrangianSystem::dofs(&model);
         let (m, joints) = (model.contacts(), model.joints());
         let eps = 1e-6;

@@ -390,7 +390,7 @@ fn joint_curvature_matches_central_differences() {
         let Some(ModelSpec::Lagrangian(l)) = spec.model else {
             panic!("a lagrangian example")
         };
-        let model = UserModel::new(&l).expect("valid");
+        let model = UserModel::new(l.validate().expect("valid"));
         let (n, nb) = (l.coordinates.len(), model.joints());
         for _ in 0..20 {
             let q: Vec<f64> = l.q0.iter().map(|x| x + 0.3 * random()).collect();

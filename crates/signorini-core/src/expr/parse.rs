@@ -122,6 +122,15 @@ pub(super) fn parse(src: &str, scope: &Scope) -> Result<Expr, ExprError> {
 /// An expression and the depth of its tree.
 type Parsed = (Expr, usize);
 
+/// Operands of a flat `+ -` or `* /` chain folded left to right before the chain is split into
+/// blocks added pairwise (see `Parser::chain`).
+const CHAIN_BLOCK: usize = 32;
+
+/// Depth of the pairwise tree over `blocks` blocks: ⌈log₂ blocks⌉.
+fn balanced_depth(blocks: usize) -> usize {
+    blocks.next_power_of_two().trailing_zeros() as usize
+}
+
 struct Parser<'t, 's> {
     tokens: &'t [Token<'t>],
     at: usize,
@@ -168,26 +177,76 @@ impl<'t> Parser<'t, '_> {
 
     /// expr := term (('+' | '-') term)*. `nest` counts the enclosing parentheses and calls.
     fn expr(&mut self, nest: usize) -> Result<Parsed, ExprError> {
-        let (mut e, mut d) = self.term(nest)?;
-        while let Some(op @ ('+' | '-')) = self.peek_sym() {
-            self.at += 1;
-            let (r, dr) = self.term(nest)?;
-            d = self.check_depth(d.max(dr) + 1)?;
-            e = if op == '+' { add(e, r) } else { sub(e, r) };
-        }
-        Ok((e, d))
+        self.chain(nest, ['+', '-'], Self::term)
     }
 
     /// term := unary (('*' | '/') unary)*
     fn term(&mut self, nest: usize) -> Result<Parsed, ExprError> {
-        let (mut e, mut d) = self.unary(nest)?;
-        while let Some(op @ ('*' | '/')) = self.peek_sym() {
+        self.chain(nest, ['*', '/'], Self::unary)
+    }
+
+    /// A flat chain `a op b op c …` of one precedence level (`[plus, minus]` = `+ -` or `* /`).
+    /// Its first [`CHAIN_BLOCK`] operands fold left to right as written (the usual left-deep
+    /// tree, so short chains round exactly as they read); a longer chain folds each block of
+    /// [`CHAIN_BLOCK`] operands so, a later block starting from its first operand negated (or
+    /// inverted) when it follows `-` (or `/`), and adds (or multiplies) the blocks pairwise. A sum
+    /// of n terms is then a tree of depth ≤ CHAIN_BLOCK + ⌈log₂(n/CHAIN_BLOCK)⌉ + the deepest
+    /// operand, which is what [`MAX_DEPTH`] limits: many terms side by side are not nesting.
+    fn chain(
+        &mut self,
+        nest: usize,
+        [plus, minus]: [char; 2],
+        operand: fn(&mut Self, usize) -> Result<Parsed, ExprError>,
+    ) -> Result<Parsed, ExprError> {
+        let combine = |l: Expr, op: char, r: Expr| match op {
+            '+' => add(l, r),
+            '-' => sub(l, r),
+            '*' => mul(l, r),
+            _ => div(l, r),
+        };
+        let (mut e, mut d) = operand(self, nest)?;
+        let mut in_block = 1;
+        let mut block_depth = 0;
+        let mut blocks = Vec::new();
+        while let Some(op) = self.peek_sym().filter(|&c| c == plus || c == minus) {
             self.at += 1;
-            let (r, dr) = self.unary(nest)?;
-            d = self.check_depth(d.max(dr) + 1)?;
-            e = if op == '*' { mul(e, r) } else { div(e, r) };
+            let (r, dr) = operand(self, nest)?;
+            d = d.max(dr);
+            if in_block == CHAIN_BLOCK {
+                blocks.push(std::mem::replace(&mut e, Expr::constant(0.0)));
+                e = match op {
+                    '-' => neg(r),
+                    '/' => div(Expr::constant(1.0), r),
+                    _ => r,
+                };
+                in_block = 1;
+            } else {
+                e = combine(e, op, r);
+                in_block += 1;
+                block_depth = block_depth.max(in_block - 1);
+            }
+            self.check_depth(d + block_depth + balanced_depth(blocks.len() + 1))?;
         }
-        Ok((e, d))
+        if blocks.is_empty() {
+            return Ok((e, d + block_depth));
+        }
+        blocks.push(e);
+        let depth = d + block_depth + balanced_depth(blocks.len());
+        while blocks.len() > 1 {
+            let mut next = Vec::with_capacity(blocks.len().div_ceil(2));
+            let mut it = blocks.into_iter();
+            while let Some(l) = it.next() {
+                next.push(match it.next() {
+                    Some(r) => combine(l, plus, r),
+                    None => l,
+                });
+            }
+            blocks = next;
+        }
+        let Some(e) = blocks.pop() else {
+            unreachable!("at least one block");
+        };
+        Ok((e, depth))
     }
 
     /// unary := ('-' | '+') unary | power

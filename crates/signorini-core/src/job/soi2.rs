@@ -162,12 +162,20 @@ fn check_model<M: ConstrainedModel>(model: &M, tol: f64) -> Result<(), SpecError
 }
 
 /// [`check_model`] for a user model, naming the spec field at fault: dependent joints
-/// (`model.constraints`), initial positions or velocities that violate them (`model.q0`,
-/// `model.v0`).
-fn check_user_model(model: &UserModel, tol: f64) -> Result<(), SpecError> {
+/// (`model.constraints`, unless the model declares `redundant_joints`), initial positions or
+/// velocities that violate them (`model.q0`, `model.v0`).
+fn check_user_model(model: &UserModel, tol: f64, redundant: bool) -> Result<(), SpecError> {
     let iv = model.initial();
-    check_constraint_rank(model, iv.t, &iv.y, &iv.z)
-        .map_err(|e| SpecError::new("model.constraints", e.to_string()))?;
+    if !redundant {
+        check_constraint_rank(model, iv.t, &iv.y, &iv.z).map_err(|e| {
+            SpecError::new(
+                "model.constraints",
+                format!(
+                    "{e}; if the joints are redundant on purpose, set `model.redundant_joints = true`"
+                ),
+            )
+        })?;
+    }
     check_consistency(model, tol).map_err(|e| {
         let field = match &e {
             Soi2Error::InconsistentInitialConditions {
@@ -190,7 +198,7 @@ pub(crate) fn soi2_job(model_spec: &ModelSpec, spec: &JobSpec) -> Result<Soi2Job
         ModelSpec::JayNegrutTest(j) => Soi2Model::JayNegrutTest(j.clone()),
         ModelSpec::Lagrangian(l) => {
             // The model first: its errors are reported whatever the scheme.
-            let user = UserModel::new(l)?;
+            let user = UserModel::new(l.validate()?);
             if !l.contacts.is_empty() {
                 return Err(SpecError::new(
                     "integrator.scheme",
@@ -301,7 +309,10 @@ pub(crate) fn soi2_job(model_spec: &ModelSpec, spec: &JobSpec) -> Result<Soi2Job
         Soi2Model::Pendulum(p) => check_model(p, consistency)?,
         Soi2Model::SliderCrank(s) => check_model(s, consistency)?,
         Soi2Model::JayNegrutTest(j) => check_model(j, consistency)?,
-        Soi2Model::User(u) => check_user_model(u, consistency)?,
+        Soi2Model::User(u) => {
+            let redundant = matches!(model_spec, ModelSpec::Lagrangian(l) if l.redundant_joints);
+            check_user_model(u, consistency, redundant)?
+        }
     }
     let OutputOptions { every, probes } = spec.output.options(Probes::Dofs(n))?;
     let output = Soi2Output { every, probes };

@@ -1,4 +1,4 @@
-//! User models (`scene = "lagrangian"`): a [`LagrangianSpec`] compiled, once, into a
+//! User models (`scene = "lagrangian"`): a validated model compiled, once, into a
 //! [`UserModel`] that the integrators run.
 //!
 //! The equations are Lagrange's,
@@ -9,33 +9,18 @@
 //! ```
 //!
 //! with c derived symbolically from the mass matrix. Every expression is parsed once in one
-//! [`Scope::lagrangian`] (variables q, q̇, t in that order); the smooth force
+//! [`Scope::lagrangian`](crate::expr::Scope::lagrangian) (variables q, q̇, t in that order); the smooth force
 //! F = −∇V − c + f, its Jacobians ∂F/∂q and ∂F/∂q̇, the joint Jacobian g_q and velocity
 //! g_q q̇ + g_t, the gap Jacobian and ∂g/∂t are exact symbolic derivatives compiled into
 //! [`Tape`]s, evaluated over `f64` or over the dual numbers of the SOI2 Newton iterations.
 //!
-//! Validation (errors name the spec field, e.g. `model.contacts[0].gap: unknown name 'hgh' at 0
-//! (did you mean 'hgt'?)`):
-//! * names: coordinates distinct identifiers, parameters without cycles or clashes
-//!   (`model.coordinates`, `model.parameters.<name>`); unknown names with a suggestion;
-//! * sizes against `coordinates`: `q0`, `v0`, the rows and columns of `mass`, `forces`;
-//! * M(q) may use neither velocities nor `t`; V, joints, gaps and tangents no velocities;
-//! * every expression is finite at (q0, v0, t = 0);
-//! * M symmetric: the model uses the upper triangle, and every entry below the diagonal must
-//!   equal its mirror at q0 to [`SYMMETRY_TOLERANCE`] relative (so a typo in one of two mirrored
-//!   entries is caught; structurally equal expressions pass at once); M positive definite at q0
-//!   (Cholesky);
-//! * each joint holds at q0: |g_i(q0)| ≤ [`JOINT_TOLERANCE`] · ‖q0‖∞ (absolute when q0 = 0);
-//! * restitution in [0, 1]; friction μ finite and ≥ 0, and μ > 0 needs a `tangent` (the
-//!   tangential relative position τ(q, t), checked like a gap: no velocities, known names,
-//!   finite at q0); its gradient, the tangent row, is an exact symbolic derivative like the
-//!   gap's.
+//! The spec is checked and parsed first, by
+//! [`LagrangianSpec::validate`](crate::spec::LagrangianSpec::validate), into the
+//! [`UserModelParams`] compiled here.
 
-use crate::expr::{Expr, Number, Param, Scope, ScopeError, Tape};
+use crate::expr::{Expr, Number, Tape};
 use crate::nonlinear::LagrangianSystem;
 use crate::soi2::{ConstrainedModel, Dims, InitialValues, Scalar};
-use crate::spec::{LagrangianSpec, SpecError, Term};
-use nalgebra::DMatrix;
 
 /// Relative tolerance of the symmetry check of M at q0.
 pub const SYMMETRY_TOLERANCE: f64 = 1e-12;
@@ -85,287 +70,144 @@ pub struct UserModel {
     tangent_rates: Tape,
 }
 
-/// What an expression may depend on.
-#[derive(Clone, Copy, PartialEq)]
-enum Allowed {
-    /// q only: M(q).
-    Positions,
-    /// q and t: V, joints, gaps, tangents.
-    PositionsAndTime,
-    /// q, q̇ and t: applied forces.
-    Everything,
+/// A validated user model, what [`UserModel::new`] compiles: the expressions parsed over the
+/// variables (q, q̇, t) of [`Scope::lagrangian`](crate::expr::Scope::lagrangian) and checked
+/// (by [`LagrangianSpec::validate`](crate::spec::LagrangianSpec::validate)).
+#[derive(Debug, Clone, PartialEq)]
+pub struct UserModelParams {
+    /// q(0), n entries.
+    pub q0: Vec<f64>,
+    /// q̇(0), n entries.
+    pub v0: Vec<f64>,
+    /// The nonzero entries (i ≤ j, M_ij) of the upper triangle of M(q), in row-major order.
+    pub mass: Vec<(usize, usize, Expr)>,
+    /// V(q, t).
+    pub potential: Expr,
+    /// f(t, q, q̇), n entries.
+    pub applied: Vec<Expr>,
+    /// g(q, t), one per joint.
+    pub joints: Vec<Expr>,
+    /// The contacts.
+    pub contacts: Vec<ContactParams>,
 }
 
-fn scope_error(e: ScopeError) -> SpecError {
-    let field = match &e {
-        ScopeError::BadName { kind, name } | ScopeError::Clash { kind, name, .. }
-            if *kind == "parameter" =>
-        {
-            format!("model.parameters.{name}")
-        }
-        ScopeError::BadName { .. } | ScopeError::Clash { .. } => "model.coordinates".to_string(),
-        _ => format!("model.parameters.{}", e.name()),
-    };
-    SpecError::new(field, e.to_string())
+/// One validated contact.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactParams {
+    /// gap(q, t).
+    pub gap: Expr,
+    /// Restitution e ∈ [0, 1].
+    pub restitution: f64,
+    /// Coulomb μ ≥ 0 (0 without friction).
+    pub friction: f64,
+    /// τ(q, t) when μ > 0 (or given).
+    pub tangent: Option<Expr>,
 }
 
-/// Checks a vector's length against the coordinates and its entries' finiteness.
-fn check_vector(field: &str, v: &[f64], n: usize) -> Result<(), SpecError> {
-    if v.len() != n {
-        return Err(SpecError::new(
-            field,
-            format!("needs {n} entries (one per coordinate), got {}", v.len()),
-        ));
-    }
-    if let Some((i, x)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
-        return Err(SpecError::new(
-            format!("{field}[{i}]"),
-            format!("must be finite, got {x}"),
-        ));
-    }
-    Ok(())
-}
-
-/// Parses expressions in the model's scope and checks them at (q0, v0, 0).
-struct Parser<'a> {
-    scope: &'a Scope,
-    n: usize,
-    at_start: Vec<f64>,
-}
-
-impl Parser<'_> {
-    fn parse(&self, field: &str, src: &str, allowed: Allowed) -> Result<Expr, SpecError> {
-        let e = Expr::parse(src, self.scope).map_err(|e| SpecError::new(field, e.to_string()))?;
-        self.check(field, e, allowed)
-    }
-
-    fn term(&self, field: &str, term: &Term, allowed: Allowed) -> Result<Expr, SpecError> {
-        match term {
-            Term::Number(c) => self.check(field, Expr::constant(*c), allowed),
-            Term::Expr(src) => self.parse(field, src, allowed),
-        }
-    }
-
-    fn check(&self, field: &str, e: Expr, allowed: Allowed) -> Result<Expr, SpecError> {
-        let n = self.n;
-        let names = self.scope.variables();
-        for v in e.variables() {
-            if (n..2 * n).contains(&v) && allowed != Allowed::Everything {
-                return Err(SpecError::new(
-                    field,
-                    format!(
-                        "uses the velocity '{}': only `forces` may depend on velocities",
-                        names[v]
-                    ),
-                ));
+/// The gradient of `e` with respect to `vars`, differentiating only along the variables `e`
+/// uses (the others give 0 at once): the same expressions as [`Expr::gradient`], at a cost that
+/// grows with the variables present rather than with all of them.
+fn sparse_gradient(e: &Expr, vars: &[usize]) -> Vec<Expr> {
+    let present = e.variables();
+    vars.iter()
+        .map(|&v| {
+            if present.binary_search(&v).is_ok() {
+                e.derivative(v)
+            } else {
+                Expr::constant(0.0)
             }
-            if v == 2 * n && allowed == Allowed::Positions {
-                return Err(SpecError::new(
-                    field,
-                    "uses the time t: the mass matrix M(q) depends on the coordinates only",
-                ));
-            }
+        })
+        .collect()
+}
+
+/// The Coriolis/centrifugal vector c = Ṁq̇ − ½∇_q(q̇ᵀMq̇) of the n×n row-major M(q):
+/// `c_i = Σ_j (Σ_k ∂M_ij/∂q_k q̇_k) q̇_j − ½ Σ_{j,k} ∂M_jk/∂q_i q̇_j q̇_k`. Only the nonzero
+/// entries of M and the coordinates each one uses are visited, in the order of the dense sums
+/// (j, then k ascending), so the expressions are those of the dense sums with their zero terms
+/// folded away; a constant or diagonal-in-its-own-coordinate M costs O(n + nonzeros), not n³.
+fn coriolis(mass: &[Expr], n: usize) -> Vec<Expr> {
+    let vel = |k: usize| Expr::var(n + k);
+    // For each nonzero M_ij: the coordinates k it uses and ∂M_ij/∂q_k.
+    let mut partials: Vec<Vec<(usize, Expr)>> = vec![Vec::new(); n * n];
+    // For each coordinate i: the entries (j, k) of M that use q_i, in row-major order.
+    let mut users: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for (jk, e) in mass.iter().enumerate() {
+        if e.is_zero() {
+            continue;
         }
-        let value = e.eval(&self.at_start);
-        if !value.is_finite() {
-            return Err(SpecError::new(
-                field,
-                format!(
-                    "is {value} at q0 (with v0 and t = 0): every expression must be finite there"
-                ),
-            ));
+        for k in e.variables().into_iter().filter(|&k| k < n) {
+            partials[jk].push((k, e.derivative(k)));
+            users[k].push(jk);
         }
-        Ok(e)
     }
+    (0..n)
+        .map(|i| {
+            let mdot_v: Expr = (0..n)
+                .filter(|&j| !partials[i * n + j].is_empty())
+                .map(|j| {
+                    let mdot_ij: Expr = partials[i * n + j]
+                        .iter()
+                        .map(|(k, d)| d.clone() * vel(*k))
+                        .sum();
+                    mdot_ij * vel(j)
+                })
+                .sum();
+            let quadratic: Expr = users[i]
+                .iter()
+                .map(|&jk| {
+                    let d = partials[jk]
+                        .iter()
+                        .find(|(k, _)| *k == i)
+                        .map(|(_, d)| d.clone())
+                        .unwrap_or_else(|| Expr::constant(0.0));
+                    d * vel(jk / n) * vel(jk % n)
+                })
+                .sum();
+            mdot_v - Expr::constant(0.5) * quadratic
+        })
+        .collect()
 }
 
 impl UserModel {
-    /// Compiles and checks a user model; every error names its spec field.
-    pub fn new(spec: &LagrangianSpec) -> Result<UserModel, SpecError> {
-        let n = spec.coordinates.len();
-        if n == 0 {
-            return Err(SpecError::new(
-                "model.coordinates",
-                "needs at least one coordinate",
-            ));
+    /// Compiles a validated model ([`LagrangianSpec::validate`](crate::spec::LagrangianSpec::validate)):
+    /// the exact symbolic derivatives and their tapes.
+    pub fn new(params: UserModelParams) -> UserModel {
+        let UserModelParams {
+            q0,
+            v0,
+            mass: upper,
+            potential,
+            applied,
+            joints,
+            contacts,
+        } = params;
+        let n = q0.len();
+        let mut mass = vec![Expr::constant(0.0); n * n];
+        for (i, j, e) in &upper {
+            mass[i * n + j] = e.clone();
+            mass[j * n + i] = e.clone();
         }
-        let parameters: Vec<(String, Param)> = spec
-            .parameters
-            .iter()
-            .map(|(k, v)| (k.clone(), v.clone()))
-            .collect();
-        let scope = Scope::lagrangian(&spec.coordinates, &parameters).map_err(scope_error)?;
-        check_vector("model.q0", &spec.q0, n)?;
-        let v0 = spec.v0.clone().unwrap_or_else(|| vec![0.0; n]);
-        check_vector("model.v0", &v0, n)?;
-        let mut at_start = spec.q0.clone();
-        at_start.extend_from_slice(&v0);
-        at_start.push(0.0);
-        let p = Parser {
-            scope: &scope,
-            n,
-            at_start,
-        };
-
-        // M(q): parse every entry, use the upper triangle, check the lower one against it.
-        if spec.mass.len() != n {
-            return Err(SpecError::new(
-                "model.mass",
-                format!(
-                    "needs {n} rows (one per coordinate), got {}",
-                    spec.mass.len()
-                ),
-            ));
-        }
-        let mut entries = Vec::with_capacity(n * n);
-        for (i, row) in spec.mass.iter().enumerate() {
-            if row.len() != n {
-                return Err(SpecError::new(
-                    format!("model.mass[{i}]"),
-                    format!("needs {n} entries (one per coordinate), got {}", row.len()),
-                ));
-            }
-            for (j, term) in row.iter().enumerate() {
-                entries.push(p.term(&format!("model.mass[{i}][{j}]"), term, Allowed::Positions)?);
-            }
-        }
-        let mut mass = entries.clone();
-        for i in 0..n {
-            for j in 0..i {
-                let (lower, upper) = (&entries[i * n + j], &entries[j * n + i]);
-                if lower != upper {
-                    let (a, b) = (lower.eval(&p.at_start), upper.eval(&p.at_start));
-                    if (a - b).abs() > SYMMETRY_TOLERANCE * a.abs().max(b.abs()) {
-                        return Err(SpecError::new(
-                            format!("model.mass[{i}][{j}]"),
-                            format!(
-                                "M is not symmetric: M[{i}][{j}] = {a} but M[{j}][{i}] = {b} at q0"
-                            ),
-                        ));
-                    }
-                }
-                mass[i * n + j] = upper.clone();
-            }
-        }
-        let m0: Vec<f64> = mass.iter().map(|e| e.eval(&p.at_start)).collect();
-        let m0 = DMatrix::from_row_slice(n, n, &m0);
-        if m0.clone().cholesky().is_none() {
-            let smallest = m0.symmetric_eigenvalues().min();
-            return Err(SpecError::new(
-                "model.mass",
-                format!("M is not positive definite at q0 (smallest eigenvalue {smallest:e})"),
-            ));
-        }
-
-        let potential = match &spec.potential {
-            Some(src) => p.parse("model.potential", src, Allowed::PositionsAndTime)?,
-            None => Expr::constant(0.0),
-        };
-        let applied: Vec<Expr> = match &spec.forces {
-            Some(f) if f.len() != n => {
-                return Err(SpecError::new(
-                    "model.forces",
-                    format!("needs {n} entries (one per coordinate), got {}", f.len()),
-                ));
-            }
-            Some(f) => f
-                .iter()
-                .enumerate()
-                .map(|(i, term)| p.term(&format!("model.forces[{i}]"), term, Allowed::Everything))
-                .collect::<Result<_, _>>()?,
-            None => vec![Expr::constant(0.0); n],
-        };
-        let joints: Vec<Expr> = spec
-            .constraints
-            .iter()
-            .enumerate()
-            .map(|(i, j)| {
-                p.parse(
-                    &format!("model.constraints[{i}].expr"),
-                    &j.expr,
-                    Allowed::PositionsAndTime,
-                )
-            })
-            .collect::<Result<_, _>>()?;
-        let scale = spec.q0.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
-        let tolerance = JOINT_TOLERANCE * if scale > 0.0 { scale } else { 1.0 };
-        for (i, g) in joints.iter().enumerate() {
-            let r = g.eval(&p.at_start);
-            if r.abs() > tolerance {
-                return Err(SpecError::new(
-                    format!("model.constraints[{i}].expr"),
-                    format!(
-                        "the joint is violated at q0: g = {r:e}, tolerance {tolerance:e} ({JOINT_TOLERANCE:e} relative to max|q0|)"
-                    ),
-                ));
-            }
-        }
-        let mut gaps = Vec::with_capacity(spec.contacts.len());
-        let mut restitution = Vec::with_capacity(spec.contacts.len());
-        let mut friction = Vec::with_capacity(spec.contacts.len());
-        let mut tangents = Vec::with_capacity(spec.contacts.len());
-        for (i, c) in spec.contacts.iter().enumerate() {
-            let field = |f: &str| format!("model.contacts[{i}].{f}");
-            gaps.push(p.parse(&field("gap"), &c.gap, Allowed::PositionsAndTime)?);
-            if !(c.restitution.is_finite() && (0.0..=1.0).contains(&c.restitution)) {
-                return Err(SpecError::new(
-                    field("restitution"),
-                    format!("must be in [0, 1], got {}", c.restitution),
-                ));
-            }
+        let (mut gaps, mut restitution, mut friction, mut tangents) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        for c in contacts {
+            gaps.push(c.gap);
             restitution.push(c.restitution);
-            let tangent = match &c.tangent {
-                Some(src) => Some(p.parse(&field("tangent"), src, Allowed::PositionsAndTime)?),
-                None => None,
-            };
-            let mu = c.friction.unwrap_or(0.0);
-            if !(mu.is_finite() && mu >= 0.0) {
-                return Err(SpecError::new(
-                    field("friction"),
-                    format!("must be a finite number ≥ 0, got {mu}"),
-                ));
-            }
-            if mu > 0.0 && tangent.is_none() {
-                return Err(SpecError::new(
-                    field("friction"),
-                    "a friction coefficient needs a `tangent` (the tangential relative position; `tangent` is required when friction > 0)",
-                ));
-            }
-            friction.push(mu);
-            tangents.push(tangent);
+            friction.push(c.friction);
+            tangents.push(c.tangent);
         }
-
         // Exact derivatives, built symbolically.
         let q: Vec<usize> = (0..n).collect();
         let v: Vec<usize> = (n..2 * n).collect();
-        let vel = |k: usize| Expr::var(n + k);
-        // dm[k][i·n + j] = ∂M_ij/∂q_k.
-        let dm: Vec<Vec<Expr>> = q
-            .iter()
-            .map(|&k| mass.iter().map(|e| e.derivative(k)).collect())
-            .collect();
-        let coriolis: Vec<Expr> = (0..n)
-            .map(|i| {
-                let mdot_v: Expr = (0..n)
-                    .map(|j| {
-                        let mdot_ij: Expr = (0..n).map(|k| dm[k][i * n + j].clone() * vel(k)).sum();
-                        mdot_ij * vel(j)
-                    })
-                    .sum();
-                let quadratic: Expr = (0..n)
-                    .flat_map(|j| (0..n).map(move |k| (j, k)))
-                    .map(|(j, k)| dm[i][j * n + k].clone() * vel(j) * vel(k))
-                    .sum();
-                mdot_v - Expr::constant(0.5) * quadratic
-            })
-            .collect();
-        let grad_v = potential.gradient(&q);
+        let coriolis = coriolis(&mass, n);
+        let grad_v = sparse_gradient(&potential, &q);
         let forces: Vec<Expr> = (0..n)
             .map(|i| applied[i].clone() - grad_v[i].clone() - coriolis[i].clone())
             .collect();
-        let mut force_jacobians: Vec<Expr> = forces.iter().flat_map(|f| f.gradient(&q)).collect();
-        force_jacobians.extend(forces.iter().flat_map(|f| f.gradient(&v)));
-        let joint_jacobian: Vec<Expr> = joints.iter().flat_map(|g| g.gradient(&q)).collect();
+        let mut force_jacobians: Vec<Expr> =
+            forces.iter().flat_map(|f| sparse_gradient(f, &q)).collect();
+        force_jacobians.extend(forces.iter().flat_map(|f| sparse_gradient(f, &v)));
+        let joint_jacobian: Vec<Expr> =
+            joints.iter().flat_map(|g| sparse_gradient(g, &q)).collect();
         // Velocities were refused above, so the time derivative exists.
         let joint_rate: Vec<Expr> = joints
             .iter()
@@ -374,12 +216,12 @@ impl UserModel {
                     .unwrap_or_else(|| Expr::constant(f64::NAN))
             })
             .collect();
-        let gap_jacobian: Vec<Expr> = gaps.iter().flat_map(|g| g.gradient(&q)).collect();
+        let gap_jacobian: Vec<Expr> = gaps.iter().flat_map(|g| sparse_gradient(g, &q)).collect();
         let gap_rates: Vec<Expr> = gaps.iter().map(|g| g.derivative(2 * n)).collect();
         let tangent_jacobian: Vec<Expr> = tangents
             .iter()
             .flat_map(|t| match t {
-                Some(t) => t.gradient(&q),
+                Some(t) => sparse_gradient(t, &q),
                 None => vec![Expr::constant(0.0); n],
             })
             .collect();
@@ -390,11 +232,11 @@ impl UserModel {
                 None => Expr::constant(0.0),
             })
             .collect();
-        Ok(UserModel {
+        UserModel {
             n,
             joints: joints.len(),
             contacts: gaps.len(),
-            q0: spec.q0.clone(),
+            q0,
             v0,
             restitution,
             friction,
@@ -412,7 +254,7 @@ impl UserModel {
             gap_rates: Tape::compile(&gap_rates),
             tangent_jacobian: Tape::compile(&tangent_jacobian),
             tangent_rates: Tape::compile(&tangent_rates),
-        })
+        }
     }
 
     /// Number of joints (holonomic constraints).

@@ -7,8 +7,10 @@
 //! `M_{1+α}`; on the first step `M(t₀ + αh, y₀ + hαz₀)`). The state carries the product
 //! `M_α a_α`, which is what (14b) adjusts.
 
+use super::factor::NewtonFactor;
 use super::{
-    ConstrainedModel, Dims, Dual64, Scalar, Soi2Error, g_ddot, k_dot, mass_matrix, max_norm,
+    ConstrainedModel, Dims, Dual64, Scalar, Soi2Error, constraint_rank, g_ddot, k_dot, mass_matrix,
+    max_norm,
 };
 use nalgebra::{DMatrix, DVector, Dyn, LU};
 
@@ -90,9 +92,27 @@ pub enum StartValue {
 }
 
 /// Newton settings.
+///
+/// Convergence (both tests on the max-norm, x the unknowns of the step, F its residual with the
+/// position rows scaled by 1/(βh²) and the velocity rows by 1/(γh), so that every row is in
+/// the units of an acceleration times a mass or of an acceleration):
+/// * **increment test**: `‖Δx‖∞ ≤ tolerance · (1 + ‖x‖∞)`, or the increments stopped
+///   shrinking (`‖Δx_k‖ ≥ ½‖Δx_{k−1}‖`) below `max(100 · tolerance · (1 + ‖x‖∞), noise floor)`
+///   where the noise floor is the round-off of the scaled position rows (ε|y|/(βh²));
+/// * **residual test**, when the matrix is numerically singular (rank-deficient g_y: singular
+///   positions, redundant joints; see [`super::factor`]) or the increments stopped shrinking
+///   below √tolerance · (1 + ‖x‖∞) (an ill-conditioned matrix near a singular position):
+///   `‖F(x)‖∞ ≤ tolerance
+///   · ‖J‖∞ · (1 + ‖x‖∞)`, the residual an increment at the tolerance could leave (J the Newton
+///   matrix of the iterate). On a singular matrix the increment along the lost directions
+///   cannot shrink below the conditioning's round-off, but the equations hold: such a step is
+///   accepted and counted (`rank_deficient_steps` when g_y has lost rank). On a singular matrix
+///   the residual test is also required of a step that passed the increment test: a
+///   least-squares increment vanishes where no solution is (inconsistent joints).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NewtonOptions {
-    /// Converged when `‖Δx‖∞ ≤ tolerance · (1 + ‖x‖∞)`; default 1e-10.
+    /// Converged when `‖Δx‖∞ ≤ tolerance · (1 + ‖x‖∞)` (see above for the residual test);
+    /// default 1e-10.
     pub tolerance: f64,
     /// Iteration budget per step; default 25.
     pub max_iterations: usize,
@@ -133,6 +153,11 @@ pub struct NewtonCache {
     /// LU factorisations keyed by (h, system size), most recently used last; a few, so that a
     /// periodic step pattern (h/3, 2h/3) reuses one per size.
     lu: Vec<(LU<f64, Dyn, Dyn>, f64, usize)>,
+    /// The same for numerically singular matrices (their SVD, [`NewtonFactor::Deficient`]).
+    /// Not part of a checkpoint: a resumed run rebuilds it at its first step, so a run with
+    /// rank-deficient joints resumes to the Newton tolerance, not bit for bit.
+    #[serde(skip)]
+    deficient: Vec<(NewtonFactor, f64, usize)>,
     /// Jacobians built (AD evaluations of the full matrix), for statistics.
     pub jacobians: u64,
 }
@@ -146,25 +171,39 @@ impl NewtonCache {
         Self {
             strategy,
             lu: Vec::new(),
+            deficient: Vec::new(),
             jacobians: 0,
         }
     }
 
     /// Removes and returns the factorisation kept for (h, n).
-    fn take(&mut self, h: f64, n: usize) -> Option<LU<f64, Dyn, Dyn>> {
+    fn take(&mut self, h: f64, n: usize) -> Option<NewtonFactor> {
+        if let Some(i) = self.lu.iter().position(|(_, hc, nc)| *hc == h && *nc == n) {
+            return Some(NewtonFactor::Regular(self.lu.remove(i).0));
+        }
         let i = self
-            .lu
+            .deficient
             .iter()
             .position(|(_, hc, nc)| *hc == h && *nc == n)?;
-        Some(self.lu.remove(i).0)
+        Some(self.deficient.remove(i).0)
     }
 
-    /// Keeps `lu` for (h, n) as the most recently used.
-    fn put(&mut self, lu: LU<f64, Dyn, Dyn>, h: f64, n: usize) {
-        if self.lu.len() >= CACHED_JACOBIANS {
-            self.lu.remove(0);
+    /// Keeps `factor` for (h, n) as the most recently used.
+    fn put(&mut self, factor: NewtonFactor, h: f64, n: usize) {
+        match factor {
+            NewtonFactor::Regular(lu) => {
+                if self.lu.len() >= CACHED_JACOBIANS {
+                    self.lu.remove(0);
+                }
+                self.lu.push((lu, h, n));
+            }
+            deficient => {
+                if self.deficient.len() >= CACHED_JACOBIANS {
+                    self.deficient.remove(0);
+                }
+                self.deficient.push((deficient, h, n));
+            }
         }
-        self.lu.push((lu, h, n));
     }
 }
 
@@ -210,6 +249,13 @@ pub struct StepInfo {
     pub iterations: usize,
     /// Scaled residual max-norm after the last iteration.
     pub residual: f64,
+    /// The Newton matrix was numerically singular, or the step was accepted on its residual
+    /// test (see [`NewtonOptions`]).
+    pub singular: bool,
+    /// Numerical rank of (g_y; k_z) at (t₁, y₁, z₁) when `singular` (its rows otherwise).
+    pub rank: Option<usize>,
+    /// Attempts rejected for a Newton failure and retried with h/2 (variable-step runs).
+    pub rejected: u64,
 }
 
 /// A residual function F(x) written for any scalar, so that its Jacobian comes from AD.
@@ -222,6 +268,12 @@ pub trait Residual {
     /// when its increments stop shrinking below this floor.
     fn noise_floor(&self) -> f64 {
         0.0
+    }
+    /// Whether the constraint Jacobian (g_y; k_z) has lost rank at the iterate `x` (then a
+    /// singular Newton matrix is solved in the least-squares sense).
+    fn joints_deficient(&self, x: &[f64]) -> bool {
+        let _ = x;
+        false
     }
 }
 
@@ -270,12 +322,20 @@ fn solve_newton<R: Residual>(
     solve_newton_full(res, x, opts).map(|(info, _)| info)
 }
 
-/// Full Newton; also returns the LU factorisation of the last Jacobian (for reuse).
+/// ‖J‖∞, the largest row sum of |J| (the scale of the residual test).
+fn row_sum_norm(jac: &DMatrix<f64>) -> f64 {
+    jac.row_iter()
+        .map(|r| r.iter().map(|v| v.abs()).sum::<f64>())
+        .fold(0.0, f64::max)
+}
+
+/// Full Newton; also returns the factorisation of the last Jacobian (for reuse). Convergence:
+/// the increment and residual tests of [`NewtonOptions`].
 fn solve_newton_full<R: Residual>(
     res: &R,
     x: &mut [f64],
     opts: &NewtonOptions,
-) -> Result<(StepInfo, LU<f64, Dyn, Dyn>), NewtonFailure> {
+) -> Result<(StepInfo, NewtonFactor), NewtonFailure> {
     let n = res.size();
     let mut xd: Vec<Dual64> = x.iter().map(|&v| Dual64::from_re(v)).collect();
     let mut rd = vec![Dual64::from_re(0.0); n];
@@ -283,6 +343,7 @@ fn solve_newton_full<R: Residual>(
     let mut r = DVector::<f64>::zeros(n);
     let mut increment = f64::INFINITY;
     let mut previous = f64::INFINITY;
+    let mut singular = false;
     for it in 1..=opts.max_iterations {
         build_jacobian(res, x, &mut xd, &mut rd, &mut jac, &mut r);
         let rnorm = r.amax();
@@ -293,9 +354,10 @@ fn solve_newton_full<R: Residual>(
                 increment,
             });
         }
-        let lu = jac.clone().lu();
+        let factor = NewtonFactor::new(&jac, || res.joints_deficient(x));
+        singular |= factor.deficient();
         let mut dx = r.clone();
-        if !lu.solve_mut(&mut dx) {
+        if !factor.solve_mut(&mut dx) {
             return Err(NewtonFailure::Singular);
         }
         let xnorm = max_norm(x);
@@ -313,18 +375,39 @@ fn solve_newton_full<R: Residual>(
         let scale = 1.0 + xnorm.max(max_norm(x));
         // Converged, or stalled at the round-off floor just above the tolerance (the increment
         // stopped shrinking: more iterations only stir round-off).
-        let stalled = increment >= 0.5 * previous
-            && increment <= (100.0 * opts.tolerance * scale).max(res.noise_floor());
+        let slow = increment >= 0.5 * previous;
+        let stalled = slow && increment <= (100.0 * opts.tolerance * scale).max(res.noise_floor());
         previous = increment;
         if increment <= opts.tolerance * scale || stalled {
             res.eval(x, r.as_mut_slice());
-            return Ok((
-                StepInfo {
+            // A least-squares increment also vanishes where no solution is: a singular matrix
+            // must also pass the residual test.
+            let holds = factor
+                .singular_norm()
+                .is_none_or(|norm| r.amax() <= opts.tolerance * norm * scale);
+            if holds {
+                let info = StepInfo {
                     iterations: it,
                     residual: r.amax(),
-                },
-                lu,
-            ));
+                    singular,
+                    ..StepInfo::default()
+                };
+                return Ok((info, factor));
+            }
+            continue;
+        }
+        if (slow && increment <= opts.tolerance.sqrt() * scale) || factor.deficient() {
+            // The residual test: the equations hold although the increment cannot shrink.
+            res.eval(x, r.as_mut_slice());
+            if r.amax() <= opts.tolerance * row_sum_norm(&jac) * scale {
+                let info = StepInfo {
+                    iterations: it,
+                    residual: r.amax(),
+                    singular: true,
+                    ..StepInfo::default()
+                };
+                return Ok((info, factor));
+            }
         }
     }
     res.eval(x, r.as_mut_slice());
@@ -359,13 +442,16 @@ fn solve_newton_simplified<R: Residual>(
     let mut dx = DVector::<f64>::zeros(n);
     // The Jacobian in use was built during this step (not carried over from an earlier one).
     let mut built_here = false;
+    let mut singular = current.as_ref().is_some_and(NewtonFactor::deficient);
     let mut previous = f64::INFINITY;
     let mut fallback = false;
     for it in 1..=opts.max_iterations {
         if current.is_none() {
             build_jacobian(res, x, &mut xd, &mut rd, &mut jac, &mut r);
             cache.jacobians += 1;
-            current = Some(jac.clone().lu());
+            let factor = NewtonFactor::new(&jac, || res.joints_deficient(x));
+            singular |= factor.deficient();
+            current = Some(factor);
             built_here = true;
             previous = f64::INFINITY;
         } else {
@@ -383,11 +469,11 @@ fn solve_newton_simplified<R: Residual>(
             fallback = true;
             break;
         }
-        let Some(lu) = current.as_ref() else {
+        let Some(factor) = current.as_ref() else {
             unreachable!("the Jacobian was just built");
         };
         dx.copy_from(&r);
-        if !lu.solve_mut(&mut dx) {
+        if !factor.solve_mut(&mut dx) {
             // The reused factorisation is dropped (not put back).
             if built_here {
                 return Err(NewtonFailure::Singular);
@@ -419,18 +505,45 @@ fn solve_newton_simplified<R: Residual>(
         let stalled = built_here
             && slow
             && increment <= (100.0 * opts.tolerance * scale).max(res.noise_floor());
-        if increment <= opts.tolerance * scale || stalled {
+        let mut converged = increment <= opts.tolerance * scale || stalled;
+        if converged && let Some(norm) = factor.singular_norm() {
+            // A least-squares increment also vanishes where no solution is.
             res.eval(x, r.as_mut_slice());
-            if let Some(lu) = current {
-                cache.put(lu, h, n);
+            converged = r.amax() <= opts.tolerance * norm * scale;
+        }
+        if !converged
+            && built_here
+            && ((slow && increment <= opts.tolerance.sqrt() * scale) || factor.deficient())
+        {
+            // The residual test (the Jacobian of this step is in `jac`).
+            res.eval(x, r.as_mut_slice());
+            converged = r.amax() <= opts.tolerance * row_sum_norm(&jac) * scale;
+            singular |= converged;
+        }
+        if converged {
+            res.eval(x, r.as_mut_slice());
+            if let Some(factor) = current {
+                cache.put(factor, h, n);
             }
             return Ok(StepInfo {
                 iterations: it,
                 residual: r.amax(),
+                singular,
+                ..StepInfo::default()
             });
         }
-        if slow {
-            current = None; // rebuilt at the next iterate
+        // Rebuilt at the next iterate when the contraction is slow, or when a Jacobian of an
+        // earlier step contracts at a rate ρ that cannot reach the tolerance within the
+        // iterations left (‖Δx‖ ρ^left / (1 − ρ) > tolerance, Hairer & Wanner's test for reusing
+        // a Jacobian): near a singular position an old Jacobian contracts at ρ ≈ ½ for the whole
+        // budget.
+        let rate = increment / previous;
+        let left = (opts.max_iterations - it) as i32;
+        let hopeless = !built_here
+            && rate < 1.0
+            && increment * rate.powi(left) / (1.0 - rate) > opts.tolerance * scale;
+        if slow || hopeless {
+            current = None;
         }
         previous = increment;
         if it == opts.max_iterations && !built_here {
@@ -439,9 +552,9 @@ fn solve_newton_simplified<R: Residual>(
     }
     if fallback {
         x.copy_from_slice(&x_start);
-        let (info, lu) = solve_newton_full(res, x, opts)?;
+        let (info, factor) = solve_newton_full(res, x, opts)?;
         cache.jacobians += info.iterations as u64;
-        cache.put(lu, h, n);
+        cache.put(factor, h, n);
         return Ok(info);
     }
     res.eval(x, r.as_mut_slice());
@@ -452,7 +565,15 @@ fn solve_newton_simplified<R: Residual>(
     })
 }
 
-fn newton_error(f: NewtonFailure, step: u64, t: f64, context: &'static str) -> Soi2Error {
+/// The error of a Newton failure at `step`, time `t`, with the numerical rank of (g_y; k_z)
+/// at the last iterate and the number of constraints.
+fn newton_error(
+    f: NewtonFailure,
+    step: u64,
+    t: f64,
+    context: &'static str,
+    (rank, constraints): (usize, usize),
+) -> Soi2Error {
     match f {
         NewtonFailure::Singular => Soi2Error::SingularNewtonMatrix { step, t, context },
         NewtonFailure::Diverged {
@@ -465,8 +586,41 @@ fn newton_error(f: NewtonFailure, step: u64, t: f64, context: &'static str) -> S
             iterations,
             residual,
             increment,
+            rank,
+            constraints,
         },
     }
+}
+
+/// Numerical rank of (g_y; k_z) at (t, y, z) and the number of constraints.
+fn rank_at<M: ConstrainedModel + ?Sized>(
+    model: &M,
+    t: f64,
+    y: &[f64],
+    z: &[f64],
+) -> (usize, usize) {
+    let d = model.dims();
+    (
+        constraint_rank(model, t, y, z).0,
+        d.holonomic + d.nonholonomic,
+    )
+}
+
+/// Replaces the multipliers by their minimum-norm representatives P λ (P the projector onto the
+/// column space of g_y, see [`range_projection`]): for an additive model f depends on λ through
+/// g_yᵀλ only, which P keeps. Other models keep their λ.
+fn minimum_norm_multipliers<M: ConstrainedModel + ?Sized>(
+    model: &M,
+    projector: &DMatrix<f64>,
+    lambda: &mut [f64],
+) {
+    let mg = lambda.len();
+    if !model.additive() || mg == 0 || projector.nrows() < mg {
+        return;
+    }
+    let p = projector.view((0, 0), (mg, mg));
+    let l = p * DVector::from_column_slice(lambda);
+    lambda.copy_from_slice(l.as_slice());
 }
 
 fn c<T: Scalar>(v: f64) -> T {
@@ -486,6 +640,11 @@ struct AccelerationSystem<'a, M: ?Sized> {
 impl<M: ConstrainedModel + ?Sized> Residual for AccelerationSystem<'_, M> {
     fn size(&self) -> usize {
         self.dims.n + self.dims.holonomic + self.dims.nonholonomic
+    }
+
+    fn joints_deficient(&self, _x: &[f64]) -> bool {
+        let d = self.dims;
+        constraint_rank(self.model, self.t, self.y, self.z).0 < d.holonomic + d.nonholonomic
     }
 
     fn eval<T: Scalar>(&self, x: &[T], r: &mut [T]) {
@@ -548,12 +707,26 @@ pub fn consistent_acceleration<M: ConstrainedModel + ?Sized>(
         tolerance: newton.tolerance.min(1e-12),
         max_iterations: newton.max_iterations.max(50),
     };
-    solve_newton(&sys, &mut x, &opts)
-        .map_err(|e| newton_error(e, step, t, "consistent acceleration (12)"))?;
+    let info = solve_newton(&sys, &mut x, &opts).map_err(|e| {
+        newton_error(
+            e,
+            step,
+            t,
+            "consistent acceleration (12)",
+            rank_at(model, t, y, z),
+        )
+    })?;
     let psi = x.split_off(dims.n + dims.holonomic);
-    let lambda = x.split_off(dims.n);
+    let mut lambda = x.split_off(dims.n);
+    if info.singular {
+        let (_, projector) = constraint_rank(model, t, y, z);
+        minimum_norm_multipliers(model, &projector, &mut lambda);
+    }
     Ok((x, lambda, psi))
 }
+
+/// (a_{1+α}, λ₁, ψ₁, ã_{1+α}) unpacked from a step's unknowns.
+type StepUnknowns = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
 
 /// The equations of one step for the Newton solver.
 struct StepSystem<'a, M: ?Sized> {
@@ -587,6 +760,34 @@ impl<M: ConstrainedModel + ?Sized> StepSystem<'_, M> {
                     )
             })
             .collect()
+    }
+
+    /// (a_{1+α}, λ₁, ψ₁, the acceleration of y₁) from the unknowns x of the formulation.
+    fn unpack(&self, x: &[f64]) -> StepUnknowns {
+        let Dims {
+            n,
+            holonomic: mg,
+            nonholonomic: mk,
+        } = self.dims;
+        match self.method.formulation {
+            Formulation::General | Formulation::Additive => (
+                x[n..2 * n].to_vec(),
+                x[2 * n + mg..2 * n + 2 * mg].to_vec(),
+                x[2 * n + 2 * mg + mk..].to_vec(),
+                x[..n].to_vec(),
+            ),
+            Formulation::HhtSoi2 => {
+                let a = x[n..2 * n].to_vec();
+                let at = a.iter().zip(&x[..n]).map(|(u, d)| u + d).collect();
+                (a, x[2 * n + mg..].to_vec(), Vec::new(), at)
+            }
+            Formulation::HhtI3 => (
+                x[..n].to_vec(),
+                x[n..].to_vec(),
+                Vec::new(),
+                x[..n].to_vec(),
+            ),
+        }
     }
 
     /// z of (13b)/(13c)/(17b) for the acceleration `a`.
@@ -626,6 +827,13 @@ impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
             Formulation::HhtSoi2 => 2 * n + 2 * mg,
             Formulation::HhtI3 => n + mg,
         }
+    }
+
+    fn joints_deficient(&self, x: &[f64]) -> bool {
+        let (a, _, _, at) = self.unpack(x);
+        let (y, z) = (self.y1(&at), self.z1(&a));
+        let d = self.dims;
+        constraint_rank(self.model, self.t1, &y, &z).0 < d.holonomic + d.nonholonomic
     }
 
     /// Position-level rows g(t₁, y₁)/(βh²) carry round-off ε|y|/(βh²), which becomes
@@ -879,7 +1087,7 @@ pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
             x.extend_from_slice(&state.lambda);
         }
     }
-    let info = match cache.strategy {
+    let solved = match cache.strategy {
         NewtonStrategy::Full => solve_newton_full(&sys, &mut x, &method.newton).map(|(i, _)| {
             cache.jacobians += i.iterations as u64;
             i
@@ -887,32 +1095,19 @@ pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
         NewtonStrategy::Simplified => {
             solve_newton_simplified(&sys, &mut x, &method.newton, cache, h)
         }
-    }
-    .map_err(|e| newton_error(e, step, t1, "step"))?;
-    let (a, lambda, psi, at) = match method.formulation {
-        Formulation::General | Formulation::Additive => {
-            let mg = dims.holonomic;
-            (
-                x[n..2 * n].to_vec(),
-                x[2 * n + mg..2 * n + 2 * mg].to_vec(),
-                x[2 * n + 2 * mg + dims.nonholonomic..].to_vec(),
-                x[..n].to_vec(),
-            )
-        }
-        Formulation::HhtSoi2 => {
-            let a = x[n..2 * n].to_vec();
-            let at = a.iter().zip(&x[..n]).map(|(u, d)| u + d).collect();
-            (a, x[2 * n + dims.holonomic..].to_vec(), Vec::new(), at)
-        }
-        Formulation::HhtI3 => (
-            x[..n].to_vec(),
-            x[n..].to_vec(),
-            Vec::new(),
-            x[..n].to_vec(),
-        ),
     };
+    let (a, mut lambda, psi, at) = sys.unpack(&x);
+    let mut info = solved.map_err(|e| {
+        let (y, z) = (sys.y1(&at), sys.z1(&a));
+        newton_error(e, step, t1, "step", rank_at(model, t1, &y, &z))
+    })?;
     let y = sys.y1(&at);
     let z = sys.z1(&a);
+    if info.singular {
+        let (rank, projector) = constraint_rank(model, t1, &y, &z);
+        info.rank = Some(rank);
+        minimum_norm_multipliers(model, &projector, &mut lambda);
+    }
     let ma = (DMatrix::from_row_slice(n, n, &m1) * DVector::from_column_slice(&a))
         .as_slice()
         .to_vec();
@@ -934,6 +1129,8 @@ pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
             iterations: info.iterations,
             residual: f64::NAN,
             increment: f64::NAN,
+            rank: 0,
+            constraints: dims.holonomic + dims.nonholonomic,
         });
     }
     Ok(StepResult {
@@ -945,6 +1142,92 @@ pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
         psi,
         ma_alpha_used: ma_alpha,
         info,
+    })
+}
+
+/// Deepest halving of a rejected step: h/2¹⁰.
+pub const MAX_HALVINGS: u32 = 10;
+
+/// One step of size `h` from `state`, committed: (14a)–(14b) first when `adjust`, then
+/// [`solve_step_with`]. On a Newton failure a `variable`-step run rejects the attempt and covers
+/// [t, t + h] by two steps of h/2 (each halved again when it fails, down to h/2^[`MAX_HALVINGS`];
+/// the (14) adjustments carry a_α across the size changes), counting the rejections in
+/// [`StepInfo::rejected`]; a fixed-step run returns the error (step, t, residual, increment and
+/// the rank of the constraint Jacobian). The step counter advances by one either way.
+pub fn advance<M: ConstrainedModel + ?Sized>(
+    model: &M,
+    method: &Method,
+    state: &mut Soi2State,
+    h: f64,
+    cache: &mut NewtonCache,
+    adjust: bool,
+    variable: bool,
+) -> Result<StepInfo, Soi2Error> {
+    advance_halving(model, method, state, h, cache, adjust, variable, 0)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn advance_halving<M: ConstrainedModel + ?Sized>(
+    model: &M,
+    method: &Method,
+    state: &mut Soi2State,
+    h: f64,
+    cache: &mut NewtonCache,
+    adjust: bool,
+    variable: bool,
+    depth: u32,
+) -> Result<StepInfo, Soi2Error> {
+    let saved = variable.then(|| state.clone());
+    if adjust {
+        adjust_for_step(state, method.coefficients.alpha(), h); // (14a)–(14b)
+    }
+    let error = match solve_step_with(model, method, state, h, cache) {
+        Ok(result) => {
+            let info = result.info;
+            commit(state, result, h);
+            return Ok(info);
+        }
+        Err(e) => e,
+    };
+    let retry = matches!(
+        error,
+        Soi2Error::NewtonDiverged { .. } | Soi2Error::SingularNewtonMatrix { .. }
+    );
+    let Some(saved) = saved.filter(|_| retry && depth < MAX_HALVINGS) else {
+        return Err(error);
+    };
+    *state = saved;
+    let step = state.step;
+    let first = advance_halving(
+        model,
+        method,
+        state,
+        h / 2.0,
+        cache,
+        adjust,
+        true,
+        depth + 1,
+    )?;
+    let second = advance_halving(
+        model,
+        method,
+        state,
+        h / 2.0,
+        cache,
+        adjust,
+        true,
+        depth + 1,
+    )?;
+    state.step = step + 1;
+    Ok(StepInfo {
+        iterations: first.iterations + second.iterations,
+        residual: second.residual,
+        singular: first.singular || second.singular,
+        rank: match (first.rank, second.rank) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        },
+        rejected: 1 + first.rejected + second.rejected,
     })
 }
 

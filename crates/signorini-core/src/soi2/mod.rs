@@ -16,8 +16,11 @@
 //!   (17), the HHT-I3 baseline, start values of a_α, and the step-size adjustments (14a)–(14b).
 //! * [`models`]: the test problem (15) with its exact solution, the pendulum (16) of Fig. 3, and a
 //!   slider-crank.
+//! * [`factor`]: Newton's matrix factorised by LU, or by SVD (minimum-norm solve) when the
+//!   constraint Jacobian has lost rank.
 //! * [`run`]: the time loop over a step-size pattern, with energy and constraint streams.
 
+pub mod factor;
 pub mod method;
 pub mod models;
 pub mod run;
@@ -256,10 +259,12 @@ pub enum Soi2Error {
         /// Which system.
         context: &'static str,
     },
-    /// Newton did not converge.
+    /// Newton did not converge (a fixed-step run stops here; a variable-step run first retries
+    /// with h/2).
     #[error(
         "step {step} (t = {t}): Newton did not converge in {iterations} iterations \
-         (scaled residual {residual:e}, last increment {increment:e})"
+         (scaled residual {residual:e}, last increment {increment:e}; constraint Jacobian of \
+         rank {rank} for {constraints} constraints)"
     )]
     NewtonDiverged {
         /// Step being computed (0: the initial acceleration solve).
@@ -272,6 +277,10 @@ pub enum Soi2Error {
         residual: f64,
         /// Max-norm of the last Newton increment.
         increment: f64,
+        /// Numerical rank of (g_y; k_z) at the last iterate.
+        rank: usize,
+        /// m_g + m_k.
+        constraints: usize,
     },
     /// The observer stopped the run.
     #[error("stopped after {step} steps")]
@@ -339,6 +348,24 @@ pub fn check_constraint_rank<M: ConstrainedModel + ?Sized>(
         });
     }
     Ok(())
+}
+
+/// Numerical rank of (g_y; k_z) at (t, y, z) (singular values above
+/// [`factor::RANK_TOLERANCE`] · max(σ_max, 1)) and the orthogonal projector onto its column
+/// space (see [`factor::range_projection`]).
+pub fn constraint_rank<M: ConstrainedModel + ?Sized>(
+    model: &M,
+    t: f64,
+    y: &[f64],
+    z: &[f64],
+) -> (usize, DMatrix<f64>) {
+    let d = model.dims();
+    let mut jac = vec![0.0; d.holonomic * d.n];
+    model.g_y(t, y, &mut jac);
+    let mut kz = vec![0.0; d.nonholonomic * d.n];
+    model.k_z(t, y, z, &mut kz);
+    jac.extend_from_slice(&kz);
+    factor::range_projection(&jac, d.holonomic + d.nonholonomic, d.n)
 }
 
 /// Max-norms of the position, velocity and nonholonomic constraint residuals at (t, y, z).

@@ -98,6 +98,21 @@ pub trait StepSizes {
     fn count(&self) -> u64;
     /// The sizes in order.
     fn steps(&self) -> impl Iterator<Item = f64> + '_;
+    /// True when the sizes vary (the variable-step path: a step whose Newton fails is rejected
+    /// and retried with h/2); the last step, shortened to land on t_end, does not count.
+    fn variable(&self) -> bool {
+        let mut it = self.steps();
+        let Some(first) = it.next() else {
+            return false;
+        };
+        let mut it = it.peekable();
+        while let Some(h) = it.next() {
+            if h != first && it.peek().is_some() {
+                return true;
+            }
+        }
+        false
+    }
 }
 
 impl StepSizes for [f64] {
@@ -129,6 +144,9 @@ impl StepSizes for Schedule {
     }
     fn steps(&self) -> impl Iterator<Item = f64> + '_ {
         self.iter()
+    }
+    fn variable(&self) -> bool {
+        self.pattern.iter().any(|&p| p != self.pattern[0])
     }
 }
 
@@ -171,6 +189,16 @@ pub struct Soi2Stats {
     pub work_damping_total: f64,
     /// Global errors, for models with an exact solution.
     pub errors: Option<GlobalErrors>,
+    /// Steps whose constraint Jacobian (g_y; k_z) had lost rank at y₁ (singular positions,
+    /// redundant joints): solved by the minimum-norm path of [`super::factor`].
+    #[serde(default)]
+    pub rank_deficient_steps: u64,
+    /// The smallest numerical rank of (g_y; k_z) seen on those steps.
+    #[serde(default)]
+    pub smallest_rank: Option<usize>,
+    /// Attempts rejected for a Newton failure and retried with h/2 (variable-step runs).
+    #[serde(default)]
+    pub rejected_steps: u64,
 }
 
 /// Column names of a SOI2 run: the step h; the energies `kinetic` ½zᵀMz, `potential` V,
@@ -280,6 +308,7 @@ pub(crate) fn integrate_from<M: ConstrainedModel + ?Sized, S: StepSizes + ?Sized
         model,
         method,
         adjust,
+        variable: sizes.variable(),
         probes: &output.probes,
         total: sizes.count(),
         sizes: sizes.steps().peekable(),
@@ -337,6 +366,8 @@ struct Soi2Stepping<'a, M: ?Sized, I: Iterator<Item = f64>> {
     model: &'a M,
     method: &'a Method,
     adjust: bool,
+    /// A variable-step schedule: a step whose Newton fails is rejected and retried with h/2.
+    variable: bool,
     probes: &'a [usize],
     total: u64,
     sizes: std::iter::Peekable<I>,
@@ -398,13 +429,17 @@ impl<M: ConstrainedModel + ?Sized, I: Iterator<Item = f64>> TimeStepping
         self.k = k;
         self.h = h;
         self.h_last = h;
-        if self.adjust {
-            method::adjust_for_step(state, self.method.coefficients.alpha(), h); // (14a)–(14b)
-        }
-        let result = method::solve_step_with(model, self.method, state, h, &mut self.cache)?;
-        let info = result.info;
         let y_old = state.y.clone();
-        method::commit(state, result, h);
+        // (14a)–(14b) when `adjust`; a rejected attempt retried with h/2 on variable steps.
+        let info = method::advance(
+            model,
+            self.method,
+            state,
+            h,
+            &mut self.cache,
+            self.adjust,
+            self.variable,
+        )?;
         model.damping_force(state.t, &state.y, &state.z, &mut self.fd1);
         let (fd0, fd1) = (&self.fd0, &self.fd1);
         // Trapezoidal work of the damping forces over the step.
@@ -424,6 +459,12 @@ impl<M: ConstrainedModel + ?Sized, I: Iterator<Item = f64>> TimeStepping
         self.iterations = info.iterations;
         stats.steps = k;
         stats.newton_jacobians = self.cache.jacobians;
+        stats.rejected_steps += info.rejected;
+        let d = model.dims();
+        if let Some(rank) = info.rank.filter(|&r| r < d.holonomic + d.nonholonomic) {
+            stats.rank_deficient_steps += 1;
+            stats.smallest_rank = Some(stats.smallest_rank.map_or(rank, |s| s.min(rank)));
+        }
         stats.t_end = state.t;
         Ok(())
     }
@@ -661,6 +702,9 @@ impl Soi2Job {
             z_final: state.z,
             lambda_final: state.lambda,
             errors: stats.errors,
+            rank_deficient_steps: stats.rank_deficient_steps,
+            smallest_rank: stats.smallest_rank,
+            rejected_steps: stats.rejected_steps,
         })
     }
 }

@@ -32,6 +32,31 @@ pub struct CheckSpec {
     /// Smallest observed order of convergence (studies only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub min_order: Option<f64>,
+    /// Largest `position_residual` (‖g‖∞ of the joints) over the recorded steps (SOI2 schemes):
+    /// the positions stay on the constraint manifold.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 0.0))]
+    pub max_position_residual: Option<f64>,
+    /// Recorded values against a reference (an exact solution, or a published reference
+    /// solution), each `{ column, t, value, tolerance }`: |column(t) − value| ≤ tolerance, at
+    /// the recorded step nearest to t.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub reference: Vec<ReferenceValue>,
+}
+
+/// One reference value a run must reproduce.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ReferenceValue {
+    /// A recorded column (`q_0`, `energy`, …).
+    pub column: String,
+    /// The instant; the recorded step nearest to it is compared.
+    pub t: f64,
+    /// The reference value there.
+    pub value: f64,
+    /// Largest |recorded − value| accepted.
+    #[schemars(range(min = 0.0))]
+    pub tolerance: f64,
 }
 
 impl CheckSpec {
@@ -43,6 +68,7 @@ impl CheckSpec {
             ("max_energy_growth", self.max_energy_growth),
             ("max_error", self.max_error),
             ("min_order", self.min_order),
+            ("max_position_residual", self.max_position_residual),
         ]
         .into_iter()
         .filter_map(|(name, b)| b.map(|b| (name, b)))
@@ -60,6 +86,27 @@ impl CheckSpec {
                         "must be a finite number{}, got {bound}",
                         if signed { "" } else { " ≥ 0" }
                     ),
+                ));
+            }
+        }
+        for (i, r) in self.reference.iter().enumerate() {
+            let field = |f: &str| format!("check.reference[{i}].{f}");
+            if r.column.is_empty() {
+                return Err(SpecError::new(
+                    field("column"),
+                    "must name a recorded column",
+                ));
+            }
+            if !(r.t.is_finite() && r.value.is_finite()) {
+                return Err(SpecError::new(
+                    field("t"),
+                    "t and value must be finite numbers",
+                ));
+            }
+            if !(r.tolerance.is_finite() && r.tolerance >= 0.0) {
+                return Err(SpecError::new(
+                    field("tolerance"),
+                    format!("must be a finite number ≥ 0, got {}", r.tolerance),
                 ));
             }
         }

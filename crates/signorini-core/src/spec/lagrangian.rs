@@ -1,8 +1,12 @@
 //! `scene = "lagrangian"`: a nonlinear mechanical system the user writes as expressions over
 //! their own generalized coordinates (the model language; [`crate::expr`] is its expression
-//! language, [`crate::lagrangian`] compiles and checks it).
+//! language, [`LagrangianSpec::validate`] checks a model into the parameters
+//! [`crate::lagrangian::UserModel`] compiles).
 
-use crate::expr::Param;
+use super::SpecError;
+use crate::expr::{Expr, Param, Scope, ScopeError};
+use crate::lagrangian::{ContactParams, JOINT_TOLERANCE, SYMMETRY_TOLERANCE, UserModelParams};
+use nalgebra::DMatrix;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -34,11 +38,13 @@ pub struct LagrangianSpec {
     /// (`I = "m*L^2/3"`); no cycles, no name of a coordinate, velocity, `t`, `pi` or a function.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub parameters: BTreeMap<String, Param>,
-    /// The mass matrix M(q): n rows of n entries, each a number or an expression of the
-    /// coordinates and parameters (no velocities, no `t`). Symmetric: the upper triangle is used,
-    /// and each entry below the diagonal must equal its mirror at q0 (relative 1e-12); positive
-    /// definite at q0.
-    pub mass: Vec<Vec<Term>>,
+    /// The mass matrix M(q), each entry a number or an expression of the coordinates and
+    /// parameters (no velocities, no `t`); positive definite at q0. Dense: n rows of n entries
+    /// (symmetric: the upper triangle is used, and each entry below the diagonal must equal its
+    /// mirror at q0, relative 1e-12); or sparse: `{ diagonal = [...] }` (n entries) or
+    /// `{ entries = [[i, j, term], ...] }` (the upper triangle i ≤ j, 0-based, each entry once;
+    /// the rest is zero), whose cost grows with the entries given, not with n².
+    pub mass: MassSpec,
     /// The potential energy V(q, t): the conservative forces are −∇V and V is part of the energy
     /// (0 when absent).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -56,11 +62,38 @@ pub struct LagrangianSpec {
     /// 1e-8 relative to ‖q0‖∞. Run by the SOI2 schemes.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub constraints: Vec<JointSpec>,
+    /// The joints are dependent on purpose (default false): redundant at every configuration,
+    /// like Bricard's mechanism (Grübler's count says 0 degrees of freedom, the mobility is 1).
+    /// Validation then accepts a rank-deficient g_q at q0 (otherwise refused naming
+    /// `model.constraints`, to catch a joint written twice), and the SOI2 schemes solve for the
+    /// minimum-norm multipliers (`rank_deficient_steps` in the summary).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub redundant_joints: bool,
     /// Unilateral contacts, each `{ gap = "...", restitution = e }`: gap(q, t) ≥ 0 with Newton's
     /// impact law, e ∈ [0, 1] (default 0); `friction` μ with its `tangent` (planar Coulomb
     /// friction). Run by `moreau_jean`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub contacts: Vec<UserContactSpec>,
+}
+
+/// The mass matrix of a `lagrangian` model: dense rows, or sparse (a diagonal, or the entries of
+/// the upper triangle).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(untagged, deny_unknown_fields)]
+pub enum MassSpec {
+    /// n rows of n entries, symmetric.
+    Dense(Vec<Vec<Term>>),
+    /// `{ diagonal = [...] }`: n diagonal entries, zero elsewhere.
+    Diagonal {
+        /// M_ii, one per coordinate.
+        diagonal: Vec<Term>,
+    },
+    /// `{ entries = [[i, j, term], ...] }`: entries of the upper triangle (0-based i ≤ j, each
+    /// once), mirrored below the diagonal; zero elsewhere.
+    Entries {
+        /// `[i, j, term]` triples.
+        entries: Vec<(usize, usize, Term)>,
+    },
 }
 
 /// One bilateral holonomic joint g(q, t) = 0.
@@ -93,4 +126,373 @@ pub struct UserContactSpec {
     /// direction, and U_t = ∇τ·q̇ + ∂τ/∂t the tangential velocity that friction opposes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tangent: Option<String>,
+}
+
+// ---------------------------------------------------------------------------------------------
+// Validation: spec → UserModelParams
+
+/// What an expression may depend on.
+#[derive(Clone, Copy, PartialEq)]
+enum Allowed {
+    /// q only: M(q).
+    Positions,
+    /// q and t: V, joints, gaps, tangents.
+    PositionsAndTime,
+    /// q, q̇ and t: applied forces.
+    Everything,
+}
+
+fn scope_error(e: ScopeError) -> SpecError {
+    let field = match &e {
+        ScopeError::BadName { kind, name } | ScopeError::Clash { kind, name, .. }
+            if *kind == "parameter" =>
+        {
+            format!("model.parameters.{name}")
+        }
+        ScopeError::BadName { .. } | ScopeError::Clash { .. } => "model.coordinates".to_string(),
+        _ => format!("model.parameters.{}", e.name()),
+    };
+    SpecError::new(field, e.to_string())
+}
+
+/// Checks a vector's length against the coordinates and its entries' finiteness.
+fn check_vector(field: &str, v: &[f64], n: usize) -> Result<(), SpecError> {
+    if v.len() != n {
+        return Err(SpecError::new(
+            field,
+            format!("needs {n} entries (one per coordinate), got {}", v.len()),
+        ));
+    }
+    if let Some((i, x)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+        return Err(SpecError::new(
+            format!("{field}[{i}]"),
+            format!("must be finite, got {x}"),
+        ));
+    }
+    Ok(())
+}
+
+/// Parses expressions in the model's scope and checks them at (q0, v0, 0).
+struct Parser<'a> {
+    scope: &'a Scope,
+    n: usize,
+    at_start: Vec<f64>,
+}
+
+impl Parser<'_> {
+    fn parse(&self, field: &str, src: &str, allowed: Allowed) -> Result<Expr, SpecError> {
+        let e = Expr::parse(src, self.scope).map_err(|e| SpecError::new(field, e.to_string()))?;
+        self.check(field, e, allowed)
+    }
+
+    fn term(&self, field: &str, term: &Term, allowed: Allowed) -> Result<Expr, SpecError> {
+        match term {
+            Term::Number(c) => self.check(field, Expr::constant(*c), allowed),
+            Term::Expr(src) => self.parse(field, src, allowed),
+        }
+    }
+
+    fn check(&self, field: &str, e: Expr, allowed: Allowed) -> Result<Expr, SpecError> {
+        let n = self.n;
+        let names = self.scope.variables();
+        for v in e.variables() {
+            if (n..2 * n).contains(&v) && allowed != Allowed::Everything {
+                return Err(SpecError::new(
+                    field,
+                    format!(
+                        "uses the velocity '{}': only `forces` may depend on velocities",
+                        names[v]
+                    ),
+                ));
+            }
+            if v == 2 * n && allowed == Allowed::Positions {
+                return Err(SpecError::new(
+                    field,
+                    "uses the time t: the mass matrix M(q) depends on the coordinates only",
+                ));
+            }
+        }
+        let value = e.eval(&self.at_start);
+        if !value.is_finite() {
+            return Err(SpecError::new(
+                field,
+                format!(
+                    "is {value} at q0 (with v0 and t = 0): every expression must be finite there"
+                ),
+            ));
+        }
+        Ok(e)
+    }
+}
+
+/// The upper-triangle entries (i ≤ j, expression) of M from any of the spec's three forms,
+/// parsed and checked (sizes, indices, and for the dense form the symmetry of the entries below
+/// the diagonal at q0); every error names its field. Entries that are the constant 0 are left
+/// out.
+fn mass_entries(
+    p: &Parser<'_>,
+    spec: &MassSpec,
+    n: usize,
+) -> Result<Vec<(usize, usize, Expr)>, SpecError> {
+    let mut upper = Vec::new();
+    match spec {
+        MassSpec::Dense(rows) => {
+            if rows.len() != n {
+                return Err(SpecError::new(
+                    "model.mass",
+                    format!("needs {n} rows (one per coordinate), got {}", rows.len()),
+                ));
+            }
+            let mut entries = Vec::with_capacity(n * n);
+            for (i, row) in rows.iter().enumerate() {
+                if row.len() != n {
+                    return Err(SpecError::new(
+                        format!("model.mass[{i}]"),
+                        format!("needs {n} entries (one per coordinate), got {}", row.len()),
+                    ));
+                }
+                for (j, term) in row.iter().enumerate() {
+                    entries.push(p.term(
+                        &format!("model.mass[{i}][{j}]"),
+                        term,
+                        Allowed::Positions,
+                    )?);
+                }
+            }
+            for i in 0..n {
+                for j in 0..i {
+                    let (lower, upper) = (&entries[i * n + j], &entries[j * n + i]);
+                    if lower != upper {
+                        let (a, b) = (lower.eval(&p.at_start), upper.eval(&p.at_start));
+                        if (a - b).abs() > SYMMETRY_TOLERANCE * a.abs().max(b.abs()) {
+                            return Err(SpecError::new(
+                                format!("model.mass[{i}][{j}]"),
+                                format!(
+                                    "M is not symmetric: M[{i}][{j}] = {a} but M[{j}][{i}] = {b} at q0"
+                                ),
+                            ));
+                        }
+                    }
+                }
+            }
+            for i in 0..n {
+                for j in i..n {
+                    let e = &entries[i * n + j];
+                    if !e.is_zero() {
+                        upper.push((i, j, e.clone()));
+                    }
+                }
+            }
+        }
+        MassSpec::Diagonal { diagonal } => {
+            if diagonal.len() != n {
+                return Err(SpecError::new(
+                    "model.mass.diagonal",
+                    format!(
+                        "needs {n} entries (one per coordinate), got {}",
+                        diagonal.len()
+                    ),
+                ));
+            }
+            for (i, term) in diagonal.iter().enumerate() {
+                let e = p.term(
+                    &format!("model.mass.diagonal[{i}]"),
+                    term,
+                    Allowed::Positions,
+                )?;
+                if !e.is_zero() {
+                    upper.push((i, i, e));
+                }
+            }
+        }
+        MassSpec::Entries { entries } => {
+            let mut seen = std::collections::HashSet::with_capacity(entries.len());
+            for (k, (i, j, term)) in entries.iter().enumerate() {
+                let field = format!("model.mass.entries[{k}]");
+                if !(i <= j && *j < n) {
+                    return Err(SpecError::new(
+                        field,
+                        format!(
+                            "[{i}, {j}] is not in the upper triangle of a {n}×{n} matrix (0-based, i ≤ j < {n})"
+                        ),
+                    ));
+                }
+                if !seen.insert((*i, *j)) {
+                    return Err(SpecError::new(field, format!("[{i}, {j}] is given twice")));
+                }
+                let e = p.term(&field, term, Allowed::Positions)?;
+                if !e.is_zero() {
+                    upper.push((*i, *j, e));
+                }
+            }
+            upper.sort_by_key(|(i, j, _)| (*i, *j));
+        }
+    }
+    Ok(upper)
+}
+
+impl LagrangianSpec {
+    /// Checks the model and parses its expressions into the parameters a
+    /// [`UserModel`](crate::lagrangian::UserModel) is compiled from; every error names its spec
+    /// field.
+    ///
+    /// Validation (errors name the spec field, e.g. `model.contacts[0].gap: unknown name 'hgh' at 0
+    /// (did you mean 'hgt'?)`):
+    /// * names: coordinates distinct identifiers, parameters without cycles or clashes
+    ///   (`model.coordinates`, `model.parameters.<name>`); unknown names with a suggestion;
+    /// * sizes against `coordinates`: `q0`, `v0`, the rows and columns of `mass`, `forces`;
+    /// * M(q) may use neither velocities nor `t`; V, joints, gaps and tangents no velocities;
+    /// * every expression is finite at (q0, v0, t = 0);
+    /// * M symmetric: the model uses the upper triangle, and every entry below the diagonal must
+    ///   equal its mirror at q0 to [`SYMMETRY_TOLERANCE`] relative (so a typo in one of two mirrored
+    ///   entries is caught; structurally equal expressions pass at once); M positive definite at q0
+    ///   (Cholesky);
+    /// * each joint holds at q0: |g_i(q0)| ≤ [`JOINT_TOLERANCE`] · ‖q0‖∞ (absolute when q0 = 0);
+    /// * restitution in [0, 1]; friction μ finite and ≥ 0, and μ > 0 needs a `tangent` (the
+    ///   tangential relative position τ(q, t), checked like a gap: no velocities, known names,
+    ///   finite at q0); its gradient, the tangent row, is an exact symbolic derivative like the
+    ///   gap's.
+    pub fn validate(&self) -> Result<UserModelParams, SpecError> {
+        let spec = self;
+        let n = spec.coordinates.len();
+        if n == 0 {
+            return Err(SpecError::new(
+                "model.coordinates",
+                "needs at least one coordinate",
+            ));
+        }
+        let parameters: Vec<(String, Param)> = spec
+            .parameters
+            .iter()
+            .map(|(k, v)| (k.clone(), v.clone()))
+            .collect();
+        let scope = Scope::lagrangian(&spec.coordinates, &parameters).map_err(scope_error)?;
+        check_vector("model.q0", &spec.q0, n)?;
+        let v0 = spec.v0.clone().unwrap_or_else(|| vec![0.0; n]);
+        check_vector("model.v0", &v0, n)?;
+        let mut at_start = spec.q0.clone();
+        at_start.extend_from_slice(&v0);
+        at_start.push(0.0);
+        let p = Parser {
+            scope: &scope,
+            n,
+            at_start,
+        };
+
+        // M(q): the entries of the upper triangle (i ≤ j), mirrored; zero elsewhere.
+        let upper = mass_entries(&p, &spec.mass, n)?;
+        let mut mass = vec![Expr::constant(0.0); n * n];
+        for (i, j, e) in &upper {
+            mass[i * n + j] = e.clone();
+            mass[j * n + i] = e.clone();
+        }
+        let m0: Vec<f64> = mass.iter().map(|e| e.eval(&p.at_start)).collect();
+        let m0 = DMatrix::from_row_slice(n, n, &m0);
+        if m0.clone().cholesky().is_none() {
+            let smallest = m0.symmetric_eigenvalues().min();
+            return Err(SpecError::new(
+                "model.mass",
+                format!("M is not positive definite at q0 (smallest eigenvalue {smallest:e})"),
+            ));
+        }
+
+        let potential = match &spec.potential {
+            Some(src) => p.parse("model.potential", src, Allowed::PositionsAndTime)?,
+            None => Expr::constant(0.0),
+        };
+        let applied: Vec<Expr> = match &spec.forces {
+            Some(f) if f.len() != n => {
+                return Err(SpecError::new(
+                    "model.forces",
+                    format!("needs {n} entries (one per coordinate), got {}", f.len()),
+                ));
+            }
+            Some(f) => f
+                .iter()
+                .enumerate()
+                .map(|(i, term)| p.term(&format!("model.forces[{i}]"), term, Allowed::Everything))
+                .collect::<Result<_, _>>()?,
+            None => vec![Expr::constant(0.0); n],
+        };
+        let joints: Vec<Expr> = spec
+            .constraints
+            .iter()
+            .enumerate()
+            .map(|(i, j)| {
+                p.parse(
+                    &format!("model.constraints[{i}].expr"),
+                    &j.expr,
+                    Allowed::PositionsAndTime,
+                )
+            })
+            .collect::<Result<_, _>>()?;
+        let scale = spec.q0.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+        let tolerance = JOINT_TOLERANCE * if scale > 0.0 { scale } else { 1.0 };
+        for (i, g) in joints.iter().enumerate() {
+            let r = g.eval(&p.at_start);
+            if r.abs() > tolerance {
+                return Err(SpecError::new(
+                    format!("model.constraints[{i}].expr"),
+                    format!(
+                        "the joint is violated at q0: g = {r:e}, tolerance {tolerance:e} ({JOINT_TOLERANCE:e} relative to max|q0|)"
+                    ),
+                ));
+            }
+        }
+        let mut gaps = Vec::with_capacity(spec.contacts.len());
+        let mut restitution = Vec::with_capacity(spec.contacts.len());
+        let mut friction = Vec::with_capacity(spec.contacts.len());
+        let mut tangents = Vec::with_capacity(spec.contacts.len());
+        for (i, c) in spec.contacts.iter().enumerate() {
+            let field = |f: &str| format!("model.contacts[{i}].{f}");
+            gaps.push(p.parse(&field("gap"), &c.gap, Allowed::PositionsAndTime)?);
+            if !(c.restitution.is_finite() && (0.0..=1.0).contains(&c.restitution)) {
+                return Err(SpecError::new(
+                    field("restitution"),
+                    format!("must be in [0, 1], got {}", c.restitution),
+                ));
+            }
+            restitution.push(c.restitution);
+            let tangent = match &c.tangent {
+                Some(src) => Some(p.parse(&field("tangent"), src, Allowed::PositionsAndTime)?),
+                None => None,
+            };
+            let mu = c.friction.unwrap_or(0.0);
+            if !(mu.is_finite() && mu >= 0.0) {
+                return Err(SpecError::new(
+                    field("friction"),
+                    format!("must be a finite number ≥ 0, got {mu}"),
+                ));
+            }
+            if mu > 0.0 && tangent.is_none() {
+                return Err(SpecError::new(
+                    field("friction"),
+                    "a friction coefficient needs a `tangent` (the tangential relative position; `tangent` is required when friction > 0)",
+                ));
+            }
+            friction.push(mu);
+            tangents.push(tangent);
+        }
+
+        Ok(UserModelParams {
+            q0: spec.q0.clone(),
+            v0,
+            mass: upper,
+            potential,
+            applied,
+            joints,
+            contacts: gaps
+                .into_iter()
+                .zip(restitution)
+                .zip(friction)
+                .zip(tangents)
+                .map(|(((gap, restitution), friction), tangent)| ContactParams {
+                    gap,
+                    restitution,
+                    friction,
+                    tangent,
+                })
+                .collect(),
+        })
+    }
 }

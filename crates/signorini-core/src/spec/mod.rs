@@ -22,7 +22,7 @@ pub use integrator::{
     NsAlphaSpec, NsHhtSpec, NsNewmarkSpec, PositionContactSpec, SchemeFamily,
     Soi2GeneralizedAlphaSpec, Soi2NewtonSpec, StartSpec, WfemSpec,
 };
-pub use lagrangian::{JointSpec, LagrangianSpec, Term, UserContactSpec};
+pub use lagrangian::{JointSpec, LagrangianSpec, MassSpec, Term, UserContactSpec};
 pub use model::{HarmonicForceSpec, LinearSpec, ModelSpec};
 
 use crate::integrators::OutputOptions;

@@ -1,0 +1,198 @@
+//! Factorisation of Newton's matrix when the constraint Jacobian may lose rank (DESIGN §16).
+//!
+//! A mechanism at a singular position (the N-four-bar with its rockers horizontal: N rows of
+//! g_y vanish together) or with redundant joints at every configuration (Bricard's mechanism)
+//! makes the Newton matrix J of a SOI2 step singular: the multipliers λ along the null space
+//! of g_yᵀ do not enter the equations. J is then solved in the least-squares sense with the
+//! minimum-norm increment, which leaves that part of λ untouched (and [`range_projection`]
+//! removes it after the step, giving the minimum-norm multipliers).
+//!
+//! The choice: regular steps keep LU with partial pivoting, exactly as before (their cost grows
+//! by one scan of the pivots); the SVD is used only when LU's pivots show a numerically singular
+//! matrix (the ratio of the smallest to the largest below [`LU_PIVOT_RATIO`]) *and* the
+//! constraint Jacobian has lost rank at the iterate, so a matrix singular for another reason (a
+//! step far too large for the model) fails as it did. An SVD costs several LU factorisations,
+//! but it is needed only on the rank-deficient steps; a column-pivoted QR would give a basic
+//! rather than the minimum-norm increment.
+
+use nalgebra::{DMatrix, DVector, Dyn, LU, SVD};
+
+/// Smallest ratio min|u_ii| / max|u_ii| of LU's pivots trusted as a regular matrix. Below it
+/// the matrix is decomposed by SVD. Pivots estimate the singular values to within a factor of
+/// the size, so 1e-9 sends every matrix with a condition number above ~1e9–1e11 to the SVD.
+pub const LU_PIVOT_RATIO: f64 = 1e-9;
+
+/// Singular values σ ≤ RANK_TOLERANCE · σ_max count as zero (numerical rank, minimum-norm
+/// solve). The same threshold as the rank of (g_y; k_z) checked at validation.
+pub const RANK_TOLERANCE: f64 = 1e-10;
+
+/// A factorised Newton matrix: LU when regular, SVD with its numerical rank when not.
+#[derive(Debug, Clone)]
+pub enum NewtonFactor {
+    /// LU with partial pivoting of a regular matrix.
+    Regular(LU<f64, Dyn, Dyn>),
+    /// SVD of a numerically singular matrix, its rank and the threshold σ_max·RANK_TOLERANCE.
+    Deficient {
+        /// The decomposition.
+        svd: SVD<f64, Dyn, Dyn>,
+        /// Numerical rank.
+        rank: usize,
+        /// Singular values at or below this are treated as zero.
+        threshold: f64,
+        /// ‖J‖∞, the scale of the residual test a least-squares solve must also pass.
+        norm: f64,
+    },
+}
+
+impl NewtonFactor {
+    /// Factorises `j` (square). `joints_deficient` says whether the constraint Jacobian has
+    /// lost rank at the iterate: only then is a numerically singular `j` decomposed by SVD (a
+    /// singular matrix for another reason, a step far too large for the model, stays with LU
+    /// and fails as it did).
+    pub fn new(j: &DMatrix<f64>, joints_deficient: impl FnOnce() -> bool) -> NewtonFactor {
+        let lu = j.clone().lu();
+        let u = lu.u();
+        let (lo, hi) = u
+            .diagonal()
+            .iter()
+            .fold((f64::INFINITY, 0.0_f64), |(lo, hi), d| {
+                (lo.min(d.abs()), hi.max(d.abs()))
+            });
+        // A matrix with a NaN or an infinity stays with LU, whose solve then fails or gives a
+        // non-finite increment that Newton reports.
+        if (hi > 0.0 && lo >= LU_PIVOT_RATIO * hi)
+            || !j.iter().all(|v| v.is_finite())
+            || !joints_deficient()
+        {
+            return NewtonFactor::Regular(lu);
+        }
+        let norm = j
+            .row_iter()
+            .map(|r| r.iter().map(|v| v.abs()).sum::<f64>())
+            .fold(0.0, f64::max);
+        let svd = j.clone().svd(true, true);
+        let threshold = RANK_TOLERANCE * svd.singular_values.max();
+        let rank = svd.rank(threshold);
+        NewtonFactor::Deficient {
+            svd,
+            rank,
+            threshold,
+            norm,
+        }
+    }
+
+    /// Solves J x = b in place (the minimum-norm least-squares x for a singular J); false when
+    /// the solve fails (a zero pivot or a zero matrix).
+    pub fn solve_mut(&self, b: &mut DVector<f64>) -> bool {
+        match self {
+            NewtonFactor::Regular(lu) => lu.solve_mut(b),
+            NewtonFactor::Deficient { svd, threshold, .. } => {
+                match svd.solve(&*b, threshold.max(f64::MIN_POSITIVE)) {
+                    Ok(x) => {
+                        b.copy_from(&x);
+                        true
+                    }
+                    Err(_) => false,
+                }
+            }
+        }
+    }
+
+    /// For a numerically singular matrix, ‖J‖∞: its least-squares increments can vanish away
+    /// from a solution (an inconsistent system), so Newton must also pass the residual test.
+    pub fn singular_norm(&self) -> Option<f64> {
+        match self {
+            NewtonFactor::Deficient { norm, .. } if self.deficient() => Some(*norm),
+            _ => None,
+        }
+    }
+
+    /// True when the matrix was found numerically singular.
+    pub fn deficient(&self) -> bool {
+        matches!(self, NewtonFactor::Deficient { rank, svd, .. } if *rank < svd.singular_values.len())
+    }
+}
+
+/// Numerical rank of the rows×n matrix `jac` (row-major) and the orthogonal projector onto its
+/// column space, an rows×rows matrix: λ ↦ P λ keeps g_yᵀλ and removes the part of λ that
+/// g_yᵀ does not see, giving the minimum-norm multipliers.
+pub fn range_projection(jac: &[f64], rows: usize, n: usize) -> (usize, DMatrix<f64>) {
+    if rows == 0 || !jac.iter().all(|v| v.is_finite()) {
+        // No rank to speak of at a NaN (the run reports the NaN itself).
+        return (0, DMatrix::zeros(rows, rows));
+    }
+    let a = DMatrix::from_row_slice(rows, n, jac);
+    let svd = a.svd(true, false);
+    let threshold = RANK_TOLERANCE * svd.singular_values.max().max(1.0);
+    let Some(u) = svd.u.as_ref() else {
+        unreachable!("u was requested");
+    };
+    let mut p = DMatrix::zeros(rows, rows);
+    let mut rank = 0;
+    for (k, &s) in svd.singular_values.iter().enumerate() {
+        if s > threshold {
+            rank += 1;
+            let col = u.column(k);
+            p += &col * col.transpose();
+        }
+    }
+    (rank, p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_regular_matrix_keeps_lu_and_its_solution() {
+        let j = DMatrix::from_row_slice(3, 3, &[4.0, 1.0, 0.0, 1.0, 3.0, 1.0, 0.0, 1.0, 2.0]);
+        let f = NewtonFactor::new(&j, || true);
+        assert!(matches!(f, NewtonFactor::Regular(_)));
+        let x = DVector::from_column_slice(&[1.0, -2.0, 3.0]);
+        let mut b = &j * &x;
+        assert!(f.solve_mut(&mut b));
+        assert!((b - x).amax() < 1e-14);
+    }
+
+    /// The saddle-point matrix [[I, Gᵀ], [G, 0]] with G's two rows equal (a joint written twice):
+    /// rank 3 of 4, and the solve gives the multipliers split evenly (minimum norm).
+    #[test]
+    fn a_redundant_joint_gives_the_minimum_norm_multipliers() {
+        let j = DMatrix::from_row_slice(
+            4,
+            4,
+            &[
+                1.0, 0.0, 1.0, 1.0, //
+                0.0, 1.0, 0.0, 0.0, //
+                1.0, 0.0, 0.0, 0.0, //
+                1.0, 0.0, 0.0, 0.0,
+            ],
+        );
+        let f = NewtonFactor::new(&j, || true);
+        let NewtonFactor::Deficient { rank, .. } = &f else {
+            panic!("LU's pivots should show the singular matrix")
+        };
+        assert_eq!(*rank, 3);
+        assert!(f.deficient());
+        // x = 0.5, y = 2, λ₁ + λ₂ = 1.5 − 0.5 = 1 → λ = (0.5, 0.5).
+        let mut b = DVector::from_column_slice(&[1.5, 2.0, 0.5, 0.5]);
+        assert!(f.solve_mut(&mut b));
+        let want = [0.5, 2.0, 0.5, 0.5];
+        for (got, want) in b.iter().zip(want) {
+            assert!((got - want).abs() < 1e-13, "{b}");
+        }
+    }
+
+    #[test]
+    fn the_projection_removes_what_the_transposed_jacobian_does_not_see() {
+        // g_y with rows (1, 0) and (2, 0): rank 1; λ = (1, 1) and P λ = (0.6, 1.2) give the
+        // same g_yᵀλ = (3, 0), and P λ is the shortest such λ.
+        let (rank, p) = range_projection(&[1.0, 0.0, 2.0, 0.0], 2, 2);
+        assert_eq!(rank, 1);
+        let l = p * DVector::from_column_slice(&[1.0, 1.0]);
+        assert!(
+            (l[0] - 0.6).abs() < 1e-14 && (l[1] - 1.2).abs() < 1e-14,
+            "{l}"
+        );
+    }
+}

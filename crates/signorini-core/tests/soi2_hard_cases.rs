@@ -1,0 +1,327 @@
+//! Hard cases of DESIGN §16 (issue 27), on the IFToMM multibody benchmarks written as
+//! `lagrangian` models in `examples/benchmarks/`: the N-four-bar mechanism (A02) through its
+//! singular positions under the three SOI2 schemes, against the exact one-degree-of-freedom
+//! motion of its parallelogram branch; Bricard's mechanism (A04), whose joints are redundant at
+//! every configuration; the simple pendulum (A01) against its elliptic-function solution; and
+//! joint sets that cannot hold (refused at validation, or a run error with the step, never a
+//! panic or a hang).
+
+// Only the core library must stay pure (clippy.toml): a test may read fixtures and print.
+#![allow(clippy::disallowed_macros, clippy::disallowed_methods)]
+
+use serde_json::{Value, json};
+use signorini_core::job::{Job, run};
+use signorini_core::observer::Recorder;
+use signorini_core::outcome::{RunError, Soi2Summary, SummaryBody};
+use signorini_core::soi2::Soi2Error;
+use signorini_core::spec::JobSpec;
+use std::path::Path;
+
+/// An example of `examples/benchmarks/` as JSON, to edit.
+fn benchmark(name: &str) -> Value {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../examples/benchmarks")
+        .join(format!("{name}.toml"));
+    let text = std::fs::read_to_string(&path).expect("the example");
+    let spec: JobSpec = toml::from_str(&text).expect("the example parses");
+    serde_json::to_value(spec).expect("json")
+}
+
+fn spec(doc: &Value) -> JobSpec {
+    serde_json::from_value(doc.clone()).expect("a spec")
+}
+
+/// Runs `doc` and returns what it recorded and its SOI2 summary.
+fn run_soi2(doc: &Value) -> (Recorder, Soi2Summary) {
+    let job = Job::from_spec(&spec(doc)).unwrap_or_else(|e| panic!("valid spec: {e}"));
+    let mut rec = Recorder::default();
+    let out = run(&job, 1, &mut rec).unwrap_or_else(|e| panic!("the run: {e}"));
+    let SummaryBody::Soi2(summary) = out.summary.body else {
+        panic!("a SOI2 run")
+    };
+    (rec, *summary)
+}
+
+/// The three SOI2 schemes as `[integrator]` sections.
+fn schemes() -> [Value; 3] {
+    [
+        json!({"scheme": "soi2_generalized_alpha", "rho_inf": 0.8}),
+        json!({"scheme": "soi2_hht", "alpha": -0.05}),
+        json!({"scheme": "hht_i3", "alpha": -0.05}),
+    ]
+}
+
+/// The rotation angle θ(t) of the rockers of the N-four-bar mechanism on its parallelogram
+/// branch, where every rocker keeps the angle θ and every coupler translates:
+/// I θ̈ = −V'(θ) with I = (N + 1) m L²/3 + N m L² and V(θ) = m g L (3N + 1)/2 · sin θ (m = L = 1),
+/// θ(0) = π/2, θ̇(0) = −1, integrated by classical Runge–Kutta at h = 10⁻⁴ (error far below
+/// 10⁻⁹) and returned at the times `ts` (increasing).
+fn four_bar_angle(n: usize, ts: &[f64]) -> Vec<f64> {
+    let inertia = (n as f64 + 1.0) / 3.0 + n as f64;
+    let c = 9.81 * (3.0 * n as f64 + 1.0) / 2.0;
+    let f = |th: f64, w: f64| (w, -c * th.cos() / inertia);
+    let (mut th, mut w, mut t) = (std::f64::consts::FRAC_PI_2, -1.0, 0.0);
+    let mut out = Vec::with_capacity(ts.len());
+    for &target in ts {
+        while t < target - 1e-12 {
+            let h = (target - t).min(1e-4);
+            let k1 = f(th, w);
+            let k2 = f(th + h / 2.0 * k1.0, w + h / 2.0 * k1.1);
+            let k3 = f(th + h / 2.0 * k2.0, w + h / 2.0 * k2.1);
+            let k4 = f(th + h * k3.0, w + h * k3.1);
+            th += h / 6.0 * (k1.0 + 2.0 * k2.0 + 2.0 * k3.0 + k4.0);
+            w += h / 6.0 * (k1.1 + 2.0 * k2.1 + 2.0 * k3.1 + k4.1);
+            t += h;
+        }
+        out.push(th);
+    }
+    out
+}
+
+/// A02 with N loops under each SOI2 scheme: the tracked point B0 (the tip of the first rocker)
+/// within the benchmark's high-precision class, 10⁻³ m, of the exact motion at every recorded
+/// instant, through the singular (horizontal) positions; every rocker parallel to the first to
+/// 10⁻⁶ rad; the energy drift below 10⁻⁴ relative; the positions on the constraint manifold.
+#[test]
+fn n_four_bar_runs_through_its_singular_positions_under_every_soi2_scheme() {
+    let base = benchmark("a02_n_four_bar");
+    let coordinates = base["model"]["coordinates"]
+        .as_array()
+        .expect("names")
+        .clone();
+    let rockers: Vec<usize> = coordinates
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.as_str().is_some_and(|c| c.starts_with('p')))
+        .map(|(i, _)| i)
+        .collect();
+    let n = rockers.len() - 1;
+    for integrator in schemes() {
+        let mut doc = base.clone();
+        doc["integrator"] = integrator.clone();
+        doc["time"] = json!({"h": 1e-3, "t_end": 3.0});
+        doc["output"] = json!({"every": 10, "probes": rockers});
+        let (rec, summary) = run_soi2(&doc);
+        let exact = four_bar_angle(n, &rec.t);
+        // The horizontal passages the exact motion makes (θ crossing a multiple of π).
+        let passages = exact
+            .windows(2)
+            .filter(|w| {
+                (w[0] / std::f64::consts::PI).floor() != (w[1] / std::f64::consts::PI).floor()
+            })
+            .count();
+        assert!(
+            passages >= 3,
+            "{integrator}: {passages} singular passages in 3 s"
+        );
+        let p0 = rec.column("y_0").expect("the first rocker");
+        let mut worst_point = 0.0_f64;
+        let mut worst_parallel = 0.0_f64;
+        for (k, (&phi, th)) in p0.iter().zip(&exact).enumerate() {
+            let error = (phi.cos() - th.cos()).hypot(phi.sin() - th.sin());
+            worst_point = worst_point.max(error);
+            for &j in &rockers[1..] {
+                let phi_j = rec.column(&format!("y_{j}")).expect("a rocker")[k];
+                worst_parallel = worst_parallel.max((phi_j - phi).abs());
+            }
+        }
+        assert!(
+            worst_point <= 1e-3,
+            "{integrator}: B0 off by {worst_point:e} m"
+        );
+        assert!(
+            worst_parallel <= 1e-6,
+            "{integrator}: rockers {worst_parallel:e} rad apart"
+        );
+        let energy = rec.column("energy").expect("energy");
+        let drift = energy
+            .iter()
+            .map(|e| (e - energy[0]).abs())
+            .fold(0.0, f64::max)
+            / energy[0].abs();
+        assert!(drift < 1e-4, "{integrator}: energy drift {drift:e}");
+        assert!(
+            summary.max_position_residual < 1e-9,
+            "{integrator}: position residual {:e}",
+            summary.max_position_residual
+        );
+        println!(
+            "{integrator}: B0 error {worst_point:.2e} m, rockers {worst_parallel:.1e} rad, drift {drift:.1e}, \
+             {passages} passages, {:.2} iterations/step, {} rank-deficient steps",
+            summary.newton_iterations_mean, summary.rank_deficient_steps
+        );
+    }
+}
+
+/// Bricard's mechanism over the benchmark's 10 s with its twelve joints, one redundant at every
+/// configuration: every step is solved with rank 11 of 12 (the summary says so), the positions
+/// stay on the manifold to the Newton tolerance and the energy is kept.
+#[test]
+fn bricard_runs_its_full_duration_with_the_redundant_joint() {
+    let base = benchmark("a04_bricard");
+    for integrator in schemes() {
+        let mut doc = base.clone();
+        doc["integrator"] = integrator.clone();
+        let (rec, summary) = run_soi2(&doc);
+        assert!(
+            (summary.t_end - 10.0).abs() < 1e-9,
+            "{integrator}: stopped at {}",
+            summary.t_end
+        );
+        assert_eq!(summary.holonomic_constraints, 12);
+        assert_eq!(summary.rank_deficient_steps, summary.steps, "{integrator}");
+        assert_eq!(summary.smallest_rank, Some(11), "{integrator}");
+        assert!(
+            summary.max_position_residual < 1e-10,
+            "{integrator}: position residual {:e}",
+            summary.max_position_residual
+        );
+        let energy = rec.column("energy").expect("energy");
+        let drift = energy
+            .iter()
+            .map(|e| (e - energy[0]).abs())
+            .fold(0.0, f64::max);
+        // E₀ = 0 (potential zero at the start): the drift relative to the kinetic energy range.
+        let scale = rec
+            .column("kinetic")
+            .expect("kinetic")
+            .iter()
+            .fold(0.0, |m: f64, k| m.max(*k));
+        assert!(
+            scale > 1.0,
+            "{integrator}: the mechanism moves (kinetic {scale})"
+        );
+        assert!(
+            drift < 1e-3 * scale,
+            "{integrator}: energy drift {drift:e} of {scale}"
+        );
+        println!(
+            "{integrator}: drift {drift:.1e} of kinetic {scale:.2}, {:.2} iterations/step",
+            summary.newton_iterations_mean
+        );
+    }
+}
+
+/// Jacobi's sn, cn, dn of (u | m) by the arithmetic–geometric mean (Abramowitz & Stegun 16.4),
+/// and the complete elliptic integral K(m) = π / (2 AGM(1, √(1 − m))).
+fn jacobi(u: f64, m: f64) -> (f64, f64, f64) {
+    let (mut a, mut b) = (vec![1.0_f64], (1.0 - m).sqrt());
+    let mut c = vec![m.sqrt()];
+    while c[c.len() - 1].abs() > 1e-17 && a.len() < 40 {
+        let an = (a[a.len() - 1] + b) / 2.0;
+        c.push((a[a.len() - 1] - b) / 2.0);
+        b = (a[a.len() - 1] * b).sqrt();
+        a.push(an);
+    }
+    let n = a.len() - 1;
+    let mut phi = 2f64.powi(n as i32) * a[n] * u;
+    for j in (1..=n).rev() {
+        phi = (phi + (c[j] / a[j] * phi.sin()).asin()) / 2.0;
+    }
+    let (sn, cn) = phi.sin_cos();
+    (sn, cn, (1.0 - m * sn * sn).sqrt())
+}
+
+fn complete_k(m: f64) -> f64 {
+    let (mut a, mut b) = (1.0_f64, (1.0 - m).sqrt());
+    for _ in 0..40 {
+        (a, b) = ((a + b) / 2.0, (a * b).sqrt());
+    }
+    std::f64::consts::PI / (2.0 * a)
+}
+
+/// The simple pendulum released from the horizontal (θ₀ = π/2 from the downward vertical):
+/// sin(θ/2) = k sn(K − ωt | k²), k = sin(θ₀/2), ω = √(g/L), so the mass is at
+/// x = −2Lk sn dn, y = −L(1 − 2k² sn²).
+fn pendulum_exact(t: f64) -> (f64, f64) {
+    let k = std::f64::consts::FRAC_PI_4.sin();
+    let m = k * k;
+    let u = complete_k(m) - 9.81_f64.sqrt() * t;
+    let (sn, _, dn) = jacobi(u, m);
+    (-2.0 * k * sn * dn, -(1.0 - 2.0 * m * sn * sn))
+}
+
+/// A01 under each SOI2 scheme against the elliptic-function solution over the benchmark's
+/// 10 s, and the `[check]` reference values of the example are that solution.
+#[test]
+fn simple_pendulum_follows_its_elliptic_function_solution() {
+    let base = benchmark("a01_simple_pendulum");
+    for r in base["check"]["reference"]
+        .as_array()
+        .expect("[[check.reference]]")
+    {
+        let t = r["t"].as_f64().expect("t");
+        let (x, y) = pendulum_exact(t);
+        let want = if r["column"] == "y_0" { x } else { y };
+        let value = r["value"].as_f64().expect("value");
+        assert!(
+            (value - want).abs() < 1e-12,
+            "reference at t = {t}: {value} ≠ {want}"
+        );
+    }
+    for integrator in schemes() {
+        let mut doc = base.clone();
+        doc["integrator"] = integrator.clone();
+        doc["time"] = json!({"h": 1e-3, "t_end": 10.0});
+        let (rec, _) = run_soi2(&doc);
+        let x = rec.column("y_0").expect("x");
+        let worst = rec
+            .t
+            .iter()
+            .zip(&x)
+            .map(|(&t, &x)| (x - pendulum_exact(t).0).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-3, "{integrator}: x off by {worst:e} m");
+        println!("{integrator}: largest error of x {worst:.2e} m");
+    }
+}
+
+/// A joint set that cannot hold: two joints violated together at q0 are refused at validation
+/// naming the field; a set consistent at t = 0 that becomes impossible (x = 0 and x = t²) is a
+/// run error with the step, t, the residual and the rank, under fixed and variable steps.
+#[test]
+fn inconsistent_joints_are_refused_or_fail_with_the_step() {
+    let model = |constraints: Value| {
+        json!({
+            "model": {
+                "scene": "lagrangian",
+                "coordinates": ["x", "y"],
+                "mass": {"diagonal": [1.0, 1.0]},
+                "potential": "9.81*y",
+                "q0": [0.0, 0.0],
+                "constraints": constraints
+            },
+            "integrator": {"scheme": "soi2_generalized_alpha"},
+            "time": {"h": 0.01, "t_end": 1.0}
+        })
+    };
+    let refused = Job::from_spec(&spec(&model(json!([{"expr": "x - 1"}])))).expect_err("refused");
+    assert_eq!(refused.field, "model.constraints[0].expr");
+    assert!(refused.reason.contains("violated at q0"), "{refused}");
+
+    let impossible = json!([{"expr": "x"}, {"expr": "x - t^3"}]);
+    for pattern in [json!([1.0]), json!([0.5, 1.5])] {
+        let mut doc = model(impossible.clone());
+        doc["model"]["redundant_joints"] = json!(true);
+        doc["time"]["pattern"] = pattern.clone();
+        let job = Job::from_spec(&spec(&doc)).expect("consistent at t = 0");
+        match run(&job, 1, &mut Recorder::default()) {
+            Err(RunError::Soi2(Soi2Error::NewtonDiverged {
+                step,
+                t,
+                residual,
+                rank,
+                constraints,
+                ..
+            })) => {
+                assert!(
+                    step >= 1 && t > 0.0 && t <= 1.0,
+                    "{pattern}: step {step} at t = {t}"
+                );
+                assert!(residual > 0.0, "{pattern}");
+                assert_eq!((rank, constraints), (1, 2), "{pattern}");
+            }
+            other => panic!("{pattern}: expected a Newton failure, got {other:?}"),
+        }
+    }
+}
