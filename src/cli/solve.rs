@@ -161,5 +161,8 @@ fn write_solution(dir: &Path, file: &Path, raw: &RawProblem, s: &Fc3dSolution) -
 /// Without HDF5 `solve` refuses `--out` before reading any file, so this is never reached.
 #[cfg(not(feature = "hdf5"))]
 fn write_solution(dir: &Path, _: &Path, _: &RawProblem, _: &Fc3dSolution) -> Result<()> {
-    bail!("{}: writing FCLib HDF5 needs the `hdf5` feature", dir.display())
+    bail!(
+        "{}: writing FCLib HDF5 needs the `hdf5` feature",
+        dir.display()
+    )
 }
