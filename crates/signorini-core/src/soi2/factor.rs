@@ -133,7 +133,7 @@ pub fn range_projection(jac: &[f64], rows: usize, n: usize) -> (usize, DMatrix<f
         if s > threshold {
             rank += 1;
             let col = u.column(k);
-            p += &col * col.transpose();
+            p += col * col.transpose();
         }
     }
     (rank, p)
