@@ -86,9 +86,12 @@ struct Measured {
     max_position: f64,
     /// Per `[[check.reference]]`: the column's index, and the recorded (|t − t_ref|, value)
     /// nearest to the reference instant so far.
-    references: Vec<(Option<usize>, Option<(f64, f64)>)>,
+    references: Vec<(Option<usize>, Option<Nearest>)>,
     reference_times: Vec<(String, f64)>,
 }
+
+/// A recorded value nearest to a reference instant: (|t − t_ref|, value).
+type Nearest = (f64, f64);
 
 impl Observer for Measured {
     fn start(&mut self, columns: &Columns) {
