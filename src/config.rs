@@ -16,6 +16,7 @@ The TOML file uses the flag names with underscores, e.g.
   grpc_addr = \"127.0.0.1:50051\"
   http_addr = \"127.0.0.1:8080\"
   store = \"signorini.db\"          # or \"postgres://user@host/db\": replicas share it
+  store_max_mb = 4096             # SQLite: the store's largest size (writes past it are refused)
   replica = \"node-a\"              # with PostgreSQL: this replica's name (default: host-pid-random)
   lease_secs = 10.0               # with PostgreSQL: a job's lease, renewed by the heartbeat
   zenoh_listen = [\"tcp/127.0.0.1:7447\"]
@@ -27,6 +28,9 @@ The TOML file uses the flag names with underscores, e.g.
   max_dofs = 100000
   max_steps = 100000000
   max_output_mb = 1024
+  max_memory_mb = 2048          # a job's memory, estimated from its model's sizes before it is compiled
+  max_compile_seconds = 30      # compiling a job's model (a `lagrangian` one: its symbolic derivatives)
+  max_wall_seconds = 86400      # a job's run (unlimited by default)
   retain_days = 30              # remove finished jobs 30 days after they ended (default: keep)
 
 HTTP: POST /v1/jobs, GET /v1/jobs?limit=&state=&page_token=, GET /v1/jobs/{id},
@@ -51,6 +55,11 @@ pub struct ServeArgs {
     /// any number of replicas share, with the queue [default: signorini.db].
     #[arg(long, env = "SIGNORINI_STORE")]
     pub store: Option<PathBuf>,
+    /// With a SQLite store: its largest size in MiB (SQLite's `max_page_count`); a write past
+    /// it is refused as on a full disk: the job fails naming it, `/healthz` reports the store
+    /// degraded and submissions are refused until there is room (no limit by default).
+    #[arg(long, env = "SIGNORINI_STORE_MAX_MB")]
+    pub store_max_mb: Option<u64>,
     /// This replica's name in a PostgreSQL store's claims; unique among the replicas
     /// [default: HOSTNAME-PID-RANDOM].
     #[arg(long, env = "SIGNORINI_REPLICA")]
@@ -92,6 +101,19 @@ pub struct ServeArgs {
     /// Largest estimated recorded output per job, in MiB [default: 1024].
     #[arg(long, env = "SIGNORINI_MAX_OUTPUT_MB")]
     pub max_output_mb: Option<u64>,
+    /// Largest memory a job may need, in MiB, estimated from its model's sizes before its model
+    /// is compiled; a larger job is refused naming the limit [default: 2048].
+    #[arg(long, env = "SIGNORINI_MAX_MEMORY_MB")]
+    pub max_memory_mb: Option<u64>,
+    /// Longest a submission may spend compiling its model (a `lagrangian` model's symbolic
+    /// derivatives and tapes), in seconds; past it the submission is refused naming the limit
+    /// [default: 30].
+    #[arg(long, env = "SIGNORINI_MAX_COMPILE_SECONDS")]
+    pub max_compile_seconds: Option<f64>,
+    /// Longest a job may run, in seconds of wall time; past it the job ends `failed` naming the
+    /// limit (unlimited by default).
+    #[arg(long, env = "SIGNORINI_MAX_WALL_SECONDS")]
+    pub max_wall_seconds: Option<f64>,
 }
 
 /// The `--config` file.
@@ -101,6 +123,7 @@ struct FileConfig {
     grpc_addr: Option<SocketAddr>,
     http_addr: Option<SocketAddr>,
     store: Option<PathBuf>,
+    store_max_mb: Option<u64>,
     replica: Option<String>,
     lease_secs: Option<f64>,
     zenoh_listen: Option<Vec<String>>,
@@ -112,6 +135,9 @@ struct FileConfig {
     max_dofs: Option<u64>,
     max_steps: Option<u64>,
     max_output_mb: Option<u64>,
+    max_memory_mb: Option<u64>,
+    max_compile_seconds: Option<f64>,
+    max_wall_seconds: Option<f64>,
     retain_days: Option<f64>,
 }
 
@@ -124,6 +150,21 @@ pub struct Limits {
     pub max_steps: u64,
     /// Estimated recorded output, bytes.
     pub max_output_bytes: u64,
+    /// Estimated memory of a job (its compiled model and its run), bytes.
+    pub max_memory_bytes: u64,
+    /// Compiling a job's model.
+    pub max_compile: std::time::Duration,
+    /// A job's run, wall time (unlimited when `None`).
+    pub max_wall: Option<std::time::Duration>,
+}
+
+/// A duration limit of `secs` seconds from `--FLAG`: positive and finite.
+fn seconds(flag: &str, secs: f64) -> Result<std::time::Duration> {
+    if secs.is_finite() && secs > 0.0 && secs <= 1e9 {
+        Ok(std::time::Duration::from_secs_f64(secs))
+    } else {
+        bail!("--{flag} must be a positive number of seconds, not {secs}")
+    }
 }
 
 /// The resolved configuration.
@@ -135,6 +176,8 @@ pub struct ServeConfig {
     pub http_addr: SocketAddr,
     /// Store file, or PostgreSQL URL.
     pub store: PathBuf,
+    /// A SQLite store's largest size, bytes (unlimited when `None`).
+    pub store_max_bytes: Option<u64>,
     /// This replica's name (its claims in a PostgreSQL store).
     pub replica: String,
     /// A claim's lease in a PostgreSQL store.
@@ -193,6 +236,10 @@ impl ServeConfig {
                 .store
                 .or(file.store)
                 .unwrap_or_else(|| PathBuf::from("signorini.db")),
+            store_max_bytes: args
+                .store_max_mb
+                .or(file.store_max_mb)
+                .map(|mb| mb.saturating_mul(1 << 20)),
             replica: match args.replica.or(file.replica) {
                 Some(r) if !r.trim().is_empty() => r,
                 _ => default_replica(),
@@ -227,6 +274,22 @@ impl ServeConfig {
                     .or(file.max_output_mb)
                     .unwrap_or(1024)
                     .saturating_mul(1 << 20),
+                max_memory_bytes: args
+                    .max_memory_mb
+                    .or(file.max_memory_mb)
+                    .unwrap_or(2048)
+                    .saturating_mul(1 << 20),
+                max_compile: seconds(
+                    "max-compile-seconds",
+                    args.max_compile_seconds
+                        .or(file.max_compile_seconds)
+                        .unwrap_or(30.0),
+                )?,
+                max_wall: args
+                    .max_wall_seconds
+                    .or(file.max_wall_seconds)
+                    .map(|s| seconds("max-wall-seconds", s))
+                    .transpose()?,
             },
             retain: None,
         };

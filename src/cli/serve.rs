@@ -19,5 +19,9 @@ pub fn run(args: ServeArgs) -> Result<()> {
         .enable_all()
         .build()
         .context("starting the tokio runtime")?;
-    runtime.block_on(crate::server::serve(cfg))
+    let served = runtime.block_on(crate::server::serve(cfg));
+    // A blocking task still running (a request's work the shutdown abandoned) does not hold
+    // the process: it ends with it.
+    runtime.shutdown_timeout(std::time::Duration::from_secs(1));
+    served
 }

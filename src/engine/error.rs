@@ -67,6 +67,13 @@ pub enum EngineError {
     /// The engine is shutting down.
     #[error("shutting down")]
     Unavailable,
+    /// The store does not take writes (it is full or read-only): new jobs are refused until a
+    /// probe of it writes again.
+    #[error("the store cannot take writes ({reason}): new jobs are refused until it can")]
+    StoreRefused {
+        /// The store's reason.
+        reason: String,
+    },
     /// The store failed.
     #[error("internal error: {0}")]
     Store(#[from] StoreError),
@@ -89,6 +96,7 @@ impl EngineError {
             | EngineError::WrongState { .. }
             | EngineError::BeingRead { .. } => "id".into(),
             EngineError::QueueFull { .. } => "queue".into(),
+            EngineError::StoreRefused { .. } => "store".into(),
             EngineError::Unavailable | EngineError::Store(_) | EngineError::Internal(_) => {
                 String::new()
             }

@@ -162,6 +162,15 @@ struct Inner {
     /// Results being streamed, with their number of readers: a purge waits until none is left
     /// (it answers [`EngineError::BeingRead`]), so no stream is cut mid-body.
     readers: Mutex<HashMap<String, usize>>,
+    /// Ends of jobs the store refused (it was full or read-only): their status is answered
+    /// from here, and they are stored when a probe finds the store writable again.
+    unstored_ends: Mutex<HashMap<String, JobView>>,
+}
+
+/// A store write's outcome, noted in the store's health (a refusal for want of room or a
+/// read-only store degrades it).
+fn noted<T>(inner: &Inner, outcome: Result<T, StoreError>) -> Result<T, StoreError> {
+    inner.store.health().noted(outcome)
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -208,6 +217,86 @@ fn check_limits(job: &Job, limits: &Limits) -> Result<(), SpecError> {
     }
     Ok(())
 }
+
+/// Bytes per entry of an n×n table that a `lagrangian` model of n coordinates holds once
+/// compiled and running: M(q) (its expressions, its tape's outputs and values), ∂F/∂q and
+/// ∂F/∂q̇ (2 entries: expressions, tape outputs, values), the symmetry and Cholesky checks of
+/// M(q0) at validation, and the run's iteration matrix and its factors. Measured: see
+/// [`memory_estimate`].
+const LAGRANGIAN_BYTES_PER_ENTRY: u64 = 320;
+
+/// The memory a `lagrangian` model of `n` coordinates will need, estimated before anything is
+/// parsed further or compiled: it holds dense n×n tables ([`LAGRANGIAN_BYTES_PER_ENTRY`] bytes
+/// per entry). Other models are bounded by the server's `max_dofs` and their banded or dense
+/// storage, and are not estimated.
+fn lagrangian_memory(n: usize) -> u64 {
+    let n = n as u64;
+    n.saturating_mul(n)
+        .saturating_mul(LAGRANGIAN_BYTES_PER_ENTRY)
+}
+
+/// Refuses a job whose estimated memory ([`lagrangian_memory`]) exceeds the server's
+/// `max_memory_mb`, naming the field and the limit.
+fn check_memory(spec: &JobSpec, limits: &Limits) -> Result<(), SpecError> {
+    match &spec.model {
+        Some(signorini_core::spec::ModelSpec::Lagrangian(m)) => {
+            check_coordinates(m.coordinates.len(), limits)
+        }
+        _ => Ok(()),
+    }
+}
+
+/// What a JSON spec's outline says of its size: its model's scene and its number of
+/// coordinates, read without building the spec (every other value is skipped as text).
+#[derive(serde::Deserialize)]
+struct Outline {
+    model: Option<ModelOutline>,
+}
+
+#[derive(serde::Deserialize)]
+struct ModelOutline {
+    scene: Option<String>,
+    coordinates: Option<Vec<serde::de::IgnoredAny>>,
+}
+
+/// [`Engine::precheck_json`] against `limits`.
+fn precheck_json(text: &str, limits: &Limits) -> Result<(), EngineError> {
+    let Ok(Outline {
+        model:
+            Some(ModelOutline {
+                scene: Some(scene),
+                coordinates: Some(coordinates),
+            }),
+    }) = serde_json::from_str::<Outline>(text)
+    else {
+        return Ok(());
+    };
+    if scene != "lagrangian" {
+        return Ok(());
+    }
+    Ok(check_coordinates(coordinates.len(), limits)?)
+}
+
+/// Refuses a `lagrangian` model of `n` coordinates whose estimated memory exceeds the server's
+/// `max_memory_mb`, naming the field and the limit.
+fn check_coordinates(n: usize, limits: &Limits) -> Result<(), SpecError> {
+    let need = lagrangian_memory(n);
+    if need > limits.max_memory_bytes {
+        return Err(SpecError::new(
+            "model.coordinates",
+            format!(
+                "the model would need about {} MiB of memory (its dense n×n tables), more than this server's limit of {} MiB (max_memory_mb): use fewer coordinates",
+                need >> 20,
+                limits.max_memory_bytes >> 20
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// How often a submission waiting for its model's compilation looks at the clock and at a
+/// shutdown.
+const COMPILE_POLL: std::time::Duration = std::time::Duration::from_millis(50);
 
 /// Longest job `name`, and longest key of a map in a spec (a parameter's name), in bytes.
 pub const MAX_NAME_BYTES: usize = 256;
@@ -325,6 +414,7 @@ impl Engine {
             counters: Counters::default(),
             workers,
             readers: Mutex::new(HashMap::new()),
+            unstored_ends: Mutex::new(HashMap::new()),
         });
         let engine = Engine {
             inner,
@@ -357,13 +447,16 @@ impl Engine {
         if let Some(id) = &id {
             check_id(id)?;
         }
+        self.writable()?;
+        // Before any pass over the spec's tree: a model too large is refused at once.
+        check_memory(spec, &self.inner.limits)?;
         let spec_value =
             serde_json::to_value(spec).map_err(|e| EngineError::Internal(e.to_string()))?;
         check_text(&spec_value, "")?;
         if spec.study.is_some() {
             return study::submit(self, spec, spec_value.to_string(), id);
         }
-        let job = Job::from_spec(spec)?;
+        let job = self.build(spec)?;
         check_limits(&job, &self.inner.limits)?;
         let spec_json = spec_value.to_string();
         let id = id.unwrap_or_else(new_id);
@@ -375,14 +468,132 @@ impl Engine {
             created_ms,
             false,
         ));
-        self.inner.queue.submit(&self.inner, live, &spec_json)?;
+        self.inner
+            .queue
+            .submit(&self.inner, live, &spec_json)
+            .map_err(|e| self.refusal(e))?;
         Ok(id)
+    }
+
+    /// Refuses a JSON spec whose `lagrangian` model has more coordinates than the server's
+    /// `max_memory_mb` allows ([`lagrangian_memory`]), from its outline (the scene and the
+    /// coordinates, every other value skipped as text) before the spec is parsed: building the
+    /// spec of a dense n×n mass matrix costs memory and time of its own. A text whose outline
+    /// does not read is left to the parser, which names what is wrong.
+    pub fn precheck_json(&self, text: &str) -> Result<(), EngineError> {
+        precheck_json(text, &self.inner.limits)
+    }
+
+    /// Builds a job from its spec (validation, and for a `lagrangian` model the compilation of
+    /// its symbolic derivatives and tapes) on a thread of its own, waiting at most the server's
+    /// `max_compile_seconds` and no longer than until the engine begins to shut down. A build
+    /// past the limit is refused naming it; its thread finishes on its own (its memory bounded
+    /// by [`check_memory`], done before) and its job is dropped.
+    fn build(&self, spec: &JobSpec) -> Result<Job, EngineError> {
+        use std::sync::mpsc::RecvTimeoutError;
+        let (tx, rx) = std::sync::mpsc::sync_channel(1);
+        let owned = spec.clone();
+        std::thread::Builder::new()
+            .name("signorini-compile".into())
+            .spawn(move || {
+                let _ = tx.send(Job::from_spec(&owned));
+            })
+            .map_err(|e| EngineError::Internal(format!("spawning the compiler: {e}")))?;
+        let max = self.inner.limits.max_compile;
+        let started = Instant::now();
+        loop {
+            match rx.recv_timeout(COMPILE_POLL) {
+                Ok(built) => return Ok(built?),
+                Err(RecvTimeoutError::Disconnected) => {
+                    return Err(EngineError::Internal(
+                        "compiling the model panicked (a bug: please report it with the spec)"
+                            .into(),
+                    ));
+                }
+                Err(RecvTimeoutError::Timeout) => {
+                    if self.inner.shutdown.load(Ordering::Acquire) {
+                        return Err(EngineError::Unavailable);
+                    }
+                    if started.elapsed() >= max {
+                        return Err(EngineError::Invalid(SpecError::new(
+                            "model",
+                            format!(
+                                "compiling the model took longer than this server's limit of {} s (max_compile_seconds): use fewer coordinates or simpler expressions",
+                                max.as_secs_f64()
+                            ),
+                        )));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Stops taking jobs and stops the running ones at their next step (they stay `running`
+    /// in the store, as at [`Engine::shutdown`]), without waiting: a submission waiting for its
+    /// model's compilation returns at once, so the listeners can close promptly.
+    pub fn begin_shutdown(&self) {
+        self.inner.shutdown.store(true, Ordering::Release);
+        self.inner.queue.wake_all();
+    }
+
+    /// Why the store does not take writes now (`/healthz`'s degraded reason), if it does not.
+    pub fn store_refusal(&self) -> Option<String> {
+        self.inner.store.health().refused()
+    }
+
+    /// Probes a degraded store (blocking: it writes one chunk) and, when it writes again, stores
+    /// the job ends it refused meanwhile. `None` when the store takes writes, else why not.
+    pub fn probe_store(&self) -> Option<String> {
+        // Healthy: nothing to probe.
+        self.store_refusal()?;
+        if let Some(reason) = self.inner.store.probe() {
+            return Some(reason);
+        }
+        tracing::info!("the store takes writes again");
+        let ends: Vec<JobView> = lock(&self.inner.unstored_ends).values().cloned().collect();
+        for view in ends {
+            match noted(&self.inner, self.inner.store.finish(&view, None)) {
+                Ok(()) => {
+                    lock(&self.inner.unstored_ends).remove(&view.id);
+                }
+                Err(e) => {
+                    tracing::error!(id = %view.id, "store: {e}");
+                    return self.store_refusal();
+                }
+            }
+        }
+        None
+    }
+
+    /// Refuses new work while the store does not take writes: a degraded store is probed first,
+    /// and takes the job if it writes again.
+    fn writable(&self) -> Result<(), EngineError> {
+        match self.probe_store() {
+            None => Ok(()),
+            Some(reason) => Err(EngineError::StoreRefused { reason }),
+        }
+    }
+
+    /// A store error that refuses writes as [`EngineError::StoreRefused`] (noted in the store's
+    /// health); any other error as it is.
+    fn refusal(&self, e: EngineError) -> EngineError {
+        match e {
+            EngineError::Store(e) if e.refuses_writes() => {
+                let reason = e.to_string();
+                let _ = noted::<()>(&self.inner, Err(e));
+                EngineError::StoreRefused { reason }
+            }
+            e => e,
+        }
     }
 
     /// A job's status.
     pub fn status(&self, id: &str) -> Result<JobView, EngineError> {
         if let Some(live) = lock(&self.inner.live).get(id) {
             return Ok(live.view());
+        }
+        if let Some(end) = lock(&self.inner.unstored_ends).get(id) {
+            return Ok(end.clone());
         }
         self.inner
             .store
@@ -789,8 +1000,8 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
     let started = now_ms();
     live.started_ms.store(started, Ordering::Relaxed);
     live.running.store(true, Ordering::Release);
-    if let Err(e) = inner.store.set_running(&live.id, started) {
-        tracing::error!(id = %live.id, "store: {e}");
+    if let Err(e) = noted(inner, inner.store.set_running(&live.id, started)) {
+        return fail_for_store(inner, live, &e);
     }
     // A job run again after a restart continues from its last checkpoint, or else starts its
     // series afresh.
@@ -802,9 +1013,9 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
         .is_some_and(|c| c.checkpoint.is_none());
     if resume.is_none()
         && !cleared
-        && let Err(e) = inner.store.clear_series(&live.id)
+        && let Err(e) = noted(inner, inner.store.clear_series(&live.id))
     {
-        tracing::error!(id = %live.id, "store: {e}");
+        return fail_for_store(inner, live, &e);
     }
     inner.sink.send(JobEvent::Status(live.view()));
     tracing::info!(id = %live.id, "running");
@@ -840,7 +1051,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
                 error: Some(("store".into(), e.to_string())),
                 ..live.ended_view(JobState::Failed)
             };
-            return end_job(inner, live, view, Ending::bare(), last_batch);
+            return end_job(inner, live, view, Ending::bare(), Some(last_batch));
         }
     };
     // What a failed or cancelled run recorded is kept, marked partial.
@@ -868,8 +1079,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
         Ok(Err(RunError::Stopped { step })) => match observer.stop_reason() {
             Some(StopReason::Pause) => {
                 store_rest(live, &mut observer);
-                pause::park(inner, live);
-                return None;
+                return pause::park(inner, live);
             }
             Some(StopReason::Shutdown) => {
                 // Leave the job `running` in the store; the next start re-runs it (a shared
@@ -890,6 +1100,13 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
                 return None;
             }
             Some(StopReason::Cancel) => (JobState::Cancelled, None, partial()),
+            Some(StopReason::WallLimit) => {
+                let max = inner.limits.max_wall.unwrap_or_default().as_secs_f64();
+                let reason = format!(
+                    "the run took longer than this server's limit of {max} s of wall time (max_wall_seconds), stopped at step {step}: ask for fewer steps"
+                );
+                (JobState::Failed, Some(("time".into(), reason)), partial())
+            }
             None => {
                 let reason = format!(
                     "internal error (a bug: please report it with the spec): the run stopped at step {step} without being asked to"
@@ -918,7 +1135,18 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
         rows: true,
         final_state,
     };
-    end_job(inner, live, view, ending, last_batch)
+    end_job(inner, live, view, ending, Some(last_batch))
+}
+
+/// Ends a job a store write outside its run failed for (marking it running, dropping an
+/// earlier attempt's rows, parking it paused): failed, with the store's reason.
+fn fail_for_store(inner: &Inner, live: &Arc<LiveJob>, e: &StoreError) -> Option<Arc<LiveJob>> {
+    tracing::error!(id = %live.id, "store: {e}");
+    let view = JobView {
+        error: Some(("store".into(), e.to_string())),
+        ..live.ended_view(JobState::Failed)
+    };
+    end_job(inner, live, view, Ending::bare(), None)
 }
 
 /// Stores the rows a stopped run recorded after its last stored chunk (a run that stops to be
@@ -1022,15 +1250,17 @@ fn resume_point(inner: &Inner, live: &LiveJob) -> Option<ResumePoint> {
 }
 
 /// Stores a job's end (its last rows, its result, its final state: one store call), then
-/// tells the world: the last step batch, the final status, the end of the job's events. With a
-/// shared store (unless shutting down), the worker's next job is claimed in the same round
-/// trip, and returned.
+/// tells the world: the last step batch (if the run made one), the final status, the end of
+/// the job's events. An end the store refuses fails the job with the store's reason; if the
+/// store refuses that too, the failure is kept in memory (its status answered from there) and
+/// stored when the store writes again ([`Engine::probe_store`]). With a shared store (unless
+/// shutting down), the worker's next job is claimed in the same round trip, and returned.
 fn end_job(
     inner: &Inner,
     live: &Arc<LiveJob>,
     mut view: JobView,
     ending: Ending,
-    last_batch: JobEvent,
+    last_batch: Option<JobEvent>,
 ) -> Option<Arc<LiveJob>> {
     // Under the buffer's lock, as a chunk is stored while a job runs: a reader of the history
     // sees each row once.
@@ -1050,7 +1280,7 @@ fn end_job(
             .map(|(attempt, step, bytes)| (*attempt, *step, bytes.as_slice())),
     };
     let (stored, claimed) = inner.queue.end(inner, &end);
-    match stored {
+    match noted(inner, stored) {
         Ok(()) => {
             if rows.is_some() {
                 recent.stored();
@@ -1065,18 +1295,22 @@ fn end_job(
             tracing::error!(id = %live.id, "store: {e}");
             view.state = JobState::Failed;
             view.error = Some(("store".into(), e.to_string()));
-            // The end as a failure, without what could not be stored.
-            if let Err(e) = inner.store.finish(&view, None) {
+            // The end as a failure, without what could not be stored; kept here until the
+            // store takes it.
+            if let Err(e) = noted(inner, inner.store.finish(&view, None)) {
                 tracing::error!(id = %live.id, "store: {e}");
+                lock(&inner.unstored_ends).insert(live.id.clone(), view.clone());
             }
-            if let Err(e) = inner.store.delete_checkpoint(&live.id) {
+            if let Err(e) = noted(inner, inner.store.delete_checkpoint(&live.id)) {
                 tracing::error!(id = %live.id, "store: {e}");
             }
         }
     }
     drop(recent);
     lock(&inner.live).remove(&live.id);
-    inner.sink.send(last_batch);
+    if let Some(batch) = last_batch {
+        inner.sink.send(batch);
+    }
     tracing::info!(id = %live.id, state = view.state.as_str(), "finished");
     inner.sink.send(JobEvent::Status(view));
     inner.sink.send(JobEvent::Closed(live.id.clone()));

@@ -54,6 +54,8 @@ pub(super) struct ServiceObserver<'a> {
     /// Why this observer stopped the run, recorded when it broke it (`None` while it runs, and
     /// after a store failure, which [`ServiceObserver::end_parts`] reports).
     stopped: Option<StopReason>,
+    /// When this run (this attempt) started: the server's `max_wall_seconds` counts from here.
+    started: Instant,
 }
 
 /// When and as which attempt a run checkpoints.
@@ -112,6 +114,7 @@ impl<'a> ServiceObserver<'a> {
             resumed_after: None,
             final_state: None,
             stopped: None,
+            started: Instant::now(),
         }
     }
 
@@ -180,11 +183,14 @@ impl<'a> ServiceObserver<'a> {
         if recent.rows.steps.is_empty() {
             return Ok(());
         }
-        self.inner.store.append_chunk(
-            &self.live.id,
-            recent.chunks,
-            recent.first_row,
-            &recent.rows,
+        super::noted(
+            self.inner,
+            self.inner.store.append_chunk(
+                &self.live.id,
+                recent.chunks,
+                recent.first_row,
+                &recent.rows,
+            ),
         )?;
         recent.stored();
         self.batch_from = 0;
@@ -318,6 +324,14 @@ impl Observer for ServiceObserver<'_> {
         {
             return self.stop(reason);
         }
+        if self
+            .inner
+            .limits
+            .max_wall
+            .is_some_and(|max| self.started.elapsed() > max)
+        {
+            return self.stop(StopReason::WallLimit);
+        }
         // At shutdown or at a pause, a run that checkpoints stops after its next checkpoint
         // (above); one that does not stops now.
         if self.checkpoints.is_none()
@@ -372,10 +386,11 @@ impl Observer for ServiceObserver<'_> {
         .and_then(|()| checkpoint.encode().map_err(|e| e.to_string()))
         .and_then(|bytes| {
             let attempt = self.checkpoints.as_ref().map_or(0, |c| c.attempt);
-            self.inner
-                .store
-                .save_checkpoint(&self.live.id, attempt, checkpoint.step(), &bytes)
-                .map_err(|e| e.to_string())
+            let saved =
+                self.inner
+                    .store
+                    .save_checkpoint(&self.live.id, attempt, checkpoint.step(), &bytes);
+            super::noted(self.inner, saved).map_err(|e| e.to_string())
         });
         match saved {
             Ok(()) => {

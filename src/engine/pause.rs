@@ -41,23 +41,27 @@ const NO_CHECKPOINTS: &str = "an analysis (forced response, nonsmooth modes) wri
 const NO_RUN_OF_ITS_OWN: &str = "a study has no run of its own: pause, resume or extend its children (GET /v1/jobs/{id}/children)";
 
 /// Parks a running job whose run stopped after its pause checkpoint: the store marks it paused
-/// with the progress of that checkpoint, and its watchers get the status.
-pub(super) fn park(inner: &Inner, live: &Arc<LiveJob>) {
+/// with the progress of that checkpoint, and its watchers get the status. A store that refuses
+/// the write fails the job with its reason ([`super::fail_for_store`]), whose end is stored
+/// (or kept until it can be) like any other; with a shared store, the worker's next job may
+/// come with that end, and is returned.
+pub(super) fn park(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
     let view = JobView {
         state: JobState::Paused,
         ..live.view()
     };
-    match inner.store.park(&view) {
+    match super::noted(inner, inner.store.park(&view)) {
         Ok(true) => tracing::info!(id = %live.id, step = view.done, "paused"),
         Ok(false) => {
             tracing::warn!(id = %live.id, "paused, but the store no longer had it running")
         }
-        Err(e) => tracing::error!(id = %live.id, "store: {e}"),
+        Err(e) => return super::fail_for_store(inner, live, &e),
     }
     lock(&inner.live).remove(&live.id);
     inner.sink.send(JobEvent::Status(view));
     inner.sink.send(JobEvent::Closed(live.id.clone()));
     live.ended.send_replace(true);
+    None
 }
 
 /// Names the job an extension continues in its summary (`extends`), as its claim read it from

@@ -423,7 +423,7 @@ fn heartbeat_loop(inner: &Inner, q: &dyn SharedQueue) {
                 t: f64::from_bits(l.t_bits.load(Ordering::Relaxed)),
             })
             .collect();
-        match q.heartbeat(&beats) {
+        match super::noted(inner, q.heartbeat(&beats)) {
             Ok(replies) => {
                 for (id, reply) in replies {
                     let Some(live) = running.iter().find(|l| l.id == id) else {

@@ -14,11 +14,14 @@ pub(super) enum StopReason {
     Shutdown = 1,
     /// A client paused the job: it stopped after the checkpoint of its next step and is parked.
     Pause = 2,
+    /// The run took longer than the server's `max_wall_seconds`: it ends `failed` naming the
+    /// limit, with what it recorded kept as partial.
+    WallLimit = 3,
     /// A client cancelled the job: it ends `cancelled`, with what it recorded kept as partial.
-    Cancel = 3,
+    Cancel = 4,
     /// Another replica claimed the job again (this one did not renew its lease in time): this
     /// replica stores nothing more of it.
-    LeaseLost = 4,
+    LeaseLost = 5,
 }
 
 impl StopReason {
@@ -26,6 +29,7 @@ impl StopReason {
         [
             StopReason::Shutdown,
             StopReason::Pause,
+            StopReason::WallLimit,
             StopReason::Cancel,
             StopReason::LeaseLost,
         ]

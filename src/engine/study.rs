@@ -294,7 +294,8 @@ fn complete(inner: &Inner, id: &str) {
         finished_ms: now_ms(),
         ..view
     };
-    match inner.store.finish_study(&view, result.as_ref()) {
+    // A refused end is tried again by the sweeper (`sweep`), the parent still running.
+    match super::noted(inner, inner.store.finish_study(&view, result.as_ref())) {
         Ok(true) => {
             tracing::info!(
                 %id,

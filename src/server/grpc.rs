@@ -51,7 +51,7 @@ fn engine_code(e: &EngineError) -> Code {
         | EngineError::Unfinished { .. }
         | EngineError::BeingRead { .. }
         | EngineError::WrongState { .. } => Code::FailedPrecondition,
-        EngineError::Unavailable => Code::Unavailable,
+        EngineError::Unavailable | EngineError::StoreRefused { .. } => Code::Unavailable,
         EngineError::Store(_) | EngineError::Internal(_) => Code::Internal,
     }
 }
@@ -205,6 +205,7 @@ impl Simulation for SimulationService {
             let spec = match spec {
                 Some(pb::submit_job_request::Spec::Typed(s)) => convert::job_spec(s),
                 Some(pb::submit_job_request::Spec::Json(text)) => {
+                    engine.precheck_json(&text)?;
                     spec_file::parse(&text, Format::Json)
                 }
                 None => Err(signorini_core::spec::SpecError::new(

@@ -38,7 +38,9 @@ fn engine_status(e: &EngineError) -> StatusCode {
         | EngineError::WrongState { .. }
         | EngineError::BeingRead { .. } => StatusCode::CONFLICT,
         EngineError::QueueFull { .. } => StatusCode::TOO_MANY_REQUESTS,
-        EngineError::Unavailable => StatusCode::SERVICE_UNAVAILABLE,
+        EngineError::Unavailable | EngineError::StoreRefused { .. } => {
+            StatusCode::SERVICE_UNAVAILABLE
+        }
         EngineError::Store(_) | EngineError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
     }
 }
@@ -158,6 +160,7 @@ async fn submit_job(
     // Parsing and validation (a factorisation of M and K) run off the async executor.
     let engine = state.engine.clone();
     let id = tokio::task::spawn_blocking(move || {
+        engine.precheck_json(&body)?;
         let spec = spec_file::parse(&body, Format::Json)?;
         engine.submit(&spec, q.id)
     })
@@ -484,8 +487,17 @@ async fn capabilities() -> Json<Value> {
     Json(serde_json::to_value(signorini_core::capabilities::capabilities()).unwrap_or(Value::Null))
 }
 
-async fn healthz() -> Json<Value> {
-    Json(json!({ "status": "ok" }))
+/// `{"status": "ok"}`, or 503 `{"status": "degraded", "reason": …}` while the store does not
+/// take writes (the store's own words; new submissions are refused meanwhile).
+async fn healthz(State(state): State<AppState>) -> Response {
+    match state.engine.store_refusal() {
+        None => Json(json!({ "status": "ok" })).into_response(),
+        Some(reason) => (
+            StatusCode::SERVICE_UNAVAILABLE,
+            Json(json!({ "status": "degraded", "reason": reason })),
+        )
+            .into_response(),
+    }
 }
 
 /// Samples of a metric: `({labels}, value)`.

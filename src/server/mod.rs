@@ -256,9 +256,8 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
     .await?;
     let location = Location::of(&cfg.store);
     let opened = match location {
-        Location::Sqlite(path) => {
-            StoreLock::take(path).and_then(|lock| Ok((lock, Store::open(path)?)))
-        }
+        Location::Sqlite(path) => StoreLock::take(path)
+            .and_then(|lock| Ok((lock, Store::open_limited(path, cfg.store_max_bytes)?))),
         // Replicas share it: no lock. A connection per worker, one for the heartbeat, a few
         // for the API.
         Location::Postgres(url) => {
@@ -321,6 +320,7 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
     health
         .set_serving::<SimulationServer<grpc::SimulationService>>()
         .await;
+    background.push(tokio::spawn(watch_store(engine.clone(), health)));
 
     let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
     let stopped = |mut rx: tokio::sync::watch::Receiver<bool>| async move {
@@ -361,6 +361,8 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
 
     shutdown_signal().await;
     tracing::info!("shutting down");
+    // Jobs stop and compilations are abandoned now: in-flight requests end promptly.
+    engine.begin_shutdown();
     let _ = stop_tx.send(true);
     let _ = tokio::time::timeout(Duration::from_secs(10), grpc_task).await;
     let _ = tokio::time::timeout(Duration::from_secs(10), http_task).await;
@@ -374,6 +376,44 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
     drop(engine);
     streamer.close().await;
     Ok(())
+}
+
+/// How often a degraded store is probed (a submission probes it at once too).
+const STORE_PROBE: Duration = Duration::from_secs(1);
+
+/// Probes the store every [`STORE_PROBE`] while it does not take writes, so `/healthz` and the
+/// gRPC health service (`NOT_SERVING` meanwhile) turn healthy again once it can, without
+/// waiting for a submission.
+async fn watch_store(engine: Engine, health: tonic_health::server::HealthReporter) {
+    let mut serving = true;
+    loop {
+        tokio::time::sleep(STORE_PROBE).await;
+        let refused = match engine.store_refusal() {
+            None => None,
+            Some(_) => {
+                let e = engine.clone();
+                tokio::task::spawn_blocking(move || e.probe_store())
+                    .await
+                    .unwrap_or_else(|e| Some(e.to_string()))
+            }
+        };
+        match (refused, serving) {
+            (Some(reason), true) => {
+                tracing::warn!("the store cannot take writes: {reason}");
+                health
+                    .set_not_serving::<SimulationServer<grpc::SimulationService>>()
+                    .await;
+                serving = false;
+            }
+            (None, false) => {
+                health
+                    .set_serving::<SimulationServer<grpc::SimulationService>>()
+                    .await;
+                serving = true;
+            }
+            _ => {}
+        }
+    }
 }
 
 /// Encodes events and passes them through up to and including the first terminal status, and

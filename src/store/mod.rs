@@ -10,6 +10,7 @@
 //! (little-endian `u64`/`f64` blobs: what is read back is what was computed, bit for bit),
 //! appended while the job runs, read back one chunk at a time.
 
+mod health;
 pub mod pause;
 pub mod postgres;
 pub mod sqlite;
@@ -24,6 +25,7 @@ use std::sync::Arc;
 use std::time::Duration;
 use thiserror::Error;
 
+pub use health::Health;
 pub use sqlite::StoreLock;
 pub use study::StudyStore;
 
@@ -52,6 +54,16 @@ pub enum StoreError {
     /// PostgreSQL (or its connection pool) said no.
     #[error("store (PostgreSQL): {0}")]
     Postgres(String),
+    /// PostgreSQL refused a write for want of room or because it is read-only (SQLSTATE class
+    /// 53 "insufficient resources", 25006 `read_only_sql_transaction`, class 58 "system
+    /// error", e.g. 58030 `io_error`).
+    #[error("store (PostgreSQL): {reason} (SQLSTATE {sqlstate})")]
+    PostgresRefused {
+        /// PostgreSQL's message.
+        reason: String,
+        /// Its SQLSTATE code.
+        sqlstate: String,
+    },
     /// This replica no longer holds the job's lease: another replica claimed it again (this
     /// one was too slow to renew it), so what this run would store is dropped.
     #[error("store: job {id} was claimed again by another replica (this replica lost its lease)")]
@@ -67,6 +79,23 @@ pub enum StoreError {
         /// Which job.
         id: String,
     },
+}
+
+impl StoreError {
+    /// True when the store refused a write for want of room or because it is read-only (or its
+    /// file cannot be written): the store is then degraded ([`Health`]) until it can write
+    /// again.
+    pub fn refuses_writes(&self) -> bool {
+        use rusqlite::ErrorCode;
+        match self {
+            StoreError::Sql(rusqlite::Error::SqliteFailure(e, _)) => matches!(
+                e.code,
+                ErrorCode::DiskFull | ErrorCode::ReadOnly | ErrorCode::SystemIoFailure
+            ),
+            StoreError::PostgresRefused { .. } => true,
+            _ => false,
+        }
+    }
 }
 
 /// A finished job's result.
@@ -480,6 +509,11 @@ pub trait Backend: StudyStore + Send + Sync + pause::PauseStore {
     /// right after a chunk, so its row count is a chunk boundary; a chunk across it is refused.
     fn truncate_series(&self, id: &str, rows: u64) -> Result<(), StoreError>;
 
+    /// Writes one chunk's worth ([`CHUNK_BYTES`]) of data in a committed transaction and
+    /// removes it again: whether the store can take a running job's next chunk now (a
+    /// degraded store, [`Health`], is healthy again when this succeeds).
+    fn probe_write(&self) -> Result<(), StoreError>;
+
     /// A job's whole result, its series read chunk by chunk into memory: for tests and small
     /// results only (the servers stream series with [`Backend::series_index`] and
     /// [`Backend::read_chunk`]).
@@ -667,6 +701,7 @@ pub trait SharedQueue: Send + Sync {
 pub struct Store {
     backend: Arc<dyn Backend>,
     queue: Option<Arc<dyn SharedQueue>>,
+    health: Health,
 }
 
 impl std::ops::Deref for Store {
@@ -715,9 +750,20 @@ impl Store {
     /// Opens (or creates) the SQLite store at `path` in WAL mode. `:memory:` gives a throwaway
     /// store.
     pub fn open(path: &Path) -> Result<Store, StoreError> {
+        Store::open_limited(path, None)
+    }
+
+    /// [`Store::open`] with the store's size limited to `max_bytes` (SQLite's
+    /// `max_page_count`): a write past it is refused as on a full disk.
+    pub fn open_limited(path: &Path, max_bytes: Option<u64>) -> Result<Store, StoreError> {
+        let backend = sqlite::SqliteStore::open(path)?;
+        if let Some(max) = max_bytes {
+            backend.limit_size(max)?;
+        }
         Ok(Store {
-            backend: Arc::new(sqlite::SqliteStore::open(path)?),
+            backend: Arc::new(backend),
             queue: None,
+            health: Health::default(),
         })
     }
 
@@ -738,7 +784,19 @@ impl Store {
         Ok(Store {
             backend: store.clone(),
             queue: Some(store),
+            health: Health::default(),
         })
+    }
+
+    /// Whether the store takes writes ([`Health`]).
+    pub fn health(&self) -> &Health {
+        &self.health
+    }
+
+    /// Probes a degraded store ([`Backend::probe_write`]) and records the outcome: `None` when
+    /// it takes writes again, else why not.
+    pub fn probe(&self) -> Option<String> {
+        self.health.probed(self.backend.probe_write())
     }
 
     /// The queue this store shares between replicas, if it holds one (PostgreSQL).

@@ -71,6 +71,11 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
         "0005_uncompressed_series",
         include_str!("../../migrations/postgres/0005_uncompressed_series.sql"),
     ),
+    (
+        6,
+        "0006_write_probe",
+        include_str!("../../migrations/postgres/0006_write_probe.sql"),
+    ),
 ];
 
 /// Advisory lock key held while migrating ("sgnrn" in ASCII).
@@ -106,6 +111,16 @@ async fn ask_running(
 }
 
 fn pg(e: tokio_postgres::Error) -> StoreError {
+    if let Some(db) = e.as_db_error() {
+        let sqlstate = db.code().code();
+        // Out of room (class 53), read-only (25006), an I/O error of the server (class 58).
+        if sqlstate.starts_with("53") || sqlstate == "25006" || sqlstate.starts_with("58") {
+            return StoreError::PostgresRefused {
+                reason: db.message().to_string(),
+                sqlstate: sqlstate.to_string(),
+            };
+        }
+    }
     StoreError::Postgres(match e.as_db_error() {
         Some(db) => format!("{} ({})", db.message(), db.code().code()),
         None => match std::error::Error::source(&e) {
@@ -711,6 +726,35 @@ impl Backend for PgStore {
                 .await
                 .map_err(pg)?;
             c.execute(&st, &[&id]).await.map_err(pg)?;
+            Ok(())
+        })
+    }
+
+    /// One chunk of bytes that do not compress (stored EXTERNAL anyway), under this replica's
+    /// name, committed, then removed.
+    fn probe_write(&self) -> Result<(), StoreError> {
+        let replica = self.replica.clone();
+        // xorshift64: bytes that take their full size on disk.
+        let mut x = 0x9e37_79b9_7f4a_7c15_u64;
+        let bytes: Vec<u8> = (0..super::CHUNK_BYTES / 8)
+            .flat_map(|_| {
+                x ^= x << 13;
+                x ^= x >> 7;
+                x ^= x << 17;
+                x.to_le_bytes()
+            })
+            .collect();
+        self.with(move |c| async move {
+            c.execute(
+                "INSERT INTO write_probe (replica, bytes) VALUES ($1, $2)
+                 ON CONFLICT (replica) DO UPDATE SET bytes = EXCLUDED.bytes",
+                &[&replica, &bytes],
+            )
+            .await
+            .map_err(pg)?;
+            c.execute("DELETE FROM write_probe WHERE replica = $1", &[&replica])
+                .await
+                .map_err(pg)?;
             Ok(())
         })
     }

@@ -79,6 +79,10 @@ CREATE TABLE IF NOT EXISTS checkpoints (
     step INTEGER NOT NULL,
     bytes BLOB NOT NULL
 );
+CREATE TABLE IF NOT EXISTS write_probe (
+    id INTEGER PRIMARY KEY,
+    bytes BLOB NOT NULL
+);
 ";
 
 /// Brings a database made by an older schema up to [`SCHEMA`]: `results.figures_json` and
@@ -293,6 +297,16 @@ impl SqliteStore {
         Ok(SqliteStore {
             conn: Mutex::new(conn),
         })
+    }
+
+    /// Limits the database to `max_bytes` (whole pages, at least one): SQLite then refuses a
+    /// write past it with `SQLITE_FULL`, as on a full disk.
+    pub fn limit_size(&self, max_bytes: u64) -> Result<(), StoreError> {
+        let conn = self.conn();
+        let page: i64 = conn.query_row("PRAGMA page_size", [], |r| r.get(0))?;
+        let pages = (max_bytes / page.max(1) as u64).max(1);
+        conn.pragma_update(None, "max_page_count", pages as i64)?;
+        Ok(())
     }
 
     fn conn(&self) -> std::sync::MutexGuard<'_, Connection> {
@@ -540,6 +554,21 @@ impl Backend for SqliteStore {
             params![id, rows as i64],
         )?;
         tx.commit()?;
+        Ok(())
+    }
+
+    /// One chunk of zeros (SQLite stores a `zeroblob` in full) committed, removed, and
+    /// checkpointed into the database file with the WAL truncated.
+    fn probe_write(&self) -> Result<(), StoreError> {
+        let conn = self.conn();
+        conn.execute(
+            "INSERT OR REPLACE INTO write_probe (id, bytes) VALUES (1, zeroblob(?1))",
+            [super::CHUNK_BYTES as i64],
+        )?;
+        conn.execute("DELETE FROM write_probe", [])?;
+        // Through to the database file and the WAL emptied: the room found is the file
+        // system's (or the page limit's), not space the WAL held from earlier writes.
+        conn.query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |_| Ok(()))?;
         Ok(())
     }
 

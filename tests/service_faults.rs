@@ -1,0 +1,469 @@
+//! Faults a long-running service must survive (issue 31, DESIGN.md §20), each against the real
+//! `signorini serve` binary: the store's disk full (the job fails with the store's reason,
+//! `/healthz` degraded, submissions refused until there is room, nothing stored damaged).
+
+mod common;
+
+use common::{Options, TestServer, ball_json, submit_json, wait_terminal};
+use signorini::proto::v1 as pb;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+/// A tmpfs mounted by the test, unmounted on drop (also when the test panics).
+struct Mount(PathBuf);
+
+impl Mount {
+    /// Mounts a tmpfs of `mib` MiB on `dir`: `None` when not root or when mounting fails.
+    fn tmpfs(dir: &Path, mib: u64) -> Option<Mount> {
+        let ok = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", &format!("size={mib}m"), "tmpfs"])
+            .arg(dir)
+            .status()
+            .is_ok_and(|s| s.success());
+        ok.then(|| Mount(dir.to_path_buf()))
+    }
+}
+
+impl Drop for Mount {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg("-l").arg(&self.0).status();
+    }
+}
+
+/// How the test makes the store's disk full.
+enum Room {
+    /// A tmpfs of [`TMPFS_MIB`] with a filler file of [`FILLER_MIB`]; room is made by removing it.
+    Tmpfs { _mount: Mount, filler: PathBuf },
+    /// SQLite's `max_page_count` (`--store-max-mb`); room is made by purging the failed job.
+    PageLimit,
+}
+
+const TMPFS_MIB: u64 = 8;
+const FILLER_MIB: usize = 5;
+const PAGE_LIMIT_MIB: u64 = 3;
+
+/// `GET /healthz` until its status is `code`, at most `within`: the last answer.
+async fn healthz_until(
+    server: &TestServer,
+    code: u16,
+    within: Duration,
+) -> (u16, serde_json::Value) {
+    let started = Instant::now();
+    loop {
+        let answer = server.http("GET", "/healthz", None, None).await;
+        if answer.0 == code || started.elapsed() > within {
+            return answer;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}
+
+/// The disk under a SQLite store fills while a job records: the job fails with the store's
+/// reason, `/healthz` answers 503 degraded naming it, HTTP and gRPC submissions are refused
+/// (503 / UNAVAILABLE) naming it, the earlier job's result is unchanged; once there is room again
+/// the store is healthy within seconds, a new job succeeds, and `PRAGMA integrity_check` finds
+/// the database whole. (Before the fix `/healthz` said ok and submissions were accepted.)
+#[tokio::test(flavor = "multi_thread")]
+async fn a_full_disk_fails_the_job_degrades_the_store_and_refuses_jobs_until_there_is_room() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let dir = tmp.path().join("small");
+    std::fs::create_dir(&dir).expect("mkdir");
+    let (room, extra) = match Mount::tmpfs(&dir, TMPFS_MIB) {
+        Some(mount) => {
+            println!(
+                "disk full: a tmpfs of {TMPFS_MIB} MiB mounted by the test, {FILLER_MIB} MiB filled"
+            );
+            let filler = dir.join("filler");
+            std::fs::write(&filler, vec![1u8; FILLER_MIB << 20]).expect("writing the filler");
+            (
+                Room::Tmpfs {
+                    _mount: mount,
+                    filler,
+                },
+                Vec::new(),
+            )
+        }
+        None => {
+            println!(
+                "disk full: mounting a tmpfs failed (not root?): SQLite's max_page_count, --store-max-mb {PAGE_LIMIT_MIB}"
+            );
+            (
+                Room::PageLimit,
+                vec!["--store-max-mb".to_string(), PAGE_LIMIT_MIB.to_string()],
+            )
+        }
+    };
+    let store = dir.join("store.db");
+    let extra: Vec<&str> = extra.iter().map(String::as_str).collect();
+    let opts = Options {
+        workers: 1,
+        ..Options::default()
+    };
+    let mut server = TestServer::start_with(&store, &opts, &extra);
+    let mut client = server.grpc().await;
+
+    // A small job is stored whole.
+    let a = submit_json(&mut client, ball_json(1e-3, 300, 1), None)
+        .await
+        .expect("submitting A");
+    let end = wait_terminal(&mut client, &a).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    let result_path = format!("/v1/jobs/{a}/result");
+    let (code, result_a) = server.http("GET", &result_path, None, None).await;
+    assert_eq!(code, 200, "{result_a}");
+    assert_eq!(
+        result_a["steps"]["step"].as_array().map(Vec::len),
+        Some(301)
+    );
+    let (code, health) = server.http("GET", "/healthz", None, None).await;
+    assert_eq!((code, health["status"].as_str()), (200, Some("ok")));
+
+    // A job recording far more than the store has room for (10⁶ rows, tens of MB).
+    let b = submit_json(&mut client, ball_json(1e-6, 1_000_000, 1), None)
+        .await
+        .expect("submitting B");
+    let end = wait_terminal(&mut client, &b).await;
+    assert_eq!(end.state, pb::JobState::Failed as i32, "{end:?}");
+    let error = end.error.expect("B's error");
+    assert_eq!(error.field, "store", "{error:?}");
+    assert!(error.reason.contains("full"), "{error:?}");
+
+    // The store is degraded, with its reason, and stays so while there is no room.
+    let (code, health) = healthz_until(&server, 503, Duration::from_secs(5)).await;
+    assert_eq!(code, 503, "{health}");
+    assert_eq!(health["status"], "degraded", "{health}");
+    let reason = health["reason"].as_str().expect("a reason").to_string();
+    assert!(reason.contains("full"), "{reason}");
+    tokio::time::sleep(Duration::from_millis(1500)).await;
+    let (code, health) = server.http("GET", "/healthz", None, None).await;
+    assert_eq!(code, 503, "a probe found room that is not there: {health}");
+
+    // Submissions are refused, naming the store's reason, over both protocols.
+    let (code, refused) = server
+        .http("POST", "/v1/jobs", Some(&ball_json(1e-3, 100, 1)), None)
+        .await;
+    assert_eq!(code, 503, "{refused}");
+    assert_eq!(refused["error"]["field"], "store", "{refused}");
+    let why = refused["error"]["reason"].as_str().unwrap_or_default();
+    assert!(why.contains("full"), "{refused}");
+    let status = submit_json(&mut client, ball_json(1e-3, 100, 1), None)
+        .await
+        .expect_err("a submission to a full store");
+    assert_eq!(status.code(), tonic::Code::Unavailable, "{status:?}");
+    assert!(status.message().contains("full"), "{status:?}");
+
+    // What was stored before is untouched.
+    let (code, again) = server.http("GET", &result_path, None, None).await;
+    assert_eq!((code, &again), (200, &result_a));
+
+    // Room again: the store is healthy within seconds and takes a job to its end.
+    match &room {
+        Room::Tmpfs { filler, .. } => std::fs::remove_file(filler).expect("removing the filler"),
+        Room::PageLimit => {
+            let (code, body) = server
+                .http("DELETE", &format!("/v1/jobs/{b}?purge=true"), None, None)
+                .await;
+            assert_eq!(code, 200, "purging B: {body}");
+        }
+    }
+    let (code, health) = healthz_until(&server, 200, Duration::from_secs(10)).await;
+    assert_eq!(
+        (code, health["status"].as_str()),
+        (200, Some("ok")),
+        "{health}"
+    );
+    let c = submit_json(&mut client, ball_json(1e-3, 200, 1), None)
+        .await
+        .expect("submitting C once there is room");
+    let end = wait_terminal(&mut client, &c).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    let (code, again) = server.http("GET", &result_path, None, None).await;
+    assert_eq!((code, &again), (200, &result_a));
+
+    // Stopped cleanly, the database is whole.
+    let stopped = server.terminate(Duration::from_secs(20));
+    assert!(stopped.is_some_and(|(s, _)| s.success()), "{stopped:?}");
+    let conn = rusqlite::Connection::open(&store).expect("opening the store");
+    let check: String = conn
+        .query_row("PRAGMA integrity_check", [], |r| r.get(0))
+        .expect("integrity_check");
+    assert_eq!(check, "ok");
+    drop(conn);
+    drop(room);
+}
+
+/// A `lagrangian` model of `n` coordinates with an identity mass matrix written out in full
+/// (n rows of n numbers: 18 MB for n = 3000), a spring on each coordinate, one contact.
+fn identity_mass_model(n: usize) -> String {
+    let mut s = String::with_capacity(3 * n * n + 64 * n);
+    s.push_str(r#"{"model":{"scene":"lagrangian","coordinates":["#);
+    for i in 0..n {
+        if i > 0 {
+            s.push(',');
+        }
+        s.push_str(&format!("\"x{i}\""));
+    }
+    s.push_str(r#"],"mass":["#);
+    for i in 0..n {
+        s.push_str(if i > 0 { ",[" } else { "[" });
+        for j in 0..n {
+            if j > 0 {
+                s.push(',');
+            }
+            s.push(if i == j { '1' } else { '0' });
+        }
+        s.push(']');
+    }
+    s.push_str(r#"],"potential":"0.5*("#);
+    for i in 0..n {
+        if i > 0 {
+            s.push('+');
+        }
+        s.push_str(&format!("x{i}^2"));
+    }
+    s.push_str(r#")","q0":["#);
+    s.push_str(&vec!["0.5"; n].join(","));
+    s.push_str(
+        r#"],"contacts":[{"gap":"x0 + 1","restitution":0.5}]},"integrator":{"scheme":"moreau_jean"},"time":{"h":0.01,"steps":10}}"#,
+    );
+    s
+}
+
+/// Issue 31's request that took a server down: a `lagrangian` model of 3 000 coordinates with
+/// an identity mass matrix (an 18 MB body). With the default limits it is refused by the memory
+/// estimate naming `max_memory_mb`, from the spec's outline before the spec is built, with less
+/// than 2 s of the server's CPU (before, the request held for more than 60 s and grew the server
+/// to 11 GB), and `/healthz` answers while it is being handled.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_model_too_large_is_refused_by_its_memory_estimate_within_two_seconds() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&tmp.path().join("store.db"), &Options::default());
+    let body = identity_mass_model(3000);
+    assert!(body.len() > 16 << 20, "{} bytes", body.len());
+    let cpu_before = cpu_seconds(server.pid());
+    let started = Instant::now();
+    let (submit, health) =
+        tokio::join!(server.http("POST", "/v1/jobs", Some(&body), None), async {
+            tokio::time::sleep(Duration::from_millis(300)).await;
+            let asked = Instant::now();
+            let answer = server.http("GET", "/healthz", None, None).await;
+            (answer, asked.elapsed())
+        });
+    let took = started.elapsed();
+    let cpu = cpu_seconds(server.pid()) - cpu_before;
+    println!("the 3 000-coordinate model: answered after {took:?}, {cpu:.2} s of the server's CPU");
+    let (code, refused) = submit;
+    assert_eq!(code, 400, "{refused}");
+    assert_eq!(refused["error"]["field"], "model.coordinates", "{refused}");
+    let reason = refused["error"]["reason"].as_str().unwrap_or_default();
+    assert!(reason.contains("max_memory_mb"), "{reason}");
+    // The server's own work stays under 2 s (a debug build; the shared test machine's load
+    // stretches the wall time, bounded here far below the minute it took before).
+    assert!(cpu < 2.0, "the server spent {cpu:.2} s of CPU on it");
+    assert!(took < Duration::from_secs(6), "answered after {took:?}");
+    let ((code, body), health_took) = health;
+    assert_eq!((code, body["status"].as_str()), (200, Some("ok")));
+    assert!(health_took < Duration::from_millis(500), "{health_took:?}");
+}
+
+/// A model within the memory limit whose compilation takes longer than `max_compile_seconds`
+/// is refused naming that limit soon after it (the compilation runs on a thread of its own, the
+/// server answers `/healthz` meanwhile); and SIGTERM during such a compilation stops the server
+/// within seconds (before, it ignored SIGTERM for more than 15 s).
+#[tokio::test(flavor = "multi_thread")]
+async fn a_long_compilation_is_refused_at_its_limit_and_sigterm_stops_the_server_mid_compile() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let limits = ["--max-memory-mb", "8192", "--max-compile-seconds", "1"];
+    let server = TestServer::start_with(&tmp.path().join("a.db"), &Options::default(), &limits);
+    let body = identity_mass_model(COMPILE_N);
+    let started = Instant::now();
+    let (submit, health) =
+        tokio::join!(server.http("POST", "/v1/jobs", Some(&body), None), async {
+            tokio::time::sleep(Duration::from_millis(700)).await;
+            let asked = Instant::now();
+            let answer = server.http("GET", "/healthz", None, None).await;
+            (answer, asked.elapsed())
+        });
+    let took = started.elapsed();
+    let (code, refused) = submit;
+    assert_eq!(code, 400, "{refused}");
+    let reason = refused["error"]["reason"].as_str().unwrap_or_default();
+    assert!(reason.contains("max_compile_seconds"), "{reason}");
+    // Parsing the 4 MB body and checking its texts take about 3 s of a debug build on the
+    // loaded test machine; the whole compilation about 13 s (5 s of CPU, 0.5 GB).
+    assert!(took < Duration::from_secs(8), "answered after {took:?}");
+    let ((code, _), health_took) = health;
+    assert_eq!(code, 200);
+    assert!(health_took < Duration::from_millis(500), "{health_took:?}");
+    drop(server);
+
+    // SIGTERM while a compilation runs (no compile limit to end it first).
+    let limits = ["--max-memory-mb", "8192"];
+    let mut server = TestServer::start_with(&tmp.path().join("b.db"), &Options::default(), &limits);
+    let http = server.http;
+    let submit = tokio::spawn(async move {
+        let client: hyper_util::client::legacy::Client<
+            _,
+            http_body_util::Full<hyper::body::Bytes>,
+        > = hyper_util::client::legacy::Client::builder(hyper_util::rt::TokioExecutor::new())
+            .build_http();
+        let req = hyper::Request::post(format!("http://{http}/v1/jobs"))
+            .header("content-type", "application/json")
+            .body(http_body_util::Full::new(hyper::body::Bytes::from(body)))
+            .expect("request");
+        client.request(req).await.map(|r| r.status().as_u16())
+    });
+    tokio::time::sleep(Duration::from_millis(3500)).await;
+    assert!(
+        !submit.is_finished(),
+        "the compilation ended before SIGTERM"
+    );
+    let stopped = tokio::task::spawn_blocking(move || server.terminate(Duration::from_secs(20)))
+        .await
+        .expect("terminate");
+    let (status, took) = stopped.expect("the server did not stop within 20 s of SIGTERM");
+    assert!(status.success(), "{status:?}");
+    assert!(
+        took < Duration::from_secs(3),
+        "stopped {took:?} after SIGTERM"
+    );
+    let answer = submit.await.expect("submission task");
+    assert!(
+        matches!(answer, Err(_) | Ok(503)),
+        "the submission cut by the shutdown: {answer:?}"
+    );
+}
+
+/// Coordinates of the model whose compilation outlasts a 1 s limit on this machine kind.
+const COMPILE_N: usize = 1200;
+
+/// A client that reads the first message of `StreamResult` and goes away: the server stops
+/// reading the store for it and lets go of the result (a purge, refused while a stream is open,
+/// succeeds within seconds: no reader leaks), and it serves the same stream whole to the next
+/// client and runs the next job.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_client_gone_mid_stream_result_leaks_nothing() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&tmp.path().join("store.db"), &Options::default());
+    let mut client = server.grpc().await;
+    // 300 000 rows: a few stored chunks, many messages.
+    let id = submit_json(&mut client, ball_json(1e-5, 300_000, 1), None)
+        .await
+        .expect("submit");
+    let end = wait_terminal(&mut client, &id).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+
+    for _ in 0..5 {
+        let mut other = server.grpc().await;
+        let mut stream = common::result_stream(&mut other, &id).await;
+        let first = stream
+            .message()
+            .await
+            .expect("a message")
+            .expect("the header");
+        assert!(matches!(
+            first.part,
+            Some(pb::result_chunk::Part::Header(_))
+        ));
+        drop(stream);
+        drop(other);
+    }
+
+    // A whole stream for the next client.
+    let mut stream = common::result_stream(&mut client, &id).await;
+    let mut rows = 0;
+    while let Some(msg) = stream.message().await.expect("stream") {
+        if let Some(pb::result_chunk::Part::Rows(r)) = msg.part {
+            rows += r.step.len();
+        }
+    }
+    assert_eq!(rows, 300_001);
+
+    // No reader left behind: the purge goes through.
+    let started = Instant::now();
+    let purge = format!("/v1/jobs/{id}?purge=true");
+    let (code, body) = loop {
+        let answer = server.http("DELETE", &purge, None, None).await;
+        if answer.0 != 409 || started.elapsed() > Duration::from_secs(10) {
+            break answer;
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    assert_eq!(code, 200, "{body}");
+    let next = submit_json(&mut client, ball_json(1e-3, 100, 1), None)
+        .await
+        .expect("submit");
+    let end = wait_terminal(&mut client, &next).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+}
+
+/// CPU seconds (user + system) process `pid` has used.
+fn cpu_seconds(pid: u32) -> f64 {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).expect("/proc stat");
+    // The fields after the command's closing parenthesis: utime and stime are the 12th and
+    // 13th, in clock ticks (100 per second on Linux).
+    let after = stat.rsplit_once(')').map_or("", |(_, rest)| rest);
+    let fields: Vec<&str> = after.split_whitespace().collect();
+    let ticks = |k: usize| {
+        fields
+            .get(k)
+            .and_then(|v| v.parse::<f64>().ok())
+            .unwrap_or(0.0)
+    };
+    (ticks(11) + ticks(12)) / 100.0
+}
+
+/// Resident memory of process `pid`, bytes.
+fn rss(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("/proc status");
+    let kib: u64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .and_then(|v| v.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .expect("VmRSS");
+    kib << 10
+}
+
+/// A subscriber that never reads: an SSE client of a job's events that sends its request and
+/// then reads nothing (its socket's buffers fill). The job runs to its end at its pace, a watcher
+/// that reads gets every status to the final one, the server answers meanwhile, and its memory
+/// does not grow with what the silent client is not reading.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_subscriber_that_never_reads_holds_up_nothing() {
+    use std::io::Write;
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&tmp.path().join("store.db"), &Options::default());
+    let mut client = server.grpc().await;
+    let id = submit_json(&mut client, ball_json(1e-6, 2_000_000, 1), None)
+        .await
+        .expect("submit");
+    // Silent clients of the job's events (a few, to fill more than one socket).
+    let silent: Vec<std::net::TcpStream> = (0..4)
+        .map(|_| {
+            let mut s = std::net::TcpStream::connect(server.http).expect("connect");
+            write!(
+                s,
+                "GET /v1/jobs/{id}/events HTTP/1.1\r\nHost: x\r\nAccept: text/event-stream\r\n\r\n"
+            )
+            .expect("request");
+            s
+        })
+        .collect();
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let before = rss(server.pid());
+    let end = wait_terminal(&mut client, &id).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    let (code, _) = server.http("GET", "/healthz", None, None).await;
+    assert_eq!(code, 200);
+    let grown = rss(server.pid()).saturating_sub(before);
+    assert!(grown < 64 << 20, "the server grew by {} MiB", grown >> 20);
+    // The silent clients are still connected, and nothing waits for them.
+    let next = submit_json(&mut client, ball_json(1e-3, 100, 1), None)
+        .await
+        .expect("submit");
+    let end = wait_terminal(&mut client, &next).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    drop(silent);
+}
