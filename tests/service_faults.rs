@@ -467,3 +467,94 @@ async fn a_subscriber_that_never_reads_holds_up_nothing() {
     assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
     drop(silent);
 }
+
+/// The disk under a PostgreSQL store fills: the store's database lives in a tablespace on a
+/// tmpfs of 32 MiB (mounted by the test; root is needed, as for the PostgreSQL tests), partly
+/// filled. A job recording more than the room left fails with PostgreSQL's reason (SQLSTATE
+/// 53100, "No space left on device"), `/healthz` is degraded naming it, submissions are refused
+/// (503), the earlier result is unchanged; with room again the store is healthy and takes a job.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_full_disk_under_postgresql_fails_the_job_and_refuses_jobs_until_there_is_room() {
+    let pg = common::pg::Postgres::start();
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let dir = tmp.path().join("small");
+    std::fs::create_dir(&dir).expect("mkdir");
+    let _mount = Mount::tmpfs(&dir, 32)
+        .expect("mounting a tmpfs for the tablespace (this test needs root, as PostgreSQL's do)");
+    println!("disk full: a PostgreSQL tablespace on a tmpfs of 32 MiB mounted by the test");
+    let space = dir.join("tablespace");
+    std::fs::create_dir(&space).expect("mkdir");
+    let _ = Command::new("chown")
+        .args(["postgres:postgres"])
+        .arg(&space)
+        .status();
+    pg.psql(
+        "postgres",
+        &format!("CREATE TABLESPACE small LOCATION '{}'", space.display()),
+    );
+    pg.psql("postgres", "CREATE DATABASE faults TABLESPACE small");
+    let filler = dir.join("filler");
+    std::fs::write(&filler, vec![1u8; 12 << 20]).expect("writing the filler");
+    let opts = Options {
+        workers: 1,
+        ..Options::default()
+    };
+    let url = pg.url("faults");
+    let server = TestServer::start_with(Path::new(&url), &opts, &["--replica", "r1"]);
+    let mut client = server.grpc().await;
+
+    let a = submit_json(&mut client, ball_json(1e-3, 300, 1), None)
+        .await
+        .expect("submitting A");
+    let end = wait_terminal(&mut client, &a).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    let result_path = format!("/v1/jobs/{a}/result");
+    let (code, result_a) = server.http("GET", &result_path, None, None).await;
+    assert_eq!(code, 200, "{result_a}");
+
+    let b = submit_json(&mut client, ball_json(1e-6, 1_000_000, 1), None)
+        .await
+        .expect("submitting B");
+    let end = wait_terminal(&mut client, &b).await;
+    assert_eq!(end.state, pb::JobState::Failed as i32, "{end:?}");
+    let error = end.error.expect("B's error");
+    assert_eq!(error.field, "store", "{error:?}");
+    assert!(error.reason.contains("53100"), "{error:?}");
+
+    let (code, health) = healthz_until(&server, 503, Duration::from_secs(5)).await;
+    assert_eq!(code, 503, "{health}");
+    assert_eq!(health["status"], "degraded", "{health}");
+    assert!(
+        health["reason"]
+            .as_str()
+            .unwrap_or_default()
+            .contains("53100"),
+        "{health}"
+    );
+    let (code, refused) = server
+        .http("POST", "/v1/jobs", Some(&ball_json(1e-3, 100, 1)), None)
+        .await;
+    assert_eq!(code, 503, "{refused}");
+    assert_eq!(refused["error"]["field"], "store", "{refused}");
+    let (code, again) = server.http("GET", &result_path, None, None).await;
+    assert_eq!((code, &again), (200, &result_a));
+
+    std::fs::remove_file(&filler).expect("removing the filler");
+    let (code, health) = healthz_until(&server, 200, Duration::from_secs(10)).await;
+    assert_eq!(
+        (code, health["status"].as_str()),
+        (200, Some("ok")),
+        "{health}"
+    );
+    let c = submit_json(&mut client, ball_json(1e-3, 200, 1), None)
+        .await
+        .expect("submitting C once there is room");
+    let end = wait_terminal(&mut client, &c).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    let (code, again) = server.http("GET", &result_path, None, None).await;
+    assert_eq!((code, &again), (200, &result_a));
+    drop(server);
+    // The database goes before the tablespace's file system is unmounted.
+    pg.psql("postgres", "DROP DATABASE faults WITH (FORCE)");
+    pg.psql("postgres", "DROP TABLESPACE small");
+}

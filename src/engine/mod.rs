@@ -218,12 +218,14 @@ fn check_limits(job: &Job, limits: &Limits) -> Result<(), SpecError> {
     Ok(())
 }
 
-/// Bytes per entry of an n×n table that a `lagrangian` model of n coordinates holds once
-/// compiled and running: M(q) (its expressions, its tape's outputs and values), ∂F/∂q and
-/// ∂F/∂q̇ (2 entries: expressions, tape outputs, values), the symmetry and Cholesky checks of
-/// M(q0) at validation, and the run's iteration matrix and its factors. Measured: see
-/// [`memory_estimate`].
-const LAGRANGIAN_BYTES_PER_ENTRY: u64 = 320;
+/// Bytes per entry of an n×n table that a `lagrangian` model of n coordinates holds while it
+/// is parsed, compiled and run: the spec's dense mass rows, M(q) (its expressions, its tape's
+/// outputs and values), ∂F/∂q and ∂F/∂q̇ (2 entries: expressions, tape outputs, values), the
+/// symmetry and Cholesky checks of M(q0) at validation, the run's iteration matrix and its
+/// factors. Measured on an identity-mass model with a spring per coordinate and one contact
+/// (tests/service_faults.rs): n = 1200 submitted to `serve`, 521 MB peak resident (362 B per
+/// entry); n = 800 under `signorini run`, 197 MB (307 B per entry). Rounded up.
+const LAGRANGIAN_BYTES_PER_ENTRY: u64 = 384;
 
 /// The memory a `lagrangian` model of `n` coordinates will need, estimated before anything is
 /// parsed further or compiled: it holds dense n×n tables ([`LAGRANGIAN_BYTES_PER_ENTRY`] bytes
