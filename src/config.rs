@@ -25,6 +25,7 @@ The TOML file uses the flag names with underscores, e.g.
   workers = 4
   queue_limit = 256
   token = \"secret\"              # bearer token required by mutating calls (submit, cancel)
+  tokens = \"tokens.toml\"        # or: per-client tokens with scopes ([[token]] name, scope, sha256)
   max_dofs = 100000
   max_steps = 100000000
   max_output_mb = 1024
@@ -88,6 +89,11 @@ pub struct ServeArgs {
     /// Bearer token required by mutating calls (none by default; health and reads stay open).
     #[arg(long, env = "SIGNORINI_TOKEN", hide_env_values = true)]
     pub token: Option<String>,
+    /// Per-client bearer tokens: a TOML file of `[[token]]` tables `{ name, scope = "read" |
+    /// "write", sha256 = "hex of the token" }`; every call but /healthz then needs one (401
+    /// without, 403 for a read token on a mutating call). Not with --token.
+    #[arg(long, env = "SIGNORINI_TOKENS")]
+    pub tokens: Option<PathBuf>,
     /// Largest model accepted, in degrees of freedom [default: 100000].
     #[arg(long, env = "SIGNORINI_MAX_DOFS")]
     pub max_dofs: Option<u64>,
@@ -132,6 +138,7 @@ struct FileConfig {
     workers: Option<usize>,
     queue_limit: Option<usize>,
     token: Option<String>,
+    tokens: Option<PathBuf>,
     max_dofs: Option<u64>,
     max_steps: Option<u64>,
     max_output_mb: Option<u64>,
@@ -194,6 +201,8 @@ pub struct ServeConfig {
     pub queue_limit: usize,
     /// Bearer token for mutating calls.
     pub token: Option<String>,
+    /// Per-client tokens with scopes (`--tokens`).
+    pub tokens: Option<PathBuf>,
     /// Per-job limits.
     pub limits: Limits,
     /// How long finished jobs are kept (forever when `None`).
@@ -266,6 +275,7 @@ impl ServeConfig {
             workers: args.workers.or(file.workers).unwrap_or(cores),
             queue_limit: args.queue_limit.or(file.queue_limit).unwrap_or(256),
             token: args.token.or(file.token).filter(|t| !t.is_empty()),
+            tokens: args.tokens.or(file.tokens),
             limits: Limits {
                 max_dofs: args.max_dofs.or(file.max_dofs).unwrap_or(100_000),
                 max_steps: args.max_steps.or(file.max_steps).unwrap_or(100_000_000),

@@ -57,6 +57,12 @@ pub enum ApiError {
     /// Missing or wrong bearer token on a mutating call.
     #[error("missing or invalid bearer token")]
     Unauthenticated,
+    /// A known token whose scope does not allow the call (a read token on a mutating call).
+    #[error("the token of {name} may only read: this call needs a write token")]
+    Forbidden {
+        /// The token's holder, as the tokens file names it.
+        name: String,
+    },
     /// An internal failure at the edge (a task that did not finish, a value that could not
     /// be encoded).
     #[error("internal error: {0}")]
@@ -75,7 +81,9 @@ impl ApiError {
             ApiError::Body { .. } => ("body".into(), self.to_string()),
             ApiError::NoRoute { .. } => ("path".into(), self.to_string()),
             ApiError::MethodNotAllowed { .. } => ("method".into(), self.to_string()),
-            ApiError::Unauthenticated => ("authorization".into(), self.to_string()),
+            ApiError::Unauthenticated | ApiError::Forbidden { .. } => {
+                ("authorization".into(), self.to_string())
+            }
             ApiError::TooLarge { .. } => ("columns".into(), self.to_string()),
             ApiError::Internal(_) => (String::new(), self.to_string()),
         }

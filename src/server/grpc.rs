@@ -38,6 +38,15 @@ impl SimulationService {
             .and_then(|v| v.to_str().ok());
         self.state.authorize(given).map_err(to_status)
     }
+
+    /// [`AppState::authorize_read`] for a read call.
+    fn authorize_read<T>(&self, req: &Request<T>) -> Result<(), Status> {
+        let given = req
+            .metadata()
+            .get("authorization")
+            .and_then(|v| v.to_str().ok());
+        self.state.authorize_read(given).map_err(to_status)
+    }
 }
 
 /// [`EngineError`] → gRPC code: the one place the engine's errors meet gRPC.
@@ -71,6 +80,7 @@ pub fn to_status(e: impl Into<ApiError>) -> Status {
         ApiError::Body { .. } => Code::InvalidArgument,
         ApiError::TooLarge { .. } => Code::ResourceExhausted,
         ApiError::Unauthenticated => Code::Unauthenticated,
+        ApiError::Forbidden { .. } => Code::PermissionDenied,
         ApiError::Internal(_) => Code::Internal,
     };
     if code == Code::Internal {
@@ -225,6 +235,7 @@ impl Simulation for SimulationService {
         &self,
         req: Request<pb::GetJobRequest>,
     ) -> Result<Response<pb::JobStatus>, Status> {
+        self.authorize_read(&req)?;
         let pb::GetJobRequest { id } = req.into_inner();
         let view = self.state.engine.status(&id).map_err(to_status)?;
         let Lineage { parent, extends } = self.state.engine.lineage(&id).map_err(to_status)?;
@@ -239,6 +250,7 @@ impl Simulation for SimulationService {
         &self,
         req: Request<pb::ListJobsRequest>,
     ) -> Result<Response<pb::ListJobsResponse>, Status> {
+        self.authorize_read(&req)?;
         let pb::ListJobsRequest {
             limit,
             page_token,
@@ -268,6 +280,7 @@ impl Simulation for SimulationService {
         &self,
         req: Request<pb::ListChildrenRequest>,
     ) -> Result<Response<pb::ListJobsResponse>, Status> {
+        self.authorize_read(&req)?;
         let id = req.into_inner().id;
         let jobs = super::study::children(&self.state, id)
             .await
@@ -346,6 +359,7 @@ impl Simulation for SimulationService {
         &self,
         req: Request<pb::WatchJobRequest>,
     ) -> Result<Response<Self::WatchJobStream>, Status> {
+        self.authorize_read(&req)?;
         let pb::WatchJobRequest { id, from_seq } = req.into_inner();
         if let Some(from_seq) = from_seq {
             let frames = self
@@ -368,6 +382,7 @@ impl Simulation for SimulationService {
         &self,
         req: Request<pb::GetResultRequest>,
     ) -> Result<Response<pb::JobResult>, Status> {
+        self.authorize_read(&req)?;
         let pb::GetResultRequest {
             id,
             columns,
@@ -424,6 +439,7 @@ impl Simulation for SimulationService {
         &self,
         req: Request<pb::GetResultRequest>,
     ) -> Result<Response<Self::StreamResultStream>, Status> {
+        self.authorize_read(&req)?;
         let pb::GetResultRequest {
             id,
             columns,
@@ -444,6 +460,7 @@ impl Simulation for SimulationService {
         &self,
         req: Request<pb::CapabilitiesRequest>,
     ) -> Result<Response<pb::CapabilitiesResponse>, Status> {
+        self.authorize_read(&req)?;
         let pb::CapabilitiesRequest {} = req.into_inner();
         Ok(Response::new(convert::capabilities_to_proto(
             &signorini_core::capabilities::capabilities(),

@@ -58,6 +58,7 @@ impl IntoResponse for ApiError {
             ApiError::Body { .. } => StatusCode::BAD_REQUEST,
             ApiError::TooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::Unauthenticated => StatusCode::UNAUTHORIZED,
+            ApiError::Forbidden { .. } => StatusCode::FORBIDDEN,
             ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
         };
         if code.is_server_error() {
@@ -99,8 +100,31 @@ pub fn router(state: AppState) -> Router {
         .route("/", get(index_page))
         .fallback(no_route)
         .method_not_allowed_fallback(no_method)
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            read_gate,
+        ))
         .layer(DefaultBodyLimit::max(MAX_BODY_BYTES))
         .with_state(state)
+}
+
+/// Reads (GET, HEAD) need a read token when the server has scoped tokens (`--tokens`), all
+/// but `/healthz`; mutating routes check their write scope themselves ([`authorize`]).
+async fn read_gate(
+    State(state): State<AppState>,
+    req: axum::extract::Request,
+    next: axum::middleware::Next,
+) -> Response {
+    if req.uri().path() != "/healthz" && matches!(*req.method(), Method::GET | Method::HEAD) {
+        let given = req
+            .headers()
+            .get(header::AUTHORIZATION)
+            .and_then(|v| v.to_str().ok());
+        if let Err(e) = state.authorize_read(given) {
+            return e.into_response();
+        }
+    }
+    next.run(req).await
 }
 
 /// Checks the `Authorization` header of an HTTP request ([`AppState::authorize`]): every

@@ -1,6 +1,7 @@
 //! `signorini serve`: the gRPC and HTTP listeners, the embedded zenoh peer, the store and the
 //! worker pool, wired together; graceful shutdown on SIGINT/SIGTERM.
 
+pub mod auth;
 pub mod convert;
 pub mod grpc;
 pub mod http;
@@ -31,7 +32,7 @@ use tokio_stream::{Stream, StreamExt};
 pub struct AppState {
     /// The job engine.
     pub engine: Engine,
-    token: Option<Arc<str>>,
+    access: auth::Access,
     events: broadcast::Sender<Arc<JobEvent>>,
     /// This replica's zenoh session (frames of jobs running on other replicas come through it).
     session: zenoh::Session,
@@ -39,21 +40,15 @@ pub struct AppState {
 }
 
 impl AppState {
-    /// Checks an `Authorization` header value against the configured token (always fine when
-    /// no token is configured).
+    /// Checks an `Authorization` header value for a mutating call ([`auth::Access`]: always
+    /// fine when no token is configured).
     pub fn authorize(&self, header: Option<&str>) -> Result<(), ApiError> {
-        let Some(token) = &self.token else {
-            return Ok(());
-        };
-        // The scheme is case-insensitive (RFC 9110, 11.1): `Bearer`, `bearer`, `BEARER`.
-        let given = header
-            .and_then(|h| h.trim_start().split_once(' '))
-            .filter(|(scheme, _)| scheme.eq_ignore_ascii_case("bearer"))
-            .map(|(_, token)| token.trim());
-        match given {
-            Some(g) if constant_time_eq(g.as_bytes(), token.as_bytes()) => Ok(()),
-            _ => Err(ApiError::Unauthenticated),
-        }
+        self.access.check(header, auth::Scope::Write)
+    }
+
+    /// Checks an `Authorization` header value for a read (closed only with `--tokens`).
+    pub fn authorize_read(&self, header: Option<&str>) -> Result<(), ApiError> {
+        self.access.check(header, auth::Scope::Read)
     }
 
     /// A job's current status and, unless it is already over, the status and step events
@@ -211,10 +206,6 @@ impl AppState {
     }
 }
 
-fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
-    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
-}
-
 async fn shutdown_signal() {
     let ctrl_c = async {
         let _ = tokio::signal::ctrl_c().await;
@@ -238,6 +229,12 @@ async fn shutdown_signal() {
 
 /// Runs the service until SIGINT/SIGTERM.
 pub async fn serve(cfg: ServeConfig) -> Result<()> {
+    let access = match (&cfg.tokens, &cfg.token) {
+        (Some(_), Some(_)) => anyhow::bail!("give --token or --tokens, not both"),
+        (Some(file), None) => auth::Access::from_file(file)?,
+        (None, Some(token)) => auth::Access::Shared(Arc::from(token.as_str())),
+        (None, None) => auth::Access::Open,
+    };
     // What can fail without leaving anything behind comes first: the ports, then the zenoh
     // peer, then the store's lock (which creates the file of a new store), then the store.
     let grpc_listener = tokio::net::TcpListener::bind(cfg.grpc_addr)
@@ -310,7 +307,7 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
     }
     let state = AppState {
         engine: engine.clone(),
-        token: cfg.token.as_deref().map(Arc::from),
+        access,
         events: streamer.sender(),
         session: session.clone(),
         rate: Arc::new(Mutex::new((Instant::now(), 0))),
