@@ -558,3 +558,49 @@ async fn a_full_disk_under_postgresql_fails_the_job_and_refuses_jobs_until_there
     pg.psql("postgres", "DROP DATABASE faults WITH (FORCE)");
     pg.psql("postgres", "DROP TABLESPACE small");
 }
+
+/// A job that runs longer than the server's `max_wall_seconds` ends `failed` naming the limit
+/// (field `time`), with what it recorded kept as a partial result; the next job runs.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_job_past_the_wall_time_limit_fails_naming_it() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let opts = Options {
+        workers: 1,
+        max_steps: Some(1_000_000_000),
+        ..Options::default()
+    };
+    let server = TestServer::start_with(
+        &tmp.path().join("store.db"),
+        &opts,
+        &["--max-wall-seconds", "1"],
+    );
+    let mut client = server.grpc().await;
+    // 5·10⁸ steps: minutes of work.
+    let id = submit_json(&mut client, ball_json(1e-6, 500_000_000, 100_000), None)
+        .await
+        .expect("submit");
+    let started = Instant::now();
+    let end = wait_terminal(&mut client, &id).await;
+    let took = started.elapsed();
+    assert_eq!(end.state, pb::JobState::Failed as i32, "{end:?}");
+    let error = end.error.expect("an error");
+    assert_eq!(error.field, "time", "{error:?}");
+    assert!(error.reason.contains("max_wall_seconds"), "{error:?}");
+    assert!(took < Duration::from_secs(20), "ended after {took:?}");
+    let (code, result) = server
+        .http("GET", &format!("/v1/jobs/{id}/result"), None, None)
+        .await;
+    assert_eq!(code, 200, "{result}");
+    assert!(
+        !result["steps"]["step"]
+            .as_array()
+            .expect("steps")
+            .is_empty(),
+        "{result}"
+    );
+    let next = submit_json(&mut client, ball_json(1e-3, 100, 1), None)
+        .await
+        .expect("submit");
+    let end = wait_terminal(&mut client, &next).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+}
