@@ -227,6 +227,16 @@ impl BlockCsr {
         }
     }
 
+    /// `W + σ I` (the proximal regularisation of the Delassus operator).
+    pub fn with_diagonal_shift(&self, sigma: f64) -> Result<Self, BlockCsrError> {
+        Self::from_triplets(
+            self.dim,
+            self.size(),
+            self.entries()
+                .chain((0..self.size()).map(|i| (i, i, sigma))),
+        )
+    }
+
     /// `y = W x + c` (c of the matrix's size).
     pub fn affine(&self, x: &[f64], c: &[f64]) -> Vec<f64> {
         let d = self.dim;
