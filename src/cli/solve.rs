@@ -17,7 +17,7 @@ pub struct SolveArgs {
     /// Problem files: Siconos `.dat` or FCLib HDF5 (local or global).
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
-    /// Solver: `auto` (Gauss–Seidel, then semismooth Newton), `nsgs` or `nsn_ac`.
+    /// Solver: `auto` (Gauss–Seidel, then semismooth Newton), `nsgs`, `nsn_ac` or `prox`.
     #[arg(long, default_value = "auto")]
     pub solver: String,
     /// Largest relative natural-map error accepted (Siconos' measure).
@@ -26,6 +26,9 @@ pub struct SolveArgs {
     /// Budget of sweeps or Newton iterations.
     #[arg(long, default_value_t = 10_000)]
     pub max_iterations: usize,
+    /// Newton's linear systems: dense LU up to this many unknowns (3 × contacts), GMRES above.
+    #[arg(long, default_value_t = Fc3dOptions::default().dense_newton_max)]
+    pub dense_newton_max: usize,
     /// Write `DIR/NAME.hdf5` (the problem and FCLib's `/solution`) for each problem solved.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -38,7 +41,10 @@ pub struct SolveArgs {
 /// (after every file has been tried and reported).
 pub fn solve(args: SolveArgs) -> Result<()> {
     let Some(kind) = Fc3dSolverKind::from_name(&args.solver) else {
-        bail!("--solver {}: unknown (auto, nsgs or nsn_ac)", args.solver);
+        bail!(
+            "--solver {}: unknown (auto, nsgs, nsn_ac or prox)",
+            args.solver
+        );
     };
     if args.tolerance.is_nan() || args.tolerance <= 0.0 {
         bail!("--tolerance {}: must be > 0", args.tolerance);
@@ -47,6 +53,7 @@ pub fn solve(args: SolveArgs) -> Result<()> {
         kind,
         tolerance: args.tolerance,
         max_iterations: args.max_iterations,
+        dense_newton_max: args.dense_newton_max,
         ..Fc3dOptions::default()
     };
     if args.out.is_some() && !cfg!(feature = "hdf5") {

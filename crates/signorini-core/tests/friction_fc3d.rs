@@ -11,7 +11,7 @@ use signorini_core::friction::{
 };
 use signorini_core::lcp::{LcpOptions, LcpSolverKind};
 
-/// Every solver configuration: the three kinds, and Newton with its GMRES path forced.
+/// Every solver configuration: the four kinds, and Newton with its GMRES path forced.
 fn configurations(tolerance: f64) -> Vec<(&'static str, Fc3dOptions)> {
     let base = Fc3dOptions {
         tolerance,
@@ -44,6 +44,13 @@ fn configurations(tolerance: f64) -> Vec<(&'static str, Fc3dOptions)> {
             Fc3dOptions {
                 kind: Fc3dSolverKind::NewtonAlartCurnier,
                 dense_newton_max: 0,
+                ..base
+            },
+        ),
+        (
+            "prox",
+            Fc3dOptions {
+                kind: Fc3dSolverKind::Prox,
                 ..base
             },
         ),
@@ -267,6 +274,55 @@ fn starved_solvers_fail_with_a_typed_error() {
         }) => {
             assert_eq!((solver, iterations), ("nsgs", 1));
             assert!(error > tolerance);
+            assert_eq!(problem.error(&best), error);
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+/// `auto` starved of iterations fails with the iterate of smallest error over its stages, never
+/// worse than its first stage (Gauss–Seidel alone with the same budget), and counts the
+/// iterations of every stage it ran.
+#[test]
+fn starved_auto_keeps_the_best_iterate_of_its_stages() {
+    let problem = Fc3dProblem {
+        w: BlockCsr::from_dense_row_major(
+            3,
+            6,
+            &[
+                2.0, 0.1, 0.0, 1.5, 0.2, 0.0, //
+                0.1, 1.0, 0.0, 0.1, 0.5, 0.0, //
+                0.0, 0.0, 1.0, 0.0, 0.0, 0.4, //
+                1.5, 0.1, 0.0, 2.0, 0.0, 0.1, //
+                0.2, 0.5, 0.0, 0.0, 1.0, 0.0, //
+                0.0, 0.0, 0.4, 0.1, 0.0, 1.0,
+            ],
+        )
+        .unwrap(),
+        q: vec![-1.0, 0.3, 0.2, -1.0, -0.1, 0.4],
+        mu: vec![0.5, 0.5],
+    };
+    let starved = |kind| Fc3dOptions {
+        kind,
+        tolerance: 1e-300,
+        max_iterations: 1,
+        ..Fc3dOptions::default()
+    };
+    let Err(Fc3dError::NotConverged { error: alone, .. }) =
+        solve_fc3d(&problem, &starved(Fc3dSolverKind::Nsgs))
+    else {
+        panic!("one sweep cannot reach 1e-300");
+    };
+    match solve_fc3d(&problem, &starved(Fc3dSolverKind::Auto)) {
+        Err(Fc3dError::NotConverged {
+            iterations,
+            error,
+            best,
+            ..
+        }) => {
+            // One sweep, one Newton iteration of the proximal point method, one sweep.
+            assert_eq!(iterations, 3);
+            assert!(error <= alone, "{error} > {alone}");
             assert_eq!(problem.error(&best), error);
         }
         other => panic!("{other:?}"),

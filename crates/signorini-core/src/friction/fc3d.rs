@@ -32,7 +32,8 @@
 //!
 //! Solvers ([`Fc3dSolverKind`]): the nonsmooth Gauss–Seidel over contacts
 //! ([`super::solve_fc3d_nsgs`]) and the semismooth Newton method on Alart and Curnier's function
-//! with a line search ([`super::solve_fc3d_newton`]), which does not depend on the contact ordering; `auto`
+//! with a line search ([`super::solve_fc3d_newton`]), which does not depend on the contact ordering,
+//! and the proximal point method with that Newton method inside ([`super::solve_fc3d_prox`]); `auto`
 //! chains them and [`Fc3dSolution::solver`] names the one that answered. The formulations and
 //! their comparison: V. Acary, M. Brémond, O. Huber, *On solving contact problems with Coulomb
 //! friction: formulations and numerical comparisons*, in Advanced Topics in Nonsmooth Dynamics,
@@ -190,8 +191,9 @@ pub(crate) fn project_cone(mu: f64, [n, t1, t2]: [f64; 3]) -> [f64; 3] {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Fc3dSolverKind {
     /// Nonsmooth Gauss–Seidel for a few sweeps (fast on well-posed rigid sets), then the
-    /// semismooth Newton method from its last iterate, then Gauss–Seidel again from Newton's best
-    /// iterate with the whole budget ([`super::solve_fc3d`]).
+    /// proximal point method for a bounded number of Newton iterations from the best iterate,
+    /// then Gauss–Seidel again from the best iterate of both with the whole budget
+    /// ([`super::solve_fc3d`]).
     #[default]
     Auto,
     /// Nonsmooth Gauss–Seidel over contacts ([`super::solve_fc3d_nsgs`]).
@@ -199,21 +201,25 @@ pub enum Fc3dSolverKind {
     /// Semismooth Newton on Alart–Curnier's function with a line search
     /// ([`super::solve_fc3d_newton`]).
     NewtonAlartCurnier,
+    /// The proximal point method with that Newton method as inner solver
+    /// ([`super::solve_fc3d_prox`]).
+    Prox,
 }
 
 impl Fc3dSolverKind {
-    /// The name used on the command line and in reports: `auto`, `nsgs`, `nsn_ac`.
+    /// The name used on the command line and in reports: `auto`, `nsgs`, `nsn_ac`, `prox`.
     pub fn name(self) -> &'static str {
         match self {
             Self::Auto => "auto",
             Self::Nsgs => "nsgs",
             Self::NewtonAlartCurnier => "nsn_ac",
+            Self::Prox => "prox",
         }
     }
 
     /// The kind of a name given by [`Self::name`].
     pub fn from_name(name: &str) -> Option<Self> {
-        [Self::Auto, Self::Nsgs, Self::NewtonAlartCurnier]
+        [Self::Auto, Self::Nsgs, Self::NewtonAlartCurnier, Self::Prox]
             .into_iter()
             .find(|k| k.name() == name)
     }
@@ -230,10 +236,22 @@ pub struct Fc3dOptions {
     pub max_iterations: usize,
     /// Sweeps `Auto` gives Gauss–Seidel before it turns to Newton. Default 100.
     pub auto_sweeps: usize,
+    /// Newton iterations, summed over its proximal steps, that `Auto` gives the proximal point
+    /// method before it turns back to Gauss–Seidel. Default 200: on Siconos' Capsules,
+    /// KaplasTower and BoxesStack problems it converges in 12–161, and each iteration costs a
+    /// linear solve, so a larger budget mostly delays the fallback.
+    pub auto_newton_iterations: usize,
     /// Newton solves its linear systems with a dense LU factorisation up to this many unknowns
-    /// (3m; 8·n² bytes, 18 MB at the default 1 500), above it with restarted GMRES on the sparse
-    /// Jacobian, which is never formed densely.
+    /// (3m; 8·n² bytes, 2 MB at the default 500), above it with restarted GMRES on the sparse
+    /// Jacobian, which is never formed densely. Default 500: on Capsules-i101-404 (675 unknowns)
+    /// an iteration of the proximal point method's Newton took 0.12 s with the dense LU and
+    /// 0.027 s with GMRES, while on BoxesStack1 (156 unknowns) only the dense LU converged.
     pub dense_newton_max: usize,
+    /// Outer iterations of the proximal point method (`Prox`). Default 100 (Siconos' default).
+    pub prox_outer_iterations: usize,
+    /// Newton iterations per proximal step (`Prox`). Default 100; the total over the steps is
+    /// bounded by `max_iterations`.
+    pub prox_inner_iterations: usize,
 }
 
 impl Default for Fc3dOptions {
@@ -243,7 +261,10 @@ impl Default for Fc3dOptions {
             tolerance: 1e-8,
             max_iterations: 10_000,
             auto_sweeps: 100,
-            dense_newton_max: 1_500,
+            auto_newton_iterations: 200,
+            dense_newton_max: 500,
+            prox_outer_iterations: 100,
+            prox_inner_iterations: 100,
         }
     }
 }
@@ -259,7 +280,7 @@ pub struct Fc3dSolution {
     pub iterations: usize,
     /// The error of `r` (module documentation).
     pub error: f64,
-    /// The solver that answered: `nsgs` or `nsn_ac`.
+    /// The solver that answered: `nsgs`, `nsn_ac` or `prox`.
     pub solver: &'static str,
 }
 

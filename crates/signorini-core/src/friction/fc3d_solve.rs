@@ -3,12 +3,18 @@
 use super::fc3d::{Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind};
 use super::fc3d_newton::solve_fc3d_newton;
 use super::fc3d_nsgs::solve_fc3d_nsgs;
+use super::fc3d_prox::solve_fc3d_prox;
 
 /// Solves the problem with the solver of `options.kind`, from r = 0. `Auto` runs Gauss–Seidel
 /// for `auto_sweeps` sweeps (Acary, Brémond & Huber 2018: the fastest on rigid sets at loose
-/// tolerance), then Newton from its last iterate (quadratic near a solution, independent of the
-/// contact ordering), then Gauss–Seidel again from Newton's best iterate with the whole budget;
-/// the first that reaches the tolerance answers, and its name is in the solution.
+/// tolerance), then the proximal point method with its inner Newton solves for at most
+/// `auto_newton_iterations` Newton iterations in all, from the best iterate so far (independent
+/// of the contact ordering, and the best of their solvers at 1e-8 on rigid sets whose W is
+/// rank-deficient), then Gauss–Seidel again from the best iterate of both with the whole
+/// `max_iterations` budget. The first that
+/// reaches the tolerance answers, and its name is in the solution. A stage that fails for any
+/// reason only hands over to the next one; when none answers, the error holds the iterate of
+/// smallest error over all stages and the iterations of all of them.
 pub fn solve_fc3d(problem: &Fc3dProblem, options: &Fc3dOptions) -> Result<Fc3dSolution, Fc3dError> {
     problem.validate()?;
     if options.tolerance.is_nan() || options.tolerance <= 0.0 {
@@ -20,52 +26,102 @@ pub fn solve_fc3d(problem: &Fc3dProblem, options: &Fc3dOptions) -> Result<Fc3dSo
     match options.kind {
         Fc3dSolverKind::Nsgs => solve_fc3d_nsgs(problem, options, &start),
         Fc3dSolverKind::NewtonAlartCurnier => solve_fc3d_newton(problem, options, &start),
-        Fc3dSolverKind::Auto => {
-            let short = Fc3dOptions {
-                max_iterations: options.auto_sweeps.min(options.max_iterations),
-                ..*options
-            };
-            let mut spent = 0;
-            let retry = |e: Fc3dError, spent: &mut usize| match e {
-                Fc3dError::NotConverged {
-                    iterations, best, ..
-                } => {
-                    *spent += iterations;
-                    Ok(best)
+        Fc3dSolverKind::Prox => solve_fc3d_prox(problem, options, &start),
+        Fc3dSolverKind::Auto => solve_auto(problem, options, start),
+    }
+}
+
+/// What `auto`'s stages have left: the iterate of smallest error, its error, the iterations
+/// spent and the last solver tried.
+struct Chain {
+    best: Vec<f64>,
+    error: f64,
+    spent: usize,
+    solver: &'static str,
+}
+
+impl Chain {
+    /// Takes one stage's outcome: a solution ends the chain (its iterations counted after the
+    /// earlier stages'); a failure of any kind is absorbed, its best iterate kept when it is the
+    /// best so far.
+    fn stage(
+        &mut self,
+        solver: &'static str,
+        budget: usize,
+        outcome: Result<Fc3dSolution, Fc3dError>,
+    ) -> Option<Fc3dSolution> {
+        self.solver = solver;
+        match outcome {
+            Ok(mut s) => {
+                s.iterations += self.spent;
+                Some(s)
+            }
+            Err(Fc3dError::NotConverged {
+                iterations,
+                error,
+                best,
+                ..
+            }) => {
+                self.spent += iterations;
+                if error < self.error {
+                    self.error = error;
+                    self.best = best;
                 }
-                other => Err(other),
-            };
-            let from_nsgs = match solve_fc3d_nsgs(problem, &short, &start) {
-                Ok(s) => return Ok(s),
-                Err(e) => retry(e, &mut spent)?,
-            };
-            let from_newton = match solve_fc3d_newton(problem, options, &from_nsgs) {
-                Ok(s) => return Ok(with_spent(s, spent)),
-                Err(e) => retry(e, &mut spent)?,
-            };
-            solve_fc3d_nsgs(problem, options, &from_newton)
-                .map(|s| with_spent(s, spent))
-                .map_err(|e| match e {
-                    Fc3dError::NotConverged {
-                        solver,
-                        iterations,
-                        error,
-                        tolerance,
-                        best,
-                    } => Fc3dError::NotConverged {
-                        solver,
-                        iterations: iterations + spent,
-                        error,
-                        tolerance,
-                        best,
-                    },
-                    other => other,
-                })
+                None
+            }
+            Err(_) => {
+                self.spent += budget;
+                None
+            }
         }
     }
 }
 
-fn with_spent(mut s: Fc3dSolution, spent: usize) -> Fc3dSolution {
-    s.iterations += spent;
-    s
+/// `auto` (see [`solve_fc3d`]).
+fn solve_auto(
+    problem: &Fc3dProblem,
+    options: &Fc3dOptions,
+    start: Vec<f64>,
+) -> Result<Fc3dSolution, Fc3dError> {
+    let mut chain = Chain {
+        error: problem.error(&start),
+        best: start,
+        spent: 0,
+        solver: "nsgs",
+    };
+    let sweeps = options.auto_sweeps.min(options.max_iterations);
+    let short = Fc3dOptions {
+        max_iterations: sweeps,
+        ..*options
+    };
+    if let Some(s) = chain.stage(
+        "nsgs",
+        sweeps,
+        solve_fc3d_nsgs(problem, &short, &chain.best),
+    ) {
+        return Ok(s);
+    }
+    let newton_budget = options.auto_newton_iterations.min(options.max_iterations);
+    let prox = Fc3dOptions {
+        max_iterations: newton_budget,
+        ..*options
+    };
+    if let Some(s) = chain.stage(
+        "prox",
+        newton_budget,
+        solve_fc3d_prox(problem, &prox, &chain.best),
+    ) {
+        return Ok(s);
+    }
+    let outcome = solve_fc3d_nsgs(problem, options, &chain.best);
+    if let Some(s) = chain.stage("nsgs", options.max_iterations, outcome) {
+        return Ok(s);
+    }
+    Err(Fc3dError::NotConverged {
+        solver: chain.solver,
+        iterations: chain.spent,
+        error: chain.error,
+        tolerance: options.tolerance,
+        best: chain.best,
+    })
 }

@@ -43,6 +43,7 @@ pub mod block_csr;
 pub mod fc3d;
 mod fc3d_newton;
 mod fc3d_nsgs;
+mod fc3d_prox;
 mod fc3d_solve;
 mod lemke_reformulation;
 mod nsgs;
@@ -53,6 +54,7 @@ pub use fc3d::{
 };
 pub use fc3d_newton::solve_fc3d_newton;
 pub use fc3d_nsgs::solve_fc3d_nsgs;
+pub use fc3d_prox::solve_fc3d_prox;
 pub use fc3d_solve::solve_fc3d;
 pub use lemke_reformulation::solve_friction_lemke;
 pub use nsgs::solve_friction_nsgs;
