@@ -1187,6 +1187,36 @@ pub struct NonlinearRunStats {
     pub work_friction_max: Option<f64>,
 }
 
+impl NonlinearRunStats {
+    /// Adds step `k` (ending at time `t`) with its `report`: the works' totals, the energy and
+    /// LCP extremes, the Newton mean over `newton_total` iterates (updated here) and the impacts
+    /// against the impulses of the previous step (updated here). The friction work is the
+    /// family's own.
+    pub(crate) fn add_step(
+        &mut self,
+        k: u64,
+        t: f64,
+        report: &NonlinearStepReport,
+        newton_total: &mut u64,
+        previous_impulse: &mut [f64],
+    ) {
+        self.steps = k;
+        self.t_end = t;
+        self.work_ext_total += report.work_ext;
+        self.work_contact_total += report.work_contact;
+        self.max_abs_energy_error = self.max_abs_energy_error.max(report.energy_error.abs());
+        self.energy_final = report.energy();
+        self.energy_max = self.energy_max.max(report.energy());
+        self.lcp_max_error = self.lcp_max_error.max(report.lcp.error);
+        self.lcp_solves += u64::from(report.lcp.size > 0);
+        self.lcp_max_size = self.lcp_max_size.max(report.lcp.size);
+        self.newton_iterations_max = self.newton_iterations_max.max(report.newton_iterations);
+        *newton_total += report.newton_iterations as u64;
+        self.newton_iterations_mean = *newton_total as f64 / k as f64;
+        self.impacts += stepping::count_impacts(previous_impulse, &report.impulse);
+    }
+}
+
 /// Why a nonlinear run ended early.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum NonlinearRunStop {
@@ -1359,10 +1389,13 @@ impl<S: LagrangianSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
     fn step(&mut self, k: u64) -> Result<(), NonlinearRunStop> {
         let (report, stats) = (&mut self.report, &mut self.stats);
         self.scheme.step(self.system, self.state, report)?;
-        stats.steps = k;
-        stats.t_end = self.state.t;
-        stats.work_ext_total += report.work_ext;
-        stats.work_contact_total += report.work_contact;
+        stats.add_step(
+            k,
+            self.state.t,
+            report,
+            &mut self.newton_total,
+            &mut self.previous_impulse,
+        );
         if self.friction {
             self.work_friction_total += report.work_friction;
             stats.work_friction_total = Some(self.work_friction_total);
@@ -1371,19 +1404,6 @@ impl<S: LagrangianSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
                     .work_friction_max
                     .map_or(report.work_friction, |w| w.max(report.work_friction)),
             );
-        }
-        stats.max_abs_energy_error = stats.max_abs_energy_error.max(report.energy_error.abs());
-        stats.energy_final = report.energy();
-        stats.energy_max = stats.energy_max.max(report.energy());
-        stats.lcp_max_error = stats.lcp_max_error.max(report.lcp.error);
-        stats.lcp_solves += u64::from(report.lcp.size > 0);
-        stats.lcp_max_size = stats.lcp_max_size.max(report.lcp.size);
-        stats.newton_iterations_max = stats.newton_iterations_max.max(report.newton_iterations);
-        self.newton_total += report.newton_iterations as u64;
-        stats.newton_iterations_mean = self.newton_total as f64 / k as f64;
-        for (p_old, &p) in self.previous_impulse.iter_mut().zip(&report.impulse) {
-            stats.impacts += u64::from(p > 0.0 && *p_old <= 0.0);
-            *p_old = p;
         }
         Ok(())
     }
