@@ -280,7 +280,7 @@ fn mat(rows: usize, cols: usize, data: &[f64]) -> DMatrix<f64> {
 
 /// The mixed LCP of the joint rows (equalities) and the contact rows, its failure named for
 /// Newton iteration `iteration` of step `at`.
-fn solve_mixed_at(
+pub(crate) fn solve_mixed_at(
     d: &DMatrix<f64>,
     b: &[f64],
     nb: usize,
