@@ -187,11 +187,11 @@ impl LinearJob {
             }
         };
         check_contact_path(&model, &scheme, &lcp, spec.integrator.scheme())?;
-        if model.has_friction() && !matches!(scheme, LinearSchemeChoice::MoreauJean(_)) {
+        if model.has_friction() && matches!(scheme, LinearSchemeChoice::PositionContact(_)) {
             return Err(SpecError::new(
                 "integrator.scheme",
                 format!(
-                    "{} does not take Coulomb friction (model.friction > 0): use moreau_jean or moreau_jean_variant",
+                    "{} does not take Coulomb friction (model.friction > 0): its contact is a force at position level, with no impulse for Coulomb's law; use moreau_jean, moreau_jean_variant or the nonsmooth α-family (ns_newmark, ns_hht, ns_generalized_alpha, ns_kh_alpha)",
                     spec.integrator.scheme()
                 ),
             ));
