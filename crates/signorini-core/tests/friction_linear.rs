@@ -62,6 +62,33 @@ fn assert_dissipative(rec: &Recorder, contacts: usize, what: &str) {
     }
 }
 
+/// The chain's run `v` closes its balance: max |balance_residual| ≤ `tolerance` × the largest
+/// energy or work, friction dissipating at every record, more than 1 J dissipated, and every
+/// mass sliding by the end with P_t = −μ P_n.
+fn assert_chain_closes(v: &Value, what: &str, tolerance: f64) {
+    let rec = record(v);
+    let scale = max_abs(&col(&rec, "energy")).max(max_abs(&col(&rec, "work_ext_total")));
+    let residual = max_abs(&col(&rec, "balance_residual"));
+    println!("{what}: max |balance_residual| = {residual:e} (scale {scale:.3})");
+    assert!(
+        residual <= tolerance * scale,
+        "{what}: residual {residual:e}"
+    );
+    assert_dissipative(&rec, 4, what);
+    let last = rec.rows.len() - 1;
+    let total = col(&rec, "work_friction_total")[last];
+    assert!(total < -1.0, "{what}: friction dissipated {total}");
+    for a in 0..4 {
+        let (p, pt, ut) = (
+            col(&rec, &format!("p_{a}"))[last],
+            col(&rec, &format!("pt_{a}"))[last],
+            col(&rec, &format!("ut_{a}"))[last],
+        );
+        assert!(ut > 1e-3, "{what}: mass {a} not sliding: U_t = {ut}");
+        assert!((pt + 0.3 * p).abs() <= 1e-12 * p, "{what}: {pt} vs −μ {p}");
+    }
+}
+
 /// The chain of `examples/chain_rough_wall.toml`, every step recorded: the balance residual at
 /// round-off (≤ 1e-13 × the largest energy or work) at every step, friction dissipating at every
 /// step, the cumulative works consistent with the energy, and the chain sliding by the end
@@ -80,25 +107,7 @@ fn the_chain_dragged_on_a_rough_wall_closes_its_balance_at_round_off() {
             v["integrator"] = json!({"scheme": scheme, "theta": theta});
             v["contact_solver"] = json!({"kind": kind});
             v["output"]["every"] = json!(1);
-            let rec = record(&v);
-            let what = format!("{scheme} θ = {theta}, {kind}");
-            let scale = max_abs(&col(&rec, "energy")).max(max_abs(&col(&rec, "work_ext_total")));
-            let residual = max_abs(&col(&rec, "balance_residual"));
-            println!("{what}: max |balance_residual| = {residual:e} (scale {scale:.3})");
-            assert!(residual <= 1e-13 * scale, "{what}: residual {residual:e}");
-            assert_dissipative(&rec, 4, &what);
-            let last = rec.rows.len() - 1;
-            let total = col(&rec, "work_friction_total")[last];
-            assert!(total < -1.0, "{what}: friction dissipated {total}");
-            for a in 0..4 {
-                let (p, pt, ut) = (
-                    col(&rec, &format!("p_{a}"))[last],
-                    col(&rec, &format!("pt_{a}"))[last],
-                    col(&rec, &format!("ut_{a}"))[last],
-                );
-                assert!(ut > 1e-3, "{what}: mass {a} not sliding: U_t = {ut}");
-                assert!((pt + 0.3 * p).abs() <= 1e-12 * p, "{what}: {pt} vs −μ {p}");
-            }
+            assert_chain_closes(&v, &format!("{scheme} θ = {theta}, {kind}"), 1e-13);
         }
     }
 }
@@ -121,25 +130,7 @@ fn the_chain_dragged_on_a_rough_wall_closes_its_balance_under_the_alpha_family()
             v["integrator"] = integrator.clone();
             v["contact_solver"] = json!({"kind": kind});
             v["output"]["every"] = json!(1);
-            let rec = record(&v);
-            let what = format!("{integrator}, {kind}");
-            let scale = max_abs(&col(&rec, "energy")).max(max_abs(&col(&rec, "work_ext_total")));
-            let residual = max_abs(&col(&rec, "balance_residual"));
-            println!("{what}: max |balance_residual| = {residual:e} (scale {scale:.3})");
-            assert!(residual <= 1e-12 * scale, "{what}: residual {residual:e}");
-            assert_dissipative(&rec, 4, &what);
-            let last = rec.rows.len() - 1;
-            let total = col(&rec, "work_friction_total")[last];
-            assert!(total < -1.0, "{what}: friction dissipated {total}");
-            for a in 0..4 {
-                let (p, pt, ut) = (
-                    col(&rec, &format!("p_{a}"))[last],
-                    col(&rec, &format!("pt_{a}"))[last],
-                    col(&rec, &format!("ut_{a}"))[last],
-                );
-                assert!(ut > 1e-3, "{what}: mass {a} not sliding: U_t = {ut}");
-                assert!((pt + 0.3 * p).abs() <= 1e-12 * p, "{what}: {pt} vs −μ {p}");
-            }
+            assert_chain_closes(&v, &format!("{integrator}, {kind}"), 1e-12);
         }
     }
 }

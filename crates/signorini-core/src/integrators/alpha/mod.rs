@@ -89,8 +89,7 @@
 use crate::band::{BandError, SymBand};
 use crate::banded_contact::{BandedImpulse, restore_warm_start, uses_banded};
 use crate::checkpoint::CheckpointError;
-use crate::contact::{IndexSet, LcpStats};
-use crate::friction::{self, FrictionProblem};
+use crate::contact::{FrictionSubproblem, IndexSet, LcpStats};
 use crate::integrators::{LinearScheme, LinearState, SchemeState, StepError, StepReport};
 use crate::lcp::active_set::ImpulseMap;
 use crate::lcp::{self, Lcp, LcpOptions};
@@ -137,11 +136,10 @@ struct AlphaFriction {
     q_cols: Vec<f64>,
     /// `[G T]ᵀ Ŵ [G T]`, row-major 2m×2m, rows and columns in the order (n_1, t_1, n_2, t_2, …).
     w: Vec<f64>,
-    /// The problem on the index set: its W, free local velocities and μ, and its round-off
-    /// levels.
-    sub_w: Vec<f64>,
-    sub_q: Vec<f64>,
-    sub_mu: Vec<f64>,
+    /// The problem on the index set, the free tangential velocities T v_free of its contacts
+    /// and its round-off levels.
+    sub: FrictionSubproblem,
+    tangent_free: Vec<f64>,
     levels: Vec<f64>,
 }
 
@@ -248,9 +246,8 @@ impl AlphaFriction {
             v_cols: t_cols,
             q_cols,
             w,
-            sub_w: Vec::new(),
-            sub_q: Vec::new(),
-            sub_mu: Vec::new(),
+            sub: FrictionSubproblem::new(m),
+            tangent_free: Vec::new(),
             levels: Vec::new(),
         }
     }
@@ -477,56 +474,39 @@ impl LinearScheme for NonsmoothAlpha {
         } else if friction_step {
             self.friction_impulse(model, step, t_next, report)?;
         } else if !self.index_set.active.is_empty() {
-            self.lcp_m.clear();
-            for &a in &self.index_set.active {
-                for &b in &self.index_set.active {
-                    self.lcp_m.push(self.w[a * m + b]);
-                }
-            }
-            let sol = lcp::solve(
-                Lcp {
-                    m: &self.lcp_m,
-                    q: &self.index_set.rhs,
-                },
-                &self.lcp,
-            )
-            .map_err(|source| StepError::Lcp {
-                step,
-                t: t_next,
-                source,
-            })?;
-            report.lcp = LcpStats {
-                size: self.index_set.active.len(),
-                iterations: sol.iterations,
-                error: sol.error,
-            };
-            let s = &mut self.core.s;
-            for (r, &a) in self.index_set.active.iter().enumerate() {
-                let p = sol.z[r];
-                report.impulse[a] = p;
-                if p != 0.0 {
-                    let (ac, vc, qc) = (
-                        &self.a_cols[a * n..(a + 1) * n],
-                        &self.v_cols[a * n..(a + 1) * n],
-                        &self.q_cols[a * n..(a + 1) * n],
-                    );
-                    for (((sa, sv), sq), ((ac, vc), qc)) in s.a[..n]
-                        .iter_mut()
-                        .zip(&mut s.v[..n])
-                        .zip(&mut s.q[..n])
-                        .zip(ac.iter().zip(vc).zip(qc))
-                    {
-                        *sa += p * ac;
-                        *sv += p * vc;
-                        *sq += p * qc;
-                    }
-                }
-            }
+            self.dense_impulse(n, m, step, t_next, report)?;
         }
         if self.banded.is_none() && !friction_step {
             self.index_set
                 .record_roundoff(&self.w, &report.impulse, step);
         }
+        let (work_contact, work_friction) = self.impulse_works(model, state, friction_step, report);
+        self.core.finish(
+            model,
+            state,
+            t_next,
+            ContactWork::Impulse(work_contact),
+            report,
+        );
+        if friction_step {
+            report.work_friction = work_friction;
+            report.energy.balance_residual -= work_friction;
+        }
+        Ok(())
+    }
+}
+
+impl NonsmoothAlpha {
+    /// The impulses' works of a step, against v_{k+1/2} (Lemma 2): `work_contact = (Gᵀ
+    /// v_{k+1/2})ᵀ P_{k+1}` and, on a step with friction, `work_friction = (Tᵀ v_{k+1/2})ᵀ
+    /// P_t,{k+1}` (module documentation); v_{k+1} is the scheme's, v_k the state's.
+    fn impulse_works(
+        &self,
+        model: &LinearModel,
+        state: &LinearState,
+        friction_step: bool,
+        report: &StepReport,
+    ) -> (f64, f64) {
         // work_contact = (Gᵀ v_{k+1/2})ᵀ P_{k+1} (Lemma 2; U_{k+1/2}ᵀP for a fixed obstacle).
         let mut work_contact = 0.0;
         for &a in &self.index_set.active {
@@ -547,22 +527,67 @@ impl LinearScheme for NonsmoothAlpha {
                 }
             }
         }
-        self.core.finish(
-            model,
-            state,
-            t_next,
-            ContactWork::Impulse(work_contact),
-            report,
-        );
-        if friction_step {
-            report.work_friction = work_friction;
-            report.energy.balance_residual -= work_friction;
+        (work_contact, work_friction)
+    }
+
+    /// The impulse LCP of the dense path (25c)–(25d) on the index set, `0 ≤ W_II P + U_free +
+    /// e U_k ⊥ P ≥ 0`, and the impulse's change of a_{k+1}, v_{k+1}, q_{k+1} along the columns.
+    fn dense_impulse(
+        &mut self,
+        n: usize,
+        m: usize,
+        step: u64,
+        t_next: f64,
+        report: &mut StepReport,
+    ) -> Result<(), StepError> {
+        self.lcp_m.clear();
+        for &a in &self.index_set.active {
+            for &b in &self.index_set.active {
+                self.lcp_m.push(self.w[a * m + b]);
+            }
+        }
+        let sol = lcp::solve(
+            Lcp {
+                m: &self.lcp_m,
+                q: &self.index_set.rhs,
+            },
+            &self.lcp,
+        )
+        .map_err(|source| StepError::Lcp {
+            step,
+            t: t_next,
+            source,
+        })?;
+        report.lcp = LcpStats {
+            size: self.index_set.active.len(),
+            iterations: sol.iterations,
+            error: sol.error,
+        };
+        let s = &mut self.core.s;
+        for (r, &a) in self.index_set.active.iter().enumerate() {
+            let p = sol.z[r];
+            report.impulse[a] = p;
+            if p != 0.0 {
+                let (ac, vc, qc) = (
+                    &self.a_cols[a * n..(a + 1) * n],
+                    &self.v_cols[a * n..(a + 1) * n],
+                    &self.q_cols[a * n..(a + 1) * n],
+                );
+                for (((sa, sv), sq), ((ac, vc), qc)) in s.a[..n]
+                    .iter_mut()
+                    .zip(&mut s.v[..n])
+                    .zip(&mut s.q[..n])
+                    .zip(ac.iter().zip(vc).zip(qc))
+                {
+                    *sa += p * ac;
+                    *sv += p * vc;
+                    *sq += p * qc;
+                }
+            }
         }
         Ok(())
     }
-}
 
-impl NonsmoothAlpha {
     /// The impulse of a step with friction on its index set: the planar friction problem of
     /// [`crate::friction`] on the rows (G_α, T_α) of the active contacts, with free local
     /// velocities `(U_free + e U_k, T v_free)`; (P_n, P_t) change a_{k+1}, v_{k+1}, q_{k+1} along
@@ -578,36 +603,27 @@ impl NonsmoothAlpha {
         let Some(fr) = self.friction.as_mut() else {
             return Ok(());
         };
-        let (n, mm) = (model.dofs(), 2 * model.contacts.len());
+        let n = model.dofs();
         let (active, rhs) = (&self.index_set.active, &self.index_set.rhs);
         let s = &mut self.core.s;
-        fr.sub_w.clear();
-        fr.sub_q.clear();
-        fr.sub_mu.clear();
-        for (r, &a) in active.iter().enumerate() {
-            for row in [2 * a, 2 * a + 1] {
-                for &c in active {
-                    fr.sub_w
-                        .extend_from_slice(&fr.w[row * mm + 2 * c..row * mm + 2 * c + 2]);
-                }
-            }
-            let f = &model.friction[a];
-            fr.sub_q.extend([rhs[r], f.project(&s.v)]);
-            fr.sub_mu.push(f.mu);
-        }
-        let sol = friction::solve_friction(
-            FrictionProblem {
-                w: &fr.sub_w,
-                q: &fr.sub_q,
-                mu: &fr.sub_mu,
-            },
-            &self.lcp,
-        )
-        .map_err(|source| StepError::Friction {
-            step,
-            t: t_next,
-            source,
-        })?;
+        fr.tangent_free.clear();
+        fr.tangent_free
+            .extend(active.iter().map(|&a| model.friction[a].project(&s.v)));
+        let sol = fr
+            .sub
+            .solve(
+                &fr.w,
+                active,
+                rhs,
+                &fr.tangent_free,
+                |a| model.friction[a].mu,
+                &self.lcp,
+            )
+            .map_err(|source| StepError::Friction {
+                step,
+                t: t_next,
+                source,
+            })?;
         let k = active.len();
         fr.levels.clear();
         for (r, &a) in active.iter().enumerate() {
@@ -631,14 +647,7 @@ impl NonsmoothAlpha {
                     }
                 }
             }
-            let mut level = 0.0;
-            for row in [2 * r, 2 * r + 1] {
-                let wp: f64 = (0..2 * k)
-                    .map(|c| (fr.sub_w[row * 2 * k + c] * sol.p[c]).abs())
-                    .sum();
-                level += fr.sub_q[row].abs() + wp;
-            }
-            fr.levels.push(64.0 * f64::EPSILON * level);
+            fr.levels.push(fr.sub.level(r, &sol.p));
         }
         self.index_set.record_levels(&fr.levels, step);
         report.lcp = LcpStats {
