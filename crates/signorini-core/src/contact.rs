@@ -402,15 +402,84 @@ impl Delassus {
 #[derive(Debug, Clone)]
 pub struct FrictionDelassus {
     n: usize,
-    m: usize,
     /// Column r of Ŵ⁻¹[G T] at `[r n, (r+1) n)`, r = 2α (normal) or 2α + 1 (tangent).
     columns: Vec<f64>,
     /// Row-major 2m×2m.
     w: Vec<f64>,
-    /// Scratch: the problem on the index set and its μ.
-    sub_w: Vec<f64>,
-    sub_q: Vec<f64>,
-    sub_mu: Vec<f64>,
+    /// Scratch: the problem on the index set.
+    sub: FrictionSubproblem,
+}
+
+/// The planar friction problem of a step on its index set, cut from the Delassus operator of
+/// every contact's rows (G_α, T_α) (2m×2m, rows and columns in the order (n_1, t_1, n_2, …)):
+/// its W, free local velocities and μ, kept between steps only as buffers.
+#[derive(Debug, Clone)]
+pub(crate) struct FrictionSubproblem {
+    /// Contacts m of the whole operator.
+    contacts: usize,
+    w: Vec<f64>,
+    q: Vec<f64>,
+    mu: Vec<f64>,
+}
+
+impl FrictionSubproblem {
+    /// The buffers for an operator of `contacts` contacts.
+    pub(crate) fn new(contacts: usize) -> Self {
+        Self {
+            contacts,
+            w: Vec::new(),
+            q: Vec::new(),
+            mu: Vec::new(),
+        }
+    }
+
+    /// Solves the problem on `active` of the operator `w` (2m×2m) with free local velocities
+    /// `b_n` (`U_free + e U_k`, the normal rows) and `b_t` (the tangent rows), in the order of
+    /// `active`, and friction coefficients `mu[α]`.
+    pub(crate) fn solve(
+        &mut self,
+        w: &[f64],
+        active: &[usize],
+        b_n: &[f64],
+        b_t: &[f64],
+        mu: impl Fn(usize) -> f64,
+        options: &LcpOptions,
+    ) -> Result<friction::FrictionSolution, FrictionError> {
+        let mm = 2 * self.contacts;
+        self.w.clear();
+        self.q.clear();
+        self.mu.clear();
+        for (r, &a) in active.iter().enumerate() {
+            for row in [2 * a, 2 * a + 1] {
+                for &c in active {
+                    self.w
+                        .extend_from_slice(&w[row * mm + 2 * c..row * mm + 2 * c + 2]);
+                }
+            }
+            self.q.extend([b_n[r], b_t[r]]);
+            self.mu.push(mu(a));
+        }
+        friction::solve_friction(
+            FrictionProblem {
+                w: &self.w,
+                q: &self.q,
+                mu: &self.mu,
+            },
+            options,
+        )
+    }
+
+    /// The round-off level of the normal local velocity of the `r`-th active contact at the
+    /// solution `p`, `64 ε Σ_rows (|b| + Σ |W P|)` over its two rows (the solver couples them).
+    pub(crate) fn level(&self, r: usize, p: &[f64]) -> f64 {
+        let kk = self.q.len();
+        let mut level = 0.0;
+        for row in [2 * r, 2 * r + 1] {
+            let wp: f64 = (0..kk).map(|c| (self.w[row * kk + c] * p[c]).abs()).sum();
+            level += self.q[row].abs() + wp;
+        }
+        64.0 * f64::EPSILON * level
+    }
 }
 
 impl FrictionDelassus {
@@ -438,12 +507,9 @@ impl FrictionDelassus {
         }
         Self {
             n,
-            m,
             columns,
             w,
-            sub_w: Vec::new(),
-            sub_q: Vec::new(),
-            sub_mu: Vec::new(),
+            sub: FrictionSubproblem::new(m),
         }
     }
 
@@ -477,28 +543,10 @@ impl FrictionDelassus {
         if active.is_empty() {
             return Ok(LcpStats::default());
         }
-        let (k, mm) = (active.len(), 2 * self.m);
-        self.sub_w.clear();
-        self.sub_q.clear();
-        self.sub_mu.clear();
-        for (r, &a) in active.iter().enumerate() {
-            for row in [2 * a, 2 * a + 1] {
-                for &c in active {
-                    self.sub_w
-                        .extend_from_slice(&self.w[row * mm + 2 * c..row * mm + 2 * c + 2]);
-                }
-            }
-            self.sub_q.extend([b_n[r], b_t[r]]);
-            self.sub_mu.push(friction[a].mu);
-        }
-        let sol = friction::solve_friction(
-            FrictionProblem {
-                w: &self.sub_w,
-                q: &self.sub_q,
-                mu: &self.sub_mu,
-            },
-            options,
-        )?;
+        let k = active.len();
+        let sol = self
+            .sub
+            .solve(&self.w, active, b_n, b_t, |a| friction[a].mu, options)?;
         let n = self.n;
         for (r, &a) in active.iter().enumerate() {
             let (pn, pt) = (sol.p[2 * r], sol.p[2 * r + 1]);
@@ -511,14 +559,7 @@ impl FrictionDelassus {
                     }
                 }
             }
-            let mut level = 0.0;
-            for row in [2 * r, 2 * r + 1] {
-                let wp: f64 = (0..2 * k)
-                    .map(|c| (self.sub_w[row * 2 * k + c] * sol.p[c]).abs())
-                    .sum();
-                level += self.sub_q[row].abs() + wp;
-            }
-            levels.push(64.0 * f64::EPSILON * level);
+            levels.push(self.sub.level(r, &sol.p));
         }
         Ok(LcpStats {
             size: k,

@@ -187,11 +187,11 @@ impl LinearJob {
             }
         };
         check_contact_path(&model, &scheme, &lcp, spec.integrator.scheme())?;
-        if model.has_friction() && !matches!(scheme, LinearSchemeChoice::MoreauJean(_)) {
+        if model.has_friction() && matches!(scheme, LinearSchemeChoice::PositionContact(_)) {
             return Err(SpecError::new(
                 "integrator.scheme",
                 format!(
-                    "{} does not take Coulomb friction (model.friction > 0): use moreau_jean or moreau_jean_variant",
+                    "{} does not take Coulomb friction (model.friction > 0): its contact is a force at position level, with no impulse for Coulomb's law; use moreau_jean, moreau_jean_variant or the nonsmooth α-family (ns_newmark, ns_hht, ns_generalized_alpha, ns_kh_alpha)",
                     spec.integrator.scheme()
                 ),
             ));
@@ -251,8 +251,10 @@ fn check_contact_path(
 
 /// A `lagrangian` model under a scheme of the linear family other than `ns_generalized_alpha`
 /// (`lagrangian_ns_alpha`): only `moreau_jean` (the nonlinear Moreau–Jean time-stepping of
-/// Acary & Brogliato 2008, ch. 10) can take it, with contacts and without joints. The model is compiled and checked first, so a bad model is reported before
-/// the scheme.
+/// Acary & Brogliato 2008, ch. 10) can take it, with contacts, joints or both (joints with
+/// θ > 0 and without friction: the scheme refuses the rest naming `integrator.theta` or
+/// `integrator.scheme`). The model is compiled and checked first, so a bad model is reported
+/// before the scheme; joints must be independent and hold at velocity level at the start.
 fn lagrangian_moreau_jean(
     m: &ModelSpec,
     l: &LagrangianSpec,
@@ -262,18 +264,7 @@ fn lagrangian_moreau_jean(
     if !matches!(spec.integrator, IntegratorSpec::MoreauJean(_)) {
         return Err(mismatch(m, spec.integrator.scheme()));
     }
-    if model.joints() > 0 && !l.contacts.is_empty() {
-        return Err(SpecError::new(
-            "model.constraints",
-            "joints and contacts together are not supported yet under moreau_jean: ns_generalized_alpha takes both",
-        ));
-    }
-    if model.joints() > 0 {
-        return Err(SpecError::new(
-            "integrator.scheme",
-            "moreau_jean does not take joints: use soi2_generalized_alpha, soi2_hht, hht_i3 or ns_generalized_alpha for a model with joints",
-        ));
-    }
+    check_joint_start(&model, "moreau_jean")?;
     let IntegratorSpec::MoreauJean(p) = &spec.integrator else {
         return Err(mismatch(m, spec.integrator.scheme()));
     };
@@ -362,7 +353,7 @@ fn lagrangian_ns_alpha(l: &LagrangianSpec, spec: &JobSpec) -> Result<JobKind, Sp
         newton: NewtonOptions::default(),
     };
     refuse_friction(l, "ns_generalized_alpha")?;
-    check_joint_start(&model)?;
+    check_joint_start(&model, "ns_generalized_alpha")?;
     let (steps, lcp, output) = lagrangian_run_settings(spec, &model)?;
     let scheme = NonsmoothGeneralizedAlpha::new(&model, params, steps.h, lcp)
         .map_err(|e| scheme_field_error(e.field, e.reason))?;
@@ -397,8 +388,8 @@ fn refuse_friction(l: &LagrangianSpec, scheme: &str) -> Result<(), SpecError> {
 
 /// The joints of a user model at its start: G(q0) of full row rank (`model.constraints`), and
 /// G(q0) v0 + g_t = 0 to [`crate::lagrangian::JOINT_TOLERANCE`] relative to max(1, ‖G‖‖v0‖)
-/// (`model.v0`).
-fn check_joint_start(model: &UserModel) -> Result<(), SpecError> {
+/// (`model.v0`). `scheme` is named in the refusal of dependent joints.
+fn check_joint_start(model: &UserModel, scheme: &str) -> Result<(), SpecError> {
     let (n, nb) = (LagrangianSystem::dofs(model), JointedSystem::joints(model));
     if nb == 0 {
         return Ok(());
@@ -415,7 +406,7 @@ fn check_joint_start(model: &UserModel) -> Result<(), SpecError> {
         return Err(SpecError::new(
             "model.constraints",
             format!(
-                "the joints are not independent at q0 (singular values of g_q from {smax:e} down to {smin:e}): ns_generalized_alpha needs g_q of full row rank"
+                "the joints are not independent at q0 (singular values of g_q from {smax:e} down to {smin:e}): {scheme} needs g_q of full row rank"
             ),
         ));
     }
@@ -576,7 +567,9 @@ impl Job {
                 let contacts = LagrangianSystem::contacts(&j.model);
                 // The run's columns, plus step and t.
                 let friction = has_friction(&j.model);
-                let columns = nonlinear_columns(contacts, friction, &j.output.probes).len() + 2;
+                let joints = JointedSystem::joints(&j.model) > 0;
+                let columns =
+                    nonlinear_columns(contacts, friction, joints, &j.output.probes).len() + 2;
                 JobSize {
                     dofs: LagrangianSystem::dofs(&j.model) as u64,
                     steps: j.steps,

@@ -80,6 +80,16 @@ pub enum StopReason {
         step: u64,
     },
 }
+/// The impacts of a step: the contacts whose impulse became positive after a step without
+/// (`previous`, overwritten by `impulse` for the next step).
+pub(crate) fn count_impacts(previous: &mut [f64], impulse: &[f64]) -> u64 {
+    let mut impacts = 0;
+    for (p_old, &p) in previous.iter_mut().zip(impulse) {
+        impacts += u64::from(p > 0.0 && *p_old <= 0.0);
+        *p_old = p;
+    }
+    impacts
+}
 
 /// Runs `family` to its end, recording every `every`-th step (≥ 1; 0 counts as 1) and the last
 /// one, or continues it from the checkpoint `resume` (its memory restored, the records up to it

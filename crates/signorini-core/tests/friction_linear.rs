@@ -3,8 +3,10 @@
 //! with `work_friction` in it, for θ ∈ {½, 1}, the variant and every friction solver;
 //! `work_friction` ≤ 0 at every step; the block on a slope written as a `linear` model slides by
 //! the exact law and matches the `lagrangian` one; μ = 0 is the frictionless model bit for bit;
-//! the α-family refuses friction naming `integrator.scheme`; bad friction fields are named; a
-//! friction solver that fails stops the run with the step and t.
+//! the nonsmooth α-family (ns_hht, ns_generalized_alpha, ns_newmark) closes the chain's balance
+//! at round-off with `work_friction` in it; the position-level baselines refuse friction naming
+//! `integrator.scheme`; bad friction fields are named; a friction solver that fails stops the
+//! run with the step and t.
 
 // Only the core library must stay pure (clippy.toml): a test may read fixtures and print.
 #![allow(clippy::disallowed_macros, clippy::disallowed_methods)]
@@ -60,6 +62,33 @@ fn assert_dissipative(rec: &Recorder, contacts: usize, what: &str) {
     }
 }
 
+/// The chain's run `v` closes its balance: max |balance_residual| ≤ `tolerance` × the largest
+/// energy or work, friction dissipating at every record, more than 1 J dissipated, and every
+/// mass sliding by the end with P_t = −μ P_n.
+fn assert_chain_closes(v: &Value, what: &str, tolerance: f64) {
+    let rec = record(v);
+    let scale = max_abs(&col(&rec, "energy")).max(max_abs(&col(&rec, "work_ext_total")));
+    let residual = max_abs(&col(&rec, "balance_residual"));
+    println!("{what}: max |balance_residual| = {residual:e} (scale {scale:.3})");
+    assert!(
+        residual <= tolerance * scale,
+        "{what}: residual {residual:e}"
+    );
+    assert_dissipative(&rec, 4, what);
+    let last = rec.rows.len() - 1;
+    let total = col(&rec, "work_friction_total")[last];
+    assert!(total < -1.0, "{what}: friction dissipated {total}");
+    for a in 0..4 {
+        let (p, pt, ut) = (
+            col(&rec, &format!("p_{a}"))[last],
+            col(&rec, &format!("pt_{a}"))[last],
+            col(&rec, &format!("ut_{a}"))[last],
+        );
+        assert!(ut > 1e-3, "{what}: mass {a} not sliding: U_t = {ut}");
+        assert!((pt + 0.3 * p).abs() <= 1e-12 * p, "{what}: {pt} vs −μ {p}");
+    }
+}
+
 /// The chain of `examples/chain_rough_wall.toml`, every step recorded: the balance residual at
 /// round-off (≤ 1e-13 × the largest energy or work) at every step, friction dissipating at every
 /// step, the cumulative works consistent with the energy, and the chain sliding by the end
@@ -78,25 +107,30 @@ fn the_chain_dragged_on_a_rough_wall_closes_its_balance_at_round_off() {
             v["integrator"] = json!({"scheme": scheme, "theta": theta});
             v["contact_solver"] = json!({"kind": kind});
             v["output"]["every"] = json!(1);
-            let rec = record(&v);
-            let what = format!("{scheme} θ = {theta}, {kind}");
-            let scale = max_abs(&col(&rec, "energy")).max(max_abs(&col(&rec, "work_ext_total")));
-            let residual = max_abs(&col(&rec, "balance_residual"));
-            println!("{what}: max |balance_residual| = {residual:e} (scale {scale:.3})");
-            assert!(residual <= 1e-13 * scale, "{what}: residual {residual:e}");
-            assert_dissipative(&rec, 4, &what);
-            let last = rec.rows.len() - 1;
-            let total = col(&rec, "work_friction_total")[last];
-            assert!(total < -1.0, "{what}: friction dissipated {total}");
-            for a in 0..4 {
-                let (p, pt, ut) = (
-                    col(&rec, &format!("p_{a}"))[last],
-                    col(&rec, &format!("pt_{a}"))[last],
-                    col(&rec, &format!("ut_{a}"))[last],
-                );
-                assert!(ut > 1e-3, "{what}: mass {a} not sliding: U_t = {ut}");
-                assert!((pt + 0.3 * p).abs() <= 1e-12 * p, "{what}: {pt} vs −μ {p}");
-            }
+            assert_chain_closes(&v, &format!("{scheme} θ = {theta}, {kind}"), 1e-13);
+        }
+    }
+}
+
+/// The same chain under the nonsmooth α-family (Acary 2016 (25) with the tangential impulse in
+/// (25b), `integrators::alpha`), every step recorded: the balance residual of Lemma 2 with
+/// `work_friction` in it at round-off (≤ 1e-12 × the largest energy or work) at every step,
+/// friction dissipating at every step (≤ 0 to round-off), more than 1 J dissipated, and the
+/// chain sliding by the end with P_t = −μ P_n on every mass.
+#[test]
+fn the_chain_dragged_on_a_rough_wall_closes_its_balance_under_the_alpha_family() {
+    let base = example_json("chain_rough_wall");
+    for integrator in [
+        json!({"scheme": "ns_hht", "alpha": 0.1}),
+        json!({"scheme": "ns_generalized_alpha", "rho_inf": 0.8}),
+        json!({"scheme": "ns_newmark"}),
+    ] {
+        for kind in ["auto", "lemke"] {
+            let mut v = base.clone();
+            v["integrator"] = integrator.clone();
+            v["contact_solver"] = json!({"kind": kind});
+            v["output"]["every"] = json!(1);
+            assert_chain_closes(&v, &format!("{integrator}, {kind}"), 1e-12);
         }
     }
 }
@@ -173,19 +207,14 @@ fn zero_friction_is_the_frictionless_linear_model_bit_for_bit() {
     assert_eq!(a.rows, b.rows);
 }
 
-/// Refusals, each naming its field: the α-family and the position-level baselines refuse
-/// friction (`integrator.scheme`), μ > 0 needs `t_matrix`, μ must be ≥ 0 and finite, the sizes
-/// must match.
+/// Refusals, each naming its field: the position-level baselines refuse friction
+/// (`integrator.scheme`), μ > 0 needs `t_matrix`, μ must be ≥ 0 and finite, the sizes must
+/// match.
 #[test]
 fn friction_specs_are_checked_naming_the_field() {
     let base = example_json("chain_rough_wall");
     type Edit = fn(&mut Value);
     let cases: Vec<(Edit, &str, &str)> = vec![
-        (
-            |v| v["integrator"] = json!({"scheme": "ns_generalized_alpha"}),
-            "integrator.scheme",
-            "does not take Coulomb friction",
-        ),
         (
             |v| v["integrator"] = json!({"scheme": "newmark_position_contact"}),
             "integrator.scheme",

@@ -529,10 +529,14 @@ fn bad_models_are_refused_with_the_field_named() {
             "scene `lagrangian` runs with",
         ),
         (
-            "joints and contacts",
-            |s| s["integrator"] = json!({"scheme": "moreau_jean"}),
-            "model.constraints",
-            "joints and contacts together are not supported yet",
+            "joints and friction under moreau_jean",
+            |s| {
+                s["integrator"] = json!({"scheme": "moreau_jean"});
+                s["model"]["contacts"][0]["friction"] = json!(0.3);
+                s["model"]["contacts"][0]["tangent"] = json!("x");
+            },
+            "integrator.scheme",
+            "joints and Coulomb friction together",
         ),
     ];
     for (what, edit, field, reason) in cases {

@@ -7,6 +7,7 @@ use signorini_core::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
 use signorini_core::integrators::{LinearState, OutputOptions, run_linear};
 use signorini_core::lcp::LcpOptions;
 use signorini_core::nonlinear::LagrangianSystem;
+use signorini_core::nonlinear::generalized_alpha::JointedSystem;
 use signorini_core::nonlinear::moreau_jean::{
     NewtonOptions, NonlinearMoreauJean, NonlinearMoreauJeanParams, NonlinearRunStats,
     NonlinearRunStop, NonlinearState, NonlinearStepError, run_nonlinear,
@@ -38,6 +39,9 @@ impl Ball {
         }
     }
 }
+
+/// No joints (the defaults).
+impl JointedSystem for Ball {}
 
 impl LagrangianSystem for Ball {
     fn dofs(&self) -> usize {
@@ -105,6 +109,9 @@ impl Pendulum {
     }
 }
 
+/// No joints (the defaults).
+impl JointedSystem for Pendulum {}
+
 impl LagrangianSystem for Pendulum {
     fn dofs(&self) -> usize {
         1
@@ -157,6 +164,9 @@ struct DoublePendulum {
     g: f64,
     q0: [f64; 2],
 }
+
+/// No joints (the defaults).
+impl JointedSystem for DoublePendulum {}
 
 impl LagrangianSystem for DoublePendulum {
     fn dofs(&self) -> usize {
@@ -259,6 +269,9 @@ impl RockingBlock {
     }
 }
 
+/// No joints (the defaults).
+impl JointedSystem for RockingBlock {}
+
 impl LagrangianSystem for RockingBlock {
     fn dofs(&self) -> usize {
         2
@@ -315,7 +328,7 @@ fn params(theta: f64) -> NonlinearMoreauJeanParams {
 }
 
 /// Runs `system` for `steps` steps of `h`, recording every step with probe dof 0.
-fn run<S: LagrangianSystem>(
+fn run<S: JointedSystem>(
     system: &S,
     params: NonlinearMoreauJeanParams,
     h: f64,

@@ -14,6 +14,7 @@ use signorini_core::contact::{Activation, IndexSetRule};
 use signorini_core::integrators::OutputOptions;
 use signorini_core::lcp::LcpOptions;
 use signorini_core::nonlinear::LagrangianSystem;
+use signorini_core::nonlinear::generalized_alpha::JointedSystem;
 use signorini_core::nonlinear::moreau_jean::{
     NewtonOptions, NonlinearMoreauJean, NonlinearMoreauJeanParams, NonlinearState, run_nonlinear,
 };
@@ -30,6 +31,9 @@ const M: f64 = 1.0;
 const W: f64 = 0.2;
 const HGT: f64 = 0.4;
 const G: f64 = 9.81;
+
+/// No joints (the defaults).
+impl JointedSystem for RockingBlock {}
 
 impl LagrangianSystem for RockingBlock {
     fn dofs(&self) -> usize {

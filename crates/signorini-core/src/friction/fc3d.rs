@@ -156,13 +156,7 @@ pub fn natural_map_error(mu: &[f64], q: &[f64], r: &[f64], u: &[f64]) -> f64 {
             d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
         })
         .sum();
-    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let scale = norm(q).max(norm(r)).max(norm(u));
-    if scale > f64::EPSILON {
-        squared.sqrt() / scale
-    } else {
-        squared.sqrt()
-    }
+    super::relative_error(squared, q, r, u)
 }
 
 /// `r − P_K(r − û)` for one contact, `û = u + μ‖u_t‖ e_n`.

@@ -128,13 +128,7 @@ impl FrictionProblem<'_> {
                 d[0] * d[0] + d[1] * d[1]
             })
             .sum();
-        let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
-        let scale = norm(self.q).max(norm(p)).max(norm(&u));
-        if scale > f64::EPSILON {
-            squared.sqrt() / scale
-        } else {
-            squared.sqrt()
-        }
+        relative_error(squared, self.q, p, &u)
     }
 
     /// Work of the friction impulses on the local tangential velocities, `Σ P_t U_t` (≤ 0 at
@@ -144,6 +138,19 @@ impl FrictionProblem<'_> {
         (0..self.contacts())
             .map(|c| p[2 * c + 1] * u[2 * c + 1])
             .sum()
+    }
+}
+
+/// Siconos' relative measure of a natural map whose squared 2-norm over all contacts is
+/// `squared`: `‖P − proj(P − Û)‖₂ / max(‖q‖₂, ‖P‖₂, ‖U‖₂)` (`fc3d_compute_error`, the same for
+/// the planar and the 3D cone; not divided when the scale is ≤ the machine epsilon).
+pub(crate) fn relative_error(squared: f64, q: &[f64], p: &[f64], u: &[f64]) -> f64 {
+    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let scale = norm(q).max(norm(p)).max(norm(u));
+    if scale > f64::EPSILON {
+        squared.sqrt() / scale
+    } else {
+        squared.sqrt()
     }
 }
 

@@ -414,10 +414,7 @@ impl TimeStepping for LinearStepping<'_> {
         stats.algorithmic_energy_max = stats.algorithmic_energy_max.max(e.algorithmic_energy.abs());
         stats.lcp_max_error = stats.lcp_max_error.max(report.lcp.error);
         stats.lcp_solves += u64::from(report.lcp.size > 0);
-        for (p_old, &p) in self.previous_impulse.iter_mut().zip(&report.impulse) {
-            stats.impacts += u64::from(p > 0.0 && *p_old <= 0.0);
-            *p_old = p;
-        }
+        stats.impacts += stepping::count_impacts(&mut self.previous_impulse, &report.impulse);
         Ok(())
     }
 

@@ -191,34 +191,50 @@ impl LinearScheme for MoreauJean {
         k + s
     }
 
+    /// One step in the phases of Siconos' `MoreauJeanOSI`: the load at θ, the free velocity,
+    /// the index set, the one-step problem (the impulse) and the update with Lemma 1's terms.
     fn step(
         &mut self,
         model: &LinearModel,
         state: &mut LinearState,
         report: &mut StepReport,
     ) -> Result<(), StepError> {
-        let (h, theta) = (self.h, self.params.theta);
-        let t_k = state.t;
-        let step = state.step + 1;
-        let t_next = (step as f64) * h;
-        let s = &mut self.scratch;
-        let n = state.q.len();
+        let t_next = ((state.step + 1) as f64) * self.h;
+        self.load_at_theta(model, state.t, t_next);
+        self.free_velocity(model, state);
+        self.update_index_set(model, state, t_next);
+        self.one_step_problem(model, state, t_next, report)?;
+        self.finish(model, state, t_next, report);
+        Ok(())
+    }
+}
 
-        // F_{k+θ}: constant forces need no work per step.
-        if !model.force.harmonic.is_empty() {
-            if self.f_next_t == t_k {
-                s.f_k.copy_from_slice(&self.f_next);
-            } else {
-                model.force.eval_into(t_k, &mut s.f_k);
-            }
-            model.force.eval_into(t_next, &mut self.f_next);
-            self.f_next_t = t_next;
-            for ((ft, fk), fn_) in s.f_theta.iter_mut().zip(&s.f_k).zip(&self.f_next) {
-                *ft = (1.0 - theta) * fk + theta * fn_;
-            }
+impl MoreauJean {
+    /// F_{k+θ} = (1 − θ) F(t_k) + θ F(t_{k+1}) into `f_theta`; constant forces need no work per
+    /// step.
+    fn load_at_theta(&mut self, model: &LinearModel, t_k: f64, t_next: f64) {
+        if model.force.harmonic.is_empty() {
+            return;
         }
+        let theta = self.params.theta;
+        let s = &mut self.scratch;
+        if self.f_next_t == t_k {
+            s.f_k.copy_from_slice(&self.f_next);
+        } else {
+            model.force.eval_into(t_k, &mut s.f_k);
+        }
+        model.force.eval_into(t_next, &mut self.f_next);
+        self.f_next_t = t_next;
+        for ((ft, fk), fn_) in s.f_theta.iter_mut().zip(&s.f_k).zip(&self.f_next) {
+            *ft = (1.0 - theta) * fk + theta * fn_;
+        }
+    }
 
-        // Free velocity: Ŵ Δv_free = h (F_{k+θ} − K (q_k + θ h v_k) − C v_k), (21a) with P = 0.
+    /// The free velocity increment into `dv`: Ŵ Δv_free = h (F_{k+θ} − K (q_k + θ h v_k) − C v_k),
+    /// (21a) with P = 0.
+    fn free_velocity(&mut self, model: &LinearModel, state: &LinearState) {
+        let (h, theta) = (self.h, self.params.theta);
+        let s = &mut self.scratch;
         for ((t, q), v) in s.tmp.iter_mut().zip(&state.q).zip(&state.v) {
             *t = q + theta * h * v;
         }
@@ -233,10 +249,13 @@ impl LinearScheme for MoreauJean {
             }
         }
         self.factor.solve_in_place(&mut s.dv);
+    }
 
-        // Index set (24) (or the predicted-gap rule) and the impulse LCP (21c)–(21d):
-        // U_free = Gᵀ(v_k + Δv_free) + ẇ(t_{k+1}); the impulse adds Ŵ⁻¹ G P to Δv.
-        let dv = &s.dv;
+    /// The index set (24) (or the predicted-gap rule) with the free local velocity
+    /// U_free = Gᵀ(v_k + Δv_free) + ẇ(t_{k+1}) of each contact.
+    fn update_index_set(&mut self, model: &LinearModel, state: &LinearState, t_next: f64) {
+        let (h, t_k) = (self.h, state.t);
+        let dv = &self.scratch.dv;
         let units = self.banded.as_ref().and_then(BandedImpulse::units);
         if let Some(units) = units {
             self.index_set.assemble_unit(
@@ -261,6 +280,19 @@ impl LinearScheme for MoreauJean {
                 |c| c.project(&state.v) + c.project(dv) + c.w_rate(t_next),
             );
         }
+    }
+
+    /// The one-step problem (21c)–(21d) on the index set: the impulse LCP (or, with friction on
+    /// the index set, the friction problem), whose impulse adds Ŵ⁻¹ G P (and Ŵ⁻¹ T P_t) to Δv.
+    fn one_step_problem(
+        &mut self,
+        model: &LinearModel,
+        state: &LinearState,
+        t_next: f64,
+        report: &mut StepReport,
+    ) -> Result<(), StepError> {
+        let step = state.step + 1;
+        let s = &mut self.scratch;
         let friction = self.friction.as_mut().filter(|_| {
             self.index_set
                 .active
@@ -326,6 +358,22 @@ impl LinearScheme for MoreauJean {
                 .record_roundoff(self.delassus.matrix(), &report.impulse, step);
         }
 
+        Ok(())
+    }
+
+    /// The update (21b) or (29b) with the new state, and the terms of Lemma 1 (31)–(33) /
+    /// Corollary 1 (91) with `work_friction`.
+    fn finish(
+        &mut self,
+        model: &LinearModel,
+        state: &mut LinearState,
+        t_next: f64,
+        report: &mut StepReport,
+    ) {
+        let (h, theta) = (self.h, self.params.theta);
+        let step = state.step + 1;
+        let n = state.q.len();
+        let s = &mut self.scratch;
         // Energy of the state the step starts from (cached from the previous step).
         let (kin_k, strain_k) = match self.last_energy {
             Some((k, kin, st)) if k == state.step => (kin, st),
@@ -421,7 +469,6 @@ impl LinearScheme for MoreauJean {
             ),
             None => report.fill_contacts(model, &state.q, &state.v, t_next),
         }
-        Ok(())
     }
 }
 

@@ -280,7 +280,7 @@ fn mat(rows: usize, cols: usize, data: &[f64]) -> DMatrix<f64> {
 
 /// The mixed LCP of the joint rows (equalities) and the contact rows, its failure named for
 /// Newton iteration `iteration` of step `at`.
-fn solve_mixed_at(
+pub(crate) fn solve_mixed_at(
     d: &DMatrix<f64>,
     b: &[f64],
     nb: usize,
@@ -1127,24 +1127,13 @@ impl<S: JointedSystem + ?Sized> TimeStepping for NsAlphaStepping<'_, S> {
     fn step(&mut self, k: u64) -> Result<(), NonlinearRunStop> {
         let (report, stats) = (&mut self.report, &mut self.stats);
         self.scheme.step(self.system, self.state, report)?;
-        let b = &mut stats.base;
-        b.steps = k;
-        b.t_end = self.state.t;
-        b.work_ext_total += report.base.work_ext;
-        b.work_contact_total += report.base.work_contact;
-        b.max_abs_energy_error = b.max_abs_energy_error.max(report.base.energy_error.abs());
-        b.energy_final = report.base.energy();
-        b.energy_max = b.energy_max.max(report.base.energy());
-        b.lcp_max_error = b.lcp_max_error.max(report.base.lcp.error);
-        b.lcp_solves += u64::from(report.base.lcp.size > 0);
-        b.lcp_max_size = b.lcp_max_size.max(report.base.lcp.size);
-        b.newton_iterations_max = b.newton_iterations_max.max(report.base.newton_iterations);
-        self.newton_total += report.base.newton_iterations as u64;
-        b.newton_iterations_mean = self.newton_total as f64 / k as f64;
-        for (p_old, &p) in self.previous_impulse.iter_mut().zip(&report.base.impulse) {
-            b.impacts += u64::from(p > 0.0 && *p_old <= 0.0);
-            *p_old = p;
-        }
+        stats.base.add_step(
+            k,
+            self.state.t,
+            &report.base,
+            &mut self.newton_total,
+            &mut self.previous_impulse,
+        );
         stats.max_position_residual = stats.max_position_residual.max(report.position_residual);
         stats.max_velocity_residual = stats.max_velocity_residual.max(report.velocity_residual);
         stats.max_penetration = stats.max_penetration.max(report.penetration);

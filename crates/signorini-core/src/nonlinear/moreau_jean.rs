@@ -98,11 +98,38 @@
 //! index set for one step, and with it the friction (the block then gains g μ cos α h). A
 //! contact that separates has U_k > u_ro and still leaves. A frictionless system keeps the
 //! strict test (its results are unchanged).
+//!
+//! Bilateral joints g(q, t) = 0 ([`JointedSystem`], nb of them; Acary & Brogliato 2008, ch. 10,
+//! with the joints as equality rows of the one-step problem, Siconos' `EqualityConditionNSL`
+//! in a mixed LCP). The joints are held at the position level of the step, g(q_{k+1}, t_{k+1})
+//! = 0 with q_{k+1} = q_k + h v_{k+θ}; (21a) gains the joint impulse G_midᵀ Λ_{k+1}, along the
+//! joint Jacobian at the midpoint of the step, G_mid = G(½(q_k + q_{k+1}), t_{k+½}). At each
+//! Newton iterate the joint condition is linearised in v_{k+1} at q^i (∂q_{k+1}/∂v_{k+1} = hθ
+//! exactly): `G(q^i) Δv = G(q^i) Δv^i − g(q^i, t_{k+1})/(hθ)`, so that θ > 0 is required; with
+//! the contact rows of the index set this is the mixed LCP
+//!
+//! ```text
+//! [G(q^i); H](W^i)⁻¹[G_mid; H]ᵀ (Λ, P) + (G(q^i) Δv_free − target, U_free + e U_k):
+//!     = 0 in the joint rows,   0 ≤ … ⊥ P ≥ 0 in the contact rows
+//! ```
+//!
+//! solved by [`crate::lcp::solve_mixed`] (the joint rows eliminated by their Schur complement:
+//! the joints must be independent). Newton's residual gains −G_midᵀΛ, and Newton stops only
+//! when the joint violation max_j |g_j(q^{i+1})| is below the tolerance as well, relative to
+//! the joints' scale max_j Σ_i |G_ji| (|q_i| + |Δq_i|): the joints hold to Newton's tolerance
+//! at every step (`position_residual`). Why the midpoint: the joint impulse's work over the
+//! step is Λ·G_mid v_{k+θ} = Λ·G_mid (q_{k+1} − q_k)/h, which for a joint quadratic in q (a
+//! rod, a pin: g = ½(|x_i − x_j|² − L²)) is exactly Λ(g(q_{k+1}) − g(q_k))/h = 0: ideal joints
+//! do no work, and `energy_error` keeps its meaning (for θ = ½, a constant M and a linear
+//! potential it is at the Newton tolerance between impacts). For other joints this work,
+//! O(h³)Λ/h per step, stays in `energy_error`. Joints and friction together are refused (the
+//! one-step problem would be a friction problem with equality rows).
 
 use super::LagrangianSystem;
+use super::generalized_alpha::{JointedSystem, solve_mixed_at};
 use crate::checkpoint::RunKind;
 use crate::contact::{Activation, IndexSetRule, LcpStats};
-use crate::dense::{dot, kinetic, lu_factor};
+use crate::dense::{amax, dot, kinetic, lu_factor};
 use crate::friction::{self, FrictionError, FrictionProblem};
 use crate::integrators::OutputOptions;
 use crate::lcp::{self, Lcp, LcpError, LcpOptions};
@@ -300,6 +327,8 @@ pub struct NonlinearStepReport {
     pub lcp: LcpStats,
     /// Newton iterates of the step.
     pub newton_iterations: usize,
+    /// Largest joint violation max_j |g_j(q_{k+1}, t_{k+1})| (0 for a system without joints).
+    pub position_residual: f64,
 }
 
 impl NonlinearStepReport {
@@ -432,6 +461,8 @@ pub struct NonlinearMoreauJean {
     lcp: LcpOptions,
     n: usize,
     m: usize,
+    /// Joints nb (bilateral rows of the one-step problem).
+    nb: usize,
     /// μ_α per contact.
     mu: Vec<f64>,
     /// Whether some contact has μ > 0 (the tangent rows are then formed where needed).
@@ -478,11 +509,26 @@ struct Scratch {
     friction_q: Vec<f64>,
     friction_mu: Vec<f64>,
     solution: Vec<f64>,
+    /// Joint Jacobian G(q^i), nb×n: the rows of the joint condition of the iterate.
+    joint_rows: Vec<f64>,
+    /// Joint Jacobian at the midpoint, G(½(q_k + q^i)), nb×n: the direction of the joint
+    /// impulses (module documentation).
+    joint_directions: Vec<f64>,
+    /// g(q, t_{k+1}) at the iterate, nb entries.
+    joint_values: Vec<f64>,
+    /// Right-hand side of the joint rows, G(q^i) Δv^i − g(q^i, t_{k+1})/(hθ).
+    joint_target: Vec<f64>,
+    /// Joint impulses Λ of the last solve.
+    joint_impulse: Vec<f64>,
+    /// Joint rows at the head of the last one-step problem (nb with joints, else 0).
+    offset: usize,
+    /// The midpoint ½(q_k + q) of the iterate.
+    midpoint: Vec<f64>,
 }
 
 impl NonlinearMoreauJean {
     /// Prepares the scheme for `system` with step `h`.
-    pub fn new<S: LagrangianSystem + ?Sized>(
+    pub fn new<S: JointedSystem + ?Sized>(
         system: &S,
         params: NonlinearMoreauJeanParams,
         h: f64,
@@ -511,10 +557,22 @@ impl NonlinearMoreauJean {
         if params.newton.max_iterations == 0 {
             return bad("newton.max_iterations", "must be at least 1");
         }
-        let (n, m) = (system.dofs(), system.contacts());
+        let (n, m, nb) = (system.dofs(), system.contacts(), system.joints());
         let z = |k| vec![0.0; k];
         let mu: Vec<f64> = (0..m).map(|a| system.friction(a)).collect();
         let friction = mu.iter().any(|&x| x > 0.0);
+        if nb > 0 && params.theta == 0.0 {
+            return bad(
+                "theta",
+                "must be > 0 for a system with joints: they are held at q_{k+1} = q_k + h v_{k+θ}, which does not depend on v_{k+1} when θ = 0",
+            );
+        }
+        if nb > 0 && friction {
+            return bad(
+                "scheme",
+                "moreau_jean does not take joints and Coulomb friction together yet (the one-step problem would be a friction problem with equality rows, which no solver here takes): leave out the joints or the friction",
+            );
+        }
         let fm = if friction { m } else { 0 };
         Ok(Self {
             params,
@@ -522,6 +580,7 @@ impl NonlinearMoreauJean {
             lcp,
             n,
             m,
+            nb,
             mu,
             friction,
             memory: MoreauJeanMemory {
@@ -554,7 +613,14 @@ impl NonlinearMoreauJean {
                 delassus: Vec::with_capacity(m * m),
                 friction_q: Vec::with_capacity(2 * fm),
                 friction_mu: Vec::with_capacity(fm),
-                solution: Vec::with_capacity(2 * m),
+                solution: Vec::with_capacity(2 * m + nb),
+                joint_rows: z(nb * n),
+                joint_directions: z(nb * n),
+                joint_values: z(nb),
+                joint_target: z(nb),
+                joint_impulse: z(nb),
+                offset: 0,
+                midpoint: z(if nb > 0 { n } else { 0 }),
             },
         })
     }
@@ -591,7 +657,7 @@ impl NonlinearMoreauJean {
     /// iteration matrix, the free velocity, the index set, the one-step nonsmooth problem, the
     /// works and the new iterate), the round-off levels of the index set, and the update of the
     /// state with the step's energy terms.
-    pub fn step<S: LagrangianSystem + ?Sized>(
+    pub fn step<S: JointedSystem + ?Sized>(
         &mut self,
         system: &S,
         state: &mut NonlinearState,
@@ -611,7 +677,7 @@ impl NonlinearMoreauJean {
 
     /// The start of the step: F_k, f_k, g(q_k, t_k), U_t,k and E_k, kept from the last step
     /// when `state` is its end, evaluated afresh otherwise.
-    fn start_of_step<S: LagrangianSystem + ?Sized>(
+    fn start_of_step<S: JointedSystem + ?Sized>(
         &mut self,
         system: &S,
         state: &NonlinearState,
@@ -663,7 +729,7 @@ impl NonlinearMoreauJean {
 
     /// The free state of iterate 0: v^0 = v_k, q^0 = q_k + h v_k, M(q^0), F(t_{k+1}, q^0, v^0),
     /// and q_k + h v_k, the point (24) predicts the gaps at.
-    fn free_state<S: LagrangianSystem + ?Sized>(
+    fn free_state<S: JointedSystem + ?Sized>(
         &mut self,
         system: &S,
         state: &NonlinearState,
@@ -686,7 +752,7 @@ impl NonlinearMoreauJean {
     /// Newton's method on v_{k+1} (module documentation): per iterate the iteration matrix,
     /// the free velocity, the index set, the one-step nonsmooth problem, the works and the new
     /// iterate, until the residual is below the tolerance.
-    fn newton<S: LagrangianSystem + ?Sized>(
+    fn newton<S: JointedSystem + ?Sized>(
         &mut self,
         system: &S,
         state: &NonlinearState,
@@ -708,9 +774,14 @@ impl NonlinearMoreauJean {
         while outcome.iterations < newton.max_iterations {
             outcome.iterations += 1;
             let lu = self.iteration_matrix(system, at, outcome.iterations)?;
+            if self.nb > 0 {
+                self.joint_condition(system, state, at)?;
+            }
             self.free_velocity(&lu, start, at)?;
             self.update_index_set(system, state, start, report, at)?;
-            if !self.s.active.is_empty() {
+            if self.nb > 0 {
+                self.mixed_problem(&lu, report, at, outcome.iterations)?;
+            } else if !self.s.active.is_empty() {
                 self.one_step_problem(system, &lu, state, report, at)?;
             }
             (outcome.work_contact, outcome.work_friction) = self.works(state, start, report);
@@ -732,7 +803,7 @@ impl NonlinearMoreauJean {
     }
 
     /// W^i = M(q^i) − hθ ∂F/∂v − h²θ² ∂F/∂q at (t_{k+1}, q^i, v^i), factorised by LU.
-    fn iteration_matrix<S: LagrangianSystem + ?Sized>(
+    fn iteration_matrix<S: JointedSystem + ?Sized>(
         &mut self,
         system: &S,
         at: StepAt,
@@ -772,7 +843,7 @@ impl NonlinearMoreauJean {
 
     /// The index set of the iterate, with the gaps linearised at q^i (module documentation),
     /// and the right-hand side U_free + e U_k of its contacts' normal rows.
-    fn update_index_set<S: LagrangianSystem + ?Sized>(
+    fn update_index_set<S: JointedSystem + ?Sized>(
         &mut self,
         system: &S,
         state: &NonlinearState,
@@ -786,6 +857,8 @@ impl NonlinearMoreauJean {
         report.tangent_impulse.fill(0.0);
         report.lcp = LcpStats::default();
         s.friction_step = false;
+        s.offset = 0;
+        s.joint_impulse.fill(0.0);
         s.active.clear();
         s.rhs.clear();
         if m == 0 {
@@ -836,7 +909,7 @@ impl NonlinearMoreauJean {
     /// The one-step nonsmooth problem on the index set: the Delassus operator
     /// [H; T](W^i)⁻¹[H; T]ᵀ, the LCP (or, with friction on an active contact, the planar
     /// friction problem), and the impulse's velocity (W^i)⁻¹(Hᵀ P_n + Tᵀ P_t) added to Δv.
-    fn one_step_problem<S: LagrangianSystem + ?Sized>(
+    fn one_step_problem<S: JointedSystem + ?Sized>(
         &mut self,
         system: &S,
         lu: &Lu,
@@ -974,7 +1047,7 @@ impl NonlinearMoreauJean {
 
     /// The new iterate q^{i+1}, v^{i+1} and its relative residual R(v^{i+1}), with M, F, H
     /// and T all at q^{i+1}.
-    fn next_iterate<S: LagrangianSystem + ?Sized>(
+    fn next_iterate<S: JointedSystem + ?Sized>(
         &mut self,
         system: &S,
         state: &NonlinearState,
@@ -999,6 +1072,12 @@ impl NonlinearMoreauJean {
             system.tangent_jacobian(at.t, &s.q, &mut s.tjac);
             at.check(&s.tjac, "the tangent Jacobian")?;
         }
+        let nb = self.nb;
+        if nb > 0 {
+            midpoint(&state.q, &s.q, &mut s.midpoint);
+            system.joint_jacobian(at.t - 0.5 * h, &s.midpoint, &mut s.joint_directions);
+            at.check(&s.joint_directions, "the joint Jacobian")?;
+        }
         let (mut r_max, mut scale) = (0.0f64, 0.0f64);
         for i in 0..n {
             let md = dot(&s.mass[i * n..(i + 1) * n], &s.dv);
@@ -1014,15 +1093,145 @@ impl NonlinearMoreauJean {
                     hp_abs += t.abs();
                 }
             }
+            for (j, lambda) in s.joint_impulse.iter().enumerate() {
+                let t = s.joint_directions[j * n + i] * lambda;
+                hp += t;
+                hp_abs += t.abs();
+            }
             let r = md - h * (fk + f1) - hp;
             r_max = r_max.max(r.abs());
             scale = scale.max(md.abs() + h * (fk.abs() + f1.abs()) + hp_abs);
         }
-        let residual = if r_max == 0.0 { 0.0 } else { r_max / scale };
+        let mut residual = if r_max == 0.0 { 0.0 } else { r_max / scale };
+        if nb > 0 {
+            residual = residual.max(self.joint_violation(system, state, at)?);
+        }
         if !residual.is_finite() {
             return Err(at.not_finite("the Newton residual"));
         }
         Ok(residual)
+    }
+
+    /// The joint violation of the iterate q^{i+1} relative to the joints' scale,
+    /// max_j |g_j(q^{i+1}, t_{k+1})| / max_j Σ_i |G_ji| (|q_i| + |q_i − q_k,i|) (the measure of
+    /// the position stage of [`super::generalized_alpha`]), with g kept in `joint_values`.
+    fn joint_violation<S: JointedSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        state: &NonlinearState,
+        at: StepAt,
+    ) -> Result<f64, NonlinearStepError> {
+        let (n, s) = (self.n, &mut self.s);
+        system.joint_values(at.t, &s.q, &mut s.joint_values);
+        at.check(&s.joint_values, "a joint g(q, t)")?;
+        system.joint_jacobian(at.t, &s.q, &mut s.joint_rows);
+        at.check(&s.joint_rows, "the joint Jacobian")?;
+        let scale = (0..self.nb)
+            .map(|j| {
+                (0..n)
+                    .map(|i| {
+                        s.joint_rows[j * n + i].abs() * (s.q[i].abs() + (s.q[i] - state.q[i]).abs())
+                    })
+                    .sum::<f64>()
+            })
+            .fold(0.0f64, f64::max);
+        let worst = amax(&s.joint_values);
+        Ok(if scale > 0.0 { worst / scale } else { worst })
+    }
+
+    /// The joint condition of the iterate: g(q_{k+1}, t_{k+1}) = 0 with q_{k+1} = q_k +
+    /// h(v_k + θ Δv), linearised in Δv at q^i (exactly: ∂q_{k+1}/∂Δv = hθ),
+    /// `G(q^i) Δv = G(q^i) Δv^i − g(q^i, t_{k+1})/(hθ)`, kept in `joint_target` (`dv` still
+    /// holds Δv^i here); and the joint impulses' directions G at the midpoint ½(q_k + q^i),
+    /// t_{k+½} (module documentation).
+    fn joint_condition<S: JointedSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        state: &NonlinearState,
+        at: StepAt,
+    ) -> Result<(), NonlinearStepError> {
+        let (h, theta, n, s) = (self.h, self.params.theta, self.n, &mut self.s);
+        system.joint_values(at.t, &s.q, &mut s.joint_values);
+        at.check(&s.joint_values, "a joint g(q, t)")?;
+        system.joint_jacobian(at.t, &s.q, &mut s.joint_rows);
+        at.check(&s.joint_rows, "the joint Jacobian")?;
+        midpoint(&state.q, &s.q, &mut s.midpoint);
+        system.joint_jacobian(at.t - 0.5 * h, &s.midpoint, &mut s.joint_directions);
+        at.check(&s.joint_directions, "the joint Jacobian")?;
+        for (j, target) in s.joint_target.iter_mut().enumerate() {
+            let row = &s.joint_rows[j * n..(j + 1) * n];
+            *target = dot(row, &s.dv) - s.joint_values[j] / (h * theta);
+        }
+        Ok(())
+    }
+
+    /// The one-step problem of a system with joints: the mixed LCP (Siconos' MLCP) of the joint
+    /// rows G(q^i) (equalities, [`Self::joint_condition`]) and the contact rows H_α of the index
+    /// set, on the operator `[G(q^i); H](W^i)⁻¹[G_mid; H]ᵀ` (not symmetric: the joint impulses
+    /// act along G_mid); free values `G(q^i) Δv_free − target` and `U_free + e U_k`. Its
+    /// impulses (Λ, P) add (W^i)⁻¹(G_midᵀ Λ + Hᵀ P) to Δv.
+    fn mixed_problem(
+        &mut self,
+        lu: &Lu,
+        report: &mut NonlinearStepReport,
+        at: StepAt,
+        iteration: usize,
+    ) -> Result<(), NonlinearStepError> {
+        let (n, nb, s) = (self.n, self.nb, &mut self.s);
+        let k = nb + s.active.len();
+        s.columns.clear();
+        for r in 0..k {
+            let start_col = s.columns.len();
+            if r < nb {
+                s.columns
+                    .extend_from_slice(&s.joint_directions[r * n..(r + 1) * n]);
+            } else {
+                let a = s.active[r - nb];
+                s.columns.extend_from_slice(&s.jac[a * n..(a + 1) * n]);
+            }
+            solve_in_place(lu, &mut s.columns[start_col..]);
+        }
+        s.delassus.clear();
+        let mut b = Vec::with_capacity(k);
+        for r in 0..k {
+            let row = if r < nb {
+                &s.joint_rows[r * n..(r + 1) * n]
+            } else {
+                let a = s.active[r - nb];
+                &s.jac[a * n..(a + 1) * n]
+            };
+            for c in 0..k {
+                s.delassus.push(dot(row, &s.columns[c * n..(c + 1) * n]));
+            }
+            b.push(if r < nb {
+                dot(row, &s.dv) - s.joint_target[r]
+            } else {
+                s.rhs[r - nb]
+            });
+        }
+        at.check(&s.delassus, "the Delassus operator")?;
+        let d = DMatrix::from_row_slice(k, k, &s.delassus);
+        let sol = solve_mixed_at(&d, &b, nb, &self.lcp, at, iteration)?;
+        s.solution.clear();
+        s.solution.extend_from_slice(&sol.z);
+        s.joint_impulse.copy_from_slice(&sol.z[..nb]);
+        for (c, &p) in sol.z.iter().enumerate() {
+            if c >= nb {
+                report.impulse[s.active[c - nb]] = p;
+            }
+            if p != 0.0 {
+                for (d, col) in s.dv.iter_mut().zip(&s.columns[c * n..(c + 1) * n]) {
+                    *d += p * col;
+                }
+            }
+        }
+        s.offset = nb;
+        report.lcp = LcpStats {
+            size: sol.size,
+            iterations: sol.iterations,
+            error: sol.error,
+        };
+        Ok(())
     }
 
     /// Round-off level of the last solve's local velocities (normal rows), for the sign test of
@@ -1032,12 +1241,14 @@ impl NonlinearMoreauJean {
         let (s, memory) = (&self.s, &mut self.memory);
         memory.roundoff.fill(0.0);
         let rows = if s.friction_step { 2 } else { 1 };
-        let kk = rows * s.active.len();
+        // With joints the contact rows follow the `offset` joint rows.
+        let off = s.offset;
+        let kk = off + rows * s.active.len();
         for (r, &a) in s.active.iter().enumerate() {
             let mut level = 0.0;
             for row in rows * r..rows * (r + 1) {
                 let wp: f64 = (0..kk)
-                    .map(|c| (s.delassus[row * kk + c] * s.solution[c]).abs())
+                    .map(|c| (s.delassus[(off + row) * kk + c] * s.solution[c]).abs())
                     .sum();
                 let b = if rows == 1 {
                     s.rhs[r]
@@ -1053,7 +1264,7 @@ impl NonlinearMoreauJean {
 
     /// The end of the step: the applied forces and the works, the energy, the gaps and local
     /// velocities of the report; the end kept as the next step's start, and the state updated.
-    fn finish<S: LagrangianSystem + ?Sized>(
+    fn finish<S: JointedSystem + ?Sized>(
         &mut self,
         system: &S,
         state: &mut NonlinearState,
@@ -1087,6 +1298,8 @@ impl NonlinearMoreauJean {
         report.work_friction = work_friction;
         report.energy_error = (energy - start.energy) - work_ext - work_contact - work_friction;
         report.newton_iterations = iterations;
+        // joint_values holds g(q_{k+1}, t_{k+1}) of the last residual.
+        report.position_residual = amax(&s.joint_values);
         system.gaps(at.t, &s.q, &mut report.gap);
         at.check(&report.gap, "a gap g(q, t)")?;
         system.gap_rates(at.t, &s.q, &mut report.local_velocity);
@@ -1132,6 +1345,13 @@ fn solve_in_place(lu: &Lu, b: &mut [f64]) {
     let mut x = DVector::from_column_slice(b);
     lu.solve_mut(&mut x);
     b.copy_from_slice(x.as_slice());
+}
+
+/// The midpoint ½(q_k + q).
+fn midpoint(q_k: &[f64], q: &[f64], out: &mut [f64]) {
+    for ((o, a), b) in out.iter_mut().zip(q_k).zip(q) {
+        *o = 0.5 * (a + b);
+    }
 }
 
 /// q = q_k + h (v_k + θ Δv), in the same floating-point order as the linear scheme.
@@ -1185,6 +1405,39 @@ pub struct NonlinearRunStats {
     /// positive work; only for a system with friction).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub work_friction_max: Option<f64>,
+    /// Largest joint violation max_k position_residual (only for a system with joints).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_position_residual: Option<f64>,
+}
+
+impl NonlinearRunStats {
+    /// Adds step `k` (ending at time `t`) with its `report`: the works' totals, the energy and
+    /// LCP extremes, the Newton mean over `newton_total` iterates (updated here) and the impacts
+    /// against the impulses of the previous step (updated here). The friction work is the
+    /// family's own.
+    pub(crate) fn add_step(
+        &mut self,
+        k: u64,
+        t: f64,
+        report: &NonlinearStepReport,
+        newton_total: &mut u64,
+        previous_impulse: &mut [f64],
+    ) {
+        self.steps = k;
+        self.t_end = t;
+        self.work_ext_total += report.work_ext;
+        self.work_contact_total += report.work_contact;
+        self.max_abs_energy_error = self.max_abs_energy_error.max(report.energy_error.abs());
+        self.energy_final = report.energy();
+        self.energy_max = self.energy_max.max(report.energy());
+        self.lcp_max_error = self.lcp_max_error.max(report.lcp.error);
+        self.lcp_solves += u64::from(report.lcp.size > 0);
+        self.lcp_max_size = self.lcp_max_size.max(report.lcp.size);
+        self.newton_iterations_max = self.newton_iterations_max.max(report.newton_iterations);
+        *newton_total += report.newton_iterations as u64;
+        self.newton_iterations_mean = *newton_total as f64 / k as f64;
+        self.impacts += stepping::count_impacts(previous_impulse, &report.impulse);
+    }
 }
 
 /// Why a nonlinear run ended early.
@@ -1216,7 +1469,12 @@ pub enum NonlinearRunStop {
 /// with friction [`FRICTION_COLUMNS`], then `gap_α, u_α, p_α` per contact (with friction also
 /// `pt_α, ut_α`: tangential impulse and velocity), then `q_j, v_j` per probe. A system without
 /// friction has exactly the frictionless columns.
-pub fn nonlinear_columns(contacts: usize, friction: bool, probes: &[usize]) -> Columns {
+pub fn nonlinear_columns(
+    contacts: usize,
+    friction: bool,
+    joints: bool,
+    probes: &[usize],
+) -> Columns {
     let mut names: Vec<String> = NONLINEAR_ENERGY_COLUMNS
         .iter()
         .chain(&NONLINEAR_RUN_COLUMNS)
@@ -1231,6 +1489,9 @@ pub fn nonlinear_columns(contacts: usize, friction: bool, probes: &[usize]) -> C
             names.extend([format!("pt_{a}"), format!("ut_{a}")]);
         }
     }
+    if joints {
+        names.push("position_residual".into());
+    }
     for j in probes {
         names.extend([format!("q_{j}"), format!("v_{j}")]);
     }
@@ -1239,7 +1500,7 @@ pub fn nonlinear_columns(contacts: usize, friction: bool, probes: &[usize]) -> C
 
 /// Runs `steps` steps of `scheme` on `system` from `state`, recording per `output` (every
 /// `output.every`-th step and the last; a probe ≥ [`LagrangianSystem::dofs`] is refused).
-pub fn run_nonlinear<S: LagrangianSystem + ?Sized>(
+pub fn run_nonlinear<S: JointedSystem + ?Sized>(
     system: &S,
     scheme: &mut NonlinearMoreauJean,
     state: &mut NonlinearState,
@@ -1266,7 +1527,7 @@ pub(crate) struct NonlinearRun {
 
 /// [`run_nonlinear`], or its continuation from a checkpoint's `resume`, through the
 /// time-stepping driver ([`stepping::run`]).
-pub(crate) fn run_nonlinear_from<S: LagrangianSystem + ?Sized>(
+pub(crate) fn run_nonlinear_from<S: JointedSystem + ?Sized>(
     system: &S,
     scheme: &mut NonlinearMoreauJean,
     state: &mut NonlinearState,
@@ -1289,7 +1550,7 @@ pub(crate) fn run_nonlinear_from<S: LagrangianSystem + ?Sized>(
 /// The nonlinear Moreau–Jean scheme on its system and state, as [`stepping::run`] drives it:
 /// the state, the running statistics and sums, the previous impulses (impact count) and the
 /// last step's report.
-struct NonlinearStepping<'a, S: LagrangianSystem + ?Sized> {
+struct NonlinearStepping<'a, S: JointedSystem + ?Sized> {
     system: &'a S,
     scheme: &'a mut NonlinearMoreauJean,
     state: &'a mut NonlinearState,
@@ -1303,7 +1564,7 @@ struct NonlinearStepping<'a, S: LagrangianSystem + ?Sized> {
     work_friction_total: f64,
 }
 
-impl<'a, S: LagrangianSystem + ?Sized> NonlinearStepping<'a, S> {
+impl<'a, S: JointedSystem + ?Sized> NonlinearStepping<'a, S> {
     /// The run of `steps` steps from `state`, with its initial report and statistics.
     fn new(
         system: &'a S,
@@ -1313,7 +1574,13 @@ impl<'a, S: LagrangianSystem + ?Sized> NonlinearStepping<'a, S> {
         probes: &'a [usize],
     ) -> Self {
         let friction = has_friction(system);
-        let report = NonlinearStepReport::of_state(system, state);
+        let mut report = NonlinearStepReport::of_state(system, state);
+        let nb = system.joints();
+        if nb > 0 {
+            let mut g = vec![0.0; nb];
+            system.joint_values(state.t, &state.q, &mut g);
+            report.position_residual = amax(&g);
+        }
         let e0 = report.energy();
         let stats = NonlinearRunStats {
             t_end: state.t,
@@ -1321,6 +1588,7 @@ impl<'a, S: LagrangianSystem + ?Sized> NonlinearStepping<'a, S> {
             energy_final: e0,
             energy_max: e0,
             work_friction_total: friction.then_some(0.0),
+            max_position_residual: (nb > 0).then_some(report.position_residual),
             ..Default::default()
         };
         Self {
@@ -1339,13 +1607,18 @@ impl<'a, S: LagrangianSystem + ?Sized> NonlinearStepping<'a, S> {
     }
 }
 
-impl<S: LagrangianSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
+impl<S: JointedSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
     type Memory = NonlinearRun;
     type Error = NonlinearRunStop;
     const RUN: RunKind = RunKind::Nonlinear;
 
     fn columns(&self) -> Columns {
-        nonlinear_columns(self.system.contacts(), self.friction, self.probes)
+        nonlinear_columns(
+            self.system.contacts(),
+            self.friction,
+            self.system.joints() > 0,
+            self.probes,
+        )
     }
 
     fn total_steps(&self) -> u64 {
@@ -1359,10 +1632,13 @@ impl<S: LagrangianSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
     fn step(&mut self, k: u64) -> Result<(), NonlinearRunStop> {
         let (report, stats) = (&mut self.report, &mut self.stats);
         self.scheme.step(self.system, self.state, report)?;
-        stats.steps = k;
-        stats.t_end = self.state.t;
-        stats.work_ext_total += report.work_ext;
-        stats.work_contact_total += report.work_contact;
+        stats.add_step(
+            k,
+            self.state.t,
+            report,
+            &mut self.newton_total,
+            &mut self.previous_impulse,
+        );
         if self.friction {
             self.work_friction_total += report.work_friction;
             stats.work_friction_total = Some(self.work_friction_total);
@@ -1372,18 +1648,8 @@ impl<S: LagrangianSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
                     .map_or(report.work_friction, |w| w.max(report.work_friction)),
             );
         }
-        stats.max_abs_energy_error = stats.max_abs_energy_error.max(report.energy_error.abs());
-        stats.energy_final = report.energy();
-        stats.energy_max = stats.energy_max.max(report.energy());
-        stats.lcp_max_error = stats.lcp_max_error.max(report.lcp.error);
-        stats.lcp_solves += u64::from(report.lcp.size > 0);
-        stats.lcp_max_size = stats.lcp_max_size.max(report.lcp.size);
-        stats.newton_iterations_max = stats.newton_iterations_max.max(report.newton_iterations);
-        self.newton_total += report.newton_iterations as u64;
-        stats.newton_iterations_mean = self.newton_total as f64 / k as f64;
-        for (p_old, &p) in self.previous_impulse.iter_mut().zip(&report.impulse) {
-            stats.impacts += u64::from(p > 0.0 && *p_old <= 0.0);
-            *p_old = p;
+        if let Some(r) = stats.max_position_residual.as_mut() {
+            *r = r.max(report.position_residual);
         }
         Ok(())
     }
@@ -1417,6 +1683,9 @@ impl<S: LagrangianSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
             if self.friction {
                 row.extend([report.tangent_impulse[a], report.tangent_velocity[a]]);
             }
+        }
+        if self.system.joints() > 0 {
+            row.push(report.position_residual);
         }
         for &j in self.probes {
             row.extend([self.state.q[j], self.state.v[j]]);

@@ -1198,26 +1198,21 @@ fn advance_halving<M: ConstrainedModel + ?Sized>(
     };
     *state = saved;
     let step = state.step;
-    let first = advance_halving(
-        model,
-        method,
-        state,
-        h / 2.0,
-        cache,
-        adjust,
-        true,
-        depth + 1,
-    )?;
-    let second = advance_halving(
-        model,
-        method,
-        state,
-        h / 2.0,
-        cache,
-        adjust,
-        true,
-        depth + 1,
-    )?;
+    // The two halves, each of which may halve again.
+    let mut half = |state: &mut Soi2State| {
+        advance_halving(
+            model,
+            method,
+            state,
+            h / 2.0,
+            cache,
+            adjust,
+            true,
+            depth + 1,
+        )
+    };
+    let first = half(state)?;
+    let second = half(state)?;
     state.step = step + 1;
     Ok(StepInfo {
         iterations: first.iterations + second.iterations,

@@ -26,8 +26,9 @@ pub enum Term {
 /// derived by the program from M(q). Expressions use the coordinates, their velocities
 /// `<name>_dot`, the time `t`, the parameters, numbers, `+ - * / ^`, parentheses and the
 /// functions `sin cos tan asin acos atan atan2 sinh cosh tanh exp log sqrt abs min max pow`, the
-/// constant `pi`. Joints run with `soi2_generalized_alpha`, `soi2_hht`, `hht_i3`; contacts with
-/// `moreau_jean`.
+/// constant `pi`. Joints run with `soi2_generalized_alpha`, `soi2_hht`, `hht_i3`; contacts,
+/// joints or both with `moreau_jean` (friction without joints) and `ns_generalized_alpha`
+/// (without friction).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct LagrangianSpec {
@@ -59,7 +60,8 @@ pub struct LagrangianSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub v0: Option<Vec<f64>>,
     /// Bilateral holonomic joints g(q, t) = 0, each `{ expr = "..." }`; each must hold at q0 to
-    /// 1e-8 relative to ‖q0‖∞. Run by the SOI2 schemes.
+    /// 1e-8 relative to ‖q0‖∞. Run by the SOI2 schemes, `moreau_jean` and
+    /// `ns_generalized_alpha` (the last two with contacts too).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub constraints: Vec<JointSpec>,
     /// The joints are dependent on purpose (default false): redundant at every configuration,
@@ -71,7 +73,7 @@ pub struct LagrangianSpec {
     pub redundant_joints: bool,
     /// Unilateral contacts, each `{ gap = "...", restitution = e }`: gap(q, t) ≥ 0 with Newton's
     /// impact law, e ∈ [0, 1] (default 0); `friction` μ with its `tangent` (planar Coulomb
-    /// friction). Run by `moreau_jean`.
+    /// friction). Run by `moreau_jean` and `ns_generalized_alpha`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub contacts: Vec<UserContactSpec>,
 }

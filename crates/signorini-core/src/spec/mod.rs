@@ -404,7 +404,7 @@ pub fn mismatch(model: &ModelSpec, scheme: &str) -> SpecError {
         SpecError::new(
             "integrator.scheme",
             format!(
-                "scene `lagrangian` runs with {SOI2_SCHEMES} (joints, no contacts), moreau_jean (contacts) or ns_generalized_alpha (joints, contacts, both), got `{scheme}`"
+                "scene `lagrangian` runs with {SOI2_SCHEMES} (joints, no contacts), moreau_jean or ns_generalized_alpha (joints, contacts, both), got `{scheme}`"
             ),
         )
     } else if model.is_constrained() {

@@ -31,7 +31,7 @@ pub enum ModelSpec {
     /// The test problem (15) of Jay & Negrut 2008, with its exact solution (SOI2 schemes).
     JayNegrutTest(JayNegrutTest),
     /// Your own nonlinear mechanical system, written as expressions (joints with the SOI2
-    /// schemes, contacts with moreau_jean).
+    /// schemes; contacts, joints or both with moreau_jean and ns_generalized_alpha).
     Lagrangian(LagrangianSpec),
 }
 

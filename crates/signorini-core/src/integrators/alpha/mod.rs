@@ -67,13 +67,29 @@
 //! formed: the impulse solves `S x = R M⁻¹ G P` on the banded S (`BandedAlpha`,
 //! [`crate::banded_contact`]), the same complementarity problem with the same W.
 //!
+//! **Coulomb friction** (a model with [`LinearModel::friction`], planar: one tangent row T_α per
+//! contact, as for [`super::moreau_jean`]). The tangential impulse enters (25b) with the normal
+//! one, `M w_{k+1} = G P_{k+1} + T P_t,{k+1}`, and the impulse law at velocity level becomes,
+//! on the index set, Signorini–Newton in the normal rows and Coulomb's law on U_t,{k+1} =
+//! T v_{k+1} in the tangent rows (the planar friction problem of [`crate::friction`], Moreau's
+//! and Jean's law with the normal velocity U_{k+1} + e U_k). The tangent rows get their columns
+//! as the normal rows do (`[G T]ᵀ Ŵ [G T]`, precomputed). Lemma 2's proof uses of (25b) only
+//! that the impulse term is `v_{k+1/2}ᵀ M w_{k+1}` (it never uses the complementarity), so with
+//! `M w = G P + T P_t` the balance (58) gains `work_friction = (Tᵀ v_{k+1/2})ᵀ P_t,{k+1}` =
+//! Σ_α P_t,α ½(U_t,{k+1} + U_t,k) next to `work_contact`, and `balance_residual` =
+//! ΔH − work_ext − work_damping − work_contact − work_friction − numerical_dissipation stays at
+//! round-off. Coulomb's law makes P_t U_t,{k+1} = −μ P_n |U_t,{k+1}| ≤ 0; the ½ P_t U_t,k part is
+//! ≤ 0 unless the sliding velocity reverses within the step, so `work_friction` ≤ 0 on every
+//! step without a reversal (as for Moreau–Jean θ = ½). Without friction on the index set the
+//! step is the frictionless one, operation for operation. The banded path has no friction.
+//!
 //! When ν = 0 (α_m = ½) the filters (48) vanish; the scheme then requires η = 0 (Remark 1), and
 //! the filter terms are zero.
 
 use crate::band::{BandError, SymBand};
 use crate::banded_contact::{BandedImpulse, restore_warm_start, uses_banded};
 use crate::checkpoint::CheckpointError;
-use crate::contact::{IndexSet, LcpStats};
+use crate::contact::{FrictionSubproblem, IndexSet, LcpStats};
 use crate::integrators::{LinearScheme, LinearState, SchemeState, StepError, StepReport};
 use crate::lcp::active_set::ImpulseMap;
 use crate::lcp::{self, Lcp, LcpOptions};
@@ -104,6 +120,27 @@ pub struct NonsmoothAlpha {
     lcp_m: Vec<f64>,
     /// The banded path (many single-dof contacts, lumped mass), instead of the dense columns.
     banded: Option<BandedAlpha>,
+    /// The tangent rows of a model with Coulomb friction.
+    friction: Option<AlphaFriction>,
+}
+
+/// The α-family's impulse with Coulomb friction (a model with [`LinearModel::friction`]): the
+/// columns of the tangent rows T_α, formed as those of the normal rows (a tangential impulse
+/// enters (25b) as `M w = G P + T P_t`), and the Delassus operator on the rows (G_α, T_α) of
+/// every contact.
+#[derive(Debug, Clone)]
+struct AlphaFriction {
+    /// Per contact α (n entries each): the change of a_{k+1}, v_{k+1}, q_{k+1} per unit P_t^α.
+    a_cols: Vec<f64>,
+    v_cols: Vec<f64>,
+    q_cols: Vec<f64>,
+    /// `[G T]ᵀ Ŵ [G T]`, row-major 2m×2m, rows and columns in the order (n_1, t_1, n_2, t_2, …).
+    w: Vec<f64>,
+    /// The problem on the index set, the free tangential velocities T v_free of its contacts
+    /// and its round-off levels.
+    sub: FrictionSubproblem,
+    tangent_free: Vec<f64>,
+    levels: Vec<f64>,
 }
 
 /// The α-family's impulse on the banded S: with `y = M⁻¹ G P` (the w_{k+1} of (25b)) and
@@ -120,6 +157,100 @@ struct BandedAlpha {
     mass: Vec<f64>,
     y: Vec<f64>,
     z: Vec<f64>,
+}
+
+/// How a unit impulse along one row r (a normal row G_α or a tangent row T_α) changes a step:
+/// `x = M⁻¹ r` (the w_{k+1} of (25b)), `y = S⁻¹[(1−α_C) C + (1−α_K)(h/2) K] x`, and a_{k+1},
+/// v_{k+1}, q_{k+1} change by −y, `x − γh y`, `(h/2) x − βh² y`.
+struct ImpulseColumns<'a> {
+    core: &'a AlphaCore,
+    model: &'a LinearModel,
+    h: f64,
+    beta: f64,
+    gamma: f64,
+    /// 1 − α_K.
+    stiffness: f64,
+    /// 1 − α_C.
+    damping: f64,
+}
+
+impl ImpulseColumns<'_> {
+    /// The columns of the sparse row `row` into `[a, v, q]` (n entries each), with the
+    /// buffers `[x, y, t]`.
+    fn of_row(
+        &self,
+        row: &[(usize, f64)],
+        [x, y, t]: &mut [Vec<f64>; 3],
+        [a, v, q]: [&mut [f64]; 3],
+    ) {
+        let (h, beta, gamma, n) = (self.h, self.beta, self.gamma, x.len());
+        x.fill(0.0);
+        for &(i, g) in row {
+            x[i] += g;
+        }
+        self.core.m_factor.solve_in_place(x);
+        self.model.stiffness.mul_into(x, y);
+        self.model.damping.mul_into(x, t);
+        for i in 0..n {
+            y[i] = self.stiffness * 0.5 * h * y[i] + self.damping * t[i];
+        }
+        self.core.s_factor.solve_in_place(y);
+        for i in 0..n {
+            a[i] = -y[i];
+            v[i] = x[i] - gamma * h * y[i];
+            q[i] = 0.5 * h * x[i] - beta * h * h * y[i];
+        }
+    }
+}
+
+impl AlphaFriction {
+    /// The tangent columns of every contact and the Delassus operator on the rows (G_α, T_α),
+    /// from the normal rows' velocity columns `v_cols`.
+    fn new(
+        model: &LinearModel,
+        columns: &ImpulseColumns<'_>,
+        v_cols: &[f64],
+        buffers: &mut [Vec<f64>; 3],
+    ) -> Self {
+        let (n, m) = (model.dofs(), model.contacts.len());
+        let mut a_cols = vec![0.0; n * m];
+        let mut t_cols = vec![0.0; n * m];
+        let mut q_cols = vec![0.0; n * m];
+        for (a, f) in model.friction.iter().enumerate() {
+            let at = a * n..(a + 1) * n;
+            columns.of_row(
+                &f.t,
+                buffers,
+                [
+                    &mut a_cols[at.clone()],
+                    &mut t_cols[at.clone()],
+                    &mut q_cols[at],
+                ],
+            );
+        }
+        let mm = 2 * m;
+        let mut w = vec![0.0; mm * mm];
+        for (a, (c, f)) in model.contacts.iter().zip(&model.friction).enumerate() {
+            for b in 0..m {
+                for (r, col) in [&v_cols[b * n..(b + 1) * n], &t_cols[b * n..(b + 1) * n]]
+                    .into_iter()
+                    .enumerate()
+                {
+                    w[2 * a * mm + 2 * b + r] = c.project(col);
+                    w[(2 * a + 1) * mm + 2 * b + r] = f.project(col);
+                }
+            }
+        }
+        Self {
+            a_cols,
+            v_cols: t_cols,
+            q_cols,
+            w,
+            sub: FrictionSubproblem::new(m),
+            tangent_free: Vec::new(),
+            levels: Vec::new(),
+        }
+    }
 }
 
 impl NonsmoothAlpha {
@@ -164,6 +295,7 @@ impl NonsmoothAlpha {
                 w: Vec::new(),
                 index_set: IndexSet::new(model.contacts.len()),
                 lcp_m: Vec::new(),
+                friction: None,
                 banded: Some(BandedAlpha {
                     impulse: BandedImpulse::new(model, s, ImpulseMap::Filtered { r, d }),
                     b,
@@ -177,27 +309,27 @@ impl NonsmoothAlpha {
         let mut a_cols = vec![0.0; n * m];
         let mut v_cols = vec![0.0; n * m];
         let mut q_cols = vec![0.0; n * m];
-        let mut x = vec![0.0; n];
-        let mut y = vec![0.0; n];
-        let mut t = vec![0.0; n];
+        let mut buffers = [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
+        let columns = ImpulseColumns {
+            core: &core,
+            model,
+            h,
+            beta,
+            gamma,
+            stiffness: 1.0 - w8.stiffness,
+            damping: 1.0 - w8.damping,
+        };
         for (a, c) in model.contacts.iter().enumerate() {
-            // x = M⁻¹ G_α (w per unit impulse), y = S⁻¹[(1−α_C) C + (1−α_K)(h/2) K] x.
-            x.fill(0.0);
-            for &(i, g) in &c.g {
-                x[i] += g;
-            }
-            core.m_factor.solve_in_place(&mut x);
-            model.stiffness.mul_into(&x, &mut y);
-            model.damping.mul_into(&x, &mut t);
-            for i in 0..n {
-                y[i] = (1.0 - w8.stiffness) * 0.5 * h * y[i] + (1.0 - w8.damping) * t[i];
-            }
-            core.s_factor.solve_in_place(&mut y);
-            for i in 0..n {
-                a_cols[a * n + i] = -y[i];
-                v_cols[a * n + i] = x[i] - gamma * h * y[i];
-                q_cols[a * n + i] = 0.5 * h * x[i] - beta * h * h * y[i];
-            }
+            let at = a * n..(a + 1) * n;
+            columns.of_row(
+                &c.g,
+                &mut buffers,
+                [
+                    &mut a_cols[at.clone()],
+                    &mut v_cols[at.clone()],
+                    &mut q_cols[at],
+                ],
+            );
         }
         let mut w = vec![0.0; m * m];
         for (a, c) in model.contacts.iter().enumerate() {
@@ -205,6 +337,11 @@ impl NonsmoothAlpha {
                 w[a * m + b] = c.project(&v_cols[b * n..(b + 1) * n]);
             }
         }
+        let friction = model
+            .has_friction()
+            .then(|| AlphaFriction::new(model, &columns, &v_cols, &mut buffers));
+        let mut index_set = IndexSet::new(model.contacts.len());
+        index_set.friction = friction.is_some();
         Ok(Self {
             params,
             lcp,
@@ -213,9 +350,10 @@ impl NonsmoothAlpha {
             v_cols,
             q_cols,
             w,
-            index_set: IndexSet::new(model.contacts.len()),
+            index_set,
             lcp_m: Vec::new(),
             banded: None,
+            friction,
         })
     }
 
@@ -296,6 +434,16 @@ impl LinearScheme for NonsmoothAlpha {
         );
         report.impulse.fill(0.0);
         report.lcp = LcpStats::default();
+        if self.friction.is_some() {
+            report.tangent_impulse.fill(0.0);
+            report.work_friction = 0.0;
+        }
+        let friction_step = self.friction.is_some()
+            && self
+                .index_set
+                .active
+                .iter()
+                .any(|&a| model.friction[a].mu > 0.0);
         if let Some(banded) = self.banded.as_mut() {
             report.lcp = banded
                 .impulse
@@ -323,57 +471,42 @@ impl LinearScheme for NonsmoothAlpha {
                     s.q[i] += 0.5 * h * y - beta * h * h * z;
                 }
             }
+        } else if friction_step {
+            self.friction_impulse(model, step, t_next, report)?;
         } else if !self.index_set.active.is_empty() {
-            self.lcp_m.clear();
-            for &a in &self.index_set.active {
-                for &b in &self.index_set.active {
-                    self.lcp_m.push(self.w[a * m + b]);
-                }
-            }
-            let sol = lcp::solve(
-                Lcp {
-                    m: &self.lcp_m,
-                    q: &self.index_set.rhs,
-                },
-                &self.lcp,
-            )
-            .map_err(|source| StepError::Lcp {
-                step,
-                t: t_next,
-                source,
-            })?;
-            report.lcp = LcpStats {
-                size: self.index_set.active.len(),
-                iterations: sol.iterations,
-                error: sol.error,
-            };
-            let s = &mut self.core.s;
-            for (r, &a) in self.index_set.active.iter().enumerate() {
-                let p = sol.z[r];
-                report.impulse[a] = p;
-                if p != 0.0 {
-                    let (ac, vc, qc) = (
-                        &self.a_cols[a * n..(a + 1) * n],
-                        &self.v_cols[a * n..(a + 1) * n],
-                        &self.q_cols[a * n..(a + 1) * n],
-                    );
-                    for (((sa, sv), sq), ((ac, vc), qc)) in s.a[..n]
-                        .iter_mut()
-                        .zip(&mut s.v[..n])
-                        .zip(&mut s.q[..n])
-                        .zip(ac.iter().zip(vc).zip(qc))
-                    {
-                        *sa += p * ac;
-                        *sv += p * vc;
-                        *sq += p * qc;
-                    }
-                }
-            }
+            self.dense_impulse(n, m, step, t_next, report)?;
         }
-        if self.banded.is_none() {
+        if self.banded.is_none() && !friction_step {
             self.index_set
                 .record_roundoff(&self.w, &report.impulse, step);
         }
+        let (work_contact, work_friction) = self.impulse_works(model, state, friction_step, report);
+        self.core.finish(
+            model,
+            state,
+            t_next,
+            ContactWork::Impulse(work_contact),
+            report,
+        );
+        if friction_step {
+            report.work_friction = work_friction;
+            report.energy.balance_residual -= work_friction;
+        }
+        Ok(())
+    }
+}
+
+impl NonsmoothAlpha {
+    /// The impulses' works of a step, against v_{k+1/2} (Lemma 2): `work_contact = (Gᵀ
+    /// v_{k+1/2})ᵀ P_{k+1}` and, on a step with friction, `work_friction = (Tᵀ v_{k+1/2})ᵀ
+    /// P_t,{k+1}` (module documentation); v_{k+1} is the scheme's, v_k the state's.
+    fn impulse_works(
+        &self,
+        model: &LinearModel,
+        state: &LinearState,
+        friction_step: bool,
+        report: &StepReport,
+    ) -> (f64, f64) {
         // work_contact = (Gᵀ v_{k+1/2})ᵀ P_{k+1} (Lemma 2; U_{k+1/2}ᵀP for a fixed obstacle).
         let mut work_contact = 0.0;
         for &a in &self.index_set.active {
@@ -383,13 +516,145 @@ impl LinearScheme for NonsmoothAlpha {
                 work_contact += p * 0.5 * (c.project(&self.core.s.v) + c.project(&state.v));
             }
         }
-        self.core.finish(
-            model,
-            state,
-            t_next,
-            ContactWork::Impulse(work_contact),
-            report,
-        );
+        // work_friction = (Tᵀ v_{k+1/2})ᵀ P_t,{k+1}, the same term for the tangent rows.
+        let mut work_friction = 0.0;
+        if friction_step {
+            for &a in &self.index_set.active {
+                let pt = report.tangent_impulse[a];
+                if pt != 0.0 {
+                    let f = &model.friction[a];
+                    work_friction += pt * 0.5 * (f.project(&self.core.s.v) + f.project(&state.v));
+                }
+            }
+        }
+        (work_contact, work_friction)
+    }
+
+    /// The impulse LCP of the dense path (25c)–(25d) on the index set, `0 ≤ W_II P + U_free +
+    /// e U_k ⊥ P ≥ 0`, and the impulse's change of a_{k+1}, v_{k+1}, q_{k+1} along the columns.
+    fn dense_impulse(
+        &mut self,
+        n: usize,
+        m: usize,
+        step: u64,
+        t_next: f64,
+        report: &mut StepReport,
+    ) -> Result<(), StepError> {
+        self.lcp_m.clear();
+        for &a in &self.index_set.active {
+            for &b in &self.index_set.active {
+                self.lcp_m.push(self.w[a * m + b]);
+            }
+        }
+        let sol = lcp::solve(
+            Lcp {
+                m: &self.lcp_m,
+                q: &self.index_set.rhs,
+            },
+            &self.lcp,
+        )
+        .map_err(|source| StepError::Lcp {
+            step,
+            t: t_next,
+            source,
+        })?;
+        report.lcp = LcpStats {
+            size: self.index_set.active.len(),
+            iterations: sol.iterations,
+            error: sol.error,
+        };
+        let s = &mut self.core.s;
+        for (r, &a) in self.index_set.active.iter().enumerate() {
+            let p = sol.z[r];
+            report.impulse[a] = p;
+            if p != 0.0 {
+                let (ac, vc, qc) = (
+                    &self.a_cols[a * n..(a + 1) * n],
+                    &self.v_cols[a * n..(a + 1) * n],
+                    &self.q_cols[a * n..(a + 1) * n],
+                );
+                for (((sa, sv), sq), ((ac, vc), qc)) in s.a[..n]
+                    .iter_mut()
+                    .zip(&mut s.v[..n])
+                    .zip(&mut s.q[..n])
+                    .zip(ac.iter().zip(vc).zip(qc))
+                {
+                    *sa += p * ac;
+                    *sv += p * vc;
+                    *sq += p * qc;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The impulse of a step with friction on its index set: the planar friction problem of
+    /// [`crate::friction`] on the rows (G_α, T_α) of the active contacts, with free local
+    /// velocities `(U_free + e U_k, T v_free)`; (P_n, P_t) change a_{k+1}, v_{k+1}, q_{k+1} along
+    /// the normal and the tangent columns, and the round-off levels of the normal rows (both
+    /// rows of a contact, which the solver couples) are kept for the next sign test.
+    fn friction_impulse(
+        &mut self,
+        model: &LinearModel,
+        step: u64,
+        t_next: f64,
+        report: &mut StepReport,
+    ) -> Result<(), StepError> {
+        let Some(fr) = self.friction.as_mut() else {
+            return Ok(());
+        };
+        let n = model.dofs();
+        let (active, rhs) = (&self.index_set.active, &self.index_set.rhs);
+        let s = &mut self.core.s;
+        fr.tangent_free.clear();
+        fr.tangent_free
+            .extend(active.iter().map(|&a| model.friction[a].project(&s.v)));
+        let sol = fr
+            .sub
+            .solve(
+                &fr.w,
+                active,
+                rhs,
+                &fr.tangent_free,
+                |a| model.friction[a].mu,
+                &self.lcp,
+            )
+            .map_err(|source| StepError::Friction {
+                step,
+                t: t_next,
+                source,
+            })?;
+        let k = active.len();
+        fr.levels.clear();
+        for (r, &a) in active.iter().enumerate() {
+            let (pn, pt) = (sol.p[2 * r], sol.p[2 * r + 1]);
+            report.impulse[a] = pn;
+            report.tangent_impulse[a] = pt;
+            let normal = (&self.a_cols, &self.v_cols, &self.q_cols);
+            let tangent = (&fr.a_cols, &fr.v_cols, &fr.q_cols);
+            for (p, (ac, vc, qc)) in [(pn, normal), (pt, tangent)] {
+                if p != 0.0 {
+                    let at = a * n..(a + 1) * n;
+                    for (((sa, sv), sq), ((ac, vc), qc)) in s.a[..n]
+                        .iter_mut()
+                        .zip(&mut s.v[..n])
+                        .zip(&mut s.q[..n])
+                        .zip(ac[at.clone()].iter().zip(&vc[at.clone()]).zip(&qc[at]))
+                    {
+                        *sa += p * ac;
+                        *sv += p * vc;
+                        *sq += p * qc;
+                    }
+                }
+            }
+            fr.levels.push(fr.sub.level(r, &sol.p));
+        }
+        self.index_set.record_levels(&fr.levels, step);
+        report.lcp = LcpStats {
+            size: k,
+            iterations: sol.iterations,
+            error: sol.error,
+        };
         Ok(())
     }
 }

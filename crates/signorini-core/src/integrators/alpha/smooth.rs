@@ -370,24 +370,69 @@ impl AlphaCore {
         contact: ContactWork,
         report: &mut StepReport,
     ) {
-        let n = state.q.len();
-        let (h, beta, gamma, nu) = (self.h, self.c.beta, self.c.gamma, self.c.nu);
-        let eta = self.c.eta;
-        let (cur, nxt, s) = (&self.cur, &mut self.nxt, &mut self.s);
-        let lumped = self.lumped;
-        if !lumped {
+        self.products_at_next(model);
+        let filter = self.filter_pass(state.q.len());
+        let b = self.balance_terms(model, state, contact, filter);
+        let (h, beta, gamma) = (self.h, self.c.beta, self.c.gamma);
+        let (nxt, s) = (&mut self.nxt, &mut self.s);
+        let sums = &b.sums;
+        let h2 = h * h;
+        // The new state and history: swapped in (the scratch vectors are rewritten by the next
+        // predictor before they are read).
+        std::mem::swap(&mut state.q, &mut s.q);
+        std::mem::swap(&mut state.v, &mut s.v);
+        std::mem::swap(&mut nxt.a, &mut s.a);
+        state.t = t_next;
+        state.step += 1;
+        std::mem::swap(&mut self.cur, &mut self.nxt);
+        self.cur_step = Some(state.step);
+
+        // H (55) from the sums of the sweep (no second pass over q, v, a, z).
+        let strain = 0.5 * sums[S_STRAIN];
+        let mut alg = b.kin + strain + 0.25 * h2 * (2.0 * beta - gamma) * sums[S_ATERM];
+        if self.filters {
+            alg += self.cz * sums[S_ZTERM];
+        }
+        report.energy = EnergyTerms {
+            kinetic: b.kin,
+            strain,
+            work_ext: b.work_ext,
+            work_damping: b.work_damping,
+            work_contact: b.work_contact,
+            numerical_dissipation: b.numerical_dissipation,
+            algorithmic_energy: alg,
+            balance_residual: b.delta_h
+                - b.work_ext
+                - b.work_damping
+                - b.work_contact
+                - b.numerical_dissipation,
+        };
+        report.fill_contacts(model, &state.q, &state.v, t_next);
+    }
+
+    /// The products at t_{k+1}: M a_{k+1} for a consistent mass, K q_{k+1}, and C v_{k+1} with
+    /// damping (without it C v stays zero in both frames: start_frame zeroes it).
+    fn products_at_next(&mut self, model: &LinearModel) {
+        let (nxt, s) = (&mut self.nxt, &self.s);
+        if !self.lumped {
             model.mass.mul_into(&s.a, &mut nxt.ma);
         }
         model.stiffness.mul_into(&s.q, &mut nxt.kq);
-        // Without damping C v stays zero in both frames (start_frame zeroes it).
         if self.has_damping {
             model.damping.mul_into(&s.v, &mut nxt.cv);
         }
-        let ratio = self.ratio;
+    }
+
+    /// The filter pass: x_{k+1}, y_{k+1} and the contact force's y of (48), (52); returns the
+    /// coefficients [c_n, c_m] of the z filter, which the sweep of [`Self::balance_terms`]
+    /// updates.
+    fn filter_pass(&mut self, n: usize) -> [f64; 2] {
+        let (cur, nxt) = (&self.cur, &mut self.nxt);
         let xy = self.filters && self.c.xy_filters;
+        let nu = self.c.nu;
         // Filters (48), (52): (½+ν) z_{k+1} + (½−ν) z_k = ν Δq (and K z, C x, y alike),
         // divided by ½+ν once per step: z_{k+1} = c_n Δq − c_m z_k. z and K z are updated in
-        // the sweep below; with α_m = 0 (HHT, ν = ½) c_m = 0 and z_{k+1} = ½ Δq.
+        // the sweep of `balance_terms`; with α_m = 0 (HHT, ν = ½) c_m = 0 and z_{k+1} = ½ Δq.
         let (cn, cm) = if self.filters {
             (nu / (0.5 + nu), (0.5 - nu) / (0.5 + nu))
         } else {
@@ -422,8 +467,26 @@ impl AlphaCore {
                 }
             }
         }
-        // Works (56)–(57) / (79)–(80) with the x, y filter terms of (58), and the quadratic
-        // terms, all in difference form.
+        [cn, cm]
+    }
+
+    /// The balance of a step from the sums of one sweep ([`finish_sweep`]: q with the z filter,
+    /// a and v): works (56)–(57) / (79)–(80) with the x, y filter terms of (58), the contact
+    /// work, the quadratic terms of (73), (81), (87) and ΔH, all in difference form.
+    fn balance_terms(
+        &mut self,
+        model: &LinearModel,
+        state: &LinearState,
+        contact: ContactWork,
+        [cn, cm]: [f64; 2],
+    ) -> Balance {
+        let n = state.q.len();
+        let (h, beta, gamma, nu) = (self.h, self.c.beta, self.c.gamma, self.c.nu);
+        let eta = self.c.eta;
+        let (cur, nxt, s) = (&self.cur, &mut self.nxt, &mut self.s);
+        let lumped = self.lumped;
+        let ratio = self.ratio;
+        let xy = self.filters && self.c.xy_filters;
         let (g1, g0) = (gamma, 1.0 - gamma);
         let rx = if xy { ratio } else { 0.0 };
         let ry = if xy && self.varying_load { ratio } else { 0.0 };
@@ -523,39 +586,28 @@ impl AlphaCore {
             -0.5 * h2 * (gamma - 0.5) * (2.0 * beta - gamma) * sums[S_DA_M_DA]
                 - (gamma - 0.5 - eta) * sums[S_DQ_K_DQ]
                 - ratio * (nu - gamma + 0.5) * sums[S_DZ_K_DZ];
-
-        // The new state and history: swapped in (the scratch vectors are rewritten by the next
-        // predictor before they are read).
-        std::mem::swap(&mut state.q, &mut s.q);
-        std::mem::swap(&mut state.v, &mut s.v);
-        std::mem::swap(&mut nxt.a, &mut s.a);
-        state.t = t_next;
-        state.step += 1;
-        std::mem::swap(&mut self.cur, &mut self.nxt);
-        self.cur_step = Some(state.step);
-
-        // H (55) from the sums of the sweep (no second pass over q, v, a, z).
-        let strain = 0.5 * sums[S_STRAIN];
-        let mut alg = kin + strain + 0.25 * h2 * (2.0 * beta - gamma) * sums[S_ATERM];
-        if self.filters {
-            alg += self.cz * sums[S_ZTERM];
-        }
-        report.energy = EnergyTerms {
-            kinetic: kin,
-            strain,
+        Balance {
+            sums,
+            kin,
+            delta_h,
             work_ext,
             work_damping,
             work_contact,
             numerical_dissipation,
-            algorithmic_energy: alg,
-            balance_residual: delta_h
-                - work_ext
-                - work_damping
-                - work_contact
-                - numerical_dissipation,
-        };
-        report.fill_contacts(model, &state.q, &state.v, t_next);
+        }
     }
+}
+
+/// The balance terms of a step ([`AlphaCore::balance_terms`]) and the sweep's sums, from which
+/// [`AlphaCore::finish`] forms H.
+struct Balance {
+    sums: [f64; SUMS],
+    kin: f64,
+    delta_h: f64,
+    work_ext: f64,
+    work_damping: f64,
+    work_contact: f64,
+    numerical_dissipation: f64,
 }
 
 /// What [`AlphaCore`] carries between steps: the history frames (accelerations a_k, the filters

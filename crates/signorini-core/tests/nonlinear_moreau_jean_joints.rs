@@ -1,0 +1,130 @@
+//! Joints and contacts together under the nonlinear Moreau–Jean time-stepping (the mixed LCP of
+//! `nonlinear::moreau_jean`), through the job path on `examples/double_pendulum_wall.toml`: a
+//! double pendulum in Cartesian coordinates (two rod joints) whose lower mass hits a wall.
+
+// Only the core library must stay pure (clippy.toml): a test may read fixtures and print.
+#![allow(clippy::disallowed_macros, clippy::disallowed_methods)]
+
+use signorini_core::job::{Job, run};
+use signorini_core::observer::Recorder;
+use signorini_core::spec::JobSpec;
+use std::path::Path;
+
+fn example() -> serde_json::Value {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/double_pendulum_wall.toml");
+    let text = std::fs::read_to_string(&path).expect("reading the example");
+    let spec: JobSpec = toml::from_str(&text).expect("the example parses");
+    serde_json::to_value(&spec).expect("json")
+}
+
+fn record(doc: serde_json::Value) -> (Recorder, serde_json::Value) {
+    let spec: JobSpec = serde_json::from_value(doc).expect("a job spec");
+    let job = Job::from_spec(&spec).unwrap_or_else(|e| panic!("spec refused: {e}"));
+    let mut rec = Recorder::default();
+    let out = run(&job, 1, &mut rec).unwrap_or_else(|e| panic!("run failed: {e}"));
+    (rec, serde_json::Value::Object(out.summary.to_map()))
+}
+
+fn col(rec: &Recorder, name: &str) -> Vec<f64> {
+    rec.column(name)
+        .unwrap_or_else(|| panic!("no column {name} in {:?}", rec.columns.names()))
+}
+
+fn num(summary: &serde_json::Value, field: &str) -> f64 {
+    summary[field]
+        .as_f64()
+        .unwrap_or_else(|| panic!("no number {field} in {summary}"))
+}
+
+/// The example for e ∈ {0, 0.5, 1}, h = 1e-3, 3 s, every step recorded. The wall's gap is
+/// affine (0.5 − x2), so u_0 = −ẋ2 is the local velocity the LCP sees on both sides of a step.
+/// - At each impact (p_0 > 0 after a step without) u⁺ = −e u⁻ to round-off: Newton's impact
+///   law, as `ns_generalized_alpha` enforces it;
+/// - the rods hold to Newton's tolerance at every step, impacts included: position_residual
+///   ≤ 1e-9 (tolerance 1e-10 relative to the joints' scale, about 2 here);
+/// - the ledger closes: |energy_error| ≤ 1e-8 J at every step (ideal joints do no work: their
+///   impulse acts along the rods at the step's midpoint), and the energy lost is the contact
+///   work, E_end − E_0 = Σ work_contact to 1e-6 J; work_contact ≤ 0 at every step (≤ 1e-12),
+///   zero for e = 1 up to the same level;
+/// - the mass never goes through the wall by more than 1e-9.
+#[test]
+fn double_pendulum_against_a_wall_follows_newtons_law_with_its_joints_held() {
+    for e in [0.0, 0.5, 1.0] {
+        let mut doc = example();
+        doc["model"]["contacts"][0]["restitution"] = e.into();
+        let (rec, summary) = record(doc);
+        let (u, p, gap) = (col(&rec, "u_0"), col(&rec, "p_0"), col(&rec, "gap_0"));
+        let (err, wc, res) = (
+            col(&rec, "energy_error"),
+            col(&rec, "work_contact"),
+            col(&rec, "position_residual"),
+        );
+        let mut impacts = 0;
+        let mut worst_law = 0.0f64;
+        for k in 1..u.len() {
+            if p[k] > 0.0 && p[k - 1] == 0.0 && u[k - 1] < 0.0 {
+                impacts += 1;
+                worst_law = worst_law.max((u[k] + e * u[k - 1]).abs() / u[k - 1].abs());
+            }
+        }
+        let amax = |x: &[f64]| x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let max_work = wc.iter().fold(f64::NEG_INFINITY, |m, &x| m.max(x));
+        let min_gap = gap.iter().fold(f64::INFINITY, |m, &x| m.min(x));
+        let lost = num(&summary, "energy_final") - num(&summary, "energy_initial");
+        let contact = num(&summary, "work_contact_total");
+        println!(
+            "e = {e}: {impacts} impacts, law {worst_law:.1e}, position residual {:.1e}, |energy_error| {:.1e}, ΔE {lost:.6} vs work_contact {contact:.6}, max work {max_work:.1e}, min gap {min_gap:.1e}",
+            amax(&res),
+            amax(&err)
+        );
+        assert!(impacts >= 1, "e = {e}: no impact");
+        assert!(
+            worst_law <= 1e-12,
+            "e = {e}: Newton's law off by {worst_law:e}"
+        );
+        assert!(
+            amax(&res) <= 1e-9,
+            "e = {e}: joints violated by {:e}",
+            amax(&res)
+        );
+        assert!(num(&summary, "max_position_residual") <= 1e-9);
+        assert!(amax(&err) <= 1e-8, "e = {e}: energy error {:e}", amax(&err));
+        assert!(
+            (lost - contact).abs() <= 1e-6,
+            "e = {e}: ΔE {lost} vs {contact}"
+        );
+        assert!(max_work <= 1e-12, "e = {e}: contact work {max_work:e} > 0");
+        if e < 1.0 {
+            assert!(
+                contact < -1e-3,
+                "e = {e}: no energy lost at the wall ({contact})"
+            );
+        } else {
+            assert!(contact.abs() <= 1e-6, "e = 1: energy lost {contact}");
+        }
+        assert!(min_gap >= -1e-9, "e = {e}: penetration {min_gap:e}");
+    }
+}
+
+/// What the scheme cannot take with joints is refused naming the field: θ = 0
+/// (`integrator.theta`: q_{k+1} would not depend on v_{k+1}) and Coulomb friction on a contact
+/// (`integrator.scheme`).
+#[test]
+fn joints_refuse_theta_zero_and_friction_naming_the_field() {
+    let refused = |doc: serde_json::Value| {
+        let spec: JobSpec = serde_json::from_value(doc).expect("a job spec");
+        Job::from_spec(&spec).expect_err("must be refused")
+    };
+    let mut doc = example();
+    doc["integrator"]["theta"] = 0.0.into();
+    let e = refused(doc);
+    assert_eq!(e.field, "integrator.theta", "{e}");
+    assert!(e.reason.contains("joints"), "{e}");
+    let mut doc = example();
+    doc["model"]["contacts"][0]["friction"] = 0.3.into();
+    doc["model"]["contacts"][0]["tangent"] = "y2".into();
+    let e = refused(doc);
+    assert_eq!(e.field, "integrator.scheme", "{e}");
+    assert!(e.reason.contains("friction"), "{e}");
+}
