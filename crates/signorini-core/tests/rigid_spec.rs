@@ -42,9 +42,12 @@ fn a_valid_scene_builds_and_runs_only_with_a_detector() {
     assert!(matches!(err, RunError::NoDetector), "{err:?}");
 }
 
+/// A change to the valid spec.
+type Edit = Box<dyn Fn(&mut Value)>;
+
 #[test]
 fn every_error_names_its_field() {
-    let cases: Vec<(&str, Box<dyn Fn(&mut Value)>)> = vec![
+    let cases: Vec<(&str, Edit)> = vec![
         (
             "model.bodies[0].shape.radius",
             Box::new(|s| s["model"]["bodies"][0]["shape"]["radius"] = json!(-1.0)),
