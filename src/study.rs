@@ -46,7 +46,14 @@ pub struct Measured {
 fn run_one(job: &job::Job) -> Result<Measured, String> {
     let mut samples = Samples::default();
     let started = ThreadTime::now();
-    job::run(job, 1, &mut samples).map_err(|e| e.to_string())?;
+    job::run_with_detectors(
+        job,
+        1,
+        &mut samples,
+        None,
+        &signorini_collision::ParryDetectors,
+    )
+    .map_err(|e| e.to_string())?;
     let cpu_s = started.elapsed().as_secs_f64();
     Ok(Measured {
         samples,

@@ -217,7 +217,13 @@ fn check_one(path: &Path) -> Vec<Line> {
     };
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let started = Instant::now();
-    let result = job::run(&job, threads, &mut measured);
+    let result = job::run_with_detectors(
+        &job,
+        threads,
+        &mut measured,
+        None,
+        &signorini_collision::ParryDetectors,
+    );
     let time = started.elapsed();
     let output = match result {
         Ok(o) => o,

@@ -222,10 +222,13 @@ fn execute(
     let started = Instant::now();
     // The CLI runs one job: it may use every core for an analysis's parallel scans.
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let result = match checkpoint {
-        Some(c) => job::resume(job, threads, &mut observer, &c),
-        None => job::run(job, threads, &mut observer),
-    };
+    let result = job::run_with_detectors(
+        job,
+        threads,
+        &mut observer,
+        checkpoint.as_ref(),
+        &signorini_collision::ParryDetectors,
+    );
     let wall = started.elapsed();
     observer.bar.finish_and_clear();
     let output: RunOutput = match result {

@@ -1032,10 +1032,14 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
     // A panic in the numerics (a bug) fails this job and keeps the worker and the server alive.
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         let threads = threads_per_job(inner.workers);
-        match &resume {
-            Some(r) => job::resume(&live.job, threads, &mut observer, &r.checkpoint),
-            None => job::run(&live.job, threads, &mut observer),
-        }
+        let checkpoint = resume.as_ref().map(|r| &r.checkpoint);
+        job::run_with_detectors(
+            &live.job,
+            threads,
+            &mut observer,
+            checkpoint,
+            &signorini_collision::ParryDetectors,
+        )
     }))
     .map_err(|panic| panic_message(panic.as_ref()));
     let wall = clock.elapsed();

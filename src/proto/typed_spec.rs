@@ -165,6 +165,7 @@ fn model_to_proto(m: &ModelSpec) -> Result<pb::ModelSpec, JsonOnly> {
             })
         }
         ModelSpec::Lagrangian(_) => return Err(JsonOnly("scene `lagrangian`")),
+        ModelSpec::RigidBodies(_) => return Err(JsonOnly("scene `rigid_bodies`")),
         ModelSpec::String(_) => return Err(JsonOnly("scene `string`")),
     };
     Ok(pb::ModelSpec { scene: Some(scene) })

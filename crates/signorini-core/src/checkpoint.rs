@@ -146,6 +146,8 @@ pub enum RunKind {
     Soi2,
     /// WFEM.
     Wave,
+    /// Rigid bodies under Moreau–Jean (the bodies' states and the run's statistics).
+    Rigid,
 }
 
 impl RunKind {
@@ -157,6 +159,7 @@ impl RunKind {
             RunKind::NsAlpha => "ns_generalized_alpha",
             RunKind::Soi2 => "SOI2",
             RunKind::Wave => "WFEM",
+            RunKind::Rigid => "rigid bodies",
         }
     }
 }
@@ -166,11 +169,11 @@ impl RunKind {
     /// Moreau–Jean and ns_generalized_alpha states are at version 2: it keeps only what the
     /// next step reads (the scheme's memory), where version 1 also held the last step's report
     /// and, for Moreau–Jean, its scratch buffers (mass matrix, Jacobians, Delassus operator).
-    /// The other kinds are at version 1.
+    /// The other kinds (rigid bodies from their first version) are at version 1.
     pub fn state_version(self) -> u32 {
         match self {
             RunKind::Nonlinear | RunKind::NsAlpha => 2,
-            RunKind::Linear | RunKind::Soi2 | RunKind::Wave => 1,
+            RunKind::Linear | RunKind::Soi2 | RunKind::Wave | RunKind::Rigid => 1,
         }
     }
 }

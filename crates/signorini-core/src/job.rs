@@ -3,6 +3,7 @@
 //! summary and any tables or figures the job makes.
 
 mod analysis;
+mod rigid;
 mod soi2;
 mod wave;
 
@@ -34,6 +35,7 @@ use crate::observer::{Columns, Observer, Progress, StepRecord};
 use crate::outcome::{
     LinearSummary, NonlinearSummary, RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader,
 };
+use crate::rigid::DetectorFactory;
 use crate::scenes::Bar;
 use crate::soi2::run::Soi2Job;
 use crate::spec::{
@@ -69,6 +71,7 @@ enum JobKind {
     Wave(Box<WaveJob>),
     Nonlinear(Box<NonlinearJob>),
     NsAlpha(Box<NsAlphaJob>),
+    Rigid(Box<rigid::RigidJob>),
 }
 
 /// A `lagrangian` model (joints, contacts, both or neither) under the nonsmooth generalized-α
@@ -457,6 +460,9 @@ impl Job {
             }
             (Some(analysis), None, _) => JobKind::Wave(Box::new(wave::analysis(analysis)?)),
             (None, None, _) => return Err(SpecError::new("model", "missing section")),
+            (None, Some(ModelSpec::RigidBodies(r)), _) => {
+                JobKind::Rigid(Box::new(rigid::rigid_job(r, spec)?))
+            }
             (None, Some(m), SchemeFamily::Wave) => {
                 JobKind::Wave(Box::new(wave::integration(m, spec)?))
             }
@@ -576,6 +582,14 @@ impl Job {
                     output_bytes: recorded.saturating_mul(columns as u64 * 8),
                 }
             }
+            JobKind::Rigid(j) => {
+                let recorded = j.steps / j.every.max(1) + 2;
+                JobSize {
+                    dofs: 6 * j.scene.bodies.len() as u64,
+                    steps: j.steps,
+                    output_bytes: recorded.saturating_mul(j.columns() as u64 * 8),
+                }
+            }
             JobKind::NsAlpha(j) => {
                 let recorded = j.steps / j.output.every.max(1) + 2;
                 let columns = ns_alpha_columns(
@@ -602,7 +616,21 @@ impl Job {
 /// response) spreads its independent tasks over that many threads (0 counts as 1), a time
 /// integration runs on the calling thread. The results do not depend on it.
 pub fn run(job: &Job, threads: usize, observer: &mut dyn Observer) -> Result<RunOutput, RunError> {
-    run_from(job, threads, observer, None)
+    run_from(job, threads, observer, None, None)
+}
+
+/// [`run`] or, with a checkpoint, [`resume`], with the contact detectors a `rigid_bodies` job
+/// needs (the core defines the trait; the binary gives parry's, `signorini-collision`). Other
+/// jobs ignore `detectors`; a `rigid_bodies` job run without them fails with
+/// [`RunError::NoDetector`].
+pub fn run_with_detectors(
+    job: &Job,
+    threads: usize,
+    observer: &mut dyn Observer,
+    checkpoint: Option<&Checkpoint>,
+    detectors: &dyn DetectorFactory,
+) -> Result<RunOutput, RunError> {
+    run_from(job, threads, observer, checkpoint, Some(detectors))
 }
 
 /// Continues a run of `job` from `checkpoint` (read by [`Job::read_checkpoint`]): the steps
@@ -618,7 +646,7 @@ pub fn resume(
     observer: &mut dyn Observer,
     checkpoint: &Checkpoint,
 ) -> Result<RunOutput, RunError> {
-    run_from(job, threads, observer, Some(checkpoint))
+    run_from(job, threads, observer, Some(checkpoint), None)
 }
 
 fn run_from(
@@ -626,6 +654,7 @@ fn run_from(
     threads: usize,
     observer: &mut dyn Observer,
     checkpoint: Option<&Checkpoint>,
+    detectors: Option<&dyn DetectorFactory>,
 ) -> Result<RunOutput, RunError> {
     if let Some(c) = checkpoint
         && c.spec_hash() != job.spec_hash()
@@ -655,6 +684,11 @@ fn run_from(
         JobKind::Wave(j) => j.run_from(header(job), threads, t, c),
         JobKind::Nonlinear(j) => run_nonlinear_job(job, j, t, c),
         JobKind::NsAlpha(j) => run_ns_alpha_job(job, j, t, c),
+        JobKind::Rigid(j) => j.run_from(t, c, detectors).map(|body| RunOutput {
+            summary: RunSummary::new(header(job), body),
+            tables: Vec::new(),
+            charts: Vec::new(),
+        }),
     }?;
     output.charts.extend(trace.charts());
     Ok(output)
@@ -884,7 +918,8 @@ pub fn build_model(spec: &ModelSpec) -> Result<LinearModel, SpecError> {
         ModelSpec::Pendulum(_)
         | ModelSpec::SliderCrank(_)
         | ModelSpec::JayNegrutTest(_)
-        | ModelSpec::Lagrangian(_) => {
+        | ModelSpec::Lagrangian(_)
+        | ModelSpec::RigidBodies(_) => {
             return Err(mismatch(spec, "a linear scheme"));
         }
     };

@@ -25,6 +25,7 @@ pub mod model;
 pub mod nonlinear;
 pub mod observer;
 pub mod outcome;
+pub mod rigid;
 pub mod scenes;
 pub mod soi2;
 pub mod spec;

@@ -7,6 +7,7 @@ use crate::checkpoint::CheckpointError;
 use crate::integrators::{LinearRunStats, RunStop, StepError};
 use crate::nonlinear::generalized_alpha::NsAlphaSummary;
 use crate::nonlinear::moreau_jean::{NonlinearRunStats, NonlinearRunStop, NonlinearStepError};
+use crate::rigid::{DetectError, RigidRunError, RigidRunStats, RigidStepError};
 use crate::soi2::{GlobalErrors, Soi2Error};
 use serde::Serialize;
 use serde_json::{Map, Value};
@@ -259,6 +260,26 @@ pub enum RunError {
     /// The checkpoint to resume from was refused; nothing of it was restored.
     #[error(transparent)]
     Checkpoint(#[from] CheckpointError),
+    /// A step of the rigid bodies' Moreau–Jean failed (detection, friction problem, Newton),
+    /// with its step and t.
+    #[error(transparent)]
+    Rigid(RigidStepError),
+    /// A `rigid_bodies` job was run without a contact detector
+    /// ([`crate::job::run_with_detectors`] gives one).
+    #[error("a rigid_bodies job needs a contact detector: run it with job::run_with_detectors")]
+    NoDetector,
+    /// The detector could not be built for the bodies (a degenerate convex hull).
+    #[error("contact detector: {0}")]
+    Detector(DetectError),
+}
+
+impl From<RigidRunError> for RunError {
+    fn from(e: RigidRunError) -> Self {
+        match e {
+            RigidRunError::Step(e) => RunError::Rigid(e),
+            RigidRunError::Checkpoint(e) => RunError::Checkpoint(e),
+        }
+    }
 }
 
 impl From<NonlinearRunStop> for RunError {
@@ -388,6 +409,9 @@ pub enum SummaryBody {
     /// generalized-α scheme.
     #[serde(rename = "time_integration")]
     NsAlpha(Box<NsAlphaSummary>),
+    /// Rigid bodies under Moreau–Jean.
+    #[serde(rename = "time_integration")]
+    Rigid(RigidSummary),
     /// Backbones of the nonsmooth modes.
     NonsmoothModes(ModesSummary),
     /// A forced-response sweep.
@@ -403,9 +427,23 @@ impl SummaryBody {
             SummaryBody::Wave(s) => Some(s.stats.steps),
             SummaryBody::Nonlinear(s) => Some(s.stats.steps),
             SummaryBody::NsAlpha(s) => Some(s.stats.base.steps),
+            SummaryBody::Rigid(s) => Some(s.stats.steps),
             SummaryBody::NonsmoothModes(_) | SummaryBody::ForcedResponse(_) => None,
         }
     }
+}
+
+/// Summary of a rigid-bodies run: the bodies and the step, then what the run measured
+/// ([`RigidRunStats`], its fields flat).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RigidSummary {
+    /// Bodies (fixed ones included).
+    pub bodies: usize,
+    /// Step size.
+    pub h: f64,
+    /// Steps, energies, the largest energy error, contacts, penetration, works, solver figures.
+    #[serde(flatten)]
+    pub stats: RigidRunStats,
 }
 
 /// Summary of a nonlinear Moreau–Jean run: the model's size and step, then what the run

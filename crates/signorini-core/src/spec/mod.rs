@@ -13,6 +13,7 @@ pub mod error;
 pub mod integrator;
 pub mod lagrangian;
 pub mod model;
+pub mod rigid;
 pub mod study;
 
 pub use analysis::{AnalysisSpec, Excitation, ForcedResponseSpec, ModalSpec};
@@ -24,6 +25,7 @@ pub use integrator::{
 };
 pub use lagrangian::{JointSpec, LagrangianSpec, MassSpec, Term, UserContactSpec};
 pub use model::{HarmonicForceSpec, LinearSpec, ModelSpec};
+pub use rigid::{RigidBodiesSpec, RigidBodySpec, ShapeSpec};
 
 use crate::integrators::OutputOptions;
 use crate::lcp::{LcpOptions, LcpSolverKind};

@@ -2,6 +2,7 @@
 //! nonlinear constrained ones in [`crate::soi2::models`]; the raw-matrix `linear` scene here.
 
 use super::lagrangian::LagrangianSpec;
+use super::rigid::RigidBodiesSpec;
 use crate::scenes::{BarSpec, BouncingBall, Chain, StringScene};
 use crate::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
 use schemars::JsonSchema;
@@ -33,6 +34,8 @@ pub enum ModelSpec {
     /// Your own nonlinear mechanical system, written as expressions (joints with the SOI2
     /// schemes; contacts, joints or both with moreau_jean and ns_generalized_alpha).
     Lagrangian(LagrangianSpec),
+    /// Rigid bodies in space with contacts found from their shapes (moreau_jean).
+    RigidBodies(RigidBodiesSpec),
 }
 
 impl ModelSpec {
@@ -60,6 +63,7 @@ impl ModelSpec {
             ModelSpec::SliderCrank(_) => "slider_crank",
             ModelSpec::JayNegrutTest(_) => "jay_negrut_test",
             ModelSpec::Lagrangian(_) => "lagrangian",
+            ModelSpec::RigidBodies(_) => "rigid_bodies",
         }
     }
 }

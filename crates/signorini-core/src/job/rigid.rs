@@ -1,0 +1,105 @@
+//! `scene = "rigid_bodies"` as a job: validation at the edge (the scene, the scheme, the contact
+//! solver, the output) and the run through the one driver with a caller's contact detector.
+
+use crate::checkpoint::Checkpoint;
+use crate::friction::{Fc3dOptions, Fc3dSolverKind};
+use crate::lcp::LcpSolverKind;
+use crate::observer::Observer;
+use crate::outcome::{RigidSummary, RunError, SummaryBody};
+use crate::rigid::{
+    DetectorFactory, RigidMoreauJean, RigidMoreauJeanParams, RigidScene, RigidStepping,
+};
+use crate::spec::{IntegratorSpec, JobSpec, Probes, RigidBodiesSpec, SpecError};
+use crate::stepping::{StopReason, run};
+
+/// A validated rigid-bodies job.
+#[derive(Debug, Clone)]
+pub(super) struct RigidJob {
+    pub(super) scene: RigidScene,
+    pub(super) scheme: RigidMoreauJean,
+    pub(super) steps: u64,
+    pub(super) every: u64,
+}
+
+/// Checks a `rigid_bodies` spec: the scene first, then `integrator.scheme` (only `moreau_jean`),
+/// θ and the predicted gap's γ (`integrator.activation_gamma`, default ½; the rule is always
+/// the predicted gap within `model.contact.margin`), the contact solver (`auto`: the FC3D chain
+/// of NSGS and Newton–Alart–Curnier, at `contact_solver.tolerance` on Siconos' relative error),
+/// and the output (no probes: the bodies' columns are recorded).
+pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob, SpecError> {
+    let scene = r.validate()?;
+    let IntegratorSpec::MoreauJean(p) = &spec.integrator else {
+        return Err(SpecError::new(
+            "integrator.scheme",
+            format!(
+                "scene `rigid_bodies` runs with moreau_jean, got `{}`",
+                spec.integrator.scheme()
+            ),
+        ));
+    };
+    if !p.theta.is_finite() || !(0.0..=1.0).contains(&p.theta) {
+        return Err(SpecError::new(
+            "integrator.theta",
+            format!("must be in [0, 1], got {}", p.theta),
+        ));
+    }
+    p.index_set.rule()?;
+    let gamma = p.index_set.activation_gamma.unwrap_or(0.5);
+    let steps = spec.time_section()?.steps(false)?;
+    let lcp = spec.contact_solver.options()?;
+    if lcp.kind != LcpSolverKind::Auto {
+        return Err(SpecError::new(
+            "contact_solver.kind",
+            "rigid bodies solve the 3D friction problem: only `auto` (Gauss–Seidel, then Newton–Alart–Curnier) applies",
+        ));
+    }
+    let output = spec.output.options(Probes::Unsupported(
+        "rigid bodies record every body's pose and twist: probes do not apply",
+    ))?;
+    let params = RigidMoreauJeanParams {
+        theta: p.theta,
+        gamma,
+        fc3d: Fc3dOptions {
+            kind: Fc3dSolverKind::Auto,
+            tolerance: spec.contact_solver.tolerance,
+            max_iterations: spec.contact_solver.max_iterations,
+            ..Fc3dOptions::default()
+        },
+        ..RigidMoreauJeanParams::default()
+    };
+    Ok(RigidJob {
+        scene,
+        scheme: RigidMoreauJean::new(params, steps.h),
+        steps: steps.count(),
+        every: output.every,
+    })
+}
+
+impl RigidJob {
+    /// Runs (or continues from `resume`) with a detector of `detectors`.
+    pub(super) fn run_from(
+        &self,
+        observer: &mut dyn Observer,
+        resume: Option<&Checkpoint>,
+        detectors: Option<&dyn DetectorFactory>,
+    ) -> Result<SummaryBody, RunError> {
+        let detectors = detectors.ok_or(RunError::NoDetector)?;
+        let detector = detectors
+            .detector(&self.scene.bodies)
+            .map_err(RunError::Detector)?;
+        let mut family = RigidStepping::new(&self.scene, &self.scheme, detector, self.steps);
+        if let StopReason::Observer { step } = run(&mut family, self.every, observer, resume)? {
+            return Err(RunError::Stopped { step });
+        }
+        Ok(SummaryBody::Rigid(RigidSummary {
+            bodies: self.scene.bodies.len(),
+            h: self.scheme.h(),
+            stats: family.stats().clone(),
+        }))
+    }
+
+    /// Columns per record (bodies' 13, the energy columns, step and t).
+    pub(super) fn columns(&self) -> usize {
+        crate::rigid::rigid_columns(&self.scene.names).len() + 2
+    }
+}

@@ -1,0 +1,583 @@
+//! Moreau–Jean time-stepping of rigid bodies: Siconos' `MoreauJeanOSI` on `NewtonEulerDS`
+//! (V. Acary, B. Brogliato, *Numerical Methods for Nonsmooth Dynamical Systems*, Springer, 2008,
+//! doi:10.1007/978-3-540-75392-6, ch. 10; M. Jean, *The non-smooth contact dynamics method*,
+//! Comput. Methods Appl. Mech. Engrg. 177 (1999) 235–257, doi:10.1016/S0045-7825(98)00383-1), with
+//! the three-dimensional friction problem of [`crate::friction::fc3d`] per step.
+//!
+//! Per free body, with mass m, principal inertia I = diag(I_1, I_2, I_3), position x, unit
+//! quaternion q, velocity v (world) and angular velocity Ω (body frame, [`super::body`]), the
+//! Newton–Euler equations m v̇ = m g, I Ω̇ + Ω × IΩ = 0 (gravity the only applied load; the
+//! gyroscopic term Ω × IΩ) and q̇ = T(q)Ω = ½ q ⊗ (0, Ω) are discretised from t_k to
+//! t_{k+1} = t_k + h with θ ∈ [0, 1], z_{k+θ} = (1 − θ) z_k + θ z_{k+1}:
+//!
+//! ```text
+//! m (v_{k+1} − v_k) = h m g + Σ_c G_{c,v}ᵀ P_c                                       (1a)
+//! I (Ω_{k+1} − Ω_k) + h Ω_{k+θ} × I Ω_{k+θ} = Σ_c G_{c,Ω}ᵀ P_c                          (1b)
+//! x_{k+1} = x_k + h v_{k+θ},     q_{k+1} = q_k ⊗ exp(h Ω_{k+θ})                       (1c)
+//! ```
+//!
+//! where P_c = (P_n, P_t1, P_t2) is the impulse of contact c in its frame (n, t_1, t_2) and
+//! G_c the contact's velocity Jacobian at the poses of t_k: for a contact between bodies 0 and
+//! 1 with witness points p_0, p_1, the local velocity is U_c = Σ_s σ_s G_{c,s} (v_s, Ω_s) with
+//! σ_0 = −1, σ_1 = +1, rows d ∈ {n, t_1, t_2}: `G_{c,s} d-row = (dᵀ, (R_sᵀ(r_s × d))ᵀ)`,
+//! r_s = p_s − x_s.
+//!
+//! The gyroscopic term is evaluated at Ω_{k+θ} (Siconos takes (1 − θ)F_k + θF_{k+1}): then for
+//! θ = ½, (1b) is the implicit midpoint rule on Euler's equations, Ω_{k+½}·(Ω_{k+½} × IΩ_{k+½}) =
+//! 0, and the energy ledger below closes exactly; the midpoint rule also keeps the quadratic
+//! invariants ΩᵀIΩ and ‖IΩ‖ of the torque-free body.
+//!
+//! **Quaternion.** (1c) is the exponential-map (Lie group) update of Brüls & Cardona
+//! (O. Brüls, A. Cardona, *On the use of Lie group time integrators in multibody dynamics*,
+//! J. Comput. Nonlinear Dynam. 5(3) 031002, 2010, doi:10.1115/1.4001370): exp(φ) = (cos ½‖φ‖,
+//! sin ½‖φ‖ φ/‖φ‖) is a unit quaternion, so q stays on the unit sphere by construction; the
+//! product is divided by its norm once per step, which only removes the accumulated round-off
+//! (the quaternion is unit to 1e-15 over any number of steps). It is first-order consistent with
+//! q̇ = T(q)Ω.
+//!
+//! **Newton.** (1b) is nonlinear in Ω_{k+1}; as `MoreauJeanOSI` does, each Newton iterate Ω^i
+//! (from Ω^0 = Ω_k) solves the linearised one-step problem:
+//!
+//! ```text
+//! J^i = I + hθ (S(Ω_θ^i) I − S(I Ω_θ^i)),   S(a) b = a × b
+//! Ω_free = Ω^i − (J^i)⁻¹ (I(Ω^i − Ω_k) + h Ω_θ^i × IΩ_θ^i),   v_free = v_k + h g
+//! W = Σ_s G_{c,s} diag(m⁻¹ 1, (J^i)⁻¹) G_{d,s}ᵀ     (Delassus operator, 3×3 blocks)
+//! u = W P + q_c,   q_c = G_c (v_free, Ω_free) + (e_c U_{n,k}, 0, 0)                     (FC3D)
+//! (v, Ω)^{i+1} = (v_free, Ω_free) + diag(m⁻¹ 1, (J^i)⁻¹) Σ_c G_cᵀ P_c
+//! ```
+//!
+//! solved by [`crate::friction::solve_fc3d`] with Coulomb's law on the cone of μ_c (De Saxcé's
+//! formulation) and Newton's impact law in the normal rows (u_n = U_{n,k+1} + e U_{n,k}).
+//! Newton stops when the residual of (1b) at the new iterate is ≤ `newton_tolerance` times the
+//! size of its terms (‖IΩ_k‖ + ‖IΩ_{k+1}‖ + h‖Ω_θ × IΩ_θ‖ + ‖Σ G_Ωᵀ P‖, max norms); (1a) is linear and holds after the first iterate.
+//!
+//! **Index set** (Siconos' predicted gap, `MoreauJeanOSI::addInteractionInIndexSet`): the
+//! detector reports every contact point of gap g_c ≤ `margin` at the poses of t_k; contact c
+//! enters the index set when its predicted gap g_c + γ h U_{n,k} ≤ `margin`
+//! (U_{n,k} = G_c v_k, γ = `gamma`, default ½).
+//!
+//! **Energy ledger.** `kinetic` K = Σ ½ m‖v‖² + ½ ΩᵀIΩ, `potential` V = −Σ m g·x, `work_ext` = 0
+//! (no applied load besides gravity, which is in V), `work_contact` = Σ_c P_n U_{n,k+θ},
+//! `work_friction` = Σ_c (P_t1 U_{t1,k+θ} + P_t2 U_{t2,k+θ}), with U_{k+θ} = G_c (v, Ω)_{k+θ};
+//! `energy_error` = ΔK + ΔV − work_ext − work_contact − work_friction. For θ = ½, multiply (1a)
+//! by v_{k+½} and (1b) by Ω_{k+½}: since ½‖a‖² − ½‖b‖² = ((a + b)/2)·(a − b),
+//!
+//! ```text
+//! ΔK = h m g·v_{k+½} − Ω_{k+½}·(Ω_{k+½} × IΩ_{k+½}) h + Σ_c P_c·G_c(v, Ω)_{k+½}
+//!    = −ΔV + 0 + work_contact + work_friction           (ΔV = −m g·(x_{k+1} − x_k) = −h m g·v_{k+½})
+//! ```
+//!
+//! so `energy_error` is zero up to round-off and the Newton residual. For θ ≠ ½ it is the
+//! scheme's numerical dissipation (½ − θ)‖Δ(v, Ω)‖²_M up to the gyroscopic term. At an impact
+//! with e ≤ 1 and θ = ½, U_{n,k+1} = −e U_{n,k} when P_n > 0, so P_n U_{n,k+½} =
+//! ½(1 − e) U_{n,k} P_n ≤ 0: an impact never creates energy.
+
+use super::body::{BodyState, Pose};
+use super::detector::{ContactDetector, ContactPoint, DetectError};
+use super::scene::RigidScene;
+use crate::friction::{BlockCsr, Fc3dError, Fc3dOptions, Fc3dProblem, solve_fc3d};
+use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
+use thiserror::Error;
+
+/// Parameters of the scheme.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RigidMoreauJeanParams {
+    /// θ ∈ [0, 1] of (1); ½ keeps the energy ledger exact.
+    pub theta: f64,
+    /// γ ≥ 0 of the predicted gap g + γ h U_n (Siconos' default ½).
+    pub gamma: f64,
+    /// Relative residual at which Newton stops, > 0 (default 1e-14: quadratic convergence
+    /// reaches it one iterate after 1e-7, and the ledger then closes at round-off).
+    pub newton_tolerance: f64,
+    /// Newton iterates per step before the step fails (default 50).
+    pub newton_max_iterations: usize,
+    /// The FC3D solver's settings.
+    pub fc3d: Fc3dOptions,
+}
+
+impl Default for RigidMoreauJeanParams {
+    fn default() -> Self {
+        Self {
+            theta: 0.5,
+            gamma: 0.5,
+            newton_tolerance: 1e-14,
+            newton_max_iterations: 50,
+            fc3d: Fc3dOptions {
+                tolerance: 1e-12,
+                ..Fc3dOptions::default()
+            },
+        }
+    }
+}
+
+/// Why a step failed, with its step and time.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum RigidStepError {
+    /// Contact detection failed.
+    #[error("step {step} (t = {t}): contact detection: {source}")]
+    Detect {
+        /// Step.
+        step: u64,
+        /// Time t_k.
+        t: f64,
+        /// Why.
+        source: DetectError,
+    },
+    /// The friction problem was not solved.
+    #[error("step {step} (t = {t}): friction problem of {contacts} contacts: {source}")]
+    Friction {
+        /// Step.
+        step: u64,
+        /// Time t_k.
+        t: f64,
+        /// Contacts in the index set.
+        contacts: usize,
+        /// Why.
+        source: Fc3dError,
+    },
+    /// Newton did not converge on (1b).
+    #[error(
+        "step {step} (t = {t}): Newton did not converge in {iterations} iterates (relative residual {residual:e})"
+    )]
+    Newton {
+        /// Step.
+        step: u64,
+        /// Time t_k.
+        t: f64,
+        /// Iterates done.
+        iterations: usize,
+        /// Last relative residual.
+        residual: f64,
+    },
+    /// The rotational iteration matrix J of a body is singular (hθ‖Ω‖ far too large).
+    #[error("step {step} (t = {t}): the iteration matrix of body {body} is singular")]
+    SingularIteration {
+        /// Step.
+        step: u64,
+        /// Time t_k.
+        t: f64,
+        /// The body.
+        body: usize,
+    },
+    /// A state value became NaN or infinite.
+    #[error("step {step} (t = {t}): the state of body {body} is not finite")]
+    NotFinite {
+        /// Step.
+        step: u64,
+        /// Time t_{k+1}.
+        t: f64,
+        /// The body.
+        body: usize,
+    },
+}
+
+/// What one step did, for its record and the run's statistics.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StepReport {
+    /// Contacts in the index set.
+    pub contacts: usize,
+    /// Σ_c P_n U_{n,k+θ}.
+    pub work_contact: f64,
+    /// Σ_c P_t·U_{t,k+θ}.
+    pub work_friction: f64,
+    /// Newton iterates.
+    pub newton_iterations: usize,
+    /// FC3D iterations, summed over the iterates.
+    pub friction_iterations: usize,
+    /// The FC3D error of the last solve (0 without contact).
+    pub friction_error: f64,
+}
+
+/// One active contact: its bodies' Jacobian blocks and its start velocity.
+#[derive(Debug, Clone)]
+struct ActiveContact {
+    /// Per side: the body and its signed 3×6 block σ_s G_{c,s} (rows n, t1, t2; columns v, Ω),
+    /// `None` for a fixed body.
+    sides: [Option<(usize, [[f64; 6]; 3])>; 2],
+    /// U_k = G_c (v, Ω)_k.
+    u_start: [f64; 3],
+    restitution: f64,
+    friction: f64,
+}
+
+/// Buffers a step reuses (never in a checkpoint: rebuilt from the state).
+#[derive(Debug, Clone, Default)]
+pub struct RigidScratch {
+    /// The contact points at the current poses, when `found_valid`.
+    pub found: Vec<ContactPoint>,
+    found_valid: bool,
+    poses: Vec<Pose>,
+    active: Vec<ActiveContact>,
+}
+
+impl RigidScratch {
+    /// Detects the contact points at the current poses (kept for the next step).
+    pub fn detect(
+        &mut self,
+        scene: &RigidScene,
+        state: &[BodyState],
+        detector: &mut dyn ContactDetector,
+    ) -> Result<&[ContactPoint], DetectError> {
+        if !self.found_valid {
+            self.poses.clear();
+            self.poses.extend(state.iter().map(BodyState::pose));
+            detector.detect(&self.poses, scene.margin, &mut self.found)?;
+            self.found_valid = true;
+        }
+        Ok(&self.found)
+    }
+
+    /// max(0, −min gap) over the contact points at the current poses.
+    pub fn max_penetration(&self) -> f64 {
+        self.found.iter().map(|c| -c.gap).fold(0.0, f64::max)
+    }
+}
+
+/// The scheme: its parameters and step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RigidMoreauJean {
+    params: RigidMoreauJeanParams,
+    h: f64,
+}
+
+type V3 = Vector3<f64>;
+
+fn v3(a: [f64; 3]) -> V3 {
+    V3::from(a)
+}
+
+fn skew(a: &V3) -> Matrix3<f64> {
+    Matrix3::new(0.0, -a.z, a.y, a.z, 0.0, -a.x, -a.y, a.x, 0.0)
+}
+
+impl RigidMoreauJean {
+    /// The scheme with step h > 0.
+    pub fn new(params: RigidMoreauJeanParams, h: f64) -> Self {
+        Self { params, h }
+    }
+
+    /// Its parameters.
+    pub fn params(&self) -> &RigidMoreauJeanParams {
+        &self.params
+    }
+
+    /// Step size h.
+    pub fn h(&self) -> f64 {
+        self.h
+    }
+
+    /// Kinetic energy Σ ½ m‖v‖² + ½ ΩᵀIΩ and potential −Σ m g·x of the free bodies.
+    pub fn energies(scene: &RigidScene, state: &[BodyState]) -> (f64, f64) {
+        let g = v3(scene.gravity);
+        let mut kinetic = 0.0;
+        let mut potential = 0.0;
+        for (b, s) in scene.bodies.iter().zip(state) {
+            if b.fixed {
+                continue;
+            }
+            let v = v3(s.velocity);
+            let w = v3(s.angular_velocity);
+            kinetic += 0.5 * b.mass * v.norm_squared()
+                + 0.5
+                    * (b.inertia[0] * w.x * w.x
+                        + b.inertia[1] * w.y * w.y
+                        + b.inertia[2] * w.z * w.z);
+            potential -= b.mass * g.dot(&v3(s.position));
+        }
+        (kinetic, potential)
+    }
+
+    /// Advances `state` from t_k (step k − 1 done) by one step (module documentation). The
+    /// scratch's contact points are those of the current poses (detected here when the scratch
+    /// has none) and, after the step, those of the new poses.
+    pub fn step(
+        &self,
+        scene: &RigidScene,
+        state: &mut [BodyState],
+        detector: &mut dyn ContactDetector,
+        scratch: &mut RigidScratch,
+        step: u64,
+        t: f64,
+    ) -> Result<StepReport, RigidStepError> {
+        let (h, theta) = (self.h, self.params.theta);
+        scratch
+            .detect(scene, state, detector)
+            .map_err(|source| RigidStepError::Detect { step, t, source })?;
+        self.index_set(scene, state, scratch);
+        let active = &scratch.active;
+        let m = active.len();
+        let n = state.len();
+        let gravity = v3(scene.gravity);
+
+        // Which contacts touch each free body, with the side.
+        let mut adjacency: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
+        for (c, contact) in active.iter().enumerate() {
+            for (s, side) in contact.sides.iter().enumerate() {
+                if let Some((b, _)) = side {
+                    adjacency[*b].push((c, s));
+                }
+            }
+        }
+
+        let start: Vec<BodyState> = state.to_vec();
+        let mut v_next: Vec<V3> = start.iter().map(|s| v3(s.velocity)).collect();
+        let mut w_next: Vec<V3> = start.iter().map(|s| v3(s.angular_velocity)).collect();
+        let mut j_inv = vec![Matrix3::<f64>::identity(); n];
+        let mut v_free = vec![V3::zeros(); n];
+        let mut w_free = vec![V3::zeros(); n];
+        let mut impulse = vec![0.0; 3 * m];
+        let mut report = StepReport {
+            contacts: m,
+            ..StepReport::default()
+        };
+        let mut residual = f64::INFINITY;
+        for iterate in 1..=self.params.newton_max_iterations {
+            report.newton_iterations = iterate;
+            for (b, body) in scene.bodies.iter().enumerate() {
+                if body.fixed {
+                    continue;
+                }
+                let inertia = Matrix3::from_diagonal(&v3(body.inertia));
+                let w_k = v3(start[b].angular_velocity);
+                let w_theta = (1.0 - theta) * w_k + theta * w_next[b];
+                let iw = inertia * w_theta;
+                let jac = inertia + h * theta * (skew(&w_theta) * inertia - skew(&iw));
+                j_inv[b] = jac.try_inverse().ok_or(RigidStepError::SingularIteration {
+                    step,
+                    t,
+                    body: b,
+                })?;
+                let r_free = inertia * (w_next[b] - w_k) + h * w_theta.cross(&iw);
+                w_free[b] = w_next[b] - j_inv[b] * r_free;
+                v_free[b] = v3(start[b].velocity) + h * gravity;
+            }
+            if m > 0 {
+                let solution = self
+                    .friction_problem(scene, active, &adjacency, &j_inv, &v_free, &w_free)
+                    .and_then(|problem| solve_fc3d(&problem, &self.params.fc3d))
+                    .map_err(|source| RigidStepError::Friction {
+                        step,
+                        t,
+                        contacts: m,
+                        source,
+                    })?;
+                report.friction_iterations += solution.iterations;
+                report.friction_error = solution.error;
+                impulse = solution.r;
+            }
+            // (v, Ω)^{i+1} = free + M⁻¹ Gᵀ P, and the residual of (1b) there.
+            let mut worst: f64 = 0.0;
+            for (b, body) in scene.bodies.iter().enumerate() {
+                if body.fixed {
+                    continue;
+                }
+                let (lin, ang) = generalized_impulse(&adjacency[b], active, &impulse);
+                v_next[b] = v_free[b] + lin / body.mass;
+                w_next[b] = w_free[b] + j_inv[b] * ang;
+                let inertia = Matrix3::from_diagonal(&v3(body.inertia));
+                let w_k = v3(start[b].angular_velocity);
+                let w_theta = (1.0 - theta) * w_k + theta * w_next[b];
+                let change = inertia * (w_next[b] - w_k);
+                let gyro = h * w_theta.cross(&(inertia * w_theta));
+                let r = change + gyro - ang;
+                // The size of the terms of (1b): the angular momenta, the gyroscopic term and
+                // the impulse (the momenta keep the scale when the others are at round-off).
+                let momentum = (inertia * w_k).amax() + (inertia * w_next[b]).amax();
+                let scale = momentum + gyro.amax() + ang.amax();
+                if r.amax() > 0.0 {
+                    worst = worst.max(r.amax() / scale);
+                }
+            }
+            residual = worst;
+            if residual <= self.params.newton_tolerance {
+                break;
+            }
+        }
+        if residual > self.params.newton_tolerance {
+            return Err(RigidStepError::Newton {
+                step,
+                t,
+                iterations: report.newton_iterations,
+                residual,
+            });
+        }
+
+        // (1c) and the works of the impulses on U_{k+θ}.
+        let mut theta_twist = vec![(V3::zeros(), V3::zeros()); n];
+        for (b, body) in scene.bodies.iter().enumerate() {
+            if body.fixed {
+                continue;
+            }
+            let v_theta = (1.0 - theta) * v3(start[b].velocity) + theta * v_next[b];
+            let w_theta = (1.0 - theta) * v3(start[b].angular_velocity) + theta * w_next[b];
+            theta_twist[b] = (v_theta, w_theta);
+            let x = v3(start[b].position) + h * v_theta;
+            let q = start[b].rotation() * UnitQuaternion::from_scaled_axis(h * w_theta);
+            let q = UnitQuaternion::new_normalize(q.into_inner());
+            let s = &mut state[b];
+            s.position = [x.x, x.y, x.z];
+            let qi: &Quaternion<f64> = q.as_ref();
+            s.orientation = [qi.w, qi.i, qi.j, qi.k];
+            s.velocity = [v_next[b].x, v_next[b].y, v_next[b].z];
+            s.angular_velocity = [w_next[b].x, w_next[b].y, w_next[b].z];
+            let finite = s.position.iter().chain(&s.orientation).chain(&s.velocity);
+            if !finite.chain(&s.angular_velocity).all(|x| x.is_finite()) {
+                return Err(RigidStepError::NotFinite {
+                    step,
+                    t: t + h,
+                    body: b,
+                });
+            }
+        }
+        for (c, contact) in active.iter().enumerate() {
+            let u = local_velocity(contact, &theta_twist);
+            let p = &impulse[3 * c..3 * c + 3];
+            report.work_contact += p[0] * u[0];
+            report.work_friction += p[1] * u[1] + p[2] * u[2];
+        }
+        scratch.found_valid = false;
+        scratch
+            .detect(scene, state, detector)
+            .map_err(|source| RigidStepError::Detect {
+                step,
+                t: t + h,
+                source,
+            })?;
+        Ok(report)
+    }
+
+    /// The index set of the contact points found at t_k: predicted gap g + γ h U_{n,k} ≤ margin.
+    fn index_set(&self, scene: &RigidScene, state: &[BodyState], scratch: &mut RigidScratch) {
+        scratch.active.clear();
+        let twist: Vec<(V3, V3)> = state
+            .iter()
+            .map(|s| (v3(s.velocity), v3(s.angular_velocity)))
+            .collect();
+        for point in &scratch.found {
+            let sides = [0, 1].map(|s| {
+                let b = point.bodies[s];
+                (!scene.bodies[b].fixed).then(|| (b, jacobian_block(point, s, &state[b])))
+            });
+            let law = scene.law(point.bodies[0], point.bodies[1]);
+            let mut contact = ActiveContact {
+                sides,
+                u_start: [0.0; 3],
+                restitution: law.restitution,
+                friction: law.friction,
+            };
+            contact.u_start = local_velocity(&contact, &twist);
+            if point.gap + self.params.gamma * self.h * contact.u_start[0] <= scene.margin {
+                scratch.active.push(contact);
+            }
+        }
+    }
+
+    /// W = Σ_s G_{c,s} M_s⁻¹ G_{d,s}ᵀ over the bodies contacts c and d share, and
+    /// q = G (v, Ω)_free + (e U_{n,k}, 0, 0).
+    fn friction_problem(
+        &self,
+        scene: &RigidScene,
+        active: &[ActiveContact],
+        adjacency: &[Vec<(usize, usize)>],
+        j_inv: &[Matrix3<f64>],
+        v_free: &[V3],
+        w_free: &[V3],
+    ) -> Result<Fc3dProblem, Fc3dError> {
+        let m = active.len();
+        let mut entries = Vec::new();
+        for (b, touching) in adjacency.iter().enumerate() {
+            if touching.is_empty() {
+                continue;
+            }
+            let inv_mass = 1.0 / scene.bodies[b].mass;
+            for &(c, sc) in touching {
+                let Some((_, gc)) = active[c].sides[sc] else {
+                    continue;
+                };
+                for &(d, sd) in touching {
+                    let Some((_, gd)) = active[d].sides[sd] else {
+                        continue;
+                    };
+                    for (i, row_c) in gc.iter().enumerate() {
+                        let a_c = V3::new(row_c[0], row_c[1], row_c[2]);
+                        let b_c = V3::new(row_c[3], row_c[4], row_c[5]);
+                        for (j, row_d) in gd.iter().enumerate() {
+                            let a_d = V3::new(row_d[0], row_d[1], row_d[2]);
+                            let b_d = V3::new(row_d[3], row_d[4], row_d[5]);
+                            let w = inv_mass * a_c.dot(&a_d) + b_c.dot(&(j_inv[b] * b_d));
+                            entries.push((3 * c + i, 3 * d + j, w));
+                        }
+                    }
+                }
+            }
+        }
+        let free: Vec<(V3, V3)> = v_free.iter().copied().zip(w_free.iter().copied()).collect();
+        let mut q = Vec::with_capacity(3 * m);
+        let mut mu = Vec::with_capacity(m);
+        for contact in active {
+            let u = local_velocity(contact, &free);
+            q.extend([u[0] + contact.restitution * contact.u_start[0], u[1], u[2]]);
+            mu.push(contact.friction);
+        }
+        let w = BlockCsr::from_triplets(3, 3 * m, entries)?;
+        Ok(Fc3dProblem { w, q, mu })
+    }
+}
+
+/// The signed block σ_s G_{c,s} of side s (module documentation): rows n, t_1, t_2, each
+/// (dᵀ, (Rᵀ(r × d))ᵀ), times −1 for side 0.
+fn jacobian_block(point: &ContactPoint, side: usize, body: &BodyState) -> [[f64; 6]; 3] {
+    let sign = if side == 0 { -1.0 } else { 1.0 };
+    let r = v3(point.points[side]) - v3(body.position);
+    let inverse = body.rotation().inverse();
+    let frame = [point.normal, point.tangents[0], point.tangents[1]];
+    frame.map(|d| {
+        let d = v3(d);
+        let a = inverse * r.cross(&d);
+        [
+            sign * d.x,
+            sign * d.y,
+            sign * d.z,
+            sign * a.x,
+            sign * a.y,
+            sign * a.z,
+        ]
+    })
+}
+
+/// U = Σ_s σ_s G_{c,s} (v_s, Ω_s) for twists indexed by body.
+fn local_velocity(contact: &ActiveContact, twist: &[(V3, V3)]) -> [f64; 3] {
+    let mut u = [0.0; 3];
+    for (b, g) in contact.sides.iter().flatten() {
+        let (v, w) = &twist[*b];
+        for (i, row) in g.iter().enumerate() {
+            u[i] += row[0] * v.x
+                + row[1] * v.y
+                + row[2] * v.z
+                + row[3] * w.x
+                + row[4] * w.y
+                + row[5] * w.z;
+        }
+    }
+    u
+}
+
+/// Σ_c (σG_{c,s})ᵀ P_c on one body: its linear (world) and angular (body frame) parts.
+fn generalized_impulse(
+    touching: &[(usize, usize)],
+    active: &[ActiveContact],
+    impulse: &[f64],
+) -> (V3, V3) {
+    let mut lin = V3::zeros();
+    let mut ang = V3::zeros();
+    for &(c, s) in touching {
+        if let Some((_, g)) = &active[c].sides[s] {
+            for (i, row) in g.iter().enumerate() {
+                let p = impulse[3 * c + i];
+                lin += p * V3::new(row[0], row[1], row[2]);
+                ang += p * V3::new(row[3], row[4], row[5]);
+            }
+        }
+    }
+    (lin, ang)
+}

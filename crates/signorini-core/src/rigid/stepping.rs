@@ -1,0 +1,294 @@
+//! Rigid bodies under [`crate::stepping::run`]: the columns of §18, one step of
+//! [`RigidMoreauJean`], the record, and the memory a checkpoint holds (the bodies' states and the
+//! running statistics; the contact points and the solver's buffers are scratch, detected again
+//! from the restored poses).
+
+use super::body::BodyState;
+use super::detector::ContactDetector;
+use super::moreau_jean::{RigidMoreauJean, RigidScratch, RigidStepError, StepReport};
+use super::scene::RigidScene;
+use crate::checkpoint::{CheckpointError, RunKind};
+use crate::observer::Columns;
+use crate::stepping::{StepTime, TimeStepping};
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+/// Per-body column suffixes, in order: position, quaternion (w, x, y, z), velocity, world
+/// angular velocity.
+pub const BODY_COLUMNS: [&str; 13] = [
+    "x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz",
+];
+
+/// The columns after the bodies'.
+pub const ENERGY_COLUMNS: [&str; 12] = [
+    "kinetic",
+    "potential",
+    "energy",
+    "work_ext",
+    "work_contact",
+    "work_friction",
+    "energy_error",
+    "contacts",
+    "max_penetration",
+    "work_ext_total",
+    "work_contact_total",
+    "work_friction_total",
+];
+
+/// The columns of a run: `NAME_x … NAME_wz` per body, then [`ENERGY_COLUMNS`].
+pub fn rigid_columns(names: &[String]) -> Columns {
+    let bodies = names
+        .iter()
+        .flat_map(|n| BODY_COLUMNS.iter().map(move |c| format!("{n}_{c}")));
+    Columns::new(
+        bodies
+            .chain(ENERGY_COLUMNS.iter().map(|c| c.to_string()))
+            .collect(),
+    )
+}
+
+/// What a run measured over all its steps; the fields of `summary.json`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct RigidRunStats {
+    /// Steps done.
+    pub steps: u64,
+    /// Final time.
+    pub t_end: f64,
+    /// Energy at t = 0.
+    pub energy_initial: f64,
+    /// Energy at the end.
+    pub energy_final: f64,
+    /// max_k |energy_error|.
+    pub max_abs_energy_error: f64,
+    /// Largest index set of a step.
+    pub max_contacts: usize,
+    /// Largest penetration seen at the start of a step.
+    pub max_penetration: f64,
+    /// Σ work_ext.
+    pub work_ext_total: f64,
+    /// Σ work_contact.
+    pub work_contact_total: f64,
+    /// Σ work_friction.
+    pub work_friction_total: f64,
+    /// max_k work_friction (≤ 0 when friction never did positive work in a step).
+    pub work_friction_max: f64,
+    /// Most Newton iterates in a step.
+    pub newton_iterations_max: usize,
+    /// FC3D iterations over the run.
+    pub friction_iterations_total: u64,
+    /// Largest FC3D error accepted.
+    pub friction_error_max: f64,
+}
+
+/// What the next step reads: the step number, the bodies' states and the statistics.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RigidMemory {
+    /// Steps done.
+    pub k: u64,
+    /// State of every body.
+    pub bodies: Vec<BodyState>,
+    /// Running statistics.
+    pub stats: RigidRunStats,
+}
+
+/// Why a rigid run stopped with an error.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum RigidRunError {
+    /// A step failed.
+    #[error(transparent)]
+    Step(#[from] RigidStepError),
+    /// A checkpoint was refused.
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
+}
+
+/// The family [`crate::stepping::run`] drives.
+pub struct RigidStepping<'a> {
+    scene: &'a RigidScene,
+    scheme: &'a RigidMoreauJean,
+    detector: Box<dyn ContactDetector + 'a>,
+    steps: u64,
+    memory: RigidMemory,
+    scratch: RigidScratch,
+    /// The last step's report and energy error (the record of that step).
+    last: StepReport,
+    last_energy_error: f64,
+}
+
+impl<'a> RigidStepping<'a> {
+    /// A run of `steps` steps from the scene's initial states.
+    pub fn new(
+        scene: &'a RigidScene,
+        scheme: &'a RigidMoreauJean,
+        detector: Box<dyn ContactDetector + 'a>,
+        steps: u64,
+    ) -> Self {
+        let (kinetic, potential) = RigidMoreauJean::energies(scene, &scene.initial);
+        Self {
+            scene,
+            scheme,
+            detector,
+            steps,
+            memory: RigidMemory {
+                k: 0,
+                bodies: scene.initial.clone(),
+                stats: RigidRunStats {
+                    energy_initial: kinetic + potential,
+                    energy_final: kinetic + potential,
+                    ..RigidRunStats::default()
+                },
+            },
+            scratch: RigidScratch::default(),
+            last: StepReport::default(),
+            last_energy_error: 0.0,
+        }
+    }
+
+    /// The bodies' current states.
+    pub fn bodies(&self) -> &[BodyState] {
+        &self.memory.bodies
+    }
+
+    /// The run's statistics so far.
+    pub fn stats(&self) -> &RigidRunStats {
+        &self.memory.stats
+    }
+
+    /// The last step's report.
+    pub fn last_report(&self) -> &StepReport {
+        &self.last
+    }
+
+    /// The last step's energy error.
+    pub fn last_energy_error(&self) -> f64 {
+        self.last_energy_error
+    }
+}
+
+impl TimeStepping for RigidStepping<'_> {
+    type Memory = RigidMemory;
+    type Error = RigidRunError;
+    const RUN: RunKind = RunKind::Rigid;
+
+    fn columns(&self) -> Columns {
+        rigid_columns(&self.scene.names)
+    }
+
+    fn total_steps(&self) -> u64 {
+        self.steps
+    }
+
+    fn is_done(&mut self, k: u64) -> bool {
+        k >= self.steps
+    }
+
+    fn step(&mut self, k: u64) -> Result<(), RigidRunError> {
+        let h = self.scheme.h();
+        let t = (k - 1) as f64 * h;
+        let (k0, v0) = RigidMoreauJean::energies(self.scene, &self.memory.bodies);
+        let penetration = {
+            self.scratch
+                .detect(self.scene, &self.memory.bodies, self.detector.as_mut())
+                .map_err(|source| RigidStepError::Detect { step: k, t, source })?;
+            self.scratch.max_penetration()
+        };
+        let report = self.scheme.step(
+            self.scene,
+            &mut self.memory.bodies,
+            self.detector.as_mut(),
+            &mut self.scratch,
+            k,
+            t,
+        )?;
+        let (k1, v1) = RigidMoreauJean::energies(self.scene, &self.memory.bodies);
+        let work_ext = 0.0;
+        let error = (k1 + v1) - (k0 + v0) - work_ext - report.work_contact - report.work_friction;
+        let s = &mut self.memory.stats;
+        s.steps = k;
+        s.t_end = k as f64 * h;
+        s.energy_final = k1 + v1;
+        s.max_abs_energy_error = s.max_abs_energy_error.max(error.abs());
+        s.max_contacts = s.max_contacts.max(report.contacts);
+        s.max_penetration = s.max_penetration.max(penetration);
+        s.work_ext_total += work_ext;
+        s.work_contact_total += report.work_contact;
+        s.work_friction_total += report.work_friction;
+        s.work_friction_max = if k == 1 {
+            report.work_friction
+        } else {
+            s.work_friction_max.max(report.work_friction)
+        };
+        s.newton_iterations_max = s.newton_iterations_max.max(report.newton_iterations);
+        s.friction_iterations_total += report.friction_iterations as u64;
+        s.friction_error_max = s.friction_error_max.max(report.friction_error);
+        self.memory.k = k;
+        self.last = report;
+        self.last_energy_error = error;
+        Ok(())
+    }
+
+    fn now(&self) -> StepTime {
+        StepTime {
+            step: self.memory.k,
+            t: self.memory.k as f64 * self.scheme.h(),
+        }
+    }
+
+    fn record(&mut self, row: &mut Vec<f64>) -> Result<(), RigidRunError> {
+        row.clear();
+        for s in &self.memory.bodies {
+            row.extend(s.position);
+            row.extend(s.orientation);
+            row.extend(s.velocity);
+            row.extend(s.world_angular_velocity());
+        }
+        let (kinetic, potential) = RigidMoreauJean::energies(self.scene, &self.memory.bodies);
+        let t = self.now().t;
+        self.scratch
+            .detect(self.scene, &self.memory.bodies, self.detector.as_mut())
+            .map_err(|source| RigidStepError::Detect {
+                step: self.memory.k,
+                t,
+                source,
+            })?;
+        let (report, error) = if self.memory.k == 0 {
+            (StepReport::default(), 0.0)
+        } else {
+            (self.last, self.last_energy_error)
+        };
+        let s = &self.memory.stats;
+        row.extend([
+            kinetic,
+            potential,
+            kinetic + potential,
+            0.0,
+            report.work_contact,
+            report.work_friction,
+            error,
+            report.contacts as f64,
+            self.scratch.max_penetration(),
+            s.work_ext_total,
+            s.work_contact_total,
+            s.work_friction_total,
+        ]);
+        Ok(())
+    }
+
+    fn memory(&self) -> RigidMemory {
+        self.memory.clone()
+    }
+
+    fn restore(&mut self, memory: RigidMemory) -> Result<(), RigidRunError> {
+        if memory.bodies.len() != self.scene.bodies.len() {
+            return Err(CheckpointError::Mismatch(format!(
+                "a checkpoint of {} bodies, this scene has {}",
+                memory.bodies.len(),
+                self.scene.bodies.len()
+            ))
+            .into());
+        }
+        self.memory = memory;
+        self.scratch = RigidScratch::default();
+        Ok(())
+    }
+}

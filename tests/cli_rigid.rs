@@ -1,0 +1,31 @@
+//! The rigid-bodies examples (issue 29) pass `signorini check`: each one's `[check]` bounds hold
+//! (closed-form speeds and positions, the energy ledger at round-off).
+
+use std::path::Path;
+use std::process::Command;
+
+#[test]
+fn every_rigid_example_passes_its_check() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/rigid");
+    let mut specs: Vec<_> = std::fs::read_dir(&dir)
+        .expect("examples/rigid")
+        .map(|e| e.expect("dir entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    specs.sort();
+    assert_eq!(specs.len(), 5, "{specs:?}");
+    let out = Command::new(env!("CARGO_BIN_EXE_signorini"))
+        .arg("check")
+        .args(&specs)
+        .output()
+        .expect("running signorini check");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // Every example checks its ledger; none fails a bound.
+    assert_eq!(stdout.matches("max_energy_error").count(), 5, "{stdout}");
+    assert!(!stdout.contains("FAIL"), "{stdout}");
+}
