@@ -15,7 +15,8 @@ The TOML file uses the flag names with underscores, e.g.
 
   grpc_addr = \"127.0.0.1:50051\"
   http_addr = \"127.0.0.1:8080\"
-  store = \"signorini.db\"          # or \"postgres://user@host/db\": replicas share it
+  data_dir = \"signorini-data\"     # the default store is DATA_DIR/signorini.db
+  store = \"signorini-data/signorini.db\"   # or \"postgres://user@host/db\": replicas share it
   replica = \"node-a\"              # with PostgreSQL: this replica's name (default: host-pid-random)
   lease_secs = 10.0               # with PostgreSQL: a job's lease, renewed by the heartbeat
   zenoh_listen = [\"tcp/127.0.0.1:7447\"]
@@ -48,9 +49,13 @@ pub struct ServeArgs {
     #[arg(long, env = "SIGNORINI_HTTP_ADDR")]
     pub http_addr: Option<SocketAddr>,
     /// SQLite store file, or a PostgreSQL URL (`postgres://user:password@host:5432/db`) that
-    /// any number of replicas share, with the queue [default: signorini.db].
+    /// any number of replicas share, with the queue [default: DATA_DIR/signorini.db].
     #[arg(long, env = "SIGNORINI_STORE")]
     pub store: Option<PathBuf>,
+    /// Directory of the server's own files when `--store` does not name them: the SQLite store
+    /// `signorini.db` (created with the directory) [default: signorini-data].
+    #[arg(long, env = "SIGNORINI_DATA_DIR")]
+    pub data_dir: Option<PathBuf>,
     /// This replica's name in a PostgreSQL store's claims; unique among the replicas
     /// [default: HOSTNAME-PID-RANDOM].
     #[arg(long, env = "SIGNORINI_REPLICA")]
@@ -101,6 +106,7 @@ struct FileConfig {
     grpc_addr: Option<SocketAddr>,
     http_addr: Option<SocketAddr>,
     store: Option<PathBuf>,
+    data_dir: Option<PathBuf>,
     replica: Option<String>,
     lease_secs: Option<f64>,
     zenoh_listen: Option<Vec<String>>,
@@ -115,6 +121,10 @@ struct FileConfig {
     retain_days: Option<f64>,
 }
 
+/// The directory of a server's own files (its SQLite store) unless `--data-dir` or `--store`
+/// says otherwise: under the working directory, one entry to ignore in a repository.
+pub const DEFAULT_DATA_DIR: &str = "signorini-data";
+
 /// Per-job limits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Limits {
@@ -124,6 +134,16 @@ pub struct Limits {
     pub max_steps: u64,
     /// Estimated recorded output, bytes.
     pub max_output_bytes: u64,
+}
+
+impl Limits {
+    /// The limits a server applies unless configured otherwise (and `signorini run` unless
+    /// given `--no-limits`).
+    pub const DEFAULT: Limits = Limits {
+        max_dofs: 100_000,
+        max_steps: 100_000_000,
+        max_output_bytes: 1024 << 20,
+    };
 }
 
 /// The resolved configuration.
@@ -189,10 +209,12 @@ impl ServeConfig {
                 .http_addr
                 .or(file.http_addr)
                 .unwrap_or(SocketAddr::from(([127, 0, 0, 1], 8080))),
-            store: args
-                .store
-                .or(file.store)
-                .unwrap_or_else(|| PathBuf::from("signorini.db")),
+            store: args.store.or(file.store).unwrap_or_else(|| {
+                args.data_dir
+                    .or(file.data_dir)
+                    .unwrap_or_else(|| PathBuf::from(DEFAULT_DATA_DIR))
+                    .join("signorini.db")
+            }),
             replica: match args.replica.or(file.replica) {
                 Some(r) if !r.trim().is_empty() => r,
                 _ => default_replica(),
@@ -220,13 +242,20 @@ impl ServeConfig {
             queue_limit: args.queue_limit.or(file.queue_limit).unwrap_or(256),
             token: args.token.or(file.token).filter(|t| !t.is_empty()),
             limits: Limits {
-                max_dofs: args.max_dofs.or(file.max_dofs).unwrap_or(100_000),
-                max_steps: args.max_steps.or(file.max_steps).unwrap_or(100_000_000),
+                max_dofs: args
+                    .max_dofs
+                    .or(file.max_dofs)
+                    .unwrap_or(Limits::DEFAULT.max_dofs),
+                max_steps: args
+                    .max_steps
+                    .or(file.max_steps)
+                    .unwrap_or(Limits::DEFAULT.max_steps),
                 max_output_bytes: args
                     .max_output_mb
                     .or(file.max_output_mb)
-                    .unwrap_or(1024)
-                    .saturating_mul(1 << 20),
+                    .map_or(Limits::DEFAULT.max_output_bytes, |mb| {
+                        mb.saturating_mul(1 << 20)
+                    }),
             },
             retain: None,
         };
@@ -263,4 +292,31 @@ fn default_replica() -> String {
     let id = crate::engine::ids::new_id();
     let random = &id[id.len().saturating_sub(8)..];
     format!("{host}-{}-{random}", std::process::id())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Issue 30: the default SQLite store lives in a data directory (`signorini-data/`, ignored
+    /// by git), not as `signorini.db` in the working directory; `--data-dir` moves it and
+    /// `--store` still names it outright.
+    #[test]
+    fn the_store_defaults_to_the_data_directory() {
+        let cfg = ServeConfig::resolve(ServeArgs::default()).expect("defaults");
+        assert_eq!(cfg.store, PathBuf::from("signorini-data/signorini.db"));
+        let cfg = ServeConfig::resolve(ServeArgs {
+            data_dir: Some(PathBuf::from("/srv/sim")),
+            ..ServeArgs::default()
+        })
+        .expect("data dir");
+        assert_eq!(cfg.store, PathBuf::from("/srv/sim/signorini.db"));
+        let cfg = ServeConfig::resolve(ServeArgs {
+            data_dir: Some(PathBuf::from("/srv/sim")),
+            store: Some(PathBuf::from("jobs.db")),
+            ..ServeArgs::default()
+        })
+        .expect("store");
+        assert_eq!(cfg.store, PathBuf::from("jobs.db"));
+    }
 }
