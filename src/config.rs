@@ -15,7 +15,8 @@ The TOML file uses the flag names with underscores, e.g.
 
   grpc_addr = \"127.0.0.1:50051\"
   http_addr = \"127.0.0.1:8080\"
-  store = \"signorini.db\"          # or \"postgres://user@host/db\": replicas share it
+  data_dir = \"signorini-data\"     # the default store is DATA_DIR/signorini.db
+  store = \"signorini-data/signorini.db\"   # or \"postgres://user@host/db\": replicas share it
   store_max_mb = 4096             # SQLite: the store's largest size (writes past it are refused)
   replica = \"node-a\"              # with PostgreSQL: this replica's name (default: host-pid-random)
   lease_secs = 10.0               # with PostgreSQL: a job's lease, renewed by the heartbeat
@@ -53,7 +54,7 @@ pub struct ServeArgs {
     #[arg(long, env = "SIGNORINI_HTTP_ADDR")]
     pub http_addr: Option<SocketAddr>,
     /// SQLite store file, or a PostgreSQL URL (`postgres://user:password@host:5432/db`) that
-    /// any number of replicas share, with the queue [default: signorini.db].
+    /// any number of replicas share, with the queue [default: DATA_DIR/signorini.db].
     #[arg(long, env = "SIGNORINI_STORE")]
     pub store: Option<PathBuf>,
     /// With a SQLite store: its largest size in MiB (SQLite's `max_page_count`); a write past
@@ -61,6 +62,10 @@ pub struct ServeArgs {
     /// degraded and submissions are refused until there is room (no limit by default).
     #[arg(long, env = "SIGNORINI_STORE_MAX_MB")]
     pub store_max_mb: Option<u64>,
+    /// Directory of the server's own files when `--store` does not name them: the SQLite store
+    /// `signorini.db` (created with the directory) [default: signorini-data].
+    #[arg(long, env = "SIGNORINI_DATA_DIR")]
+    pub data_dir: Option<PathBuf>,
     /// This replica's name in a PostgreSQL store's claims; unique among the replicas
     /// [default: HOSTNAME-PID-RANDOM].
     #[arg(long, env = "SIGNORINI_REPLICA")]
@@ -130,6 +135,7 @@ struct FileConfig {
     http_addr: Option<SocketAddr>,
     store: Option<PathBuf>,
     store_max_mb: Option<u64>,
+    data_dir: Option<PathBuf>,
     replica: Option<String>,
     lease_secs: Option<f64>,
     zenoh_listen: Option<Vec<String>>,
@@ -147,6 +153,10 @@ struct FileConfig {
     max_wall_seconds: Option<f64>,
     retain_days: Option<f64>,
 }
+
+/// The directory of a server's own files (its SQLite store) unless `--data-dir` or `--store`
+/// says otherwise: under the working directory, one entry to ignore in a repository.
+pub const DEFAULT_DATA_DIR: &str = "signorini-data";
 
 /// Per-job limits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -172,6 +182,19 @@ fn seconds(flag: &str, secs: f64) -> Result<std::time::Duration> {
     } else {
         bail!("--{flag} must be a positive number of seconds, not {secs}")
     }
+}
+
+impl Limits {
+    /// The limits a server applies unless configured otherwise (and `signorini run` unless
+    /// given `--no-limits`).
+    pub const DEFAULT: Limits = Limits {
+        max_dofs: 100_000,
+        max_steps: 100_000_000,
+        max_output_bytes: 1024 << 20,
+        max_memory_bytes: 2048 << 20,
+        max_compile: std::time::Duration::from_secs(30),
+        max_wall: None,
+    };
 }
 
 /// The resolved configuration.
@@ -241,10 +264,12 @@ impl ServeConfig {
                 .http_addr
                 .or(file.http_addr)
                 .unwrap_or(SocketAddr::from(([127, 0, 0, 1], 8080))),
-            store: args
-                .store
-                .or(file.store)
-                .unwrap_or_else(|| PathBuf::from("signorini.db")),
+            store: args.store.or(file.store).unwrap_or_else(|| {
+                args.data_dir
+                    .or(file.data_dir)
+                    .unwrap_or_else(|| PathBuf::from(DEFAULT_DATA_DIR))
+                    .join("signorini.db")
+            }),
             store_max_bytes: args
                 .store_max_mb
                 .or(file.store_max_mb)
@@ -277,13 +302,20 @@ impl ServeConfig {
             token: args.token.or(file.token).filter(|t| !t.is_empty()),
             tokens: args.tokens.or(file.tokens),
             limits: Limits {
-                max_dofs: args.max_dofs.or(file.max_dofs).unwrap_or(100_000),
-                max_steps: args.max_steps.or(file.max_steps).unwrap_or(100_000_000),
+                max_dofs: args
+                    .max_dofs
+                    .or(file.max_dofs)
+                    .unwrap_or(Limits::DEFAULT.max_dofs),
+                max_steps: args
+                    .max_steps
+                    .or(file.max_steps)
+                    .unwrap_or(Limits::DEFAULT.max_steps),
                 max_output_bytes: args
                     .max_output_mb
                     .or(file.max_output_mb)
-                    .unwrap_or(1024)
-                    .saturating_mul(1 << 20),
+                    .map_or(Limits::DEFAULT.max_output_bytes, |mb| {
+                        mb.saturating_mul(1 << 20)
+                    }),
                 max_memory_bytes: args
                     .max_memory_mb
                     .or(file.max_memory_mb)
@@ -336,4 +368,31 @@ fn default_replica() -> String {
     let id = crate::engine::ids::new_id();
     let random = &id[id.len().saturating_sub(8)..];
     format!("{host}-{}-{random}", std::process::id())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Issue 30: the default SQLite store lives in a data directory (`signorini-data/`, ignored
+    /// by git), not as `signorini.db` in the working directory; `--data-dir` moves it and
+    /// `--store` still names it outright.
+    #[test]
+    fn the_store_defaults_to_the_data_directory() {
+        let cfg = ServeConfig::resolve(ServeArgs::default()).expect("defaults");
+        assert_eq!(cfg.store, PathBuf::from("signorini-data/signorini.db"));
+        let cfg = ServeConfig::resolve(ServeArgs {
+            data_dir: Some(PathBuf::from("/srv/sim")),
+            ..ServeArgs::default()
+        })
+        .expect("data dir");
+        assert_eq!(cfg.store, PathBuf::from("/srv/sim/signorini.db"));
+        let cfg = ServeConfig::resolve(ServeArgs {
+            data_dir: Some(PathBuf::from("/srv/sim")),
+            store: Some(PathBuf::from("jobs.db")),
+            ..ServeArgs::default()
+        })
+        .expect("store");
+        assert_eq!(cfg.store, PathBuf::from("jobs.db"));
+    }
 }

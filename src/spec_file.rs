@@ -30,17 +30,20 @@ pub fn parse(text: &str, format: Format) -> Result<JobSpec, SpecError> {
     parse_tracked(text, format).map_err(|e| {
         let missing = e.reason.starts_with("missing field");
         match (e.field.as_str(), tree(text, format)) {
-            ("model" | "model.scene", Some(root)) => {
-                refine::<ModelSpec>(&root, "model", "scene", e)
+            (f, Some(root)) if f == "model" || f.starts_with("model.") => {
+                match scene_error(&root) {
+                    Some(located) => located,
+                    None if f == "model" || f == "model.scene" || missing => {
+                        refine::<ModelSpec>(&root, "model", "scene", e)
+                    }
+                    None => e,
+                }
             }
             ("integrator" | "integrator.scheme", Some(root)) => {
                 refine::<IntegratorSpec>(&root, "integrator", "scheme", e)
             }
             // serde reports a missing field before it reads the flattened field groups: a
             // field of the section that is wrong in itself comes first, as without the groups.
-            (f, Some(root)) if missing && f.starts_with("model.") => {
-                refine::<ModelSpec>(&root, "model", "scene", e)
-            }
             (f, Some(root)) if missing && f.starts_with("integrator.") => {
                 refine::<IntegratorSpec>(&root, "integrator", "scheme", e)
             }
@@ -137,6 +140,26 @@ fn refine<T: DeserializeOwned>(
     error
 }
 
+/// The error of the `[model]` table read as its scene's own struct, located by its full path
+/// (`model.q0[0]`, `model.contacts[0].restitutin`); `None` when the scene is unknown (the tag is
+/// at fault) or the fields read without error.
+fn scene_error(root: &Value) -> Option<SpecError> {
+    let mut fields = root.get("model")?.as_object()?.clone();
+    let Some(Value::String(scene)) = fields.remove("scene") else {
+        return None;
+    };
+    let mut track = serde_path_to_error::Track::new();
+    let de = serde_path_to_error::Deserializer::new(Value::Object(fields), &mut track);
+    let error = ModelSpec::from_scene_fields(&scene, de)?.err()?;
+    let path = track.path().to_string();
+    let path = if path == "." {
+        "model".to_string()
+    } else {
+        format!("model.{path}")
+    };
+    Some(located(path, error.to_string()))
+}
+
 /// Why a probe (the tag and one field) fails, unless only for a missing field. serde
 /// reports a missing required field (`ns_hht`'s `alpha`) before it reads the flattened field
 /// groups (the index set, the Newton settings), so each missing field is filled with a number
@@ -177,6 +200,9 @@ fn located(path: String, message: String) -> SpecError {
         let name = rest.split('`').next().unwrap_or_default();
         if path.is_empty() {
             name.to_string()
+        } else if path.ends_with(&format!(".{name}")) {
+            // A deserializer that tracked the key itself (a table read outside a tagged section).
+            path
         } else {
             format!("{path}.{name}")
         }
@@ -256,6 +282,73 @@ mod tests {
         )
         .unwrap_err();
         assert_eq!(e.field, "model.masses", "{e}");
+    }
+
+    /// Issue 30: a bad field inside a scene's table is named by its full path, not by the
+    /// first field a probe happened to try (`model.contacts` for a string in `q0`) nor by the
+    /// table (`model.restitutin` for a typo inside a contact), in TOML and JSON.
+    #[test]
+    fn a_bad_field_inside_a_scene_is_named_by_its_path() {
+        let toml = |model: &str| {
+            format!(
+                "[model]\nscene = \"lagrangian\"\ncoordinates = [\"a\", \"b\"]\nmass = [[1, 0], [0, 1]]\n{model}\n[integrator]\nscheme = \"moreau_jean\"\n[time]\nh = 0.01\nt_end = 1\n"
+            )
+        };
+        let e = parse(
+            &toml("q0 = [\"-pi/3\", -1.4]\n[[model.contacts]]\ngap = \"a\"\n"),
+            Format::Toml,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "model.q0[0]", "{e}");
+        assert!(e.reason.contains("invalid type: string"), "{e}");
+        let e = parse(
+            &toml("q0 = [0, 0]\n[[model.contacts]]\ngap = \"a\"\nrestitutin = 0.5\n"),
+            Format::Toml,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "model.contacts[0].restitutin", "{e}");
+        assert!(e.reason.contains("unknown field"), "{e}");
+        let e = parse(
+            r#"{"model": {"scene": "lagrangian", "coordinates": ["a", "b"], "mass": [[1, 0], [0, 1]], "contacts": [{"gap": "a"}], "q0": ["-pi/3", -1.4]}, "time": {"h": 0.01, "t_end": 1}}"#,
+            Format::Json,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "model.q0[0]", "{e}");
+        let e = parse(
+            r#"{"model": {"scene": "chain", "masses": [1, 2], "positions": [1, "x"]}, "time": {"h": 0.01, "steps": 1}}"#,
+            Format::Json,
+        )
+        .unwrap_err();
+        assert_eq!(e.field, "model.positions[1]", "{e}");
+    }
+
+    /// Every example's model reads the same through its scene's own struct as through the
+    /// tagged section, so [`ModelSpec::from_scene_fields`] knows every scene the examples use.
+    #[test]
+    fn every_example_model_reads_through_its_scene() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/examples");
+        let mut checked = 0;
+        for entry in std::fs::read_dir(dir).expect("examples/") {
+            let path = entry.expect("entry").path();
+            let Ok(text) = std::fs::read_to_string(&path) else {
+                continue;
+            };
+            let Ok(spec) = parse(&text, Format::of_path(&path)) else {
+                continue;
+            };
+            let (Some(model), Some(root)) = (spec.model, tree(&text, Format::of_path(&path)))
+            else {
+                continue;
+            };
+            let mut fields = root["model"].as_object().expect("a table").clone();
+            fields.remove("scene");
+            let read = ModelSpec::from_scene_fields(model.scene(), Value::Object(fields))
+                .unwrap_or_else(|| panic!("{}: scene {} unknown", path.display(), model.scene()))
+                .expect("reads");
+            assert_eq!(read, model, "{}", path.display());
+            checked += 1;
+        }
+        assert!(checked >= 10, "only {checked} examples");
     }
 
     #[test]

@@ -469,3 +469,128 @@ fn lagrangian_examples_run_and_a_bad_expression_is_refused() {
         "unknown name 'gg' at 2 (did you mean 'g'?)",
     );
 }
+
+/// Issue 30: silent nonsense is refused naming the field: a step longer than the run (h = 10
+/// with t_end = 5 ran one step to t = 10), and a start inside the obstacle (a gap of −0.37 at
+/// q0 ran with the model stuck inside the wall).
+#[test]
+fn a_step_longer_than_the_run_and_a_start_inside_the_wall_are_refused() {
+    assert_refused(
+        &format!(
+            "[model]\nscene = \"bouncing_ball\"\n[time]\nh = 10.0\nt_end = 5.0\n{}",
+            ""
+        ),
+        "time.h",
+        "longer than t_end",
+    );
+    assert_refused(
+        "[model]\nscene = \"lagrangian\"\ncoordinates = [\"x\", \"y\"]\nmass = [[1, 0], [0, 1]]\npotential = \"9.81*y\"\nq0 = [0.2, -0.37]\n[[model.contacts]]\ngap = \"y\"\n[integrator]\nscheme = \"moreau_jean\"\n[time]\nh = 0.01\nt_end = 0.1\n",
+        "model.contacts[0].gap",
+        "-3.7e-1 < 0 at q0",
+    );
+}
+
+/// Issue 30: `signorini run` applies the server's default size limits (10⁸ steps here: the CLI
+/// took t_end = 1e6 with h = 1e-9 and wrote 680 MB of CSV where the server refuses), and
+/// `--no-limits` lifts them. The lifted run fails at its first step (a force that turns NaN
+/// at t = 1e-9): its summary says why, naming the value, its entry and the state, and the
+/// rows recorded before the failure stay in steps.csv.
+#[test]
+fn the_cli_honours_the_size_limits_and_a_failed_run_keeps_its_rows() {
+    let spec = "[model]\nscene = \"lagrangian\"\ncoordinates = [\"x\"]\nmass = [[1]]\nforces = [\"sqrt(0.5e-9 - t)\"]\nq0 = [0.25]\nv0 = [1.5]\n[[model.contacts]]\ngap = \"x + 1\"\n[integrator]\nscheme = \"moreau_jean\"\n[time]\nh = 1e-9\nt_end = 1.0\n";
+    assert_refused(spec, "time", "exceed this server's limit of 100000000");
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("spec.toml"), spec).unwrap();
+    let out = dir.path().join("out");
+    let output = signorini()
+        .arg("run")
+        .arg(dir.path().join("spec.toml"))
+        .arg("--out")
+        .arg(&out)
+        .arg("--quiet")
+        .arg("--no-limits")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("run failed: step 1"), "{stderr}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["status"], "failed", "{summary}");
+    let error = summary["error"].as_str().unwrap();
+    assert!(
+        error.contains("F(t, q, v) is not finite (entry 0 is NaN) at q = [0.25"),
+        "{error}"
+    );
+    assert!(error.contains("v = [1.5]"), "{error}");
+    let csv = std::fs::read_to_string(out.join("steps.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    assert_eq!(rows.len(), 2, "the header and step 0: {csv}");
+    assert!(rows[0].starts_with("step,t,"), "{csv}");
+    assert!(rows[1].starts_with("0,0.0,"), "{csv}");
+}
+
+/// Issue 30: `compare` of two `lagrangian` runs draws and tabulates their energy error (it
+/// defaulted to `balance_residual`, which they do not have, and its table had an empty
+/// balance-residual column).
+#[test]
+fn compare_shows_the_energy_error_of_lagrangian_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut outs = Vec::new();
+    for (name, h) in [("coarse", "0.002"), ("fine", "0.001")] {
+        let text = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/pendulum_wall.toml"),
+        )
+        .unwrap();
+        let mut spec: toml::Value = toml::from_str(&text).unwrap();
+        spec["time"]["h"] = toml::Value::Float(h.parse().unwrap());
+        spec["time"]["t_end"] = toml::Value::Float(1.0);
+        let (output, _) = run_spec(
+            dir.path(),
+            &format!("{name}.toml"),
+            &toml::to_string(&spec).unwrap(),
+        );
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        let out = dir.path().join(name);
+        std::fs::rename(dir.path().join("out"), &out).unwrap();
+        outs.push(out);
+    }
+    let cmp = dir.path().join("cmp");
+    let output = signorini()
+        .arg("compare")
+        .args(&outs)
+        .arg("--out")
+        .arg(&cmp)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let svg = std::fs::read_to_string(cmp.join("compare_energy_error.svg")).unwrap();
+    assert_eq!(svg.matches("<polyline").count(), 2, "one curve per run");
+    let csv = std::fs::read_to_string(cmp.join("compare.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert!(header.contains(&"max_abs_energy_error"), "{header:?}");
+    assert!(!header.contains(&"max_abs_balance_residual"), "{header:?}");
+    let at = header
+        .iter()
+        .position(|f| *f == "max_abs_energy_error")
+        .unwrap();
+    for (line, out) in lines.zip(&outs) {
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        let cells: Vec<&str> = line.rsplitn(header.len(), ',').collect();
+        let cell = cells[header.len() - 1 - at];
+        let want = summary["max_abs_energy_error"].as_f64().unwrap();
+        assert!(want > 0.0);
+        assert_eq!(cell.parse::<f64>().unwrap(), want, "{line}");
+    }
+}

@@ -409,3 +409,57 @@ async fn pause_resume_extend_and_children_from_the_command_line() {
         "{lines}"
     );
 }
+
+/// Issue 30: `capabilities --local` answers offline, the same as a server of this version;
+/// `watch` takes the zenoh endpoint as `--zenoh-connect`, the name `serve` uses (`--zenoh`
+/// stays as a hidden alias).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn capabilities_offline_and_one_flag_name_for_zenoh_endpoints() {
+    let offline = signorini()
+        .args(["capabilities", "--local", "--server", "http://127.0.0.1:9"])
+        .output()
+        .expect("signorini capabilities --local");
+    assert!(
+        offline.status.success(),
+        "{}",
+        String::from_utf8_lossy(&offline.stderr)
+    );
+    let caps: serde_json::Value = serde_json::from_slice(&offline.stdout).expect("JSON");
+    let schemes: Vec<&str> = caps["integrators"]
+        .as_array()
+        .expect("integrators")
+        .iter()
+        .filter_map(|c| c["name"].as_str())
+        .collect();
+    assert!(schemes.contains(&"moreau_jean"), "{schemes:?}");
+    assert!(schemes.contains(&"ns_generalized_alpha"), "{schemes:?}");
+
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&dir.path().join("s.db"), &Options::default());
+    let online = signorini()
+        .args(["capabilities", "--server", &server.grpc_url])
+        .output()
+        .expect("signorini capabilities");
+    assert!(online.status.success());
+    assert_eq!(
+        String::from_utf8_lossy(&online.stdout),
+        String::from_utf8_lossy(&offline.stdout)
+    );
+
+    let mut client = server.grpc().await;
+    let id = submit_json(&mut client, ball_json(1e-3, 200, 1), Some("flag"))
+        .await
+        .expect("submit");
+    let out = signorini()
+        .args(["watch", &id, "--json", "--zenoh-connect", &server.zenoh])
+        .args(["--server", &server.grpc_url])
+        .output()
+        .expect("signorini watch --zenoh-connect");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).expect("utf-8");
+    assert!(text.contains("\"succeeded\""), "{text}");
+}

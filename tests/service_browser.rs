@@ -176,3 +176,111 @@ async fn finished_failed_and_unknown_jobs_and_the_index_page() {
         "{rows:?}"
     );
 }
+
+/// examples/rocking_block_friction.toml (a `lagrangian` model: contacts with friction, nonlinear
+/// Moreau–Jean) as JSON, ending at `t_end`.
+fn rocking_block(t_end: f64) -> String {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("examples/rocking_block_friction.toml");
+    let mut spec: Value =
+        toml::from_str(&std::fs::read_to_string(path).expect("example")).expect("TOML");
+    spec["time"]["t_end"] = serde_json::json!(t_end);
+    spec.to_string()
+}
+
+/// The legend of `key` (a list of `[column, colour]`) and what canvas `canvas` drew (its series
+/// and their colours, in order), once it has drawn `want` series.
+fn legend_and_plot(b: &mut Browser, key: &str, canvas: &str) -> (Value, Value) {
+    let legend = b.eval(&format!(
+        "[...document.querySelectorAll('#{key} span')].map(s => [s.dataset.key, s.dataset.color])"
+    ));
+    let drawn = b.eval(&format!(
+        "(() => {{ const d = document.getElementById('{canvas}').dataset; \
+           const s = d.series.split(','), c = d.colors.split(','); \
+           return s.map((k, i) => [k, c[i]]); }})()"
+    ));
+    (legend, drawn)
+}
+
+/// Issue 30: the live page of a `lagrangian` job. Running and finished, it draws the energy
+/// terms the family has (the potential, Σ work_friction) with each legend entry in its curve's
+/// colour, and a residual panel of its `energy_error` captioned as what it is (it was blank once
+/// the job ended, asked for `balance_residual`, had the legend colours shifted and claimed "the
+/// energy balance (25) closed to round-off").
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_lagrangian_jobs_page_draws_what_its_family_reports() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&dir.path().join("s.db"), &Options::default());
+    let mut client = server.grpc().await;
+    let done = submit_json(&mut client, rocking_block(1.5), Some("rocking"))
+        .await
+        .expect("submit");
+    let st = wait_terminal(&mut client, &done).await;
+    assert_eq!(st.state, pb::JobState::Succeeded as i32, "{st:?}");
+    let running = submit_json(&mut client, rocking_block(1000.0), Some("rocking long"))
+        .await
+        .expect("submit");
+    wait_running(&mut client, &running, 2_000).await;
+    let mut b = Browser::launch();
+    let base = format!("http://{}", server.http);
+
+    for (id, state) in [(&running, "running"), (&done, "succeeded")] {
+        b.open(&format!("{base}/jobs/{id}"));
+        b.wait_for(
+            "the state",
+            &format!("document.getElementById('state').textContent === '{state}'"),
+        );
+        b.wait_for(
+            "both plots drawn",
+            "+document.getElementById('energy').dataset.points > 50 \
+             && +document.getElementById('residual').dataset.points > 50 \
+             && document.getElementById('residual').dataset.series === 'energy_error'",
+        );
+        let (legend, drawn) = legend_and_plot(&mut b, "key", "energy");
+        assert_eq!(legend, drawn, "{state}: energy legend ↔ curves");
+        let keys: Vec<&str> = drawn
+            .as_array()
+            .expect("series")
+            .iter()
+            .filter_map(|p| p[0].as_str())
+            .collect();
+        for k in [
+            "kinetic",
+            "potential",
+            "energy",
+            "work_contact_total",
+            "work_friction_total",
+        ] {
+            assert!(keys.contains(&k), "{state}: {k} not drawn: {keys:?}");
+        }
+        let (legend, drawn) = legend_and_plot(&mut b, "residual-key", "residual");
+        assert_eq!(legend, drawn, "{state}: residual legend ↔ curves");
+        let (lo, hi) = (
+            data(&mut b, "residual", "lo"),
+            data(&mut b, "residual", "hi"),
+        );
+        assert!(lo.is_finite() && hi.is_finite() && lo < hi, "[{lo}, {hi}]");
+        let caption = b.eval("document.getElementById('residual-caption').textContent");
+        let caption = caption.as_str().expect("a caption");
+        assert!(caption.contains("energy_error"), "{caption}");
+        assert!(!caption.contains("round-off"), "{caption}");
+        assert!(data(&mut b, "energy", "t0") == 0.0);
+    }
+    // The finished job's figures: the energy, its checks and the motion of the model.
+    let names = b.wait_for(
+        "the figures loaded",
+        "(() => { const i = [...document.querySelectorAll('#figures img')]; \
+           return i.length === 5 && i.every(x => x.complete && x.naturalWidth > 0) \
+             ? i.map(x => x.alt) : null; })()",
+    );
+    assert_eq!(
+        names,
+        serde_json::json!(["energy", "residuals", "coordinates", "gaps", "impulses"])
+    );
+    client
+        .cancel_job(pb::CancelJobRequest {
+            id: running.clone(),
+        })
+        .await
+        .expect("cancel");
+}

@@ -190,3 +190,122 @@ async fn every_bad_model_is_refused_naming_its_field_by_cli_http_and_grpc() {
         );
     }
 }
+
+/// Issue 30: a value of the wrong type or a misspelt field *inside* the model (a string in
+/// `q0`, `restitutin` in a contact, a number where a joint table goes) is named by its full
+/// path by the CLI (a TOML file), HTTP and gRPC alike: it used to be `model.contacts` (CLI),
+/// `model.coordinates` (HTTP) and `model.restitutin`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_bad_field_inside_the_model_is_named_by_its_path_over_cli_http_and_grpc() {
+    let cases: Vec<(&str, Value, &str)> = vec![
+        ("/model/q0", json!(["-pi/3", -1.4, 0.0]), "model.q0[0]"),
+        (
+            "/model/contacts/0/restitutin",
+            json!(0.5),
+            "model.contacts[0].restitutin",
+        ),
+        ("/model/constraints/0", json!(1.0), "model.constraints[0]"),
+        ("/model/v0", json!([0.0, "1", 0.0]), "model.v0[1]"),
+    ];
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&dir.path().join("store.db"), &Options::default());
+    let mut client = server.grpc().await;
+    for (pointer, value, field) in cases {
+        let mut spec = base();
+        let (parent, key) = pointer.rsplit_once('/').expect("a JSON pointer");
+        match spec.pointer_mut(parent).expect("pointer into the base") {
+            Value::Object(table) => {
+                table.insert(key.to_string(), value);
+            }
+            Value::Array(list) => list[key.parse::<usize>().expect("an index")] = value,
+            other => panic!("{parent} is {other}"),
+        }
+        let file = dir.path().join("bad.toml");
+        std::fs::write(&file, toml::to_string(&spec).expect("TOML")).expect("writing the spec");
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_signorini"))
+            .arg("run")
+            .arg(&file)
+            .arg("--out")
+            .arg(dir.path().join("out"))
+            .output()
+            .expect("signorini run");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{pointer}: {stderr}");
+        assert!(
+            stderr.contains(&format!("{field}:")),
+            "{pointer}: CLI says {stderr}"
+        );
+
+        let text = spec.to_string();
+        let (code, body) = server.http("POST", "/v1/jobs", Some(&text), None).await;
+        assert_eq!(code, 400, "{pointer}: {body}");
+        assert_eq!(body["error"]["field"], field, "{pointer}: {body}");
+
+        let err = submit_json(&mut client, text, None)
+            .await
+            .expect_err("invalid");
+        assert_eq!(err.code(), Code::InvalidArgument, "{pointer}");
+        assert_eq!(
+            err.metadata()
+                .get("x-error-field")
+                .and_then(|v| v.to_str().ok()),
+            Some(field),
+            "{pointer}"
+        );
+    }
+}
+
+/// Issue 30: a spec file goes over HTTP as it is (`content-type: application/toml`; it was
+/// "malformed JSON at line 1, column 1"), a bad field in it is named as for JSON, and `t` (and
+/// `step`) may be asked for in `?columns=` (it was 400 "no column t" though every cut has it).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn toml_goes_over_http_and_t_is_a_column() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&dir.path().join("store.db"), &Options::default());
+    let toml_text = toml::to_string(&pendulum_json()).expect("TOML");
+    let toml_header = [("content-type", "application/toml")];
+    let (code, _, body) = server
+        .request("POST", "/v1/jobs", &toml_text, &toml_header)
+        .await;
+    let body: Value = serde_json::from_slice(&body).expect("JSON answer");
+    assert_eq!(code, 201, "{body}");
+    let id = body["id"].as_str().expect("id").to_string();
+    let mut client = server.grpc().await;
+    let s = wait_terminal(&mut client, &id).await;
+    assert_eq!(s.state, pb::JobState::Succeeded as i32, "{s:?}");
+    let (code, result) = server
+        .http(
+            "GET",
+            &format!("/v1/jobs/{id}/result?columns=t,energy"),
+            None,
+            None,
+        )
+        .await;
+    assert_eq!(code, 200, "{result}");
+    assert_eq!(
+        result["columns"],
+        json!(["step", "t", "energy"]),
+        "{result}"
+    );
+    let t = result["steps"]["t"].as_array().expect("t");
+    assert_eq!(t.len(), 128 / 4 + 1);
+    assert_eq!(t[1], json!(4.0 * 0.25 / 128.0));
+    let (code, _, csv) = server
+        .request(
+            "GET",
+            &format!("/v1/jobs/{id}/result?format=csv&columns=step,t"),
+            "",
+            &[],
+        )
+        .await;
+    assert_eq!(code, 200);
+    let csv = String::from_utf8(csv).expect("CSV");
+    assert_eq!(csv.lines().next(), Some("step,t"), "{csv}");
+
+    let bad = toml_text.replace("q0 = [", "q0 = [\"-pi/3\", ");
+    assert_ne!(bad, toml_text);
+    let (code, _, body) = server.request("POST", "/v1/jobs", &bad, &toml_header).await;
+    let body: Value = serde_json::from_slice(&body).expect("JSON answer");
+    assert_eq!(code, 400, "{body}");
+    assert_eq!(body["error"]["field"], "model.q0[0]", "{body}");
+}

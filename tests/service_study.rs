@@ -603,3 +603,63 @@ async fn a_study_interrupted_by_kill9_completes_after_the_restart() {
     );
     assert_eq!(result["summary"]["orders"].as_array().unwrap().len(), 1);
 }
+
+/// Issue 30: `?format=csv` of a study job is its `study` table (it returned only `step,t`), and
+/// its work–precision figure labels each point with its h and each curve with its observed
+/// order.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_studys_csv_is_its_table_and_its_figure_labels_h_and_orders() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = TestServer::start(&dir.path().join("store.db"), &Options::default());
+    let spec = r#"{"study": {"base": {"model": {"scene": "bouncing_ball", "restitution": 0.8},
+        "time": {"h": 1e-3, "t_end": 0.5}}, "reference": "exact", "error": "max_abs",
+        "schemes": [{"scheme": "moreau_jean", "theta": 0.5}],
+        "grid": {"time.h": [1e-3, 5e-4, 2.5e-4]}}}"#;
+    let (code, body) = server.http("POST", "/v1/jobs", Some(spec), None).await;
+    assert_eq!(code, 201, "{body}");
+    let id = body["id"].as_str().expect("an id").to_string();
+    let (status, _) = http_wait(&server, &id).await;
+    assert_eq!(status["state"], "succeeded", "{status}");
+    let (code, result) = server
+        .http("GET", &format!("/v1/jobs/{id}/result"), None, None)
+        .await;
+    assert_eq!(code, 200, "{result}");
+    let table = &result["tables"][0];
+    assert_eq!(table["name"], "study");
+    let (code, _, csv) = server
+        .request("GET", &format!("/v1/jobs/{id}/result?format=csv"), "", &[])
+        .await;
+    assert_eq!(code, 200);
+    let csv = String::from_utf8(csv).expect("CSV");
+    let lines: Vec<&str> = csv.lines().collect();
+    let columns: Vec<String> = serde_json::from_value(table["columns"].clone()).expect("columns");
+    assert_eq!(lines[0], columns.join(","), "{csv}");
+    assert_eq!(lines.len(), 1 + 3, "{csv}");
+    let h_at = columns.iter().position(|c| c == "h").expect("an h column");
+    let hs: Vec<f64> = lines[1..]
+        .iter()
+        .map(|l| l.split(',').nth(h_at).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(hs, [1e-3, 5e-4, 2.5e-4]);
+
+    let order = result["summary"]["orders"][0]["order"]
+        .as_f64()
+        .expect("an observed order");
+    let (code, _, svg) = server
+        .request(
+            "GET",
+            &format!("/v1/jobs/{id}/figures/work_precision.svg"),
+            "",
+            &[],
+        )
+        .await;
+    assert_eq!(code, 200);
+    let svg = String::from_utf8(svg).expect("SVG");
+    for h in ["h=1e-3", "h=5e-4", "h=2.5e-4"] {
+        assert!(svg.contains(&format!(">{h}</text>")), "{h}");
+    }
+    assert!(
+        svg.contains(&format!("observed order {order:.2}</text>")),
+        "order {order:.2}"
+    );
+}

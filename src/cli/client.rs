@@ -54,8 +54,10 @@ pub struct SubmitArgs {
     #[arg(long)]
     pub watch: bool,
     /// zenoh endpoint for `--watch`.
+    /// (`--zenoh-connect`, as for `serve`; `--zenoh` is its older spelling.)
     #[arg(
-        long,
+        long = "zenoh-connect",
+        alias = "zenoh",
         env = "SIGNORINI_ZENOH_CONNECT",
         default_value = "tcp/127.0.0.1:7447"
     )]
@@ -129,8 +131,10 @@ pub struct WatchArgs {
     /// Job id.
     pub id: String,
     /// zenoh endpoint of the server's peer or of a router.
+    /// (`--zenoh-connect`, as for `serve`; `--zenoh` is its older spelling.)
     #[arg(
-        long,
+        long = "zenoh-connect",
+        alias = "zenoh",
         env = "SIGNORINI_ZENOH_CONNECT",
         default_value = "tcp/127.0.0.1:7447"
     )]
@@ -139,7 +143,7 @@ pub struct WatchArgs {
     #[arg(long)]
     pub json: bool,
     /// zenoh configuration file (JSON5): mode and credentials for a router with access control
-    /// (deploy/zenoh/viewer.json5); --zenoh replaces its endpoints.
+    /// (deploy/zenoh/viewer.json5); --zenoh-connect replaces its endpoints.
     #[arg(long, env = "SIGNORINI_WATCH_ZENOH_CONFIG")]
     pub zenoh_config: Option<PathBuf>,
     /// The server whose gRPC API confirms the final status seen over zenoh.
@@ -150,6 +154,10 @@ pub struct WatchArgs {
 /// `signorini capabilities`.
 #[derive(Debug, Args)]
 pub struct CapabilitiesArgs {
+    /// Print this binary's own capabilities, offline (no server asked): the same answer a
+    /// server of this version gives.
+    #[arg(long)]
+    pub local: bool,
     #[command(flatten)]
     pub conn: Connection,
 }
@@ -312,29 +320,45 @@ pub fn cancel(args: IdArgs) -> Result<()> {
 }
 
 /// `capabilities`: prints every scene, scheme and solver with its parameters as JSON.
+/// With `--local`, this binary's own, without a server.
 pub fn capabilities(args: CapabilitiesArgs) -> Result<()> {
+    if args.local {
+        return print_capabilities(&crate::server::convert::capabilities_to_proto(
+            &signorini_core::capabilities::capabilities(),
+        ));
+    }
     runtime()?.block_on(async {
         let mut c = client(&args.conn).await?;
-        let caps = c.capabilities(pb::CapabilitiesRequest {}).await.map_err(status_error)?.into_inner();
-        let comp = |c: &pb::Component| {
-            json!({
-                "name": c.name,
-                "description": c.description,
-                "parameters": c.parameters.iter().map(|p| json!({
-                    "name": p.name, "kind": p.kind, "default": p.default_value, "range": p.range, "description": p.description
-                })).collect::<Vec<_>>(),
-            })
-        };
-        let out = json!({
-            "models": caps.models.iter().map(comp).collect::<Vec<_>>(),
-            "integrators": caps.integrators.iter().map(comp).collect::<Vec<_>>(),
-            "analyses": caps.analyses.iter().map(comp).collect::<Vec<_>>(),
-            "contact_solvers": caps.contact_solvers.iter().map(comp).collect::<Vec<_>>(),
-            "sections": caps.sections.iter().map(comp).collect::<Vec<_>>(),
-        });
-        println!("{}", serde_json::to_string_pretty(&out)?);
-        Ok(())
+        let caps = c
+            .capabilities(pb::CapabilitiesRequest {})
+            .await
+            .map_err(status_error)?
+            .into_inner();
+        print_capabilities(&caps)
     })
+}
+
+/// Prints capabilities as JSON: models, integrators, analyses, contact solvers and sections,
+/// each with its parameters.
+fn print_capabilities(caps: &pb::CapabilitiesResponse) -> Result<()> {
+    let comp = |c: &pb::Component| {
+        json!({
+            "name": c.name,
+            "description": c.description,
+            "parameters": c.parameters.iter().map(|p| json!({
+                "name": p.name, "kind": p.kind, "default": p.default_value, "range": p.range, "description": p.description
+            })).collect::<Vec<_>>(),
+        })
+    };
+    let out = json!({
+        "models": caps.models.iter().map(comp).collect::<Vec<_>>(),
+        "integrators": caps.integrators.iter().map(comp).collect::<Vec<_>>(),
+        "analyses": caps.analyses.iter().map(comp).collect::<Vec<_>>(),
+        "contact_solvers": caps.contact_solvers.iter().map(comp).collect::<Vec<_>>(),
+        "sections": caps.sections.iter().map(comp).collect::<Vec<_>>(),
+    });
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
 }
 
 /// `list`: one page of jobs, newest first: `ID STATE PROGRESS NAME` per line (or JSON), and the

@@ -18,22 +18,26 @@ use std::path::{Path, PathBuf};
   signorini run examples/bar_ns_generalized_alpha.toml --out out/ga
   signorini compare out/mj out/ga --column energy --column balance_residual
 
-Writes OUT/compare_COLUMN.svg per column (columns whose name ends in `residual` are drawn as
-log10 |value|) and OUT/compare.csv, and prints the table.")]
+Writes OUT/compare_COLUMN.svg per column (residuals and energy_error are drawn as
+log10 |value|) and OUT/compare.csv, and prints the table (with max_abs_balance_residual and/or
+max_abs_energy_error, whichever the runs report).")]
 pub struct CompareArgs {
     /// Result directories written by `signorini run` or `signorini result --out`.
     #[arg(required = true, num_args = 2..)]
     pub dirs: Vec<PathBuf>,
-    /// A steps.csv column to draw (repeat for several).
-    #[arg(long = "column", short, default_values = ["energy", "balance_residual"])]
+    /// A steps.csv column to draw (repeat for several) [default: energy, and the runs' check:
+    /// balance_residual, or energy_error for the nonlinear families].
+    #[arg(long = "column", short)]
     pub columns: Vec<String>,
     /// Directory for the figures and compare.csv.
     #[arg(long, short, default_value = "compare")]
     pub out: PathBuf,
 }
 
-/// Summary fields of the table, in order (absent ones are left empty).
-const TABLE: [&str; 9] = [
+/// Summary fields of the table, in order (absent ones are left empty). The two checks (the
+/// balance residual of the linear schemes, the energy error of the nonlinear ones) are columns
+/// only when a run has them ([`CHECKS`]).
+const TABLE: [&str; 10] = [
     "steps",
     "h",
     "wall_s",
@@ -42,8 +46,34 @@ const TABLE: [&str; 9] = [
     "energy_final",
     "energy_max",
     "max_abs_balance_residual",
+    "max_abs_energy_error",
     "impacts",
 ];
+
+/// Table fields shown only when some run has them.
+const CHECKS: [&str; 2] = ["max_abs_balance_residual", "max_abs_energy_error"];
+
+/// The steps.csv columns a comparison draws by default: `energy` and the runs' check.
+fn default_columns(dirs: &[PathBuf]) -> Vec<String> {
+    let has = |column: &str| {
+        dirs.iter().all(|d| {
+            std::fs::File::open(d.join("steps.csv"))
+                .ok()
+                .and_then(|f| BufReader::new(f).lines().next()?.ok())
+                .is_some_and(|header| header.split(',').any(|n| n == column))
+        })
+    };
+    let check = ["balance_residual", "energy_error"]
+        .into_iter()
+        .find(|c| has(c))
+        .unwrap_or("balance_residual");
+    vec!["energy".to_string(), check.to_string()]
+}
+
+/// Whether a column is drawn as log₁₀ |value| (a residual or an energy error).
+fn is_log(column: &str) -> bool {
+    column.ends_with("residual") || column == "energy_error"
+}
 
 const COLORS: [&str; 8] = [
     "black", "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2",
@@ -106,10 +136,7 @@ fn read_run(dir: &Path, columns: &[String]) -> Result<Run> {
             })
         })
         .collect::<Result<_>>()?;
-    let mut envelopes: Vec<Envelope> = columns
-        .iter()
-        .map(|c| Envelope::new(c.ends_with("residual")))
-        .collect();
+    let mut envelopes: Vec<Envelope> = columns.iter().map(|c| Envelope::new(is_log(c))).collect();
     for (row, line) in lines.enumerate() {
         let line = line?;
         let cells: Vec<&str> = line.split(',').collect();
@@ -132,19 +159,26 @@ fn read_run(dir: &Path, columns: &[String]) -> Result<Run> {
 }
 
 /// Runs the command.
-pub fn compare(args: CompareArgs) -> Result<()> {
+pub fn compare(mut args: CompareArgs) -> Result<()> {
+    if args.columns.is_empty() {
+        args.columns = default_columns(&args.dirs);
+    }
     let runs: Vec<Run> = args
         .dirs
         .iter()
         .map(|d| read_run(d, &args.columns))
         .collect::<Result<_>>()?;
+    let fields: Vec<&str> = TABLE
+        .into_iter()
+        .filter(|f| !CHECKS.contains(f) || runs.iter().any(|r| r.summary.contains_key(*f)))
+        .collect();
     if runs.len() > COLORS.len() {
         bail!("at most {} runs per comparison", COLORS.len());
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     for (k, column) in args.columns.iter().enumerate() {
-        let log = column.ends_with("residual");
+        let log = is_log(column);
         let curves: Vec<Curve> = runs
             .iter()
             .zip(COLORS)
@@ -164,7 +198,7 @@ pub fn compare(args: CompareArgs) -> Result<()> {
         write_figure(&args.out, &figure)?;
     }
     let mut csv = String::from("run");
-    for f in TABLE {
+    for f in &fields {
         csv.push(',');
         csv.push_str(f);
     }
@@ -175,15 +209,15 @@ pub fn compare(args: CompareArgs) -> Result<()> {
         .max()
         .unwrap_or(3);
     let mut table = format!("{:<wide$}", "run");
-    for f in TABLE {
+    for f in &fields {
         table.push_str(&format!(" {f:>w$}", w = f.len().max(12)));
     }
     table.push('\n');
     for r in &runs {
         csv.push_str(&format!("\"{}\"", r.label.replace('"', "'")));
         table.push_str(&format!("{:<wide$}", r.label));
-        for f in TABLE {
-            let v = r.summary.get(f).and_then(Value::as_f64);
+        for f in &fields {
+            let v = r.summary.get(*f).and_then(Value::as_f64);
             csv.push(',');
             csv.push_str(&v.map(fmt_value).unwrap_or_default());
             let cell = match v {

@@ -1,5 +1,6 @@
 //! `signorini run SPEC --out DIR`: validate a spec, run it in-process, write the results.
 
+use crate::config::Limits;
 use crate::output::{
     CHECKPOINT_FILE, CsvSteps, RUN_SPEC_FILE, clear_checkpoint, clear_results, finish_run,
     write_atomic, write_checkpoint, write_figure, write_run_files,
@@ -46,6 +47,11 @@ pub struct RunArgs {
     /// No progress bar and no summary on stdout.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Run a job larger than a server accepts by default (more than 10⁸ steps or about 1 GiB
+    /// of recorded output): without it such a spec is refused naming the field, as the server
+    /// refuses it.
+    #[arg(long)]
+    pub no_limits: bool,
 }
 
 /// Writes the checkpoints of a run to its directory at the spec's period.
@@ -130,6 +136,14 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     let job =
         Job::from_spec(&spec).map_err(|e| anyhow!("invalid spec {}: {e}", spec_path.display()))?;
+    if !args.no_limits {
+        crate::engine::check_limits(&job, &Limits::DEFAULT).map_err(|e| {
+            anyhow!(
+                "invalid spec {}: {e} (the server's default limits; `run --no-limits` lifts them)",
+                spec_path.display()
+            )
+        })?;
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     if job.checkpoints() {
@@ -234,8 +248,23 @@ fn execute(
     let output: RunOutput = match result {
         Ok(o) => o,
         Err(e) => {
-            observer.csv.discard();
-            return Err(anyhow!("run failed: {e}"));
+            // The rows up to the failure stay (as the server keeps them), and summary.json
+            // says why the run stopped.
+            let kept = observer.csv.finish();
+            let summary = serde_json::json!({
+                "status": "failed",
+                "error": e.to_string(),
+                "wall_s": wall.as_secs_f64(),
+            });
+            write_atomic(
+                &out.join("summary.json"),
+                &serde_json::to_string_pretty(&summary)?,
+            )?;
+            kept?;
+            return Err(anyhow!(
+                "run failed: {e} (the steps recorded so far are in {})",
+                out.join("steps.csv").display()
+            ));
         }
     };
     observer.csv.finish()?;

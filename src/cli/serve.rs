@@ -1,6 +1,7 @@
 //! `signorini serve`: runs the service (see `signorini serve --help`).
 
 use crate::config::{ServeArgs, ServeConfig};
+use crate::store::Location;
 use anyhow::{Context, Result};
 use std::io::IsTerminal;
 
@@ -14,6 +15,12 @@ pub fn run(args: ServeArgs) -> Result<()> {
         .with_ansi(std::io::stderr().is_terminal())
         .try_init();
     let cfg = ServeConfig::resolve(args)?;
+    // A SQLite store's directory (the data directory by default) is made on first start.
+    if let Location::Sqlite(path) = Location::of(&cfg.store)
+        && let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty())
+    {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()

@@ -67,13 +67,17 @@ pub struct ColumnGroup {
     pub values: Vec<f64>,
 }
 
-/// The indices of the energy and work columns (`ENERGY_COLUMNS`, `CUMULATIVE_COLUMNS`) of a
-/// run's `columns`, and of the others: how a batch is split into [`StepBatch::energy`] and
-/// [`StepBatch::state`].
+/// The indices of the energy and work columns (`ENERGY_COLUMNS`, `CUMULATIVE_COLUMNS`, and
+/// what a figure plots: a nonlinear family's potential, friction work and energy error, the
+/// constraint residuals) of a run's `columns`, and of the others: how a batch is split into
+/// [`StepBatch::energy`] and [`StepBatch::state`]. The live page draws the energy frames.
 pub fn split_columns(columns: &[String]) -> (Vec<usize>, Vec<usize>) {
     let energy: Vec<&str> = ENERGY_COLUMNS
         .iter()
         .chain(CUMULATIVE_COLUMNS.iter())
+        .chain(signorini_core::trace::ENERGY_COLUMNS.iter())
+        .chain(signorini_core::trace::RESIDUAL_COLUMNS.iter())
+        .chain(std::iter::once(&"work_friction"))
         .copied()
         .collect();
     (0..columns.len()).partition(|&i| energy.contains(&columns[i].as_str()))

@@ -185,7 +185,7 @@ pub struct Engine {
 }
 
 /// Checks a job against the server's limits; the error names the field to change.
-fn check_limits(job: &Job, limits: &Limits) -> Result<(), SpecError> {
+pub fn check_limits(job: &Job, limits: &Limits) -> Result<(), SpecError> {
     let size = job.size();
     if size.dofs > limits.max_dofs {
         return Err(SpecError::new(

@@ -172,6 +172,17 @@ async fn no_method(method: Method, uri: Uri) -> ApiError {
     }
 }
 
+/// The spelling of a submitted spec: TOML when the body is sent as `application/toml` (the
+/// CLI's files as they are), JSON otherwise.
+fn spec_format(headers: &HeaderMap) -> Format {
+    let toml = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.split(';').next())
+        .is_some_and(|mime| mime.trim().eq_ignore_ascii_case("application/toml"));
+    if toml { Format::Toml } else { Format::Json }
+}
+
 async fn submit_job(
     State(state): State<AppState>,
     headers: HeaderMap,
@@ -183,9 +194,12 @@ async fn submit_job(
     let body = body?;
     // Parsing and validation (a factorisation of M and K) run off the async executor.
     let engine = state.engine.clone();
+    let format = spec_format(&headers);
     let id = tokio::task::spawn_blocking(move || {
-        engine.precheck_json(&body)?;
-        let spec = spec_file::parse(&body, Format::Json)?;
+        if format == Format::Json {
+            engine.precheck_json(&body)?;
+        }
+        let spec = spec_file::parse(&body, format)?;
         engine.submit(&spec, q.id)
     })
     .await
@@ -412,7 +426,8 @@ fn streamed_body(
 /// `GET /v1/jobs/{id}/result`: the stored result, streamed from the store as JSON (default), CSV
 /// or NPZ, cut to `columns`, the steps `from..=to` and every `every`-th row of them (plus the
 /// last), gzip-compressed when the client accepts it. A failed or cancelled job's rows are
-/// served too, with `"partial": true` (header `x-signorini-partial: true`).
+/// served too, with `"partial": true` (header `x-signorini-partial: true`). The CSV of a job
+/// that records no steps (a study, an analysis) is its first table (`study`, `backbone`, …).
 async fn get_result(
     State(state): State<AppState>,
     Path(id): Path<String>,
@@ -445,6 +460,10 @@ async fn get_result(
     let (partial, rows, file) = (head.partial, cut.rows(), format!("{}.npz", view.id));
     let body = streamed_body(gzip, move |w| match format {
         results::Format::Json => write_json(w, &view, &head, &cut, &series),
+        // A job that records no steps (a study, an analysis): its first table as CSV.
+        results::Format::Csv if head.columns.is_empty() && !head.tables.is_empty() => {
+            results::write_table_csv(w, &head.tables[0])
+        }
         results::Format::Csv => write_csv(w, &cut, &series),
         results::Format::Npz => write_npz(w, &cut, &series),
     });

@@ -13,6 +13,7 @@
 use crate::engine::Series;
 use crate::error::ApiError;
 use crate::store::{ChunkMeta, StoredResult};
+use signorini_core::outcome::Table;
 use signorini_core::spec::SpecError;
 use std::io::{self, Write};
 
@@ -62,19 +63,22 @@ pub struct Rows {
 
 impl Cut {
     /// Resolves `req` against the result `head` and its `series`: an unknown column is an error
-    /// naming `columns`, `from > to` one naming `from`.
+    /// naming `columns` (`step` and `t` are always part of a cut, and accepted in `columns`),
+    /// `from > to` one naming `from`.
     pub fn new(head: &StoredResult, series: &Series, req: &CutRequest) -> Result<Cut, ApiError> {
         let at: Vec<usize> = if req.columns.is_empty() {
             (0..head.columns.len()).collect()
         } else {
+            // `step` and `t` come with every cut: asking for them is not an error.
             req.columns
                 .iter()
+                .filter(|name| !matches!(name.as_str(), "step" | "t"))
                 .map(|name| {
                     head.columns.iter().position(|c| c == name).ok_or_else(|| {
                         SpecError::new(
                             "columns",
                             format!(
-                                "no column {name:?} (the result has {})",
+                                "no column {name:?} (the result has step, t, {})",
                                 head.columns.join(", ")
                             ),
                         )
@@ -257,6 +261,26 @@ pub fn write_csv(w: &mut dyn Write, cut: &Cut, series: &Series) -> io::Result<()
         }
         Ok(())
     })
+}
+
+/// A result table as CSV: its columns, then a row per table row (shortest round-trip text; an
+/// empty cell for NaN, a value the run did not have).
+pub fn write_table_csv(w: &mut dyn Write, table: &Table) -> io::Result<()> {
+    writeln!(w, "{}", table.columns.join(","))?;
+    for row in &table.rows {
+        let cells: Vec<String> = row
+            .iter()
+            .map(|v| {
+                if v.is_nan() {
+                    String::new()
+                } else {
+                    format!("{v:?}")
+                }
+            })
+            .collect();
+        writeln!(w, "{}", cells.join(","))?;
+    }
+    Ok(())
 }
 
 /// The series' columns as the stream reads them: `step`, `t`, then the cut's value columns.

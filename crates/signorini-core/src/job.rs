@@ -676,6 +676,11 @@ fn run_from(
         records,
     };
     let mut trace = EnergyTrace::resumed(&mut stamp, trace_state);
+    // A user's own model gets figures of what it does (its probed coordinates, gaps and
+    // impulses) besides the energy and the checks.
+    if matches!(job.spec().model, Some(ModelSpec::Lagrangian(_))) {
+        trace = trace.with_motion();
+    }
     let t = &mut trace;
     let c = checkpoint;
     let mut output = match &job.kind {

@@ -29,8 +29,9 @@ pub struct Table {
 /// name, the file stem of its figure ([`Chart::name`]).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Chart {
-    /// `energy` (energies and cumulative works) or `residuals` (log₁₀ of the balance and
-    /// constraint residuals) of a time integration: the min/max envelopes of its records.
+    /// `energy` (energies and cumulative works), `residuals` (log₁₀ of the balance residual,
+    /// the energy error and the constraint residuals), and for a user model `coordinates`,
+    /// `gaps` and `impulses`, of a time integration: the min/max envelopes of its records.
     Trace(TraceChart),
     /// `backbone`: the admissible points of a nonsmooth-modes scan, every gap.
     Backbone(Vec<ModePoint>),
@@ -52,8 +53,7 @@ impl Chart {
     /// File stem of the figure, e.g. `backbone` for `backbone.svg`.
     pub fn name(&self) -> &str {
         match self {
-            Chart::Trace(t) if t.log => "residuals",
-            Chart::Trace(_) => "energy",
+            Chart::Trace(t) => t.kind.name(),
             Chart::Backbone(_) => "backbone",
             Chart::SpaceTime(s) => &s.name,
             Chart::ForcedResponse(_) => "forced_response",
@@ -96,13 +96,58 @@ pub struct WorkPrecisionCurve {
     pub label: String,
     /// (CPU seconds, error) per run, by increasing CPU time.
     pub points: Vec<(f64, f64)>,
+    /// The step size h of each point, in the order of `points`.
+    pub h: Vec<f64>,
+}
+
+/// What a [`TraceChart`] shows (its figure's name).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TraceKind {
+    /// `energy`: the energies and the cumulative works.
+    Energy,
+    /// `residuals`: log₁₀ of what must stay small (the balance residual, the energy error of a
+    /// nonlinear scheme, the constraint residuals).
+    Residuals,
+    /// `coordinates`: the probed positions of a user model.
+    Coordinates,
+    /// `gaps`: the gaps of a user model's contacts.
+    Gaps,
+    /// `impulses`: the normal and tangential impulses of a user model's contacts.
+    Impulses,
+}
+
+impl TraceKind {
+    /// Every kind, in the order their charts come.
+    pub const ALL: [TraceKind; 5] = [
+        TraceKind::Energy,
+        TraceKind::Residuals,
+        TraceKind::Coordinates,
+        TraceKind::Gaps,
+        TraceKind::Impulses,
+    ];
+
+    /// The chart's name (file stem of its figure).
+    pub fn name(self) -> &'static str {
+        match self {
+            TraceKind::Energy => "energy",
+            TraceKind::Residuals => "residuals",
+            TraceKind::Coordinates => "coordinates",
+            TraceKind::Gaps => "gaps",
+            TraceKind::Impulses => "impulses",
+        }
+    }
+
+    /// Whether the chart's values are log₁₀|v| rather than v.
+    pub fn is_log(self) -> bool {
+        self == TraceKind::Residuals
+    }
 }
 
 /// Envelopes of some columns of a run's records against t.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TraceChart {
-    /// The values are log₁₀|v| (residuals) rather than v (energies).
-    pub log: bool,
+    /// What the chart shows (its values are log₁₀|v| for the residuals, v otherwise).
+    pub kind: TraceKind,
     /// One series per traced column the run has, in a fixed order.
     pub series: Vec<TracedSeries>,
 }

@@ -11,15 +11,16 @@
 
 use crate::checkpoint::Checkpoint;
 use crate::observer::{Columns, Observer, Progress, StepRecord};
-use crate::outcome::{Chart, TraceChart, TracedSeries};
+use crate::outcome::{Chart, TraceChart, TraceKind, TracedSeries};
 use serde::{Deserialize, Serialize};
 use std::ops::ControlFlow;
 
 /// Buckets kept per envelope before neighbours merge (so between half this and this many).
 pub const MAX_BUCKETS: usize = 400;
 
-/// The `energy` chart's columns: the energies of the run and the works done on it so far.
-pub const ENERGY_COLUMNS: [&str; 8] = [
+/// The `energy` chart's columns: the energies of the run and the works done on it so far
+/// (with friction's, which a rough contact takes out of the energy).
+pub const ENERGY_COLUMNS: [&str; 9] = [
     "energy",
     "algorithmic_energy",
     "kinetic",
@@ -28,15 +29,38 @@ pub const ENERGY_COLUMNS: [&str; 8] = [
     "work_ext_total",
     "work_damping_total",
     "work_contact_total",
+    "work_friction_total",
 ];
 
-/// The `residuals` chart's columns: what must stay at round-off (or at the Newton tolerance).
-pub const RESIDUAL_COLUMNS: [&str; 4] = [
+/// The `residuals` chart's columns: what must stay at round-off (or at the Newton tolerance),
+/// and the energy error ΔE − the works of a nonlinear scheme (its measure of accuracy where
+/// there is no exact discrete balance).
+pub const RESIDUAL_COLUMNS: [&str; 5] = [
     "balance_residual",
+    "energy_error",
     "position_residual",
     "velocity_residual",
     "nonholonomic_residual",
 ];
+
+/// Most series of a `coordinates`, `gaps` or `impulses` chart (the first probes or contacts):
+/// a chart stays readable and the trace's memory bounded for a model of many contacts.
+pub const MAX_MOTION_SERIES: usize = 8;
+
+/// The motion chart a column belongs to: a probed position (`q_j`, or `y_j` of the SOI2
+/// schemes), a gap (`gap_i`), an impulse (`p_i`, `pt_i`).
+fn motion_kind(column: &str) -> Option<TraceKind> {
+    let (prefix, index) = column.rsplit_once('_')?;
+    if index.is_empty() || !index.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    match prefix {
+        "q" | "y" => Some(TraceKind::Coordinates),
+        "gap" => Some(TraceKind::Gaps),
+        "p" | "pt" => Some(TraceKind::Impulses),
+        _ => None,
+    }
+}
 
 /// Smallest and largest value of a bucket, each with its time (NaN until a finite value).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -143,10 +167,11 @@ impl Envelope {
     }
 }
 
-/// One traced column of a run: where it is in the records, its envelope.
+/// One traced column of a run: where it is in the records, its chart, its envelope.
 struct Traced {
     index: usize,
-    column: &'static str,
+    column: String,
+    kind: TraceKind,
     envelope: Envelope,
 }
 
@@ -158,6 +183,8 @@ pub struct EnergyTrace<'a> {
     records: u64,
     /// The envelopes of a checkpoint, restored at [`Observer::start`].
     resumed: Option<TraceState>,
+    /// Whether the motion charts are kept too (`coordinates`, `gaps`, `impulses`).
+    motion: bool,
 }
 
 /// What an [`EnergyTrace`] keeps across a checkpoint: its record count and its envelopes, in the
@@ -176,6 +203,16 @@ impl<'a> EnergyTrace<'a> {
             traced: Vec::new(),
             records: 0,
             resumed: None,
+            motion: false,
+        }
+    }
+
+    /// Keeps the motion charts as well: the first [`MAX_MOTION_SERIES`] probed positions, gaps
+    /// and impulses (a user model's default figures of what it does).
+    pub fn with_motion(self) -> Self {
+        Self {
+            motion: true,
+            ..self
         }
     }
 
@@ -194,18 +231,18 @@ impl<'a> EnergyTrace<'a> {
         if self.records == 0 {
             return out;
         }
-        for log in [false, true] {
+        for kind in TraceKind::ALL {
             let series: Vec<TracedSeries> = self
                 .traced
                 .iter()
-                .filter(|c| c.envelope.is_log() == log)
+                .filter(|c| c.kind == kind)
                 .map(|c| TracedSeries {
-                    column: c.column.to_string(),
+                    column: c.column.clone(),
                     points: c.envelope.points().collect(),
                 })
                 .collect();
             if !series.is_empty() {
-                out.push(Chart::Trace(TraceChart { log, series }));
+                out.push(Chart::Trace(TraceChart { kind, series }));
             }
         }
         out
@@ -216,17 +253,33 @@ impl Observer for EnergyTrace<'_> {
     fn start(&mut self, columns: &Columns) {
         let picks = ENERGY_COLUMNS
             .iter()
-            .map(|c| (*c, false))
-            .chain(RESIDUAL_COLUMNS.iter().map(|c| (*c, true)));
+            .map(|c| (*c, TraceKind::Energy))
+            .chain(RESIDUAL_COLUMNS.iter().map(|c| (*c, TraceKind::Residuals)));
         self.traced = picks
-            .filter_map(|(column, log)| {
+            .filter_map(|(column, kind)| {
                 Some(Traced {
                     index: columns.index(column)?,
-                    column,
-                    envelope: Envelope::new(log),
+                    column: column.to_string(),
+                    kind,
+                    envelope: Envelope::new(kind.is_log()),
                 })
             })
             .collect();
+        if self.motion {
+            for (index, column) in columns.names().iter().enumerate() {
+                let Some(kind) = motion_kind(column) else {
+                    continue;
+                };
+                if self.traced.iter().filter(|c| c.kind == kind).count() < MAX_MOTION_SERIES {
+                    self.traced.push(Traced {
+                        index,
+                        column: column.clone(),
+                        kind,
+                        envelope: Envelope::new(false),
+                    });
+                }
+            }
+        }
         if let Some(state) = self.resumed.take()
             && state.envelopes.len() == self.traced.len()
         {

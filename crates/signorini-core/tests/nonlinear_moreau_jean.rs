@@ -631,6 +631,41 @@ fn newton_failure_is_a_typed_error_with_step_and_t() {
     assert!(err.to_string().contains("step 1 (t = 0.1)"), "{err}");
 }
 
+/// Issue 30: "F(t, q, v) is not finite" names the entry and the state it was evaluated at, so
+/// a user can find which equation broke and where.
+#[test]
+fn a_value_that_is_not_finite_names_its_entry_and_the_state() {
+    let ball = Ball {
+        nan_below: 0.5,
+        ..Ball::of(&BouncingBall::default())
+    };
+    let err = run(&ball, params(0.5), 1e-3, 2000).expect_err("NaN");
+    let message = err.to_string();
+    match err {
+        NonlinearRunStop::Step(NonlinearStepError::NotFinite {
+            what,
+            component,
+            value,
+            q,
+            v,
+            ..
+        }) => {
+            assert_eq!(what, "F(t, q, v)");
+            assert_eq!(component, Some(0));
+            assert!(value.is_nan(), "{value}");
+            assert_eq!((q.len(), v.len()), (1, 1));
+            // F is NaN below q = 0.5 only, and the ball falls there.
+            assert!(q[0] < 0.5 && q[0] > 0.4, "q = {q:?}");
+            assert!(v[0] < -2.0, "v = {v:?}");
+            assert!(
+                message.contains(&format!("entry 0 is NaN) at q = {q:?}, v = {v:?}")),
+                "{message}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
 #[test]
 fn nan_and_singular_mass_are_typed_errors_with_step_and_t() {
     let ball = Ball {
@@ -639,7 +674,7 @@ fn nan_and_singular_mass_are_typed_errors_with_step_and_t() {
     };
     let err = run(&ball, params(0.5), 1e-3, 2000).expect_err("NaN");
     match err {
-        NonlinearRunStop::Step(NonlinearStepError::NotFinite { step, t, what }) => {
+        NonlinearRunStop::Step(NonlinearStepError::NotFinite { step, t, what, .. }) => {
             // The ball falls from 1 to 0.5 in √(1/g) ≈ 0.319 s.
             assert!((300..=330).contains(&step), "step {step}");
             assert!((t - step as f64 * 1e-3).abs() < 1e-12);

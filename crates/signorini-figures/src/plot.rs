@@ -39,9 +39,19 @@ impl Axes {
 
 /// Opens the document: white background and a centred title.
 pub(crate) fn header(s: &mut String, title: &str) {
+    // A title wider than the canvas (about 8 px a character at 15 px) is fitted into it rather
+    // than clipped at both ends.
+    let fit = if 8.0 * title.chars().count() as f64 > W - 20.0 {
+        format!(
+            r#" textLength="{}" lengthAdjust="spacingAndGlyphs""#,
+            W - 20.0
+        )
+    } else {
+        String::new()
+    };
     let _ = write!(
         s,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" font-family="sans-serif" font-size="12"><rect width="100%" height="100%" fill="white"/><text x="{}" y="22" text-anchor="middle" font-size="15">{title}</text>"#,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" font-family="sans-serif" font-size="12"><rect width="100%" height="100%" fill="white"/><text x="{}" y="22" text-anchor="middle" font-size="15"{fit}>{title}</text>"#,
         W / 2.0
     );
 }

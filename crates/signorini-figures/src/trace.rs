@@ -4,7 +4,7 @@
 
 use crate::Figure;
 use crate::plot::{Curve, line_chart};
-use signorini_core::outcome::{TraceChart, TracedSeries};
+use signorini_core::outcome::{TraceChart, TraceKind, TracedSeries};
 
 /// How a traced column is drawn: column, legend label, colour, dash pattern.
 struct Style {
@@ -30,7 +30,7 @@ const fn style(
 
 /// Every column the core traces ([`signorini_core::trace::ENERGY_COLUMNS`] and
 /// [`signorini_core::trace::RESIDUAL_COLUMNS`]).
-const STYLES: [Style; 12] = [
+const STYLES: [Style; 14] = [
     style("energy", "energy", "black", ""),
     style(
         "algorithmic_energy",
@@ -44,7 +44,9 @@ const STYLES: [Style; 12] = [
     style("work_ext_total", "Σ work_ext", "#2ca02c", "4 2"),
     style("work_damping_total", "Σ work_damping", "#d62728", "4 2"),
     style("work_contact_total", "Σ work_contact", "#9467bd", "4 2"),
+    style("work_friction_total", "Σ work_friction", "#8c564b", "4 2"),
     style("balance_residual", "balance_residual", "black", ""),
+    style("energy_error", "energy_error (ΔE − works)", "#8c564b", ""),
     style("position_residual", "position constraint g", "#1f77b4", ""),
     style("velocity_residual", "velocity constraint", "#ff7f0e", ""),
     style(
@@ -55,14 +57,22 @@ const STYLES: [Style; 12] = [
     ),
 ];
 
-/// The style of `column`: its row of [`STYLES`], or the column name in black.
-fn style_of(column: &str) -> (String, &'static str, &'static str) {
-    STYLES
-        .iter()
-        .find(|s| s.column == column)
-        .map_or((column.to_string(), "black", ""), |s| {
-            (s.label.to_string(), s.color, s.dash)
-        })
+/// Colours of the series of a motion chart (probes, gaps, impulses), in order.
+const PALETTE: [&str; 8] = [
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+];
+
+/// The style of `column`, the `i`-th series of its chart: its row of [`STYLES`], or (a probe,
+/// gap or impulse column) its name in the `i`-th colour of [`PALETTE`], tangential impulses
+/// dashed.
+fn style_of(column: &str, i: usize) -> (String, &'static str, &'static str) {
+    STYLES.iter().find(|s| s.column == column).map_or_else(
+        || {
+            let dash = if column.starts_with("pt_") { "4 2" } else { "" };
+            (column.to_string(), PALETTE[i % PALETTE.len()], dash)
+        },
+        |s| (s.label.to_string(), s.color, s.dash),
+    )
 }
 
 /// The legend label of a series, saying so when nothing could be drawn.
@@ -76,14 +86,16 @@ fn legend_label(label: String, series: &TracedSeries, log: bool) -> String {
     }
 }
 
-/// `energy.svg` or (for a log chart) `residuals.svg`.
+/// `energy.svg`, `residuals.svg` (a log chart), or a user model's `coordinates.svg`,
+/// `gaps.svg`, `impulses.svg`.
 pub fn trace_figure(chart: &TraceChart) -> Figure {
-    let log = chart.log;
+    let log = chart.kind.is_log();
     let curves: Vec<Curve> = chart
         .series
         .iter()
-        .map(|series| {
-            let (label, color, dash) = style_of(&series.column);
+        .enumerate()
+        .map(|(i, series)| {
+            let (label, color, dash) = style_of(&series.column, i);
             Curve {
                 label: legend_label(label, series, log),
                 color,
@@ -92,23 +104,29 @@ pub fn trace_figure(chart: &TraceChart) -> Figure {
             }
         })
         .collect();
-    if log {
-        line_chart(
-            "residuals",
+    let (title, ylabel) = match chart.kind {
+        TraceKind::Residuals => (
             "Checks: log₁₀ |residual| per recorded step (exact zeros not drawn)",
             "log₁₀ |residual|",
-            true,
-            &curves,
-        )
-    } else {
-        line_chart(
-            "energy",
+        ),
+        TraceKind::Energy => (
             "Energies and cumulative works (min/max envelope of the records)",
             "energy, work",
-            false,
-            &curves,
-        )
-    }
+        ),
+        TraceKind::Coordinates => (
+            "Probed coordinates q_j (min/max envelope of the records)",
+            "q_j (the coordinate's unit)",
+        ),
+        TraceKind::Gaps => (
+            "Contact gaps g_i(q, t) ≥ 0 (min/max envelope of the records)",
+            "gap (length unit of the gap)",
+        ),
+        TraceKind::Impulses => (
+            "Contact impulses per step: normal p_i, tangential pt_i dashed",
+            "impulse (N·s)",
+        ),
+    };
+    line_chart(chart.kind.name(), title, ylabel, log, &curves)
 }
 
 #[cfg(test)]

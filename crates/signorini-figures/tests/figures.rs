@@ -200,3 +200,65 @@ fn time_integration_jobs_return_energy_and_residual_figures() {
             .all(|f| f.name != "energy" && f.name != "residuals")
     );
 }
+
+/// Issue 30: a user's own model (`lagrangian`) gets the figures that matter for it: the energy
+/// with Σ work_friction (1.3 J of a 6 J loss was missing), a `residuals` figure that is never
+/// empty (its `energy_error`, the measure of a nonlinear scheme; nonlinear Moreau–Jean had
+/// none, and ns_generalized_alpha without joints drew only exact zeros), and default figures of
+/// its probed coordinates, gaps and impulses, one curve and legend entry per column.
+#[test]
+fn user_models_get_friction_work_energy_error_coordinates_gaps_and_impulses() {
+    let cases = [
+        (
+            include_str!("../../../examples/rocking_block_friction.toml"),
+            &["Σ work_friction", "potential", "Σ work_contact"][..],
+            &["q_0", "q_1", "q_2"][..],
+            &["p_0", "pt_0", "p_1", "pt_1"][..],
+        ),
+        (
+            include_str!("../../../examples/rocking_block_ns_generalized_alpha.toml"),
+            &["potential", "Σ work_contact"][..],
+            &["q_1", "q_2"][..],
+            &["p_0", "p_1"][..],
+        ),
+    ];
+    for (text, energy_labels, probes, impulses) in cases {
+        let mut spec: toml::Value = toml::from_str(text).expect("toml");
+        spec["time"]["t_end"] = toml::Value::Float(0.6);
+        let out = run(
+            &job(&toml::to_string(&spec).expect("TOML")),
+            THREADS,
+            &mut Nothing,
+        )
+        .expect("run");
+        let figures = render(&out.charts);
+        let names: Vec<&str> = figures.iter().map(|f| f.name.as_str()).collect();
+        assert_eq!(
+            names,
+            ["energy", "residuals", "coordinates", "gaps", "impulses"],
+            "{text}"
+        );
+        let labels_of = |name: &str, labels: &[&str]| {
+            let f = figures.iter().find(|f| f.name == name).expect(name);
+            let curves = xml_elements(&f.svg)
+                .iter()
+                .filter(|e| *e == "polyline")
+                .count();
+            assert!(curves >= labels.len(), "{name}: {curves} curves");
+            for label in labels {
+                assert!(
+                    f.svg.contains(&format!(">{label}</text>")),
+                    "{name}: {label}"
+                );
+            }
+        };
+        labels_of("energy", energy_labels);
+        // The label without ": exactly 0 at every step": the curve has finite points.
+        labels_of("residuals", &["energy_error (ΔE − works)"]);
+        labels_of("coordinates", probes);
+        labels_of("gaps", &["gap_0", "gap_1"]);
+        labels_of("impulses", impulses);
+    }
+    // A built-in scene keeps its two figures (see above): the motion figures are a user
+    // model's.
+}

@@ -478,12 +478,17 @@ impl NonsmoothGeneralizedAlpha {
             .ok_or_else(|| at.singular(0))?;
         let mut applied = vec![0.0; n];
         system.applied_forces(t_k, &state.q, &state.v, &mut applied);
-        at.check(&applied, "the applied forces f(t, q, v)")?;
+        at.check_at(
+            &applied,
+            "the applied forces f(t, q, v)",
+            &state.q,
+            &state.v,
+        )?;
         let mut mass = vec![0.0; n * n];
         system.mass(&state.q, &mut mass);
         let energy = kinetic(&mass, &state.v) + system.potential(t_k, &state.q);
         if !energy.is_finite() {
-            return Err(at.not_finite("the energy"));
+            return Err(at.not_finite("the energy", energy));
         }
         Ok(NsAlphaMemory {
             step: state.step,
@@ -540,16 +545,16 @@ impl NonsmoothGeneralizedAlpha {
                 x.vt[i] = start.v[i] + h * ((1.0 - gamma) * start.a[i] + gamma * x.a1[i]);
             }
             system.mass(&x.qt, &mut x.mass);
-            at.check(&x.mass, "M(q)")?;
+            at.check_at(&x.mass, "M(q)", &x.qt, &[])?;
             system.forces(t1, &x.qt, &x.vt, &mut f);
-            at.check(&f, "F(t, q, v)")?;
+            at.check_at(&f, "F(t, q, v)", &x.qt, &x.vt)?;
             system.joint_jacobian(t1, &x.qt, &mut x.gj);
             system.joint_curvature(t1, &x.qt, &x.vt, &mut kappa);
             at.check(&x.gj, "the joint Jacobian")?;
             at.check(&kappa, "the joints' curvature term")?;
             let (r, residual) = smooth_residual(&x, &f, &kappa, n, nb);
             if !residual.is_finite() {
-                return Err(at.not_finite("the Newton residual"));
+                return Err(at.not_finite("the Newton residual", residual));
             }
             if residual <= newton.tolerance {
                 return Ok(x);
@@ -835,7 +840,7 @@ impl NonsmoothGeneralizedAlpha {
         } = velocity;
         let mut applied = vec![0.0; n];
         system.applied_forces(t1, &q, &v, &mut applied);
-        at.check(&applied, "the applied forces f(t, q, v)")?;
+        at.check_at(&applied, "the applied forces f(t, q, v)", &q, &v)?;
         let work_ext: f64 = (0..n)
             .map(|i| 0.5 * (start.applied[i] + applied[i]) * (q[i] - start.q[i]))
             .sum();
@@ -844,7 +849,7 @@ impl NonsmoothGeneralizedAlpha {
         base.potential = system.potential(t1, &q);
         let energy = base.energy();
         if !energy.is_finite() {
-            return Err(at.not_finite("the energy"));
+            return Err(at.not_finite("the energy", energy));
         }
         base.work_ext = work_ext;
         base.work_contact = work_contact;

@@ -238,15 +238,29 @@ pub enum NonlinearStepError {
         /// Newton iteration (from 1).
         iteration: usize,
     },
-    /// A value of the system or of the state is NaN or infinite.
-    #[error("step {step} (t = {t}): {what} is not finite")]
+    /// A value of the system or of the state is NaN or infinite: which value, its first
+    /// entry that is not finite, and the state it was evaluated at (so a user can find the
+    /// expression and the configuration that broke it).
+    #[error(
+        "step {step} (t = {t}): {what} is not finite{}",
+        where_not_finite(*.component, *.value, .q, .v)
+    )]
     NotFinite {
         /// Step number.
         step: u64,
-        /// Time t_{k+1}.
+        /// Time the value was evaluated at.
         t: f64,
         /// Which value.
         what: &'static str,
+        /// Its first entry that is not finite (row-major for a matrix), when it is a vector or
+        /// matrix.
+        component: Option<usize>,
+        /// That entry (NaN or ±∞), or the scalar value.
+        value: f64,
+        /// The positions it was evaluated at (empty when the value does not depend on them).
+        q: Vec<f64>,
+        /// The velocities it was evaluated at (empty when the value does not depend on them).
+        v: Vec<f64>,
     },
     /// The impulse LCP could not be solved to tolerance.
     #[error("step {step} (t = {t}): contact LCP failed: {source}")]
@@ -406,22 +420,62 @@ pub(crate) struct StepAt {
     pub(crate) t: f64,
 }
 
+/// The part of a [`NonlinearStepError::NotFinite`] message after "is not finite": the entry
+/// and the state, when known.
+fn where_not_finite(component: Option<usize>, value: f64, q: &[f64], v: &[f64]) -> String {
+    let mut text = match component {
+        Some(i) => format!(" (entry {i} is {value})"),
+        None => format!(" ({value})"),
+    };
+    if !q.is_empty() {
+        text.push_str(&format!(" at q = {q:?}"));
+    }
+    if !v.is_empty() {
+        text.push_str(&format!(", v = {v:?}"));
+    }
+    text
+}
+
 impl StepAt {
-    /// A value of the system or of the state is not finite.
-    pub(crate) fn not_finite(self, what: &'static str) -> NonlinearStepError {
+    /// A scalar value of the system or of the state (`value`) is not finite.
+    pub(crate) fn not_finite(self, what: &'static str, value: f64) -> NonlinearStepError {
         NonlinearStepError::NotFinite {
             step: self.step,
             t: self.t,
             what,
+            component: None,
+            value,
+            q: Vec::new(),
+            v: Vec::new(),
         }
     }
 
-    /// Refuses `x` unless every entry is finite.
+    /// Refuses `x` unless every entry is finite (the error names the first entry that is not).
     pub(crate) fn check(self, x: &[f64], what: &'static str) -> Result<(), NonlinearStepError> {
-        if x.iter().all(|a| a.is_finite()) {
-            Ok(())
-        } else {
-            Err(self.not_finite(what))
+        self.check_at(x, what, &[], &[])
+    }
+
+    /// Refuses `x`, evaluated at positions `q` and velocities `v` (either may be empty when
+    /// `x` does not depend on it), unless every entry is finite; the error names the first
+    /// entry that is not and the state.
+    pub(crate) fn check_at(
+        self,
+        x: &[f64],
+        what: &'static str,
+        q: &[f64],
+        v: &[f64],
+    ) -> Result<(), NonlinearStepError> {
+        match x.iter().position(|a| !a.is_finite()) {
+            None => Ok(()),
+            Some(i) => Err(NonlinearStepError::NotFinite {
+                step: self.step,
+                t: self.t,
+                what,
+                component: Some(i),
+                value: x[i],
+                q: q.to_vec(),
+                v: v.to_vec(),
+            }),
         }
     }
 
@@ -704,11 +758,16 @@ impl NonlinearMoreauJean {
             energy: 0.0,
         };
         system.forces(t_k, &state.q, &state.v, &mut e.forces);
-        at.check(&e.forces, "F(t, q, v)")?;
+        at.check_at(&e.forces, "F(t, q, v)", &state.q, &state.v)?;
         system.applied_forces(t_k, &state.q, &state.v, &mut e.applied);
-        at.check(&e.applied, "the applied forces f(t, q, v)")?;
+        at.check_at(
+            &e.applied,
+            "the applied forces f(t, q, v)",
+            &state.q,
+            &state.v,
+        )?;
         system.gaps(t_k, &state.q, &mut e.gaps);
-        at.check(&e.gaps, "a gap g(q, t)")?;
+        at.check_at(&e.gaps, "a gap g(q, t)", &state.q, &[])?;
         system.mass(&state.q, &mut self.s.mass);
         e.energy = kinetic(&self.s.mass, &state.v) + system.potential(t_k, &state.q);
         if self.friction {
@@ -722,7 +781,7 @@ impl NonlinearMoreauJean {
             at.check(&e.tangent_velocity, "a tangential velocity")?;
         }
         if !e.energy.is_finite() {
-            return Err(at.not_finite("the energy"));
+            return Err(at.not_finite("the energy", e.energy));
         }
         Ok(e)
     }
@@ -740,9 +799,9 @@ impl NonlinearMoreauJean {
         position(&state.q, &state.v, &s.dv, h, theta, &mut s.q);
         s.v.copy_from_slice(&state.v);
         system.mass(&s.q, &mut s.mass);
-        at.check(&s.mass, "M(q)")?;
+        at.check_at(&s.mass, "M(q)", &s.q, &[])?;
         system.forces(at.t, &s.q, &s.v, &mut s.forces);
-        at.check(&s.forces, "F(t, q, v)")?;
+        at.check_at(&s.forces, "F(t, q, v)", &s.q, &s.v)?;
         for ((p, q), v) in s.predicted.iter_mut().zip(&state.q).zip(&state.v) {
             *p = q + h * v;
         }
@@ -1061,9 +1120,9 @@ impl NonlinearMoreauJean {
             *v = vk + d;
         }
         system.mass(&s.q, &mut s.mass);
-        at.check(&s.mass, "M(q)")?;
+        at.check_at(&s.mass, "M(q)", &s.q, &[])?;
         system.forces(at.t, &s.q, &s.v, &mut s.forces);
-        at.check(&s.forces, "F(t, q, v)")?;
+        at.check_at(&s.forces, "F(t, q, v)", &s.q, &s.v)?;
         if m > 0 {
             system.gap_jacobian(at.t, &s.q, &mut s.jac);
             at.check(&s.jac, "the gap Jacobian")?;
@@ -1107,7 +1166,7 @@ impl NonlinearMoreauJean {
             residual = residual.max(self.joint_violation(system, state, at)?);
         }
         if !residual.is_finite() {
-            return Err(at.not_finite("the Newton residual"));
+            return Err(at.not_finite("the Newton residual", residual));
         }
         Ok(residual)
     }
@@ -1286,7 +1345,7 @@ impl NonlinearMoreauJean {
         report.potential = system.potential(at.t, &s.q);
         let energy = report.energy();
         if !energy.is_finite() {
-            return Err(at.not_finite("the energy"));
+            return Err(at.not_finite("the energy", energy));
         }
         let NewtonOutcome {
             iterations,

@@ -119,7 +119,8 @@ pub struct UserContactSpec {
     pub restitution: f64,
     /// Coulomb friction coefficient μ ≥ 0 (default 0: frictionless); μ > 0 needs `tangent`.
     /// The step then solves the planar friction problem (`contact_solver.kind`: lemke on the
-    /// LCP reformulation, pgs the nonsmooth Gauss–Seidel, auto by size). Taken by
+    /// LCP reformulation, pgs the nonsmooth Gauss–Seidel, auto the Gauss–Seidel first with Lemke
+    /// when it does not converge). Taken by
     /// `moreau_jean`; `ns_generalized_alpha` refuses μ > 0 (its impact law is frictionless).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 0.0))]
@@ -350,6 +351,8 @@ impl LagrangianSpec {
     ///   entries is caught; structurally equal expressions pass at once); M positive definite at q0
     ///   (Cholesky);
     /// * each joint holds at q0: |g_i(q0)| ≤ [`JOINT_TOLERANCE`] · ‖q0‖∞ (absolute when q0 = 0);
+    /// * each contact is open or closed at q0, not penetrated: gap(q0, 0) ≥ −[`JOINT_TOLERANCE`]
+    ///   · ‖q0‖∞ (a start inside the obstacle is refused naming `model.contacts[i].gap`);
     /// * restitution in [0, 1]; friction μ finite and ≥ 0, and μ > 0 needs a `tangent` (the
     ///   tangential relative position τ(q, t), checked like a gap: no velocities, known names,
     ///   finite at q0); its gradient, the tangent row, is an exact symbolic derivative like the
@@ -447,7 +450,19 @@ impl LagrangianSpec {
         let mut tangents = Vec::with_capacity(spec.contacts.len());
         for (i, c) in spec.contacts.iter().enumerate() {
             let field = |f: &str| format!("model.contacts[{i}].{f}");
-            gaps.push(p.parse(&field("gap"), &c.gap, Allowed::PositionsAndTime)?);
+            let gap = p.parse(&field("gap"), &c.gap, Allowed::PositionsAndTime)?;
+            // A start inside the obstacle is refused: the impact law acts on velocities, so a
+            // negative gap is never pushed back out and the run would go on inside the wall.
+            let start = gap.eval(&p.at_start);
+            if start < -tolerance {
+                return Err(SpecError::new(
+                    field("gap"),
+                    format!(
+                        "the gap is {start:e} < 0 at q0 (t = 0): the model starts inside the obstacle; choose q0 with every gap ≥ 0 (tolerance {tolerance:e})"
+                    ),
+                ));
+            }
+            gaps.push(gap);
             if !(c.restitution.is_finite() && (0.0..=1.0).contains(&c.restitution)) {
                 return Err(SpecError::new(
                     field("restitution"),

@@ -107,7 +107,10 @@ pub struct ContactSolverSpec {
     /// the banded iteration matrix, memory and time linear in the dofs: linear models whose
     /// contacts are one dof each, no two on a dof, without friction; the α-family also needs a
     /// lumped mass). `auto` takes `banded_active_set` for such models from 201 contacts on, and
-    /// otherwise enumeration up to 3 contacts in the index set, Lemke up to 200, PGS above.
+    /// otherwise enumeration up to 3 contacts in the index set, Lemke up to 200, PGS above. A
+    /// step with friction (μ > 0 on a contact of the index set) solves the friction problem:
+    /// `auto` runs the nonsmooth Gauss–Seidel (NSGS) first and Lemke on the LCP reformulation of
+    /// the planar cone when NSGS does not converge; `lemke` and `pgs` run that one only.
     #[serde(default)]
     pub kind: LcpSolverKind,
     /// Largest complementarity error accepted, default 1e-12.
@@ -256,7 +259,8 @@ impl Steps {
 }
 
 impl TimeSpec {
-    /// Checks the section: h > 0; `t_end` ≥ 0 or `steps`, not both; at most [`MAX_STEPS`] steps
+    /// Checks the section: h > 0; `t_end` ≥ 0 or `steps`, not both; h ≤ `t_end` when
+    /// `t_end` > 0; at most [`MAX_STEPS`] steps
     /// (counted with the mean relative step); `pattern` and `adjust` only where the scheme takes
     /// variable steps (`variable_steps`). Errors name the field.
     pub fn steps(&self, variable_steps: bool) -> Result<Steps, SpecError> {
@@ -316,6 +320,17 @@ impl TimeSpec {
                     return Err(SpecError::new(
                         "time.t_end",
                         format!("must be a finite number ≥ 0, got {t}"),
+                    ));
+                }
+                // One step longer than the whole run would integrate past t_end (h = 10 with
+                // t_end = 5 ran to t = 10): refused rather than silently overshot.
+                if t > 0.0 && self.h > t * (1.0 + 1e-9) {
+                    return Err(SpecError::new(
+                        "time.h",
+                        format!(
+                            "h = {} is longer than t_end = {t}: no step ends at t_end",
+                            self.h
+                        ),
                     ));
                 }
                 let mean = pattern.iter().sum::<f64>() / pattern.len() as f64;

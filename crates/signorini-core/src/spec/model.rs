@@ -50,6 +50,30 @@ impl ModelSpec {
         )
     }
 
+    /// The model of scene `scene` read from its fields alone (the `[model]` table without
+    /// `scene`), or `None` for a scene this list does not know. serde buffers an internally
+    /// tagged section before it knows the variant, which loses the path of a bad field inside it
+    /// (`q0[0]`, `contacts[0].restitutin`); reading the variant's own struct with a
+    /// path-tracking deserializer (the caller's) keeps it.
+    pub fn from_scene_fields<'de, D: serde::Deserializer<'de>>(
+        scene: &str,
+        fields: D,
+    ) -> Option<Result<ModelSpec, D::Error>> {
+        Some(match scene {
+            "bouncing_ball" => BouncingBall::deserialize(fields).map(ModelSpec::BouncingBall),
+            "bar" => BarSpec::deserialize(fields).map(ModelSpec::Bar),
+            "dep_bar" => BarSpec::deserialize(fields).map(ModelSpec::DepBar),
+            "chain" => Chain::deserialize(fields).map(ModelSpec::Chain),
+            "string" => StringScene::deserialize(fields).map(ModelSpec::String),
+            "linear" => LinearSpec::deserialize(fields).map(ModelSpec::Linear),
+            "pendulum" => Pendulum::deserialize(fields).map(ModelSpec::Pendulum),
+            "slider_crank" => SliderCrank::deserialize(fields).map(ModelSpec::SliderCrank),
+            "jay_negrut_test" => JayNegrutTest::deserialize(fields).map(ModelSpec::JayNegrutTest),
+            "lagrangian" => LagrangianSpec::deserialize(fields).map(ModelSpec::Lagrangian),
+            _ => return None,
+        })
+    }
+
     /// The scene's name as written in specs.
     pub fn scene(&self) -> &'static str {
         match self {

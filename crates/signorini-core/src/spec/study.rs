@@ -72,7 +72,9 @@ pub struct ReferenceRun {
 }
 
 /// The norm of a run's error e_{k,i} = x_i(t_k) − x_i,ref(t_k) over its recorded steps k and
-/// compared quantities i.
+/// compared quantities i. Each quantity keeps its own unit: probes of a model in metres and
+/// radians are compared as plain numbers, so `max_abs` is the largest error of any of them in
+/// its own unit (probe quantities of one unit to read it in that unit).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ErrorNorm {

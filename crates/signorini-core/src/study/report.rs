@@ -301,20 +301,34 @@ impl StudyReport {
     }
 
     /// `work_precision`: error against CPU seconds, log–log, a curve per scheme (and values of
-    /// the other axes), the reference and the norm in the title.
+    /// the other axes) with its observed order in the legend and each point's h, the reference
+    /// and the norm in the title.
     pub fn chart(&self) -> Chart {
+        let orders = self.orders();
         let curves = self
             .groups()
             .into_iter()
             .map(|(scheme, at, pts)| {
+                let order = orders
+                    .iter()
+                    .find(|o| o.scheme == scheme && o.at == at)
+                    .map(|o| o.order);
                 let mut label = scheme;
                 if !at.is_empty() {
                     let parts: Vec<String> = at.iter().map(|(a, v)| format!("{a}={v}")).collect();
                     let _ = write!(label, " [{}]", parts.join(", "));
                 }
-                let mut points: Vec<(f64, f64)> = pts.iter().map(|p| (p.cpu_s, p.error)).collect();
-                points.sort_by(|a, b| a.0.total_cmp(&b.0));
-                WorkPrecisionCurve { label, points }
+                if let Some(order) = order {
+                    let _ = write!(label, ", observed order {order:.2}");
+                }
+                let mut runs: Vec<(f64, f64, f64)> =
+                    pts.iter().map(|p| (p.cpu_s, p.error, p.h)).collect();
+                runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+                WorkPrecisionCurve {
+                    label,
+                    points: runs.iter().map(|r| (r.0, r.1)).collect(),
+                    h: runs.iter().map(|r| r.2).collect(),
+                }
             })
             .collect();
         Chart::WorkPrecision(WorkPrecisionChart {
