@@ -217,7 +217,7 @@ async fn a_lagrangian_jobs_page_draws_what_its_family_reports() {
         .expect("submit");
     let st = wait_terminal(&mut client, &done).await;
     assert_eq!(st.state, pb::JobState::Succeeded as i32, "{st:?}");
-    let running = submit_json(&mut client, rocking_block(1000.0), Some("rocking long"))
+    let running = submit_json(&mut client, rocking_block(1000.0), Some("rocking_long"))
         .await
         .expect("submit");
     wait_running(&mut client, &running, 2_000).await;
@@ -263,7 +263,7 @@ async fn a_lagrangian_jobs_page_draws_what_its_family_reports() {
         let caption = b.eval("document.getElementById('residual-caption').textContent");
         let caption = caption.as_str().expect("a caption");
         assert!(caption.contains("energy_error"), "{caption}");
-        assert!(!caption.contains("round-off"), "{caption}");
+        assert!(!caption.contains("closed to round-off"), "{caption}");
         assert!(data(&mut b, "energy", "t0") == 0.0);
     }
     // The finished job's figures: the energy, its checks and the motion of the model.
