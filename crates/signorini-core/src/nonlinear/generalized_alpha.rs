@@ -61,81 +61,19 @@
 //! ΔE − work_ext − work_contact: the error of the smooth stage, of the position correction and
 //! of the joint projection. Without contacts it shrinks as h² over a fixed time.
 
-use super::LagrangianSystem;
+pub use super::joints::JointedSystem;
 use super::moreau_jean::{
     NewtonOptions, NonlinearRunStats, NonlinearRunStop, NonlinearState, NonlinearStepError,
-    NonlinearStepReport, ParamError, StepAt,
+    NonlinearStepReport, ParamError, StepAt, solve_mixed_at,
 };
 use crate::checkpoint::RunKind;
 use crate::contact::LcpStats;
 use crate::dense::{amax, dot, kinetic, lu_factor};
 use crate::integrators::OutputOptions;
-use crate::lagrangian::UserModel;
-use crate::lcp::{LcpOptions, MixedLcp, MixedLcpError, MixedSolution, solve_mixed};
+use crate::lcp::LcpOptions;
 use crate::observer::{Columns, Observer};
-use crate::soi2::{ConstrainedModel, Dual64};
 use crate::stepping::{self, StepTime, StopReason, TimeStepping};
 use nalgebra::{DMatrix, DVector};
-
-/// A [`LagrangianSystem`] with bilateral holonomic joints g(q, t) = 0 (nb of them). The
-/// defaults describe a system without joints.
-pub trait JointedSystem: LagrangianSystem {
-    /// Number of joints nb.
-    fn joints(&self) -> usize {
-        0
-    }
-
-    /// g(q, t), nb entries.
-    fn joint_values(&self, t: f64, q: &[f64], out: &mut [f64]) {
-        let _ = (t, q, out);
-    }
-
-    /// G = ∂g/∂q, nb×n row-major.
-    fn joint_jacobian(&self, t: f64, q: &[f64], out: &mut [f64]) {
-        let _ = (t, q, out);
-    }
-
-    /// G v + g_t, nb entries.
-    fn joint_rates(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
-        let _ = (t, q, v, out);
-    }
-
-    /// κ = d/dt(G v + g_t) with q̈ = 0, i.e. g_qq(v, v) + 2 g_qt v + g_tt, nb entries.
-    fn joint_curvature(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
-        let _ = (t, q, v, out);
-    }
-}
-
-/// The joints of a user model from its symbolic tapes; κ is the derivative of the tape of
-/// G v + g_t along (t, q, v) → (1, v, 0), by one forward-mode dual evaluation.
-impl JointedSystem for UserModel {
-    fn joints(&self) -> usize {
-        UserModel::joints(self)
-    }
-
-    fn joint_values(&self, t: f64, q: &[f64], out: &mut [f64]) {
-        ConstrainedModel::g(self, t, q, out);
-    }
-
-    fn joint_jacobian(&self, t: f64, q: &[f64], out: &mut [f64]) {
-        ConstrainedModel::g_y(self, t, q, out);
-    }
-
-    fn joint_rates(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
-        ConstrainedModel::g_dot(self, t, q, v, out);
-    }
-
-    fn joint_curvature(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
-        let td = Dual64::new(t, 1.0);
-        let qd: Vec<Dual64> = q.iter().zip(v).map(|(&x, &w)| Dual64::new(x, w)).collect();
-        let vd: Vec<Dual64> = v.iter().map(|&w| Dual64::from(w)).collect();
-        let mut rd = vec![Dual64::from(0.0); out.len()];
-        ConstrainedModel::g_dot(self, td, &qd, &vd, &mut rd);
-        for (o, r) in out.iter_mut().zip(&rd) {
-            *o = r.eps;
-        }
-    }
-}
 
 /// Parameters of the scheme.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -276,30 +214,6 @@ struct VelocityStage {
 /// A row-major matrix as an nalgebra matrix.
 fn mat(rows: usize, cols: usize, data: &[f64]) -> DMatrix<f64> {
     DMatrix::from_row_slice(rows, cols, data)
-}
-
-/// The mixed LCP of the joint rows (equalities) and the contact rows, its failure named for
-/// Newton iteration `iteration` of step `at`.
-pub(crate) fn solve_mixed_at(
-    d: &DMatrix<f64>,
-    b: &[f64],
-    nb: usize,
-    options: &LcpOptions,
-    at: StepAt,
-    iteration: usize,
-) -> Result<MixedSolution, NonlinearStepError> {
-    solve_mixed(
-        MixedLcp {
-            d,
-            b,
-            equalities: nb,
-        },
-        options,
-    )
-    .map_err(|e| match e {
-        MixedLcpError::Singular { .. } => at.singular(iteration),
-        MixedLcpError::Lcp(source) => at.lcp(source),
-    })
 }
 
 impl NonsmoothGeneralizedAlpha {

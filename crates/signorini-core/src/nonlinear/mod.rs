@@ -15,9 +15,10 @@
 //! Jacobians, no finite differences. The user models of `scene = "lagrangian"` implement it
 //! from compiled expressions; a test can implement it by hand. [`moreau_jean`] runs it;
 //! [`generalized_alpha`] (the nonsmooth generalized-α scheme) runs it with bilateral joints too
-//! ([`generalized_alpha::JointedSystem`]).
+//! ([`joints::JointedSystem`]).
 
 pub mod generalized_alpha;
+pub mod joints;
 pub mod moreau_jean;
 
 /// A nonlinear mechanical system with unilateral contacts, as the nonlinear Moreau–Jean

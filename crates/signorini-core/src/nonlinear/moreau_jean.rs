@@ -126,13 +126,15 @@
 //! one-step problem would be a friction problem with equality rows).
 
 use super::LagrangianSystem;
-use super::generalized_alpha::{JointedSystem, solve_mixed_at};
+use super::joints::JointedSystem;
 use crate::checkpoint::RunKind;
 use crate::contact::{Activation, IndexSetRule, LcpStats};
 use crate::dense::{amax, dot, kinetic, lu_factor};
 use crate::friction::{self, FrictionError, FrictionProblem};
 use crate::integrators::OutputOptions;
-use crate::lcp::{self, Lcp, LcpError, LcpOptions};
+use crate::lcp::{
+    self, Lcp, LcpError, LcpOptions, MixedLcp, MixedLcpError, MixedSolution, solve_mixed,
+};
 use crate::observer::{Columns, Observer};
 use crate::stepping::{self, StepTime, StopReason, TimeStepping};
 use nalgebra::{DMatrix, DVector};
@@ -1780,4 +1782,28 @@ impl<S: JointedSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
         self.work_friction_total = run.work_friction_total;
         Ok(())
     }
+}
+
+/// The mixed LCP of the joint rows (equalities) and the contact rows, its failure named for
+/// Newton iteration `iteration` of step `at`.
+pub(crate) fn solve_mixed_at(
+    d: &DMatrix<f64>,
+    b: &[f64],
+    nb: usize,
+    options: &LcpOptions,
+    at: StepAt,
+    iteration: usize,
+) -> Result<MixedSolution, NonlinearStepError> {
+    solve_mixed(
+        MixedLcp {
+            d,
+            b,
+            equalities: nb,
+        },
+        options,
+    )
+    .map_err(|e| match e {
+        MixedLcpError::Singular { .. } => at.singular(iteration),
+        MixedLcpError::Lcp(source) => at.lcp(source),
+    })
 }
