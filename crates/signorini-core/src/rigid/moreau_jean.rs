@@ -402,6 +402,46 @@ impl RigidMoreauJean {
             });
         }
 
+        self.finish(
+            scene,
+            &start,
+            (&v_next, &w_next),
+            active,
+            &impulse,
+            state,
+            &mut report,
+            step,
+            t,
+        )?;
+        scratch.found_valid = false;
+        scratch
+            .detect(scene, state, detector)
+            .map_err(|source| RigidStepError::Detect {
+                step,
+                t: t + h,
+                source,
+            })?;
+        Ok(report)
+    }
+
+    /// The end of a step: (1c) for each free body (positions by the velocities at k + θ, the
+    /// orientation by the exponential map of h Ω_{k+θ}), then the works of the impulses on
+    /// U_{k+θ} (normal: `work_contact`, tangential: `work_friction`).
+    #[allow(clippy::too_many_arguments)]
+    fn finish(
+        &self,
+        scene: &RigidScene,
+        start: &[BodyState],
+        (v_next, w_next): (&[V3], &[V3]),
+        active: &[ActiveContact],
+        impulse: &[f64],
+        state: &mut [BodyState],
+        report: &mut StepReport,
+        step: u64,
+        t: f64,
+    ) -> Result<(), RigidStepError> {
+        let (h, theta) = (self.h, self.params.theta);
+        let n = state.len();
         // (1c) and the works of the impulses on U_{k+θ}.
         let mut theta_twist = vec![(V3::zeros(), V3::zeros()); n];
         for (b, body) in scene.bodies.iter().enumerate() {
@@ -435,15 +475,7 @@ impl RigidMoreauJean {
             report.work_contact += p[0] * u[0];
             report.work_friction += p[1] * u[1] + p[2] * u[2];
         }
-        scratch.found_valid = false;
-        scratch
-            .detect(scene, state, detector)
-            .map_err(|source| RigidStepError::Detect {
-                step,
-                t: t + h,
-                source,
-            })?;
-        Ok(report)
+        Ok(())
     }
 
     /// The index set of the contact points found at t_k: predicted gap g + γ h U_{n,k} ≤ margin.
