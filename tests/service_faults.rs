@@ -1,4 +1,4 @@
-//! Faults a long-running service must survive (issue 31, DESIGN.md §20), each against the real
+//! Faults a long-running service must survive, each against the real
 //! `signorini serve` binary: the store's disk full (the job fails with the store's reason,
 //! `/healthz` degraded, submissions refused until there is room, nothing stored damaged).
 

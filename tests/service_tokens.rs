@@ -1,4 +1,4 @@
-//! Per-client tokens with scopes (`serve --tokens FILE`, DESIGN.md §20): with tokens configured
+//! Per-client tokens with scopes (`serve --tokens FILE`): with tokens configured
 //! every call but `/healthz` needs one, over HTTP and gRPC: a read without a token is refused
 //! (401 / UNAUTHENTICATED), a write with a read token is refused (403 / PERMISSION_DENIED), a
 //! write token reads and writes; the file holds SHA-256 digests, never the tokens.

@@ -1,4 +1,4 @@
-//! Who may call what (DESIGN.md §20): the bearer tokens a server takes, and the scope each one
+//! Who may call what: the bearer tokens a server takes, and the scope each one
 //! grants. Three settings:
 //!
 //! * none: every call is open;

@@ -2,7 +2,7 @@
 //! `SQLITE_FULL`, PostgreSQL's SQLSTATE class 53) or because it became read-only marks the store
 //! degraded, with the store's reason; it stays so until a probe ([`Backend::probe_write`]) of
 //! one chunk of a series succeeds. While degraded, `/healthz` answers 503 with the reason and
-//! new submissions are refused naming it (DESIGN.md §20).
+//! new submissions are refused naming it.
 //!
 //! [`Backend::probe_write`]: super::Backend::probe_write
 
