@@ -71,11 +71,7 @@ def spec(n: int, scheme: str, h: float, t_end: float, every: int) -> str:
         out.append(f'expr = "{j}"')
     out.append("\n[integrator]")
     out.append(f'scheme = "{scheme}"')
-    if scheme == "soi2_generalized_alpha":
-        # The parameters tests/soi2_hard_cases.rs runs through the singular passages. With the
-        # default rho_inf = 0.2 Newton still fails at the first passage (t = 0.718, h = 1e-3).
-        out.append("rho_inf = 0.8  # the default 0.2 still fails at the first singular passage (t = 0.718)")
-    elif scheme in ("soi2_hht", "hht_i3"):
+    if scheme in ("soi2_hht", "hht_i3"):
         out.append("alpha = -0.05")
     out.append("\n[time]")
     out.append(f"h = {h}")

@@ -589,6 +589,9 @@ pub struct Soi2Summary {
     pub smallest_rank: Option<usize>,
     /// Attempts rejected for a Newton failure and retried with h/2 (variable-step runs).
     pub rejected_steps: u64,
+    /// Steps accepted on Newton's residual test with the constraint Jacobian at full numerical
+    /// rank (next to a singular position; DESIGN §16).
+    pub near_singular_steps: u64,
 }
 
 /// Summary of a WFEM run: the bar's size and step, then what the run measured

@@ -199,6 +199,11 @@ pub struct Soi2Stats {
     /// Attempts rejected for a Newton failure and retried with h/2 (variable-step runs).
     #[serde(default)]
     pub rejected_steps: u64,
+    /// Steps accepted on Newton's residual test while (g_y; k_z) kept its numerical rank: the
+    /// near-singular steps next to a singular position, whose multipliers are determined only
+    /// to cond(J)·ε (see [`super::method::NewtonOptions`]).
+    #[serde(default)]
+    pub near_singular_steps: u64,
 }
 
 /// Column names of a SOI2 run: the step h; the energies `kinetic` ½zᵀMz, `potential` V,
@@ -461,9 +466,13 @@ impl<M: ConstrainedModel + ?Sized, I: Iterator<Item = f64>> TimeStepping
         stats.newton_jacobians = self.cache.jacobians;
         stats.rejected_steps += info.rejected;
         let d = model.dims();
-        if let Some(rank) = info.rank.filter(|&r| r < d.holonomic + d.nonholonomic) {
-            stats.rank_deficient_steps += 1;
-            stats.smallest_rank = Some(stats.smallest_rank.map_or(rank, |s| s.min(rank)));
+        match info.rank {
+            Some(rank) if rank < d.holonomic + d.nonholonomic => {
+                stats.rank_deficient_steps += 1;
+                stats.smallest_rank = Some(stats.smallest_rank.map_or(rank, |s| s.min(rank)));
+            }
+            Some(_) => stats.near_singular_steps += 1,
+            None => {}
         }
         stats.t_end = state.t;
         Ok(())
@@ -705,6 +714,7 @@ impl Soi2Job {
             rank_deficient_steps: stats.rank_deficient_steps,
             smallest_rank: stats.smallest_rank,
             rejected_steps: stats.rejected_steps,
+            near_singular_steps: stats.near_singular_steps,
         })
     }
 }
