@@ -8,11 +8,17 @@
 //!
 //! The equality rows are eliminated by their Schur complement, z_B = −D_BB⁻¹(b_B + D_BI z_I),
 //! which leaves the LCP `0 ≤ (D_II − D_IB D_BB⁻¹ D_BI) z_I + b_I − D_IB D_BB⁻¹ b_B ⊥ z_I ≥ 0`
-//! for [`super::solve`]. D_BB must be regular (independent equality rows); nothing else is
-//! asked of D beyond what the chosen LCP solver asks of the Schur complement.
+//! for [`super::solve`]. D_BB is factorised by LU when regular; when it is singular because
+//! the equality rows are dependent (joints at a singular position, redundant joints: D_BB =
+//! G M⁻¹ Gᵀ loses the rank G loses, DESIGN §16), D_BB⁻¹ is read as the minimum-norm
+//! least-squares solve of the rank-revealing factorisation of [`crate::soi2::factor`], which
+//! gives the minimum-norm z_B (the redundant part of a joint impulse is not determined by the
+//! physics). Nothing else is asked of D beyond what the chosen LCP solver asks of the Schur
+//! complement.
 
 use super::{Lcp, LcpError, LcpOptions};
 use crate::dense::lu_factor;
+use crate::soi2::factor::NewtonFactor;
 use nalgebra::{DMatrix, DVector};
 use thiserror::Error;
 
@@ -43,7 +49,8 @@ pub struct MixedSolution {
 /// Why a mixed LCP failed.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum MixedLcpError {
-    /// D_BB is singular to working precision (dependent equality rows).
+    /// D_BB is singular to working precision and not for want of rank of its rows (a NaN, or
+    /// a matrix the rank-revealing factorisation finds regular).
     #[error("the block of the {equalities} equality rows is singular")]
     Singular {
         /// Number of equality rows.
@@ -74,9 +81,32 @@ pub fn solve_mixed(
         });
     }
     let singular = MixedLcpError::Singular { equalities: nb };
-    let lu = lu_factor(d.view((0, 0), (nb, nb)).into_owned()).ok_or(singular.clone())?;
-    let b_b = DVector::from_column_slice(&b[..nb]);
-    let y = lu.solve(&b_b).ok_or(singular.clone())?;
+    let d_bb = d.view((0, 0), (nb, nb)).into_owned();
+    let lu = lu_factor(d_bb.clone());
+    // D_BB⁻¹ of the module documentation: LU, or the minimum-norm solve when D_BB is singular.
+    let deficient = match lu {
+        Some(_) => None,
+        None => Some(NewtonFactor::new(&d_bb, || true)).filter(NewtonFactor::deficient),
+    };
+    let solve = |rhs: DMatrix<f64>| -> Option<DMatrix<f64>> {
+        match (&lu, &deficient) {
+            (Some(lu), _) => lu.solve(&rhs),
+            (None, Some(factor)) => {
+                let mut x = rhs;
+                for mut column in x.column_iter_mut() {
+                    let mut c = column.clone_owned();
+                    if !factor.solve_mut(&mut c) {
+                        return None;
+                    }
+                    column.copy_from(&c);
+                }
+                Some(x)
+            }
+            (None, None) => None,
+        }
+    };
+    let b_b = DMatrix::from_column_slice(nb, 1, &b[..nb]);
+    let y = DVector::from_column_slice(solve(b_b).ok_or(singular.clone())?.as_slice());
     if nu == 0 {
         return Ok(MixedSolution {
             z: (-y).as_slice().to_vec(),
@@ -86,7 +116,7 @@ pub fn solve_mixed(
         });
     }
     let d_bi = d.view((0, nb), (nb, nu)).into_owned();
-    let x = lu.solve(&d_bi).ok_or(singular)?;
+    let x = solve(d_bi).ok_or(singular)?;
     let d_ib = d.view((nb, 0), (nu, nb));
     let schur = d.view((nb, nb), (nu, nu)) - d_ib * &x;
     let q_i = DVector::from_column_slice(&b[nb..]) - d_ib * &y;
