@@ -1,10 +1,11 @@
 //! Hard cases of DESIGN §16 (issue 27), on the IFToMM multibody benchmarks written as
 //! `lagrangian` models in `examples/benchmarks/`: the N-four-bar mechanism (A02) through its
 //! singular positions under the three SOI2 schemes and the nonsmooth generalized-α, against
-//! the exact one-degree-of-freedom motion of its parallelogram branch; Bricard's mechanism (A04), whose joints are redundant at
-//! every configuration; the simple pendulum (A01) against its elliptic-function solution; and
-//! joint sets that cannot hold (refused at validation, or a run error with the step, never a
-//! panic or a hang).
+//! the exact one-degree-of-freedom motion of its parallelogram branch; Andrews' squeezing
+//! mechanism (A03) against the Test Set's reference; Bricard's mechanism (A04), whose joints
+//! are redundant at every configuration; the simple pendulum (A01) against its
+//! elliptic-function solution; and joint sets that cannot hold (refused at validation, or a run
+//! error with the step, never a panic or a hang).
 
 // Only the core library must stay pure (clippy.toml): a test may read fixtures and print.
 #![allow(clippy::disallowed_macros, clippy::disallowed_methods)]
@@ -319,6 +320,51 @@ fn ns_generalized_alpha_runs_the_four_bar_through_regular_and_singular_positions
             stats.base.newton_iterations_mean,
             stats.base.newton_iterations_max
         );
+    }
+}
+
+/// Andrews' squeezing mechanism (A03, the Test Set for IVP solvers' "andrews") as its example
+/// writes it, at h = 10⁻⁵ under the example's generalized-α-SOI2 (ρ∞ = 0.8), HHT-SOI2 and the
+/// nonsmooth generalized-α: the seven angles at t = 0.03 within the example's `[check]`
+/// tolerance (10⁻⁴ rad) of the test set's reference, the joints on the manifold.
+#[test]
+fn andrews_mechanism_matches_the_test_set_at_three_hundredths_of_a_second() {
+    let base = benchmark("a03_andrews");
+    for integrator in [
+        base["integrator"].clone(),
+        json!({"scheme": "soi2_hht", "alpha": -0.05}),
+        json!({"scheme": "ns_generalized_alpha"}),
+    ] {
+        let mut doc = base.clone();
+        doc["integrator"] = integrator.clone();
+        let job = Job::from_spec(&spec(&doc)).unwrap_or_else(|e| panic!("valid spec: {e}"));
+        let mut rec = Recorder::default();
+        let out = run(&job, 1, &mut rec).unwrap_or_else(|e| panic!("{integrator}: {e}"));
+        let last = rec.t.len() - 1;
+        assert!(
+            (rec.t[last] - 0.03).abs() < 1e-12,
+            "{integrator}: ends at {}",
+            rec.t[last]
+        );
+        let mut worst = 0.0_f64;
+        for r in base["check"]["reference"].as_array().expect("references") {
+            let name = r["column"].as_str().expect("a column");
+            let column = rec
+                .column(name)
+                .or_else(|| rec.column(&name.replacen('y', "q", 1)))
+                .expect("a probe");
+            let error = (column[last] - r["value"].as_f64().expect("value")).abs();
+            assert!(
+                error <= r["tolerance"].as_f64().expect("tolerance"),
+                "{integrator}: {name} off by {error:e}"
+            );
+            worst = worst.max(error);
+        }
+        let residual = out.summary.to_map()["max_position_residual"]
+            .as_f64()
+            .expect("the position residual");
+        assert!(residual < 1e-9, "{integrator}: joints off by {residual:e}");
+        println!("{integrator}: largest angle error at t = 0.03: {worst:.2e} rad");
     }
 }
 
