@@ -12,6 +12,7 @@
 
 use serde_json::{Value, json};
 use signorini_core::job::{Job, run};
+use signorini_core::lcp::{LcpOptions, MixedLcp, solve_mixed};
 use signorini_core::observer::Recorder;
 use signorini_core::outcome::{RunError, Soi2Summary, SummaryBody};
 use signorini_core::soi2::Soi2Error;
@@ -365,6 +366,34 @@ fn andrews_mechanism_matches_the_test_set_at_three_hundredths_of_a_second() {
             .expect("the position residual");
         assert!(residual < 1e-9, "{integrator}: joints off by {residual:e}");
         println!("{integrator}: largest angle error at t = 0.03: {worst:.2e} rad");
+    }
+}
+
+/// The mixed LCP of a step (joint rows eliminated by their Schur complement, as
+/// `ns_generalized_alpha` and `moreau_jean` solve their position and velocity stages) with a
+/// joint written twice: D_BB = G M⁻¹ Gᵀ is singular, and the impulses are the minimum-norm ones,
+/// split evenly, with the contact row solved against them.
+#[test]
+fn a_mixed_lcp_with_a_joint_written_twice_gives_the_minimum_norm_impulses() {
+    // M = I (two coordinates), G = [(1, 0); (1, 0)], the contact row H = (1, 1):
+    // D = C Cᵀ with C = [G; H].
+    let d = nalgebra::DMatrix::from_row_slice(3, 3, &[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 2.0]);
+    // b: both joint rows ask for the same velocity change (−1), the contact is approaching (−3).
+    let b = [-1.0, -1.0, -3.0];
+    let sol = solve_mixed(
+        MixedLcp {
+            d: &d,
+            b: &b,
+            equalities: 2,
+        },
+        &LcpOptions::default(),
+    )
+    .expect("dependent joints are solved");
+    let z = &sol.z;
+    // z_B = (ν, ν) with 2ν + z_I = 1 (joint rows) and 2ν + 2 z_I = 3 (contact, active): z_I = 2,
+    // 2ν = −1, ν = −½ each.
+    for (got, want) in z.iter().zip([-0.5, -0.5, 2.0]) {
+        assert!((got - want).abs() < 1e-12, "{z:?}");
     }
 }
 
