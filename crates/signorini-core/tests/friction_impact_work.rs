@@ -147,7 +147,7 @@ fn a_reversing_step_reports_the_end_term_and_moves_the_rest_to_the_contact() {
     assert_eq!(w.friction, 0.0);
     assert_eq!(w.contact, 4.4);
     // Sliding on after the reversal: the friction part is ½ P_t U_t,{k+1} < 0.
-    let w = split_tangential_work(pt * 0.5 * (2.2 - 1.0), 0.5, pt * 2.2, pt * -1.0);
+    let w = split_tangential_work(pt * 0.5 * (2.2 - 1.0), 0.5, pt * 2.2, -pt);
     assert_eq!(w.friction, -2.0);
     assert!((w.friction + w.contact - 2.4).abs() <= 1e-15);
 }
