@@ -340,156 +340,24 @@ fn solve_to_proto(s: &Soi2NewtonSpec) -> (Option<f64>, Option<u64>, Option<f64>,
 
 fn integrator_to_proto(i: &IntegratorSpec) -> pb::IntegratorSpec {
     use pb::integrator_spec::Scheme;
-    let mj = |m: &MoreauJeanSpec| {
-        let MoreauJeanSpec { theta, index_set } = m;
-        let IndexSetSpec {
-            activation,
-            activation_gamma,
-        } = index_set;
-        pb::MoreauJean {
-            theta: Some(*theta),
-            activation: activation_to_proto(*activation),
-            activation_gamma: *activation_gamma,
-        }
-    };
-    let alpha = |a: &NsAlphaSpec| {
-        let NsAlphaSpec {
-            coefficients:
-                AlphaCoefficientsSpec {
-                    rho_inf,
-                    alpha_m,
-                    alpha_f,
-                    beta,
-                    gamma,
-                },
-            index_set:
-                IndexSetSpec {
-                    activation,
-                    activation_gamma,
-                },
-            allow_unstable,
-        } = a;
-        pb::NsAlpha {
-            rho_inf: *rho_inf,
-            alpha_m: *alpha_m,
-            alpha_f: *alpha_f,
-            beta: *beta,
-            gamma: *gamma,
-            activation: activation_to_proto(*activation),
-            activation_gamma: *activation_gamma,
-            allow_unstable: *allow_unstable,
-        }
-    };
-    let pc = |p: &PositionContactSpec| {
-        let PositionContactSpec {
-            alpha,
-            beta,
-            gamma,
-            allow_unstable,
-        } = p;
-        pb::PositionContact {
-            alpha: *alpha,
-            beta: *beta,
-            gamma: *gamma,
-            allow_unstable: *allow_unstable,
-        }
-    };
-    let hht_soi2 = |h: &HhtSoi2Spec| {
-        let HhtSoi2Spec {
-            alpha,
-            start,
-            solve,
-        } = h;
-        let (newton_tolerance, newton_max_iterations, consistency_tolerance, newton) =
-            solve_to_proto(solve);
-        pb::HhtSoi2 {
-            alpha: Some(*alpha),
-            start: start_to_proto(*start),
-            newton_tolerance,
-            newton_max_iterations,
-            consistency_tolerance,
-            newton,
-        }
-    };
     let scheme = match i {
-        IntegratorSpec::MoreauJean(m) => Scheme::MoreauJean(mj(m)),
-        IntegratorSpec::MoreauJeanVariant(m) => Scheme::MoreauJeanVariant(mj(m)),
-        IntegratorSpec::NsNewmark(n) => {
-            let NsNewmarkSpec {
-                beta,
-                gamma,
-                index_set:
-                    IndexSetSpec {
-                        activation,
-                        activation_gamma,
-                    },
-                allow_unstable,
-            } = n;
-            Scheme::NsNewmark(pb::NsNewmark {
-                beta: Some(*beta),
-                gamma: Some(*gamma),
-                activation: activation_to_proto(*activation),
-                activation_gamma: *activation_gamma,
-                allow_unstable: *allow_unstable,
-            })
+        IntegratorSpec::MoreauJean(m) => Scheme::MoreauJean(moreau_jean_to_proto(m)),
+        IntegratorSpec::MoreauJeanVariant(m) => Scheme::MoreauJeanVariant(moreau_jean_to_proto(m)),
+        IntegratorSpec::NsNewmark(n) => Scheme::NsNewmark(ns_newmark_to_proto(n)),
+        IntegratorSpec::NsHht(n) => Scheme::NsHht(ns_hht_to_proto(n)),
+        IntegratorSpec::NsGeneralizedAlpha(a) => Scheme::NsGeneralizedAlpha(ns_alpha_to_proto(a)),
+        IntegratorSpec::NsKhAlpha(a) => Scheme::NsKhAlpha(ns_alpha_to_proto(a)),
+        IntegratorSpec::NewmarkPositionContact(p) => {
+            Scheme::NewmarkPositionContact(position_contact_to_proto(p))
         }
-        IntegratorSpec::NsHht(n) => {
-            let NsHhtSpec {
-                alpha,
-                beta,
-                gamma,
-                index_set:
-                    IndexSetSpec {
-                        activation,
-                        activation_gamma,
-                    },
-                allow_unstable,
-            } = n;
-            Scheme::NsHht(pb::NsHht {
-                alpha: Some(*alpha),
-                beta: *beta,
-                gamma: *gamma,
-                activation: activation_to_proto(*activation),
-                activation_gamma: *activation_gamma,
-                allow_unstable: *allow_unstable,
-            })
+        IntegratorSpec::HhtPositionContact(p) => {
+            Scheme::HhtPositionContact(position_contact_to_proto(p))
         }
-        IntegratorSpec::NsGeneralizedAlpha(a) => Scheme::NsGeneralizedAlpha(alpha(a)),
-        IntegratorSpec::NsKhAlpha(a) => Scheme::NsKhAlpha(alpha(a)),
-        IntegratorSpec::NewmarkPositionContact(p) => Scheme::NewmarkPositionContact(pc(p)),
-        IntegratorSpec::HhtPositionContact(p) => Scheme::HhtPositionContact(pc(p)),
         IntegratorSpec::Soi2GeneralizedAlpha(g) => {
-            let Soi2GeneralizedAlphaSpec {
-                coefficients:
-                    AlphaCoefficientsSpec {
-                        rho_inf,
-                        alpha_m,
-                        alpha_f,
-                        beta,
-                        gamma,
-                    },
-                additive,
-                start,
-                solve,
-            } = g;
-            let (newton_tolerance, newton_max_iterations, consistency_tolerance, newton) =
-                solve_to_proto(solve);
-            Scheme::Soi2GeneralizedAlpha(pb::Soi2GeneralizedAlpha {
-                rho_inf: *rho_inf,
-                alpha_m: *alpha_m,
-                alpha_f: *alpha_f,
-                beta: *beta,
-                gamma: *gamma,
-                additive: *additive,
-                start: start_to_proto(*start),
-                newton_tolerance,
-                newton_max_iterations,
-                consistency_tolerance,
-                newton,
-            })
+            Scheme::Soi2GeneralizedAlpha(soi2_alpha_to_proto(g))
         }
-        IntegratorSpec::Soi2Hht(h) => Scheme::Soi2Hht(hht_soi2(h)),
-        IntegratorSpec::HhtI3(h) => Scheme::HhtI3(hht_soi2(h)),
+        IntegratorSpec::Soi2Hht(h) => Scheme::Soi2Hht(hht_soi2_to_proto(h)),
+        IntegratorSpec::HhtI3(h) => Scheme::HhtI3(hht_soi2_to_proto(h)),
         IntegratorSpec::Wfem(w) => {
             let WfemSpec {} = w;
             Scheme::Wfem(pb::Wfem {})
@@ -497,6 +365,151 @@ fn integrator_to_proto(i: &IntegratorSpec) -> pb::IntegratorSpec {
     };
     pb::IntegratorSpec {
         scheme: Some(scheme),
+    }
+}
+
+fn moreau_jean_to_proto(m: &MoreauJeanSpec) -> pb::MoreauJean {
+    let MoreauJeanSpec { theta, index_set } = m;
+    let IndexSetSpec {
+        activation,
+        activation_gamma,
+    } = index_set;
+    pb::MoreauJean {
+        theta: Some(*theta),
+        activation: activation_to_proto(*activation),
+        activation_gamma: *activation_gamma,
+    }
+}
+
+fn ns_newmark_to_proto(n: &NsNewmarkSpec) -> pb::NsNewmark {
+    let NsNewmarkSpec {
+        beta,
+        gamma,
+        index_set: IndexSetSpec {
+            activation,
+            activation_gamma,
+        },
+        allow_unstable,
+    } = n;
+    pb::NsNewmark {
+        beta: Some(*beta),
+        gamma: Some(*gamma),
+        activation: activation_to_proto(*activation),
+        activation_gamma: *activation_gamma,
+        allow_unstable: *allow_unstable,
+    }
+}
+
+fn ns_hht_to_proto(n: &NsHhtSpec) -> pb::NsHht {
+    let NsHhtSpec {
+        alpha,
+        beta,
+        gamma,
+        index_set: IndexSetSpec {
+            activation,
+            activation_gamma,
+        },
+        allow_unstable,
+    } = n;
+    pb::NsHht {
+        alpha: Some(*alpha),
+        beta: *beta,
+        gamma: *gamma,
+        activation: activation_to_proto(*activation),
+        activation_gamma: *activation_gamma,
+        allow_unstable: *allow_unstable,
+    }
+}
+
+fn ns_alpha_to_proto(a: &NsAlphaSpec) -> pb::NsAlpha {
+    let NsAlphaSpec {
+        coefficients:
+            AlphaCoefficientsSpec {
+                rho_inf,
+                alpha_m,
+                alpha_f,
+                beta,
+                gamma,
+            },
+        index_set: IndexSetSpec {
+            activation,
+            activation_gamma,
+        },
+        allow_unstable,
+    } = a;
+    pb::NsAlpha {
+        rho_inf: *rho_inf,
+        alpha_m: *alpha_m,
+        alpha_f: *alpha_f,
+        beta: *beta,
+        gamma: *gamma,
+        activation: activation_to_proto(*activation),
+        activation_gamma: *activation_gamma,
+        allow_unstable: *allow_unstable,
+    }
+}
+
+fn position_contact_to_proto(p: &PositionContactSpec) -> pb::PositionContact {
+    let PositionContactSpec {
+        alpha,
+        beta,
+        gamma,
+        allow_unstable,
+    } = p;
+    pb::PositionContact {
+        alpha: *alpha,
+        beta: *beta,
+        gamma: *gamma,
+        allow_unstable: *allow_unstable,
+    }
+}
+
+fn soi2_alpha_to_proto(g: &Soi2GeneralizedAlphaSpec) -> pb::Soi2GeneralizedAlpha {
+    let Soi2GeneralizedAlphaSpec {
+        coefficients:
+            AlphaCoefficientsSpec {
+                rho_inf,
+                alpha_m,
+                alpha_f,
+                beta,
+                gamma,
+            },
+        additive,
+        start,
+        solve,
+    } = g;
+    let (newton_tolerance, newton_max_iterations, consistency_tolerance, newton) =
+        solve_to_proto(solve);
+    pb::Soi2GeneralizedAlpha {
+        rho_inf: *rho_inf,
+        alpha_m: *alpha_m,
+        alpha_f: *alpha_f,
+        beta: *beta,
+        gamma: *gamma,
+        additive: *additive,
+        start: start_to_proto(*start),
+        newton_tolerance,
+        newton_max_iterations,
+        consistency_tolerance,
+        newton,
+    }
+}
+
+fn hht_soi2_to_proto(h: &HhtSoi2Spec) -> pb::HhtSoi2 {
+    let HhtSoi2Spec {
+        alpha,
+        start,
+        solve,
+    } = h;
+    let (newton_tolerance, newton_max_iterations, consistency_tolerance, newton) =
+        solve_to_proto(solve);
+    pb::HhtSoi2 {
+        alpha: Some(*alpha),
+        start: start_to_proto(*start),
+        newton_tolerance,
+        newton_max_iterations,
+        consistency_tolerance,
+        newton,
     }
 }
 

@@ -47,6 +47,7 @@ mod fc3d_prox;
 mod fc3d_solve;
 mod lemke_reformulation;
 mod nsgs;
+mod work;
 
 pub use block_csr::{BlockCsr, BlockCsrError};
 pub use fc3d::{
@@ -58,6 +59,7 @@ pub use fc3d_prox::solve_fc3d_prox;
 pub use fc3d_solve::solve_fc3d;
 pub use lemke_reformulation::solve_friction_lemke;
 pub use nsgs::solve_friction_nsgs;
+pub use work::{TangentialWork, split_tangential_work};
 
 use crate::lcp::{self, Lcp, LcpError, LcpOptions, LcpSolverKind};
 use thiserror::Error;

@@ -32,9 +32,11 @@
 //! (variant: v_{k+1/2}) = Σ P_t,α (θ U_t,{k+1} + (1 − θ) U_t,k) to Lemma 1's balance, which keeps
 //! closing at round-off: `balance_residual` = ΔE − work_ext − work_damping − work_contact −
 //! work_friction − numerical_dissipation. Coulomb's law on U_t,{k+1} makes the θ part ≤ 0; the
-//! (1 − θ) part is ≤ 0 unless the sliding velocity reverses within the step (see
-//! [`crate::nonlinear::moreau_jean`]). Without friction on the index set the step is the
-//! frictionless one, operation for operation.
+//! (1 − θ) part is ≤ 0 unless the sliding velocity reverses within the step, and on such a step
+//! `work_friction` is the θ part and the rest goes to `work_contact`
+//! ([`crate::friction::split_tangential_work`]), so work_friction ≤ 0 at every step and the
+//! balance is unchanged. Without friction on the index set the step is the frictionless one,
+//! operation for operation.
 
 use super::{LinearScheme, LinearState, SchemeState, StepError, StepReport};
 use crate::band::{BandCholesky, BandError, SymBand};
@@ -42,6 +44,7 @@ use crate::banded_contact::{BandedImpulse, restore_warm_start, uses_banded};
 use crate::checkpoint::CheckpointError;
 use crate::contact::{Delassus, FrictionDelassus, IndexSet, IndexSetRule};
 use crate::energy::EnergyTerms;
+use crate::friction::split_tangential_work;
 use crate::lcp::LcpOptions;
 use crate::lcp::active_set::ImpulseMap;
 use crate::model::LinearModel;
@@ -105,6 +108,8 @@ struct Scratch {
     rhs_t: Vec<f64>,
     /// Round-off levels of the friction problem's normal velocities.
     levels: Vec<f64>,
+    /// P_t · U_t,k of each active contact, before v is updated (friction).
+    tangential_start: Vec<f64>,
 }
 
 impl MoreauJean {
@@ -164,6 +169,7 @@ impl MoreauJean {
                 dq: z,
                 rhs_t: Vec::new(),
                 levels: Vec::new(),
+                tangential_start: Vec::new(),
             },
             index_set,
         })
@@ -388,6 +394,15 @@ impl MoreauJean {
                 *vt = v + theta * dv;
             }
         }
+        if self.friction.is_some() {
+            s.tangential_start.clear();
+            s.tangential_start.extend(
+                self.index_set
+                    .active
+                    .iter()
+                    .map(|&a| report.tangent_impulse[a] * model.friction[a].project(&state.v)),
+            );
+        }
         // Positions (21b) or (29b), the new state and the external work (31), in one sweep.
         let c_pos = if variant { 0.5 } else { theta };
         let work_ext = h * update_sweep(
@@ -408,7 +423,7 @@ impl MoreauJean {
             0.0
         };
         let units = self.banded.as_ref().and_then(BandedImpulse::units);
-        let work_contact: f64 = match units {
+        let mut work_contact: f64 = match units {
             Some(u) => u.work(&self.index_set.active, &report.impulse, &s.v_pos),
             None => self
                 .index_set
@@ -417,15 +432,29 @@ impl MoreauJean {
                 .map(|&a| report.impulse[a] * model.contacts[a].project(&s.v_pos))
                 .sum(),
         };
+        // The tangential impulses' work on v_{k+θ} (variant: v_{k+1/2}), split by
+        // friction::split_tangential_work: what a reversing step moves goes to work_contact.
+        let mut moved = 0.0;
         let work_friction: f64 = if self.friction.is_some() {
             self.index_set
                 .active
                 .iter()
-                .map(|&a| report.tangent_impulse[a] * model.friction[a].project(&s.v_pos))
+                .zip(&s.tangential_start)
+                .map(|(&a, &at_start)| {
+                    let (pt, f) = (report.tangent_impulse[a], &model.friction[a]);
+                    let work = pt * f.project(&s.v_pos);
+                    let at_end = pt * f.project(&state.v);
+                    let split = split_tangential_work(work, c_pos, at_start, at_end);
+                    moved += split.contact;
+                    split.friction
+                })
                 .sum()
         } else {
             0.0
         };
+        if moved != 0.0 {
+            work_contact += moved;
+        }
         report.work_friction = work_friction;
         if theta != 0.5 {
             for (dq, vp) in s.dq.iter_mut().zip(&s.v_pos) {

@@ -101,15 +101,63 @@ pub fn examine_one_contact(
     Some(point(bar, m, p, 0, h, orbit))
 }
 
+/// The candidate's admissible orbit (COND1–COND3 of [`super::orbit::admissible_orbit`]) on
+/// the y-signal of the module doc, in four phases: the kernel basis, its closure rows, the
+/// amplitudes that close the orbit, and the conditions on the resulting signal.
 fn admissible(bar: &WaveBar, m: usize, p: usize, h: usize, s: &mut Scratch) -> Option<Orbit> {
-    let n = bar.cells;
-    let n2 = 2 * n;
-    let t = m + p;
-    let g = gcd(t, n2);
-    let step = n2 % t;
-    let len = t / g;
-    let g0 = bar.gap;
-    // Kernel basis: y = ±1 along each class with sign product +1, 0 on the others.
+    let classes = Classes::new(bar.cells, m, p);
+    let cols = kernel_basis(&classes, s);
+    debug_assert_eq!(cols, h);
+    let ds = bar.dt() / bar.impedance();
+    closure_rows(bar, &classes, h, ds, s);
+    let alpha = amplitudes(bar, h, s)?;
+    displacements(&classes, &alpha, ds, s);
+    conditions(bar, m, p, h, s)
+}
+
+/// The classes of n ↦ n + 2N on ℤ_T (module doc): T = m + p, g = gcd(T, 2N) classes of
+/// T/g steps each, walked by `step` = 2N mod T.
+struct Classes {
+    /// Steps of the free phase.
+    m: usize,
+    /// The period T = m + p.
+    t: usize,
+    /// 2N, the characteristic values of the ring.
+    n2: usize,
+    /// The number of classes, g = gcd(T, 2N).
+    g: usize,
+    /// One move along a class, 2N mod T.
+    step: usize,
+    /// Steps in one class, T/g.
+    len: usize,
+}
+
+impl Classes {
+    fn new(cells: usize, m: usize, p: usize) -> Self {
+        let n2 = 2 * cells;
+        let t = m + p;
+        let g = gcd(t, n2);
+        Self {
+            m,
+            t,
+            n2,
+            g,
+            step: n2 % t,
+            len: t / g,
+        }
+    }
+
+    /// The step after k along its class.
+    fn next(&self, k: usize) -> usize {
+        let k = k + self.step;
+        if k >= self.t { k - self.t } else { k }
+    }
+}
+
+/// Kernel basis: y = ±1 along each class with sign product +1, 0 on the others; `s.col` gets
+/// each class's column. Returns the number of columns (the kernel dimension).
+fn kernel_basis(classes: &Classes, s: &mut Scratch) -> usize {
+    let (m, t, g, len) = (classes.m, classes.t, classes.g, classes.len);
     s.y.clear();
     s.y.resize(t, 0.0);
     s.col.clear();
@@ -123,10 +171,7 @@ fn admissible(bar: &WaveBar, m: usize, p: usize, h: usize, s: &mut Scratch) -> O
             if k < m {
                 v = -v;
             }
-            k += step;
-            if k >= t {
-                k -= t;
-            }
+            k = classes.next(k);
         }
         if v > 0.0 {
             s.col[c] = cols;
@@ -134,16 +179,17 @@ fn admissible(bar: &WaveBar, m: usize, p: usize, h: usize, s: &mut Scratch) -> O
         } else {
             for _ in 0..len {
                 s.y[k] = 0.0;
-                k += step;
-                if k >= t {
-                    k -= t;
-                }
+                k = classes.next(k);
             }
         }
     }
-    debug_assert_eq!(cols, h);
-    // Closure rows per basis vector.
-    let ds = bar.dt() / bar.impedance();
+    cols
+}
+
+/// Closure rows per basis vector: `s.u0` the displacement u(0), `s.r1` the closure row u(m)
+/// and `s.r2` the mean displacement over the free phase.
+fn closure_rows(bar: &WaveBar, classes: &Classes, h: usize, ds: f64, s: &mut Scratch) {
+    let (m, t, g) = (classes.m, classes.t, classes.g);
     let half_dx_e = bar.dx() / bar.young * 0.5;
     for b in [&mut s.u0, &mut s.r1, &mut s.r2] {
         b.clear();
@@ -152,7 +198,7 @@ fn admissible(bar: &WaveBar, m: usize, p: usize, h: usize, s: &mut Scratch) -> O
     // u(0) = (Δx/2E) Σ_k Q[k], Q[k] = y((N−1−k) mod 2N mod T): every j ∈ [0, 2N) once.
     let mut c = 0;
     let mut j_mod_t = 0;
-    for _ in 0..n2 {
+    for _ in 0..classes.n2 {
         let col = s.col[c];
         if col != usize::MAX {
             s.u0[col] += s.y[j_mod_t];
@@ -188,12 +234,19 @@ fn admissible(bar: &WaveBar, m: usize, p: usize, h: usize, s: &mut Scratch) -> O
         s.r2[i] = ((m + 1) as f64 * u0 - ds * s.r2[i]) / free_count;
         s.r1[i] = u0 - ds * s.r1[i];
     }
+}
+
+/// The amplitude α per column that closes the orbit on the gap g0 (u(m) = g0), and for a
+/// grazing wall (g0 = 0) also fixes the scale by a mean free-phase displacement of −10⁻³ L;
+/// `None` when no amplitude closes it.
+fn amplitudes(bar: &WaveBar, h: usize, s: &Scratch) -> Option<Vec<f64>> {
+    let g0 = bar.gap;
     let reference = 1e-3 * bar.length;
-    let alpha: Vec<f64> = if g0 != 0.0 && h == 1 {
+    if g0 != 0.0 && h == 1 {
         if s.r1[0].abs() < 1e-300 {
             return None;
         }
-        vec![g0 / s.r1[0]]
+        Some(vec![g0 / s.r1[0]])
     } else {
         let rows = if g0 == 0.0 { 2 } else { 1 };
         let cm = DMatrix::from_fn(rows, h, |i, j| if i == 0 { s.r1[j] } else { s.r2[j] });
@@ -203,9 +256,14 @@ fn admissible(bar: &WaveBar, m: usize, p: usize, h: usize, s: &mut Scratch) -> O
             DVector::from_vec(vec![g0])
         };
         let sol = cm.svd(true, true).solve(&rhs, 1e-12).ok()?;
-        sol.iter().copied().collect()
-    };
-    // Y(j) = α_{class(j)} y(j).
+        Some(sol.iter().copied().collect())
+    }
+}
+
+/// The signal Y(j) = α_{class(j)} y(j) in `s.y` and the contact-end displacement u(n),
+/// n = 0..=T, in `s.u` (constant over the contact phase).
+fn displacements(classes: &Classes, alpha: &[f64], ds: f64, s: &mut Scratch) {
+    let (m, t, g) = (classes.m, classes.t, classes.g);
     let mut c = 0;
     for yj in s.y.iter_mut() {
         let col = s.col[c];
@@ -219,7 +277,7 @@ fn admissible(bar: &WaveBar, m: usize, p: usize, h: usize, s: &mut Scratch) -> O
             c = 0;
         }
     }
-    let u0: f64 = s.u0.iter().zip(&alpha).map(|(a, b)| a * b).sum();
+    let u0: f64 = s.u0.iter().zip(alpha).map(|(a, b)| a * b).sum();
     s.u.clear();
     s.u.reserve(t + 1);
     let mut u = u0;
@@ -229,6 +287,16 @@ fn admissible(bar: &WaveBar, m: usize, p: usize, h: usize, s: &mut Scratch) -> O
         s.u.push(u);
     }
     s.u.resize(t + 1, u);
+}
+
+/// COND1–COND3 on the closed signal: the gap closes at m, the end stays off the wall and
+/// leaves it under tension in the free phase, the wall only pushes in the contact phase, and
+/// the stress stays below E; the orbit when they hold.
+fn conditions(bar: &WaveBar, m: usize, p: usize, h: usize, s: &Scratch) -> Option<Orbit> {
+    let n = bar.cells;
+    let n2 = 2 * n;
+    let t = m + p;
+    let g0 = bar.gap;
     let u_scale = g0.abs().max(s.u.iter().fold(0.0f64, |a, x| a.max(x.abs())));
     let a_scale = s.y.iter().fold(0.0f64, |a, x| a.max(x.abs()));
     if u_scale == 0.0 || a_scale == 0.0 {

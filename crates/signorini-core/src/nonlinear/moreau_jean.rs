@@ -86,9 +86,12 @@
 //! rocking block) would show a spurious ±O(h²) friction work although nothing slides.
 //! Sign: Coulomb's law on U_t,{k+1} makes P_t U_t,{k+1} = −μ P_n |U_t,{k+1}| ≤ 0 (0 when
 //! sticking); the term (1 − θ) P_t U_t,k is ≤ 0 unless the friction impulse points along the
-//! start velocity, which needs U_t to change sign within the step. So work_friction ≤ 0 for
-//! θ = 1 always, and for θ < 1 on every step without a reversal of the sliding direction; a
-//! reversing step is reported as computed.
+//! start velocity, which needs U_t to reverse within the step (at an impact, through the
+//! normal impulse's coupling: Kane's double-pendulum paradox). On such a step `work_friction`
+//! is θ P_t U_t,{k+1} and the rest of the tangential impulse's work is counted in
+//! `work_contact` ([`crate::friction::split_tangential_work`]): work_friction ≤ 0 at every step,
+//! unchanged on every step without a reversal, and the sum work_contact + work_friction, hence
+//! `energy_error`, is the impulses' work of (21a) as before.
 //!
 //! Lasting contacts with friction: the sign test of (24) already reads U_k ≤ its round-off
 //! level u_ro; with friction the gap test reads g(q_k + h v_k) ≤ t_{k+1} u_ro as well. A
@@ -1097,10 +1100,14 @@ impl NonlinearMoreauJean {
             let pt = report.tangent_impulse[a];
             if s.friction_step && pt != 0.0 {
                 // θ U_t,{k+1} (the velocity of this solve, on which Coulomb's law holds)
-                // + (1 − θ) U_t,k (the end of the last step).
+                // + (1 − θ) U_t,k (the end of the last step), split by friction::work.
                 let row = &s.tjac[a * n..(a + 1) * n];
                 let u_next = dot(row, &state.v) + dot(row, &s.dv) + s.trates[a];
-                work_friction += pt * (theta * u_next + (1.0 - theta) * start.tangent_velocity[a]);
+                let u_start = start.tangent_velocity[a];
+                let work = pt * (theta * u_next + (1.0 - theta) * u_start);
+                let split = friction::split_tangential_work(work, theta, pt * u_start, pt * u_next);
+                work_friction += split.friction;
+                work_contact += split.contact;
             }
         }
         (work_contact, work_friction)

@@ -58,7 +58,10 @@
 //!
 //! **Energy ledger.** `kinetic` K = Σ ½ m‖v‖² + ½ ΩᵀIΩ, `potential` V = −Σ m g·x, `work_ext` = 0
 //! (no applied load besides gravity, which is in V), `work_contact` = Σ_c P_n U_{n,k+θ},
-//! `work_friction` = Σ_c (P_t1 U_{t1,k+θ} + P_t2 U_{t2,k+θ}), with U_{k+θ} = G_c (v, Ω)_{k+θ};
+//! `work_friction` = Σ_c (P_t1 U_{t1,k+θ} + P_t2 U_{t2,k+θ}), with U_{k+θ} = G_c (v, Ω)_{k+θ},
+//! except on a step where a contact's tangential velocity reverses (P_t · U_{t,k} > 0): there its
+//! friction work is θ P_t · U_{t,k+1} (≤ 0 by Coulomb's law on U_{k+1}) and the rest of its
+//! tangential work joins `work_contact` ([`crate::friction::split_tangential_work`]);
 //! `energy_error` = ΔK + ΔV − work_ext − work_contact − work_friction. For θ = ½, multiply (1a)
 //! by v_{k+½} and (1b) by Ω_{k+½}: since ½‖a‖² − ½‖b‖² = ((a + b)/2)·(a − b),
 //!
@@ -75,7 +78,9 @@
 use super::body::{BodyState, Pose};
 use super::detector::{ContactDetector, ContactPoint, DetectError};
 use super::scene::RigidScene;
-use crate::friction::{BlockCsr, Fc3dError, Fc3dOptions, Fc3dProblem, solve_fc3d};
+use crate::friction::{
+    BlockCsr, Fc3dError, Fc3dOptions, Fc3dProblem, solve_fc3d, split_tangential_work,
+};
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 use thiserror::Error;
 
@@ -469,11 +474,38 @@ impl RigidMoreauJean {
                 });
             }
         }
+        if active.is_empty() {
+            return Ok(());
+        }
+        // The twists at k and k + 1 (zero for fixed bodies, as in theta_twist), for the split
+        // of the tangential work by friction::split_tangential_work.
+        let twist_at = |end: bool| -> Vec<(V3, V3)> {
+            scene
+                .bodies
+                .iter()
+                .enumerate()
+                .map(|(b, body)| match (body.fixed, end) {
+                    (true, _) => (V3::zeros(), V3::zeros()),
+                    (false, false) => (v3(start[b].velocity), v3(start[b].angular_velocity)),
+                    (false, true) => (v_next[b], w_next[b]),
+                })
+                .collect()
+        };
+        let (start_twist, end_twist) = (twist_at(false), twist_at(true));
         for (c, contact) in active.iter().enumerate() {
             let u = local_velocity(contact, &theta_twist);
             let p = &impulse[3 * c..3 * c + 3];
             report.work_contact += p[0] * u[0];
-            report.work_friction += p[1] * u[1] + p[2] * u[2];
+            let work = p[1] * u[1] + p[2] * u[2];
+            let (u0, u1) = (
+                local_velocity(contact, &start_twist),
+                local_velocity(contact, &end_twist),
+            );
+            let at_start = p[1] * u0[1] + p[2] * u0[2];
+            let at_end = p[1] * u1[1] + p[2] * u1[2];
+            let split = split_tangential_work(work, theta, at_start, at_end);
+            report.work_friction += split.friction;
+            report.work_contact += split.contact;
         }
         Ok(())
     }

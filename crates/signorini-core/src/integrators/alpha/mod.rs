@@ -79,8 +79,10 @@
 //! Σ_α P_t,α ½(U_t,{k+1} + U_t,k) next to `work_contact`, and `balance_residual` =
 //! ΔH − work_ext − work_damping − work_contact − work_friction − numerical_dissipation stays at
 //! round-off. Coulomb's law makes P_t U_t,{k+1} = −μ P_n |U_t,{k+1}| ≤ 0; the ½ P_t U_t,k part is
-//! ≤ 0 unless the sliding velocity reverses within the step, so `work_friction` ≤ 0 on every
-//! step without a reversal (as for Moreau–Jean θ = ½). Without friction on the index set the
+//! ≤ 0 unless the sliding velocity reverses within the step, and on such a step `work_friction`
+//! is ½ P_t U_t,{k+1} and the rest goes to `work_contact`
+//! ([`crate::friction::split_tangential_work`], as for Moreau–Jean θ = ½): `work_friction` ≤ 0
+//! at every step, the balance unchanged. Without friction on the index set the
 //! step is the frictionless one, operation for operation. The banded path has no friction.
 //!
 //! When ν = 0 (α_m = ½) the filters (48) vanish; the scheme then requires η = 0 (Remark 1), and
@@ -90,6 +92,7 @@ use crate::band::{BandError, SymBand};
 use crate::banded_contact::{BandedImpulse, restore_warm_start, uses_banded};
 use crate::checkpoint::CheckpointError;
 use crate::contact::{FrictionSubproblem, IndexSet, LcpStats};
+use crate::friction::split_tangential_work;
 use crate::integrators::{LinearScheme, LinearState, SchemeState, StepError, StepReport};
 use crate::lcp::active_set::ImpulseMap;
 use crate::lcp::{self, Lcp, LcpOptions};
@@ -516,14 +519,19 @@ impl NonsmoothAlpha {
                 work_contact += p * 0.5 * (c.project(&self.core.s.v) + c.project(&state.v));
             }
         }
-        // work_friction = (Tᵀ v_{k+1/2})ᵀ P_t,{k+1}, the same term for the tangent rows.
+        // work_friction = (Tᵀ v_{k+1/2})ᵀ P_t,{k+1}, the same term for the tangent rows, split
+        // by friction::split_tangential_work (a reversing step moves part to work_contact).
         let mut work_friction = 0.0;
         if friction_step {
             for &a in &self.index_set.active {
                 let pt = report.tangent_impulse[a];
                 if pt != 0.0 {
                     let f = &model.friction[a];
-                    work_friction += pt * 0.5 * (f.project(&self.core.s.v) + f.project(&state.v));
+                    let (end, start) = (f.project(&self.core.s.v), f.project(&state.v));
+                    let work = pt * 0.5 * (end + start);
+                    let split = split_tangential_work(work, 0.5, pt * start, pt * end);
+                    work_friction += split.friction;
+                    work_contact += split.contact;
                 }
             }
         }
