@@ -358,24 +358,16 @@ impl LagrangianSpec {
     ///   finite at q0); its gradient, the tangent row, is an exact symbolic derivative like the
     ///   gap's.
     pub fn validate(&self) -> Result<UserModelParams, SpecError> {
-        let spec = self;
-        let n = spec.coordinates.len();
+        let n = self.coordinates.len();
         if n == 0 {
             return Err(SpecError::new(
                 "model.coordinates",
                 "needs at least one coordinate",
             ));
         }
-        let parameters: Vec<(String, Param)> = spec
-            .parameters
-            .iter()
-            .map(|(k, v)| (k.clone(), v.clone()))
-            .collect();
-        let scope = Scope::lagrangian(&spec.coordinates, &parameters).map_err(scope_error)?;
-        check_vector("model.q0", &spec.q0, n)?;
-        let v0 = spec.v0.clone().unwrap_or_else(|| vec![0.0; n]);
-        check_vector("model.v0", &v0, n)?;
-        let mut at_start = spec.q0.clone();
+        let scope = self.scope()?;
+        let (q0, v0) = self.start(n)?;
+        let mut at_start = q0.clone();
         at_start.extend_from_slice(&v0);
         at_start.push(0.0);
         let p = Parser {
@@ -383,133 +375,183 @@ impl LagrangianSpec {
             n,
             at_start,
         };
-
-        // M(q): the entries of the upper triangle (i ≤ j), mirrored; zero elsewhere.
-        let upper = mass_entries(&p, &spec.mass, n)?;
-        let mut mass = vec![Expr::constant(0.0); n * n];
-        for (i, j, e) in &upper {
-            mass[i * n + j] = e.clone();
-            mass[j * n + i] = e.clone();
-        }
-        let m0: Vec<f64> = mass.iter().map(|e| e.eval(&p.at_start)).collect();
-        let m0 = DMatrix::from_row_slice(n, n, &m0);
-        if m0.clone().cholesky().is_none() {
-            let smallest = m0.symmetric_eigenvalues().min();
-            return Err(SpecError::new(
-                "model.mass",
-                format!("M is not positive definite at q0 (smallest eigenvalue {smallest:e})"),
-            ));
-        }
-
-        let potential = match &spec.potential {
+        let mass = mass_matrix(&p, &self.mass, n)?;
+        let potential = match &self.potential {
             Some(src) => p.parse("model.potential", src, Allowed::PositionsAndTime)?,
             None => Expr::constant(0.0),
         };
-        let applied: Vec<Expr> = match &spec.forces {
-            Some(f) if f.len() != n => {
-                return Err(SpecError::new(
-                    "model.forces",
-                    format!("needs {n} entries (one per coordinate), got {}", f.len()),
-                ));
-            }
-            Some(f) => f
-                .iter()
-                .enumerate()
-                .map(|(i, term)| p.term(&format!("model.forces[{i}]"), term, Allowed::Everything))
-                .collect::<Result<_, _>>()?,
-            None => vec![Expr::constant(0.0); n],
-        };
-        let joints: Vec<Expr> = spec
-            .constraints
+        let applied = applied_forces(&p, self.forces.as_deref(), n)?;
+        let tolerance = start_tolerance(&q0);
+        let joints = joints(&p, &self.constraints, tolerance)?;
+        let contacts = self
+            .contacts
             .iter()
             .enumerate()
-            .map(|(i, j)| {
-                p.parse(
-                    &format!("model.constraints[{i}].expr"),
-                    &j.expr,
-                    Allowed::PositionsAndTime,
-                )
-            })
+            .map(|(i, c)| contact(&p, i, c, tolerance))
             .collect::<Result<_, _>>()?;
-        let scale = spec.q0.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
-        let tolerance = JOINT_TOLERANCE * if scale > 0.0 { scale } else { 1.0 };
-        for (i, g) in joints.iter().enumerate() {
-            let r = g.eval(&p.at_start);
-            if r.abs() > tolerance {
-                return Err(SpecError::new(
-                    format!("model.constraints[{i}].expr"),
-                    format!(
-                        "the joint is violated at q0: g = {r:e}, tolerance {tolerance:e} ({JOINT_TOLERANCE:e} relative to max|q0|)"
-                    ),
-                ));
-            }
-        }
-        let mut gaps = Vec::with_capacity(spec.contacts.len());
-        let mut restitution = Vec::with_capacity(spec.contacts.len());
-        let mut friction = Vec::with_capacity(spec.contacts.len());
-        let mut tangents = Vec::with_capacity(spec.contacts.len());
-        for (i, c) in spec.contacts.iter().enumerate() {
-            let field = |f: &str| format!("model.contacts[{i}].{f}");
-            let gap = p.parse(&field("gap"), &c.gap, Allowed::PositionsAndTime)?;
-            // A start inside the obstacle is refused: the impact law acts on velocities, so a
-            // negative gap is never pushed back out and the run would go on inside the wall.
-            let start = gap.eval(&p.at_start);
-            if start < -tolerance {
-                return Err(SpecError::new(
-                    field("gap"),
-                    format!(
-                        "the gap is {start:e} < 0 at q0 (t = 0): the model starts inside the obstacle; choose q0 with every gap ≥ 0 (tolerance {tolerance:e})"
-                    ),
-                ));
-            }
-            gaps.push(gap);
-            if !(c.restitution.is_finite() && (0.0..=1.0).contains(&c.restitution)) {
-                return Err(SpecError::new(
-                    field("restitution"),
-                    format!("must be in [0, 1], got {}", c.restitution),
-                ));
-            }
-            restitution.push(c.restitution);
-            let tangent = match &c.tangent {
-                Some(src) => Some(p.parse(&field("tangent"), src, Allowed::PositionsAndTime)?),
-                None => None,
-            };
-            let mu = c.friction.unwrap_or(0.0);
-            if !(mu.is_finite() && mu >= 0.0) {
-                return Err(SpecError::new(
-                    field("friction"),
-                    format!("must be a finite number ≥ 0, got {mu}"),
-                ));
-            }
-            if mu > 0.0 && tangent.is_none() {
-                return Err(SpecError::new(
-                    field("friction"),
-                    "a friction coefficient needs a `tangent` (the tangential relative position; `tangent` is required when friction > 0)",
-                ));
-            }
-            friction.push(mu);
-            tangents.push(tangent);
-        }
-
         Ok(UserModelParams {
-            q0: spec.q0.clone(),
+            q0,
             v0,
-            mass: upper,
+            mass,
             potential,
             applied,
             joints,
-            contacts: gaps
-                .into_iter()
-                .zip(restitution)
-                .zip(friction)
-                .zip(tangents)
-                .map(|(((gap, restitution), friction), tangent)| ContactParams {
-                    gap,
-                    restitution,
-                    friction,
-                    tangent,
-                })
-                .collect(),
+            contacts,
         })
     }
+
+    /// The scope of every expression: the coordinates, their velocities, `t` and the
+    /// parameters (`model.coordinates`, `model.parameters.<name>`).
+    fn scope(&self) -> Result<Scope, SpecError> {
+        let parameters: Vec<(String, Param)> = self
+            .parameters
+            .iter()
+            .map(|(k, v)| (k.clone(), v.clone()))
+            .collect();
+        Scope::lagrangian(&self.coordinates, &parameters).map_err(scope_error)
+    }
+
+    /// q(0) and q̇(0) (zero when `v0` is absent), n finite entries each.
+    fn start(&self, n: usize) -> Result<(Vec<f64>, Vec<f64>), SpecError> {
+        check_vector("model.q0", &self.q0, n)?;
+        let v0 = self.v0.clone().unwrap_or_else(|| vec![0.0; n]);
+        check_vector("model.v0", &v0, n)?;
+        Ok((self.q0.clone(), v0))
+    }
+}
+
+/// The tolerance of the joints and gaps at q0: [`JOINT_TOLERANCE`] relative to ‖q0‖∞ (absolute
+/// when q0 = 0).
+fn start_tolerance(q0: &[f64]) -> f64 {
+    let scale = q0.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+    JOINT_TOLERANCE * if scale > 0.0 { scale } else { 1.0 }
+}
+
+/// M(q): the entries of its upper triangle (i ≤ j), checked positive definite at q0 by
+/// Cholesky (`model.mass`, with the smallest eigenvalue when it is not).
+fn mass_matrix(
+    p: &Parser<'_>,
+    spec: &MassSpec,
+    n: usize,
+) -> Result<Vec<(usize, usize, Expr)>, SpecError> {
+    let upper = mass_entries(p, spec, n)?;
+    let mut mass = vec![Expr::constant(0.0); n * n];
+    for (i, j, e) in &upper {
+        mass[i * n + j] = e.clone();
+        mass[j * n + i] = e.clone();
+    }
+    let m0: Vec<f64> = mass.iter().map(|e| e.eval(&p.at_start)).collect();
+    let m0 = DMatrix::from_row_slice(n, n, &m0);
+    if m0.clone().cholesky().is_none() {
+        let smallest = m0.symmetric_eigenvalues().min();
+        return Err(SpecError::new(
+            "model.mass",
+            format!("M is not positive definite at q0 (smallest eigenvalue {smallest:e})"),
+        ));
+    }
+    Ok(upper)
+}
+
+/// The applied forces f(t, q, q̇), n entries (`model.forces[i]`); zero when absent.
+fn applied_forces(
+    p: &Parser<'_>,
+    forces: Option<&[Term]>,
+    n: usize,
+) -> Result<Vec<Expr>, SpecError> {
+    match forces {
+        Some(f) if f.len() != n => Err(SpecError::new(
+            "model.forces",
+            format!("needs {n} entries (one per coordinate), got {}", f.len()),
+        )),
+        Some(f) => f
+            .iter()
+            .enumerate()
+            .map(|(i, term)| p.term(&format!("model.forces[{i}]"), term, Allowed::Everything))
+            .collect(),
+        None => Ok(vec![Expr::constant(0.0); n]),
+    }
+}
+
+/// The joints g(q, t), each parsed (`model.constraints[i].expr`), then each held at q0 to
+/// `tolerance`.
+fn joints(
+    p: &Parser<'_>,
+    constraints: &[JointSpec],
+    tolerance: f64,
+) -> Result<Vec<Expr>, SpecError> {
+    let joints: Vec<Expr> = constraints
+        .iter()
+        .enumerate()
+        .map(|(i, j)| {
+            p.parse(
+                &format!("model.constraints[{i}].expr"),
+                &j.expr,
+                Allowed::PositionsAndTime,
+            )
+        })
+        .collect::<Result<_, _>>()?;
+    for (i, g) in joints.iter().enumerate() {
+        let r = g.eval(&p.at_start);
+        if r.abs() > tolerance {
+            return Err(SpecError::new(
+                format!("model.constraints[{i}].expr"),
+                format!(
+                    "the joint is violated at q0: g = {r:e}, tolerance {tolerance:e} ({JOINT_TOLERANCE:e} relative to max|q0|)"
+                ),
+            ));
+        }
+    }
+    Ok(joints)
+}
+
+/// Contact `i`: its gap (not negative at q0 beyond `tolerance`), restitution, friction and
+/// tangent, each error naming `model.contacts[i].<field>`.
+fn contact(
+    p: &Parser<'_>,
+    i: usize,
+    c: &UserContactSpec,
+    tolerance: f64,
+) -> Result<ContactParams, SpecError> {
+    let field = |f: &str| format!("model.contacts[{i}].{f}");
+    let gap = p.parse(&field("gap"), &c.gap, Allowed::PositionsAndTime)?;
+    // A start inside the obstacle is refused: the impact law acts on velocities, so a
+    // negative gap is never pushed back out and the run would go on inside the wall.
+    let start = gap.eval(&p.at_start);
+    if start < -tolerance {
+        return Err(SpecError::new(
+            field("gap"),
+            format!(
+                "the gap is {start:e} < 0 at q0 (t = 0): the model starts inside the obstacle; choose q0 with every gap ≥ 0 (tolerance {tolerance:e})"
+            ),
+        ));
+    }
+    if !(c.restitution.is_finite() && (0.0..=1.0).contains(&c.restitution)) {
+        return Err(SpecError::new(
+            field("restitution"),
+            format!("must be in [0, 1], got {}", c.restitution),
+        ));
+    }
+    let tangent = match &c.tangent {
+        Some(src) => Some(p.parse(&field("tangent"), src, Allowed::PositionsAndTime)?),
+        None => None,
+    };
+    let mu = c.friction.unwrap_or(0.0);
+    if !(mu.is_finite() && mu >= 0.0) {
+        return Err(SpecError::new(
+            field("friction"),
+            format!("must be a finite number ≥ 0, got {mu}"),
+        ));
+    }
+    if mu > 0.0 && tangent.is_none() {
+        return Err(SpecError::new(
+            field("friction"),
+            "a friction coefficient needs a `tangent` (the tangential relative position; `tangent` is required when friction > 0)",
+        ));
+    }
+    Ok(ContactParams {
+        gap,
+        restitution: c.restitution,
+        friction: mu,
+        tangent,
+    })
 }
