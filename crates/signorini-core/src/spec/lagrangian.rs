@@ -5,20 +5,53 @@
 
 use super::SpecError;
 use crate::expr::{Expr, Param, Scope, ScopeError};
-use crate::lagrangian::{ContactParams, JOINT_TOLERANCE, SYMMETRY_TOLERANCE, UserModelParams};
+use crate::lagrangian::{
+    ContactParams, JOINT_TOLERANCE, SYMMETRY_TOLERANCE, StartProjection, Tangent, UserModelParams,
+    project_start,
+};
 use nalgebra::DMatrix;
 use schemars::JsonSchema;
+use serde::de::{self, Deserializer, Visitor};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+use std::fmt;
 
-/// A number or an expression (an entry of the mass matrix or of the force vector).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+/// A number or an expression (an entry of the mass matrix, of the force vector, of q0 or v0).
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
 #[serde(untagged)]
 pub enum Term {
     /// A number.
     Number(f64),
     /// An expression over the coordinates, velocities, `t` and the parameters.
     Expr(String),
+}
+
+/// Reads a number or a string, and names what it got otherwise ("invalid type: boolean `true`,
+/// expected a number or an expression (a string)"), where an untagged enum would only say that
+/// no variant matched.
+impl<'de> Deserialize<'de> for Term {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Term, D::Error> {
+        struct TermVisitor;
+        impl Visitor<'_> for TermVisitor {
+            type Value = Term;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a number or an expression (a string)")
+            }
+            fn visit_f64<E: de::Error>(self, x: f64) -> Result<Term, E> {
+                Ok(Term::Number(x))
+            }
+            fn visit_i64<E: de::Error>(self, x: i64) -> Result<Term, E> {
+                Ok(Term::Number(x as f64))
+            }
+            fn visit_u64<E: de::Error>(self, x: u64) -> Result<Term, E> {
+                Ok(Term::Number(x as f64))
+            }
+            fn visit_str<E: de::Error>(self, s: &str) -> Result<Term, E> {
+                Ok(Term::Expr(s.to_string()))
+            }
+        }
+        deserializer.deserialize_any(TermVisitor)
+    }
 }
 
 /// `scene = "lagrangian"`: Lagrange's equations M(q) q̈ + c(q, q̇) = −∇V(q, t) + f(t, q, q̇) +
@@ -54,16 +87,24 @@ pub struct LagrangianSpec {
     /// their work is `work_ext`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub forces: Option<Vec<Term>>,
-    /// Initial positions q(0), n entries.
-    pub q0: Vec<f64>,
-    /// Initial velocities q̇(0), n entries (zero when absent).
+    /// Initial positions q(0), n entries: numbers, or expressions of the parameters
+    /// (`"pi/3"`, `"L*sin(th0)"`), evaluated once at validation.
+    pub q0: Vec<Term>,
+    /// Initial velocities q̇(0), n entries like `q0` (zero when absent).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub v0: Option<Vec<f64>>,
+    pub v0: Option<Vec<Term>>,
     /// Bilateral holonomic joints g(q, t) = 0, each `{ expr = "..." }`; each must hold at q0 to
-    /// 1e-8 relative to ‖q0‖∞. Run by the SOI2 schemes, `moreau_jean` and
-    /// `ns_generalized_alpha` (the last two with contacts too).
+    /// 1e-8 relative to ‖q0‖∞ (or `project_onto_joints`). Run by the SOI2 schemes,
+    /// `moreau_jean` and `ns_generalized_alpha` (the last two with contacts too).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub constraints: Vec<JointSpec>,
+    /// Move the start onto the joints instead of refusing it (default false): q0 by Newton's
+    /// method on g(q, 0) = 0 with minimum-norm steps (to 1e-12 relative to ‖q0‖∞, at most 50
+    /// iterations; refused naming the joint when it does not converge), then v0 by the
+    /// minimum-norm change onto g_q v + g_t = 0. The projected values are reported
+    /// (`start_projection` in the summary).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub project_onto_joints: bool,
     /// The joints are dependent on purpose (default false): redundant at every configuration,
     /// like Bricard's mechanism (Grübler's count says 0 degrees of freedom, the mobility is 1).
     /// Validation then accepts a rank-deficient g_q at q0 (otherwise refused naming
@@ -117,7 +158,8 @@ pub struct UserContactSpec {
     #[serde(default)]
     #[schemars(range(min = 0.0, max = 1.0))]
     pub restitution: f64,
-    /// Coulomb friction coefficient μ ≥ 0 (default 0: frictionless); μ > 0 needs `tangent`.
+    /// Coulomb friction coefficient μ ≥ 0 (default 0: frictionless); μ > 0 needs `tangent` or
+    /// `tangent_velocity`.
     /// The step then solves the planar friction problem (`contact_solver.kind`: lemke on the
     /// LCP reformulation, pgs the nonsmooth Gauss–Seidel, auto the Gauss–Seidel first with Lemke
     /// when it does not converge). Taken by
@@ -129,6 +171,12 @@ pub struct UserContactSpec {
     /// direction, and U_t = ∇τ·q̇ + ∂τ/∂t the tangential velocity that friction opposes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tangent: Option<String>,
+    /// In place of `tangent`: the tangential velocity U_t(q, q̇, t) itself, linear in the
+    /// velocities (checked: its derivatives by the velocities may not use them); its coefficients
+    /// are the tangent row. For a tangent that is not the gradient of any τ(q, t), e.g. the
+    /// sliding velocity of a disk rolling on a curved floor.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tangent_velocity: Option<String>,
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -158,21 +206,42 @@ fn scope_error(e: ScopeError) -> SpecError {
     SpecError::new(field, e.to_string())
 }
 
-/// Checks a vector's length against the coordinates and its entries' finiteness.
-fn check_vector(field: &str, v: &[f64], n: usize) -> Result<(), SpecError> {
+/// The values of a start vector (`model.q0`, `model.v0`): n entries, each a number or an
+/// expression of the parameters alone, finite; every error names its entry.
+fn start_vector(scope: &Scope, field: &str, v: &[Term], n: usize) -> Result<Vec<f64>, SpecError> {
     if v.len() != n {
         return Err(SpecError::new(
             field,
             format!("needs {n} entries (one per coordinate), got {}", v.len()),
         ));
     }
-    if let Some((i, x)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
-        return Err(SpecError::new(
-            format!("{field}[{i}]"),
-            format!("must be finite, got {x}"),
-        ));
-    }
-    Ok(())
+    v.iter()
+        .enumerate()
+        .map(|(i, term)| {
+            let entry = format!("{field}[{i}]");
+            let x = match term {
+                Term::Number(x) => *x,
+                Term::Expr(src) => {
+                    let e = Expr::parse(src, scope)
+                        .map_err(|e| SpecError::new(&entry, e.to_string()))?;
+                    if let Some(&v) = e.variables().first() {
+                        return Err(SpecError::new(
+                            entry,
+                            format!(
+                                "uses '{}': a start value is a number or an expression of the parameters",
+                                scope.variables()[v]
+                            ),
+                        ));
+                    }
+                    e.eval(&[])
+                }
+            };
+            if !x.is_finite() {
+                return Err(SpecError::new(entry, format!("must be finite, got {x}")));
+            }
+            Ok(x)
+        })
+        .collect()
 }
 
 /// Parses expressions in the model's scope and checks them at (q0, v0, 0).
@@ -182,7 +251,19 @@ struct Parser<'a> {
     at_start: Vec<f64>,
 }
 
-impl Parser<'_> {
+impl<'a> Parser<'a> {
+    /// Checks at (q0, v0, t = 0).
+    fn at(scope: &'a Scope, q0: &[f64], v0: &[f64]) -> Parser<'a> {
+        let mut at_start = q0.to_vec();
+        at_start.extend_from_slice(v0);
+        at_start.push(0.0);
+        Parser {
+            scope,
+            n: q0.len(),
+            at_start,
+        }
+    }
+
     fn parse(&self, field: &str, src: &str, allowed: Allowed) -> Result<Expr, SpecError> {
         let e = Expr::parse(src, self.scope).map_err(|e| SpecError::new(field, e.to_string()))?;
         self.check(field, e, allowed)
@@ -344,6 +425,8 @@ impl LagrangianSpec {
     /// * names: coordinates distinct identifiers, parameters without cycles or clashes
     ///   (`model.coordinates`, `model.parameters.<name>`); unknown names with a suggestion;
     /// * sizes against `coordinates`: `q0`, `v0`, the rows and columns of `mass`, `forces`;
+    /// * `q0` and `v0` entries numbers or expressions of the parameters, finite
+    ///   (`model.q0[i]`);
     /// * M(q) may use neither velocities nor `t`; V, joints, gaps and tangents no velocities;
     /// * every expression is finite at (q0, v0, t = 0);
     /// * M symmetric: the model uses the upper triangle, and every entry below the diagonal must
@@ -351,12 +434,18 @@ impl LagrangianSpec {
     ///   entries is caught; structurally equal expressions pass at once); M positive definite at q0
     ///   (Cholesky);
     /// * each joint holds at q0: |g_i(q0)| ≤ [`JOINT_TOLERANCE`] · ‖q0‖∞ (absolute when q0 = 0);
+    ///   with `project_onto_joints`, q0 and v0 are first moved onto the joints
+    ///   ([`project_start`]: minimum-norm Newton steps, then the minimum-norm velocity change),
+    ///   refused naming `model.constraints[i].expr` when Newton does not get there, and every
+    ///   later check is made at the projected start;
     /// * each contact is open or closed at q0, not penetrated: gap(q0, 0) ≥ −[`JOINT_TOLERANCE`]
     ///   · ‖q0‖∞ (a start inside the obstacle is refused naming `model.contacts[i].gap`);
     /// * restitution in [0, 1]; friction μ finite and ≥ 0, and μ > 0 needs a `tangent` (the
     ///   tangential relative position τ(q, t), checked like a gap: no velocities, known names,
     ///   finite at q0); its gradient, the tangent row, is an exact symbolic derivative like the
-    ///   gap's.
+    ///   gap's. Or a `tangent_velocity` U_t(q, q̇, t) in its place (not both), linear in the
+    ///   velocities (each ∂U_t/∂q̇_i free of velocities and finite at q0): its coefficients are
+    ///   the tangent row.
     pub fn validate(&self) -> Result<UserModelParams, SpecError> {
         let n = self.coordinates.len();
         if n == 0 {
@@ -366,23 +455,31 @@ impl LagrangianSpec {
             ));
         }
         let scope = self.scope()?;
-        let (q0, v0) = self.start(n)?;
-        let mut at_start = q0.clone();
-        at_start.extend_from_slice(&v0);
-        at_start.push(0.0);
-        let p = Parser {
-            scope: &scope,
-            n,
-            at_start,
+        let (q0, v0) = self.start(&scope, n)?;
+        let tolerance = start_tolerance(&q0);
+        let joints = parse_joints(&Parser::at(&scope, &q0, &v0), &self.constraints)?;
+        let projection = if self.project_onto_joints && !joints.is_empty() {
+            Some(project_start(&joints, n, &q0, &v0, tolerance).map_err(|e| {
+                SpecError::new(
+                    format!("model.constraints[{}].expr", e.joint()),
+                    e.to_string(),
+                )
+            })?)
+        } else {
+            None
         };
+        let (q0, v0) = match &projection {
+            Some(StartProjection { q0, v0, .. }) => (q0.clone(), v0.clone()),
+            None => (q0, v0),
+        };
+        let p = Parser::at(&scope, &q0, &v0);
         let mass = mass_matrix(&p, &self.mass, n)?;
         let potential = match &self.potential {
             Some(src) => p.parse("model.potential", src, Allowed::PositionsAndTime)?,
             None => Expr::constant(0.0),
         };
         let applied = applied_forces(&p, self.forces.as_deref(), n)?;
-        let tolerance = start_tolerance(&q0);
-        let joints = joints(&p, &self.constraints, tolerance)?;
+        joints_hold(&p, &joints, tolerance)?;
         let contacts = self
             .contacts
             .iter()
@@ -397,6 +494,7 @@ impl LagrangianSpec {
             applied,
             joints,
             contacts,
+            projection,
         })
     }
 
@@ -411,12 +509,14 @@ impl LagrangianSpec {
         Scope::lagrangian(&self.coordinates, &parameters).map_err(scope_error)
     }
 
-    /// q(0) and q̇(0) (zero when `v0` is absent), n finite entries each.
-    fn start(&self, n: usize) -> Result<(Vec<f64>, Vec<f64>), SpecError> {
-        check_vector("model.q0", &self.q0, n)?;
-        let v0 = self.v0.clone().unwrap_or_else(|| vec![0.0; n]);
-        check_vector("model.v0", &v0, n)?;
-        Ok((self.q0.clone(), v0))
+    /// q(0) and q̇(0) (zero when `v0` is absent) as given, n finite entries each.
+    fn start(&self, scope: &Scope, n: usize) -> Result<(Vec<f64>, Vec<f64>), SpecError> {
+        let q0 = start_vector(scope, "model.q0", &self.q0, n)?;
+        let v0 = match &self.v0 {
+            Some(v0) => start_vector(scope, "model.v0", v0, n)?,
+            None => vec![0.0; n],
+        };
+        Ok((q0, v0))
     }
 }
 
@@ -472,14 +572,9 @@ fn applied_forces(
     }
 }
 
-/// The joints g(q, t), each parsed (`model.constraints[i].expr`), then each held at q0 to
-/// `tolerance`.
-fn joints(
-    p: &Parser<'_>,
-    constraints: &[JointSpec],
-    tolerance: f64,
-) -> Result<Vec<Expr>, SpecError> {
-    let joints: Vec<Expr> = constraints
+/// The joints g(q, t), each parsed (`model.constraints[i].expr`).
+fn parse_joints(p: &Parser<'_>, constraints: &[JointSpec]) -> Result<Vec<Expr>, SpecError> {
+    constraints
         .iter()
         .enumerate()
         .map(|(i, j)| {
@@ -489,19 +584,23 @@ fn joints(
                 Allowed::PositionsAndTime,
             )
         })
-        .collect::<Result<_, _>>()?;
+        .collect()
+}
+
+/// Each joint holds at the start of `p` to `tolerance`.
+fn joints_hold(p: &Parser<'_>, joints: &[Expr], tolerance: f64) -> Result<(), SpecError> {
     for (i, g) in joints.iter().enumerate() {
         let r = g.eval(&p.at_start);
         if r.abs() > tolerance {
             return Err(SpecError::new(
                 format!("model.constraints[{i}].expr"),
                 format!(
-                    "the joint is violated at q0: g = {r:e}, tolerance {tolerance:e} ({JOINT_TOLERANCE:e} relative to max|q0|)"
+                    "the joint is violated at q0: g = {r:e}, tolerance {tolerance:e} ({JOINT_TOLERANCE:e} relative to max|q0|); set `model.project_onto_joints = true` to move q0 and v0 onto the joints"
                 ),
             ));
         }
     }
-    Ok(joints)
+    Ok(())
 }
 
 /// Contact `i`: its gap (not negative at q0 beyond `tolerance`), restitution, friction and
@@ -531,9 +630,24 @@ fn contact(
             format!("must be in [0, 1], got {}", c.restitution),
         ));
     }
-    let tangent = match &c.tangent {
-        Some(src) => Some(p.parse(&field("tangent"), src, Allowed::PositionsAndTime)?),
-        None => None,
+    let tangent = match (&c.tangent, &c.tangent_velocity) {
+        (Some(_), Some(_)) => {
+            return Err(SpecError::new(
+                field("tangent_velocity"),
+                "give either `tangent` (the tangential relative position τ(q, t)) or `tangent_velocity` (the tangential velocity, linear in the velocities), not both",
+            ));
+        }
+        (Some(src), None) => Some(Tangent::Position(p.parse(
+            &field("tangent"),
+            src,
+            Allowed::PositionsAndTime,
+        )?)),
+        (None, Some(src)) => Some(Tangent::Velocity(tangent_velocity(
+            p,
+            &field("tangent_velocity"),
+            src,
+        )?)),
+        (None, None) => None,
     };
     let mu = c.friction.unwrap_or(0.0);
     if !(mu.is_finite() && mu >= 0.0) {
@@ -545,7 +659,7 @@ fn contact(
     if mu > 0.0 && tangent.is_none() {
         return Err(SpecError::new(
             field("friction"),
-            "a friction coefficient needs a `tangent` (the tangential relative position; `tangent` is required when friction > 0)",
+            "a friction coefficient needs a `tangent` (the tangential relative position τ(q, t)) or a `tangent_velocity` (the tangential velocity, linear in the velocities); one of them is required when friction > 0",
         ));
     }
     Ok(ContactParams {
@@ -554,4 +668,51 @@ fn contact(
         friction: mu,
         tangent,
     })
+}
+
+/// A tangential velocity U_t(q, q̇, t) (`model.contacts[i].tangent_velocity`): parsed, finite at
+/// the start, using some velocity, and linear in the velocities: each ∂U_t/∂q̇_i (a coefficient
+/// of the tangent row) depends on q and t only, and is finite at the start.
+fn tangent_velocity(p: &Parser<'_>, field: &str, src: &str) -> Result<Expr, SpecError> {
+    let u = p.parse(field, src, Allowed::Everything)?;
+    let n = p.n;
+    let names = p.scope.variables();
+    let velocities: Vec<usize> = u
+        .variables()
+        .into_iter()
+        .filter(|v| (n..2 * n).contains(v))
+        .collect();
+    if velocities.is_empty() {
+        return Err(SpecError::new(
+            field,
+            "uses no velocity: write the tangential velocity of the contact point, linear in the velocities (e.g. \"x_dot + R*phi_dot\"), or a tangential position as `tangent`",
+        ));
+    }
+    for v in velocities {
+        let coefficient = u.derivative(v);
+        if let Some(&w) = coefficient
+            .variables()
+            .iter()
+            .find(|w| (n..2 * n).contains(*w))
+        {
+            return Err(SpecError::new(
+                field,
+                format!(
+                    "is not linear in the velocities: its derivative by '{}' depends on '{}'",
+                    names[v], names[w]
+                ),
+            ));
+        }
+        let value = coefficient.eval(&p.at_start);
+        if !value.is_finite() {
+            return Err(SpecError::new(
+                field,
+                format!(
+                    "its coefficient of '{}' is {value} at q0 (t = 0): the tangent row must be finite there",
+                    names[v]
+                ),
+            ));
+        }
+    }
+    Ok(u)
 }
