@@ -693,7 +693,8 @@ fn start_values_may_be_expressions_of_the_parameters() {
     assert_eq!(p.v0, vec![0.1 * 9.81_f64.sqrt(), 0.0, 9.81_f64.sqrt()]);
     assert!(p.projection.is_none());
 
-    let cases: Vec<(fn(&mut Value), &str, &str)> = vec![
+    type Edit = fn(&mut Value);
+    let cases: Vec<(Edit, &str, &str)> = vec![
         (
             |s| s["model"]["q0"][1] = json!("hgh/2"),
             "model.q0[1]",
