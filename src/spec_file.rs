@@ -285,7 +285,7 @@ mod tests {
     }
 
     /// Issue 30: a bad field inside a scene's table is named by its full path, not by the
-    /// first field a probe happened to try (`model.contacts` for a string in `q0`) nor by the
+    /// first field a probe happened to try (`model.contacts` for a value of the wrong type in `q0`) nor by the
     /// table (`model.restitutin` for a typo inside a contact), in TOML and JSON.
     #[test]
     fn a_bad_field_inside_a_scene_is_named_by_its_path() {
@@ -295,12 +295,12 @@ mod tests {
             )
         };
         let e = parse(
-            &toml("q0 = [\"-pi/3\", -1.4]\n[[model.contacts]]\ngap = \"a\"\n"),
+            &toml("q0 = [true, -1.4]\n[[model.contacts]]\ngap = \"a\"\n"),
             Format::Toml,
         )
         .unwrap_err();
         assert_eq!(e.field, "model.q0[0]", "{e}");
-        assert!(e.reason.contains("invalid type: string"), "{e}");
+        assert!(e.reason.contains("invalid type: boolean"), "{e}");
         let e = parse(
             &toml("q0 = [0, 0]\n[[model.contacts]]\ngap = \"a\"\nrestitutin = 0.5\n"),
             Format::Toml,
@@ -309,7 +309,7 @@ mod tests {
         assert_eq!(e.field, "model.contacts[0].restitutin", "{e}");
         assert!(e.reason.contains("unknown field"), "{e}");
         let e = parse(
-            r#"{"model": {"scene": "lagrangian", "coordinates": ["a", "b"], "mass": [[1, 0], [0, 1]], "contacts": [{"gap": "a"}], "q0": ["-pi/3", -1.4]}, "time": {"h": 0.01, "t_end": 1}}"#,
+            r#"{"model": {"scene": "lagrangian", "coordinates": ["a", "b"], "mass": [[1, 0], [0, 1]], "contacts": [{"gap": "a"}], "q0": [true, -1.4]}, "time": {"h": 0.01, "t_end": 1}}"#,
             Format::Json,
         )
         .unwrap_err();

@@ -284,3 +284,70 @@ async fn a_lagrangian_jobs_page_draws_what_its_family_reports() {
         .await
         .expect("cancel");
 }
+
+/// Issue 30: the two new-user models of `examples/` (the double pendulum against a rough wall,
+/// the disk rolling on a sinusoidal floor with `tangent_velocity`), finished: each page draws
+/// the energy ledger with Σ work_friction, every legend entry in its curve's colour, a residual
+/// panel of the `energy_error` over a finite, non-empty range, and its five figures non-empty.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_new_user_examples_pages_draw_their_ledgers_and_figures() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&dir.path().join("s.db"), &Options::default());
+    let mut client = server.grpc().await;
+    let mut b = Browser::launch();
+    let base = format!("http://{}", server.http);
+    for (file, id) in [
+        ("double_pendulum_rough_wall", "pendulum_rough_wall"),
+        ("disk_on_sinusoidal_floor", "disk_rolling"),
+    ] {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("examples/{file}.toml"));
+        let mut spec: Value =
+            toml::from_str(&std::fs::read_to_string(path).expect("example")).expect("TOML");
+        spec["time"]["t_end"] = serde_json::json!(1.5);
+        let job = submit_json(&mut client, spec.to_string(), Some(id))
+            .await
+            .expect("submit");
+        let st = wait_terminal(&mut client, &job).await;
+        assert_eq!(st.state, pb::JobState::Succeeded as i32, "{file}: {st:?}");
+        b.open(&format!("{base}/jobs/{job}"));
+        b.wait_for(
+            "both plots drawn",
+            "+document.getElementById('energy').dataset.points > 50 \
+             && +document.getElementById('residual').dataset.points > 50 \
+             && document.getElementById('residual').dataset.series === 'energy_error'",
+        );
+        let (legend, drawn) = legend_and_plot(&mut b, "key", "energy");
+        assert_eq!(legend, drawn, "{file}: energy legend ↔ curves");
+        let keys: Vec<&str> = drawn
+            .as_array()
+            .expect("series")
+            .iter()
+            .filter_map(|p| p[0].as_str())
+            .collect();
+        for k in ["kinetic", "potential", "energy", "work_friction_total"] {
+            assert!(keys.contains(&k), "{file}: {k} not drawn: {keys:?}");
+        }
+        let (legend, drawn) = legend_and_plot(&mut b, "residual-key", "residual");
+        assert_eq!(legend, drawn, "{file}: residual legend ↔ curves");
+        let (lo, hi) = (
+            data(&mut b, "residual", "lo"),
+            data(&mut b, "residual", "hi"),
+        );
+        assert!(
+            lo.is_finite() && hi.is_finite() && lo < hi,
+            "{file}: [{lo}, {hi}]"
+        );
+        let names = b.wait_for(
+            "the figures loaded",
+            "(() => { const i = [...document.querySelectorAll('#figures img')]; \
+               return i.length === 5 && i.every(x => x.complete && x.naturalWidth > 0) \
+                 ? i.map(x => x.alt) : null; })()",
+        );
+        assert_eq!(
+            names,
+            serde_json::json!(["energy", "residuals", "coordinates", "gaps", "impulses"]),
+            "{file}"
+        );
+    }
+}

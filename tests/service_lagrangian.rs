@@ -191,21 +191,21 @@ async fn every_bad_model_is_refused_naming_its_field_by_cli_http_and_grpc() {
     }
 }
 
-/// Issue 30: a value of the wrong type or a misspelt field *inside* the model (a string in
+/// Issue 30: a value of the wrong type or a misspelt field *inside* the model (a boolean in
 /// `q0`, `restitutin` in a contact, a number where a joint table goes) is named by its full
 /// path by the CLI (a TOML file), HTTP and gRPC alike: it used to be `model.contacts` (CLI),
 /// `model.coordinates` (HTTP) and `model.restitutin`.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_bad_field_inside_the_model_is_named_by_its_path_over_cli_http_and_grpc() {
     let cases: Vec<(&str, Value, &str)> = vec![
-        ("/model/q0", json!(["-pi/3", -1.4, 0.0]), "model.q0[0]"),
+        ("/model/q0", json!([true, -1.4, 0.0]), "model.q0[0]"),
         (
             "/model/contacts/0/restitutin",
             json!(0.5),
             "model.contacts[0].restitutin",
         ),
         ("/model/constraints/0", json!(1.0), "model.constraints[0]"),
-        ("/model/v0", json!([0.0, "1", 0.0]), "model.v0[1]"),
+        ("/model/v0", json!([0.0, [1], 0.0]), "model.v0[1]"),
     ];
     let dir = tempfile::tempdir().expect("tempdir");
     let server = TestServer::start(&dir.path().join("store.db"), &Options::default());
@@ -302,10 +302,157 @@ async fn toml_goes_over_http_and_t_is_a_column() {
     let csv = String::from_utf8(csv).expect("CSV");
     assert_eq!(csv.lines().next(), Some("step,t"), "{csv}");
 
-    let bad = toml_text.replace("q0 = [", "q0 = [\"-pi/3\", ");
+    let bad = toml_text.replace("q0 = [", "q0 = [true, ");
     assert_ne!(bad, toml_text);
     let (code, _, body) = server.request("POST", "/v1/jobs", &bad, &toml_header).await;
     let body: Value = serde_json::from_slice(&body).expect("JSON answer");
     assert_eq!(code, 400, "{body}");
     assert_eq!(body["error"]["field"], "model.q0[0]", "{body}");
+}
+
+/// Issue 30, item 3, over the CLI and HTTP. A start written as expressions of the parameters,
+/// off the joint x − 0.1φ = 0, with `project_onto_joints`: the CLI prints a note with the values
+/// the run starts from and both put them in the summary (`start_projection`, the orthogonal
+/// projection onto the joint: q0 − a (a·q0)/(a·a), a = (1, 0, −0.1)). A block sliding on a floor
+/// whose friction takes `tangent_velocity = "x_dot"` stops where Coulomb's law says,
+/// v0²/(2μg), having dissipated all its kinetic energy as friction work. Bad start expressions
+/// and a non-linear tangential velocity are refused naming their fields.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn start_expressions_projection_and_tangent_velocity_over_cli_and_http() {
+    let mut projected = base();
+    projected["model"]["contacts"] = json!([]);
+    projected["model"]["q0"] = json!(["hgt/8", "hgt/2", 0]);
+    projected["model"]["v0"] = json!(["w/2", 0, "1"]);
+    projected["model"]["project_onto_joints"] = json!(true);
+    let a = [1.0, 0.0, -0.1];
+    let (ga, va) = (0.05 / 1.01, (0.1 - 0.1) / 1.01);
+    let q0: Vec<f64> = [0.05, 0.2, 0.0]
+        .iter()
+        .zip(a)
+        .map(|(q, a)| q - a * ga)
+        .collect();
+    let v0: Vec<f64> = [0.1, 0.0, 1.0]
+        .iter()
+        .zip(a)
+        .map(|(v, a)| v - a * va)
+        .collect();
+    let close = |got: &Value, want: &[f64]| {
+        let got: Vec<f64> = serde_json::from_value(got.clone()).expect("numbers");
+        got.len() == want.len() && got.iter().zip(want).all(|(g, w)| (g - w).abs() < 1e-15)
+    };
+
+    let sliding = json!({
+        "model": {
+            "scene": "lagrangian",
+            "coordinates": ["x", "y"],
+            "parameters": {"m": 1.0, "g": 9.81, "mu": 0.5},
+            "mass": {"diagonal": ["m", "m"]},
+            "potential": "m*g*y",
+            "q0": [0, 0],
+            "v0": ["sqrt(2*g*mu*0.1)", 0],
+            "contacts": [{"gap": "y", "friction": 0.5, "tangent_velocity": "x_dot"}]
+        },
+        "integrator": {"scheme": "moreau_jean", "theta": 0.5},
+        "time": {"h": 0.0005, "t_end": 0.3},
+        "output": {"every": 10, "probes": [0]}
+    });
+
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (name, spec) in [("projected", &projected), ("sliding", &sliding)] {
+        let file = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&file, toml::to_string(spec).expect("TOML")).expect("writing the spec");
+        let out_dir = dir.path().join(name);
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_signorini"))
+            .args(["run", "--quiet"])
+            .arg(&file)
+            .arg("--out")
+            .arg(&out_dir)
+            .output()
+            .expect("signorini run");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{name}: {stderr}");
+        let summary: Value = serde_json::from_str(
+            &std::fs::read_to_string(out_dir.join("summary.json")).expect("summary.json"),
+        )
+        .expect("JSON");
+        if name == "projected" {
+            assert!(
+                stderr.contains("note: q0 and v0 were projected onto the joints"),
+                "{stderr}"
+            );
+            assert!(close(&summary["start_projection"]["q0"], &q0), "{summary}");
+            assert!(close(&summary["start_projection"]["v0"], &v0), "{summary}");
+            assert_eq!(
+                summary["start_projection"]["q0_given"],
+                json!([0.05, 0.2, 0.0])
+            );
+        } else {
+            assert!(!stderr.contains("projected"), "{stderr}");
+            assert!(summary.get("start_projection").is_none(), "{summary}");
+            let csv = std::fs::read_to_string(out_dir.join("steps.csv")).expect("steps.csv");
+            let header: Vec<&str> = csv.lines().next().expect("header").split(',').collect();
+            let last: Vec<f64> = csv
+                .lines()
+                .last()
+                .expect("rows")
+                .split(',')
+                .map(|x| x.parse().expect("a number"))
+                .collect();
+            let col = |c: &str| last[header.iter().position(|h| *h == c).expect(c)];
+            // Stops at v0²/(2μg) = 0.1 m (to the first order of the step); with θ = ½ the
+            // friction work of a step, P_t (U_t,k + U_t,k+1)/2, is the kinetic energy it takes.
+            assert!((col("q_0") - 0.1).abs() < 2e-3, "x = {}", col("q_0"));
+            assert!(col("v_0").abs() < 1e-12, "v = {}", col("v_0"));
+            let friction = summary["work_friction_total"].as_f64().expect("work");
+            assert!(
+                (friction + 0.5 * 2.0 * 9.81 * 0.5 * 0.1).abs() < 1e-9,
+                "{summary}"
+            );
+        }
+    }
+
+    let server = TestServer::start(&dir.path().join("store.db"), &Options::default());
+    let mut client = server.grpc().await;
+    for spec in [&projected, &sliding] {
+        let (code, body) = server
+            .http("POST", "/v1/jobs", Some(&spec.to_string()), None)
+            .await;
+        assert_eq!(code, 201, "{body}");
+        let id = body["id"].as_str().expect("id").to_string();
+        let s = wait_terminal(&mut client, &id).await;
+        assert_eq!(s.state, pb::JobState::Succeeded as i32, "{s:?}");
+        let (code, result) = server
+            .http("GET", &format!("/v1/jobs/{id}/result"), None, None)
+            .await;
+        assert_eq!(code, 200, "{result}");
+        if spec == &projected {
+            let report = &result["summary"]["start_projection"];
+            assert!(close(&report["q0"], &q0), "{result}");
+            assert!(close(&report["v0"], &v0), "{result}");
+        } else {
+            assert!(
+                result["summary"]["work_friction_total"]
+                    .as_f64()
+                    .expect("work")
+                    < -0.49
+            );
+        }
+    }
+    for (spec, pointer, value, field) in [
+        (&projected, "/model/q0/1", json!("hgh/2"), "model.q0[1]"),
+        (
+            &sliding,
+            "/model/contacts/0/tangent_velocity",
+            json!("x_dot^2"),
+            "model.contacts[0].tangent_velocity",
+        ),
+    ] {
+        let mut bad = spec.clone();
+        *bad.pointer_mut(pointer).expect("pointer") = value;
+        let (code, body) = server
+            .http("POST", "/v1/jobs", Some(&bad.to_string()), None)
+            .await;
+        assert_eq!(code, 400, "{body}");
+        assert_eq!(body["error"]["field"], field, "{body}");
+    }
 }

@@ -11,6 +11,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use signorini_core::checkpoint::Checkpoint;
 use signorini_core::job::{self, Job};
+use signorini_core::lagrangian::StartProjection;
 use signorini_core::observer::{Columns, Observer, Progress, StepRecord};
 use signorini_core::outcome::RunOutput;
 use signorini_core::spec::CheckpointPeriod;
@@ -144,6 +145,9 @@ pub fn run(args: RunArgs) -> Result<()> {
             )
         })?;
     }
+    if let Some(p) = job.start_projection() {
+        eprintln!("{}", projection_note(p));
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
     if job.checkpoints() {
@@ -154,6 +158,21 @@ pub fn run(args: RunArgs) -> Result<()> {
     }
     let csv = CsvSteps::create(&args.out)?;
     execute(&job, &args.out, csv, None, args.quiet)
+}
+
+/// The note `run` prints when a model's start was moved onto its joints: the values the run
+/// starts from, against those given (`start_projection` in summary.json has them all).
+fn projection_note(p: &StartProjection) -> String {
+    format!(
+        "signorini: note: q0 and v0 were projected onto the joints (model.project_onto_joints, {} Newton iterations, joint residual {:e} -> {:e}):\n  q0 = {:?} (given {:?})\n  v0 = {:?} (given {:?})\n  the run starts there; summary.json has them as start_projection",
+        p.newton_iterations,
+        p.joint_residual_given,
+        p.joint_residual,
+        p.q0,
+        p.q0_given,
+        p.v0,
+        p.v0_given
+    )
 }
 
 /// `signorini run --resume DIR`: continues the run of DIR/run_spec.json from DIR/checkpoint.bin;

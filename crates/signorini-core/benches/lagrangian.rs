@@ -57,8 +57,8 @@ fn user_slider_crank(s: &SliderCrank) -> UserModel {
         }),
         potential: Some("g*(m1*y1 + m2*y2 + m3*y3)".into()),
         forces: None,
-        q0: iv.y,
-        v0: Some(iv.z),
+        q0: iv.y.into_iter().map(Term::Number).collect(),
+        v0: Some(iv.z.into_iter().map(Term::Number).collect()),
         constraints: [
             "x1 - r/2*cos(th1)",
             "y1 - r/2*sin(th1)",
@@ -70,6 +70,7 @@ fn user_slider_crank(s: &SliderCrank) -> UserModel {
         ]
         .map(|e| JointSpec { expr: e.into() })
         .to_vec(),
+        project_onto_joints: false,
         redundant_joints: false,
         contacts: Vec::new(),
     };

@@ -16,7 +16,7 @@ use crate::integrators::alpha::{AlphaParams, AlphaScheme, NonsmoothAlpha, ParamE
 use crate::integrators::moreau_jean::{MoreauJean, MoreauJeanParams};
 use crate::integrators::position_contact::{PositionContact, PositionContactParams};
 use crate::integrators::{LinearScheme, LinearState, OutputOptions, run_linear_from};
-use crate::lagrangian::UserModel;
+use crate::lagrangian::{StartProjection, UserModel};
 use crate::lcp::{LcpOptions, LcpSolverKind};
 use crate::model::{
     Contact, ContactFriction, Forcing, HarmonicLoad, LinearModel, ModelError,
@@ -62,6 +62,8 @@ pub struct JobSize {
 pub struct Job {
     spec: JobSpec,
     kind: JobKind,
+    /// How a `lagrangian` model's start was moved onto its joints (`model.project_onto_joints`).
+    start: Option<StartProjection>,
 }
 
 #[derive(Debug, Clone)]
@@ -494,10 +496,23 @@ impl Job {
             }
             (None, Some(m), _) => return Err(mismatch(m, spec.integrator.scheme())),
         };
+        // The model validated once more for its report: its start projection, when it asks
+        // for one (parsing and checks only, no tapes).
+        let start = match model {
+            Some(ModelSpec::Lagrangian(l)) if l.project_onto_joints => l.validate()?.projection,
+            _ => None,
+        };
         Ok(Job {
             spec: spec.clone(),
             kind,
+            start,
         })
+    }
+
+    /// How the start of a `lagrangian` model was moved onto its joints
+    /// (`model.project_onto_joints`), as the summary reports it (`start_projection`).
+    pub fn start_projection(&self) -> Option<&StartProjection> {
+        self.start.as_ref()
     }
 
     /// The spec this job was built from.
@@ -696,6 +711,7 @@ fn run_from(
         }),
     }?;
     output.charts.extend(trace.charts());
+    output.summary.start_projection = job.start.clone();
     Ok(output)
 }
 

@@ -5,6 +5,7 @@
 use crate::band::BandError;
 use crate::checkpoint::CheckpointError;
 use crate::integrators::{LinearRunStats, RunStop, StepError};
+use crate::lagrangian::projection::StartProjection;
 use crate::nonlinear::generalized_alpha::NsAlphaSummary;
 use crate::nonlinear::moreau_jean::{NonlinearRunStats, NonlinearRunStop, NonlinearStepError};
 use crate::rigid::{DetectError, RigidRunError, RigidRunStats, RigidStepError};
@@ -373,6 +374,10 @@ pub struct RunSummary {
     /// Wall time, attached by the caller after the run.
     #[serde(flatten)]
     pub timing: Option<Timing>,
+    /// How a `lagrangian` model's q0 and v0 were moved onto its joints
+    /// (`model.project_onto_joints`); absent when they were taken as given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start_projection: Option<StartProjection>,
 }
 
 impl RunSummary {
@@ -382,6 +387,7 @@ impl RunSummary {
             header,
             body,
             timing: None,
+            start_projection: None,
         }
     }
 

@@ -667,3 +667,216 @@ fn a_nan_during_the_run_fails_the_job_with_step_and_time() {
         "{msg}"
     );
 }
+
+/// The validated start of a `lagrangian` spec.
+fn validated(spec: &Value) -> signorini_core::lagrangian::UserModelParams {
+    let s: JobSpec = serde_json::from_value(spec.clone()).expect("the spec parses");
+    let Some(ModelSpec::Lagrangian(l)) = s.model else {
+        panic!("a lagrangian model")
+    };
+    l.validate().expect("valid")
+}
+
+/// Issue 30, item 3: `q0` and `v0` may be expressions of the parameters, evaluated at
+/// validation to the values f64 arithmetic gives them; an entry that does not parse, uses a
+/// coordinate or is not finite is refused naming `model.q0[i]` / `model.v0[i]`, and a value
+/// of neither type says what it got.
+#[test]
+fn start_values_may_be_expressions_of_the_parameters() {
+    let mut s = base();
+    s["model"]["contacts"] = json!([]);
+    s["model"]["q0"] = json!(["0.1*pi/3", "w + hgt/2", "pi/3"]);
+    s["model"]["v0"] = json!(["0.1*sqrt(g)", 0, "sqrt(g)"]);
+    let p = validated(&s);
+    let pi = std::f64::consts::PI;
+    assert_eq!(p.q0, vec![0.1 * pi / 3.0, 0.2 + 0.4 / 2.0, pi / 3.0]);
+    assert_eq!(p.v0, vec![0.1 * 9.81_f64.sqrt(), 0.0, 9.81_f64.sqrt()]);
+    assert!(p.projection.is_none());
+
+    type Edit = fn(&mut Value);
+    let cases: Vec<(Edit, &str, &str)> = vec![
+        (
+            |s| s["model"]["q0"][1] = json!("hgh/2"),
+            "model.q0[1]",
+            "unknown name 'hgh'",
+        ),
+        (
+            |s| s["model"]["q0"][0] = json!("0.1*phi"),
+            "model.q0[0]",
+            "uses 'phi'",
+        ),
+        (
+            |s| s["model"]["v0"][2] = json!("sqrt(-g)"),
+            "model.v0[2]",
+            "must be finite, got NaN",
+        ),
+    ];
+    for (edit, field, reason) in cases {
+        let mut s = base();
+        edit(&mut s);
+        let e = refused(s);
+        assert_eq!(e.field, field, "{e}");
+        assert!(e.reason.contains(reason), "{e}");
+    }
+    let mut s = base();
+    s["model"]["q0"][1] = json!(true);
+    let e = serde_json::from_value::<JobSpec>(s).expect_err("a boolean is no start value");
+    assert!(
+        e.to_string()
+            .contains("invalid type: boolean `true`, expected a number or an expression"),
+        "{e}"
+    );
+}
+
+/// Issue 30, item 3: with `project_onto_joints` a start off the joints is moved onto them.
+/// For the linear joint x − 0.1φ = 0 of the base model the minimum-norm change is the
+/// orthogonal projection, q0 − a (a·q0)/(a·a) with a = (1, 0, −0.1), reached in one Newton
+/// step; v0 moves by −a (a·v0)/(a·a). The run starts there and its summary reports it. A joint
+/// without a solution (x² + y² + 1 = 0) is refused naming it.
+#[test]
+fn a_start_off_the_joints_is_projected_onto_them() {
+    let mut s = base();
+    s["model"]["contacts"] = json!([]);
+    s["model"]["q0"] = json!([0.05, 0.2, 0.0]);
+    s["model"]["v0"] = json!([0.3, 0.0, 1.0]);
+    let e = refused(s.clone());
+    assert_eq!(e.field, "model.constraints[0].expr", "{e}");
+    assert!(e.reason.contains("project_onto_joints"), "{e}");
+
+    s["model"]["project_onto_joints"] = json!(true);
+    let p = validated(&s);
+    let a = [1.0, 0.0, -0.1];
+    let aa = 1.01;
+    let (q_given, v_given) = ([0.05, 0.2, 0.0], [0.3, 0.0, 1.0]);
+    let (ga, va) = (0.05 / aa, (0.3 - 0.1) / aa);
+    for i in 0..3 {
+        assert!(
+            (p.q0[i] - (q_given[i] - a[i] * ga)).abs() < 1e-15,
+            "{:?}",
+            p.q0
+        );
+        assert!(
+            (p.v0[i] - (v_given[i] - a[i] * va)).abs() < 1e-15,
+            "{:?}",
+            p.v0
+        );
+    }
+    let report = p.projection.clone().expect("a projection");
+    assert_eq!(report.newton_iterations, 1);
+    assert_eq!(report.q0_given, q_given.to_vec());
+    assert_eq!(report.v0_given, v_given.to_vec());
+    assert_eq!(report.q0, p.q0);
+    assert!((report.joint_residual_given - 0.05).abs() < 1e-15);
+    assert!(report.joint_residual < 1e-16, "{report:?}");
+    assert!((report.position_change - 0.05 / aa.sqrt()).abs() < 1e-15);
+
+    let spec: JobSpec = serde_json::from_value(s.clone()).expect("spec");
+    let job = Job::from_spec(&spec).expect("projected start runs");
+    assert_eq!(job.start_projection(), Some(&report));
+    let out = run(&job, 1, &mut Recorder::default()).expect("runs");
+    let summary = out.summary.to_map();
+    assert_eq!(
+        summary["start_projection"]["q0"],
+        json!(p.q0),
+        "{summary:?}"
+    );
+    assert_eq!(summary["start_projection"]["newton_iterations"], json!(1));
+
+    let mut s = s;
+    s["model"]["constraints"] = json!([{"expr": "x^2 + y^2 + 1"}]);
+    let e = refused(s);
+    assert_eq!(e.field, "model.constraints[0].expr", "{e}");
+    assert!(e.reason.contains("could not be projected"), "{e}");
+}
+
+/// The double pendulum's rods (quadratic joints) from a start 0.1 off both: Newton brings
+/// both within 1e-12, v0 onto the rods' tangent space, and a SOI2 run from there keeps them.
+#[test]
+fn a_double_pendulum_started_off_its_rods_is_projected_by_newton() {
+    let mut s = serde_json::to_value(example("double_pendulum_cartesian")).expect("json");
+    s["model"]["q0"] = json!([1.1, 0.05, 2.0, -0.1]);
+    s["model"]["v0"] = json!([0.0, 1.0, 0.0, 0.5]);
+    s["model"]["project_onto_joints"] = json!(true);
+    s["time"]["t_end"] = json!(0.5);
+    let p = validated(&s);
+    let [x1, y1, x2, y2] = [p.q0[0], p.q0[1], p.q0[2], p.q0[3]];
+    assert!((x1 * x1 + y1 * y1 - 1.0).abs() < 1e-12, "{:?}", p.q0);
+    assert!(((x2 - x1).powi(2) + (y2 - y1).powi(2) - 1.0).abs() < 1e-12);
+    let [u1, w1, u2, w2] = [p.v0[0], p.v0[1], p.v0[2], p.v0[3]];
+    assert!((x1 * u1 + y1 * w1).abs() < 1e-12, "{:?}", p.v0);
+    assert!(((x2 - x1) * (u2 - u1) + (y2 - y1) * (w2 - w1)).abs() < 1e-12);
+    let report = p.projection.expect("a projection");
+    assert!(report.newton_iterations >= 2, "{report:?}");
+    assert!(report.position_change < 0.2, "{report:?}");
+    let spec: JobSpec = serde_json::from_value(s).expect("spec");
+    let out = run(
+        &Job::from_spec(&spec).expect("valid"),
+        1,
+        &mut Recorder::default(),
+    )
+    .expect("runs");
+    let residual = out.summary.to_map()["max_position_residual"]
+        .as_f64()
+        .expect("residual");
+    assert!(residual < 1e-10, "{residual:e}");
+}
+
+/// Issue 30, item 3: `tangent_velocity` gives the tangential velocity itself. The rocking
+/// block's corners written with U_t = d/dt τ by hand run the trajectory of their `tangent`
+/// τ (to 1e-9 of each column's largest value: the rows are the same functions, written
+/// differently); a velocity that is not linear, uses no velocity, or comes with a `tangent` is
+/// refused naming `model.contacts[i].tangent_velocity`.
+#[test]
+fn a_tangent_velocity_runs_as_its_tangent() {
+    let mut by_position = serde_json::to_value(example("rocking_block_friction")).expect("json");
+    by_position["time"]["t_end"] = json!(0.6);
+    let mut by_velocity = by_position.clone();
+    let contacts = &mut by_velocity["model"]["contacts"];
+    for (i, u) in [
+        "x_dot + (w/2*sin(phi) + hgt/2*cos(phi))*phi_dot",
+        "x_dot + (hgt/2*cos(phi) - w/2*sin(phi))*phi_dot",
+    ]
+    .iter()
+    .enumerate()
+    {
+        contacts[i]
+            .as_object_mut()
+            .expect("contact")
+            .remove("tangent");
+        contacts[i]["tangent_velocity"] = json!(u);
+    }
+    let a = recorded(&serde_json::from_value(by_position.clone()).expect("spec"));
+    let b = recorded(&serde_json::from_value(by_velocity.clone()).expect("spec"));
+    assert_eq!(a.columns, b.columns);
+    assert_eq!(a.rows.len(), b.rows.len());
+    for (c, name) in a.columns.names().iter().enumerate() {
+        let scale = a.rows.iter().fold(1e-300_f64, |m, r| m.max(r[c].abs()));
+        for (ra, rb) in a.rows.iter().zip(&b.rows) {
+            assert!(
+                (ra[c] - rb[c]).abs() <= 1e-9 * scale,
+                "{name}: {} against {}",
+                ra[c],
+                rb[c]
+            );
+        }
+    }
+    let pt = a.column("pt_0").expect("pt_0");
+    assert!(pt.iter().any(|p| p.abs() > 1e-3), "friction acts");
+
+    for (u, reason) in [
+        ("x_dot^2", "not linear in the velocities"),
+        ("x*phi_dot*phi_dot", "not linear in the velocities"),
+        ("x + phi", "uses no velocity"),
+    ] {
+        let mut s = by_velocity.clone();
+        s["model"]["contacts"][1]["tangent_velocity"] = json!(u);
+        let e = refused(s);
+        assert_eq!(e.field, "model.contacts[1].tangent_velocity", "{u}: {e}");
+        assert!(e.reason.contains(reason), "{u}: {e}");
+    }
+    let mut s = by_velocity;
+    s["model"]["contacts"][0]["tangent"] = json!("x");
+    let e = refused(s);
+    assert_eq!(e.field, "model.contacts[0].tangent_velocity", "{e}");
+    assert!(e.reason.contains("not both"), "{e}");
+}

@@ -390,10 +390,12 @@ fn joint_curvature_matches_central_differences() {
         let Some(ModelSpec::Lagrangian(l)) = spec.model else {
             panic!("a lagrangian example")
         };
-        let model = UserModel::new(l.validate().expect("valid"));
+        let params = l.validate().expect("valid");
+        let q0 = params.q0.clone();
+        let model = UserModel::new(params);
         let (n, nb) = (l.coordinates.len(), model.joints());
         for _ in 0..20 {
-            let q: Vec<f64> = l.q0.iter().map(|x| x + 0.3 * random()).collect();
+            let q: Vec<f64> = q0.iter().map(|x| x + 0.3 * random()).collect();
             let v: Vec<f64> = (0..n).map(|_| 2.0 * random()).collect();
             let t = random().abs();
             let mut kappa = vec![0.0; nb];

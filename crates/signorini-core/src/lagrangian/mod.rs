@@ -18,7 +18,11 @@
 //! [`LagrangianSpec::validate`](crate::spec::LagrangianSpec::validate), into the
 //! [`UserModelParams`] compiled here.
 
-use crate::expr::{Expr, Number, Tape};
+pub mod projection;
+
+pub use projection::{PROJECTION_ITERATIONS, ProjectionError, StartProjection, project_start};
+
+use crate::expr::{Expr, Node, Number, Tape};
 use crate::nonlinear::LagrangianSystem;
 use crate::soi2::{ConstrainedModel, Dims, InitialValues, Scalar};
 
@@ -64,9 +68,11 @@ pub struct UserModel {
     gap_jacobian: Tape,
     /// ∂gap/∂t, one per contact.
     gap_rates: Tape,
-    /// ∇_q τ, contacts×n (zero rows for contacts without a tangent).
+    /// The tangent rows T (∇_q τ, or the coefficients of q̇ in a tangential velocity),
+    /// contacts×n (zero rows for contacts without a tangent).
     tangent_jacobian: Tape,
-    /// ∂τ/∂t, one per contact (zero without a tangent).
+    /// The tangential velocity at rest (∂τ/∂t, or U_t at q̇ = 0), one per contact (zero
+    /// without a tangent).
     tangent_rates: Tape,
 }
 
@@ -89,6 +95,9 @@ pub struct UserModelParams {
     pub joints: Vec<Expr>,
     /// The contacts.
     pub contacts: Vec<ContactParams>,
+    /// How q0 and v0 were moved onto the joints (`model.project_onto_joints`), for the
+    /// summary; `None` when they were taken as given.
+    pub projection: Option<StartProjection>,
 }
 
 /// One validated contact.
@@ -100,8 +109,57 @@ pub struct ContactParams {
     pub restitution: f64,
     /// Coulomb μ ≥ 0 (0 without friction).
     pub friction: f64,
-    /// τ(q, t) when μ > 0 (or given).
-    pub tangent: Option<Expr>,
+    /// The tangential direction when μ > 0 (or given).
+    pub tangent: Option<Tangent>,
+}
+
+/// The tangential velocity of a contact, U_t = T(q, t) q̇ + b(q, t): its row T and its rest
+/// value b.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Tangent {
+    /// A tangential relative position τ(q, t) (`tangent`): T = ∇_q τᵀ, b = ∂τ/∂t.
+    Position(Expr),
+    /// A tangential velocity written directly (`tangent_velocity`), linear in q̇ (checked at
+    /// validation): T_i = ∂U_t/∂q̇_i, b = U_t at q̇ = 0. It need not be the derivative of any
+    /// τ(q, t): a disk rolling on a curved floor has U_t = √(1 + f'²)(1 − (R + d)κ) ṡ + (R + d) φ̇
+    /// in the floor's arc coordinate s, offset d and angle φ, whose row is not a gradient.
+    Velocity(Expr),
+}
+
+impl Tangent {
+    /// The row T (n entries over q, t) and the rest value b of the tangential velocity of a
+    /// model with n coordinates (variables q, q̇, t as in
+    /// [`Scope::lagrangian`](crate::expr::Scope::lagrangian)).
+    pub fn row_and_rate(&self, n: usize) -> (Vec<Expr>, Expr) {
+        match self {
+            Tangent::Position(tau) => {
+                let q: Vec<usize> = (0..n).collect();
+                (sparse_gradient(tau, &q), tau.derivative(2 * n))
+            }
+            Tangent::Velocity(u) => {
+                let v: Vec<usize> = (n..2 * n).collect();
+                (sparse_gradient(u, &v), at_rest(u, n))
+            }
+        }
+    }
+}
+
+/// `e` with every velocity q̇_i (variables n..2n) replaced by 0.
+fn at_rest(e: &Expr, n: usize) -> Expr {
+    let r = |a: &Expr| at_rest(a, n);
+    match e.node() {
+        Node::Const(_) => e.clone(),
+        Node::Var(i) if (n..2 * n).contains(i) => Expr::constant(0.0),
+        Node::Var(_) => e.clone(),
+        Node::Neg(a) => -r(a),
+        Node::Add(a, b) => r(a) + r(b),
+        Node::Sub(a, b) => r(a) - r(b),
+        Node::Mul(a, b) => r(a) * r(b),
+        Node::Div(a, b) => r(a) / r(b),
+        Node::Pow(a, b) => r(a).pow(r(b)),
+        Node::Call(f, a) => r(a).apply(*f),
+        Node::Call2(f, a, b) => r(a).apply2(*f, r(b)),
+    }
 }
 
 /// The gradient of `e` with respect to `vars`, differentiating only along the variables `e`
@@ -180,6 +238,7 @@ impl UserModel {
             applied,
             joints,
             contacts,
+            projection: _,
         } = params;
         let n = q0.len();
         let mut mass = vec![Expr::constant(0.0); n * n];
@@ -218,20 +277,14 @@ impl UserModel {
             .collect();
         let gap_jacobian: Vec<Expr> = gaps.iter().flat_map(|g| sparse_gradient(g, &q)).collect();
         let gap_rates: Vec<Expr> = gaps.iter().map(|g| g.derivative(2 * n)).collect();
-        let tangent_jacobian: Vec<Expr> = tangents
-            .iter()
-            .flat_map(|t| match t {
-                Some(t) => sparse_gradient(t, &q),
-                None => vec![Expr::constant(0.0); n],
-            })
-            .collect();
-        let tangent_rates: Vec<Expr> = tangents
+        let (tangent_jacobian, tangent_rates): (Vec<Vec<Expr>>, Vec<Expr>) = tangents
             .iter()
             .map(|t| match t {
-                Some(t) => t.derivative(2 * n),
-                None => Expr::constant(0.0),
+                Some(t) => t.row_and_rate(n),
+                None => (vec![Expr::constant(0.0); n], Expr::constant(0.0)),
             })
-            .collect();
+            .unzip();
+        let tangent_jacobian: Vec<Expr> = tangent_jacobian.concat();
         UserModel {
             n,
             joints: joints.len(),

@@ -5,20 +5,53 @@
 
 use super::SpecError;
 use crate::expr::{Expr, Param, Scope, ScopeError};
-use crate::lagrangian::{ContactParams, JOINT_TOLERANCE, SYMMETRY_TOLERANCE, UserModelParams};
+use crate::lagrangian::{
+    ContactParams, JOINT_TOLERANCE, SYMMETRY_TOLERANCE, StartProjection, Tangent, UserModelParams,
+    project_start,
+};
 use nalgebra::DMatrix;
 use schemars::JsonSchema;
+use serde::de::{self, Deserializer, Visitor};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+use std::fmt;
 
-/// A number or an expression (an entry of the mass matrix or of the force vector).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+/// A number or an expression (an entry of the mass matrix, of the force vector, of q0 or v0).
+#[derive(Debug, Clone, PartialEq, Serialize, JsonSchema)]
 #[serde(untagged)]
 pub enum Term {
     /// A number.
     Number(f64),
     /// An expression over the coordinates, velocities, `t` and the parameters.
     Expr(String),
+}
+
+/// Reads a number or a string, and names what it got otherwise ("invalid type: boolean `true`,
+/// expected a number or an expression (a string)"), where an untagged enum would only say that
+/// no variant matched.
+impl<'de> Deserialize<'de> for Term {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Term, D::Error> {
+        struct TermVisitor;
+        impl Visitor<'_> for TermVisitor {
+            type Value = Term;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a number or an expression (a string)")
+            }
+            fn visit_f64<E: de::Error>(self, x: f64) -> Result<Term, E> {
+                Ok(Term::Number(x))
+            }
+            fn visit_i64<E: de::Error>(self, x: i64) -> Result<Term, E> {
+                Ok(Term::Number(x as f64))
+            }
+            fn visit_u64<E: de::Error>(self, x: u64) -> Result<Term, E> {
+                Ok(Term::Number(x as f64))
+            }
+            fn visit_str<E: de::Error>(self, s: &str) -> Result<Term, E> {
+                Ok(Term::Expr(s.to_string()))
+            }
+        }
+        deserializer.deserialize_any(TermVisitor)
+    }
 }
 
 /// `scene = "lagrangian"`: Lagrange's equations M(q) q̈ + c(q, q̇) = −∇V(q, t) + f(t, q, q̇) +
@@ -54,16 +87,24 @@ pub struct LagrangianSpec {
     /// their work is `work_ext`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub forces: Option<Vec<Term>>,
-    /// Initial positions q(0), n entries.
-    pub q0: Vec<f64>,
-    /// Initial velocities q̇(0), n entries (zero when absent).
+    /// Initial positions q(0), n entries: numbers, or expressions of the parameters
+    /// (`"pi/3"`, `"L*sin(th0)"`), evaluated once at validation.
+    pub q0: Vec<Term>,
+    /// Initial velocities q̇(0), n entries like `q0` (zero when absent).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub v0: Option<Vec<f64>>,
+    pub v0: Option<Vec<Term>>,
     /// Bilateral holonomic joints g(q, t) = 0, each `{ expr = "..." }`; each must hold at q0 to
-    /// 1e-8 relative to ‖q0‖∞. Run by the SOI2 schemes, `moreau_jean` and
-    /// `ns_generalized_alpha` (the last two with contacts too).
+    /// 1e-8 relative to ‖q0‖∞ (or `project_onto_joints`). Run by the SOI2 schemes,
+    /// `moreau_jean` and `ns_generalized_alpha` (the last two with contacts too).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub constraints: Vec<JointSpec>,
+    /// Move the start onto the joints instead of refusing it (default false): q0 by Newton's
+    /// method on g(q, 0) = 0 with minimum-norm steps (to 1e-12 relative to ‖q0‖∞, at most 50
+    /// iterations; refused naming the joint when it does not converge), then v0 by the
+    /// minimum-norm change onto g_q v + g_t = 0. The projected values are reported
+    /// (`start_projection` in the summary).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub project_onto_joints: bool,
     /// The joints are dependent on purpose (default false): redundant at every configuration,
     /// like Bricard's mechanism (Grübler's count says 0 degrees of freedom, the mobility is 1).
     /// Validation then accepts a rank-deficient g_q at q0 (otherwise refused naming
@@ -117,7 +158,8 @@ pub struct UserContactSpec {
     #[serde(default)]
     #[schemars(range(min = 0.0, max = 1.0))]
     pub restitution: f64,
-    /// Coulomb friction coefficient μ ≥ 0 (default 0: frictionless); μ > 0 needs `tangent`.
+    /// Coulomb friction coefficient μ ≥ 0 (default 0: frictionless); μ > 0 needs `tangent` or
+    /// `tangent_velocity`.
     /// The step then solves the planar friction problem (`contact_solver.kind`: lemke on the
     /// LCP reformulation, pgs the nonsmooth Gauss–Seidel, auto the Gauss–Seidel first with Lemke
     /// when it does not converge). Taken by
@@ -129,6 +171,12 @@ pub struct UserContactSpec {
     /// direction, and U_t = ∇τ·q̇ + ∂τ/∂t the tangential velocity that friction opposes.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tangent: Option<String>,
+    /// In place of `tangent`: the tangential velocity U_t(q, q̇, t) itself, linear in the
+    /// velocities (checked: its derivatives by the velocities may not use them); its coefficients
+    /// are the tangent row. For a tangent that is not the gradient of any τ(q, t), e.g. the
+    /// sliding velocity of a disk rolling on a curved floor.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tangent_velocity: Option<String>,
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -158,21 +206,42 @@ fn scope_error(e: ScopeError) -> SpecError {
     SpecError::new(field, e.to_string())
 }
 
-/// Checks a vector's length against the coordinates and its entries' finiteness.
-fn check_vector(field: &str, v: &[f64], n: usize) -> Result<(), SpecError> {
+/// The values of a start vector (`model.q0`, `model.v0`): n entries, each a number or an
+/// expression of the parameters alone, finite; every error names its entry.
+fn start_vector(scope: &Scope, field: &str, v: &[Term], n: usize) -> Result<Vec<f64>, SpecError> {
     if v.len() != n {
         return Err(SpecError::new(
             field,
             format!("needs {n} entries (one per coordinate), got {}", v.len()),
         ));
     }
-    if let Some((i, x)) = v.iter().enumerate().find(|(_, x)| !x.is_finite()) {
-        return Err(SpecError::new(
-            format!("{field}[{i}]"),
-            format!("must be finite, got {x}"),
-        ));
-    }
-    Ok(())
+    v.iter()
+        .enumerate()
+        .map(|(i, term)| {
+            let entry = format!("{field}[{i}]");
+            let x = match term {
+                Term::Number(x) => *x,
+                Term::Expr(src) => {
+                    let e = Expr::parse(src, scope)
+                        .map_err(|e| SpecError::new(&entry, e.to_string()))?;
+                    if let Some(&v) = e.variables().first() {
+                        return Err(SpecError::new(
+                            entry,
+                            format!(
+                                "uses '{}': a start value is a number or an expression of the parameters",
+                                scope.variables()[v]
+                            ),
+                        ));
+                    }
+                    e.eval(&[])
+                }
+            };
+            if !x.is_finite() {
+                return Err(SpecError::new(entry, format!("must be finite, got {x}")));
+            }
+            Ok(x)
+        })
+        .collect()
 }
 
 /// Parses expressions in the model's scope and checks them at (q0, v0, 0).
@@ -182,7 +251,19 @@ struct Parser<'a> {
     at_start: Vec<f64>,
 }
 
-impl Parser<'_> {
+impl<'a> Parser<'a> {
+    /// Checks at (q0, v0, t = 0).
+    fn at(scope: &'a Scope, q0: &[f64], v0: &[f64]) -> Parser<'a> {
+        let mut at_start = q0.to_vec();
+        at_start.extend_from_slice(v0);
+        at_start.push(0.0);
+        Parser {
+            scope,
+            n: q0.len(),
+            at_start,
+        }
+    }
+
     fn parse(&self, field: &str, src: &str, allowed: Allowed) -> Result<Expr, SpecError> {
         let e = Expr::parse(src, self.scope).map_err(|e| SpecError::new(field, e.to_string()))?;
         self.check(field, e, allowed)
@@ -344,6 +425,8 @@ impl LagrangianSpec {
     /// * names: coordinates distinct identifiers, parameters without cycles or clashes
     ///   (`model.coordinates`, `model.parameters.<name>`); unknown names with a suggestion;
     /// * sizes against `coordinates`: `q0`, `v0`, the rows and columns of `mass`, `forces`;
+    /// * `q0` and `v0` entries numbers or expressions of the parameters, finite
+    ///   (`model.q0[i]`);
     /// * M(q) may use neither velocities nor `t`; V, joints, gaps and tangents no velocities;
     /// * every expression is finite at (q0, v0, t = 0);
     /// * M symmetric: the model uses the upper triangle, and every entry below the diagonal must
@@ -351,165 +434,285 @@ impl LagrangianSpec {
     ///   entries is caught; structurally equal expressions pass at once); M positive definite at q0
     ///   (Cholesky);
     /// * each joint holds at q0: |g_i(q0)| ≤ [`JOINT_TOLERANCE`] · ‖q0‖∞ (absolute when q0 = 0);
+    ///   with `project_onto_joints`, q0 and v0 are first moved onto the joints
+    ///   ([`project_start`]: minimum-norm Newton steps, then the minimum-norm velocity change),
+    ///   refused naming `model.constraints[i].expr` when Newton does not get there, and every
+    ///   later check is made at the projected start;
     /// * each contact is open or closed at q0, not penetrated: gap(q0, 0) ≥ −[`JOINT_TOLERANCE`]
     ///   · ‖q0‖∞ (a start inside the obstacle is refused naming `model.contacts[i].gap`);
     /// * restitution in [0, 1]; friction μ finite and ≥ 0, and μ > 0 needs a `tangent` (the
     ///   tangential relative position τ(q, t), checked like a gap: no velocities, known names,
     ///   finite at q0); its gradient, the tangent row, is an exact symbolic derivative like the
-    ///   gap's.
+    ///   gap's. Or a `tangent_velocity` U_t(q, q̇, t) in its place (not both), linear in the
+    ///   velocities (each ∂U_t/∂q̇_i free of velocities and finite at q0): its coefficients are
+    ///   the tangent row.
     pub fn validate(&self) -> Result<UserModelParams, SpecError> {
-        let spec = self;
-        let n = spec.coordinates.len();
+        let n = self.coordinates.len();
         if n == 0 {
             return Err(SpecError::new(
                 "model.coordinates",
                 "needs at least one coordinate",
             ));
         }
-        let parameters: Vec<(String, Param)> = spec
+        let scope = self.scope()?;
+        let (q0, v0) = self.start(&scope, n)?;
+        let tolerance = start_tolerance(&q0);
+        let joints = parse_joints(&Parser::at(&scope, &q0, &v0), &self.constraints)?;
+        let projection = if self.project_onto_joints && !joints.is_empty() {
+            Some(project_start(&joints, n, &q0, &v0, tolerance).map_err(|e| {
+                SpecError::new(
+                    format!("model.constraints[{}].expr", e.joint()),
+                    e.to_string(),
+                )
+            })?)
+        } else {
+            None
+        };
+        let (q0, v0) = match &projection {
+            Some(StartProjection { q0, v0, .. }) => (q0.clone(), v0.clone()),
+            None => (q0, v0),
+        };
+        let p = Parser::at(&scope, &q0, &v0);
+        let mass = mass_matrix(&p, &self.mass, n)?;
+        let potential = match &self.potential {
+            Some(src) => p.parse("model.potential", src, Allowed::PositionsAndTime)?,
+            None => Expr::constant(0.0),
+        };
+        let applied = applied_forces(&p, self.forces.as_deref(), n)?;
+        joints_hold(&p, &joints, tolerance)?;
+        let contacts = self
+            .contacts
+            .iter()
+            .enumerate()
+            .map(|(i, c)| contact(&p, i, c, tolerance))
+            .collect::<Result<_, _>>()?;
+        Ok(UserModelParams {
+            q0,
+            v0,
+            mass,
+            potential,
+            applied,
+            joints,
+            contacts,
+            projection,
+        })
+    }
+
+    /// The scope of every expression: the coordinates, their velocities, `t` and the
+    /// parameters (`model.coordinates`, `model.parameters.<name>`).
+    fn scope(&self) -> Result<Scope, SpecError> {
+        let parameters: Vec<(String, Param)> = self
             .parameters
             .iter()
             .map(|(k, v)| (k.clone(), v.clone()))
             .collect();
-        let scope = Scope::lagrangian(&spec.coordinates, &parameters).map_err(scope_error)?;
-        check_vector("model.q0", &spec.q0, n)?;
-        let v0 = spec.v0.clone().unwrap_or_else(|| vec![0.0; n]);
-        check_vector("model.v0", &v0, n)?;
-        let mut at_start = spec.q0.clone();
-        at_start.extend_from_slice(&v0);
-        at_start.push(0.0);
-        let p = Parser {
-            scope: &scope,
-            n,
-            at_start,
-        };
+        Scope::lagrangian(&self.coordinates, &parameters).map_err(scope_error)
+    }
 
-        // M(q): the entries of the upper triangle (i ≤ j), mirrored; zero elsewhere.
-        let upper = mass_entries(&p, &spec.mass, n)?;
-        let mut mass = vec![Expr::constant(0.0); n * n];
-        for (i, j, e) in &upper {
-            mass[i * n + j] = e.clone();
-            mass[j * n + i] = e.clone();
-        }
-        let m0: Vec<f64> = mass.iter().map(|e| e.eval(&p.at_start)).collect();
-        let m0 = DMatrix::from_row_slice(n, n, &m0);
-        if m0.clone().cholesky().is_none() {
-            let smallest = m0.symmetric_eigenvalues().min();
-            return Err(SpecError::new(
-                "model.mass",
-                format!("M is not positive definite at q0 (smallest eigenvalue {smallest:e})"),
-            ));
-        }
+    /// q(0) and q̇(0) (zero when `v0` is absent) as given, n finite entries each.
+    fn start(&self, scope: &Scope, n: usize) -> Result<(Vec<f64>, Vec<f64>), SpecError> {
+        let q0 = start_vector(scope, "model.q0", &self.q0, n)?;
+        let v0 = match &self.v0 {
+            Some(v0) => start_vector(scope, "model.v0", v0, n)?,
+            None => vec![0.0; n],
+        };
+        Ok((q0, v0))
+    }
+}
 
-        let potential = match &spec.potential {
-            Some(src) => p.parse("model.potential", src, Allowed::PositionsAndTime)?,
-            None => Expr::constant(0.0),
-        };
-        let applied: Vec<Expr> = match &spec.forces {
-            Some(f) if f.len() != n => {
-                return Err(SpecError::new(
-                    "model.forces",
-                    format!("needs {n} entries (one per coordinate), got {}", f.len()),
-                ));
-            }
-            Some(f) => f
-                .iter()
-                .enumerate()
-                .map(|(i, term)| p.term(&format!("model.forces[{i}]"), term, Allowed::Everything))
-                .collect::<Result<_, _>>()?,
-            None => vec![Expr::constant(0.0); n],
-        };
-        let joints: Vec<Expr> = spec
-            .constraints
+/// The tolerance of the joints and gaps at q0: [`JOINT_TOLERANCE`] relative to ‖q0‖∞ (absolute
+/// when q0 = 0).
+fn start_tolerance(q0: &[f64]) -> f64 {
+    let scale = q0.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+    JOINT_TOLERANCE * if scale > 0.0 { scale } else { 1.0 }
+}
+
+/// M(q): the entries of its upper triangle (i ≤ j), checked positive definite at q0 by
+/// Cholesky (`model.mass`, with the smallest eigenvalue when it is not).
+fn mass_matrix(
+    p: &Parser<'_>,
+    spec: &MassSpec,
+    n: usize,
+) -> Result<Vec<(usize, usize, Expr)>, SpecError> {
+    let upper = mass_entries(p, spec, n)?;
+    let mut mass = vec![Expr::constant(0.0); n * n];
+    for (i, j, e) in &upper {
+        mass[i * n + j] = e.clone();
+        mass[j * n + i] = e.clone();
+    }
+    let m0: Vec<f64> = mass.iter().map(|e| e.eval(&p.at_start)).collect();
+    let m0 = DMatrix::from_row_slice(n, n, &m0);
+    if m0.clone().cholesky().is_none() {
+        let smallest = m0.symmetric_eigenvalues().min();
+        return Err(SpecError::new(
+            "model.mass",
+            format!("M is not positive definite at q0 (smallest eigenvalue {smallest:e})"),
+        ));
+    }
+    Ok(upper)
+}
+
+/// The applied forces f(t, q, q̇), n entries (`model.forces[i]`); zero when absent.
+fn applied_forces(
+    p: &Parser<'_>,
+    forces: Option<&[Term]>,
+    n: usize,
+) -> Result<Vec<Expr>, SpecError> {
+    match forces {
+        Some(f) if f.len() != n => Err(SpecError::new(
+            "model.forces",
+            format!("needs {n} entries (one per coordinate), got {}", f.len()),
+        )),
+        Some(f) => f
             .iter()
             .enumerate()
-            .map(|(i, j)| {
-                p.parse(
-                    &format!("model.constraints[{i}].expr"),
-                    &j.expr,
-                    Allowed::PositionsAndTime,
-                )
-            })
-            .collect::<Result<_, _>>()?;
-        let scale = spec.q0.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
-        let tolerance = JOINT_TOLERANCE * if scale > 0.0 { scale } else { 1.0 };
-        for (i, g) in joints.iter().enumerate() {
-            let r = g.eval(&p.at_start);
-            if r.abs() > tolerance {
-                return Err(SpecError::new(
-                    format!("model.constraints[{i}].expr"),
-                    format!(
-                        "the joint is violated at q0: g = {r:e}, tolerance {tolerance:e} ({JOINT_TOLERANCE:e} relative to max|q0|)"
-                    ),
-                ));
-            }
-        }
-        let mut gaps = Vec::with_capacity(spec.contacts.len());
-        let mut restitution = Vec::with_capacity(spec.contacts.len());
-        let mut friction = Vec::with_capacity(spec.contacts.len());
-        let mut tangents = Vec::with_capacity(spec.contacts.len());
-        for (i, c) in spec.contacts.iter().enumerate() {
-            let field = |f: &str| format!("model.contacts[{i}].{f}");
-            let gap = p.parse(&field("gap"), &c.gap, Allowed::PositionsAndTime)?;
-            // A start inside the obstacle is refused: the impact law acts on velocities, so a
-            // negative gap is never pushed back out and the run would go on inside the wall.
-            let start = gap.eval(&p.at_start);
-            if start < -tolerance {
-                return Err(SpecError::new(
-                    field("gap"),
-                    format!(
-                        "the gap is {start:e} < 0 at q0 (t = 0): the model starts inside the obstacle; choose q0 with every gap ≥ 0 (tolerance {tolerance:e})"
-                    ),
-                ));
-            }
-            gaps.push(gap);
-            if !(c.restitution.is_finite() && (0.0..=1.0).contains(&c.restitution)) {
-                return Err(SpecError::new(
-                    field("restitution"),
-                    format!("must be in [0, 1], got {}", c.restitution),
-                ));
-            }
-            restitution.push(c.restitution);
-            let tangent = match &c.tangent {
-                Some(src) => Some(p.parse(&field("tangent"), src, Allowed::PositionsAndTime)?),
-                None => None,
-            };
-            let mu = c.friction.unwrap_or(0.0);
-            if !(mu.is_finite() && mu >= 0.0) {
-                return Err(SpecError::new(
-                    field("friction"),
-                    format!("must be a finite number ≥ 0, got {mu}"),
-                ));
-            }
-            if mu > 0.0 && tangent.is_none() {
-                return Err(SpecError::new(
-                    field("friction"),
-                    "a friction coefficient needs a `tangent` (the tangential relative position; `tangent` is required when friction > 0)",
-                ));
-            }
-            friction.push(mu);
-            tangents.push(tangent);
-        }
-
-        Ok(UserModelParams {
-            q0: spec.q0.clone(),
-            v0,
-            mass: upper,
-            potential,
-            applied,
-            joints,
-            contacts: gaps
-                .into_iter()
-                .zip(restitution)
-                .zip(friction)
-                .zip(tangents)
-                .map(|(((gap, restitution), friction), tangent)| ContactParams {
-                    gap,
-                    restitution,
-                    friction,
-                    tangent,
-                })
-                .collect(),
-        })
+            .map(|(i, term)| p.term(&format!("model.forces[{i}]"), term, Allowed::Everything))
+            .collect(),
+        None => Ok(vec![Expr::constant(0.0); n]),
     }
+}
+
+/// The joints g(q, t), each parsed (`model.constraints[i].expr`).
+fn parse_joints(p: &Parser<'_>, constraints: &[JointSpec]) -> Result<Vec<Expr>, SpecError> {
+    constraints
+        .iter()
+        .enumerate()
+        .map(|(i, j)| {
+            p.parse(
+                &format!("model.constraints[{i}].expr"),
+                &j.expr,
+                Allowed::PositionsAndTime,
+            )
+        })
+        .collect()
+}
+
+/// Each joint holds at the start of `p` to `tolerance`.
+fn joints_hold(p: &Parser<'_>, joints: &[Expr], tolerance: f64) -> Result<(), SpecError> {
+    for (i, g) in joints.iter().enumerate() {
+        let r = g.eval(&p.at_start);
+        if r.abs() > tolerance {
+            return Err(SpecError::new(
+                format!("model.constraints[{i}].expr"),
+                format!(
+                    "the joint is violated at q0: g = {r:e}, tolerance {tolerance:e} ({JOINT_TOLERANCE:e} relative to max|q0|); set `model.project_onto_joints = true` to move q0 and v0 onto the joints"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Contact `i`: its gap (not negative at q0 beyond `tolerance`), restitution, friction and
+/// tangent, each error naming `model.contacts[i].<field>`.
+fn contact(
+    p: &Parser<'_>,
+    i: usize,
+    c: &UserContactSpec,
+    tolerance: f64,
+) -> Result<ContactParams, SpecError> {
+    let field = |f: &str| format!("model.contacts[{i}].{f}");
+    let gap = p.parse(&field("gap"), &c.gap, Allowed::PositionsAndTime)?;
+    // A start inside the obstacle is refused: the impact law acts on velocities, so a
+    // negative gap is never pushed back out and the run would go on inside the wall.
+    let start = gap.eval(&p.at_start);
+    if start < -tolerance {
+        return Err(SpecError::new(
+            field("gap"),
+            format!(
+                "the gap is {start:e} < 0 at q0 (t = 0): the model starts inside the obstacle; choose q0 with every gap ≥ 0 (tolerance {tolerance:e})"
+            ),
+        ));
+    }
+    if !(c.restitution.is_finite() && (0.0..=1.0).contains(&c.restitution)) {
+        return Err(SpecError::new(
+            field("restitution"),
+            format!("must be in [0, 1], got {}", c.restitution),
+        ));
+    }
+    let tangent = match (&c.tangent, &c.tangent_velocity) {
+        (Some(_), Some(_)) => {
+            return Err(SpecError::new(
+                field("tangent_velocity"),
+                "give either `tangent` (the tangential relative position τ(q, t)) or `tangent_velocity` (the tangential velocity, linear in the velocities), not both",
+            ));
+        }
+        (Some(src), None) => Some(Tangent::Position(p.parse(
+            &field("tangent"),
+            src,
+            Allowed::PositionsAndTime,
+        )?)),
+        (None, Some(src)) => Some(Tangent::Velocity(tangent_velocity(
+            p,
+            &field("tangent_velocity"),
+            src,
+        )?)),
+        (None, None) => None,
+    };
+    let mu = c.friction.unwrap_or(0.0);
+    if !(mu.is_finite() && mu >= 0.0) {
+        return Err(SpecError::new(
+            field("friction"),
+            format!("must be a finite number ≥ 0, got {mu}"),
+        ));
+    }
+    if mu > 0.0 && tangent.is_none() {
+        return Err(SpecError::new(
+            field("friction"),
+            "a friction coefficient needs a `tangent` (the tangential relative position τ(q, t)) or a `tangent_velocity` (the tangential velocity, linear in the velocities); one of them is required when friction > 0",
+        ));
+    }
+    Ok(ContactParams {
+        gap,
+        restitution: c.restitution,
+        friction: mu,
+        tangent,
+    })
+}
+
+/// A tangential velocity U_t(q, q̇, t) (`model.contacts[i].tangent_velocity`): parsed, finite at
+/// the start, using some velocity, and linear in the velocities: each ∂U_t/∂q̇_i (a coefficient
+/// of the tangent row) depends on q and t only, and is finite at the start.
+fn tangent_velocity(p: &Parser<'_>, field: &str, src: &str) -> Result<Expr, SpecError> {
+    let u = p.parse(field, src, Allowed::Everything)?;
+    let n = p.n;
+    let names = p.scope.variables();
+    let velocities: Vec<usize> = u
+        .variables()
+        .into_iter()
+        .filter(|v| (n..2 * n).contains(v))
+        .collect();
+    if velocities.is_empty() {
+        return Err(SpecError::new(
+            field,
+            "uses no velocity: write the tangential velocity of the contact point, linear in the velocities (e.g. \"x_dot + R*phi_dot\"), or a tangential position as `tangent`",
+        ));
+    }
+    for v in velocities {
+        let coefficient = u.derivative(v);
+        if let Some(&w) = coefficient
+            .variables()
+            .iter()
+            .find(|w| (n..2 * n).contains(*w))
+        {
+            return Err(SpecError::new(
+                field,
+                format!(
+                    "is not linear in the velocities: its derivative by '{}' depends on '{}'",
+                    names[v], names[w]
+                ),
+            ));
+        }
+        let value = coefficient.eval(&p.at_start);
+        if !value.is_finite() {
+            return Err(SpecError::new(
+                field,
+                format!(
+                    "its coefficient of '{}' is {value} at q0 (t = 0): the tangent row must be finite there",
+                    names[v]
+                ),
+            ));
+        }
+    }
+    Ok(u)
 }
