@@ -37,6 +37,44 @@ pub struct Connection {
     /// delete).
     #[arg(long, env = "SIGNORINI_TOKEN", hide_env_values = true, global = true)]
     pub token: Option<String>,
+    /// CA certificate (PEM) that signed the TLS certificate of a server started with
+    /// `--tls-cert`: the connection is then TLS (`https://`; an `http://` server URL is taken as
+    /// `https://`) and the server's certificate must be signed by it for the host of the URL.
+    #[arg(long, env = "SIGNORINI_CA", global = true)]
+    pub ca: Option<PathBuf>,
+}
+
+impl Connection {
+    /// The gRPC channel to the server: plain for an `http://` URL, TLS verified against
+    /// `--ca` with it (an `https://` URL needs `--ca`: no system roots are built in).
+    pub async fn channel(&self) -> Result<Channel> {
+        let url = match (&self.ca, self.server.strip_prefix("http://")) {
+            (Some(_), Some(rest)) => format!("https://{rest}"),
+            _ => self.server.clone(),
+        };
+        let mut endpoint = tonic::transport::Endpoint::from_shared(url.clone())
+            .with_context(|| format!("--server {}", self.server))?;
+        if url.starts_with("https://") {
+            let ca = self.ca.as_ref().ok_or_else(|| {
+                anyhow!(
+                    "--server {}: an https:// server needs --ca FILE (the PEM certificate of the \
+                     authority that signed the server's)",
+                    self.server
+                )
+            })?;
+            let pem = std::fs::read(ca).with_context(|| format!("reading --ca {}", ca.display()))?;
+            endpoint = endpoint
+                .tls_config(
+                    tonic::transport::ClientTlsConfig::new()
+                        .ca_certificate(tonic::transport::Certificate::from_pem(pem)),
+                )
+                .with_context(|| format!("--ca {}", ca.display()))?;
+        }
+        endpoint
+            .connect()
+            .await
+            .with_context(|| format!("connecting to {url}"))
+    }
 }
 
 /// `signorini submit`.
@@ -174,9 +212,7 @@ pub(super) fn runtime() -> Result<tokio::runtime::Runtime> {
 }
 
 pub(super) async fn client(conn: &Connection) -> Result<SimulationClient<Channel>> {
-    let c = SimulationClient::connect(conn.server.clone())
-        .await
-        .with_context(|| format!("connecting to {}", conn.server))?;
+    let c = SimulationClient::new(conn.channel().await?);
     Ok(c.max_decoding_message_size(MAX_MESSAGE))
 }
 
