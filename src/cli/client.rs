@@ -33,8 +33,9 @@ pub struct Connection {
         global = true
     )]
     pub server: String,
-    /// Bearer token for the commands that change jobs (submit, cancel, pause, resume, extend,
-    /// delete).
+    /// Bearer token sent with every call: the shared token of `serve --token` (which the
+    /// commands that change jobs need), or a per-client token of `serve --tokens FILE` (a read
+    /// token for status, watch, result, list, …; a write token for everything).
     #[arg(long, env = "SIGNORINI_TOKEN", hide_env_values = true, global = true)]
     pub token: Option<String>,
     /// CA certificate (PEM) that signed the TLS certificate of a server started with
@@ -62,7 +63,8 @@ impl Connection {
                     self.server
                 )
             })?;
-            let pem = std::fs::read(ca).with_context(|| format!("reading --ca {}", ca.display()))?;
+            let pem =
+                std::fs::read(ca).with_context(|| format!("reading --ca {}", ca.display()))?;
             endpoint = endpoint
                 .tls_config(
                     tonic::transport::ClientTlsConfig::new()
@@ -211,20 +213,34 @@ pub(super) fn runtime() -> Result<tokio::runtime::Runtime> {
         .context("starting tokio")
 }
 
-pub(super) async fn client(conn: &Connection) -> Result<SimulationClient<Channel>> {
-    let c = SimulationClient::new(conn.channel().await?);
-    Ok(c.max_decoding_message_size(MAX_MESSAGE))
+/// Adds `authorization: Bearer TOKEN` to every call when a token is given: reads need it too
+/// on a server with `--tokens`.
+#[derive(Clone)]
+pub struct Bearer(Option<tonic::metadata::AsciiMetadataValue>);
+
+impl tonic::service::Interceptor for Bearer {
+    fn call(&mut self, mut req: tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> {
+        if let Some(value) = &self.0 {
+            req.metadata_mut().insert("authorization", value.clone());
+        }
+        Ok(req)
+    }
 }
 
-pub(super) fn with_token<T>(conn: &Connection, msg: T) -> Result<tonic::Request<T>> {
-    let mut req = tonic::Request::new(msg);
-    if let Some(t) = &conn.token {
-        req.metadata_mut().insert(
-            "authorization",
-            format!("Bearer {t}").parse().context("token")?,
-        );
-    }
-    Ok(req)
+/// The gRPC client of the client commands: the channel of [`Connection::channel`], every call
+/// carrying the token ([`Bearer`]).
+pub type Api = SimulationClient<tonic::service::interceptor::InterceptedService<Channel, Bearer>>;
+
+pub(super) async fn client(conn: &Connection) -> Result<Api> {
+    let bearer =
+        match &conn.token {
+            Some(t) => Some(format!("Bearer {t}").parse().map_err(|_| {
+                anyhow!("--token: not a valid header value (printable ASCII only)")
+            })?),
+            None => None,
+        };
+    let c = SimulationClient::with_interceptor(conn.channel().await?, Bearer(bearer));
+    Ok(c.max_decoding_message_size(MAX_MESSAGE))
 }
 
 pub(super) fn status_error(s: tonic::Status) -> anyhow::Error {
@@ -268,10 +284,7 @@ pub fn submit(args: SubmitArgs) -> Result<()> {
             spec: Some(typed),
             id: args.id.clone(),
         };
-        let resp = c
-            .submit_job(with_token(&args.conn, req)?)
-            .await
-            .map_err(status_error)?;
+        let resp = c.submit_job(req).await.map_err(status_error)?;
         let id = resp.into_inner().id;
         println!("{id}");
         if args.wait {
@@ -293,7 +306,7 @@ pub fn submit(args: SubmitArgs) -> Result<()> {
 
 /// Follows job `id` over `WatchJob` until it ends, prints its final status, and answers as
 /// [`ended_ok`] (`submit --wait`, `extend --wait`).
-pub(super) async fn wait_ended(c: &mut SimulationClient<Channel>, id: &str) -> Result<()> {
+pub(super) async fn wait_ended(c: &mut Api, id: &str) -> Result<()> {
     let mut frames = c
         .watch_job(pb::WatchJobRequest {
             id: id.to_string(),
@@ -349,7 +362,7 @@ pub fn status(args: IdArgs) -> Result<()> {
 pub fn cancel(args: IdArgs) -> Result<()> {
     runtime()?.block_on(async {
         let mut c = client(&args.conn).await?;
-        let req = with_token(&args.conn, pb::CancelJobRequest { id: args.id })?;
+        let req = pb::CancelJobRequest { id: args.id };
         let s = c.cancel_job(req).await.map_err(status_error)?.into_inner();
         print_status(s)
     })
@@ -481,12 +494,9 @@ fn print_jobs(jobs: Vec<pb::JobStatus>, next: &str, json: bool) -> Result<()> {
 pub fn delete(args: IdArgs) -> Result<()> {
     runtime()?.block_on(async {
         let mut c = client(&args.conn).await?;
-        let req = with_token(
-            &args.conn,
-            pb::DeleteJobRequest {
-                id: args.id.clone(),
-            },
-        )?;
+        let req = pb::DeleteJobRequest {
+            id: args.id.clone(),
+        };
         c.delete_job(req).await.map_err(status_error)?;
         println!("removed {}", args.id);
         Ok(())
