@@ -27,6 +27,8 @@ The TOML file uses the flag names with underscores, e.g.
   queue_limit = 256
   token = \"secret\"              # bearer token required by mutating calls (submit, cancel)
   tokens = \"tokens.toml\"        # or: per-client tokens with scopes ([[token]] name, scope, sha256)
+  tls_cert = \"cert.pem\"         # with tls_key: both listeners speak TLS only (PEM files)
+  tls_key = \"key.pem\"
   max_dofs = 100000
   max_steps = 100000000
   max_output_mb = 1024
@@ -99,6 +101,13 @@ pub struct ServeArgs {
     /// without, 403 for a read token on a mutating call). Not with --token.
     #[arg(long, env = "SIGNORINI_TOKENS")]
     pub tokens: Option<PathBuf>,
+    /// TLS certificate chain (PEM, leaf first); with --tls-key, the gRPC and HTTP listeners
+    /// speak TLS only and clients connect with `https://` and `--ca` (none by default).
+    #[arg(long, env = "SIGNORINI_TLS_CERT")]
+    pub tls_cert: Option<PathBuf>,
+    /// The private key of --tls-cert (PEM: PKCS#8, PKCS#1 or SEC1).
+    #[arg(long, env = "SIGNORINI_TLS_KEY")]
+    pub tls_key: Option<PathBuf>,
     /// Largest model accepted, in degrees of freedom [default: 100000].
     #[arg(long, env = "SIGNORINI_MAX_DOFS")]
     pub max_dofs: Option<u64>,
@@ -145,6 +154,8 @@ struct FileConfig {
     queue_limit: Option<usize>,
     token: Option<String>,
     tokens: Option<PathBuf>,
+    tls_cert: Option<PathBuf>,
+    tls_key: Option<PathBuf>,
     max_dofs: Option<u64>,
     max_steps: Option<u64>,
     max_output_mb: Option<u64>,
@@ -197,6 +208,15 @@ impl Limits {
     };
 }
 
+/// The PEM files of `--tls-cert` and `--tls-key`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TlsFiles {
+    /// Certificate chain, leaf first.
+    pub cert: PathBuf,
+    /// Its private key.
+    pub key: PathBuf,
+}
+
 /// The resolved configuration.
 #[derive(Debug, Clone)]
 pub struct ServeConfig {
@@ -226,6 +246,8 @@ pub struct ServeConfig {
     pub token: Option<String>,
     /// Per-client tokens with scopes (`--tokens`).
     pub tokens: Option<PathBuf>,
+    /// TLS certificate and key (`--tls-cert`, `--tls-key`): both listeners speak TLS only.
+    pub tls: Option<TlsFiles>,
     /// Per-job limits.
     pub limits: Limits,
     /// How long finished jobs are kept (forever when `None`).
@@ -301,6 +323,15 @@ impl ServeConfig {
             queue_limit: args.queue_limit.or(file.queue_limit).unwrap_or(256),
             token: args.token.or(file.token).filter(|t| !t.is_empty()),
             tokens: args.tokens.or(file.tokens),
+            tls: match (
+                args.tls_cert.or(file.tls_cert),
+                args.tls_key.or(file.tls_key),
+            ) {
+                (Some(cert), Some(key)) => Some(TlsFiles { cert, key }),
+                (None, None) => None,
+                (Some(_), None) => bail!("--tls-cert needs --tls-key (its private key)"),
+                (None, Some(_)) => bail!("--tls-key needs --tls-cert (its certificate)"),
+            },
             limits: Limits {
                 max_dofs: args
                     .max_dofs

@@ -6,9 +6,31 @@ mod common;
 
 use common::{Options, TestServer, ball_json, submit_json, wait_terminal};
 use signorini::proto::v1 as pb;
+use signorini::proto::v1::simulation_client::SimulationClient;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
+
+/// A server with `workers` workers and the flags `extra` on a store in a temporary directory
+/// (kept while the returned `TempDir` lives: bind it first, so that it goes after the server),
+/// and a gRPC client of it.
+async fn serve(
+    workers: usize,
+    extra: &[&str],
+) -> (
+    tempfile::TempDir,
+    TestServer,
+    SimulationClient<tonic::transport::Channel>,
+) {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let opts = Options {
+        workers,
+        ..Options::default()
+    };
+    let server = TestServer::start_with(&tmp.path().join("store.db"), &opts, extra);
+    let client = server.grpc().await;
+    (tmp, server, client)
+}
 
 /// A tmpfs mounted by the test, unmounted on drop (also when the test panics).
 struct Mount(PathBuf);
@@ -237,8 +259,7 @@ fn identity_mass_model(n: usize) -> String {
 /// to 11 GB), and `/healthz` answers while it is being handled.
 #[tokio::test(flavor = "multi_thread")]
 async fn a_model_too_large_is_refused_by_its_memory_estimate_with_under_two_seconds_of_cpu() {
-    let tmp = tempfile::tempdir().expect("tempdir");
-    let server = TestServer::start(&tmp.path().join("store.db"), &Options::default());
+    let (_tmp, server, _) = serve(2, &[]).await;
     let body = identity_mass_model(3000);
     assert!(body.len() > 16 << 20, "{} bytes", body.len());
     let cpu_before = cpu_seconds(server.pid());
@@ -344,9 +365,7 @@ const COMPILE_N: usize = 1200;
 /// client and runs the next job.
 #[tokio::test(flavor = "multi_thread")]
 async fn a_client_gone_mid_stream_result_leaks_nothing() {
-    let tmp = tempfile::tempdir().expect("tempdir");
-    let server = TestServer::start(&tmp.path().join("store.db"), &Options::default());
-    let mut client = server.grpc().await;
+    let (_tmp, server, mut client) = serve(2, &[]).await;
     // 300 000 rows: a few stored chunks, many messages.
     let id = submit_json(&mut client, ball_json(1e-5, 300_000, 1), None)
         .await
@@ -433,9 +452,7 @@ fn rss(pid: u32) -> u64 {
 #[tokio::test(flavor = "multi_thread")]
 async fn a_subscriber_that_never_reads_holds_up_nothing() {
     use std::io::Write;
-    let tmp = tempfile::tempdir().expect("tempdir");
-    let server = TestServer::start(&tmp.path().join("store.db"), &Options::default());
-    let mut client = server.grpc().await;
+    let (_tmp, server, mut client) = serve(2, &[]).await;
     let id = submit_json(&mut client, ball_json(1e-6, 2_000_000, 1), None)
         .await
         .expect("submit");
@@ -563,18 +580,8 @@ async fn a_full_disk_under_postgresql_fails_the_job_and_refuses_jobs_until_there
 /// (field `time`), with what it recorded kept as a partial result; the next job runs.
 #[tokio::test(flavor = "multi_thread")]
 async fn a_job_past_the_wall_time_limit_fails_naming_it() {
-    let tmp = tempfile::tempdir().expect("tempdir");
-    let opts = Options {
-        workers: 1,
-        max_steps: Some(1_000_000_000),
-        ..Options::default()
-    };
-    let server = TestServer::start_with(
-        &tmp.path().join("store.db"),
-        &opts,
-        &["--max-wall-seconds", "1"],
-    );
-    let mut client = server.grpc().await;
+    let (_tmp, server, mut client) =
+        serve(1, &["--max-steps", "1000000000", "--max-wall-seconds", "1"]).await;
     // 5·10⁸ steps: minutes of work.
     let id = submit_json(&mut client, ball_json(1e-6, 500_000_000, 100_000), None)
         .await

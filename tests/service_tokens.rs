@@ -139,3 +139,166 @@ async fn reads_need_a_token_and_writes_a_write_token_over_http_and_grpc() {
     }
     assert!(ended, "the watch ended without a final status");
 }
+
+/// The tokens file of these tests: a read token for "dashboard", a write token for "ci".
+fn tokens_server(dir: &std::path::Path) -> TestServer {
+    let tokens = dir.join("tokens.toml");
+    std::fs::write(
+        &tokens,
+        format!(
+            "[[token]]\nname = \"dashboard\"\nscope = \"read\"\nsha256 = \"{}\"\n\n[[token]]\nname = \"ci\"\nscope = \"write\"\nsha256 = \"{}\"\n",
+            sha256_hex("read-token-1"),
+            sha256_hex("write-token-2")
+        ),
+    )
+    .expect("tokens file");
+    let tokens = tokens.display().to_string();
+    TestServer::start_with(
+        &dir.join("store.db"),
+        &Options::default(),
+        &["--tokens", &tokens],
+    )
+}
+
+/// The CLI with `args` (and `SIGNORINI_TOKEN` when `env_token` is given): exit status, stdout,
+/// stderr.
+fn cli(args: &[&str], env_token: Option<&str>) -> (bool, String, String) {
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_signorini"));
+    cmd.args(args)
+        .env_remove("SIGNORINI_SERVER")
+        .env_remove("SIGNORINI_TOKEN")
+        .env_remove("SIGNORINI_CA");
+    if let Some(t) = env_token {
+        cmd.env("SIGNORINI_TOKEN", t);
+    }
+    let out = cmd.output().expect("running signorini");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// The CLI's client commands send `--token` (or `SIGNORINI_TOKEN`) with every call: with a read
+/// token `status`, `list` and `result` work and `submit` is refused (PermissionDenied); without
+/// one even `status` is refused (Unauthenticated); a write token submits. (Before, the CLI sent
+/// its token with the mutating calls only, so no read worked against a server with `--tokens`.)
+#[tokio::test(flavor = "multi_thread")]
+async fn the_cli_sends_its_token_with_reads_and_writes() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let server = tokens_server(tmp.path());
+    let spec = tmp.path().join("ball.json");
+    std::fs::write(&spec, ball_json(1e-3, 100, 1)).expect("spec");
+    let spec = spec.display().to_string();
+    let url = server.grpc_url.as_str();
+
+    let (ok, out, err) = cli(
+        &[
+            "submit",
+            &spec,
+            "--wait",
+            "--server",
+            url,
+            "--token",
+            "write-token-2",
+        ],
+        None,
+    );
+    assert!(ok, "submit with a write token: {err}");
+    let id = out.lines().next().expect("the job id").trim().to_string();
+
+    let (ok, _, err) = cli(&["status", &id, "--server", url], None);
+    assert!(!ok, "status without a token");
+    assert!(err.contains("Unauthenticated"), "{err}");
+    let (ok, out, err) = cli(
+        &["status", &id, "--server", url, "--token", "read-token-1"],
+        None,
+    );
+    assert!(ok, "status with a read token: {err}");
+    let status: serde_json::Value = serde_json::from_str(&out).expect("status JSON");
+    assert_eq!(status["state"], "succeeded", "{out}");
+    let (ok, out, err) = cli(&["list", "--json", "--server", url], Some("read-token-1"));
+    assert!(ok, "list with SIGNORINI_TOKEN: {err}");
+    assert!(out.contains(&id), "{out}");
+    let (ok, out, err) = cli(&["result", &id, "--server", url], Some("read-token-1"));
+    assert!(ok, "result with SIGNORINI_TOKEN: {err}");
+    assert!(out.contains("balance_residual"), "{out}");
+    let (ok, _, err) = cli(
+        &["submit", &spec, "--server", url, "--token", "read-token-1"],
+        None,
+    );
+    assert!(!ok, "submit with a read token");
+    assert!(err.contains("PermissionDenied"), "{err}");
+}
+
+/// The pages (`/`, `/jobs/{id}`, `/auth.js`) are open, static and tell nothing of a job; the
+/// data they fetch is read with the read token kept in the cookie `signorini_read` (a browser's
+/// fetch and EventSource cannot set a header), percent-encoded as the page writes it; a wrong
+/// token in it is refused, and no write takes it (a write token in the cookie is not a write).
+#[tokio::test(flavor = "multi_thread")]
+async fn the_pages_read_with_the_token_of_their_cookie_and_no_write_takes_it() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let server = tokens_server(tmp.path());
+    let spec = ball_json(1e-3, 100, 1);
+    let (code, body) = server
+        .http("POST", "/v1/jobs", Some(&spec), Some("write-token-2"))
+        .await;
+    assert_eq!(code, 201, "{body}");
+    let id = body["id"].as_str().expect("an id").to_string();
+
+    for page in [
+        format!("/jobs/{id}"),
+        "/jobs/no-such-job".into(),
+        "/".into(),
+    ] {
+        let (code, _, html) = server.request("GET", &page, "", &[]).await;
+        assert_eq!(code, 200, "GET {page} without a token");
+        let html = String::from_utf8_lossy(&html);
+        assert!(
+            html.contains(r#"<script src="/auth.js"></script>"#),
+            "{html}"
+        );
+    }
+    let (code, _, script) = server.request("GET", "/auth.js", "", &[]).await;
+    assert_eq!(code, 200);
+    assert!(String::from_utf8_lossy(&script).contains("signorini_read="));
+
+    let job = format!("/v1/jobs/{id}");
+    for cookie in [
+        "signorini_read=read-token-1",
+        "theme=dark; signorini_read=read%2Dtoken%2D1",
+    ] {
+        let (code, _, body) = server.request("GET", &job, "", &[("cookie", cookie)]).await;
+        assert_eq!(code, 200, "{cookie}: {}", String::from_utf8_lossy(&body));
+    }
+    let events = format!("/v1/jobs/{id}/events?from_seq=0");
+    let (code, _, _) = server
+        .request(
+            "GET",
+            &events,
+            "",
+            &[("cookie", "signorini_read=read-token-1")],
+        )
+        .await;
+    assert_eq!(code, 200, "the live page's event stream with the cookie");
+    for cookie in [
+        "signorini_read=nope",
+        "signorini_read=read%2",
+        "other=read-token-1",
+    ] {
+        let (code, _, _) = server.request("GET", &job, "", &[("cookie", cookie)]).await;
+        assert_eq!(code, 401, "{cookie}");
+    }
+    let (code, _, _) = server
+        .request(
+            "POST",
+            "/v1/jobs",
+            &spec,
+            &[
+                ("cookie", "signorini_read=write-token-2"),
+                ("content-type", "application/json"),
+            ],
+        )
+        .await;
+    assert_eq!(code, 401, "a write with the token in the cookie only");
+}

@@ -33,10 +33,50 @@ pub struct Connection {
         global = true
     )]
     pub server: String,
-    /// Bearer token for the commands that change jobs (submit, cancel, pause, resume, extend,
-    /// delete).
+    /// Bearer token sent with every call: the shared token of `serve --token` (which the
+    /// commands that change jobs need), or a per-client token of `serve --tokens FILE` (a read
+    /// token for status, watch, result, list, …; a write token for everything).
     #[arg(long, env = "SIGNORINI_TOKEN", hide_env_values = true, global = true)]
     pub token: Option<String>,
+    /// CA certificate (PEM) that signed the TLS certificate of a server started with
+    /// `--tls-cert`: the connection is then TLS (`https://`; an `http://` server URL is taken as
+    /// `https://`) and the server's certificate must be signed by it for the host of the URL.
+    #[arg(long, env = "SIGNORINI_CA", global = true)]
+    pub ca: Option<PathBuf>,
+}
+
+impl Connection {
+    /// The gRPC channel to the server: plain for an `http://` URL, TLS verified against
+    /// `--ca` with it (an `https://` URL needs `--ca`: no system roots are built in).
+    pub async fn channel(&self) -> Result<Channel> {
+        let url = match (&self.ca, self.server.strip_prefix("http://")) {
+            (Some(_), Some(rest)) => format!("https://{rest}"),
+            _ => self.server.clone(),
+        };
+        let mut endpoint = tonic::transport::Endpoint::from_shared(url.clone())
+            .with_context(|| format!("--server {}", self.server))?;
+        if url.starts_with("https://") {
+            let ca = self.ca.as_ref().ok_or_else(|| {
+                anyhow!(
+                    "--server {}: an https:// server needs --ca FILE (the PEM certificate of the \
+                     authority that signed the server's)",
+                    self.server
+                )
+            })?;
+            let pem =
+                std::fs::read(ca).with_context(|| format!("reading --ca {}", ca.display()))?;
+            endpoint = endpoint
+                .tls_config(
+                    tonic::transport::ClientTlsConfig::new()
+                        .ca_certificate(tonic::transport::Certificate::from_pem(pem)),
+                )
+                .with_context(|| format!("--ca {}", ca.display()))?;
+        }
+        endpoint
+            .connect()
+            .await
+            .with_context(|| format!("connecting to {url}"))
+    }
 }
 
 /// `signorini submit`.
@@ -173,22 +213,34 @@ pub(super) fn runtime() -> Result<tokio::runtime::Runtime> {
         .context("starting tokio")
 }
 
-pub(super) async fn client(conn: &Connection) -> Result<SimulationClient<Channel>> {
-    let c = SimulationClient::connect(conn.server.clone())
-        .await
-        .with_context(|| format!("connecting to {}", conn.server))?;
-    Ok(c.max_decoding_message_size(MAX_MESSAGE))
+/// Adds `authorization: Bearer TOKEN` to every call when a token is given: reads need it too
+/// on a server with `--tokens`.
+#[derive(Clone)]
+pub struct Bearer(Option<tonic::metadata::AsciiMetadataValue>);
+
+impl tonic::service::Interceptor for Bearer {
+    fn call(&mut self, mut req: tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> {
+        if let Some(value) = &self.0 {
+            req.metadata_mut().insert("authorization", value.clone());
+        }
+        Ok(req)
+    }
 }
 
-pub(super) fn with_token<T>(conn: &Connection, msg: T) -> Result<tonic::Request<T>> {
-    let mut req = tonic::Request::new(msg);
-    if let Some(t) = &conn.token {
-        req.metadata_mut().insert(
-            "authorization",
-            format!("Bearer {t}").parse().context("token")?,
-        );
-    }
-    Ok(req)
+/// The gRPC client of the client commands: the channel of [`Connection::channel`], every call
+/// carrying the token ([`Bearer`]).
+pub type Api = SimulationClient<tonic::service::interceptor::InterceptedService<Channel, Bearer>>;
+
+pub(super) async fn client(conn: &Connection) -> Result<Api> {
+    let bearer =
+        match &conn.token {
+            Some(t) => Some(format!("Bearer {t}").parse().map_err(|_| {
+                anyhow!("--token: not a valid header value (printable ASCII only)")
+            })?),
+            None => None,
+        };
+    let c = SimulationClient::with_interceptor(conn.channel().await?, Bearer(bearer));
+    Ok(c.max_decoding_message_size(MAX_MESSAGE))
 }
 
 pub(super) fn status_error(s: tonic::Status) -> anyhow::Error {
@@ -232,10 +284,7 @@ pub fn submit(args: SubmitArgs) -> Result<()> {
             spec: Some(typed),
             id: args.id.clone(),
         };
-        let resp = c
-            .submit_job(with_token(&args.conn, req)?)
-            .await
-            .map_err(status_error)?;
+        let resp = c.submit_job(req).await.map_err(status_error)?;
         let id = resp.into_inner().id;
         println!("{id}");
         if args.wait {
@@ -257,7 +306,7 @@ pub fn submit(args: SubmitArgs) -> Result<()> {
 
 /// Follows job `id` over `WatchJob` until it ends, prints its final status, and answers as
 /// [`ended_ok`] (`submit --wait`, `extend --wait`).
-pub(super) async fn wait_ended(c: &mut SimulationClient<Channel>, id: &str) -> Result<()> {
+pub(super) async fn wait_ended(c: &mut Api, id: &str) -> Result<()> {
     let mut frames = c
         .watch_job(pb::WatchJobRequest {
             id: id.to_string(),
@@ -313,7 +362,7 @@ pub fn status(args: IdArgs) -> Result<()> {
 pub fn cancel(args: IdArgs) -> Result<()> {
     runtime()?.block_on(async {
         let mut c = client(&args.conn).await?;
-        let req = with_token(&args.conn, pb::CancelJobRequest { id: args.id })?;
+        let req = pb::CancelJobRequest { id: args.id };
         let s = c.cancel_job(req).await.map_err(status_error)?.into_inner();
         print_status(s)
     })
@@ -445,12 +494,9 @@ fn print_jobs(jobs: Vec<pb::JobStatus>, next: &str, json: bool) -> Result<()> {
 pub fn delete(args: IdArgs) -> Result<()> {
     runtime()?.block_on(async {
         let mut c = client(&args.conn).await?;
-        let req = with_token(
-            &args.conn,
-            pb::DeleteJobRequest {
-                id: args.id.clone(),
-            },
-        )?;
+        let req = pb::DeleteJobRequest {
+            id: args.id.clone(),
+        };
         c.delete_job(req).await.map_err(status_error)?;
         println!("removed {}", args.id);
         Ok(())

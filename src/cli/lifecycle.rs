@@ -1,9 +1,7 @@
 //! `pause`, `resume` and `extend`: a job's life after its submission, through the gRPC API
 //! (`PauseJob`, `ResumeJob`, `ExtendJob`).
 
-use super::client::{
-    Connection, IdArgs, client, print_status, runtime, status_error, wait_ended, with_token,
-};
+use super::client::{Connection, IdArgs, client, print_status, runtime, status_error, wait_ended};
 use crate::proto::v1 as pb;
 use anyhow::{Result, anyhow};
 use clap::Args;
@@ -32,7 +30,7 @@ pub struct ExtendArgs {
 pub fn pause(args: IdArgs) -> Result<()> {
     runtime()?.block_on(async {
         let mut c = client(&args.conn).await?;
-        let req = with_token(&args.conn, pb::PauseJobRequest { id: args.id })?;
+        let req = pb::PauseJobRequest { id: args.id };
         let s = c.pause_job(req).await.map_err(status_error)?.into_inner();
         print_status(s)
     })
@@ -42,7 +40,7 @@ pub fn pause(args: IdArgs) -> Result<()> {
 pub fn resume(args: IdArgs) -> Result<()> {
     runtime()?.block_on(async {
         let mut c = client(&args.conn).await?;
-        let req = with_token(&args.conn, pb::ResumeJobRequest { id: args.id })?;
+        let req = pb::ResumeJobRequest { id: args.id };
         let s = c.resume_job(req).await.map_err(status_error)?.into_inner();
         print_status(s)
     })
@@ -56,14 +54,11 @@ pub fn extend(args: ExtendArgs) -> Result<()> {
     }
     runtime()?.block_on(async {
         let mut c = client(&args.conn).await?;
-        let req = with_token(
-            &args.conn,
-            pb::ExtendJobRequest {
-                id: args.id,
-                t_end: args.t_end,
-                new_id: args.new_id,
-            },
-        )?;
+        let req = pb::ExtendJobRequest {
+            id: args.id,
+            t_end: args.t_end,
+            new_id: args.new_id,
+        };
         let id = c
             .extend_job(req)
             .await

@@ -98,6 +98,7 @@ pub fn router(state: AppState) -> Router {
         .route("/metrics", get(metrics))
         .route("/jobs/{id}", get(live_page))
         .route("/", get(index_page))
+        .route("/auth.js", get(auth_script))
         .fallback(no_route)
         .method_not_allowed_fallback(no_method)
         .layer(axum::middleware::from_fn_with_state(
@@ -108,23 +109,71 @@ pub fn router(state: AppState) -> Router {
         .with_state(state)
 }
 
+/// Paths any caller may GET: health, and the pages themselves (static HTML and script, no
+/// job's data: the data they fetch is read-gated like any other).
+fn open_path(path: &str) -> bool {
+    matches!(path, "/healthz" | "/" | "/auth.js") || path.starts_with("/jobs/")
+}
+
 /// Reads (GET, HEAD) need a read token when the server has scoped tokens (`--tokens`), all
-/// but `/healthz`; mutating routes check their write scope themselves ([`authorize`]).
+/// but [`open_path`]s; mutating routes check their write scope themselves ([`authorize`]).
 async fn read_gate(
     State(state): State<AppState>,
     req: axum::extract::Request,
     next: axum::middleware::Next,
 ) -> Response {
-    if req.uri().path() != "/healthz" && matches!(*req.method(), Method::GET | Method::HEAD) {
-        let given = req
-            .headers()
-            .get(header::AUTHORIZATION)
-            .and_then(|v| v.to_str().ok());
-        if let Err(e) = state.authorize_read(given) {
+    if !open_path(req.uri().path()) && matches!(*req.method(), Method::GET | Method::HEAD) {
+        let given = read_credential(req.headers());
+        if let Err(e) = state.authorize_read(given.as_deref()) {
             return e.into_response();
         }
     }
     next.run(req).await
+}
+
+/// The cookie in which the pages keep a read token (`auth.js`).
+const READ_COOKIE: &str = "signorini_read";
+
+/// What a read presents: its `Authorization` header, or else the read token of the cookie
+/// [`READ_COOKIE`] (percent-encoded), which a browser's page sends with its fetches and its
+/// EventSource (neither can set a header). Only reads take the cookie: a write needs the header,
+/// so that no other site can make a browser write with it.
+fn read_credential(headers: &HeaderMap) -> Option<String> {
+    if let Some(h) = headers
+        .get(header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+    {
+        return Some(h.to_string());
+    }
+    headers
+        .get_all(header::COOKIE)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(';'))
+        .find_map(|pair| {
+            let (name, value) = pair.trim().split_once('=')?;
+            (name == READ_COOKIE).then(|| percent_decode(value))?
+        })
+        .map(|token| format!("Bearer {token}"))
+}
+
+/// `%XX` escapes decoded (what `encodeURIComponent` wrote); `None` for a bad escape or bytes
+/// that are not UTF-8.
+fn percent_decode(text: &str) -> Option<String> {
+    let bytes = text.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' {
+            let hex = text.get(i + 1..i + 3)?;
+            out.push(u8::from_str_radix(hex, 16).ok()?);
+            i += 3;
+        } else {
+            out.push(bytes[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8(out).ok()
 }
 
 /// Checks the `Authorization` header of an HTTP request ([`AppState::authorize`]): every
@@ -677,11 +726,28 @@ async fn job_events(
 /// The live page of a job (404 for an unknown one).
 async fn live_page(
     State(state): State<AppState>,
+    headers: HeaderMap,
     Path(id): Path<String>,
 ) -> Result<Html<String>, ApiError> {
     crate::engine::check_id(&id)?;
-    state.engine.status(&id)?;
+    // Whether the job exists is a read: told only to a caller who may read (the page itself
+    // is open, `auth.js`).
+    if state
+        .authorize_read(read_credential(&headers).as_deref())
+        .is_ok()
+    {
+        state.engine.status(&id)?;
+    }
     Ok(Html(include_str!("live.html").replace("{{JOB_ID}}", &id)))
+}
+
+/// The pages' read access on a server with `--tokens`: a read token from the page's address
+/// (`#token=…`) into the cookie [`READ_COOKIE`], or a note saying how to give one.
+async fn auth_script() -> impl IntoResponse {
+    (
+        [(header::CONTENT_TYPE, "text/javascript; charset=utf-8")],
+        include_str!("auth.js"),
+    )
 }
 
 /// The index page: the newest jobs, linked to their live pages.

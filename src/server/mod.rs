@@ -10,6 +10,7 @@ mod pause;
 mod remote;
 pub mod results;
 mod study;
+pub mod tls;
 
 use crate::config::ServeConfig;
 use crate::engine::Engine;
@@ -235,6 +236,10 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
         (None, Some(token)) => auth::Access::Shared(Arc::from(token.as_str())),
         (None, None) => auth::Access::Open,
     };
+    let tls = match &cfg.tls {
+        Some(files) => Some(tls::ServerTls::load(&files.cert, &files.key)?),
+        None => None,
+    };
     // What can fail without leaving anything behind comes first: the ports, then the zenoh
     // peer, then the store's lock (which creates the file of a new store), then the store.
     let grpc_listener = tokio::net::TcpListener::bind(cfg.grpc_addr)
@@ -336,7 +341,13 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
     let reflection_v1alpha = reflection()
         .build_v1alpha()
         .context("building the gRPC reflection service (v1alpha)")?;
-    let grpc = tonic::transport::Server::builder()
+    let mut grpc = tonic::transport::Server::builder();
+    if let Some(tls) = &tls {
+        grpc = grpc
+            .tls_config(tls.grpc())
+            .context("the gRPC listener's TLS")?;
+    }
+    let grpc = grpc
         .add_service(health_service)
         .add_service(reflection_v1)
         .add_service(reflection_v1alpha)
@@ -349,11 +360,20 @@ pub async fn serve(cfg: ServeConfig) -> Result<()> {
             tokio_stream::wrappers::TcpListenerStream::new(grpc_listener),
             stopped(stop_rx.clone()),
         );
-    let http = axum::serve(http_listener, http::router(state.clone()))
-        .with_graceful_shutdown(stopped(stop_rx));
     let grpc_task = tokio::spawn(grpc);
-    let http_task = tokio::spawn(async move { http.await });
-    tracing::info!(%grpc_addr, %http_addr, store = %location.shown(), workers = cfg.workers, "serving");
+    let router = http::router(state.clone());
+    let http_task = match &tls {
+        Some(tls) => {
+            let http = axum::serve(tls.listener(http_listener)?, router)
+                .with_graceful_shutdown(stopped(stop_rx));
+            tokio::spawn(async move { http.await })
+        }
+        None => {
+            let http = axum::serve(http_listener, router).with_graceful_shutdown(stopped(stop_rx));
+            tokio::spawn(async move { http.await })
+        }
+    };
+    tracing::info!(%grpc_addr, %http_addr, store = %location.shown(), workers = cfg.workers, tls = tls.is_some(), "serving");
     println!("signorini serving gRPC on {grpc_addr}, HTTP on {http_addr}");
 
     shutdown_signal().await;

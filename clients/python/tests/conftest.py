@@ -23,7 +23,10 @@ def free_port() -> int:
 
 
 class Server:
-    def __init__(self, store: pathlib.Path, token: str):
+    """`signorini serve` with the shared `token` (or none), and `extra` flags (`--tls-cert`,
+    `--tokens`)."""
+
+    def __init__(self, store: pathlib.Path, token: str | None, extra: list[str] = ()):
         binary = os.environ.get("SIGNORINI_BIN", str(REPO / "target" / "debug" / "signorini"))
         if not pathlib.Path(binary).exists():
             raise RuntimeError(f"{binary} does not exist: build it (cargo build) or set SIGNORINI_BIN")
@@ -31,7 +34,8 @@ class Server:
         env = {k: v for k, v in os.environ.items() if not k.startswith("SIGNORINI_")}
         self.proc = subprocess.Popen(
             [binary, "serve", "--grpc-addr", "127.0.0.1:0", "--http-addr", "127.0.0.1:0",
-             "--store", str(store), "--zenoh-listen", self.zenoh, "--workers", "2", "--token", token],
+             "--store", str(store), "--zenoh-listen", self.zenoh, "--workers", "2",
+             *(["--token", token] if token else []), *extra],
             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env,
         )
         ready = threading.Event()

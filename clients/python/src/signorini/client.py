@@ -238,7 +238,11 @@ class Client:
     >>> c.wait(job)
     >>> r = c.result(job); r["energy"]        # numpy array
 
-    `token` is the service's bearer token (needed by submit and cancel when it has one);
+    `token` is a bearer token sent with every call: the shared token of `serve --token` (needed
+    by the calls that change jobs), or a per-client token of `serve --tokens FILE` (a read token
+    for reads, a write token for both); `ca` the CA certificate (a PEM file's path, or its
+    bytes) that signed the certificate of a server started with `--tls-cert`: the connection is
+    then TLS and the server must present a certificate it signed for the host of `target`;
     `zenoh_connect` the service's zenoh endpoint (e.g. "tcp/127.0.0.1:7447") for `watch`.
     """
 
@@ -247,17 +251,21 @@ class Client:
         target: str = "127.0.0.1:50051",
         *,
         token: str | None = None,
+        ca: str | pathlib.Path | bytes | None = None,
         zenoh_connect: str | list[str] | None = None,
         max_message_mb: int = 1024,
     ):
         size = max_message_mb * 1024 * 1024
-        self._channel = grpc.insecure_channel(
-            target,
-            options=[
-                ("grpc.max_receive_message_length", size),
-                ("grpc.max_send_message_length", size),
-            ],
-        )
+        options = [
+            ("grpc.max_receive_message_length", size),
+            ("grpc.max_send_message_length", size),
+        ]
+        if ca is None:
+            self._channel = grpc.insecure_channel(target, options=options)
+        else:
+            pem = ca if isinstance(ca, bytes) else pathlib.Path(ca).read_bytes()
+            credentials = grpc.ssl_channel_credentials(root_certificates=pem)
+            self._channel = grpc.secure_channel(target, credentials, options=options)
         self._stub = service_pb2_grpc.SimulationStub(self._channel)
         self._metadata = (("authorization", f"Bearer {token}"),) if token else ()
         if isinstance(zenoh_connect, str):
