@@ -15,3 +15,4 @@ pub mod status;
 pub mod store;
 pub mod stream;
 pub mod study;
+pub mod vtk;

@@ -647,6 +647,8 @@ mod random {
                     probes,
                     checkpoint_seconds,
                     checkpoint_steps,
+                    contacts: false,
+                    vtk: false,
                 },
             );
         (

@@ -6,6 +6,7 @@ use crate::output::{
     write_atomic, write_checkpoint, write_figure, write_run_files,
 };
 use crate::spec_file::{self, Format};
+use crate::vtk::{StepSeries, write_rigid_vtk};
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -14,7 +15,7 @@ use signorini_core::job::{self, Job};
 use signorini_core::lagrangian::StartProjection;
 use signorini_core::observer::{Columns, Observer, Progress, StepRecord};
 use signorini_core::outcome::RunOutput;
-use signorini_core::spec::CheckpointPeriod;
+use signorini_core::spec::{CheckpointPeriod, ModelSpec};
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -287,6 +288,9 @@ fn execute(
         }
     };
     observer.csv.finish()?;
+    if job.spec().output.vtk {
+        write_vtk(job, out, &output)?;
+    }
     let run = finish_run(output, wall);
     write_run_files(out, &run)?;
     clear_checkpoint(out)?;
@@ -295,6 +299,22 @@ fn execute(
         println!("results in {}", out.display());
     }
     Ok(())
+}
+
+/// `output.vtk = true`: the ParaView files of a rigid run, from its `steps.csv` and its
+/// `contacts` table ([`crate::vtk`]).
+fn write_vtk(job: &Job, out: &Path, output: &RunOutput) -> Result<()> {
+    let spec = job.spec();
+    let Some(ModelSpec::RigidBodies(rigid)) = &spec.model else {
+        return Err(anyhow!(
+            "output.vtk: only a rigid_bodies job writes VTK files"
+        ));
+    };
+    let scene = rigid.validate()?;
+    let h = spec.time_section()?.h;
+    let steps = StepSeries::read_csv(&out.join("steps.csv"))?;
+    let contacts = output.tables.iter().find(|t| t.name == "contacts");
+    write_rigid_vtk(out, &scene, h, &steps, contacts)
 }
 
 /// `signorini run STUDY.toml`: the study's runs on every core, then `study.csv`,

@@ -90,14 +90,19 @@ fn wrong_state(view: &JobView, reason: impl Into<String>) -> EngineError {
 }
 
 impl Engine {
-    /// A job's spec as stored, built into a job (the error names the field).
-    fn stored_job(&self, id: &str) -> Result<(Job, signorini_core::spec::JobSpec), EngineError> {
+    /// A job's spec as stored.
+    pub fn stored_spec(&self, id: &str) -> Result<signorini_core::spec::JobSpec, EngineError> {
         let json = self
             .inner
             .store
             .spec_json(id)?
             .ok_or_else(|| EngineError::NotFound { id: id.into() })?;
-        let spec = parse(&json, Format::Json)?;
+        Ok(parse(&json, Format::Json)?)
+    }
+
+    /// A job's spec as stored, built into a job (the error names the field).
+    fn stored_job(&self, id: &str) -> Result<(Job, signorini_core::spec::JobSpec), EngineError> {
+        let spec = self.stored_spec(id)?;
         Ok((Job::from_spec(&spec)?, spec))
     }
 

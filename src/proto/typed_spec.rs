@@ -557,7 +557,15 @@ fn output_to_proto(o: &OutputSpec) -> Result<pb::OutputSpec, JsonOnly> {
         probes,
         checkpoint_seconds,
         checkpoint_steps,
+        contacts,
+        vtk,
     } = o;
+    if *contacts {
+        return Err(JsonOnly("`output.contacts`"));
+    }
+    if *vtk {
+        return Err(JsonOnly("`output.vtk`"));
+    }
     Ok(pb::OutputSpec {
         every: Some(*every),
         probes: probes.iter().copied().map(u64_of).collect(),

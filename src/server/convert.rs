@@ -734,6 +734,8 @@ fn output_spec(p: pb::OutputSpec) -> Result<OutputSpec, SpecError> {
             .collect::<Result<_, _>>()?,
         checkpoint_seconds,
         checkpoint_steps,
+        contacts: d.contacts,
+        vtk: d.vtk,
     })
 }
 

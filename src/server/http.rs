@@ -89,6 +89,7 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/jobs/{id}/figures", get(list_figures))
         .route("/v1/jobs/{id}/figures/{name}", get(get_figure))
         .route("/v1/jobs/{id}/events", get(job_events))
+        .route("/v1/jobs/{id}/scene", get(super::scene::job_scene))
         .route("/v1/jobs/{id}/pause", post(super::pause::pause_job))
         .route("/v1/jobs/{id}/resume", post(super::pause::resume_job))
         .route("/v1/jobs/{id}/extend", post(super::pause::extend_job))
@@ -660,8 +661,34 @@ async fn metrics(State(state): State<AppState>) -> Result<Response, ApiError> {
 }
 
 /// A job event as server-sent events: `status` ([`StatusJson`]) or `energy` (the energy columns
-/// of a step batch as [`FrameJson`]); the state columns are not sent.
-fn sse_events(event: &JobEvent) -> Vec<Event> {
+/// of a step batch as [`FrameJson`]), and with `state` also a `state` event of the batch's
+/// other columns (a rigid job's poses for the live page's 3D view; the same frame shape).
+fn sse_events(event: &JobEvent, state: bool) -> Vec<Event> {
+    let mut events = sse_energy_events(event);
+    if let (true, JobEvent::Steps(b)) = (state, event)
+        && !b.state.columns.is_empty()
+    {
+        events.extend(
+            Event::default()
+                .event("state")
+                .id(b.seq.to_string())
+                .json_data(FrameJson {
+                    kind: "state",
+                    id: &b.id,
+                    seq: b.seq,
+                    columns: &b.state.columns,
+                    step: &b.step,
+                    t: &b.t,
+                    rows: FrameJson::rows(&b.state.values, b.state.columns.len()),
+                    last: b.last,
+                }),
+        );
+    }
+    events
+}
+
+/// The status and energy events of [`sse_events`].
+fn sse_energy_events(event: &JobEvent) -> Vec<Event> {
     let event = match event {
         JobEvent::Status(v) => Event::default()
             .event("status")
@@ -689,6 +716,9 @@ fn sse_events(event: &JobEvent) -> Vec<Event> {
 struct EventsQuery {
     #[serde(default)]
     from_seq: Option<u64>,
+    /// Also send `state` events (the columns that are not energy terms).
+    #[serde(default)]
+    state: bool,
 }
 
 /// Server-sent events of one job: its current status, then its status and energy events as
@@ -708,12 +738,14 @@ async fn job_events(
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.trim().parse::<u64>().ok())
         .map(|seq| seq + 1);
+    let with_state = q.state;
+    let encode = move |e: &JobEvent| sse_events(e, with_state);
     let stream: std::pin::Pin<Box<dyn tokio_stream::Stream<Item = Event> + Send>> =
         match resume.or(q.from_seq) {
-            Some(from_seq) => Box::pin(state.replay(&id, from_seq, sse_events)?),
+            Some(from_seq) => Box::pin(state.replay(&id, from_seq, encode)?),
             None => {
-                let (current, events) = state.follow(&id, sse_events)?;
-                let first = sse_events(&JobEvent::Status(current));
+                let (current, events) = state.follow(&id, encode)?;
+                let first = encode(&JobEvent::Status(current));
                 match events {
                     None => Box::pin(tokio_stream::iter(first)),
                     Some(events) => Box::pin(tokio_stream::iter(first).chain(events)),

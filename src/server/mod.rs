@@ -9,6 +9,7 @@ pub mod json;
 mod pause;
 mod remote;
 pub mod results;
+mod scene;
 mod study;
 pub mod tls;
 

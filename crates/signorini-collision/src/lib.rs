@@ -14,6 +14,8 @@
 //! persistent workspace so that the points depend on the poses alone (a resumed run detects the
 //! same points).
 
+pub mod surface;
+
 use parry3d_f64::bounding_volume::{Aabb, BoundingVolume};
 use parry3d_f64::math::{Pose as ParryPose, Rotation, Vector};
 use parry3d_f64::query::{ContactManifold, DefaultQueryDispatcher, PersistentQueryDispatcher};

@@ -496,6 +496,19 @@ impl Job {
             }
             (None, Some(m), _) => return Err(mismatch(m, spec.integrator.scheme())),
         };
+        if !matches!(kind, JobKind::Rigid(_)) {
+            for (field, asked) in [
+                ("output.contacts", spec.output.contacts),
+                ("output.vtk", spec.output.vtk),
+            ] {
+                if asked {
+                    return Err(SpecError::new(
+                        field,
+                        "only a `rigid_bodies` job has contact points and bodies to write",
+                    ));
+                }
+            }
+        }
         // The model validated once more for its report: its start projection, when it asks
         // for one (parsing and checks only, no tapes).
         let start = match model {
@@ -704,9 +717,9 @@ fn run_from(
         JobKind::Wave(j) => j.run_from(header(job), threads, t, c),
         JobKind::Nonlinear(j) => run_nonlinear_job(job, j, t, c),
         JobKind::NsAlpha(j) => run_ns_alpha_job(job, j, t, c),
-        JobKind::Rigid(j) => j.run_from(t, c, detectors).map(|body| RunOutput {
+        JobKind::Rigid(j) => j.run_from(t, c, detectors).map(|(body, tables)| RunOutput {
             summary: RunSummary::new(header(job), body),
-            tables: Vec::new(),
+            tables,
             charts: Vec::new(),
         }),
     }?;

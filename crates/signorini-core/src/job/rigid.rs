@@ -5,9 +5,10 @@ use crate::checkpoint::Checkpoint;
 use crate::friction::{Fc3dOptions, Fc3dSolverKind};
 use crate::lcp::LcpSolverKind;
 use crate::observer::Observer;
-use crate::outcome::{RigidSummary, RunError, SummaryBody};
+use crate::outcome::{RigidSummary, RunError, SummaryBody, Table};
 use crate::rigid::{
-    DetectorFactory, RigidMoreauJean, RigidMoreauJeanParams, RigidScene, RigidStepping,
+    CONTACT_COLUMNS, DetectorFactory, RigidMoreauJean, RigidMoreauJeanParams, RigidScene,
+    RigidStepping,
 };
 use crate::spec::{IntegratorSpec, JobSpec, Probes, RigidBodiesSpec, SpecError};
 use crate::stepping::{StopReason, run};
@@ -19,6 +20,9 @@ pub(super) struct RigidJob {
     pub(super) scheme: RigidMoreauJean,
     pub(super) steps: u64,
     pub(super) every: u64,
+    /// Keep the `contacts` table (`output.contacts`, or `output.vtk`, whose contact files are
+    /// made from it).
+    pub(super) contacts: bool,
 }
 
 /// Checks a `rigid_bodies` spec: the scene first, then `integrator.scheme` (only `moreau_jean`),
@@ -72,30 +76,45 @@ pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob,
         scheme: RigidMoreauJean::new(params, steps.h),
         steps: steps.count(),
         every: output.every,
+        contacts: spec.output.contacts || spec.output.vtk,
     })
 }
 
 impl RigidJob {
-    /// Runs (or continues from `resume`) with a detector of `detectors`.
+    /// Runs (or continues from `resume`) with a detector of `detectors`; the `contacts` table
+    /// when the spec asks for it.
     pub(super) fn run_from(
         &self,
         observer: &mut dyn Observer,
         resume: Option<&Checkpoint>,
         detectors: Option<&dyn DetectorFactory>,
-    ) -> Result<SummaryBody, RunError> {
+    ) -> Result<(SummaryBody, Vec<Table>), RunError> {
         let detectors = detectors.ok_or(RunError::NoDetector)?;
         let detector = detectors
             .detector(&self.scene.bodies)
             .map_err(RunError::Detector)?;
         let mut family = RigidStepping::new(&self.scene, &self.scheme, detector, self.steps);
+        if self.contacts {
+            family = family.with_contact_table();
+        }
         if let StopReason::Observer { step } = run(&mut family, self.every, observer, resume)? {
             return Err(RunError::Stopped { step });
         }
-        Ok(SummaryBody::Rigid(RigidSummary {
+        let tables = family
+            .contact_rows()
+            .map(|rows| Table {
+                name: "contacts".into(),
+                columns: CONTACT_COLUMNS.iter().map(|c| c.to_string()).collect(),
+                rows: rows.to_vec(),
+            })
+            .into_iter()
+            .collect();
+        let body = SummaryBody::Rigid(RigidSummary {
             bodies: self.scene.bodies.len(),
             h: self.scheme.h(),
             stats: family.stats().clone(),
-        }))
+        });
+        Ok((body, tables))
     }
 
     /// Columns per record (bodies' 13, the energy columns, step and t).

@@ -14,4 +14,6 @@ pub use body::{Body, BodyState, Pose, Shape};
 pub use detector::{ContactDetector, ContactPoint, DetectError, DetectorFactory, tangent_basis};
 pub use moreau_jean::{RigidMoreauJean, RigidMoreauJeanParams, RigidStepError, StepReport};
 pub use scene::{ContactLaw, RigidScene};
-pub use stepping::{RigidMemory, RigidRunError, RigidRunStats, RigidStepping, rigid_columns};
+pub use stepping::{
+    CONTACT_COLUMNS, RigidMemory, RigidRunError, RigidRunStats, RigidStepping, rigid_columns,
+};

@@ -213,6 +213,10 @@ pub struct RigidScratch {
     found_valid: bool,
     poses: Vec<Pose>,
     active: Vec<ActiveContact>,
+    /// The contact points of the index set of the last step, in the order of `active`.
+    active_points: Vec<ContactPoint>,
+    /// The last step's impulses P_{k+1}, (P_n, P_t1, P_t2) per contact of `active_points`.
+    impulse: Vec<f64>,
 }
 
 impl RigidScratch {
@@ -235,6 +239,16 @@ impl RigidScratch {
     /// max(0, −min gap) over the contact points at the current poses.
     pub fn max_penetration(&self) -> f64 {
         self.found.iter().map(|c| -c.gap).fold(0.0, f64::max)
+    }
+
+    /// The last step's index set: each contact point (found at the start of the step) with its
+    /// impulse P_{k+1} = (P_n, P_t1, P_t2) in the frame (n, t_1, t_2) of the point. Empty before
+    /// the first step and after a restore.
+    pub fn active_impulses(&self) -> impl Iterator<Item = (&ContactPoint, [f64; 3])> {
+        self.active_points
+            .iter()
+            .zip(self.impulse.chunks_exact(3))
+            .map(|(point, p)| (point, [p[0], p[1], p[2]]))
     }
 }
 
@@ -418,6 +432,7 @@ impl RigidMoreauJean {
             step,
             t,
         )?;
+        scratch.impulse = impulse;
         scratch.found_valid = false;
         scratch
             .detect(scene, state, detector)
@@ -513,6 +528,7 @@ impl RigidMoreauJean {
     /// The index set of the contact points found at t_k: predicted gap g + γ h U_{n,k} ≤ margin.
     fn index_set(&self, scene: &RigidScene, state: &[BodyState], scratch: &mut RigidScratch) {
         scratch.active.clear();
+        scratch.active_points.clear();
         let twist: Vec<(V3, V3)> = state
             .iter()
             .map(|s| (v3(s.velocity), v3(s.angular_velocity)))
@@ -532,6 +548,7 @@ impl RigidMoreauJean {
             contact.u_start = local_velocity(&contact, &twist);
             if point.gap + self.params.gamma * self.h * contact.u_start[0] <= scene.margin {
                 scratch.active.push(contact);
+                scratch.active_points.push(*point);
             }
         }
     }

@@ -35,6 +35,17 @@ pub const ENERGY_COLUMNS: [&str; 12] = [
     "work_friction_total",
 ];
 
+/// The columns of the `contacts` table (`contacts.csv`, `output.contacts = true`): the step k
+/// and t_k of the record, the two bodies (indices in `model.bodies`), the contact point
+/// ½(p_0 + p_1), the unit normal n (from body 0 to body 1), the gap g at t_{k−1} (where the
+/// point was found), the impulse P_k in the contact frame (n, t_1, t_2) of
+/// [`super::tangent_basis`], and the same impulse in world coordinates,
+/// P_n n + P_t1 t_1 + P_t2 t_2 (the impulse body 1 receives; its force is P / h).
+pub const CONTACT_COLUMNS: [&str; 17] = [
+    "step", "t", "body_0", "body_1", "x", "y", "z", "nx", "ny", "nz", "gap", "p_n", "p_t1", "p_t2",
+    "px", "py", "pz",
+];
+
 /// The columns of a run: `NAME_x … NAME_wz` per body, then [`ENERGY_COLUMNS`].
 pub fn rigid_columns(names: &[String]) -> Columns {
     let bodies = names
@@ -113,6 +124,8 @@ pub struct RigidStepping<'a> {
     /// The last step's report and energy error (the record of that step).
     last: StepReport,
     last_energy_error: f64,
+    /// The rows of the `contacts` table, when asked for ([`RigidStepping::with_contact_table`]).
+    contact_rows: Option<Vec<Vec<f64>>>,
 }
 
 impl<'a> RigidStepping<'a> {
@@ -141,7 +154,21 @@ impl<'a> RigidStepping<'a> {
             scratch: RigidScratch::default(),
             last: StepReport::default(),
             last_energy_error: 0.0,
+            contact_rows: None,
         }
+    }
+
+    /// Also keeps, at every recorded step, the rows of the `contacts` table
+    /// ([`CONTACT_COLUMNS`]) of that step's index set.
+    pub fn with_contact_table(mut self) -> Self {
+        self.contact_rows = Some(Vec::new());
+        self
+    }
+
+    /// The rows of the `contacts` table so far, when asked for: those of the records of this
+    /// run (a run resumed from a checkpoint has the rows of the records after the checkpoint).
+    pub fn contact_rows(&self) -> Option<&[Vec<f64>]> {
+        self.contact_rows.as_deref()
     }
 
     /// The bodies' current states.
@@ -256,6 +283,33 @@ impl TimeStepping for RigidStepping<'_> {
         } else {
             (self.last, self.last_energy_error)
         };
+        let StepTime { step, t } = self.now();
+        if let (Some(rows), true) = (&mut self.contact_rows, step > 0) {
+            for (point, p) in self.scratch.active_impulses() {
+                let [n, t1, t2] = [point.normal, point.tangents[0], point.tangents[1]];
+                let world = |i: usize| p[0] * n[i] + p[1] * t1[i] + p[2] * t2[i];
+                let mid = |i: usize| 0.5 * (point.points[0][i] + point.points[1][i]);
+                rows.push(vec![
+                    step as f64,
+                    t,
+                    point.bodies[0] as f64,
+                    point.bodies[1] as f64,
+                    mid(0),
+                    mid(1),
+                    mid(2),
+                    n[0],
+                    n[1],
+                    n[2],
+                    point.gap,
+                    p[0],
+                    p[1],
+                    p[2],
+                    world(0),
+                    world(1),
+                    world(2),
+                ]);
+            }
+        }
         let s = &self.memory.stats;
         row.extend([
             kinetic,

@@ -158,6 +158,21 @@ pub struct OutputSpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 1))]
     pub checkpoint_steps: Option<u64>,
+    /// `rigid_bodies` only: write the `contacts` table (`contacts.csv`): per recorded step k ≥ 1,
+    /// one row per contact of the index set of that step (detected at t_{k−1}) with its bodies,
+    /// point, normal, gap and impulse P_{k} (DESIGN §18). Default false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub contacts: bool,
+    /// `rigid_bodies` only: `signorini run` writes VTK XML files per recorded step that ParaView
+    /// opens (`vtk/bodies.pvd`: the bodies' surfaces; `vtk/contacts.pvd`: the contact points with
+    /// their impulses and forces). Implies the `contacts` table, which the contact files are
+    /// made from. Default false.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub vtk: bool,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 impl Default for OutputSpec {
@@ -167,6 +182,8 @@ impl Default for OutputSpec {
             probes: Vec::new(),
             checkpoint_seconds: None,
             checkpoint_steps: None,
+            contacts: false,
+            vtk: false,
         }
     }
 }

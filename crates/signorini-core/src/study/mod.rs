@@ -57,7 +57,8 @@ pub enum Reference {
         /// The probed coordinates.
         probes: Vec<usize>,
     },
-    /// A fine run, compared on every `q_j`, `y_j` and `gap_i` column both record.
+    /// A fine run, compared on every `q_j`, `y_j` and `gap_i` column both record (and a rigid
+    /// body's position `NAME_x`, `NAME_y`, `NAME_z`).
     Run(Box<Job>),
 }
 
@@ -342,7 +343,7 @@ impl Study {
                 if pairs.is_empty() {
                     return Err(SpecError::new(
                         "study.reference",
-                        "the reference run records none of the runs' q_j, y_j or gap_i columns",
+                        "the reference run records none of the runs' q_j, y_j, gap_i or body position columns",
                     ));
                 }
                 for (k, &t) in run.t.iter().enumerate() {
@@ -556,7 +557,21 @@ impl NormAccumulator {
     }
 }
 
-/// Records what a study compares: t and the `q_j`, `y_j` and `gap_i` columns of every recorded
+/// Whether a study compares column `name` of a run's `columns`: a `q_j`, `y_j` or `gap_i`, or a
+/// rigid body's position `NAME_x`, `NAME_y`, `NAME_z` (a column `NAME_qw` beside it says that
+/// NAME is a body: DESIGN §18).
+fn compared(name: &str, columns: &Columns) -> bool {
+    if name.starts_with("q_") || name.starts_with("y_") || name.starts_with("gap_") {
+        return true;
+    }
+    ["_x", "_y", "_z"].iter().any(|axis| {
+        name.strip_suffix(axis)
+            .is_some_and(|body| columns.index(&format!("{body}_qw")).is_some())
+    })
+}
+
+/// Records what a study compares: t and the `q_j`, `y_j` and `gap_i` columns (and the bodies'
+/// positions, [`compared`]) of every recorded
 /// step, and the largest |balance_residual| and |energy_error| (the energy check of the run).
 #[derive(Debug, Clone, Default)]
 pub struct Samples {
@@ -600,11 +615,10 @@ impl Samples {
 
 impl Observer for Samples {
     fn start(&mut self, columns: &Columns) {
-        let kept = |n: &str| n.starts_with("q_") || n.starts_with("y_") || n.starts_with("gap_");
         self.names.clear();
         self.indices.clear();
         for (i, n) in columns.names().iter().enumerate() {
-            if kept(n) {
+            if compared(n, columns) {
                 self.names.push(n.clone());
                 self.indices.push(i);
             }
