@@ -64,6 +64,7 @@ fn scene(parts: Vec<(String, Body, BodyState)>, law: ContactLaw, gravity: f64) -
         default_law: law,
         pair_laws: Vec::new(),
         margin: 1e-6,
+        joints: Vec::new(),
     }
 }
 
