@@ -13,7 +13,7 @@ fn every_rigid_example_passes_its_check() {
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
         .collect();
     specs.sort();
-    assert_eq!(specs.len(), 5, "{specs:?}");
+    assert_eq!(specs.len(), 6, "{specs:?}");
     let out = Command::new(env!("CARGO_BIN_EXE_signorini"))
         .arg("check")
         .args(&specs)
@@ -26,6 +26,6 @@ fn every_rigid_example_passes_its_check() {
         String::from_utf8_lossy(&out.stderr)
     );
     // Every example checks its ledger; none fails a bound.
-    assert_eq!(stdout.matches("max_energy_error").count(), 5, "{stdout}");
+    assert_eq!(stdout.matches("max_energy_error").count(), 6, "{stdout}");
     assert!(!stdout.contains("FAIL"), "{stdout}");
 }

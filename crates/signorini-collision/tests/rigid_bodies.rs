@@ -61,6 +61,7 @@ fn scene(parts: Vec<(String, Body, BodyState)>, friction: f64, restitution: f64)
         },
         pair_laws: Vec::new(),
         margin: 1e-6,
+        joints: Vec::new(),
     }
 }
 
@@ -299,6 +300,7 @@ fn a_free_asymmetric_body_keeps_its_quaternion_unit_its_energy_and_its_angular_m
             },
             pair_laws: Vec::new(),
             margin: 1e-6,
+            joints: Vec::new(),
         };
         simulate(&s, h, 0.5, (5.0 / h).round() as u64)
     };

@@ -114,10 +114,69 @@ fn every_error_names_its_field() {
                 s["model"]["joints"] = json!([{ "kind": "revolute", "bodies": ["arm", "world"] }])
             }),
         ),
+        // Joints are implemented since this case was written: the same joint is now refused
+        // for the anchor it lacks.
         (
-            "model.joints",
+            "model.joints[0].anchor",
             Box::new(|s| {
                 s["model"]["joints"] = json!([{ "kind": "revolute", "bodies": ["ball", "world"] }])
+            }),
+        ),
+        (
+            "model.joints[0].axis",
+            Box::new(|s| {
+                s["model"]["joints"] = json!([{ "kind": "revolute", "bodies": ["ball", "world"],
+                                                "anchor": [0.0, 0.0, 1.0], "axis": [0.0, 2.0, 0.0] }])
+            }),
+        ),
+        (
+            "model.joints[0].axis",
+            Box::new(|s| {
+                s["model"]["joints"] = json!([{ "kind": "revolute", "bodies": ["ball", "block"],
+                                                "anchor": [0.0, 0.0, 1.0] }])
+            }),
+        ),
+        (
+            "model.joints[0].axis",
+            Box::new(|s| {
+                s["model"]["joints"] = json!([{ "kind": "spherical", "bodies": ["ball", "block"],
+                                                "anchor": [0.0, 0.0, 1.0], "axis": [0.0, 1.0, 0.0] }])
+            }),
+        ),
+        (
+            "model.joints[0].bodies",
+            Box::new(|s| {
+                s["model"]["joints"] = json!([{ "kind": "spherical", "bodies": ["ball", "ball"],
+                                                "anchor": [0.0, 0.0, 1.0] }])
+            }),
+        ),
+        (
+            "model.joints[0].bodies",
+            Box::new(|s| {
+                s["model"]["joints"] = json!([{ "kind": "spherical", "bodies": ["floor", "world"],
+                                                "anchor": [0.0, 0.0, 1.0] }])
+            }),
+        ),
+        (
+            "model.joints[1].bodies[1]",
+            Box::new(|s| {
+                s["model"]["joints"] = json!([
+                    { "kind": "spherical", "bodies": ["ball", "world"], "anchor": [0.0, 0.0, 1.0] },
+                    { "kind": "spherical", "bodies": ["ball", "blok"], "anchor": [0.0, 0.0, 1.0] }])
+            }),
+        ),
+        (
+            "model.joints[0].kind",
+            Box::new(|s| {
+                s["model"]["joints"] = json!([{ "kind": "prismatic", "bodies": ["ball", "world"],
+                                                "anchor": [0.0, 0.0, 1.0], "axis": [0.0, 1.0, 0.0] }])
+            }),
+        ),
+        (
+            "model.joints[0].kind",
+            Box::new(|s| {
+                s["model"]["joints"] = json!([{ "kind": "hinge", "bodies": ["ball", "world"],
+                                                "anchor": [0.0, 0.0, 1.0] }])
             }),
         ),
         (

@@ -169,7 +169,8 @@ pub(crate) fn contact_natural_map(mu: f64, r: [f64; 3], u: [f64; 3]) -> [f64; 3]
 /// Euclidean projection on `K_μ = {(n, t) : ‖t‖ ≤ μ n}` (μ = 0: the half-line t = 0, n ≥ 0).
 pub(crate) fn project_cone(mu: f64, [n, t1, t2]: [f64; 3]) -> [f64; 3] {
     let t = t1.hypot(t2);
-    if t <= mu * n {
+    // n ≥ 0 too: for μ = 0 and t = 0, `t ≤ μ n` holds for a negative n as well (0 ≤ −0).
+    if t <= mu * n && n >= 0.0 {
         [n, t1, t2]
     } else if mu * t <= -n {
         // In the polar cone {μ‖t‖ ≤ −n}.
@@ -376,6 +377,18 @@ mod tests {
             prop_assert!((d[0] * y[0] + d[1] * y[1] + d[2] * y[2]).abs() <= 1e-10);
             prop_assert!(mu * d[1].hypot(d[2]) <= -d[0] + 1e-10);
         }
+    }
+
+    #[test]
+    fn frictionless_projection_of_a_pure_negative_normal_is_zero() {
+        // Regression (issue 29, Newton's cradle): with μ = 0 and no tangential part, a negative
+        // normal lies in the polar cone; `0 ≤ μ n` read −0 as ≥ 0 and returned it unprojected.
+        assert_eq!(project_cone(0.0, [-2.0, 0.0, 0.0]), [0.0, 0.0, 0.0]);
+        assert_eq!(project_cone(0.0, [2.0, 0.0, 0.0]), [2.0, 0.0, 0.0]);
+        assert_eq!(
+            contact_natural_map(0.0, [0.0; 3], [2.0, 0.0, 0.0]),
+            [0.0; 3]
+        );
     }
 
     #[test]

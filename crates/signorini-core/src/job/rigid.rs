@@ -119,6 +119,6 @@ impl RigidJob {
 
     /// Columns per record (bodies' 13, the energy columns, step and t).
     pub(super) fn columns(&self) -> usize {
-        crate::rigid::rigid_columns(&self.scene.names).len() + 2
+        crate::rigid::rigid_columns(&self.scene).len() + 2
     }
 }

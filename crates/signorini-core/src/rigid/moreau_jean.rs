@@ -77,11 +77,12 @@
 
 use super::body::{BodyState, Pose};
 use super::detector::{ContactDetector, ContactPoint, DetectError};
+use super::joint::{InverseMass, JointRow, add_joint_impulse, joint_operator, project};
 use super::scene::RigidScene;
 use crate::friction::{
     BlockCsr, Fc3dError, Fc3dOptions, Fc3dProblem, solve_fc3d, split_tangential_work,
 };
-use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Quaternion, UnitQuaternion, Vector3};
 use thiserror::Error;
 
 /// Parameters of the scheme.
@@ -98,6 +99,11 @@ pub struct RigidMoreauJeanParams {
     pub newton_max_iterations: usize,
     /// The FC3D solver's settings.
     pub fc3d: Fc3dOptions,
+    /// max|φ| of the joints (m, or dimensionless for an axis row) at which the projection after
+    /// a step stops, > 0 (default 1e-12).
+    pub projection_tolerance: f64,
+    /// Projection iterates per step at most (default 20; quadratic convergence needs 2–3).
+    pub projection_max_iterations: usize,
 }
 
 impl Default for RigidMoreauJeanParams {
@@ -111,6 +117,8 @@ impl Default for RigidMoreauJeanParams {
                 tolerance: 1e-12,
                 ..Fc3dOptions::default()
             },
+            projection_tolerance: 1e-12,
+            projection_max_iterations: 20,
         }
     }
 }
@@ -191,6 +199,11 @@ pub struct StepReport {
     pub friction_iterations: usize,
     /// The FC3D error of the last solve (0 without contact).
     pub friction_error: f64,
+    /// Σ_j Λ_j (J (v, Ω)_{k+θ})_j: the work of the joints' impulses (zero for exact joints;
+    /// here the scheme's O(h²) per step, see the module documentation).
+    pub work_joint: f64,
+    /// max|φ| of the joints after the step's projection (0 without joints).
+    pub position_residual: f64,
 }
 
 /// One active contact: its bodies' Jacobian blocks and its start velocity.
@@ -339,6 +352,12 @@ impl RigidMoreauJean {
         }
 
         let start: Vec<BodyState> = state.to_vec();
+        // The joints' velocity rows at the poses of t_k (constant over the Newton iterates).
+        let mut joint_rows = Vec::new();
+        for joint in &scene.joints {
+            joint.jacobian(&start, &mut joint_rows);
+        }
+        let mut lambda = DVector::zeros(joint_rows.len());
         let mut v_next: Vec<V3> = start.iter().map(|s| v3(s.velocity)).collect();
         let mut w_next: Vec<V3> = start.iter().map(|s| v3(s.angular_velocity)).collect();
         let mut j_inv = vec![Matrix3::<f64>::identity(); n];
@@ -370,9 +389,27 @@ impl RigidMoreauJean {
                 w_free[b] = w_next[b] - j_inv[b] * r_free;
                 v_free[b] = v3(start[b].velocity) + h * gravity;
             }
+            let inverse_mass: Vec<InverseMass> = scene
+                .bodies
+                .iter()
+                .zip(&j_inv)
+                .map(|(body, j)| InverseMass {
+                    linear: if body.fixed { 0.0 } else { 1.0 / body.mass },
+                    angular: *j,
+                })
+                .collect();
+            let condensed = (!joint_rows.is_empty())
+                .then(|| Condensed::new(joint_rows.clone(), &inverse_mass, &v_free, &w_free));
             if m > 0 {
                 let solution = self
-                    .friction_problem(scene, active, &adjacency, &j_inv, &v_free, &w_free)
+                    .friction_problem(
+                        scene,
+                        active,
+                        &adjacency,
+                        &j_inv,
+                        (&v_free, &w_free),
+                        condensed.as_ref(),
+                    )
                     .and_then(|problem| solve_fc3d(&problem, &self.params.fc3d))
                     .map_err(|source| RigidStepError::Friction {
                         step,
@@ -384,13 +421,27 @@ impl RigidMoreauJean {
                 report.friction_error = solution.error;
                 impulse = solution.r;
             }
-            // (v, Ω)^{i+1} = free + M⁻¹ Gᵀ P, and the residual of (1b) there.
+            // (v, Ω)^{i+1} = free + M⁻¹ (Gᵀ P + Jᵀ Λ), Λ = −A⁺ J (free + M⁻¹ Gᵀ P), and the
+            // residual of (1b) there.
+            let mut total: Vec<(V3, V3)> = (0..n)
+                .map(|b| generalized_impulse(&adjacency[b], active, &impulse))
+                .collect();
+            if let Some(c) = &condensed {
+                let twist: Vec<(V3, V3)> = (0..n)
+                    .map(|b| {
+                        let (dv, dw) = (inverse_mass[b].linear * total[b].0, j_inv[b] * total[b].1);
+                        (v_free[b] + dv, w_free[b] + dw)
+                    })
+                    .collect();
+                lambda = c.multipliers(&twist);
+                add_joint_impulse(&c.rows, &lambda, &mut total);
+            }
             let mut worst: f64 = 0.0;
             for (b, body) in scene.bodies.iter().enumerate() {
                 if body.fixed {
                     continue;
                 }
-                let (lin, ang) = generalized_impulse(&adjacency[b], active, &impulse);
+                let (lin, ang) = total[b];
                 v_next[b] = v_free[b] + lin / body.mass;
                 w_next[b] = w_free[b] + j_inv[b] * ang;
                 let inertia = Matrix3::from_diagonal(&v3(body.inertia));
@@ -433,6 +484,9 @@ impl RigidMoreauJean {
             t,
         )?;
         scratch.impulse = impulse;
+        if !joint_rows.is_empty() {
+            self.finish_joints(scene, &start, &joint_rows, &lambda, state, &mut report);
+        }
         scratch.found_valid = false;
         scratch
             .detect(scene, state, detector)
@@ -525,6 +579,56 @@ impl RigidMoreauJean {
         Ok(())
     }
 
+    /// The joints' end of a step: the work of their impulses on (v, Ω)_{k+θ}, then the
+    /// projection of the poses onto φ = 0 ([`super::joint`]) and its residual.
+    fn finish_joints(
+        &self,
+        scene: &RigidScene,
+        start: &[BodyState],
+        rows: &[JointRow],
+        lambda: &DVector<f64>,
+        state: &mut [BodyState],
+        report: &mut StepReport,
+    ) {
+        let theta = self.params.theta;
+        let twist: Vec<(V3, V3)> = start
+            .iter()
+            .zip(state.iter())
+            .map(|(a, b)| {
+                let mix = |x: [f64; 3], y: [f64; 3]| (1.0 - theta) * v3(x) + theta * v3(y);
+                (
+                    mix(a.velocity, b.velocity),
+                    mix(a.angular_velocity, b.angular_velocity),
+                )
+            })
+            .collect();
+        report.work_joint = rows
+            .iter()
+            .enumerate()
+            .map(|(j, r)| lambda[j] * r.velocity(&twist))
+            .sum();
+        let inverse_mass: Vec<InverseMass> = scene
+            .bodies
+            .iter()
+            .map(|b| InverseMass {
+                linear: if b.fixed { 0.0 } else { 1.0 / b.mass },
+                angular: if b.fixed {
+                    Matrix3::zeros()
+                } else {
+                    Matrix3::from_diagonal(&v3(b.inertia.map(|i| 1.0 / i)))
+                },
+            })
+            .collect();
+        report.position_residual = project(
+            &scene.joints,
+            &inverse_mass,
+            state,
+            self.params.projection_tolerance,
+            self.params.projection_max_iterations,
+        )
+        .residual;
+    }
+
     /// The index set of the contact points found at t_k: predicted gap g + γ h U_{n,k} ≤ margin.
     fn index_set(&self, scene: &RigidScene, state: &[BodyState], scratch: &mut RigidScratch) {
         scratch.active.clear();
@@ -554,15 +658,16 @@ impl RigidMoreauJean {
     }
 
     /// W = Σ_s G_{c,s} M_s⁻¹ G_{d,s}ᵀ over the bodies contacts c and d share, and
-    /// q = G (v, Ω)_free + (e U_{n,k}, 0, 0).
+    /// q = G (v, Ω)_free + (e U_{n,k}, 0, 0); with joints, condensed ([`Condensed`]):
+    /// W − C A⁺ Cᵀ and q at the free velocity that satisfies the joints.
     fn friction_problem(
         &self,
         scene: &RigidScene,
         active: &[ActiveContact],
         adjacency: &[Vec<(usize, usize)>],
         j_inv: &[Matrix3<f64>],
-        v_free: &[V3],
-        w_free: &[V3],
+        (v_free, w_free): (&[V3], &[V3]),
+        condensed: Option<&Condensed>,
     ) -> Result<Fc3dProblem, Fc3dError> {
         let m = active.len();
         let mut entries = Vec::new();
@@ -592,7 +697,11 @@ impl RigidMoreauJean {
                 }
             }
         }
-        let free: Vec<(V3, V3)> = v_free.iter().copied().zip(w_free.iter().copied()).collect();
+        let mut free: Vec<(V3, V3)> = v_free.iter().copied().zip(w_free.iter().copied()).collect();
+        if let Some(c) = condensed {
+            free = c.free.clone();
+            c.add_delassus_correction(active, &mut entries);
+        }
         let mut q = Vec::with_capacity(3 * m);
         let mut mu = Vec::with_capacity(m);
         for contact in active {
@@ -602,6 +711,124 @@ impl RigidMoreauJean {
         }
         let w = BlockCsr::from_triplets(3, 3 * m, entries)?;
         Ok(Fc3dProblem { w, q, mu })
+    }
+}
+
+/// The joints condensed out of a Newton iterate's one-step problem: with the joint rows J at
+/// t_k, A = J M⁻¹ Jᵀ (M⁻¹ = diag(m⁻¹, J_Ω⁻¹) of the iterate) and its pseudo-inverse A⁺, the
+/// equality J (v, Ω)^{i+1} = 0 is solved exactly for the joints' impulse Λ given the contacts':
+///
+/// ```text
+/// Λ = −A⁺ J ((v, Ω)_free + M⁻¹ Gᵀ P)
+/// ```
+///
+/// and substituting it leaves the contacts' FC3D problem on the condensed Delassus operator and
+/// free velocity (a Schur complement; the equality blocks of Siconos' GenericMechanical problem
+/// solved by their own diagonal block, here once and for all):
+///
+/// ```text
+/// W' = W − C A⁺ Cᵀ,   C = G M⁻¹ Jᵀ,   q' = G (free + M⁻¹ Jᵀ Λ₀) + (e U_{n,k}, 0, 0),   Λ₀ = −A⁺ J free
+/// ```
+struct Condensed {
+    rows: Vec<JointRow>,
+    /// A⁺.
+    a_plus: DMatrix<f64>,
+    /// M⁻¹ J_jᵀ per row j: the (body, v, Ω) it moves.
+    moved: Vec<Vec<(usize, V3, V3)>>,
+    /// free + M⁻¹ Jᵀ Λ₀ per body.
+    free: Vec<(V3, V3)>,
+}
+
+impl Condensed {
+    fn new(
+        rows: Vec<JointRow>,
+        inverse_mass: &[InverseMass],
+        v_free: &[V3],
+        w_free: &[V3],
+    ) -> Self {
+        let a_plus = joint_operator(&rows, inverse_mass);
+        let moved: Vec<Vec<(usize, V3, V3)>> = rows
+            .iter()
+            .map(|r| {
+                r.sides
+                    .iter()
+                    .flatten()
+                    .map(|(b, row)| {
+                        let (v, w) = inverse_mass[*b].twist(row);
+                        (*b, v, w)
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut free: Vec<(V3, V3)> = v_free.iter().copied().zip(w_free.iter().copied()).collect();
+        let lambda0 =
+            -(&a_plus * DVector::from_iterator(rows.len(), rows.iter().map(|r| r.velocity(&free))));
+        for (j, m) in moved.iter().enumerate() {
+            for (b, v, w) in m {
+                free[*b].0 += lambda0[j] * v;
+                free[*b].1 += lambda0[j] * w;
+            }
+        }
+        Self {
+            rows,
+            a_plus,
+            moved,
+            free,
+        }
+    }
+
+    /// Λ = −A⁺ J (v, Ω) for the twist free + M⁻¹ Gᵀ P.
+    fn multipliers(&self, twist: &[(V3, V3)]) -> DVector<f64> {
+        let jv =
+            DVector::from_iterator(self.rows.len(), self.rows.iter().map(|r| r.velocity(twist)));
+        -(&self.a_plus * jv)
+    }
+
+    /// Appends the entries of −C A⁺ Cᵀ to W's triplets (only contacts on jointed bodies have a
+    /// row of C).
+    fn add_delassus_correction(
+        &self,
+        active: &[ActiveContact],
+        entries: &mut Vec<(usize, usize, f64)>,
+    ) {
+        let nj = self.rows.len();
+        let mut coupled: Vec<(usize, DMatrix<f64>)> = Vec::new();
+        for (c, contact) in active.iter().enumerate() {
+            let mut block = DMatrix::zeros(3, nj);
+            let mut any = false;
+            for (b, g) in contact.sides.iter().flatten() {
+                for (j, m) in self.moved.iter().enumerate() {
+                    for (body, v, w) in m {
+                        if body != b {
+                            continue;
+                        }
+                        any = true;
+                        for (i, row) in g.iter().enumerate() {
+                            block[(i, j)] += row[0] * v.x
+                                + row[1] * v.y
+                                + row[2] * v.z
+                                + row[3] * w.x
+                                + row[4] * w.y
+                                + row[5] * w.z;
+                        }
+                    }
+                }
+            }
+            if any {
+                coupled.push((c, block));
+            }
+        }
+        for (c, cc) in &coupled {
+            let left = cc * &self.a_plus;
+            for (d, cd) in &coupled {
+                let product = &left * cd.transpose();
+                for i in 0..3 {
+                    for k in 0..3 {
+                        entries.push((3 * c + i, 3 * d + k, -product[(i, k)]));
+                    }
+                }
+            }
+        }
     }
 }
 

@@ -1,8 +1,9 @@
 //! A validated scene of rigid bodies: the bodies with their names and initial states, gravity,
 //! and the contact law of every pair (restitution e and friction μ, a default and per-pair
-//! overrides), with the detection margin.
+//! overrides), with the detection margin, and the joints.
 
 use super::body::{Body, BodyState};
+use super::joint::Joint;
 
 /// Newton's restitution e ∈ [0, 1] and Coulomb's μ ≥ 0 of a pair of bodies.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -31,6 +32,8 @@ pub struct RigidScene {
     /// Contacts of gap ≤ margin are found, and enter the index set when their predicted gap
     /// is ≤ margin (≥ 0).
     pub margin: f64,
+    /// Bilateral joints between bodies or to the ground (may be empty).
+    pub joints: Vec<Joint>,
 }
 
 impl RigidScene {

@@ -46,14 +46,26 @@ pub const CONTACT_COLUMNS: [&str; 17] = [
     "px", "py", "pz",
 ];
 
-/// The columns of a run: `NAME_x … NAME_wz` per body, then [`ENERGY_COLUMNS`].
-pub fn rigid_columns(names: &[String]) -> Columns {
-    let bodies = names
+/// The columns a scene with joints adds after [`ENERGY_COLUMNS`]: the work of the joints'
+/// impulses on (v, Ω)_{k+θ} over the step (part of `energy_error`, which keeps the definition of
+/// §18), and max|φ| of the joints after the step's projection.
+pub const JOINT_COLUMNS: [&str; 2] = ["work_joint", "position_residual"];
+
+/// The columns of a run: `NAME_x … NAME_wz` per body, then [`ENERGY_COLUMNS`], then
+/// [`JOINT_COLUMNS`] when the scene has joints.
+pub fn rigid_columns(scene: &RigidScene) -> Columns {
+    let bodies = scene
+        .names
         .iter()
         .flat_map(|n| BODY_COLUMNS.iter().map(move |c| format!("{n}_{c}")));
+    let joints: &[&str] = if scene.joints.is_empty() {
+        &[]
+    } else {
+        &JOINT_COLUMNS
+    };
     Columns::new(
         bodies
-            .chain(ENERGY_COLUMNS.iter().map(|c| c.to_string()))
+            .chain(ENERGY_COLUMNS.iter().chain(joints).map(|c| c.to_string()))
             .collect(),
     )
 }
@@ -198,7 +210,7 @@ impl TimeStepping for RigidStepping<'_> {
     const RUN: RunKind = RunKind::Rigid;
 
     fn columns(&self) -> Columns {
-        rigid_columns(&self.scene.names)
+        rigid_columns(self.scene)
     }
 
     fn total_steps(&self) -> u64 {
@@ -325,6 +337,9 @@ impl TimeStepping for RigidStepping<'_> {
             s.work_contact_total,
             s.work_friction_total,
         ]);
+        if !self.scene.joints.is_empty() {
+            row.extend([report.work_joint, report.position_residual]);
+        }
         Ok(())
     }
 

@@ -4,7 +4,9 @@
 //! (`model.bodies[2].shape.radius`).
 
 use super::SpecError;
-use crate::rigid::{Body, BodyState, ContactLaw, RigidScene, Shape};
+use crate::rigid::{
+    Body, BodyState, ContactLaw, Joint, JointKind, JointSide, RigidScene, Shape, tangent_basis,
+};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -21,8 +23,8 @@ pub struct RigidBodiesSpec {
     pub contact: RigidContactSpec,
     /// The bodies (at least one free).
     pub bodies: Vec<RigidBodySpec>,
-    /// Joints between bodies or to `world` (spherical, revolute, prismatic, fixed): not
-    /// implemented yet; a spec with joints is refused naming `model.joints`.
+    /// Joints between bodies or to `world`: `spherical` and `revolute` (`prismatic` and
+    /// `fixed` are refused naming `model.joints[j].kind`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub joints: Vec<RigidJointSpec>,
 }
@@ -164,18 +166,20 @@ pub enum ShapeSpec {
     },
 }
 
-/// `[[model.joints]]` (not implemented yet: refused).
+/// `[[model.joints]]`: a bilateral joint between two bodies, or a body and `world` (a fixed
+/// body counts as the ground).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct RigidJointSpec {
-    /// `spherical`, `revolute`, `prismatic` or `fixed`.
+    /// `spherical` (the anchor points of both bodies coincide) or `revolute` (and the axis
+    /// stays a common axis: a hinge); `prismatic` and `fixed` are not implemented.
     pub kind: String,
-    /// The two bodies (`world` for the ground).
+    /// The two bodies (`world` for the ground), different.
     pub bodies: [String; 2],
-    /// Anchor point (world frame at t = 0).
+    /// Anchor point (world frame at t = 0), required.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub anchor: Option<[f64; 3]>,
-    /// Axis (world frame at t = 0).
+    /// Hinge axis (world frame at t = 0, unit): required by `revolute`, refused by `spherical`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub axis: Option<[f64; 3]>,
 }
@@ -436,18 +440,21 @@ impl RigidBodiesSpec {
             };
             pair_laws.push(([a, b], law));
         }
+        let mut joints = Vec::new();
         for (j, joint) in self.joints.iter().enumerate() {
-            for (s, name) in joint.bodies.iter().enumerate() {
-                if name != "world" {
-                    index(format!("model.joints[{j}].bodies[{s}]"), name)?;
-                }
-            }
-        }
-        if !self.joints.is_empty() {
-            return Err(SpecError::new(
-                "model.joints",
-                "joints between rigid bodies are not implemented yet",
-            ));
+            let sides = joint
+                .bodies
+                .iter()
+                .enumerate()
+                .map(|(s, name)| {
+                    if name == "world" {
+                        Ok(None)
+                    } else {
+                        index(format!("model.joints[{j}].bodies[{s}]"), name).map(Some)
+                    }
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            joints.push(joint.joint(j, [sides[0], sides[1]], &bodies, &initial)?);
         }
         Ok(RigidScene {
             names,
@@ -457,6 +464,116 @@ impl RigidBodiesSpec {
             default_law,
             pair_laws,
             margin,
+            joints,
+        })
+    }
+}
+
+impl RigidJointSpec {
+    /// The joint `model.joints[j]` between the bodies of `sides` (`None`: world), its anchor and
+    /// axis taken into each side's frame at t = 0.
+    fn joint(
+        &self,
+        j: usize,
+        sides: [Option<usize>; 2],
+        bodies: &[Body],
+        initial: &[BodyState],
+    ) -> Result<Joint, SpecError> {
+        let f = |name: &str| format!("model.joints[{j}].{name}");
+        let kind = match self.kind.as_str() {
+            "spherical" => JointKind::Spherical,
+            "revolute" => JointKind::Revolute,
+            "prismatic" | "fixed" => {
+                return Err(SpecError::new(
+                    f("kind"),
+                    format!(
+                        "`{}` joints are not implemented: spherical and revolute are",
+                        self.kind
+                    ),
+                ));
+            }
+            other => {
+                return Err(SpecError::new(
+                    f("kind"),
+                    format!("unknown joint kind `{other}`: spherical or revolute"),
+                ));
+            }
+        };
+        if sides[0] == sides[1] {
+            let reason = match sides[0] {
+                Some(_) => format!("a body jointed to itself (`{}`)", self.bodies[0]),
+                None => "both sides are `world`".to_string(),
+            };
+            return Err(SpecError::new(f("bodies"), reason));
+        }
+        // A fixed body is the ground, as the world is.
+        let free = sides.map(|s| s.filter(|&b| !bodies[b].fixed));
+        if free.iter().all(Option::is_none) {
+            return Err(SpecError::new(
+                f("bodies"),
+                "both sides are fixed: the joint constrains nothing",
+            ));
+        }
+        let anchor = self.anchor.ok_or_else(|| {
+            SpecError::new(f("anchor"), "required: the joint's point (world, at t = 0)")
+        })?;
+        finite_vec(&f("anchor"), &anchor)?;
+        let to_local = |s: usize, p: Vector3<f64>, point: bool| -> [f64; 3] {
+            match free[s] {
+                Some(b) => {
+                    let st = &initial[b];
+                    let q = st.rotation();
+                    let origin = if point {
+                        Vector3::from(st.position)
+                    } else {
+                        Vector3::zeros()
+                    };
+                    let l = q.inverse() * (p - origin);
+                    [l.x, l.y, l.z]
+                }
+                None => [p.x, p.y, p.z],
+            }
+        };
+        let anchor_v = Vector3::from(anchor);
+        let joint_sides = [0, 1].map(|s| match free[s] {
+            Some(body) => JointSide::Body {
+                body,
+                anchor: to_local(s, anchor_v, true),
+            },
+            None => JointSide::Ground { anchor },
+        });
+        let (axis, perpendicular) = match (kind, self.axis) {
+            (JointKind::Spherical, Some(_)) => {
+                return Err(SpecError::new(
+                    f("axis"),
+                    "a spherical joint has no axis: leave it out",
+                ));
+            }
+            (JointKind::Spherical, None) => ([0.0; 3], [[0.0; 3]; 2]),
+            (JointKind::Revolute, None) => {
+                return Err(SpecError::new(
+                    f("axis"),
+                    "required by a revolute joint (world, at t = 0, unit)",
+                ));
+            }
+            (JointKind::Revolute, Some(axis)) => {
+                let norm = unit(&f("axis"), &axis)?;
+                let axis = axis.map(|x| x / norm);
+                let [t1, t2] = tangent_basis(axis);
+                (
+                    to_local(0, Vector3::from(axis), false),
+                    [
+                        to_local(1, Vector3::from(t1), false),
+                        to_local(1, Vector3::from(t2), false),
+                    ],
+                )
+            }
+        };
+        Ok(Joint {
+            kind,
+            sides: joint_sides,
+            axis,
+            perpendicular,
         })
     }
 }
