@@ -14,7 +14,10 @@ pub mod stepping;
 pub use body::{Body, BodyState, Pose, Shape};
 pub use detector::{ContactDetector, ContactPoint, DetectError, DetectorFactory, tangent_basis};
 pub use joint::{Joint, JointKind, JointSide};
-pub use moreau_jean::{RigidMoreauJean, RigidMoreauJeanParams, RigidStepError, StepReport};
+pub use moreau_jean::{
+    RigidMoreauJean, RigidMoreauJeanParams, RigidScratch, RigidStepError, StepPhase, StepPhases,
+    StepReport,
+};
 pub use scene::{ContactLaw, RigidScene};
 pub use stepping::{
     CONTACT_COLUMNS, RigidMemory, RigidRunError, RigidRunStats, RigidStepping, rigid_columns,

@@ -85,6 +85,32 @@ use crate::friction::{
 use nalgebra::{DMatrix, DVector, Matrix3, Quaternion, UnitQuaternion, Vector3};
 use thiserror::Error;
 
+/// The phases of a step, in the order Siconos' `TimeStepping` names them: contact detection,
+/// assembly of the one-step problem (index set, Delassus operator, free local velocity), its
+/// solution (FC3D), and the update (free velocities, Newton iterates, (1c), the joints).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StepPhase {
+    /// Collision detection at the current poses.
+    Detection,
+    /// Index set and the one-step problem's W and q.
+    Assembly,
+    /// The FC3D solve.
+    Solve,
+    /// Free state, velocity and pose updates.
+    Update,
+}
+
+/// Told when each phase of a step starts (a benchmark times them; the core has no clock).
+pub trait StepPhases {
+    /// Phase `phase` starts now.
+    fn enter(&mut self, phase: StepPhase);
+}
+
+/// No one listening.
+impl StepPhases for () {
+    fn enter(&mut self, _phase: StepPhase) {}
+}
+
 /// Parameters of the scheme.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RigidMoreauJeanParams {
@@ -331,10 +357,26 @@ impl RigidMoreauJean {
         step: u64,
         t: f64,
     ) -> Result<StepReport, RigidStepError> {
+        self.step_in_phases(scene, state, detector, scratch, (step, t), &mut ())
+    }
+
+    /// [`Self::step`], telling `phases` when each phase of it starts (a benchmark's clock; the
+    /// core keeps none).
+    pub fn step_in_phases(
+        &self,
+        scene: &RigidScene,
+        state: &mut [BodyState],
+        detector: &mut dyn ContactDetector,
+        scratch: &mut RigidScratch,
+        (step, t): (u64, f64),
+        phases: &mut dyn StepPhases,
+    ) -> Result<StepReport, RigidStepError> {
         let (h, theta) = (self.h, self.params.theta);
+        phases.enter(StepPhase::Detection);
         scratch
             .detect(scene, state, detector)
             .map_err(|source| RigidStepError::Detect { step, t, source })?;
+        phases.enter(StepPhase::Assembly);
         self.index_set(scene, state, scratch);
         let active = &scratch.active;
         let m = active.len();
@@ -370,6 +412,7 @@ impl RigidMoreauJean {
         };
         let mut residual = f64::INFINITY;
         for iterate in 1..=self.params.newton_max_iterations {
+            phases.enter(StepPhase::Update);
             report.newton_iterations = iterate;
             for (b, body) in scene.bodies.iter().enumerate() {
                 if body.fixed {
@@ -401,15 +444,17 @@ impl RigidMoreauJean {
             let condensed = (!joint_rows.is_empty())
                 .then(|| Condensed::new(joint_rows.clone(), &inverse_mass, &v_free, &w_free));
             if m > 0 {
-                let solution = self
-                    .friction_problem(
-                        scene,
-                        active,
-                        &adjacency,
-                        &j_inv,
-                        (&v_free, &w_free),
-                        condensed.as_ref(),
-                    )
+                phases.enter(StepPhase::Assembly);
+                let problem = self.friction_problem(
+                    scene,
+                    active,
+                    &adjacency,
+                    &j_inv,
+                    (&v_free, &w_free),
+                    condensed.as_ref(),
+                );
+                phases.enter(StepPhase::Solve);
+                let solution = problem
                     .and_then(|problem| solve_fc3d(&problem, &self.params.fc3d))
                     .map_err(|source| RigidStepError::Friction {
                         step,
@@ -417,6 +462,7 @@ impl RigidMoreauJean {
                         contacts: m,
                         source,
                     })?;
+                phases.enter(StepPhase::Update);
                 report.friction_iterations += solution.iterations;
                 report.friction_error = solution.error;
                 impulse = solution.r;
@@ -488,6 +534,7 @@ impl RigidMoreauJean {
             self.finish_joints(scene, &start, &joint_rows, &lambda, state, &mut report);
         }
         scratch.found_valid = false;
+        phases.enter(StepPhase::Detection);
         scratch
             .detect(scene, state, detector)
             .map_err(|source| RigidStepError::Detect {
