@@ -1,4 +1,4 @@
-//! The ParaView files of a rigid run (`output.vtk = true`, DESIGN §18): per recorded step, the
+//! The ParaView files of a rigid run (`output.vtk = true`): per recorded step, the
 //! bodies' surfaces at their poses and the contact points with their impulses, as VTK XML
 //! PolyData (`.vtp`), and one `.pvd` collection per series giving each file its time.
 //!

@@ -181,7 +181,7 @@ rho_inf = 0.2
     );
 }
 
-/// The IFToMM benchmarks of `examples/benchmarks/` (DESIGN §16) pass their `[check]` bounds:
+/// The IFToMM benchmarks of `examples/benchmarks/` (docs/soi2.md) pass their `[check]` bounds:
 /// the reference values of A01 (elliptic functions) and A02 (its parallelogram motion), the
 /// joints on the manifold and the energy, A04 with its redundant joint; one line per bound.
 #[test]
@@ -203,4 +203,23 @@ fn the_multibody_benchmarks_pass_their_checks() {
     );
     assert!(stdout.contains("reference y_0 at t = 10"), "{stdout}");
     assert_eq!(junit_counts(&junit), (17, 0, 0));
+}
+
+/// IFToMM A03, Andrews' squeezing mechanism (`examples/benchmarks/a03_andrews.toml`), passes its
+/// `[check]`: the seven angles at t = 0.03 within 1e-4 rad of the Test Set for IVP solvers'
+/// reference at h = 1e-5, the joints on the manifold; one PASS line per bound.
+#[test]
+fn andrews_mechanism_passes_its_check() {
+    let dir = tempfile::tempdir().unwrap();
+    let junit = dir.path().join("report.xml");
+    let out = check(&[example("benchmarks/a03_andrews.toml")], &junit);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "stdout: {stdout}");
+    // 1 bound + 7 reference values.
+    assert_eq!(
+        stdout.lines().filter(|l| l.starts_with("PASS ")).count(),
+        8,
+        "{stdout}"
+    );
+    assert_eq!(junit_counts(&junit), (8, 0, 0));
 }

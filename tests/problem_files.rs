@@ -225,7 +225,7 @@ fn bad_files_are_errors_naming_the_file() {
 }
 
 /// `signorini solve --json` on the fixtures: every problem that Siconos' NSGS solved at 1e-10
-/// is solved by `auto` at 1e-8, with one JSON line of DESIGN §17's fields each, and
+/// is solved by `auto` at 1e-8, with one JSON line of the fields of docs/friction_benchmark.md each, and
 /// `--out` writes FCLib's `/solution` whose r has that error.
 #[test]
 fn solve_command_solves_the_fixtures_and_writes_solutions() {

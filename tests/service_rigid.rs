@@ -1,4 +1,4 @@
-//! A `rigid_bodies` job (DESIGN §18) through the service, as every other model (issue 29, items 4
+//! A `rigid_bodies` job through the service, as every other model (issue 29, items 4
 //! and 6):
 //!
 //! - submitted over HTTP and over gRPC (JSON spec), its result equals `signorini run`'s

@@ -1,4 +1,4 @@
-//! `signorini solve FILE… [--solver S] [--tolerance T] [--out DIR] [--json]` (DESIGN §17): reads
+//! `signorini solve FILE… [--solver S] [--tolerance T] [--out DIR] [--json]` (docs/friction_benchmark.md): reads
 //! one-step friction problems (Siconos `.dat`, FCLib HDF5), solves each with the core's FC3D
 //! solvers (planar problems embedded exactly), prints per problem the contacts, the solver that
 //! answered, iterations, error and time, and with `--out` writes `DIR/NAME.hdf5` (FCLib layout:

@@ -1,4 +1,4 @@
-//! Readers and writers of one-step friction problem files (DESIGN §17): Siconos' text `.dat`
+//! Readers and writers of one-step friction problem files (docs/friction_benchmark.md): Siconos' text `.dat`
 //! files ([`dat`]) and FCLib's HDF5 files ([`fclib`]). The core takes the parsed problem
 //! ([`RawProblem::to_fc3d`]); it never sees a file.
 

@@ -1,4 +1,4 @@
-"""A `rigid_bodies` job (DESIGN §18) through the CLI and the service: `signorini run` with
+"""A `rigid_bodies` job through the CLI and the service: `signorini run` with
 `output.vtk = true` writes VTK files that VTK's own reader (the `vtk` wheel, not our code) opens,
 with every body's surface at the pose steps.csv records and one vertex per contact of the index
 set; and the Python client reads the service's rigid result (poses and the `contacts` table)

@@ -1,4 +1,4 @@
-//! The `contacts` table of a rigid run (`output.contacts = true`, DESIGN §18): a box resting on a
+//! The `contacts` table of a rigid run (`output.contacts = true`): a box resting on a
 //! floor touches it through four corners whose normal impulses carry its weight over each step,
 //! Σ P_n = m g h, and the table's points, normals and world impulses say where and how.
 

@@ -1,4 +1,4 @@
-//! A `rigid_bodies` job through the job API with parry's detectors: the §18 columns, and a run
+//! A `rigid_bodies` job through the job API with parry's detectors: the rigid-body columns, and a run
 //! interrupted and resumed from a checkpoint's bytes equals the uninterrupted run bit for bit.
 
 use signorini_collision::ParryDetectors;

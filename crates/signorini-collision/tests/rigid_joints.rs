@@ -1,4 +1,4 @@
-//! Joints between rigid bodies (issue 29, DESIGN §18 `[[model.joints]]`) through the job API: a
+//! Joints between rigid bodies (issue 29, `[[model.joints]]`) through the job API: a
 //! rigid spherical pendulum against the compound pendulum's period and its energy, and a
 //! revolute trapdoor falling under gravity onto a stop.
 
@@ -78,8 +78,8 @@ fn a_rigid_spherical_pendulum_swings_with_the_compound_pendulum_period() {
 /// of kinetic energy per step to the next step's joint impulse: the energy drift is first order
 /// in h (measured 1.98e-2 and 9.7e-3 of the largest kinetic energy over 2 s at h = 2 ms and
 /// 1 ms). Asserted: the drift halves with h (ratio in [1.8, 2.2]) and is ≤ 1e-2 at 1 ms; the
-/// joint stays at ≤ 1e-12 m and the bob at L from the anchor; and `energy_error` (ΔE − the works
-/// of §18) is exactly the scheme's error: its sum is the drift.
+/// joint stays at ≤ 1e-12 m and the bob at L from the anchor; and `energy_error` (ΔE − work_ext −
+/// work_contact − work_friction) is exactly the scheme's error: its sum is the drift.
 #[test]
 fn a_spherical_pendulum_loses_energy_at_first_order_in_h_and_keeps_its_joint_to_round_off() {
     let mut drifts = Vec::new();

@@ -588,7 +588,7 @@ pub struct Soi2Summary {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub errors: Option<GlobalErrors>,
     /// Steps whose constraint Jacobian had lost rank (singular positions, redundant joints;
-    /// DESIGN §16), solved with minimum-norm multipliers.
+    /// docs/soi2.md), solved with minimum-norm multipliers.
     pub rank_deficient_steps: u64,
     /// The smallest numerical rank of the constraint Jacobian on those steps (absent when none).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -596,7 +596,7 @@ pub struct Soi2Summary {
     /// Attempts rejected for a Newton failure and retried with h/2 (variable-step runs).
     pub rejected_steps: u64,
     /// Steps accepted on Newton's residual test with the constraint Jacobian at full numerical
-    /// rank (next to a singular position; DESIGN §16).
+    /// rank (next to a singular position; docs/soi2.md).
     pub near_singular_steps: u64,
 }
 

@@ -1,4 +1,4 @@
-//! Hard cases of DESIGN §16 (issue 27), on the IFToMM multibody benchmarks written as
+//! Hard cases of issue 27 (docs/soi2.md), on the IFToMM multibody benchmarks written as
 //! `lagrangian` models in `examples/benchmarks/`: the N-four-bar mechanism (A02) through its
 //! singular positions under the three SOI2 schemes and the nonsmooth generalized-α, against
 //! the exact one-degree-of-freedom motion of its parallelogram branch; Andrews' squeezing

@@ -10,7 +10,7 @@
 //! which leaves the LCP `0 ≤ (D_II − D_IB D_BB⁻¹ D_BI) z_I + b_I − D_IB D_BB⁻¹ b_B ⊥ z_I ≥ 0`
 //! for [`super::solve`]. D_BB is factorised by LU when regular; when it is singular because
 //! the equality rows are dependent (joints at a singular position, redundant joints: D_BB =
-//! G M⁻¹ Gᵀ loses the rank G loses, DESIGN §16), D_BB⁻¹ is read as the minimum-norm
+//! G M⁻¹ Gᵀ loses the rank G loses, docs/soi2.md), D_BB⁻¹ is read as the minimum-norm
 //! least-squares solve of the rank-revealing factorisation of [`crate::soi2::factor`], which
 //! gives the minimum-norm z_B (the redundant part of a joint impulse is not determined by the
 //! physics). Nothing else is asked of D beyond what the chosen LCP solver asks of the Schur

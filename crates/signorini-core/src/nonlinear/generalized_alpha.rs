@@ -62,7 +62,7 @@
 //! same s. (Measuring a joint row against |G_j q̈| + |κ_j| instead failed on the regular
 //! two-loop four-bar: on its parallelogram motion both vanish, and the round-off of r_j,
 //! 10⁻¹⁷, was 3 % of that scale at every iterate.) When S is singular because the joints
-//! have lost rank (a singular position, redundant joints: DESIGN §16) the increment is the
+//! have lost rank (a singular position, redundant joints: docs/soi2.md) the increment is the
 //! minimum-norm least-squares one of [`crate::soi2::factor::NewtonFactor`]. The position
 //! stage uses the exact derivative of g(q̃ + M̃⁻¹C̃ᵀν) in ν, C(q^i) M̃⁻¹ C̃ᵀ (quadratic
 //! convergence). The mixed LCPs are plain problems for [`crate::lcp::solve_mixed`], which

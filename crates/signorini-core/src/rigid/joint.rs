@@ -1,4 +1,4 @@
-//! Joints between two rigid bodies, or a body and the world (DESIGN §18 `[[model.joints]]`):
+//! Joints between two rigid bodies, or a body and the world (`[[model.joints]]`):
 //! bilateral holonomic constraints φ(x, q) = 0 on the poses, their velocity rows (the Jacobian
 //! J with J (v, Ω) = φ̇) and the projection of the poses back onto φ = 0 after a step.
 //!
@@ -32,8 +32,8 @@
 //! ```
 //!
 //! repeated until max|φ| ≤ the tolerance, with M⁻¹ = diag(m⁻¹ 1, I⁻¹) per body (ΔΘ in the body
-//! frame) and A⁺ the pseudo-inverse (minimum-norm multipliers when rows are redundant, DESIGN
-//! §16: a rank-deficient J is not an error).
+//! frame) and A⁺ the pseudo-inverse (minimum-norm multipliers when rows are redundant:
+//! a rank-deficient J is not an error).
 
 use super::body::BodyState;
 use nalgebra::{DMatrix, DVector, Matrix3, UnitQuaternion, Vector3};

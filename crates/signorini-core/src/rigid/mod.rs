@@ -1,4 +1,4 @@
-//! Rigid bodies in space (DESIGN §18): bodies with a shape, mass and principal inertia
+//! Rigid bodies in space: bodies with a shape, mass and principal inertia
 //! ([`body`]), a scene of them with the contact law of each pair ([`scene`]), contact detection
 //! behind a trait of our own ([`detector`]), spherical and revolute joints ([`joint`]), the Moreau–Jean time-stepping of Newton–Euler
 //! dynamics with the 3D friction problem per step ([`moreau_jean`]), and its place under the

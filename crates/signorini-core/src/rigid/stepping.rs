@@ -1,4 +1,4 @@
-//! Rigid bodies under [`crate::stepping::run`]: the columns of §18, one step of
+//! Rigid bodies under [`crate::stepping::run`]: the rigid-body columns, one step of
 //! [`RigidMoreauJean`], the record, and the memory a checkpoint holds (the bodies' states and the
 //! running statistics; the contact points and the solver's buffers are scratch, detected again
 //! from the restored poses).
@@ -47,8 +47,8 @@ pub const CONTACT_COLUMNS: [&str; 17] = [
 ];
 
 /// The columns a scene with joints adds after [`ENERGY_COLUMNS`]: the work of the joints'
-/// impulses on (v, Ω)_{k+θ} over the step (part of `energy_error`, which keeps the definition of
-/// §18), and max|φ| of the joints after the step's projection.
+/// impulses on (v, Ω)_{k+θ} over the step (part of `energy_error`, which keeps its definition:
+/// ΔE − work_ext − work_contact − work_friction), and max|φ| of the joints after the step's projection.
 pub const JOINT_COLUMNS: [&str; 2] = ["work_joint", "position_residual"];
 
 /// The columns of a run: `NAME_x … NAME_wz` per body, then [`ENERGY_COLUMNS`], then

@@ -1,4 +1,4 @@
-//! Factorisation of Newton's matrix when the constraint Jacobian may lose rank (DESIGN §16).
+//! Factorisation of Newton's matrix when the constraint Jacobian may lose rank (docs/soi2.md).
 //!
 //! A mechanism at a singular position (the N-four-bar with its rockers horizontal: N rows of
 //! g_y vanish together) or with redundant joints at every configuration (Bricard's mechanism)

@@ -160,7 +160,7 @@ pub struct OutputSpec {
     pub checkpoint_steps: Option<u64>,
     /// `rigid_bodies` only: write the `contacts` table (`contacts.csv`): per recorded step k ≥ 1,
     /// one row per contact of the index set of that step (detected at t_{k−1}) with its bodies,
-    /// point, normal, gap and impulse P_{k} (DESIGN §18). Default false.
+    /// point, normal, gap and impulse P_{k}. Default false.
     #[serde(default, skip_serializing_if = "is_false")]
     pub contacts: bool,
     /// `rigid_bodies` only: `signorini run` writes VTK XML files per recorded step that ParaView

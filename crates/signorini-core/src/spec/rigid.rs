@@ -1,4 +1,4 @@
-//! `scene = "rigid_bodies"` (DESIGN §18): bodies with a shape, mass and inertia, a pose and a
+//! `scene = "rigid_bodies"`: bodies with a shape, mass and inertia, a pose and a
 //! twist, fixed or free, under gravity, with the contact law of every pair. Validation
 //! ([`RigidBodiesSpec::validate`]) builds the [`RigidScene`]; every error names its field
 //! (`model.bodies[2].shape.radius`).

@@ -559,7 +559,7 @@ impl NormAccumulator {
 
 /// Whether a study compares column `name` of a run's `columns`: a `q_j`, `y_j` or `gap_i`, or a
 /// rigid body's position `NAME_x`, `NAME_y`, `NAME_z` (a column `NAME_qw` beside it says that
-/// NAME is a body: DESIGN §18).
+/// NAME is a body).
 fn compared(name: &str, columns: &Columns) -> bool {
     if name.starts_with("q_") || name.starts_with("y_") || name.starts_with("gap_") {
         return true;
