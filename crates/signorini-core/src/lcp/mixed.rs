@@ -185,12 +185,28 @@ mod tests {
         assert_eq!(sol.z, vec![0.5, 0.0]);
     }
 
+    /// Dependent equality rows (a joint written twice: D_BB of rank 1) are not an error: the
+    /// minimum-norm z_B, here z₁ = z₂ = −½ for z₁ + z₂ = −1 written twice. A D_BB that is not
+    /// a number is still refused.
     #[test]
-    fn dependent_equalities_are_refused() {
+    fn dependent_equalities_get_the_minimum_norm_solution() {
         let d = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 1.0, 1.0]);
-        let err = solve_mixed(
+        let sol = solve_mixed(
             MixedLcp {
                 d: &d,
+                b: &[1.0, 1.0],
+                equalities: 2,
+            },
+            &LcpOptions::default(),
+        )
+        .unwrap();
+        for z in &sol.z {
+            assert!((z + 0.5).abs() <= 1e-15, "{:?}", sol.z);
+        }
+        let nan = DMatrix::from_row_slice(2, 2, &[f64::NAN, 1.0, 1.0, 1.0]);
+        let err = solve_mixed(
+            MixedLcp {
+                d: &nan,
                 b: &[1.0, 1.0],
                 equalities: 2,
             },
