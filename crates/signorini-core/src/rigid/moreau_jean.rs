@@ -371,7 +371,7 @@ impl RigidMoreauJean {
         (step, t): (u64, f64),
         phases: &mut dyn StepPhases,
     ) -> Result<StepReport, RigidStepError> {
-        let (h, theta) = (self.h, self.params.theta);
+        let h = self.h;
         phases.enter(StepPhase::Detection);
         scratch
             .detect(scene, state, detector)
@@ -381,17 +381,8 @@ impl RigidMoreauJean {
         let active = &scratch.active;
         let m = active.len();
         let n = state.len();
-        let gravity = v3(scene.gravity);
 
-        // Which contacts touch each free body, with the side.
-        let mut adjacency: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
-        for (c, contact) in active.iter().enumerate() {
-            for (s, side) in contact.sides.iter().enumerate() {
-                if let Some((b, _)) = side {
-                    adjacency[*b].push((c, s));
-                }
-            }
-        }
+        let adjacency = contact_adjacency(active, n);
 
         let start: Vec<BodyState> = state.to_vec();
         // The joints' velocity rows at the poses of t_k (constant over the Newton iterates).
@@ -414,24 +405,13 @@ impl RigidMoreauJean {
         for iterate in 1..=self.params.newton_max_iterations {
             phases.enter(StepPhase::Update);
             report.newton_iterations = iterate;
-            for (b, body) in scene.bodies.iter().enumerate() {
-                if body.fixed {
-                    continue;
-                }
-                let inertia = Matrix3::from_diagonal(&v3(body.inertia));
-                let w_k = v3(start[b].angular_velocity);
-                let w_theta = (1.0 - theta) * w_k + theta * w_next[b];
-                let iw = inertia * w_theta;
-                let jac = inertia + h * theta * (skew(&w_theta) * inertia - skew(&iw));
-                j_inv[b] = jac.try_inverse().ok_or(RigidStepError::SingularIteration {
-                    step,
-                    t,
-                    body: b,
-                })?;
-                let r_free = inertia * (w_next[b] - w_k) + h * w_theta.cross(&iw);
-                w_free[b] = w_next[b] - j_inv[b] * r_free;
-                v_free[b] = v3(start[b].velocity) + h * gravity;
-            }
+            self.free_twists(
+                scene,
+                &start,
+                &w_next,
+                (&mut j_inv, &mut v_free, &mut w_free),
+                (step, t),
+            )?;
             let inverse_mass: Vec<InverseMass> = scene
                 .bodies
                 .iter()
@@ -482,29 +462,13 @@ impl RigidMoreauJean {
                 lambda = c.multipliers(&twist);
                 add_joint_impulse(&c.rows, &lambda, &mut total);
             }
-            let mut worst: f64 = 0.0;
-            for (b, body) in scene.bodies.iter().enumerate() {
-                if body.fixed {
-                    continue;
-                }
-                let (lin, ang) = total[b];
-                v_next[b] = v_free[b] + lin / body.mass;
-                w_next[b] = w_free[b] + j_inv[b] * ang;
-                let inertia = Matrix3::from_diagonal(&v3(body.inertia));
-                let w_k = v3(start[b].angular_velocity);
-                let w_theta = (1.0 - theta) * w_k + theta * w_next[b];
-                let change = inertia * (w_next[b] - w_k);
-                let gyro = h * w_theta.cross(&(inertia * w_theta));
-                let r = change + gyro - ang;
-                // The size of the terms of (1b): the angular momenta, the gyroscopic term and
-                // the impulse (the momenta keep the scale when the others are at round-off).
-                let momentum = (inertia * w_k).amax() + (inertia * w_next[b]).amax();
-                let scale = momentum + gyro.amax() + ang.amax();
-                if r.amax() > 0.0 {
-                    worst = worst.max(r.amax() / scale);
-                }
-            }
-            residual = worst;
+            residual = self.next_twists(
+                scene,
+                &start,
+                &total,
+                (&v_free, &w_free, &j_inv),
+                (&mut v_next, &mut w_next),
+            );
             if residual <= self.params.newton_tolerance {
                 break;
             }
@@ -543,6 +507,76 @@ impl RigidMoreauJean {
                 source,
             })?;
         Ok(report)
+    }
+
+    /// The free twist of each free body at the Newton iterate (v, Ω)^i: v_free = v_k + h g, and
+    /// Ω_free = Ω^i − J⁻¹ r(Ω^i), with r the residual of (1b) without impulses, r(Ω) =
+    /// I (Ω − Ω_k) + h Ω_{k+θ} × I Ω_{k+θ}, and J = I + hθ (Ω_{k+θ}^× I − (I Ω_{k+θ})^×) its
+    /// Jacobian, whose inverse `j_inv` also maps the impulses' moments to Ω.
+    #[allow(clippy::type_complexity)]
+    fn free_twists(
+        &self,
+        scene: &RigidScene,
+        start: &[BodyState],
+        w_next: &[V3],
+        (j_inv, v_free, w_free): (&mut [Matrix3<f64>], &mut [V3], &mut [V3]),
+        (step, t): (u64, f64),
+    ) -> Result<(), RigidStepError> {
+        let (h, theta) = (self.h, self.params.theta);
+        let gravity = v3(scene.gravity);
+        for (b, body) in scene.bodies.iter().enumerate() {
+            if body.fixed {
+                continue;
+            }
+            let inertia = Matrix3::from_diagonal(&v3(body.inertia));
+            let w_k = v3(start[b].angular_velocity);
+            let w_theta = (1.0 - theta) * w_k + theta * w_next[b];
+            let iw = inertia * w_theta;
+            let jac = inertia + h * theta * (skew(&w_theta) * inertia - skew(&iw));
+            j_inv[b] =
+                jac.try_inverse()
+                    .ok_or(RigidStepError::SingularIteration { step, t, body: b })?;
+            let r_free = inertia * (w_next[b] - w_k) + h * w_theta.cross(&iw);
+            w_free[b] = w_next[b] - j_inv[b] * r_free;
+            v_free[b] = v3(start[b].velocity) + h * gravity;
+        }
+        Ok(())
+    }
+
+    /// The next Newton iterate (v, Ω)^{i+1} = free + M⁻¹ (the bodies' total impulses `total`),
+    /// and the largest scaled residual of (1b) there over the free bodies.
+    fn next_twists(
+        &self,
+        scene: &RigidScene,
+        start: &[BodyState],
+        total: &[(V3, V3)],
+        (v_free, w_free, j_inv): (&[V3], &[V3], &[Matrix3<f64>]),
+        (v_next, w_next): (&mut [V3], &mut [V3]),
+    ) -> f64 {
+        let (h, theta) = (self.h, self.params.theta);
+        let mut worst: f64 = 0.0;
+        for (b, body) in scene.bodies.iter().enumerate() {
+            if body.fixed {
+                continue;
+            }
+            let (lin, ang) = total[b];
+            v_next[b] = v_free[b] + lin / body.mass;
+            w_next[b] = w_free[b] + j_inv[b] * ang;
+            let inertia = Matrix3::from_diagonal(&v3(body.inertia));
+            let w_k = v3(start[b].angular_velocity);
+            let w_theta = (1.0 - theta) * w_k + theta * w_next[b];
+            let change = inertia * (w_next[b] - w_k);
+            let gyro = h * w_theta.cross(&(inertia * w_theta));
+            let r = change + gyro - ang;
+            // The size of the terms of (1b): the angular momenta, the gyroscopic term and
+            // the impulse (the momenta keep the scale when the others are at round-off).
+            let momentum = (inertia * w_k).amax() + (inertia * w_next[b]).amax();
+            let scale = momentum + gyro.amax() + ang.amax();
+            if r.amax() > 0.0 {
+                worst = worst.max(r.amax() / scale);
+            }
+        }
+        worst
     }
 
     /// The end of a step: (1c) for each free body (positions by the velocities at k + θ, the
@@ -935,4 +969,17 @@ fn generalized_impulse(
         }
     }
     (lin, ang)
+}
+
+/// Which active contacts touch each of the `n` bodies, as (contact, side) pairs.
+fn contact_adjacency(active: &[ActiveContact], n: usize) -> Vec<Vec<(usize, usize)>> {
+    let mut adjacency: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
+    for (c, contact) in active.iter().enumerate() {
+        for (s, side) in contact.sides.iter().enumerate() {
+            if let Some((b, _)) = side {
+                adjacency[*b].push((c, s));
+            }
+        }
+    }
+    adjacency
 }

@@ -13,7 +13,7 @@ pub use report::{ObservedOrder, StudyPoint, StudyReport, StudySummary};
 
 use crate::job::Job;
 use crate::observer::{Columns, Observer, StepRecord};
-use crate::scenes::{Bar, BouncingBall};
+use crate::scenes::{Bar, BarSpec, BouncingBall};
 use crate::soi2::ConstrainedModel;
 use crate::soi2::models::JayNegrutTest;
 use crate::spec::study::{ErrorNorm, ReferenceSpec, StudyBase, StudySpec};
@@ -413,38 +413,7 @@ impl Reference {
 fn exact_reference(model: &ModelSpec, base: &JobSpec, t_end: f64) -> Result<Reference, SpecError> {
     match model {
         ModelSpec::BouncingBall(b) => Ok(Reference::Ball(b.clone())),
-        ModelSpec::DepBar(spec) => {
-            let bar: Bar = spec.resolve(Bar::doyen_ern_piperno(100));
-            if spec.obstacle.is_some()
-                || bar.initial_displacement != 0.0
-                || bar.rayleigh_mass != 0.0
-                || bar.rayleigh_stiffness != 0.0
-                || bar.harmonic_force.is_some()
-                || bar.wall_motion.is_some()
-                || bar.restitution != 0.0
-            {
-                return Err(SpecError::new(
-                    "study.reference",
-                    "the exact solution of dep_bar is for no initial displacement, damping, \
-                     harmonic force or wall motion, and e = 0",
-                ));
-            }
-            let exact = ExactBar {
-                length: bar.length,
-                young: bar.young,
-                density: bar.density,
-                area: bar.area,
-                gap: bar.gap,
-                body_force: bar.body_force,
-                initial_velocity: bar.initial_velocity,
-                left: bar.left,
-            };
-            Ok(Reference::DepBar {
-                gap: bar.gap,
-                area: bar.area,
-                solution: Box::new(ExactSolution::solve(exact, t_end * 1.01 + 1e-9)),
-            })
-        }
+        ModelSpec::DepBar(spec) => dep_bar_reference(spec, t_end),
         ModelSpec::JayNegrutTest(j) if j.y0.is_some() || j.z0.is_some() => Err(SpecError::new(
             "study.reference",
             "the exact solution of jay_negrut_test is for the paper's initial values (no y0, z0)",
@@ -452,15 +421,54 @@ fn exact_reference(model: &ModelSpec, base: &JobSpec, t_end: f64) -> Result<Refe
         ModelSpec::JayNegrutTest(_) => Ok(Reference::JayNegrut {
             probes: base.output.probes.clone(),
         }),
-        other => Err(SpecError::new(
-            "study.reference",
-            format!(
-                "scene {} has no exact solution (bouncing_ball, dep_bar and jay_negrut_test do): \
-                 give a fine run, reference = {{ scheme = \"...\", h = ... }}",
-                other.scene()
-            ),
-        )),
+        other => Err(no_exact_solution(other.scene())),
     }
+}
+
+/// The exact reference of a `dep_bar` (Doyen, Ern & Piperno's bar), which exists for no initial
+/// displacement, damping, harmonic force or wall motion, and e = 0.
+fn dep_bar_reference(spec: &BarSpec, t_end: f64) -> Result<Reference, SpecError> {
+    let bar: Bar = spec.resolve(Bar::doyen_ern_piperno(100));
+    if spec.obstacle.is_some()
+        || bar.initial_displacement != 0.0
+        || bar.rayleigh_mass != 0.0
+        || bar.rayleigh_stiffness != 0.0
+        || bar.harmonic_force.is_some()
+        || bar.wall_motion.is_some()
+        || bar.restitution != 0.0
+    {
+        return Err(SpecError::new(
+            "study.reference",
+            "the exact solution of dep_bar is for no initial displacement, damping, \
+             harmonic force or wall motion, and e = 0",
+        ));
+    }
+    let exact = ExactBar {
+        length: bar.length,
+        young: bar.young,
+        density: bar.density,
+        area: bar.area,
+        gap: bar.gap,
+        body_force: bar.body_force,
+        initial_velocity: bar.initial_velocity,
+        left: bar.left,
+    };
+    Ok(Reference::DepBar {
+        gap: bar.gap,
+        area: bar.area,
+        solution: Box::new(ExactSolution::solve(exact, t_end * 1.01 + 1e-9)),
+    })
+}
+
+/// The refusal of a study without a reference for a scene that has no exact solution.
+fn no_exact_solution(scene: &str) -> SpecError {
+    SpecError::new(
+        "study.reference",
+        format!(
+            "scene {scene} has no exact solution (bouncing_ball, dep_bar and jay_negrut_test do): \
+             give a fine run, reference = {{ scheme = \"...\", h = ... }}"
+        ),
+    )
 }
 
 /// −∫_{ta}^{tb} A r dt of the exact contact force (≥ 0), exactly (r is linear on each piece
