@@ -728,10 +728,13 @@ fn start_values_may_be_expressions_of_the_parameters() {
     );
 }
 
-/// Issue 30, item 3: with `project_onto_joints` a start off the joints is moved onto them.
-/// For the linear joint x − 0.1φ = 0 of the base model the minimum-norm change is the
-/// orthogonal projection, q0 − a (a·q0)/(a·a) with a = (1, 0, −0.1), reached in one Newton
-/// step; v0 moves by −a (a·v0)/(a·a). The run starts there and its summary reports it. A joint
+/// Issue 30, item 3: with `project_onto_joints` a start off the joints is moved onto them, by
+/// the least change in the M norm. For the linear joint a·q = x − 0.1φ = 0 of the base model,
+/// M = diag(m, m, I) with I = m (w² + hgt²)/12 (radians and metres weighed differently), the
+/// projection is the closed form q0 − M⁻¹a (a·q0)/(a M⁻¹ aᵀ), reached in one iteration, and v0
+/// moves by −M⁻¹a (a·v0)/(a M⁻¹ aᵀ); the M norm of the position change is |a·q0|/√(a M⁻¹ aᵀ).
+/// (The Euclidean projection, q0 − a (a·q0)/(a·a), moves x by 0.0495 and φ by 0.00495; this one
+/// moves x by 0.03125 and φ by 0.1875.) The run starts there and its summary reports it. A joint
 /// without a solution (x² + y² + 1 = 0) is refused naming it.
 #[test]
 fn a_start_off_the_joints_is_projected_onto_them() {
@@ -746,21 +749,26 @@ fn a_start_off_the_joints_is_projected_onto_them() {
     s["model"]["project_onto_joints"] = json!(true);
     let p = validated(&s);
     let a = [1.0, 0.0, -0.1];
-    let aa = 1.01;
+    let inertia = 1.0 * (0.2_f64.powi(2) + 0.4_f64.powi(2)) / 12.0;
+    let mass = [1.0, 1.0, inertia];
+    let minv_a: Vec<f64> = (0..3).map(|i| a[i] / mass[i]).collect();
+    let a_minv_a: f64 = (0..3).map(|i| a[i] * minv_a[i]).sum();
+    assert!((a_minv_a - 1.6).abs() < 1e-14, "{a_minv_a}");
     let (q_given, v_given) = ([0.05, 0.2, 0.0], [0.3, 0.0, 1.0]);
-    let (ga, va) = (0.05 / aa, (0.3 - 0.1) / aa);
+    let (ga, va) = (0.05 / a_minv_a, (0.3 - 0.1) / a_minv_a);
     for i in 0..3 {
         assert!(
-            (p.q0[i] - (q_given[i] - a[i] * ga)).abs() < 1e-15,
+            (p.q0[i] - (q_given[i] - minv_a[i] * ga)).abs() < 1e-15,
             "{:?}",
             p.q0
         );
         assert!(
-            (p.v0[i] - (v_given[i] - a[i] * va)).abs() < 1e-15,
+            (p.v0[i] - (v_given[i] - minv_a[i] * va)).abs() < 1e-15,
             "{:?}",
             p.v0
         );
     }
+    assert!((p.q0[0] - 0.01875).abs() < 1e-15 && (p.q0[2] - 0.1875).abs() < 1e-15);
     let report = p.projection.clone().expect("a projection");
     assert_eq!(report.newton_iterations, 1);
     assert_eq!(report.q0_given, q_given.to_vec());
@@ -768,7 +776,19 @@ fn a_start_off_the_joints_is_projected_onto_them() {
     assert_eq!(report.q0, p.q0);
     assert!((report.joint_residual_given - 0.05).abs() < 1e-15);
     assert!(report.joint_residual < 1e-16, "{report:?}");
-    assert!((report.position_change - 0.05 / aa.sqrt()).abs() < 1e-15);
+    let euclidean = (0.03125_f64.powi(2) + 0.1875_f64.powi(2)).sqrt();
+    assert!(
+        (report.position_change - euclidean).abs() < 1e-15,
+        "{report:?}"
+    );
+    assert!(
+        (report.position_change_mass_norm - 0.05 / a_minv_a.sqrt()).abs() < 1e-15,
+        "{report:?}"
+    );
+    assert!(
+        (report.velocity_change_mass_norm - 0.2 / a_minv_a.sqrt()).abs() < 1e-15,
+        "{report:?}"
+    );
 
     let spec: JobSpec = serde_json::from_value(s.clone()).expect("spec");
     let job = Job::from_spec(&spec).expect("projected start runs");
@@ -789,13 +809,39 @@ fn a_start_off_the_joints_is_projected_onto_them() {
     assert!(e.reason.contains("could not be projected"), "{e}");
 }
 
-/// The double pendulum's rods (quadratic joints) from a start 0.1 off both: Newton brings
-/// both within 1e-12, v0 onto the rods' tangent space, and a SOI2 run from there keeps them.
+/// |M d − G(q)ᵀ λ|∞ / |M d|∞ for the best λ: how far the change d is from satisfying the
+/// stationarity condition of the M-norm projection onto the double pendulum's rods at q,
+/// M = diag(m1, m1, m2, m2), rows G₁ = (x1, y1, 0, 0), G₂ = (−Δx, −Δy, Δx, Δy). The lower rod's
+/// λ₂ comes from the entries of the second mass, the upper rod's λ₁ from the first's.
+fn rods_stationarity(m: [f64; 2], q: &[f64], d: &[f64]) -> f64 {
+    let md = [m[0] * d[0], m[0] * d[1], m[1] * d[2], m[1] * d[3]];
+    let (x1, y1, dx, dy) = (q[0], q[1], q[2] - q[0], q[3] - q[1]);
+    let lambda2 = (md[2] * dx + md[3] * dy) / (dx * dx + dy * dy);
+    let lambda1 = ((md[0] + lambda2 * dx) * x1 + (md[1] + lambda2 * dy) * y1) / (x1 * x1 + y1 * y1);
+    let gt_lambda = [
+        lambda1 * x1 - lambda2 * dx,
+        lambda1 * y1 - lambda2 * dy,
+        lambda2 * dx,
+        lambda2 * dy,
+    ];
+    let scale = md.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+    (0..4).fold(0.0_f64, |a, i| a.max((md[i] - gt_lambda[i]).abs())) / scale
+}
+
+/// The double pendulum's rods (quadratic joints), masses m1 = 1 and m2 = 4, from a start 0.1
+/// off both: the iteration brings both within 1e-12, and the start it returns is the nearest in
+/// the M norm: M(q* − q0) = g_q(q*)ᵀ λ to 1e-12 (the stationarity condition; the
+/// Euclidean projection's point misses it by 5.6e-2), and every neighbour on the rods, the rods' angles moved
+/// by ±1e-3, is farther. v0 lands on the tangent space with M(v* − v0) = g_qᵀ P, and a SOI2 run
+/// from there keeps the rods.
 #[test]
 fn a_double_pendulum_started_off_its_rods_is_projected_by_newton() {
     let mut s = serde_json::to_value(example("double_pendulum_cartesian")).expect("json");
-    s["model"]["q0"] = json!([1.1, 0.05, 2.0, -0.1]);
-    s["model"]["v0"] = json!([0.0, 1.0, 0.0, 0.5]);
+    let m = [1.0, 4.0];
+    s["model"]["parameters"]["m2"] = json!(m[1]);
+    let (q_given, v_given) = ([1.1, 0.05, 2.0, -0.1], [0.0, 1.0, 0.0, 0.5]);
+    s["model"]["q0"] = json!(q_given);
+    s["model"]["v0"] = json!(v_given);
     s["model"]["project_onto_joints"] = json!(true);
     s["time"]["t_end"] = json!(0.5);
     let p = validated(&s);
@@ -805,7 +851,42 @@ fn a_double_pendulum_started_off_its_rods_is_projected_by_newton() {
     let [u1, w1, u2, w2] = [p.v0[0], p.v0[1], p.v0[2], p.v0[3]];
     assert!((x1 * u1 + y1 * w1).abs() < 1e-12, "{:?}", p.v0);
     assert!(((x2 - x1) * (u2 - u1) + (y2 - y1) * (w2 - w1)).abs() < 1e-12);
+
+    let d: Vec<f64> = (0..4).map(|i| p.q0[i] - q_given[i]).collect();
+    let stationarity = rods_stationarity(m, &p.q0, &d);
+    assert!(stationarity < 1e-12, "{stationarity:e} at {:?}", p.q0);
+    let dv: Vec<f64> = (0..4).map(|i| p.v0[i] - v_given[i]).collect();
+    let impulsive = rods_stationarity(m, &p.q0, &dv);
+    assert!(impulsive < 1e-12, "{impulsive:e}");
+
+    let distance = |q: [f64; 4]| {
+        (0..4)
+            .map(|i| m[i / 2] * (q[i] - q_given[i]).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    let best = distance([x1, y1, x2, y2]);
     let report = p.projection.expect("a projection");
+    assert!(
+        (report.position_change_mass_norm - best).abs() < 1e-15,
+        "{report:?}"
+    );
+    let (a1, a2) = (y1.atan2(x1), (y2 - y1).atan2(x2 - x1));
+    for (e1, e2) in [
+        (1e-3, 0.0),
+        (-1e-3, 0.0),
+        (0.0, 1e-3),
+        (0.0, -1e-3),
+        (1e-3, -1e-3),
+    ] {
+        let (c1, c2) = (a1 + e1, a2 + e2);
+        let neighbour = [c1.cos(), c1.sin(), c1.cos() + c2.cos(), c1.sin() + c2.sin()];
+        assert!(
+            distance(neighbour) > best,
+            "({e1}, {e2}): {}",
+            distance(neighbour)
+        );
+    }
     assert!(report.newton_iterations >= 2, "{report:?}");
     assert!(report.position_change < 0.2, "{report:?}");
     let spec: JobSpec = serde_json::from_value(s).expect("spec");

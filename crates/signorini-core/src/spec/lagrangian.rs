@@ -98,11 +98,11 @@ pub struct LagrangianSpec {
     /// `moreau_jean` and `ns_generalized_alpha` (the last two with contacts too).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub constraints: Vec<JointSpec>,
-    /// Move the start onto the joints instead of refusing it (default false): q0 by Newton's
-    /// method on g(q, 0) = 0 with minimum-norm steps (to 1e-12 relative to ‖q0‖∞, at most 50
-    /// iterations; refused naming the joint when it does not converge), then v0 by the
-    /// minimum-norm change onto g_q v + g_t = 0. The projected values are reported
-    /// (`start_projection` in the summary).
+    /// Move the start onto the joints instead of refusing it (default false): q0 to the point
+    /// of g(q, 0) = 0 nearest in the M(q0) norm (radians and metres weighed by the inertia they
+    /// move; to 1e-12 relative to ‖q0‖∞, at most 100 iterations; refused naming the joint when
+    /// it does not converge), then v0 by the change of least kinetic energy onto
+    /// g_q v + g_t = 0. The projected values are reported (`start_projection` in the summary).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub project_onto_joints: bool,
     /// The joints are dependent on purpose (default false): redundant at every configuration,
@@ -435,9 +435,11 @@ impl LagrangianSpec {
     ///   (Cholesky);
     /// * each joint holds at q0: |g_i(q0)| ≤ [`JOINT_TOLERANCE`] · ‖q0‖∞ (absolute when q0 = 0);
     ///   with `project_onto_joints`, q0 and v0 are first moved onto the joints
-    ///   ([`project_start`]: minimum-norm Newton steps, then the minimum-norm velocity change),
-    ///   refused naming `model.constraints[i].expr` when Newton does not get there, and every
-    ///   later check is made at the projected start;
+    ///   ([`project_start`]: q0 to the nearest point of the joints in the M(q0) norm, then v0
+    ///   by the velocity change of least kinetic energy), refused naming
+    ///   `model.constraints[i].expr` when the iteration does not get there (`model.mass` when M
+    ///   is not positive definite at the given q0), and every later check is made at the
+    ///   projected start;
     /// * each contact is open or closed at q0, not penetrated: gap(q0, 0) ≥ −[`JOINT_TOLERANCE`]
     ///   · ‖q0‖∞ (a start inside the obstacle is refused naming `model.contacts[i].gap`);
     /// * restitution in [0, 1]; friction μ finite and ≥ 0, and μ > 0 needs a `tangent` (the
@@ -459,12 +461,12 @@ impl LagrangianSpec {
         let tolerance = start_tolerance(&q0);
         let joints = parse_joints(&Parser::at(&scope, &q0, &v0), &self.constraints)?;
         let projection = if self.project_onto_joints && !joints.is_empty() {
-            Some(project_start(&joints, n, &q0, &v0, tolerance).map_err(|e| {
-                SpecError::new(
-                    format!("model.constraints[{}].expr", e.joint()),
-                    e.to_string(),
-                )
-            })?)
+            // The metric of the projection: M checked at the given start first.
+            let mass = mass_matrix(&Parser::at(&scope, &q0, &v0), &self.mass, n)?;
+            Some(
+                project_start(&joints, &mass, n, &q0, &v0, tolerance)
+                    .map_err(|e| SpecError::new(e.field(), e.to_string()))?,
+            )
         } else {
             None
         };
