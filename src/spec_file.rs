@@ -3,6 +3,7 @@
 use serde::de::DeserializeOwned;
 use serde_json::{Map, Value};
 use signorini_core::job::Job;
+use signorini_core::spec::study::ReferenceRun;
 use signorini_core::spec::{IntegratorSpec, JobSpec, ModelSpec, SpecError};
 use std::path::Path;
 
@@ -27,9 +28,21 @@ impl Format {
 
 /// Parses spec text. Errors name the field by its dotted path (`model.mas: unknown field …`).
 pub fn parse(text: &str, format: Format) -> Result<JobSpec, SpecError> {
-    parse_tracked(text, format).map_err(|e| {
+    parse_tracked(text, format).map_err(|e| match tree(text, format) {
+        Some(root) => {
+            let e = section_error(&root, e);
+            nested_error(&root, e)
+        }
+        None => e,
+    })
+}
+
+/// The error of a section read as a whole, located inside `model` or `integrator` when serde
+/// could only name the section.
+fn section_error(root: &Value, e: SpecError) -> SpecError {
+    {
         let missing = e.reason.starts_with("missing field");
-        match (e.field.as_str(), tree(text, format)) {
+        match (e.field.as_str(), Some(root.clone())) {
             (f, Some(root)) if f == "model" || f.starts_with("model.") => {
                 match scene_error(&root) {
                     Some(located) => located,
@@ -49,7 +62,145 @@ pub fn parse(text: &str, format: Format) -> Result<JobSpec, SpecError> {
             }
             _ => e,
         }
-    })
+    }
+}
+
+/// Tag fields of the spec's tagged tables: never the culprit of an error other than an
+/// unknown variant (which [`located`] names already).
+const TAGS: [&str; 3] = ["scene", "scheme", "kind"];
+
+/// An error serde could only locate at a table (or list) that holds the bad field, made
+/// precise: a study's inline base is read as a spec of its own (`study.base.time.h`), its
+/// reference as a reference run (`study.reference.h`), and any other table tagged by `kind` or
+/// `scheme` (a rigid body's `shape`, `analysis`, `study.schemes[i]`), which serde buffers
+/// before its variant is known, is searched by [`pinpoint`].
+fn nested_error(root: &Value, e: SpecError) -> SpecError {
+    let settled = [
+        "unknown field",
+        "unknown variant",
+        "missing field",
+        "malformed",
+    ];
+    if settled.iter().any(|p| e.reason.starts_with(p)) {
+        return e;
+    }
+    let Some(at) = root.pointer(&pointer(&e.field)) else {
+        return e;
+    };
+    if !(at.is_object() || at.is_array()) {
+        return e;
+    }
+    match e.field.as_str() {
+        "study.base" if at.is_object() => match parse(&at.to_string(), Format::Json) {
+            Err(inner) => SpecError::new(format!("study.base.{}", inner.field), inner.reason),
+            Ok(_) => e,
+        },
+        "study.reference" if at.is_object() => {
+            let read = |v: &Value| {
+                serde_path_to_error::deserialize::<_, ReferenceRun>(v.clone())
+                    .map(drop)
+                    .map_err(|e| located(e.path().to_string(), e.inner().to_string()))
+            };
+            match read(at) {
+                Err(inner) => {
+                    let inner = pinpoint(at, inner, &read);
+                    let field = match inner.field.as_str() {
+                        "spec" => "study.reference".to_string(),
+                        f => format!("study.reference.{f}"),
+                    };
+                    SpecError::new(field, inner.reason)
+                }
+                Ok(()) => e,
+            }
+        }
+        _ => pinpoint(root, e, &|v: &Value| {
+            parse_tracked(&v.to_string(), Format::Json).map(drop)
+        }),
+    }
+}
+
+/// The JSON pointer of a dotted field path (`study.schemes[1]` → `/study/schemes/1`).
+fn pointer(field: &str) -> String {
+    let mut out = String::new();
+    for part in field.split('.') {
+        let (key, indices) = part.split_once('[').unwrap_or((part, ""));
+        out.push('/');
+        out.push_str(key);
+        for index in indices.split('[') {
+            let index = index.trim_end_matches(']');
+            if !index.is_empty() {
+                out.push('/');
+                out.push_str(index);
+            }
+        }
+    }
+    out
+}
+
+/// The field inside the table (or list) `error` is located at that causes it: the first entry
+/// whose removal (in a list: whose replacement by its neighbour, so lengths stay) changes the
+/// error `read` gives for `root`; searched again inside that entry while it is a table or a
+/// list. `error` as it is when no entry changes it.
+fn pinpoint(
+    root: &Value,
+    error: SpecError,
+    read: &dyn Fn(&Value) -> Result<(), SpecError>,
+) -> SpecError {
+    let mut field = error.field.clone();
+    'deeper: for _ in 0..16 {
+        let here = if field == "spec" {
+            String::new()
+        } else {
+            pointer(&field)
+        };
+        let Some(at) = root.pointer(&here) else {
+            break;
+        };
+        let keys: Vec<String> = match at {
+            Value::Object(table) => table
+                .keys()
+                .filter(|k| !TAGS.contains(&k.as_str()))
+                .cloned()
+                .collect(),
+            Value::Array(list) if list.len() >= 2 => {
+                (0..list.len()).map(|i| i.to_string()).collect()
+            }
+            _ => break,
+        };
+        for key in keys {
+            let mut probe = root.clone();
+            match probe.pointer_mut(&here) {
+                Some(Value::Object(table)) => {
+                    table.remove(&key);
+                }
+                Some(Value::Array(list)) => {
+                    let i: usize = key.parse().unwrap_or_default();
+                    list[i] = list[(i + 1) % list.len()].clone();
+                }
+                _ => break 'deeper,
+            }
+            // JSON's messages end in the position, which any removal moves.
+            let same = matches!(read(&probe), Err(e)
+                if e.field == error.field && without_position(&e.reason) == without_position(&error.reason));
+            if !same {
+                field = match (field.as_str(), at.is_array()) {
+                    ("spec", _) => key,
+                    (_, true) => format!("{field}[{key}]"),
+                    (_, false) => format!("{field}.{key}"),
+                };
+                continue 'deeper;
+            }
+        }
+        break;
+    }
+    SpecError::new(field, error.reason)
+}
+
+/// A serde_json message without its trailing ` at line L column C`.
+fn without_position(reason: &str) -> &str {
+    reason
+        .rsplit_once(" at line ")
+        .map_or(reason, |(message, _)| message)
 }
 
 fn parse_tracked(text: &str, format: Format) -> Result<JobSpec, SpecError> {
@@ -326,10 +477,19 @@ mod tests {
     /// tagged section, so [`ModelSpec::from_scene_fields`] knows every scene the examples use.
     #[test]
     fn every_example_model_reads_through_its_scene() {
-        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/examples");
+        let examples = concat!(env!("CARGO_MANIFEST_DIR"), "/examples");
         let mut checked = 0;
-        for entry in std::fs::read_dir(dir).expect("examples/") {
-            let path = entry.expect("entry").path();
+        let mut scenes = std::collections::BTreeSet::new();
+        // Subfolders too: `examples/rigid/` holds the only `rigid_bodies` models (that scene
+        // was missing from `from_scene_fields`, so its fields were named wrongly).
+        let paths = std::fs::read_dir(examples)
+            .expect("examples/")
+            .map(|e| e.expect("entry").path())
+            .flat_map(|p| match std::fs::read_dir(&p) {
+                Ok(sub) => sub.map(|e| e.expect("entry").path()).collect(),
+                Err(_) => vec![p],
+            });
+        for path in paths {
             let Ok(text) = std::fs::read_to_string(&path) else {
                 continue;
             };
@@ -346,9 +506,11 @@ mod tests {
                 .unwrap_or_else(|| panic!("{}: scene {} unknown", path.display(), model.scene()))
                 .expect("reads");
             assert_eq!(read, model, "{}", path.display());
+            scenes.insert(model.scene());
             checked += 1;
         }
         assert!(checked >= 10, "only {checked} examples");
+        assert!(scenes.contains("rigid_bodies"), "{scenes:?}");
     }
 
     #[test]

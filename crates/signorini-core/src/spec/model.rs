@@ -70,6 +70,7 @@ impl ModelSpec {
             "slider_crank" => SliderCrank::deserialize(fields).map(ModelSpec::SliderCrank),
             "jay_negrut_test" => JayNegrutTest::deserialize(fields).map(ModelSpec::JayNegrutTest),
             "lagrangian" => LagrangianSpec::deserialize(fields).map(ModelSpec::Lagrangian),
+            "rigid_bodies" => RigidBodiesSpec::deserialize(fields).map(ModelSpec::RigidBodies),
             _ => return None,
         })
     }
