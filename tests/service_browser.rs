@@ -351,3 +351,124 @@ async fn the_new_user_examples_pages_draw_their_ledgers_and_figures() {
         );
     }
 }
+
+/// The live page of a server started with `--tokens` (issue 31's `auth.js`, untested in a
+/// browser until now): opened as `/jobs/ID#token=READ_TOKEN` it keeps the token in its
+/// `signorini_read` cookie, takes the fragment out of the address bar and reads the job (state,
+/// stored curves to t_end, figures); opened in a fresh browser without a token it fails
+/// visibly: the red `#auth` line says how to give one, the state line shows the refusal, and
+/// nothing is drawn. A token the server does not know fails the same way.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_live_page_reads_with_its_fragment_token_and_fails_visibly_without() {
+    use signorini::server::auth::sha256_hex;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let tokens = dir.path().join("tokens.toml");
+    std::fs::write(
+        &tokens,
+        format!(
+            "[[token]]\nname = \"dashboard\"\nscope = \"read\"\nsha256 = \"{}\"\n\n[[token]]\nname = \"ci\"\nscope = \"write\"\nsha256 = \"{}\"\n",
+            sha256_hex("read token/1"),
+            sha256_hex("write-token-2")
+        ),
+    )
+    .expect("tokens file");
+    let server = TestServer::start_with(
+        &dir.path().join("s.db"),
+        &Options::default(),
+        &["--tokens", &tokens.display().to_string()],
+    );
+    let (code, body) = server
+        .http(
+            "POST",
+            "/v1/jobs",
+            Some(&ball_json(1e-3, 2_000, 1)),
+            Some("write-token-2"),
+        )
+        .await;
+    assert_eq!(code, 201, "{body}");
+    let id = body["id"].as_str().expect("an id").to_string();
+    let mut ended = false;
+    for _ in 0..1200 {
+        let (_, status) = server
+            .http(
+                "GET",
+                &format!("/v1/jobs/{id}"),
+                None,
+                Some("write-token-2"),
+            )
+            .await;
+        if status["state"] == "succeeded" {
+            ended = true;
+            break;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+    }
+    assert!(ended, "the job did not end");
+    let page = format!("http://{}/jobs/{id}", server.http);
+
+    // With the read token in the fragment (a space and a slash in it: encoded in the cookie).
+    let mut b = Browser::launch();
+    b.open(&format!("{page}#token=read%20token%2F1"));
+    b.wait_for(
+        "the succeeded state",
+        "document.getElementById('state').textContent === 'succeeded'",
+    );
+    b.wait_for(
+        "the stored curves",
+        "+document.getElementById('energy').dataset.points > 1000",
+    );
+    assert_eq!(data(&mut b, "energy", "t1"), 2.0);
+    b.wait_for(
+        "the figures loaded",
+        "(() => { const i = [...document.querySelectorAll('#figures img')]; \
+           return i.length === 2 && i.every(x => x.complete && x.naturalWidth > 0); })()",
+    );
+    assert_eq!(
+        b.eval("location.hash"),
+        "",
+        "the token left the address bar"
+    );
+    assert_eq!(b.eval("document.cookie"), "signorini_read=read%20token%2F1");
+    assert_eq!(b.eval("document.getElementById('auth') === null"), true);
+
+    // Without a token (a fresh browser: no cookie), and with a token the server does not know.
+    for fragment in ["", "#token=guess"] {
+        let mut b = Browser::launch();
+        b.open(&format!("{page}{fragment}"));
+        let said = b.wait_for(
+            "the page saying it needs a token",
+            "document.getElementById('auth') && document.getElementById('auth').textContent",
+        );
+        assert_eq!(
+            said,
+            format!(
+                "This server needs a read token: open this page as /jobs/{id}#token=YOUR_TOKEN"
+            ),
+            "{fragment:?}"
+        );
+        assert_eq!(
+            b.eval("getComputedStyle(document.getElementById('auth')).color"),
+            "rgb(187, 0, 0)"
+        );
+        let state = b.wait_for(
+            "the refusal on the state line",
+            "(s => s !== '…' && s)(document.getElementById('state').textContent)",
+        );
+        assert_ne!(state, "succeeded", "{fragment:?}");
+        assert!(
+            state
+                .as_str()
+                .is_some_and(|s| s.contains("token") || s == "401"),
+            "{fragment:?}: {state}"
+        );
+        assert_eq!(
+            b.eval("document.getElementById('energy').dataset.points || '0'"),
+            "0",
+            "{fragment:?}: nothing drawn"
+        );
+        assert_eq!(
+            b.eval("document.querySelectorAll('#figures img').length"),
+            0
+        );
+    }
+}
