@@ -2,6 +2,8 @@
 //! written to a fresh directory and every `signorini` command of its `sh` blocks is run there
 //! with this build's binary, each to exit status 0; the figures it names are made, and the
 //! numbers it quotes from `summary.json` and `signorini check` are what the commands print.
+//! Its `curl` and Python parts need a server and the installed Python client:
+//! `clients/python/tests/test_tutorial.py` runs them the same way.
 
 use std::path::Path;
 use std::process::Command;
