@@ -472,3 +472,176 @@ async fn the_live_page_reads_with_its_fragment_token_and_fails_visibly_without()
         );
     }
 }
+
+/// An example of `examples/` as JSON, ending at `t_end` (when given).
+fn example(file: &str, t_end: Option<f64>) -> String {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("examples/{file}.toml"));
+    let mut spec: Value =
+        toml::from_str(&std::fs::read_to_string(path).expect("example")).expect("TOML");
+    if let Some(t_end) = t_end {
+        spec["time"]["t_end"] = serde_json::json!(t_end);
+    }
+    spec.as_object_mut().expect("a table").remove("check");
+    spec.to_string()
+}
+
+/// The page of job `id` in state `state`: both panels drawn (at least `points` points each),
+/// every legend entry in its curve's colour, the energy panel drawing `energy` and the residual
+/// panel `residual` among their series, and a residual caption that names what it shows.
+fn check_panels(
+    b: &mut Browser,
+    what: &str,
+    state: &str,
+    points: usize,
+    energy: &[&str],
+    residual: &[&str],
+) {
+    b.wait_for(
+        &format!("{what}: the {state} state"),
+        &format!("document.getElementById('state').textContent === '{state}'"),
+    );
+    b.wait_for(
+        &format!("{what}: both plots drawn"),
+        &format!(
+            "+document.getElementById('energy').dataset.points > {points} \
+             && +document.getElementById('residual').dataset.points > {points}"
+        ),
+    );
+    for (key, canvas, must) in [
+        ("key", "energy", energy),
+        ("residual-key", "residual", residual),
+    ] {
+        let (legend, drawn) = legend_and_plot(b, key, canvas);
+        assert_eq!(legend, drawn, "{what} ({state}): {canvas} legend ↔ curves");
+        let keys: Vec<&str> = drawn
+            .as_array()
+            .expect("series")
+            .iter()
+            .filter_map(|p| p[0].as_str())
+            .collect();
+        for k in must {
+            assert!(
+                keys.contains(k),
+                "{what} ({state}): {k} not drawn: {keys:?}"
+            );
+        }
+    }
+    let caption = b.eval("document.getElementById('residual-caption').textContent");
+    let caption = caption.as_str().expect("a caption");
+    for k in residual {
+        let named = match *k {
+            "position_residual" | "velocity_residual" => "constraint residuals",
+            other => other,
+        };
+        assert!(caption.contains(named), "{what} ({state}): {caption}");
+    }
+}
+
+/// Issue 30, item 1, for every model family the page did not yet have a test of: a `lagrangian`
+/// model under SOI2 (joints: constraint residuals) and under `ns_generalized_alpha`, rigid bodies
+/// (the energy ledger with friction's work, `energy_error` and the penetration), a string (many
+/// contacts, balance residual), running and finished (legend ↔ curves, non-empty panels, the
+/// caption), and a nonsmooth modal analysis, whose page shows its figures. Every figure a
+/// finished job lists loads as a non-empty image.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_familys_page_draws_its_ledger_and_residuals_running_and_finished() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = TestServer::start(&dir.path().join("s.db"), &Options::default());
+    let mut client = server.grpc().await;
+    let base = format!("http://{}", server.http);
+    let mut b = Browser::launch();
+    // (what, example, t_end finished, t_end running (cancelled), energy terms, residuals)
+    type Family<'a> = (&'a str, &'a str, f64, f64, &'a [&'a str], &'a [&'a str]);
+    let families: [Family; 4] = [
+        (
+            "lagrangian, soi2_generalized_alpha",
+            "double_pendulum_cartesian",
+            0.5,
+            100.0,
+            &["kinetic", "potential", "energy"],
+            &["position_residual", "velocity_residual"],
+        ),
+        (
+            "lagrangian, ns_generalized_alpha",
+            "rocking_block_ns_generalized_alpha",
+            0.5,
+            100.0,
+            &["kinetic", "potential", "energy", "work_contact_total"],
+            &["energy_error"],
+        ),
+        (
+            "rigid bodies",
+            "rigid/ball_slide_roll",
+            0.5,
+            100.0,
+            &["kinetic", "energy", "work_friction_total"],
+            &["energy_error", "max_penetration"],
+        ),
+        (
+            "string",
+            "string_free",
+            0.01,
+            2.0,
+            &["kinetic", "strain", "energy"],
+            &["balance_residual"],
+        ),
+    ];
+    for (what, file, t_end, long, energy, residual) in families {
+        let running = submit_json(&mut client, example(file, Some(long)), None)
+            .await
+            .expect("submit");
+        wait_running(&mut client, &running, 300).await;
+        b.open(&format!("{base}/jobs/{running}"));
+        check_panels(&mut b, what, "running", 20, energy, residual);
+        client
+            .cancel_job(pb::CancelJobRequest {
+                id: running.clone(),
+            })
+            .await
+            .expect("cancel");
+        wait_terminal(&mut client, &running).await;
+
+        let done = submit_json(&mut client, example(file, Some(t_end)), None)
+            .await
+            .expect("submit");
+        let st = wait_terminal(&mut client, &done).await;
+        assert_eq!(st.state, pb::JobState::Succeeded as i32, "{what}: {st:?}");
+        b.open(&format!("{base}/jobs/{done}"));
+        check_panels(&mut b, what, "succeeded", 20, energy, residual);
+        figures_load(&mut b, &server, &done, what).await;
+    }
+
+    let analysis = submit_json(&mut client, example("nonsmooth_modes", None), None)
+        .await
+        .expect("submit");
+    let st = wait_terminal(&mut client, &analysis).await;
+    assert_eq!(st.state, pb::JobState::Succeeded as i32, "{st:?}");
+    b.open(&format!("{base}/jobs/{analysis}"));
+    b.wait_for(
+        "the analysis succeeded",
+        "document.getElementById('state').textContent === 'succeeded'",
+    );
+    figures_load(&mut b, &server, &analysis, "nonsmooth modes").await;
+}
+
+/// Every figure the job lists (`GET /v1/jobs/{id}/figures`, at least one) is on its page and
+/// loads as an image of non-zero size.
+async fn figures_load(b: &mut Browser, server: &TestServer, id: &str, what: &str) {
+    let (code, listed) = server
+        .http("GET", &format!("/v1/jobs/{id}/figures"), None, None)
+        .await;
+    assert_eq!(code, 200, "{what}: {listed}");
+    let listed = listed["figures"].clone();
+    let n = listed.as_array().map_or(0, Vec::len);
+    assert!(n >= 1, "{what}: {listed}");
+    let shown = b.wait_for(
+        &format!("{what}: the figures loaded"),
+        &format!(
+            "(() => {{ const i = [...document.querySelectorAll('#figures img')]; \
+               return i.length === {n} && i.every(x => x.complete && x.naturalWidth > 0) \
+                 ? i.map(x => x.alt) : null; }})()"
+        ),
+    );
+    assert_eq!(shown, listed, "{what}");
+}

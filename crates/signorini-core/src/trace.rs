@@ -33,14 +33,16 @@ pub const ENERGY_COLUMNS: [&str; 9] = [
 ];
 
 /// The `residuals` chart's columns: what must stay at round-off (or at the Newton tolerance),
-/// and the energy error ΔE − the works of a nonlinear scheme (its measure of accuracy where
-/// there is no exact discrete balance).
-pub const RESIDUAL_COLUMNS: [&str; 5] = [
+/// the energy error ΔE − the works of a nonlinear scheme (its measure of accuracy where there
+/// is no exact discrete balance), and the deepest penetration of rigid bodies at a step's start
+/// (`max_penetration`, metres: zero, or below the contact margin, when the index set works).
+pub const RESIDUAL_COLUMNS: [&str; 6] = [
     "balance_residual",
     "energy_error",
     "position_residual",
     "velocity_residual",
     "nonholonomic_residual",
+    "max_penetration",
 ];
 
 /// Most series of a `coordinates`, `gaps` or `impulses` chart (the first probes or contacts):

@@ -1,6 +1,7 @@
 //! `energy.svg` (the energies and the cumulative works of a run against t) and `residuals.svg`
-//! (log₁₀ of the balance residual and of the constraint residuals: the checks that must sit at
-//! round-off), drawn from the min/max envelopes the core keeps of its records.
+//! (log₁₀ of the balance residual, of the constraint residuals and of rigid bodies' penetration:
+//! the checks that must sit at round-off or below a margin, and a nonlinear scheme's energy
+//! error), drawn from the min/max envelopes the core keeps of its records.
 
 use crate::Figure;
 use crate::plot::{Curve, line_chart};
@@ -30,7 +31,7 @@ const fn style(
 
 /// Every column the core traces ([`signorini_core::trace::ENERGY_COLUMNS`] and
 /// [`signorini_core::trace::RESIDUAL_COLUMNS`]).
-const STYLES: [Style; 14] = [
+const STYLES: [Style; 15] = [
     style("energy", "energy", "black", ""),
     style(
         "algorithmic_energy",
@@ -55,6 +56,7 @@ const STYLES: [Style; 14] = [
         "#2ca02c",
         "",
     ),
+    style("max_penetration", "max_penetration (m)", "#d62728", "2 2"),
 ];
 
 /// Colours of the series of a motion chart (probes, gaps, impulses), in order.
