@@ -312,8 +312,9 @@ async fn toml_goes_over_http_and_t_is_a_column() {
 
 /// Issue 30, item 3, over the CLI and HTTP. A start written as expressions of the parameters,
 /// off the joint x − 0.1φ = 0, with `project_onto_joints`: the CLI prints a note with the values
-/// the run starts from and both put them in the summary (`start_projection`, the orthogonal
-/// projection onto the joint: q0 − a (a·q0)/(a·a), a = (1, 0, −0.1)). A block sliding on a floor
+/// the run starts from and both put them in the summary (`start_projection`, the projection onto
+/// the joint in the M norm: q0 − M⁻¹a (a·q0)/(a M⁻¹ aᵀ), a = (1, 0, −0.1),
+/// M = diag(m, m, I), I = m (w² + hgt²)/12). A block sliding on a floor
 /// whose friction takes `tangent_velocity = "x_dot"` stops where Coulomb's law says,
 /// v0²/(2μg), having dissipated all its kinetic energy as friction work. Bad start expressions
 /// and a non-linear tangential velocity are refused naming their fields.
@@ -324,16 +325,18 @@ async fn start_expressions_projection_and_tangent_velocity_over_cli_and_http() {
     projected["model"]["q0"] = json!(["hgt/8", "hgt/2", 0]);
     projected["model"]["v0"] = json!(["w/2", 0, "1"]);
     projected["model"]["project_onto_joints"] = json!(true);
-    let a = [1.0, 0.0, -0.1];
-    let (ga, va) = (0.05 / 1.01, (0.1 - 0.1) / 1.01);
+    let inertia = 1.0 * (0.2_f64.powi(2) + 0.4_f64.powi(2)) / 12.0;
+    let minv_a = [1.0, 0.0, -0.1 / inertia];
+    let a_minv_a = 1.0 + 0.01 / inertia;
+    let (ga, va) = (0.05 / a_minv_a, (0.1 - 0.1) / a_minv_a);
     let q0: Vec<f64> = [0.05, 0.2, 0.0]
         .iter()
-        .zip(a)
+        .zip(minv_a)
         .map(|(q, a)| q - a * ga)
         .collect();
     let v0: Vec<f64> = [0.1, 0.0, 1.0]
         .iter()
-        .zip(a)
+        .zip(minv_a)
         .map(|(v, a)| v - a * va)
         .collect();
     let close = |got: &Value, want: &[f64]| {
