@@ -223,3 +223,29 @@ fn andrews_mechanism_passes_its_check() {
     );
     assert_eq!(junit_counts(&junit), (8, 0, 0));
 }
+
+/// Issue 30's two new-user models (`examples/double_pendulum_rough_wall.toml`, the double
+/// pendulum hitting a rough wall; `examples/disk_on_sinusoidal_floor.toml`, the disk rolling on a
+/// wavy floor through `tangent_velocity`) pass the `[check]` bounds they document: the energy
+/// error per step and the energies after each impact (−21.0 J at t = 2, −25.19 J at t = 3), the
+/// rolling disk's energy kept, no work of friction and the disk still on the floor at t = 5.
+#[test]
+fn the_new_user_examples_pass_their_checks() {
+    let dir = tempfile::tempdir().unwrap();
+    let junit = dir.path().join("report.xml");
+    let specs = [
+        example("double_pendulum_rough_wall.toml"),
+        example("disk_on_sinusoidal_floor.toml"),
+    ];
+    let out = check(&specs, &junit);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "stdout: {stdout}");
+    // 1 bound + 3 reference values each.
+    assert_eq!(
+        stdout.lines().filter(|l| l.starts_with("PASS ")).count(),
+        8,
+        "{stdout}"
+    );
+    assert!(stdout.contains("reference energy at t = 3"), "{stdout}");
+    assert_eq!(junit_counts(&junit), (8, 0, 0));
+}
