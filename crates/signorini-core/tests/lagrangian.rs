@@ -633,9 +633,9 @@ fn coriolis_forces_from_a_configuration_dependent_mass_conserve_energy_and_momen
     );
     let drift = |r: &Recorder| {
         let (th, xd, thd) = (
-            r.column("y_1").expect("θ"),
-            r.column("z_0").expect("ẋ"),
-            r.column("z_1").expect("θ̇"),
+            r.column("q_1").expect("θ"),
+            r.column("v_0").expect("ẋ"),
+            r.column("v_1").expect("θ̇"),
         );
         let p: Vec<f64> = (0..th.len())
             .map(|k| 2.5 * xd[k] + 0.5 * 0.8 * th[k].cos() * thd[k])
