@@ -146,7 +146,10 @@ fn a_pendulum_whose_bob_slides_on_a_rough_floor_follows_the_closed_form() {
         let t_end = 2.5;
         let steps = (t_end / STEP).round() as usize;
         let (x, v, normal) = closed_form(c, steps);
-        let stop = v.iter().position(|&s| s == 0.0).expect("stops within t_end");
+        let stop = v
+            .iter()
+            .position(|&s| s == 0.0)
+            .expect("stops within t_end");
         assert!(stop + 100 < steps, "rest is recorded after the stop");
         let cart = record(jointed(c, MU, t_end));
         let reduced = record(minimal(c, MU, t_end));
@@ -173,10 +176,13 @@ fn a_pendulum_whose_bob_slides_on_a_rough_floor_follows_the_closed_form() {
                 );
             }
             let wf = col(rec, "work_friction");
-            let (k_max, w_max) = wf
-                .iter()
-                .enumerate()
-                .fold((0, f64::NEG_INFINITY), |m, (k, &w)| if w > m.1 { (k, w) } else { m });
+            let (k_max, w_max) =
+                wf.iter()
+                    .enumerate()
+                    .fold(
+                        (0, f64::NEG_INFINITY),
+                        |m, (k, &w)| if w > m.1 { (k, w) } else { m },
+                    );
             // At rest after the stop, P_t and U_t are round-off: so is their product.
             assert!(
                 w_max <= 1e-15 * MU * STEP * normal * V0,
@@ -275,7 +281,11 @@ fn a_jointed_double_pendulum_on_a_rough_wall_closes_its_ledger() {
         col(&rec, "work_friction"),
         col(&rec, "energy_error"),
     );
-    let (pt, ut, res) = (col(&rec, "pt_0"), col(&rec, "ut_0"), col(&rec, "position_residual"));
+    let (pt, ut, res) = (
+        col(&rec, "pt_0"),
+        col(&rec, "ut_0"),
+        col(&rec, "position_residual"),
+    );
     let scale = energy.iter().fold(1.0f64, |m, e| m.max(e.abs()));
     let (mut worst_ledger, mut worst_error) = (0.0f64, 0.0f64);
     for k in 1..rec.rows.len() {

@@ -849,7 +849,14 @@ impl NonlinearMoreauJean {
             self.free_velocity(&lu, start, at)?;
             self.update_index_set(system, state, start, report, at)?;
             if self.nb > 0 && self.s.active.iter().any(|&a| self.mu[a] > 0.0) {
-                self.condensed_friction_problem(system, &lu, state, report, at, outcome.iterations)?;
+                self.condensed_friction_problem(
+                    system,
+                    &lu,
+                    state,
+                    report,
+                    at,
+                    outcome.iterations,
+                )?;
             } else if self.nb > 0 {
                 self.mixed_problem(&lu, report, at, outcome.iterations)?;
             } else if !self.s.active.is_empty() {
