@@ -201,7 +201,7 @@ fn the_multibody_benchmarks_pass_their_checks() {
         17,
         "{stdout}"
     );
-    assert!(stdout.contains("reference y_0 at t = 10"), "{stdout}");
+    assert!(stdout.contains("reference q_0 at t = 10"), "{stdout}");
     assert_eq!(junit_counts(&junit), (17, 0, 0));
 }
 

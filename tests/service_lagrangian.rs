@@ -43,7 +43,7 @@ async fn a_lagrangian_model_runs_over_http_and_grpc_json() {
             .expect("residual")
             < 1e-12
     );
-    let theta = result["steps"]["y_2"].as_array().expect("probe θ");
+    let theta = result["steps"]["q_2"].as_array().expect("probe θ");
     assert_eq!(theta.len(), 128 / 4 + 1);
 
     let grpc_id = submit_json(&mut client, spec, None)

@@ -88,7 +88,7 @@ def spec(n: int, scheme: str, h: float, t_end: float, every: int) -> str:
     out.append("max_energy_growth = 1e-4")
     for t, th in reference_angles(n, [t_end / 3, 2 * t_end / 3, t_end]):
         out.append("\n[[check.reference]]")
-        out.append('column = "y_0"')
+        out.append('column = "q_0"')
         out.append(f"t = {t!r}")
         out.append(f"value = {th!r}")
         out.append("tolerance = 1e-3")

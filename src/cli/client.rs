@@ -388,7 +388,8 @@ pub fn capabilities(args: CapabilitiesArgs) -> Result<()> {
 }
 
 /// Prints capabilities as JSON: models, integrators, analyses, contact solvers and sections,
-/// each with its parameters.
+/// each with its parameters, and the scheme × feature table (`support`: per scheme and model
+/// family, each feature taken, refused with its field and reason, or not in the model).
 fn print_capabilities(caps: &pb::CapabilitiesResponse) -> Result<()> {
     let comp = |c: &pb::Component| {
         json!({
@@ -405,6 +406,13 @@ fn print_capabilities(caps: &pb::CapabilitiesResponse) -> Result<()> {
         "analyses": caps.analyses.iter().map(comp).collect::<Vec<_>>(),
         "contact_solvers": caps.contact_solvers.iter().map(comp).collect::<Vec<_>>(),
         "sections": caps.sections.iter().map(comp).collect::<Vec<_>>(),
+        "support": caps.support.iter().map(|row| json!({
+            "scheme": row.scheme,
+            "model": row.model,
+            "features": row.features.iter().map(|f| json!({
+                "feature": f.feature, "support": f.support, "field": f.field, "reason": f.reason
+            })).collect::<Vec<_>>(),
+        })).collect::<Vec<_>>(),
     });
     println!("{}", serde_json::to_string_pretty(&out)?);
     Ok(())

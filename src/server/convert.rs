@@ -765,6 +765,7 @@ pub fn capabilities_to_proto(
         analyses,
         contact_solvers,
         sections,
+        support,
     } = c;
     pb::CapabilitiesResponse {
         models: models.iter().map(comp).collect(),
@@ -772,5 +773,34 @@ pub fn capabilities_to_proto(
         contact_solvers: contact_solvers.iter().map(comp).collect(),
         sections: sections.iter().map(comp).collect(),
         analyses: analyses.iter().map(comp).collect(),
+        support: support.iter().map(scheme_support_to_proto).collect(),
+    }
+}
+
+/// One row of the scheme × feature table → proto.
+fn scheme_support_to_proto(
+    row: &signorini_core::spec::support::SchemeSupport,
+) -> pb::SchemeSupport {
+    use signorini_core::spec::support::Support;
+    pb::SchemeSupport {
+        scheme: row.scheme.to_string(),
+        model: row.family.name().to_string(),
+        features: row
+            .features
+            .iter()
+            .map(|(feature, support)| {
+                let (kind, field, reason) = match support {
+                    Support::Takes => ("takes", "", ""),
+                    Support::Refused { field, reason } => ("refused", *field, *reason),
+                    Support::NotInModel => ("not_in_model", "", ""),
+                };
+                pb::FeatureSupport {
+                    feature: feature.name().to_string(),
+                    support: kind.to_string(),
+                    field: field.to_string(),
+                    reason: reason.to_string(),
+                }
+            })
+            .collect(),
     }
 }

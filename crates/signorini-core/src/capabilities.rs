@@ -9,6 +9,7 @@
 //! enumerated values; the doc comment says the rest).
 
 use crate::spec::json_schema;
+use crate::spec::support::{SchemeSupport, TABLE};
 use serde::Serialize;
 use serde_json::{Map, Value};
 
@@ -52,6 +53,9 @@ pub struct Capabilities {
     pub contact_solvers: Vec<Component>,
     /// `[time]`, `[contact_solver]`, `[output]`.
     pub sections: Vec<Component>,
+    /// Which scheme takes which feature of which model family: the scheme × feature table the
+    /// validation refuses from ([`crate::spec::support::TABLE`]), row for row.
+    pub support: Vec<SchemeSupport>,
 }
 
 /// The description of everything a job spec can name, read from the spec's JSON Schema.
@@ -84,6 +88,7 @@ pub fn capabilities() -> Capabilities {
             })
             .collect(),
         sections,
+        support: TABLE.to_vec(),
     }
 }
 

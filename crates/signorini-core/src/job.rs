@@ -38,6 +38,7 @@ use crate::outcome::{
 use crate::rigid::DetectorFactory;
 use crate::scenes::Bar;
 use crate::soi2::run::Soi2Job;
+use crate::spec::support::{self, Feature, ModelFamily};
 use crate::spec::{
     IntegratorSpec, JobSpec, LagrangianSpec, LinearSpec, ModelSpec, MoreauJeanSpec, NsAlphaSpec,
     PositionContactSpec, Probes, SchemeFamily, SpecError, Steps, mismatch,
@@ -162,7 +163,12 @@ impl LinearJob {
     fn from_spec(model_spec: &ModelSpec, spec: &JobSpec) -> Result<LinearJob, SpecError> {
         let time = spec.time_section()?;
         let model = build_model(model_spec)?;
-        let steps = time.steps(false)?;
+        let steps = time.steps(support::refusal(
+            spec.integrator.scheme(),
+            ModelFamily::Linear,
+            Feature::VariableStep,
+            "",
+        ))?;
         let lcp = spec.contact_solver.options()?;
         let output = spec.output.options(Probes::Dofs(model.dofs()))?;
         let scheme = match &spec.integrator {
@@ -192,14 +198,13 @@ impl LinearJob {
             }
         };
         check_contact_path(&model, &scheme, &lcp, spec.integrator.scheme())?;
-        if model.has_friction() && matches!(scheme, LinearSchemeChoice::PositionContact(_)) {
-            return Err(SpecError::new(
-                "integrator.scheme",
-                format!(
-                    "{} does not take Coulomb friction (model.friction > 0): its contact is a force at position level, with no impulse for Coulomb's law; use moreau_jean, moreau_jean_variant or the nonsmooth α-family (ns_newmark, ns_hht, ns_generalized_alpha, ns_kh_alpha)",
-                    spec.integrator.scheme()
-                ),
-            ));
+        if model.has_friction() {
+            support::check(
+                spec.integrator.scheme(),
+                ModelFamily::Linear,
+                Feature::Friction,
+                "model.friction > 0",
+            )?;
         }
         Ok(LinearJob {
             region: RegionContacts::of(model_spec, &model),
@@ -256,15 +261,17 @@ fn check_contact_path(
 
 /// A `lagrangian` model under a scheme of the linear family other than `ns_generalized_alpha`
 /// (`lagrangian_ns_alpha`): only `moreau_jean` (the nonlinear Moreau–Jean time-stepping of
-/// Acary & Brogliato 2008, ch. 10) can take it, with contacts, joints or both (joints with
-/// θ > 0 and without friction: the scheme refuses the rest naming `integrator.theta` or
-/// `integrator.scheme`). The model is compiled and checked first, so a bad model is reported
-/// before the scheme; joints must be independent and hold at velocity level at the start.
+/// Acary & Brogliato 2008, ch. 10) can take it, with contacts, joints, friction, or all of them
+/// (joints need θ > 0: the scheme refuses θ = 0 naming `integrator.theta`; what the scheme
+/// takes is the scheme × feature table's, [`support`]). The model is compiled and checked first,
+/// so a bad model is reported before the scheme; joints must be independent and hold at
+/// velocity level at the start.
 fn lagrangian_moreau_jean(
     m: &ModelSpec,
     l: &LagrangianSpec,
     spec: &JobSpec,
 ) -> Result<JobKind, SpecError> {
+    refuse_redundant_joints(l, spec.integrator.scheme())?;
     let model = UserModel::new(l.validate()?);
     if !matches!(spec.integrator, IntegratorSpec::MoreauJean(_)) {
         return Err(mismatch(m, spec.integrator.scheme()));
@@ -307,7 +314,12 @@ fn lagrangian_run_settings(
     spec: &JobSpec,
     model: &UserModel,
 ) -> Result<(Steps, LcpOptions, OutputOptions), SpecError> {
-    let steps = spec.time_section()?.steps(false)?;
+    let steps = spec.time_section()?.steps(support::refusal(
+        spec.integrator.scheme(),
+        ModelFamily::Lagrangian,
+        Feature::VariableStep,
+        "",
+    ))?;
     let lcp = spec.contact_solver.options()?;
     if lcp.kind == LcpSolverKind::BandedActiveSet {
         return Err(SpecError::new(
@@ -336,6 +348,7 @@ fn scheme_field_error(field: &str, reason: String) -> SpecError {
 /// index set is the scheme's own (the predicted gap), so `activation` is refused. The start must
 /// satisfy the joints at velocity level, with independent joints.
 fn lagrangian_ns_alpha(l: &LagrangianSpec, spec: &JobSpec) -> Result<JobKind, SpecError> {
+    refuse_redundant_joints(l, spec.integrator.scheme())?;
     let model = UserModel::new(l.validate()?);
     let IntegratorSpec::NsGeneralizedAlpha(p) = &spec.integrator else {
         return Err(SpecError::new(
@@ -357,7 +370,7 @@ fn lagrangian_ns_alpha(l: &LagrangianSpec, spec: &JobSpec) -> Result<JobKind, Sp
         gamma: alpha.gamma,
         newton: NewtonOptions::default(),
     };
-    refuse_friction(l, "ns_generalized_alpha")?;
+    refuse_friction(l, spec.integrator.scheme())?;
     check_joint_start(&model, "ns_generalized_alpha")?;
     let (steps, lcp, output) = lagrangian_run_settings(spec, &model)?;
     let scheme = NonsmoothGeneralizedAlpha::new(&model, params, steps.h, lcp)
@@ -371,8 +384,22 @@ fn lagrangian_ns_alpha(l: &LagrangianSpec, spec: &JobSpec) -> Result<JobKind, Sp
     })))
 }
 
-/// Refuses a `lagrangian` model with Coulomb friction on some contact under `scheme`, which
-/// solves the frictionless impact law only: the friction would otherwise be dropped without a
+/// Refuses `redundant_joints = true` under `scheme` when the scheme × feature table does (the
+/// fixed-step schemes need g_q of full row rank).
+fn refuse_redundant_joints(l: &LagrangianSpec, scheme: &str) -> Result<(), SpecError> {
+    if !l.redundant_joints {
+        return Ok(());
+    }
+    support::check(
+        scheme,
+        ModelFamily::Lagrangian,
+        Feature::RedundantJoints,
+        "",
+    )
+}
+
+/// Refuses a `lagrangian` model with Coulomb friction on some contact under `scheme` when the
+/// scheme × feature table does ([`support`]): the friction would otherwise be dropped without a
 /// word (the run identical to μ = 0, no friction columns).
 fn refuse_friction(l: &LagrangianSpec, scheme: &str) -> Result<(), SpecError> {
     let Some((i, mu)) = l
@@ -383,12 +410,12 @@ fn refuse_friction(l: &LagrangianSpec, scheme: &str) -> Result<(), SpecError> {
     else {
         return Ok(());
     };
-    Err(SpecError::new(
-        "integrator.scheme",
-        format!(
-            "{scheme} does not take Coulomb friction (model.contacts[{i}].friction = {mu}): its velocity stage solves the frictionless impact law only; run a model with friction (and without joints) with moreau_jean"
-        ),
-    ))
+    support::check(
+        scheme,
+        ModelFamily::Lagrangian,
+        Feature::Friction,
+        &format!("model.contacts[{i}].friction = {mu}"),
+    )
 }
 
 /// The joints of a user model at its start: G(q0) of full row rank (`model.constraints`), and
@@ -470,15 +497,6 @@ impl Job {
             }
             (None, Some(m @ ModelSpec::Lagrangian(_)), SchemeFamily::Soi2) => {
                 JobKind::Soi2(Box::new(soi2::soi2_job(m, spec)?))
-            }
-            (None, Some(ModelSpec::Lagrangian(l)), SchemeFamily::Linear) if l.redundant_joints => {
-                return Err(SpecError::new(
-                    "model.redundant_joints",
-                    format!(
-                        "`{}` does not solve rank-deficient joints: redundant joints run with soi2_generalized_alpha, soi2_hht or hht_i3",
-                        spec.integrator.scheme()
-                    ),
-                ));
             }
             (None, Some(ModelSpec::Lagrangian(l)), SchemeFamily::Linear)
                 if matches!(spec.integrator, IntegratorSpec::NsGeneralizedAlpha(_)) =>

@@ -10,6 +10,7 @@ use crate::rigid::{
     CONTACT_COLUMNS, DetectorFactory, RigidMoreauJean, RigidMoreauJeanParams, RigidScene,
     RigidStepping,
 };
+use crate::spec::support::{self, Feature, ModelFamily};
 use crate::spec::{IntegratorSpec, JobSpec, Probes, RigidBodiesSpec, SpecError};
 use crate::stepping::{StopReason, run};
 
@@ -49,7 +50,12 @@ pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob,
     }
     p.index_set.rule()?;
     let gamma = p.index_set.activation_gamma.unwrap_or(0.5);
-    let steps = spec.time_section()?.steps(false)?;
+    let steps = spec.time_section()?.steps(support::refusal(
+        spec.integrator.scheme(),
+        ModelFamily::RigidBodies,
+        Feature::VariableStep,
+        "",
+    ))?;
     let lcp = spec.contact_solver.options()?;
     if lcp.kind != LcpSolverKind::Auto {
         return Err(SpecError::new(

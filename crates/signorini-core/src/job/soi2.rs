@@ -11,6 +11,7 @@ use crate::soi2::method::{
 use crate::soi2::models::{JayNegrutTest, Pendulum, SliderCrank};
 use crate::soi2::run::{Schedule, Soi2Job, Soi2Model, Soi2Output};
 use crate::soi2::{ConstrainedModel, Soi2Error, check_consistency, check_constraint_rank};
+use crate::spec::support::{self, Feature, ModelFamily};
 use crate::spec::{
     IntegratorSpec, JobSpec, ModelSpec, NewtonSpec, Probes, Soi2GeneralizedAlphaSpec,
     Soi2NewtonSpec, SpecError, StartSpec, mismatch,
@@ -200,19 +201,27 @@ pub(crate) fn soi2_job(model_spec: &ModelSpec, spec: &JobSpec) -> Result<Soi2Job
             // The model first: its errors are reported whatever the scheme.
             let user = UserModel::new(l.validate()?);
             if !l.contacts.is_empty() {
-                return Err(SpecError::new(
-                    "integrator.scheme",
-                    format!(
-                        "`{}` takes joints, not contacts: a lagrangian model with contacts runs with moreau_jean",
-                        spec.integrator.scheme()
-                    ),
-                ));
+                support::check(
+                    spec.integrator.scheme(),
+                    ModelFamily::Lagrangian,
+                    Feature::Contacts,
+                    "model.contacts",
+                )?;
             }
             Soi2Model::User(Box::new(user))
         }
         _ => return Err(mismatch(model_spec, spec.integrator.scheme())),
     };
-    let steps = spec.time_section()?.steps(true)?;
+    let family = match &model {
+        Soi2Model::User(_) => ModelFamily::Lagrangian,
+        _ => ModelFamily::ConstrainedScene,
+    };
+    let steps = spec.time_section()?.steps(support::refusal(
+        spec.integrator.scheme(),
+        family,
+        Feature::VariableStep,
+        "",
+    ))?;
     let schedule = Schedule {
         h: steps.h,
         pattern: steps.pattern,
@@ -274,13 +283,7 @@ pub(crate) fn soi2_job(model_spec: &ModelSpec, spec: &JobSpec) -> Result<Soi2Job
                 ));
             }
             if has_nonholonomic {
-                return Err(SpecError::new(
-                    "integrator.scheme",
-                    format!(
-                        "`{}` handles holonomic constraints only; this scene has nonholonomic ones: use soi2_generalized_alpha",
-                        spec.integrator.scheme()
-                    ),
-                ));
+                support::check(spec.integrator.scheme(), family, Feature::Nonholonomic, "")?;
             }
             if !is_additive {
                 return Err(SpecError::new(

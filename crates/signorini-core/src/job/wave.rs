@@ -2,6 +2,7 @@
 //! [`WaveJob`]; the WFEM numerics take only the validated bar and counts.
 
 use crate::scenes::Bar;
+use crate::spec::support::{self, Feature, ModelFamily};
 use crate::spec::{AnalysisSpec, JobSpec, ModelSpec, Probes, SpecError};
 use crate::wfem::job::WaveJob;
 use crate::wfem::{WaveBar, WfemError};
@@ -55,7 +56,14 @@ pub(crate) fn integration(model: &ModelSpec, spec: &JobSpec) -> Result<WaveJob, 
             ),
         ));
     }
-    let steps = time.steps(false)?.count();
+    let steps = time
+        .steps(support::refusal(
+            "wfem",
+            ModelFamily::Linear,
+            Feature::VariableStep,
+            "",
+        ))?
+        .count();
     let output = spec.output.options(Probes::Unsupported(
         "wave finite elements record the contact end; probes are not supported",
     ))?;

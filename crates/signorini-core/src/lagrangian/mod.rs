@@ -344,6 +344,12 @@ impl ConstrainedModel for UserModel {
         }
     }
 
+    /// `q_j, v_j`, as under `moreau_jean` and `ns_generalized_alpha`: one naming of a
+    /// `lagrangian` model's state whatever the scheme.
+    fn state_names(&self) -> (&'static str, &'static str) {
+        ("q", "v")
+    }
+
     fn mass<T: Scalar>(&self, t: T, y: &[T], m: &mut [T]) {
         self.eval(&self.mass, t, y, None, m);
     }

@@ -61,6 +61,85 @@ pub enum MixedLcpError {
     Lcp(#[from] LcpError),
 }
 
+/// The equality rows of a [`MixedLcp`] eliminated (module documentation): `y = D_BB⁻¹ b_B`,
+/// `x = D_BB⁻¹ D_BI`, and what is left on the other rows, the Schur complement
+/// `D_II − D_IB x` and the free vector `b_I − D_IB y`, whatever law those rows obey (the
+/// complementarity of [`solve_mixed`], or Coulomb's law when they are a friction problem's
+/// normal and tangent rows: the joints condensed out of a step with friction). D_BB⁻¹ is the
+/// LU solve, or the minimum-norm least-squares one (D_BB⁺) when the equalities are dependent.
+#[derive(Debug, Clone)]
+pub struct EqualityElimination {
+    /// D_BB⁻¹ b_B (nb).
+    y: DVector<f64>,
+    /// D_BB⁻¹ D_BI (nb × nu; empty when nu = 0).
+    x: DMatrix<f64>,
+    /// D_II − D_IB D_BB⁻¹ D_BI (nu × nu).
+    pub schur: DMatrix<f64>,
+    /// b_I − D_IB D_BB⁻¹ b_B (nu).
+    pub free: DVector<f64>,
+}
+
+impl EqualityElimination {
+    /// Eliminates the first `problem.equalities` rows (at least one) of `problem`; refused
+    /// with [`MixedLcpError::Singular`] when D_BB is singular and not for want of rank.
+    pub fn new(problem: MixedLcp<'_>) -> Result<Self, MixedLcpError> {
+        let MixedLcp { d, b, equalities } = problem;
+        let nb = equalities;
+        let k = b.len();
+        let nu = k - nb;
+        let singular = MixedLcpError::Singular { equalities: nb };
+        let d_bb = d.view((0, 0), (nb, nb)).into_owned();
+        let lu = lu_factor(d_bb.clone());
+        // D_BB⁻¹ of the module documentation: LU, or the minimum-norm solve when D_BB is singular.
+        let deficient = match lu {
+            Some(_) => None,
+            None => Some(NewtonFactor::new(&d_bb, || true)).filter(NewtonFactor::deficient),
+        };
+        let solve = |rhs: DMatrix<f64>| -> Option<DMatrix<f64>> {
+            match (&lu, &deficient) {
+                (Some(lu), _) => lu.solve(&rhs),
+                (None, Some(factor)) => {
+                    let mut x = rhs;
+                    for mut column in x.column_iter_mut() {
+                        let mut c = column.clone_owned();
+                        if !factor.solve_mut(&mut c) {
+                            return None;
+                        }
+                        column.copy_from(&c);
+                    }
+                    Some(x)
+                }
+                (None, None) => None,
+            }
+        };
+        let b_b = DMatrix::from_column_slice(nb, 1, &b[..nb]);
+        let y = DVector::from_column_slice(solve(b_b).ok_or(singular.clone())?.as_slice());
+        if nu == 0 {
+            return Ok(Self {
+                y,
+                x: DMatrix::zeros(nb, 0),
+                schur: DMatrix::zeros(0, 0),
+                free: DVector::zeros(0),
+            });
+        }
+        let d_bi = d.view((0, nb), (nb, nu)).into_owned();
+        let x = solve(d_bi).ok_or(singular)?;
+        let d_ib = d.view((nb, 0), (nu, nb));
+        let schur = d.view((nb, nb), (nu, nu)) - d_ib * &x;
+        let free = DVector::from_column_slice(&b[nb..]) - d_ib * &y;
+        Ok(Self { y, x, schur, free })
+    }
+
+    /// The equality rows' unknowns z_B = −(y + x z_I) for the other rows' z_I.
+    pub fn equality_part(&self, z_i: &[f64]) -> Vec<f64> {
+        if z_i.is_empty() {
+            return (-&self.y).as_slice().to_vec();
+        }
+        let z_i = DVector::from_column_slice(z_i);
+        (-(&self.y + &self.x * &z_i)).as_slice().to_vec()
+    }
+}
+
 /// Solves `problem` (module documentation) with the LCP solver of `options`.
 pub fn solve_mixed(
     problem: MixedLcp<'_>,
@@ -80,57 +159,25 @@ pub fn solve_mixed(
             error: sol.error,
         });
     }
-    let singular = MixedLcpError::Singular { equalities: nb };
-    let d_bb = d.view((0, 0), (nb, nb)).into_owned();
-    let lu = lu_factor(d_bb.clone());
-    // D_BB⁻¹ of the module documentation: LU, or the minimum-norm solve when D_BB is singular.
-    let deficient = match lu {
-        Some(_) => None,
-        None => Some(NewtonFactor::new(&d_bb, || true)).filter(NewtonFactor::deficient),
-    };
-    let solve = |rhs: DMatrix<f64>| -> Option<DMatrix<f64>> {
-        match (&lu, &deficient) {
-            (Some(lu), _) => lu.solve(&rhs),
-            (None, Some(factor)) => {
-                let mut x = rhs;
-                for mut column in x.column_iter_mut() {
-                    let mut c = column.clone_owned();
-                    if !factor.solve_mut(&mut c) {
-                        return None;
-                    }
-                    column.copy_from(&c);
-                }
-                Some(x)
-            }
-            (None, None) => None,
-        }
-    };
-    let b_b = DMatrix::from_column_slice(nb, 1, &b[..nb]);
-    let y = DVector::from_column_slice(solve(b_b).ok_or(singular.clone())?.as_slice());
+    let elimination = EqualityElimination::new(problem)?;
     if nu == 0 {
         return Ok(MixedSolution {
-            z: (-y).as_slice().to_vec(),
+            z: elimination.equality_part(&[]),
             size: 0,
             iterations: 0,
             error: 0.0,
         });
     }
-    let d_bi = d.view((0, nb), (nb, nu)).into_owned();
-    let x = solve(d_bi).ok_or(singular)?;
-    let d_ib = d.view((nb, 0), (nu, nb));
-    let schur = d.view((nb, nb), (nu, nu)) - d_ib * &x;
-    let q_i = DVector::from_column_slice(&b[nb..]) - d_ib * &y;
+    let schur = &elimination.schur;
     let data: Vec<f64> = (0..nu * nu).map(|r| schur[(r / nu, r % nu)]).collect();
     let sol = super::solve(
         Lcp {
             m: &data,
-            q: q_i.as_slice(),
+            q: elimination.free.as_slice(),
         },
         options,
     )?;
-    let z_i = DVector::from_column_slice(&sol.z);
-    let z_b = -(y + x * &z_i);
-    let mut z = z_b.as_slice().to_vec();
+    let mut z = elimination.equality_part(&sol.z);
     z.extend_from_slice(&sol.z);
     Ok(MixedSolution {
         z,

@@ -18,7 +18,7 @@ mod pgs;
 
 pub use enumeration::{ENUMERATION_MAX, solve_enumeration};
 pub use lemke::{DEFAULT_TABLEAU_LIMIT, solve_lemke, solve_lemke_within, tableau_bytes};
-pub use mixed::{MixedLcp, MixedLcpError, MixedSolution, solve_mixed};
+pub use mixed::{EqualityElimination, MixedLcp, MixedLcpError, MixedSolution, solve_mixed};
 pub use pgs::solve_pgs;
 
 use schemars::JsonSchema;

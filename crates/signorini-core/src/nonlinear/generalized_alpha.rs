@@ -1160,14 +1160,12 @@ impl<S: JointedSystem + ?Sized> TimeStepping for NsAlphaStepping<'_, S> {
     }
 
     fn restore(&mut self, run: NsAlphaRun) -> Result<(), NonlinearRunStop> {
-        let (n, m) = (self.system.dofs(), self.system.contacts());
-        if run.state.q.len() != n || run.previous_impulse.len() != m {
-            return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
-                "an ns_generalized_alpha state of {} coordinates, the system has {n}",
-                run.state.q.len()
-            ))
-            .into());
-        }
+        super::moreau_jean::check_run_fits(
+            "an ns_generalized_alpha",
+            self.system,
+            &run.state,
+            &run.previous_impulse,
+        )?;
         self.scheme.restore(run.memory)?;
         *self.state = run.state;
         self.stats = run.stats;

@@ -125,8 +125,18 @@
 //! rod, a pin: g = ½(|x_i − x_j|² − L²)) is exactly Λ(g(q_{k+1}) − g(q_k))/h = 0: ideal joints
 //! do no work, and `energy_error` keeps its meaning (for θ = ½, a constant M and a linear
 //! potential it is at the Newton tolerance between impacts). For other joints this work,
-//! O(h³)Λ/h per step, stays in `energy_error`. Joints and friction together are refused (the
-//! one-step problem would be a friction problem with equality rows).
+//! O(h³)Λ/h per step, stays in `energy_error`.
+//!
+//! Joints and friction together: when some contact of the index set has μ > 0 the one-step
+//! problem is a planar friction problem with equality rows, on the rows `[G(q^i); H_α; T_α]`.
+//! The joint rows are condensed out exactly, as the rigid bodies' joints are
+//! ([`crate::rigid`]): Λ = −A⁺(b_B + D_BI P) with A = G(q^i)(W^i)⁻¹G_midᵀ and A⁺ its inverse
+//! (its minimum-norm least-squares solve for dependent joints), which leaves the contacts'
+//! friction problem on the condensed Delassus operator W' = D_II − D_IB A⁺ D_BI and free
+//! velocity q' = b_I − D_IB A⁺ b_B; its (P_n, P_t) give Λ back (`condensed_friction_problem`).
+//! Newton's residual gains −G_midᵀΛ and −TᵀP_t, the works are those above (ideal joints do no
+//! work, the friction impulse's work split by [`crate::friction::split_tangential_work`]).
+//! Without friction on the index set the step is the mixed LCP's, operation for operation.
 
 use super::LagrangianSystem;
 use super::joints::JointedSystem;
@@ -136,7 +146,8 @@ use crate::dense::{amax, dot, kinetic, lu_factor};
 use crate::friction::{self, FrictionError, FrictionProblem};
 use crate::integrators::OutputOptions;
 use crate::lcp::{
-    self, Lcp, LcpError, LcpOptions, MixedLcp, MixedLcpError, MixedSolution, solve_mixed,
+    self, EqualityElimination, Lcp, LcpError, LcpOptions, MixedLcp, MixedLcpError, MixedSolution,
+    solve_mixed,
 };
 use crate::observer::{Columns, Observer};
 use crate::stepping::{self, StepTime, StopReason, TimeStepping};
@@ -626,12 +637,6 @@ impl NonlinearMoreauJean {
                 "must be > 0 for a system with joints: they are held at q_{k+1} = q_k + h v_{k+θ}, which does not depend on v_{k+1} when θ = 0",
             );
         }
-        if nb > 0 && friction {
-            return bad(
-                "scheme",
-                "moreau_jean does not take joints and Coulomb friction together yet (the one-step problem would be a friction problem with equality rows, which no solver here takes): leave out the joints or the friction",
-            );
-        }
         let fm = if friction { m } else { 0 };
         Ok(Self {
             params,
@@ -843,7 +848,16 @@ impl NonlinearMoreauJean {
             }
             self.free_velocity(&lu, start, at)?;
             self.update_index_set(system, state, start, report, at)?;
-            if self.nb > 0 {
+            if self.nb > 0 && self.s.active.iter().any(|&a| self.mu[a] > 0.0) {
+                self.condensed_friction_problem(
+                    system,
+                    &lu,
+                    state,
+                    report,
+                    at,
+                    outcome.iterations,
+                )?;
+            } else if self.nb > 0 {
                 self.mixed_problem(&lu, report, at, outcome.iterations)?;
             } else if !self.s.active.is_empty() {
                 self.one_step_problem(system, &lu, state, report, at)?;
@@ -1029,19 +1043,15 @@ impl NonlinearMoreauJean {
                     .push(dot(row, &state.v) + dot(row, &s.dv) + s.trates[a]);
                 s.friction_mu.push(self.mu[a]);
             }
-            let sol = friction::solve_friction(
+            let sol = solve_friction_at(
                 FrictionProblem {
                     w: &s.delassus,
                     q: &s.friction_q,
                     mu: &s.friction_mu,
                 },
                 &self.lcp,
-            )
-            .map_err(|source| NonlinearStepError::Friction {
-                step: at.step,
-                t: at.t,
-                source,
-            })?;
+                at,
+            )?;
             s.solution.extend_from_slice(&sol.p);
             (sol.iterations, sol.error)
         } else {
@@ -1302,6 +1312,116 @@ impl NonlinearMoreauJean {
         Ok(())
     }
 
+    /// The one-step problem of a system with joints when some contact of the index set has
+    /// μ > 0: a planar friction problem with equality rows. The rows are stacked as
+    /// `[G(q^i); H_1; T_1; H_2; T_2; …]` with the impulse directions `[G_mid; H_1; T_1; …]`,
+    /// the operator D = rows (W^i)⁻¹ directionsᵀ and the free values b as in
+    /// [`Self::mixed_problem`] and [`Self::one_step_problem`]. The joint rows are condensed out
+    /// exactly as the rigid bodies' joints are ([`crate::lcp::EqualityElimination`]):
+    ///
+    /// ```text
+    /// Λ = −A⁺ (b_B + D_BI P),   A = D_BB = G(q^i)(W^i)⁻¹G_midᵀ
+    /// W' = D_II − D_IB A⁺ D_BI,   q' = b_I − D_IB A⁺ b_B
+    /// ```
+    ///
+    /// (A⁺ = A⁻¹ for independent joints, the minimum-norm least-squares solve when they are
+    /// dependent), then the contacts' planar friction problem (W', q', μ) is solved by
+    /// [`friction::solve_friction`] and Λ recovered from its P: Coulomb's law and Newton's
+    /// impact law hold on the local velocities U = D_IB Λ + D_II P + b_I of the whole problem,
+    /// with the joint rows satisfied exactly. The impulses add (W^i)⁻¹(G_midᵀ Λ + Hᵀ P_n +
+    /// Tᵀ P_t) to Δv.
+    fn condensed_friction_problem<S: JointedSystem + ?Sized>(
+        &mut self,
+        system: &S,
+        lu: &Lu,
+        state: &NonlinearState,
+        report: &mut NonlinearStepReport,
+        at: StepAt,
+        iteration: usize,
+    ) -> Result<(), NonlinearStepError> {
+        let (n, nb, s) = (self.n, self.nb, &mut self.s);
+        s.friction_step = true;
+        system.tangent_jacobian(at.t, &s.q, &mut s.tjac);
+        at.check(&s.tjac, "the tangent Jacobian")?;
+        system.tangent_rates(at.t, &s.q, &mut s.trates);
+        at.check(&s.trates, "∂τ/∂t")?;
+        let k = s.active.len();
+        let size = nb + 2 * k;
+        s.columns.clear();
+        for r in 0..size {
+            let start_col = s.columns.len();
+            let row = stacked_row(&s.joint_directions, &s.jac, &s.tjac, &s.active, (n, nb), r);
+            s.columns.extend_from_slice(row);
+            solve_in_place(lu, &mut s.columns[start_col..]);
+        }
+        s.delassus.clear();
+        s.friction_q.clear();
+        s.friction_mu.clear();
+        let mut b = Vec::with_capacity(size);
+        for r in 0..size {
+            let row = stacked_row(&s.joint_rows, &s.jac, &s.tjac, &s.active, (n, nb), r);
+            for c in 0..size {
+                s.delassus.push(dot(row, &s.columns[c * n..(c + 1) * n]));
+            }
+            let value = match r.checked_sub(nb) {
+                None => dot(row, &s.dv) - s.joint_target[r],
+                Some(c) if c % 2 == 0 => s.rhs[c / 2],
+                Some(c) => dot(row, &state.v) + dot(row, &s.dv) + s.trates[s.active[c / 2]],
+            };
+            if r >= nb {
+                s.friction_q.push(value);
+            }
+            b.push(value);
+        }
+        s.friction_mu.extend(s.active.iter().map(|&a| self.mu[a]));
+        at.check(&s.delassus, "the Delassus operator")?;
+        let d = DMatrix::from_row_slice(size, size, &s.delassus);
+        let condensed = EqualityElimination::new(MixedLcp {
+            d: &d,
+            b: &b,
+            equalities: nb,
+        })
+        .map_err(|_| at.singular(iteration))?;
+        let w: Vec<f64> = (0..4 * k * k)
+            .map(|r| condensed.schur[(r / (2 * k), r % (2 * k))])
+            .collect();
+        let sol = solve_friction_at(
+            FrictionProblem {
+                w: &w,
+                q: condensed.free.as_slice(),
+                mu: &s.friction_mu,
+            },
+            &self.lcp,
+            at,
+        )?;
+        s.solution.clear();
+        s.solution.extend(condensed.equality_part(&sol.p));
+        s.solution.extend_from_slice(&sol.p);
+        s.joint_impulse.copy_from_slice(&s.solution[..nb]);
+        for (c, &p) in s.solution.iter().enumerate() {
+            if let Some(i) = c.checked_sub(nb) {
+                let a = s.active[i / 2];
+                if i % 2 == 0 {
+                    report.impulse[a] = p;
+                } else {
+                    report.tangent_impulse[a] = p;
+                }
+            }
+            if p != 0.0 {
+                for (d, col) in s.dv.iter_mut().zip(&s.columns[c * n..(c + 1) * n]) {
+                    *d += p * col;
+                }
+            }
+        }
+        s.offset = nb;
+        report.lcp = LcpStats {
+            size: k,
+            iterations: sol.iterations,
+            error: sol.error,
+        };
+        Ok(())
+    }
+
     /// Round-off level of the last solve's local velocities (normal rows), for the sign test of
     /// the next step. With friction the solver couples each normal row to its tangent row (the
     /// Lemke tableau of the reformulation pivots on both), so the level counts both rows.
@@ -1413,6 +1533,27 @@ fn solve_in_place(lu: &Lu, b: &mut [f64]) {
     let mut x = DVector::from_column_slice(b);
     lu.solve_mut(&mut x);
     b.copy_from_slice(x.as_slice());
+}
+
+/// Row r of the stacked rows `[J; H_{a_1}; T_{a_1}; H_{a_2}; T_{a_2}; …]` of a friction
+/// problem with joints: J the first nb rows of `joints` (n columns each), then the normal
+/// (`jac`) and tangent (`tjac`) rows of the active contacts `active`.
+fn stacked_row<'a>(
+    joints: &'a [f64],
+    jac: &'a [f64],
+    tjac: &'a [f64],
+    active: &[usize],
+    (n, nb): (usize, usize),
+    r: usize,
+) -> &'a [f64] {
+    match r.checked_sub(nb) {
+        None => &joints[r * n..(r + 1) * n],
+        Some(c) => {
+            let a = active[c / 2];
+            let src = if c % 2 == 0 { jac } else { tjac };
+            &src[a * n..(a + 1) * n]
+        }
+    }
 }
 
 /// The midpoint ½(q_k + q).
@@ -1773,14 +1914,12 @@ impl<S: JointedSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
     }
 
     fn restore(&mut self, run: NonlinearRun) -> Result<(), NonlinearRunStop> {
-        let (n, m) = (self.system.dofs(), self.system.contacts());
-        if run.state.q.len() != n || run.previous_impulse.len() != m {
-            return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
-                "a nonlinear state of {} coordinates, the system has {n}",
-                run.state.q.len()
-            ))
-            .into());
-        }
+        check_run_fits(
+            "a nonlinear",
+            self.system,
+            &run.state,
+            &run.previous_impulse,
+        )?;
         self.scheme.restore(run.memory)?;
         *self.state = run.state;
         self.stats = run.stats;
@@ -1789,6 +1928,37 @@ impl<S: JointedSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
         self.work_friction_total = run.work_friction_total;
         Ok(())
     }
+}
+
+/// Refuses a checkpointed nonlinear run (`what`: "a nonlinear", "an ns_generalized_alpha")
+/// whose state or previous impulses do not have the sizes of `system`.
+pub(crate) fn check_run_fits<S: LagrangianSystem + ?Sized>(
+    what: &str,
+    system: &S,
+    state: &NonlinearState,
+    previous_impulse: &[f64],
+) -> Result<(), crate::checkpoint::CheckpointError> {
+    let (n, m) = (system.dofs(), system.contacts());
+    if state.q.len() != n || previous_impulse.len() != m {
+        return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
+            "{what} state of {} coordinates, the system has {n}",
+            state.q.len()
+        )));
+    }
+    Ok(())
+}
+
+/// The planar friction problem of step `at`, its failure named for the step.
+fn solve_friction_at(
+    problem: FrictionProblem<'_>,
+    options: &LcpOptions,
+    at: StepAt,
+) -> Result<friction::FrictionSolution, NonlinearStepError> {
+    friction::solve_friction(problem, options).map_err(|source| NonlinearStepError::Friction {
+        step: at.step,
+        t: at.t,
+        source,
+    })
 }
 
 /// The mixed LCP of the joint rows (equalities) and the contact rows, its failure named for

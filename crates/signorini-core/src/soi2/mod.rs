@@ -151,6 +151,14 @@ pub trait ConstrainedModel {
         false
     }
 
+    /// The names of the probed state columns, positions then velocities: `("y", "z")`, the
+    /// paper's (Jay & Negrut 2008, (11)), for the built-in scenes. A model whose coordinates
+    /// are named by its family otherwise says so (a `lagrangian` model: `("q", "v")`, the
+    /// names its probes have under every scheme).
+    fn state_names(&self) -> (&'static str, &'static str) {
+        ("y", "z")
+    }
+
     /// Potential energy (gravity and springs), 0 when the model has none.
     fn potential(&self, t: f64, y: &[f64]) -> f64 {
         let _ = (t, y);

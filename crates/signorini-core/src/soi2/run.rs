@@ -212,8 +212,12 @@ pub struct Soi2Stats {
 /// the same work under the name the nonlinear models share (the applied non-conservative forces
 /// `forces` of a `lagrangian` model); `energy_error` = E(t) − E(0) − Σ work_ext, the scheme's
 /// energy error (it shrinks with h); the constraint residuals, Newton's iterations, λ, ψ and
-/// the probes.
-pub fn columns(dims: super::Dims, probes: &[usize]) -> Columns {
+/// the probes, named by `state` (positions, velocities: [`ConstrainedModel::state_names`]).
+pub fn columns(
+    dims: super::Dims,
+    state: (&'static str, &'static str),
+    probes: &[usize],
+) -> Columns {
     let mut names: Vec<String> = [
         "h",
         "kinetic",
@@ -233,8 +237,9 @@ pub fn columns(dims: super::Dims, probes: &[usize]) -> Columns {
     .collect();
     names.extend((0..dims.holonomic).map(|i| format!("lambda_{i}")));
     names.extend((0..dims.nonholonomic).map(|i| format!("psi_{i}")));
+    let (position, velocity) = state;
     for j in probes {
-        names.extend([format!("y_{j}"), format!("z_{j}")]);
+        names.extend([format!("{position}_{j}"), format!("{velocity}_{j}")]);
     }
     Columns::new(names)
 }
@@ -414,7 +419,7 @@ impl<M: ConstrainedModel + ?Sized, I: Iterator<Item = f64>> TimeStepping
     const RUN: RunKind = RunKind::Soi2;
 
     fn columns(&self) -> Columns {
-        columns(self.model.dims(), self.probes)
+        columns(self.model.dims(), self.model.state_names(), self.probes)
     }
 
     fn total_steps(&self) -> u64 {
@@ -610,13 +615,13 @@ impl Soi2Job {
 
     /// Number of recorded columns.
     pub fn columns(&self) -> usize {
-        let d = match &self.model {
-            Soi2Model::Pendulum(p) => p.dims(),
-            Soi2Model::SliderCrank(s) => s.dims(),
-            Soi2Model::JayNegrutTest(j) => j.dims(),
-            Soi2Model::User(u) => u.dims(),
+        let (d, names) = match &self.model {
+            Soi2Model::Pendulum(p) => (p.dims(), p.state_names()),
+            Soi2Model::SliderCrank(s) => (s.dims(), s.state_names()),
+            Soi2Model::JayNegrutTest(j) => (j.dims(), j.state_names()),
+            Soi2Model::User(u) => (u.dims(), u.state_names()),
         };
-        columns(d, &self.output.probes).len()
+        columns(d, names, &self.output.probes).len()
     }
 
     /// Runs the job; the summary's SOI2 part (the caller adds name, scene, scheme).

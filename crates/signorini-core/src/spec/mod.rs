@@ -15,6 +15,7 @@ pub mod lagrangian;
 pub mod model;
 pub mod rigid;
 pub mod study;
+pub mod support;
 
 pub use analysis::{AnalysisSpec, Excitation, ForcedResponseSpec, ModalSpec};
 pub use error::SpecError;
@@ -279,19 +280,21 @@ impl TimeSpec {
     /// Checks the section: h > 0; `t_end` ≥ 0 or `steps`, not both; h ≤ `t_end` when
     /// `t_end` > 0; at most [`MAX_STEPS`] steps
     /// (counted with the mean relative step); `pattern` and `adjust` only where the scheme takes
-    /// variable steps (`variable_steps`). Errors name the field.
-    pub fn steps(&self, variable_steps: bool) -> Result<Steps, SpecError> {
+    /// variable steps: `fixed_step` is the refusal of variable steps by the scheme × feature
+    /// table ([`support::refusal`] of [`support::Feature::VariableStep`]), `None` where they are
+    /// taken. Errors name the field.
+    pub fn steps(&self, fixed_step: Option<SpecError>) -> Result<Steps, SpecError> {
         if !(self.h.is_finite() && self.h > 0.0) {
             return Err(SpecError::new(
                 "time.h",
                 format!("must be a finite number > 0, got {}", self.h),
             ));
         }
-        if !variable_steps && self.pattern.is_some() {
-            return Err(SpecError::new(
-                "time.pattern",
-                "variable step sizes are supported by the SOI2 schemes only",
-            ));
+        let variable_steps = fixed_step.is_none();
+        if let Some(refusal) = fixed_step
+            && self.pattern.is_some()
+        {
+            return Err(refusal);
         }
         if !variable_steps && self.adjust.is_some() {
             return Err(SpecError::new(
