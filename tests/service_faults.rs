@@ -928,3 +928,100 @@ const PG_STEPS: u64 = 600_000;
 
 /// How long PostgreSQL stays down in the crash test.
 const PG_DOWN: Duration = Duration::from_secs(3);
+
+/// A zenoh subscriber that never reads (a session of this test whose subscriber's queue fills:
+/// zenoh then stops reading its link, and the server's frames to it block until zenoh drops the
+/// link, 5 s) and a gRPC `WatchJob` client that never reads (its HTTP/2 window fills), both on a
+/// job of 2·10⁶ steps recorded every 10th: the job succeeds, `signorini watch --json` (another
+/// process, a peer of the server) still shows every energy frame from the first it saw to the
+/// last, once and in order, with the stored rows (what the blocked publisher dropped comes from
+/// the history), the server's memory grows by less than 64 MiB, and the next job runs.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_zenoh_and_a_grpc_watcher_that_never_read_hold_up_nothing() {
+    let (_tmp, server, mut client) = serve(1, &[]).await;
+    const STEPS: u64 = 2_000_000;
+    let id = submit_json(&mut client, ball_json(1e-6, STEPS, 10), Some("silent"))
+        .await
+        .expect("submit");
+    let silent = server.zenoh_session().await;
+    let _never_read = silent
+        .declare_subscriber(format!("signorini/v1/jobs/{id}/*"))
+        .await
+        .expect("subscribe");
+    common::zenoh_barrier(&silent, &id).await;
+    let mut other = server.grpc().await;
+    let _never_read_either = other
+        .watch_job(pb::WatchJobRequest {
+            id: id.clone(),
+            from_seq: Some(0),
+        })
+        .await
+        .expect("WatchJob")
+        .into_inner();
+    let before = rss(server.pid());
+    let watch = Command::new(env!("CARGO_BIN_EXE_signorini"))
+        .args(["watch", &id, "--json", "--zenoh-connect", &server.zenoh])
+        .args(["--server", &server.grpc_url])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("signorini watch");
+    let out = tokio::task::spawn_blocking(move || watch.wait_with_output())
+        .await
+        .expect("watch's thread")
+        .expect("watch's output");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let end = wait_terminal(&mut client, &id).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    let grown = rss(server.pid()).saturating_sub(before);
+    assert!(grown < 64 << 20, "the server grew by {} MiB", grown >> 20);
+
+    let text = String::from_utf8(out.stdout).expect("UTF-8");
+    let energy: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).expect("a JSON line"))
+        .filter(|v| v["kind"] == "energy")
+        .collect();
+    let seqs: Vec<u64> = energy
+        .iter()
+        .map(|v| v["seq"].as_u64().expect("seq"))
+        .collect();
+    let first = *seqs.first().expect("energy frames");
+    assert!(
+        seqs.iter().copied().eq(first..first + seqs.len() as u64),
+        "energy frames missing or repeated"
+    );
+    assert_eq!(
+        energy.last().map(|v| &v["last"]),
+        Some(&serde_json::Value::Bool(true))
+    );
+    let rows: usize = energy
+        .iter()
+        .map(|v| v["step"].as_array().map_or(0, Vec::len))
+        .sum();
+    let first_step = energy[0]["step"][0].as_u64().expect("a step");
+    assert_eq!(
+        rows as u64,
+        (STEPS - first_step) / 10 + 1,
+        "rows from step {first_step}"
+    );
+    let (_, metrics) = server.http_raw("GET", "/metrics", None, None).await;
+    let dropped = String::from_utf8_lossy(&metrics)
+        .lines()
+        .find(|l| l.starts_with("signorini_frames_dropped_total"))
+        .map(str::to_string);
+    println!(
+        "silent subscribers: {dropped:?}, the server grew by {} KiB",
+        grown >> 10
+    );
+    let next = submit_json(&mut client, ball_json(1e-3, 100, 1), None)
+        .await
+        .expect("submit");
+    let end = wait_terminal(&mut client, &next).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    let _ = silent.close().await;
+}
