@@ -4,7 +4,8 @@
 
 mod common;
 
-use common::{Options, TestServer, ball_json, submit_json, wait_terminal};
+use common::pg::Postgres;
+use common::{Options, TestServer, ball_json, has_ended, poll_job, submit_json, wait_terminal};
 use signorini::proto::v1 as pb;
 use signorini::proto::v1::simulation_client::SimulationClient;
 use std::path::{Path, PathBuf};
@@ -610,4 +611,417 @@ async fn a_job_past_the_wall_time_limit_fails_naming_it() {
         .expect("submit");
     let end = wait_terminal(&mut client, &next).await;
     assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+}
+
+/// Names the endpoint the router process of [`zenoh_router_process`] listens on.
+const ROUTER_ENV: &str = "SIGNORINI_TEST_ZENOH_ROUTER";
+
+/// Not a test of its own: the body of the zenoh router *process* that
+/// `a_zenoh_router_killed_and_restarted_while_a_client_watches_leaves_no_gap` starts (this test
+/// binary run again on this one function, with the endpoint in [`ROUTER_ENV`]), so that the
+/// router can be killed with SIGKILL like a real `zenohd`. It runs until it is killed.
+#[tokio::test(flavor = "multi_thread")]
+#[ignore = "the router process of the router test, started by it"]
+async fn zenoh_router_process() {
+    let endpoint = std::env::var(ROUTER_ENV).expect("started by the router test, which sets it");
+    let mut config = zenoh::Config::default();
+    for (key, value) in [
+        ("mode", "\"router\"".to_string()),
+        ("scouting/multicast/enabled", "false".into()),
+        ("listen/endpoints", format!("[\"{endpoint}\"]")),
+    ] {
+        config.insert_json5(key, &value).expect("router config");
+    }
+    let _router = zenoh::open(config).await.expect("zenoh router");
+    println!("zenoh router listening on {endpoint}");
+    loop {
+        tokio::time::sleep(Duration::from_secs(3600)).await;
+    }
+}
+
+/// Starts the router process on `endpoint` and waits until it listens.
+fn router_process(endpoint: &str) -> common::ChildGuard {
+    let mut child = common::ChildGuard(
+        Command::new(std::env::current_exe().expect("the test binary"))
+            .args([
+                "zenoh_router_process",
+                "--exact",
+                "--ignored",
+                "--nocapture",
+            ])
+            .env(ROUTER_ENV, endpoint)
+            .stdout(std::process::Stdio::piped())
+            .spawn()
+            .expect("starting the router process"),
+    );
+    let lines = common::stdout_lines(&mut child.0);
+    loop {
+        match lines.recv_timeout(common::PATIENCE) {
+            Ok(Some(line)) if line.starts_with("zenoh router listening") => break,
+            Ok(Some(_)) => {}
+            other => panic!("the router process did not start: {other:?}"),
+        }
+    }
+    std::thread::spawn(move || while let Ok(Some(_)) = lines.recv() {});
+    child
+}
+
+/// `signorini watch --json` follows a job through a zenoh router (the watcher a zenoh client
+/// of the router only, as in deploy/zenoh/viewer.json5; the server a peer connected to it).
+/// The router is killed with SIGKILL while the job runs and started again on the same endpoint
+/// seconds later: the watcher's stream resumes live (a frame past the restart arrives while the
+/// job still runs), and its output holds every energy frame from the first it saw to the job's
+/// last, each once and in `seq` order, whose rows are the stored result's, bit for bit: the
+/// frames put while the router was down come from the server's history. (Before `watch` asked
+/// the history, the frames put during the outage were simply missing from its output.)
+#[tokio::test(flavor = "multi_thread")]
+async fn a_zenoh_router_killed_and_restarted_while_a_client_watches_leaves_no_gap() {
+    let router_endpoint = format!("tcp/127.0.0.1:{}", common::free_port());
+    let mut router = router_process(&router_endpoint);
+    let (tmp, server, mut client) = serve(1, &["--zenoh-connect", &router_endpoint]).await;
+    let viewer = tmp.path().join("viewer.json5");
+    std::fs::write(
+        &viewer,
+        r#"{ mode: "client", scouting: { multicast: { enabled: false } } }"#,
+    )
+    .expect("viewer config");
+    // 2·10⁷ steps recorded every 1000th: about 30 s (6·10⁵ steps/s measured).
+    const STEPS: u64 = 20_000_000;
+    let id = submit_json(&mut client, ball_json(1e-6, STEPS, 1000), Some("through"))
+        .await
+        .expect("submit");
+    common::wait_running(&mut client, &id, 1).await;
+    let mut watcher = common::ChildGuard(
+        Command::new(env!("CARGO_BIN_EXE_signorini"))
+            .args(["watch", &id, "--json", "--zenoh-connect", &router_endpoint])
+            .arg("--zenoh-config")
+            .arg(&viewer)
+            .args(["--server", &server.grpc_url])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("signorini watch"),
+    );
+    let lines = common::stdout_lines(&mut watcher.0);
+    let mut out: Vec<serde_json::Value> = Vec::new();
+    let next_line = |out: &mut Vec<serde_json::Value>| -> Option<serde_json::Value> {
+        let line = lines
+            .recv_timeout(common::PATIENCE)
+            .expect("a line of watch in time")?;
+        let v: serde_json::Value = serde_json::from_str(&line).expect("a JSON line");
+        out.push(v.clone());
+        Some(v)
+    };
+    let energy_step = |v: &serde_json::Value| {
+        (v["kind"] == "energy")
+            .then(|| v["step"].as_array()?.last()?.as_u64())
+            .flatten()
+    };
+    // A few live frames, then the router goes.
+    let mut frames = 0;
+    while frames < 5 {
+        let v = next_line(&mut out).expect("watch ended early");
+        frames += usize::from(energy_step(&v).is_some());
+    }
+    let get = |c: &mut SimulationClient<tonic::transport::Channel>| {
+        let mut c = c.clone();
+        let id = id.clone();
+        async move {
+            c.get_job(pb::GetJobRequest { id })
+                .await
+                .expect("GetJob")
+                .into_inner()
+        }
+    };
+    router.0.kill().expect("SIGKILL to the router");
+    router.0.wait().expect("the router's end");
+    let at_kill = get(&mut client).await.progress.map_or(0, |p| p.step);
+    tokio::time::sleep(Duration::from_secs(3)).await;
+    let at_restart = get(&mut client).await;
+    let done = at_restart.progress.as_ref().map_or(0, |p| p.step);
+    assert!(
+        at_restart.state == pb::JobState::Running as i32 && done > at_kill,
+        "the job must run on while the router is down: {at_kill} then {at_restart:?}"
+    );
+    let _router = router_process(&router_endpoint);
+    // Live again: a frame past the restart while the job still runs.
+    loop {
+        let v = next_line(&mut out).expect("watch ended before the stream resumed");
+        if energy_step(&v).is_some_and(|s| s > done) {
+            let now = get(&mut client).await;
+            assert_eq!(
+                now.state,
+                pb::JobState::Running as i32,
+                "the stream resumed only after the job's end: {now:?}"
+            );
+            break;
+        }
+    }
+    while next_line(&mut out).is_some() {}
+    let status = watcher.0.wait().expect("watch's end");
+    assert!(status.success(), "watch: {status}");
+
+    // Every energy frame from the first seen to the last, once, in order, as stored.
+    let energy: Vec<&serde_json::Value> = out.iter().filter(|v| v["kind"] == "energy").collect();
+    let seqs: Vec<u64> = energy
+        .iter()
+        .map(|v| v["seq"].as_u64().expect("seq"))
+        .collect();
+    let first = seqs[0];
+    assert_eq!(
+        seqs,
+        (first..first + seqs.len() as u64).collect::<Vec<_>>(),
+        "energy frames missing or repeated"
+    );
+    assert_eq!(
+        energy.last().map(|v| &v["last"]),
+        Some(&serde_json::Value::Bool(true))
+    );
+    let (code, stored) = server
+        .http("GET", &format!("/v1/jobs/{id}/result"), None, None)
+        .await;
+    assert_eq!(code, 200, "{stored}");
+    let stored_steps = stored["steps"]["step"].as_array().expect("steps");
+    let first_step = energy[0]["step"][0].as_u64().expect("a step");
+    let mut row = stored_steps
+        .iter()
+        .position(|s| s.as_u64() == Some(first_step))
+        .expect("the first watched step is stored");
+    for f in &energy {
+        let columns = f["columns"].as_array().expect("columns");
+        for (step, values) in f["step"]
+            .as_array()
+            .expect("steps")
+            .iter()
+            .zip(f["rows"].as_array().expect("rows"))
+        {
+            assert_eq!(step, &stored_steps[row], "row {row}");
+            for (c, v) in columns.iter().zip(values.as_array().expect("a row")) {
+                let column = c.as_str().expect("a column name");
+                assert_eq!(v, &stored["steps"][column][row], "{column} at row {row}");
+            }
+            row += 1;
+        }
+    }
+    assert_eq!(
+        row,
+        stored_steps.len(),
+        "the watched rows end where the result does"
+    );
+    assert_eq!(stored_steps.last().and_then(|s| s.as_u64()), Some(STEPS));
+}
+
+/// PostgreSQL killed with SIGKILL (the postmaster and all its processes: a crash) while two
+/// replicas run four jobs that store their series as they go, and started again on the same
+/// port [`PG_DOWN`] later (crash recovery from its write-ahead log). The replicas reconnect;
+/// every job ends `succeeded` on its first claim (none lost, none run twice: `attempt` is 1,
+/// the lease of 30 s outlives the outage); each stored series is whole (one row per step, no
+/// chunk missing or twice) and the four results, of one spec, are equal; a job submitted after
+/// the restart runs; `/healthz` is ok.
+#[tokio::test(flavor = "multi_thread")]
+async fn postgresql_killed_and_restarted_mid_run_loses_no_job_and_runs_none_twice() {
+    let pg = Postgres::start();
+    let url = pg.create_database("crash");
+    // The test server runs with synchronous_commit off (fast, and harmless for the other
+    // tests), which PostgreSQL documents may lose the last commits in a crash: a chunk the store
+    // was told was committed went missing that way in this test. A deployment keeps the
+    // default (on), as this database does.
+    pg.psql(
+        "postgres",
+        "ALTER DATABASE crash SET synchronous_commit = on",
+    );
+    let opts = Options {
+        workers: 2,
+        ..Options::default()
+    };
+    let replica = |name: &str| {
+        TestServer::start_with(
+            Path::new(&url),
+            &opts,
+            &["--replica", name, "--lease-secs", "30"],
+        )
+    };
+    let (a, b) = (replica("a"), replica("b"));
+    let mut to_a = a.grpc().await;
+    let mut to_b = b.grpc().await;
+    let ids: Vec<String> = (0..4).map(|k| format!("crash-{k}")).collect();
+    for id in &ids {
+        submit_json(&mut to_a, ball_json(1e-5, PG_STEPS, 1), Some(id))
+            .await
+            .expect("submit");
+    }
+    // All four running, each with a stored chunk of its series.
+    let deadline = Instant::now() + common::PATIENCE;
+    while pg.psql(
+        "crash",
+        "SELECT (SELECT count(*) FROM jobs WHERE state = 'running') || ',' || (SELECT count(DISTINCT id) FROM result_chunks)",
+    ) != "4,4"
+    {
+        assert!(Instant::now() < deadline, "the jobs did not all start");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    pg.kill9();
+    let killed = Instant::now();
+    tokio::time::sleep(PG_DOWN).await;
+    pg.restart();
+    println!(
+        "PostgreSQL killed (SIGKILL) and started again {:?} later",
+        killed.elapsed()
+    );
+
+    for id in &ids {
+        let end = poll_job(&mut to_b, id, has_ended).await;
+        assert_eq!(end.state, pb::JobState::Succeeded as i32, "{id}: {end:?}");
+    }
+    assert_eq!(
+        pg.psql(
+            "crash",
+            "SELECT string_agg(attempt::text, ',' ORDER BY id) FROM jobs"
+        ),
+        "1,1,1,1",
+        "a job was claimed twice"
+    );
+    let whole = format!("{}|{}|{PG_STEPS}", PG_STEPS + 1, PG_STEPS + 1);
+    for row in pg
+        .psql(
+            "crash",
+            "SELECT id, sum(rows), max(first_row + rows), max(step_last), count(*) = count(DISTINCT chunk) FROM result_chunks GROUP BY id ORDER BY id",
+        )
+        .lines()
+    {
+        let (id, rest) = row.split_once('|').expect("a row");
+        assert_eq!(rest, format!("{whole}|t"), "{id}'s series");
+    }
+    let first = steps_every_997(&a, &ids[0]).await;
+    // Steps 0, 997, …, 599 197, and the last one.
+    let steps = first["step"].as_array().expect("steps");
+    assert_eq!(steps.len(), PG_STEPS as usize / 997 + 2);
+    assert_eq!(steps.last().and_then(|s| s.as_u64()), Some(PG_STEPS));
+    for id in &ids[1..] {
+        assert!(
+            steps_every_997(&b, id).await == first,
+            "{id}'s result differs"
+        );
+    }
+    let after = submit_json(&mut to_b, ball_json(1e-3, 200, 1), None)
+        .await
+        .expect("a submission after the restart");
+    let end = wait_terminal(&mut to_b, &after).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    for server in [&a, &b] {
+        let (code, health) = server.http("GET", "/healthz", None, None).await;
+        assert_eq!((code, health["status"].as_str()), (200, Some("ok")));
+    }
+}
+
+/// Every 997th row of job `id`'s result, over HTTP.
+async fn steps_every_997(server: &TestServer, id: &str) -> serde_json::Value {
+    let path = format!("/v1/jobs/{id}/result?every=997");
+    let (code, body) = server.http("GET", &path, None, None).await;
+    assert_eq!(code, 200, "{body}");
+    body["steps"].clone()
+}
+
+/// Steps of each job of the PostgreSQL crash test (every one recorded: a chunk of the series
+/// stored about every 10⁴ steps).
+const PG_STEPS: u64 = 600_000;
+
+/// How long PostgreSQL stays down in the crash test.
+const PG_DOWN: Duration = Duration::from_secs(3);
+
+/// A zenoh subscriber that never reads (a session of this test whose subscriber's queue fills:
+/// zenoh then stops reading its link, and the server's frames to it block until zenoh drops the
+/// link, 5 s) and a gRPC `WatchJob` client that never reads (its HTTP/2 window fills), both on a
+/// job of 2·10⁶ steps recorded every 10th: the job succeeds, `signorini watch --json` (another
+/// process, a peer of the server) still shows every energy frame from the first it saw to the
+/// last, once and in order, with the stored rows (what the blocked publisher dropped comes from
+/// the history), the server's memory grows by less than 64 MiB, and the next job runs.
+#[tokio::test(flavor = "multi_thread")]
+async fn a_zenoh_and_a_grpc_watcher_that_never_read_hold_up_nothing() {
+    let (_tmp, server, mut client) = serve(1, &[]).await;
+    const STEPS: u64 = 2_000_000;
+    let id = submit_json(&mut client, ball_json(1e-6, STEPS, 10), Some("silent"))
+        .await
+        .expect("submit");
+    let silent = server.zenoh_session().await;
+    let _never_read = silent
+        .declare_subscriber(format!("signorini/v1/jobs/{id}/*"))
+        .await
+        .expect("subscribe");
+    common::zenoh_barrier(&silent, &id).await;
+    let mut other = server.grpc().await;
+    let _never_read_either = other
+        .watch_job(pb::WatchJobRequest {
+            id: id.clone(),
+            from_seq: Some(0),
+        })
+        .await
+        .expect("WatchJob")
+        .into_inner();
+    let before = rss(server.pid());
+    let watch = Command::new(env!("CARGO_BIN_EXE_signorini"))
+        .args(["watch", &id, "--json", "--zenoh-connect", &server.zenoh])
+        .args(["--server", &server.grpc_url])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("signorini watch");
+    let out = tokio::task::spawn_blocking(move || watch.wait_with_output())
+        .await
+        .expect("watch's thread")
+        .expect("watch's output");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let end = wait_terminal(&mut client, &id).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    let grown = rss(server.pid()).saturating_sub(before);
+    assert!(grown < 64 << 20, "the server grew by {} MiB", grown >> 20);
+
+    let text = String::from_utf8(out.stdout).expect("UTF-8");
+    let energy: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).expect("a JSON line"))
+        .filter(|v| v["kind"] == "energy")
+        .collect();
+    let seqs: Vec<u64> = energy
+        .iter()
+        .map(|v| v["seq"].as_u64().expect("seq"))
+        .collect();
+    let first = *seqs.first().expect("energy frames");
+    assert!(
+        seqs.iter().copied().eq(first..first + seqs.len() as u64),
+        "energy frames missing or repeated"
+    );
+    assert_eq!(
+        energy.last().map(|v| &v["last"]),
+        Some(&serde_json::Value::Bool(true))
+    );
+    let rows: usize = energy
+        .iter()
+        .map(|v| v["step"].as_array().map_or(0, Vec::len))
+        .sum();
+    let first_step = energy[0]["step"][0].as_u64().expect("a step");
+    assert_eq!(
+        rows as u64,
+        (STEPS - first_step) / 10 + 1,
+        "rows from step {first_step}"
+    );
+    let (_, metrics) = server.http_raw("GET", "/metrics", None, None).await;
+    let dropped = String::from_utf8_lossy(&metrics)
+        .lines()
+        .find(|l| l.starts_with("signorini_frames_dropped_total"))
+        .map(str::to_string);
+    println!(
+        "silent subscribers: {dropped:?}, the server grew by {} KiB",
+        grown >> 10
+    );
+    let next = submit_json(&mut client, ball_json(1e-3, 100, 1), None)
+        .await
+        .expect("submit");
+    let end = wait_terminal(&mut client, &next).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    let _ = silent.close().await;
 }

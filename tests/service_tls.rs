@@ -1,7 +1,8 @@
 //! TLS on both listeners (`serve --tls-cert FILE --tls-key FILE`), with a certificate authority
 //! and a server certificate made by the test (rcgen): HTTPS and gRPC over TLS work for a client
 //! that trusts the authority (the CLI's `--ca`), plain text to either port fails, and a client
-//! that trusts another authority is refused.
+//! that trusts another authority is refused. zenoh between the server and a router speaks TLS
+//! with zenoh's own configuration (`transport.link.tls`), refusing plain text and strangers.
 
 mod common;
 
@@ -310,4 +311,130 @@ fn serve_refuses_a_certificate_without_its_own_key() {
     let (ok, _, err) = serve(&["--tls-cert", &key, "--tls-key", &key]);
     assert!(!ok);
     assert!(err.contains("no PEM certificate"), "{err}");
+}
+
+/// A zenoh configuration (JSON5) of `mode` whose links trust only the authority in `ca`; with
+/// `listen` (the certificate and key of a router), its TLS listener's too.
+fn zenoh_tls_config(mode: &str, ca: &Path, listen: Option<&Pki>) -> String {
+    let listen = listen.map_or(String::new(), |p| {
+        format!(
+            "listen_certificate: {:?}, listen_private_key: {:?},",
+            p.cert.display().to_string(),
+            p.key.display().to_string()
+        )
+    });
+    format!(
+        r#"{{ mode: "{mode}", scouting: {{ multicast: {{ enabled: false }} }},
+  transport: {{ link: {{ tls: {{ root_ca_certificate: {:?}, {listen} }} }} }} }}"#,
+        ca.display().to_string()
+    )
+}
+
+/// zenoh over TLS between the service and a router (zenoh's own TLS configuration, the
+/// `transport_tls` feature): a router listening on `tls/127.0.0.1:PORT` with the test's
+/// certificate, the server connected to it with a configuration that trusts the authority, and
+/// `signorini watch` as a client of the router: the watcher gets every energy frame of a job to
+/// its last, with the stored rows' count. A watcher connecting in plain text (`tcp/`) to the
+/// router's TLS port, or trusting another authority, reaches no server and exits 1.
+#[tokio::test(flavor = "multi_thread")]
+async fn zenoh_links_to_a_router_speak_tls_and_refuse_plain_text_and_another_authority() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let pki = pki(dir.path());
+    let endpoint = format!("tls/127.0.0.1:{}", common::free_port());
+    let router_config = zenoh::Config::from_json5(&zenoh_tls_config("router", &pki.ca, Some(&pki)))
+        .expect("router config");
+    let mut router_config = router_config;
+    router_config
+        .insert_json5("listen/endpoints", &format!("[\"{endpoint}\"]"))
+        .expect("router endpoint");
+    let router = zenoh::open(router_config).await.expect("a TLS router");
+
+    let peer = dir.path().join("peer.json5");
+    std::fs::write(&peer, zenoh_tls_config("peer", &pki.ca, None)).expect("peer config");
+    let opts = Options {
+        workers: 1,
+        zenoh_config: Some(peer),
+        ..Options::default()
+    };
+    let server = TestServer::start_with(
+        &dir.path().join("s.db"),
+        &opts,
+        &["--zenoh-connect", &endpoint],
+    );
+    let mut client = server.grpc().await;
+    const STEPS: u64 = 4_000_000;
+    let id = common::submit_json(&mut client, ball_json(1e-6, STEPS, 1000), Some("tls"))
+        .await
+        .expect("submit");
+    common::wait_running(&mut client, &id, 1).await;
+
+    let viewer = |name: &str, ca: &Path| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, zenoh_tls_config("client", ca, None)).expect("viewer config");
+        path
+    };
+    let (trusting, other) = (
+        viewer("viewer.json5", &pki.ca),
+        viewer("other.json5", &pki.other_ca),
+    );
+    let watch = |config: &Path, connect: &str| {
+        Command::new(env!("CARGO_BIN_EXE_signorini"))
+            .args(["watch", &id, "--json", "--zenoh-connect", connect])
+            .arg("--zenoh-config")
+            .arg(config)
+            .args(["--server", &server.grpc_url])
+            .output()
+            .expect("signorini watch")
+    };
+    let plain = endpoint.replace("tls/", "tcp/");
+    let (good, plain_text, stranger) = std::thread::scope(|s| {
+        let good = s.spawn(|| watch(&trusting, &endpoint));
+        let plain_text = s.spawn(|| watch(&trusting, &plain));
+        let stranger = s.spawn(|| watch(&other, &endpoint));
+        (
+            good.join().expect("watch"),
+            plain_text.join().expect("watch"),
+            stranger.join().expect("watch"),
+        )
+    });
+    assert!(
+        good.status.success(),
+        "{}",
+        String::from_utf8_lossy(&good.stderr)
+    );
+    let text = String::from_utf8(good.stdout).expect("UTF-8");
+    let energy: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).expect("a JSON line"))
+        .filter(|v| v["kind"] == "energy")
+        .collect();
+    assert_eq!(
+        energy.last().map(|v| &v["last"]),
+        Some(&serde_json::Value::Bool(true))
+    );
+    let rows: u64 = energy
+        .iter()
+        .map(|v| v["step"].as_array().map_or(0, Vec::len) as u64)
+        .sum();
+    let first = energy[0]["step"][0].as_u64().expect("a step");
+    assert_eq!(
+        rows,
+        (STEPS - first) / 1000 + 1,
+        "every row from step {first}"
+    );
+    for (what, out) in [("plain text", plain_text), ("another authority", stranger)] {
+        assert!(
+            !out.status.success(),
+            "{what}: watch reached the server: {}",
+            String::from_utf8_lossy(&out.stdout)
+        );
+        assert!(
+            !String::from_utf8_lossy(&out.stdout).contains("\"energy\""),
+            "{what}: frames arrived"
+        );
+    }
+    let end = wait_terminal(&mut client, &id).await;
+    assert_eq!(end.state, pb::JobState::Succeeded as i32, "{end:?}");
+    drop(server);
+    router.close().await.expect("closing the router");
 }

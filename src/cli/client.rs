@@ -2,6 +2,7 @@
 //! `capabilities`.
 //! They talk gRPC to a running `signorini serve`; `watch` subscribes to the job's zenoh keys.
 
+use super::watch_gaps::{Expected, KINDS};
 use crate::output::{CsvSteps, FinishedRun, clear_results, write_run_files};
 use crate::proto::encode::{status_from_proto, tables_from_proto};
 use crate::proto::v1 as pb;
@@ -893,16 +894,19 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<(Sh
     if shown.status(&current)? {
         return Ok((shown, current));
     }
+    let mut expected = Expected::default();
     let last_status = loop {
         let sample = match tokio::time::timeout(Duration::from_secs(2), sub.recv_async()).await {
             Ok(Ok(s)) => s,
             Ok(Err(e)) => return Err(anyhow!("zenoh: {e}")),
             Err(_) => {
                 // Quiet for a while: ask (a final status may have been missed).
-                if let Some(s) = query_status(session, &args.id).await?
-                    && shown.status(&s)?
-                {
-                    break s;
+                match query_status(session, &args.id).await? {
+                    Some(s) if s.state.is_terminal() => break s,
+                    Some(s) => {
+                        shown.status(&s)?;
+                    }
+                    None => {}
                 }
                 continue;
             }
@@ -911,18 +915,29 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<(Sh
         let bytes = sample.payload().to_bytes();
         if key.ends_with("/status") {
             let s = decode_status(&bytes)?;
-            if shown.status(&s)? {
+            if s.state.is_terminal() {
                 break s;
             }
+            shown.status(&s)?;
         } else {
+            let k = usize::from(!key.ends_with("/energy"));
             let f = pb::StepFrame::decode(&*bytes)?;
-            let kind = if key.ends_with("/energy") {
-                "energy"
-            } else {
-                "state"
-            };
-            shown.frame(kind, &f)?;
+            for f in expected.live(session, &args.id, k, f).await? {
+                shown.frame(KINDS[k], &f)?;
+            }
         }
     };
+    // The frames after the last one seen live (lost while a router was down), then the end.
+    for (k, kind) in KINDS.iter().enumerate() {
+        match expected.rest(session, &args.id, k).await {
+            Ok(frames) => {
+                for f in frames {
+                    shown.frame(kind, &f)?;
+                }
+            }
+            Err(e) => eprintln!("warning: the last {kind} frames of job {}: {e:#}", args.id),
+        }
+    }
+    shown.status(&last_status)?;
     Ok((shown, last_status))
 }

@@ -8,6 +8,7 @@ mod run;
 mod schema;
 pub mod serve;
 mod solve;
+mod watch_gaps;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};

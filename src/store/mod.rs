@@ -54,6 +54,11 @@ pub enum StoreError {
     /// PostgreSQL (or its connection pool) said no.
     #[error("store (PostgreSQL): {0}")]
     Postgres(String),
+    /// PostgreSQL could not be reached, or dropped the connection (it stopped, crashed or is
+    /// still recovering: SQLSTATE class 08, 57P01–57P03, or an I/O error of the connection).
+    /// The PostgreSQL backend tries again for a while before it reports this.
+    #[error("store (PostgreSQL): unreachable: {0}")]
+    PostgresUnreachable(String),
     /// PostgreSQL refused a write for want of room or because it is read-only (SQLSTATE class
     /// 53 "insufficient resources", 25006 `read_only_sql_transaction`, class 58 "system
     /// error", e.g. 58030 `io_error`).
@@ -243,7 +248,7 @@ pub(crate) struct FigureJson {
 
 /// The JSON texts of a result's summary, columns, tables and figures, as both backends store
 /// them (all empty for an end without a result).
-#[derive(Default)]
+#[derive(Default, Clone)]
 pub(crate) struct ResultTexts {
     pub summary: String,
     pub columns: String,

@@ -81,6 +81,10 @@ const MIGRATIONS: &[(i64, &str, &str)] = &[
 /// Advisory lock key held while migrating ("sgnrn" in ASCII).
 const MIGRATION_LOCK: i64 = 0x73_67_6e_72_6e;
 
+/// How long a call waits for an unreachable PostgreSQL (restarting, recovering from a crash)
+/// before it fails with [`StoreError::PostgresUnreachable`].
+const RECONNECT_FOR: Duration = Duration::from_secs(30);
+
 /// The channel new jobs are announced on.
 const CHANNEL: &str = "signorini_jobs";
 
@@ -120,6 +124,20 @@ fn pg(e: tokio_postgres::Error) -> StoreError {
                 sqlstate: sqlstate.to_string(),
             };
         }
+        // A connection exception (class 08), or the server shutting down, crashed or not yet
+        // accepting connections (57P01 admin_shutdown, 57P02 crash_shutdown, 57P03
+        // cannot_connect_now: "the database system is starting up / in recovery mode").
+        if sqlstate.starts_with("08") || matches!(sqlstate, "57P01" | "57P02" | "57P03") {
+            return StoreError::PostgresUnreachable(format!("{} ({sqlstate})", db.message()));
+        }
+    } else if e.is_closed()
+        || std::error::Error::source(&e).is_some_and(|s| s.is::<std::io::Error>())
+    {
+        // The connection is gone, or could not be made (refused, reset).
+        return StoreError::PostgresUnreachable(match std::error::Error::source(&e) {
+            Some(cause) => format!("{e}: {cause}"),
+            None => e.to_string(),
+        });
     }
     StoreError::Postgres(match e.as_db_error() {
         Some(db) => format!("{} ({})", db.message(), db.code().code()),
@@ -344,15 +362,41 @@ impl PgStore {
             .map_err(|_| StoreError::Postgres("the store's runtime stopped".into()))?
     }
 
-    /// Runs `f` with a pooled connection.
+    /// Runs `f` with a pooled connection. While PostgreSQL cannot be reached (a restart, a
+    /// crash and its recovery, a network cut) `f` is run again on a fresh connection, after
+    /// pauses growing from 0.1 s to 1 s, for at most [`RECONNECT_FOR`]: a running job's writes,
+    /// its heartbeat and a submission wait for the database instead of failing. A statement
+    /// whose connection broke was not committed (PostgreSQL rolls back an unfinished
+    /// transaction), so running it again does not apply it twice; the one exception, a
+    /// connection lost between the commit and its acknowledgement, leaves a chunk already
+    /// stored (inserted `ON CONFLICT DO NOTHING`) or a claim whose lease runs out.
     fn with<T, F, Fut>(&self, f: F) -> Result<T, StoreError>
     where
         T: Send + 'static,
-        F: FnOnce(deadpool_postgres::Object) -> Fut + Send + 'static,
+        F: FnOnce(deadpool_postgres::Object) -> Fut + Clone + Send + 'static,
         Fut: Future<Output = Result<T, StoreError>> + Send,
     {
         let pool = self.pool.clone();
-        self.block(async move { f(pool.get().await.map_err(pool_err)?).await })
+        self.block(async move {
+            let started = tokio::time::Instant::now();
+            let mut pause = Duration::from_millis(100);
+            loop {
+                let outcome = match pool.get().await.map_err(pool_err) {
+                    Ok(c) => f.clone()(c).await,
+                    Err(e) => Err(e),
+                };
+                match outcome {
+                    Err(StoreError::PostgresUnreachable(reason))
+                        if started.elapsed() + pause < RECONNECT_FOR =>
+                    {
+                        tracing::warn!("store: PostgreSQL unreachable ({reason}): trying again");
+                        tokio::time::sleep(pause).await;
+                        pause = (pause * 2).min(Duration::from_secs(1));
+                    }
+                    other => return other,
+                }
+            }
+        })
     }
 
     fn lease_secs(&self) -> f64 {
@@ -481,7 +525,9 @@ async fn insert_chunk(
     Ok(())
 }
 
-/// The owned arguments of the end statement (sent to the store's runtime).
+/// The owned arguments of the end statement (sent to the store's runtime; cloned for a
+/// retry while PostgreSQL is unreachable).
+#[derive(Clone)]
 struct EndArgs {
     row: JobView,
     texts: Option<ResultTexts>,

@@ -100,29 +100,78 @@ impl Postgres {
         let mut last = String::new();
         for _ in 0..5 {
             server.port = free_port();
-            let options = format!(
-                "-p {} -k {} -c listen_addresses=127.0.0.1 -c fsync=off -c synchronous_commit=off -c full_page_writes=off -c max_connections=200",
-                server.port,
-                server.dir.path().display()
-            );
-            let log = server.dir.path().join("postgres.log").display().to_string();
-            let start = server.run(
-                "pg_ctl",
-                &[
-                    "-D", &data, "-l", &log, "-o", &options, "-w", "-t", "60", "start",
-                ],
-            );
-            if start.status.success() {
-                return server;
+            match server.pg_ctl_start() {
+                Ok(()) => return server,
+                Err(e) => last = e,
             }
-            last = format!(
-                "{}{}\n{}",
-                String::from_utf8_lossy(&start.stdout),
-                String::from_utf8_lossy(&start.stderr),
-                std::fs::read_to_string(&log).unwrap_or_default()
-            );
         }
         panic!("PostgreSQL did not start (5 tries): {last}");
+    }
+
+    /// `pg_ctl start` on this server's port: the server's output and log when it fails.
+    fn pg_ctl_start(&self) -> Result<(), String> {
+        let data = self.data();
+        let options = format!(
+            "-p {} -k {} -c listen_addresses=127.0.0.1 -c fsync=off -c synchronous_commit=off -c full_page_writes=off -c max_connections=200",
+            self.port,
+            self.dir.path().display()
+        );
+        let log = self.dir.path().join("postgres.log").display().to_string();
+        let start = self.run(
+            "pg_ctl",
+            &[
+                "-D", &data, "-l", &log, "-o", &options, "-w", "-t", "60", "start",
+            ],
+        );
+        if start.status.success() {
+            return Ok(());
+        }
+        Err(format!(
+            "{}{}\n{}",
+            String::from_utf8_lossy(&start.stdout),
+            String::from_utf8_lossy(&start.stderr),
+            std::fs::read_to_string(&log).unwrap_or_default()
+        ))
+    }
+
+    /// SIGKILL to the postmaster and every process it started (backends, checkpointer, WAL
+    /// writer: a crash, no shutdown checkpoint), and waits until they are all gone.
+    pub fn kill9(&self) {
+        let pid_file = self.dir.path().join("data/postmaster.pid");
+        let text = std::fs::read_to_string(&pid_file)
+            .unwrap_or_else(|e| panic!("{}: {e}", pid_file.display()));
+        let postmaster: u32 = text
+            .lines()
+            .next()
+            .and_then(|l| l.trim().parse().ok())
+            .expect("the postmaster's pid");
+        let mut pids = vec![postmaster];
+        pids.extend(children(postmaster));
+        let kill = Command::new("kill")
+            .arg("-KILL")
+            .args(pids.iter().map(u32::to_string))
+            .status()
+            .expect("running kill");
+        assert!(kill.success(), "kill -KILL {pids:?}");
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+        while pids
+            .iter()
+            .any(|p| Path::new(&format!("/proc/{p}")).exists() && !is_zombie(*p))
+        {
+            assert!(
+                std::time::Instant::now() < deadline,
+                "PostgreSQL's processes outlived SIGKILL"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+    }
+
+    /// Starts the server again on the same port and data directory (after [`Postgres::kill9`]:
+    /// crash recovery replays its write-ahead log).
+    pub fn restart(&self) {
+        if let Err(e) = self.pg_ctl_start() {
+            panic!("PostgreSQL did not start again: {e}");
+        }
     }
 
     fn data(&self) -> String {
@@ -213,6 +262,33 @@ impl Postgres {
     pub fn dir(&self) -> &Path {
         self.dir.path()
     }
+}
+
+/// The processes whose parent is `pid` (from `/proc/*/stat`).
+fn children(pid: u32) -> Vec<u32> {
+    let Ok(dir) = std::fs::read_dir("/proc") else {
+        return Vec::new();
+    };
+    dir.filter_map(Result::ok)
+        .filter_map(|e| e.file_name().to_str()?.parse::<u32>().ok())
+        .filter(|&p| {
+            std::fs::read_to_string(format!("/proc/{p}/stat")).is_ok_and(|stat| {
+                // The fields after the command's closing parenthesis: state, then the parent.
+                stat.rsplit_once(')')
+                    .and_then(|(_, rest)| rest.split_whitespace().nth(1)?.parse::<u32>().ok())
+                    == Some(pid)
+            })
+        })
+        .collect()
+}
+
+/// Whether process `pid` has exited and waits to be reaped.
+fn is_zombie(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|stat| {
+        stat.rsplit_once(')')
+            .and_then(|(_, rest)| rest.split_whitespace().next())
+            == Some("Z")
+    })
 }
 
 impl Drop for Postgres {

@@ -1,0 +1,115 @@
+//! The step frames `watch` did not get live, fetched from the server's history: every frame of
+//! a job carries its batch number `seq` (0, 1, 2, … per key), so a live frame whose `seq` is past
+//! the next one expected shows a gap — frames put while a zenoh router between the server and
+//! the watcher was down, or dropped for a slow link — and the job's final status leaves the
+//! frames after the last one seen. Both are asked of the history queryable
+//! (`signorini/v1/jobs/{id}/{energy,state}/*?from_seq=N`, at most
+//! [`stream::HISTORY_FRAMES`] replies per query, in no set order) and shown in `seq` order
+//! before what comes next, so `watch --json` prints each frame once, in order, with no hole.
+
+use crate::proto::v1 as pb;
+use crate::stream;
+use anyhow::{Result, anyhow};
+use prost::Message;
+
+/// The kinds of step frames, as in their keys.
+pub(super) const KINDS: [&str; 2] = ["energy", "state"];
+
+/// The next `seq` expected of each kind of frame (unknown until one is seen: a watcher that
+/// comes late starts where it came in).
+#[derive(Debug, Default)]
+pub(super) struct Expected {
+    next: [Option<u64>; 2],
+}
+
+impl Expected {
+    /// What to show for the live frame `f` of kind `KINDS[k]`: the missing frames before it
+    /// (from the history), then it; nothing when it was shown already.
+    pub(super) async fn live(
+        &mut self,
+        session: &zenoh::Session,
+        id: &str,
+        k: usize,
+        f: pb::StepFrame,
+    ) -> Result<Vec<pb::StepFrame>> {
+        let mut shown = Vec::new();
+        match self.next[k] {
+            Some(next) if f.seq < next => return Ok(shown),
+            Some(next) if f.seq > next => {
+                shown = fetch(session, id, KINDS[k], next, Some(f.seq)).await?;
+            }
+            _ => {}
+        }
+        self.next[k] = Some(f.seq + 1);
+        shown.push(f);
+        Ok(shown)
+    }
+
+    /// The frames of kind `KINDS[k]` after the last one shown, to the job's last (once it has
+    /// ended): nothing for a kind never seen live.
+    pub(super) async fn rest(
+        &mut self,
+        session: &zenoh::Session,
+        id: &str,
+        k: usize,
+    ) -> Result<Vec<pb::StepFrame>> {
+        let Some(next) = self.next[k] else {
+            return Ok(Vec::new());
+        };
+        let rest = fetch(session, id, KINDS[k], next, None).await?;
+        if let Some(last) = rest.last() {
+            self.next[k] = Some(last.seq + 1);
+        }
+        Ok(rest)
+    }
+}
+
+/// The recorded frames of `kind` with `from ≤ seq < before` (to the last one when `before` is
+/// `None`), in `seq` order, asked [`stream::HISTORY_FRAMES`] at a time.
+async fn fetch(
+    session: &zenoh::Session,
+    id: &str,
+    kind: &str,
+    from: u64,
+    before: Option<u64>,
+) -> Result<Vec<pb::StepFrame>> {
+    let key = match kind {
+        "energy" => stream::energy_key(id),
+        _ => stream::state_key(id),
+    };
+    let mut frames: Vec<pb::StepFrame> = Vec::new();
+    let mut from = from;
+    loop {
+        let replies = session
+            .get(format!("{key}/*?from_seq={from}"))
+            .await
+            .map_err(|e| anyhow!("zenoh get of the history: {e}"))?;
+        let mut got = Vec::new();
+        while let Ok(reply) = replies.recv_async().await {
+            match reply.result() {
+                Ok(sample) => got.push(pb::StepFrame::decode(&*sample.payload().to_bytes())?),
+                Err(e) => {
+                    return Err(anyhow!(
+                        "history of {key}: {}",
+                        String::from_utf8_lossy(&e.payload().to_bytes())
+                    ));
+                }
+            }
+        }
+        got.sort_by_key(|f| f.seq);
+        got.dedup_by_key(|f| f.seq);
+        let full = got.len() >= stream::HISTORY_FRAMES;
+        let Some(last) = got.last().map(|f| f.seq) else {
+            return Ok(frames);
+        };
+        frames.extend(
+            got.into_iter()
+                .filter(|f| f.seq >= from && before.is_none_or(|b| f.seq < b)),
+        );
+        let done = before.is_some_and(|b| last + 1 >= b) || frames.last().is_some_and(|f| f.last);
+        if done || !full {
+            return Ok(frames);
+        }
+        from = last + 1;
+    }
+}
