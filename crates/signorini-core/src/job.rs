@@ -408,7 +408,7 @@ fn check_joint_start(model: &UserModel, scheme: &str, redundant: bool) -> Result
     let (smax, smin) = (sv.max(), sv.min());
     // A NaN in g_q fails the comparison, hence the check, too.
     let independent = nb <= n && smin > 1e-10 * smax;
-    if !independent && !(redundant && smax.is_finite()) {
+    if !(independent || redundant && smax.is_finite()) {
         return Err(SpecError::new(
             "model.constraints",
             format!(

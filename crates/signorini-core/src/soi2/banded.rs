@@ -200,16 +200,21 @@ impl BandLu {
             x.swap(k, self.pivots[k]);
             let xk = x[k];
             if xk != 0.0 {
-                for i in k + 1..=(k + kl).min(n.saturating_sub(1)) {
-                    x[i] -= self.ab[self.at(i, k)] * xk;
+                let last = (k + kl).min(n - 1);
+                for (i, xi) in x.iter_mut().enumerate().take(last + 1).skip(k + 1) {
+                    *xi -= self.ab[self.at(i, k)] * xk;
                 }
             }
         }
         for k in (0..n).rev() {
-            let mut s = x[k];
-            for j in k + 1..=(k + kl + ku).min(n - 1) {
-                s -= self.ab[self.at(k, j)] * x[j];
-            }
+            let last = (k + kl + ku).min(n - 1);
+            let row = self.at(k, k);
+            let s = x[k]
+                - x[k + 1..=last]
+                    .iter()
+                    .zip(&self.ab[row + 1..=row + last - k])
+                    .map(|(xj, u)| u * xj)
+                    .sum::<f64>();
             let d = self.ab[self.at(k, k)];
             if d == 0.0 {
                 return false;
