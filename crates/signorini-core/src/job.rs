@@ -276,7 +276,7 @@ fn lagrangian_moreau_jean(
     if !matches!(spec.integrator, IntegratorSpec::MoreauJean(_)) {
         return Err(mismatch(m, spec.integrator.scheme()));
     }
-    check_joint_start(&model, "moreau_jean")?;
+    check_joint_start(&model, "moreau_jean", false)?;
     let IntegratorSpec::MoreauJean(p) = &spec.integrator else {
         return Err(mismatch(m, spec.integrator.scheme()));
     };
@@ -371,7 +371,7 @@ fn lagrangian_ns_alpha(l: &LagrangianSpec, spec: &JobSpec) -> Result<JobKind, Sp
         newton: NewtonOptions::default(),
     };
     refuse_friction(l, spec.integrator.scheme())?;
-    check_joint_start(&model, "ns_generalized_alpha")?;
+    check_joint_start(&model, "ns_generalized_alpha", l.redundant_joints)?;
     let (steps, lcp, output) = lagrangian_run_settings(spec, &model)?;
     let scheme = NonsmoothGeneralizedAlpha::new(&model, params, steps.h, lcp)
         .map_err(|e| scheme_field_error(e.field, e.reason))?;
@@ -420,8 +420,9 @@ fn refuse_friction(l: &LagrangianSpec, scheme: &str) -> Result<(), SpecError> {
 
 /// The joints of a user model at its start: G(q0) of full row rank (`model.constraints`), and
 /// G(q0) v0 + g_t = 0 to [`crate::lagrangian::JOINT_TOLERANCE`] relative to max(1, ‖G‖‖v0‖)
-/// (`model.v0`). `scheme` is named in the refusal of dependent joints.
-fn check_joint_start(model: &UserModel, scheme: &str) -> Result<(), SpecError> {
+/// (`model.v0`). `scheme` is named in the refusal of dependent joints; `redundant`
+/// (`model.redundant_joints`, for a scheme that solves rank-deficient joints) accepts them.
+fn check_joint_start(model: &UserModel, scheme: &str, redundant: bool) -> Result<(), SpecError> {
     let (n, nb) = (LagrangianSystem::dofs(model), JointedSystem::joints(model));
     if nb == 0 {
         return Ok(());
@@ -434,7 +435,7 @@ fn check_joint_start(model: &UserModel, scheme: &str) -> Result<(), SpecError> {
     let (smax, smin) = (sv.max(), sv.min());
     // A NaN in g_q fails the comparison, hence the check, too.
     let independent = nb <= n && smin > 1e-10 * smax;
-    if !independent {
+    if !(independent || redundant && smax.is_finite()) {
         return Err(SpecError::new(
             "model.constraints",
             format!(

@@ -12,11 +12,19 @@
 
 use serde_json::{Value, json};
 use signorini_core::job::{Job, run};
+use signorini_core::lagrangian::UserModel;
 use signorini_core::lcp::{LcpOptions, MixedLcp, solve_mixed};
+use signorini_core::nonlinear::LagrangianSystem;
+use signorini_core::nonlinear::joints::JointedSystem;
 use signorini_core::observer::Recorder;
 use signorini_core::outcome::{RunError, Soi2Summary, SummaryBody};
 use signorini_core::soi2::Soi2Error;
-use signorini_core::spec::JobSpec;
+use signorini_core::soi2::method::{
+    Coefficients, Formulation, Method, NewtonOptions, NewtonStrategy, Soi2State, StartValue,
+};
+use signorini_core::soi2::run::{Soi2Output, Soi2Stats, integrate_with};
+use signorini_core::soi2::{ConstrainedModel, Dims, Dual64, InitialValues, Scalar, g_ddot};
+use signorini_core::spec::{JobSpec, ModelSpec};
 use std::path::Path;
 
 /// An example of `examples/benchmarks/` as JSON, to edit.
@@ -246,16 +254,213 @@ fn n_four_bar_runs_through_its_singular_positions_under_every_soi2_scheme() {
     }
 }
 
-/// The benchmark itself: A02 with N = 40 loops (81 coordinates, 80 joints) over its 20 s at
-/// h = 10⁻³ under each SOI2 scheme, within the bounds above. Minutes of CPU per scheme (the
-/// dense AD Newton matrix of 322 unknowns): run it on purpose, in release,
-/// `cargo test --release -p signorini-core --test soi2_hard_cases -- --ignored --nocapture`.
+/// The benchmark at its size, A02 with N = 40 loops (81 coordinates, 80 joints), at
+/// h = 10⁻³ under each of the four schemes that take joints, over its first 2 s (two singular
+/// passages; seconds of CPU per scheme with the sparse Newton path, so it runs in CI), within
+/// the bounds above.
 #[test]
-#[ignore = "minutes per scheme: the IFToMM A02 benchmark at its full size (docs/benchmarks.md)"]
+fn n_four_bar_with_forty_loops_through_two_passages_under_every_scheme() {
+    for integrator in schemes() {
+        n_four_bar_within_the_benchmark_bounds(40, &integrator, 2.0, 2);
+    }
+    ns_alpha_four_bar_within_the_benchmark_bounds(40, 1e-3, 2.0, 2);
+}
+
+/// The benchmark itself: A02 with N = 40 over its 20 s at h = 10⁻³ under the four schemes,
+/// within the bounds above (a minute or two of CPU in all: run it on purpose,
+/// `cargo test -p signorini-core --test soi2_hard_cases -- --ignored --nocapture`;
+/// docs/benchmarks.md has its figures).
+#[test]
+#[ignore = "the IFToMM A02 benchmark over its full 20 s: minutes of CPU (docs/benchmarks.md)"]
 fn n_four_bar_with_forty_loops_over_twenty_seconds() {
     for integrator in schemes() {
         n_four_bar_within_the_benchmark_bounds(40, &integrator, 20.0, 10);
     }
+    ns_alpha_four_bar_within_the_benchmark_bounds(40, 1e-3, 20.0, 10);
+}
+
+/// The A02 model with `n` loops, compiled.
+fn four_bar_model(n: usize) -> UserModel {
+    let doc = four_bar_spec(n, &json!({"scheme": "soi2_hht", "alpha": -0.05}), 1e-3, 1.0);
+    let JobSpec {
+        model: Some(ModelSpec::Lagrangian(l)),
+        ..
+    } = spec(&doc)
+    else {
+        panic!("a lagrangian model")
+    };
+    UserModel::new(l.validate().expect("valid"))
+}
+
+/// A model that hides the user model's Newton pattern: SOI2 then builds its Jacobian one dual
+/// evaluation per column and factorises it by the dense LU, as before the sparse path.
+struct Dense(UserModel);
+
+impl ConstrainedModel for Dense {
+    fn dims(&self) -> Dims {
+        self.0.dims()
+    }
+    fn mass<T: Scalar>(&self, t: T, y: &[T], m: &mut [T]) {
+        ConstrainedModel::mass(&self.0, t, y, m)
+    }
+    fn force<T: Scalar>(&self, t: T, y: &[T], z: &[T], l: &[T], p: &[T], f: &mut [T]) {
+        self.0.force(t, y, z, l, p, f)
+    }
+    fn g<T: Scalar>(&self, t: T, y: &[T], out: &mut [T]) {
+        self.0.g(t, y, out)
+    }
+    fn g_y<T: Scalar>(&self, t: T, y: &[T], out: &mut [T]) {
+        self.0.g_y(t, y, out)
+    }
+    fn g_dot<T: Scalar>(&self, t: T, y: &[T], z: &[T], out: &mut [T]) {
+        self.0.g_dot(t, y, z, out)
+    }
+    fn additive(&self) -> bool {
+        true
+    }
+    fn potential(&self, t: f64, y: &[f64]) -> f64 {
+        ConstrainedModel::potential(&self.0, t, y)
+    }
+    fn initial(&self) -> InitialValues {
+        ConstrainedModel::initial(&self.0)
+    }
+}
+
+/// The sparse Newton path (column groups, band LU in the reverse Cuthill–McKee order) gives
+/// the trajectory of the dense one: A02 with N = 12 (98 unknowns for the SOI2 schemes, 49 for
+/// HHT-I3), 0.5 s through the regular motion, every scheme, full and simplified Newton.
+#[test]
+fn the_sparse_newton_path_follows_the_dense_one() {
+    let model = four_bar_model(12);
+    assert!(model.newton_pattern(2).and_then(|p| p.band()).is_some());
+    assert!(model.newton_pattern(1).and_then(|p| p.band()).is_some());
+    let dense = Dense(model.clone());
+    let sizes = vec![1e-3; 500];
+    let output = Soi2Output {
+        every: u64::MAX,
+        probes: vec![],
+    };
+    for (formulation, coefficients) in [
+        (Formulation::Additive, Coefficients::from_rho_inf(0.2)),
+        (Formulation::HhtSoi2, Coefficients::hht(-0.05)),
+        (Formulation::HhtI3, Coefficients::hht(-0.05)),
+    ] {
+        let method = Method {
+            formulation,
+            coefficients,
+            newton: NewtonOptions::default(),
+        };
+        for strategy in [NewtonStrategy::Simplified, NewtonStrategy::Full] {
+            let go =
+                |m: &dyn Fn(&mut Recorder) -> (Soi2State, Soi2Stats)| m(&mut Recorder::default());
+            let (a, sa) = go(&|rec| {
+                integrate_with(
+                    &model,
+                    &method,
+                    strategy,
+                    StartValue::A0,
+                    &sizes,
+                    true,
+                    &output,
+                    rec,
+                )
+                .expect("sparse run")
+            });
+            let (b, sb) = go(&|rec| {
+                integrate_with(
+                    &dense,
+                    &method,
+                    strategy,
+                    StartValue::A0,
+                    &sizes,
+                    true,
+                    &output,
+                    rec,
+                )
+                .expect("dense run")
+            });
+            let dy =
+                a.y.iter()
+                    .zip(&b.y)
+                    .map(|(u, v)| (u - v).abs())
+                    .fold(0.0, f64::max);
+            let dz =
+                a.z.iter()
+                    .zip(&b.z)
+                    .map(|(u, v)| (u - v).abs())
+                    .fold(0.0, f64::max);
+            assert!(
+                dy < 1e-10 && dz < 1e-9,
+                "{formulation:?} {strategy:?}: y differs by {dy:e}, z by {dz:e}"
+            );
+            assert_eq!(sa.steps, sb.steps);
+            println!(
+                "{formulation:?} {strategy:?}: sparse vs dense y {dy:.1e}, z {dz:.1e}; \
+                 Newton {} vs {} iterations",
+                sa.newton_iterations, sb.newton_iterations
+            );
+        }
+    }
+}
+
+/// The derivatives of the nonsmooth generalized-α's exact Newton matrix, built one dual
+/// evaluation per group of coordinates, equal the column-by-column dual evaluations of the
+/// same tapes (A02, N = 6, at a generic configuration).
+#[test]
+fn grouped_derivatives_of_the_smooth_stage_equal_column_by_column_ones() {
+    let model = four_bar_model(6);
+    let n = LagrangianSystem::dofs(&model);
+    let nb = JointedSystem::joints(&model);
+    let q: Vec<f64> = (0..n).map(|i| 1.0 + 0.37 * (i as f64).sin()).collect();
+    let v: Vec<f64> = (0..n).map(|i| 0.5 - 0.21 * (i as f64).cos()).collect();
+    let a: Vec<f64> = (0..n).map(|i| 0.3 * (1.3 * i as f64).sin()).collect();
+    let l: Vec<f64> = (0..nb).map(|r| 2.0 - 0.4 * r as f64).collect();
+    let (mut dm, mut dg) = (vec![0.0; n * n], vec![0.0; n * n]);
+    let (mut dq, mut dv) = (vec![0.0; nb * n], vec![0.0; nb * n]);
+    model.mass_derivative(&q, &a, &mut dm);
+    model.joint_force_derivative(0.0, &q, &l, &mut dg);
+    model.joint_acceleration_derivatives(0.0, &q, &v, &a, &mut dq, &mut dv);
+    let d = |x: &[f64], j: usize| -> Vec<Dual64> {
+        x.iter()
+            .enumerate()
+            .map(|(k, &u)| Dual64::new(u, if k == j { 1.0 } else { 0.0 }))
+            .collect()
+    };
+    let plain = |x: &[f64]| -> Vec<Dual64> { x.iter().map(|&u| Dual64::from_re(u)).collect() };
+    let zero = Dual64::from_re(0.0);
+    for j in 0..n {
+        let mut m = vec![zero; n * n];
+        ConstrainedModel::mass(&model, zero, &d(&q, j), &mut m);
+        let mut g = vec![zero; nb * n];
+        ConstrainedModel::g_y(&model, zero, &d(&q, j), &mut g);
+        let (mut gq, mut gv) = (vec![zero; nb], vec![zero; nb]);
+        g_ddot(&model, zero, &d(&q, j), &plain(&v), &plain(&a), &mut gq);
+        g_ddot(&model, zero, &plain(&q), &d(&v, j), &plain(&a), &mut gv);
+        for i in 0..n {
+            let want_m: f64 = (0..n).map(|k| m[i * n + k].eps * a[k]).sum();
+            let want_g: f64 = (0..nb).map(|r| g[r * n + i].eps * l[r]).sum();
+            assert!(
+                (dm[i * n + j] - want_m).abs() <= 1e-14,
+                "∂(Ma)/∂q ({i}, {j})"
+            );
+            assert!(
+                (dg[i * n + j] - want_g).abs() <= 1e-14,
+                "∂(Gᵀλ)/∂q ({i}, {j})"
+            );
+        }
+        for r in 0..nb {
+            assert!(
+                (dq[r * n + j] - gq[r].eps).abs() <= 1e-14,
+                "∂g̈/∂q ({r}, {j})"
+            );
+            assert!(
+                (dv[r * n + j] - gv[r].eps).abs() <= 1e-14,
+                "∂g̈/∂v ({r}, {j})"
+            );
+        }
+    }
+    // Not all zero: the comparison saw real entries.
+    assert!(dm.iter().any(|x| x.abs() > 1e-3) && dq.iter().any(|x| x.abs() > 1e-3));
 }
 
 /// The nonsmooth generalized-α scheme (`ns_generalized_alpha`) on A02: with N = 2 loops, the
@@ -267,55 +472,68 @@ fn n_four_bar_with_forty_loops_over_twenty_seconds() {
 /// at most 2 iterations a step.
 #[test]
 fn ns_generalized_alpha_runs_the_four_bar_through_regular_and_singular_positions() {
-    let integrator = json!({"scheme": "ns_generalized_alpha"});
     for (loops, h, t_end, passages) in [(2, 1e-3, 2.0, 1), (2, 1e-4, 0.2, 0), (4, 1e-3, 3.0, 3)] {
-        let mut doc = four_bar_spec(loops, &integrator, h, t_end);
-        doc["output"]["every"] = json!((1e-2 / h).round() as u64);
-        let job = Job::from_spec(&spec(&doc)).unwrap_or_else(|e| panic!("valid spec: {e}"));
-        let mut rec = Recorder::default();
-        let out =
-            run(&job, 1, &mut rec).unwrap_or_else(|e| panic!("N = {loops}, h = {h}: the run: {e}"));
-        let SummaryBody::NsAlpha(summary) = out.summary.body else {
-            panic!("an ns_generalized_alpha run")
-        };
-        let stats = &summary.stats;
-        assert!(
-            (stats.base.t_end - t_end).abs() < 1e-9,
-            "stopped at {}",
-            stats.base.t_end
-        );
-        let e = four_bar_errors(&rec, loops);
-        let case = format!("N = {loops}, h = {h}");
-        assert!(e.passages >= passages, "{case}: {} passages", e.passages);
-        assert!(e.point <= 1e-3, "{case}: B0 off by {:e} m", e.point);
-        assert!(
-            e.parallel <= 1e-6,
-            "{case}: rockers {:e} rad apart",
-            e.parallel
-        );
-        assert!(e.drift < 1e-4, "{case}: energy drift {:e}", e.drift);
-        assert!(
-            stats.max_position_residual < 1e-10 && stats.max_velocity_residual < 1e-10,
-            "{case}: joints off by {:e} (position), {:e} (velocity)",
-            stats.max_position_residual,
-            stats.max_velocity_residual
-        );
-        assert!(
-            stats.base.newton_iterations_max <= 2,
-            "{case}: {} Newton iterations in a step",
-            stats.base.newton_iterations_max
-        );
-        println!(
-            "ns_generalized_alpha, {case}: B0 error {:.2e} m, rockers {:.1e} rad, drift {:.1e}, \
-             {} passages, {:.3} iterations/step (max {})",
-            e.point,
-            e.parallel,
-            e.drift,
-            e.passages,
-            stats.base.newton_iterations_mean,
-            stats.base.newton_iterations_max
-        );
+        ns_alpha_four_bar_within_the_benchmark_bounds(loops, h, t_end, passages);
     }
+}
+
+/// A02 with `loops` loops under `ns_generalized_alpha` over [0, t_end] at `h`: the benchmark's
+/// bounds as for SOI2, the joints on the manifold to the Newton tolerance, at most 2 Newton
+/// iterations a step.
+fn ns_alpha_four_bar_within_the_benchmark_bounds(
+    loops: usize,
+    h: f64,
+    t_end: f64,
+    passages: usize,
+) {
+    let integrator = json!({"scheme": "ns_generalized_alpha"});
+    let mut doc = four_bar_spec(loops, &integrator, h, t_end);
+    doc["output"]["every"] = json!((1e-2 / h).round() as u64);
+    let job = Job::from_spec(&spec(&doc)).unwrap_or_else(|e| panic!("valid spec: {e}"));
+    let mut rec = Recorder::default();
+    let out =
+        run(&job, 1, &mut rec).unwrap_or_else(|e| panic!("N = {loops}, h = {h}: the run: {e}"));
+    let SummaryBody::NsAlpha(summary) = out.summary.body else {
+        panic!("an ns_generalized_alpha run")
+    };
+    let stats = &summary.stats;
+    assert!(
+        (stats.base.t_end - t_end).abs() < 1e-9,
+        "stopped at {}",
+        stats.base.t_end
+    );
+    let e = four_bar_errors(&rec, loops);
+    let case = format!("N = {loops}, h = {h}");
+    assert!(e.passages >= passages, "{case}: {} passages", e.passages);
+    assert!(e.point <= 1e-3, "{case}: B0 off by {:e} m", e.point);
+    assert!(
+        e.parallel <= 1e-6,
+        "{case}: rockers {:e} rad apart",
+        e.parallel
+    );
+    assert!(e.drift < 1e-4, "{case}: energy drift {:e}", e.drift);
+    assert!(
+        stats.max_position_residual < 1e-10 && stats.max_velocity_residual < 1e-10,
+        "{case}: joints off by {:e} (position), {:e} (velocity)",
+        stats.max_position_residual,
+        stats.max_velocity_residual
+    );
+    assert!(
+        stats.base.newton_iterations_max <= 2,
+        "{case}: {} Newton iterations in a step",
+        stats.base.newton_iterations_max
+    );
+    println!(
+        "ns_generalized_alpha, {case}: B0 error {:.2e} m, rockers {:.1e} rad, drift {:.1e}, \
+         {} passages, {:.3} iterations/step (max {}), {} rank-deficient steps",
+        e.point,
+        e.parallel,
+        e.drift,
+        e.passages,
+        stats.base.newton_iterations_mean,
+        stats.base.newton_iterations_max,
+        stats.rank_deficient_steps
+    );
 }
 
 /// Andrews' squeezing mechanism (A03, the Test Set for IVP solvers' "andrews") as its example
@@ -438,6 +656,55 @@ fn bricard_runs_its_full_duration_with_the_redundant_joint() {
             summary.newton_iterations_mean
         );
     }
+}
+
+/// Bricard's mechanism (A04) under the nonsmooth generalized-α scheme with its full redundant
+/// set of 12 joints (rank 11 at every configuration): its whole published 10 s, every step's
+/// smooth stage solved by the minimum-norm increment and counted (`rank_deficient_steps`,
+/// `smallest_rank` 11), the joints on the manifold at the Newton tolerance (the position stage
+/// projects onto g = 0, the velocity stage onto G v = 0), and the energy kept.
+#[test]
+fn bricard_runs_its_full_duration_under_the_nonsmooth_generalized_alpha() {
+    let mut doc = benchmark("a04_bricard");
+    doc["integrator"] = json!({"scheme": "ns_generalized_alpha"});
+    let job = Job::from_spec(&spec(&doc)).unwrap_or_else(|e| panic!("valid spec: {e}"));
+    let mut rec = Recorder::default();
+    let out = run(&job, 1, &mut rec).unwrap_or_else(|e| panic!("the run: {e}"));
+    let SummaryBody::NsAlpha(summary) = out.summary.body else {
+        panic!("an ns_generalized_alpha run")
+    };
+    let stats = &summary.stats;
+    assert_eq!(summary.joints, 12);
+    assert!(
+        (stats.base.t_end - 10.0).abs() < 1e-9,
+        "stopped at {}",
+        stats.base.t_end
+    );
+    assert_eq!(stats.rank_deficient_steps, stats.base.steps);
+    assert_eq!(stats.smallest_rank, Some(11));
+    assert!(
+        stats.max_position_residual < 1e-10 && stats.max_velocity_residual < 1e-10,
+        "joints off by {:e} (position), {:e} (velocity)",
+        stats.max_position_residual,
+        stats.max_velocity_residual
+    );
+    let energy = rec.column("energy").expect("energy");
+    let drift = energy
+        .iter()
+        .map(|e| (e - energy[0]).abs())
+        .fold(0.0, f64::max);
+    let scale = rec
+        .column("kinetic")
+        .expect("kinetic")
+        .iter()
+        .fold(0.0, |m: f64, k| m.max(*k));
+    assert!(scale > 1.0, "the mechanism moves (kinetic {scale})");
+    assert!(drift < 1e-3 * scale, "energy drift {drift:e} of {scale}");
+    println!(
+        "ns_generalized_alpha: drift {drift:.1e} of kinetic {scale:.2}, {:.2} iterations/step, \
+         joints {:.1e} (position) {:.1e} (velocity)",
+        stats.base.newton_iterations_mean, stats.max_position_residual, stats.max_velocity_residual
+    );
 }
 
 /// Jacobi's sn, cn, dn of (u | m) by the arithmetic–geometric mean (Abramowitz & Stegun 16.4),

@@ -24,7 +24,9 @@ pub use projection::{PROJECTION_ITERATIONS, ProjectionError, StartProjection, pr
 
 use crate::expr::{Expr, Node, Number, Tape};
 use crate::nonlinear::LagrangianSystem;
+use crate::soi2::sparsity::{Coupling, Pattern};
 use crate::soi2::{ConstrainedModel, Dims, InitialValues, Scalar};
+use std::sync::OnceLock;
 
 /// Relative tolerance of the symmetry check of M at q0.
 pub const SYMMETRY_TOLERANCE: f64 = 1e-12;
@@ -74,6 +76,22 @@ pub struct UserModel {
     /// The tangential velocity at rest (∂τ/∂t, or U_t at q̇ = 0), one per contact (zero
     /// without a tangent).
     tangent_rates: Tape,
+    /// Which coordinates each equation of motion and each joint uses.
+    coupling: Coupling,
+    /// The structure of Newton's matrix with one and with two coordinate and joint blocks
+    /// (SOI2's systems), built at first use.
+    patterns: Patterns,
+}
+
+/// Newton patterns derived from [`UserModel::coupling`] at first use: a cache, so two models
+/// compare equal whether or not it is filled.
+#[derive(Debug, Clone, Default)]
+struct Patterns([OnceLock<Pattern>; 2]);
+
+impl PartialEq for Patterns {
+    fn eq(&self, _other: &Self) -> bool {
+        true
+    }
 }
 
 /// A validated user model, what [`UserModel::new`] compiles: the expressions parsed over the
@@ -226,6 +244,46 @@ fn coriolis(mass: &[Expr], n: usize) -> Vec<Expr> {
         .collect()
 }
 
+/// Which coordinates each equation uses: row i of the equations of motion the columns of the
+/// nonzeros of row i of M (`mass`, n×n row-major), the coordinates (position or velocity) of
+/// those entries and of the force `forces[i]`; each joint the coordinates of its expression.
+fn coupling_of(mass: &[Expr], forces: &[Expr], joints: &[Expr], n: usize) -> Coupling {
+    let coordinates = |e: &Expr, into: &mut Vec<usize>| {
+        into.extend(
+            e.variables()
+                .into_iter()
+                .filter(|&v| v < 2 * n)
+                .map(|v| v % n),
+        );
+    };
+    let motion = (0..n)
+        .map(|i| {
+            let mut row = Vec::new();
+            for (j, e) in mass[i * n..(i + 1) * n].iter().enumerate() {
+                if !e.is_zero() {
+                    row.push(j);
+                    coordinates(e, &mut row);
+                }
+            }
+            coordinates(&forces[i], &mut row);
+            row.sort_unstable();
+            row.dedup();
+            row
+        })
+        .collect();
+    let joints = joints
+        .iter()
+        .map(|g| {
+            let mut vars = Vec::new();
+            coordinates(g, &mut vars);
+            vars.sort_unstable();
+            vars.dedup();
+            vars
+        })
+        .collect();
+    Coupling { motion, joints }
+}
+
 impl UserModel {
     /// Compiles a validated model ([`LagrangianSpec::validate`](crate::spec::LagrangianSpec::validate)):
     /// the exact symbolic derivatives and their tapes.
@@ -285,6 +343,7 @@ impl UserModel {
             })
             .unzip();
         let tangent_jacobian: Vec<Expr> = tangent_jacobian.concat();
+        let coupling = coupling_of(&mass, &forces, &joints, n);
         UserModel {
             n,
             joints: joints.len(),
@@ -307,7 +366,14 @@ impl UserModel {
             gap_rates: Tape::compile(&gap_rates),
             tangent_jacobian: Tape::compile(&tangent_jacobian),
             tangent_rates: Tape::compile(&tangent_rates),
+            coupling,
+            patterns: Patterns::default(),
         }
+    }
+
+    /// Which coordinates each equation of motion and each joint uses.
+    pub fn coupling(&self) -> &Coupling {
+        &self.coupling
     }
 
     /// Number of joints (holonomic constraints).
@@ -382,6 +448,12 @@ impl ConstrainedModel for UserModel {
 
     fn additive(&self) -> bool {
         true
+    }
+
+    /// From the variables the expressions use ([`Coupling`]).
+    fn newton_pattern(&self, blocks: usize) -> Option<&Pattern> {
+        let cell = self.patterns.0.get(blocks.checked_sub(1)?)?;
+        Some(cell.get_or_init(|| Pattern::new(&self.coupling, blocks)))
     }
 
     fn potential(&self, t: f64, y: &[f64]) -> f64 {

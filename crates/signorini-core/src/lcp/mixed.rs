@@ -93,7 +93,12 @@ impl EqualityElimination {
         // D_BB⁻¹ of the module documentation: LU, or the minimum-norm solve when D_BB is singular.
         let deficient = match lu {
             Some(_) => None,
-            None => Some(NewtonFactor::new(&d_bb, || true)).filter(NewtonFactor::deficient),
+            // Singular to working precision (lu_factor): the SVD whatever LU's pivot ratio
+            // says, unless an entry is not a number.
+            None if d_bb.iter().all(|v| v.is_finite()) => {
+                Some(NewtonFactor::least_squares(&d_bb)).filter(NewtonFactor::deficient)
+            }
+            None => None,
         };
         let solve = |rhs: DMatrix<f64>| -> Option<DMatrix<f64>> {
             match (&lu, &deficient) {

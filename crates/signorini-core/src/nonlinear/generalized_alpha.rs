@@ -90,9 +90,14 @@ use crate::dense::{amax, dot, kinetic, lu_factor};
 use crate::integrators::OutputOptions;
 use crate::lcp::LcpOptions;
 use crate::observer::{Columns, Observer};
+use crate::soi2::banded::{BandLu, BandOrder};
 use crate::soi2::factor::{NewtonFactor, range_projection};
 use crate::stepping::{self, StepTime, StopReason, TimeStepping};
 use nalgebra::{DMatrix, DVector};
+
+/// How far above the Newton tolerance the smooth stage accepts a residual that stopped
+/// shrinking (by half per iteration) on a singular Newton matrix (rank-deficient joints).
+pub const STALL_FACTOR: f64 = 100.0;
 
 /// Parameters of the scheme.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -151,6 +156,11 @@ pub struct NsAlphaStepReport {
     pub penetration: f64,
     /// Newton iterates of the position stage (0 when nothing was corrected).
     pub position_iterations: usize,
+    /// The numerical rank of the joint Jacobian G(q_{k+1}) when the smooth stage met a
+    /// singular Newton matrix for want of joint rank (a singular position, redundant joints)
+    /// and took the minimum-norm increment; `None` on a regular step.
+    #[serde(default)]
+    pub joint_rank: Option<usize>,
 }
 
 impl NsAlphaStepReport {
@@ -172,6 +182,7 @@ impl NsAlphaStepReport {
             position_residual: amax(&g),
             velocity_residual: amax(&r),
             position_iterations: 0,
+            joint_rank: None,
         }
     }
 }
@@ -218,6 +229,9 @@ struct SmoothStage {
     mass: Vec<f64>,
     gj: Vec<f64>,
     iterations: usize,
+    /// An iterate's Newton matrix was singular with the joints rank-deficient (solved by the
+    /// minimum-norm increment).
+    deficient: bool,
 }
 
 /// What the velocity stage hands to the end of the step: v_{k+1}, M(q_{k+1}), H(q_{k+1}),
@@ -351,7 +365,8 @@ impl NonsmoothGeneralizedAlpha {
             (false, false) => 0.0,
         });
         let rhs = DVector::from_fn(n + nb, |i, _| if i < n { f[i] } else { -kappa[i - n] });
-        let x = lu_factor(k)?.solve(&rhs)?;
+        // Minimum-norm multipliers when the joints are rank-deficient (redundant joints).
+        let (x, _) = solve_saddle(k, rhs, &g, nb, system.newton_band())?;
         if x.iter().any(|x| !x.is_finite()) {
             return None;
         }
@@ -463,12 +478,14 @@ impl NonsmoothGeneralizedAlpha {
             mass: vec![0.0; n * n],
             gj: vec![0.0; nb * n],
             iterations: 0,
+            deficient: false,
         };
         let mut f = vec![0.0; n];
         let mut kappa = vec![0.0; nb];
         let (mut dfdq, mut dfdv) = (vec![0.0; n * n], vec![0.0; n * n]);
         let (mut dmdq, mut dgldq) = (vec![0.0; n * n], vec![0.0; n * n]);
         let (mut dgaq, mut dgav) = (vec![0.0; nb * n], vec![0.0; nb * n]);
+        let mut previous = f64::INFINITY;
         loop {
             for i in 0..n {
                 x.a1[i] = ((1.0 - alpha_f) * x.acc[i] + alpha_f * start.acc[i]
@@ -491,9 +508,17 @@ impl NonsmoothGeneralizedAlpha {
             if !residual.is_finite() {
                 return Err(at.not_finite("the Newton residual", residual));
             }
-            if residual <= newton.tolerance {
+            // Converged; or, on a singular Newton matrix (joints that lost rank), stalled at
+            // round-off within STALL_FACTOR of the tolerance: the least-squares increments stop
+            // reducing the residual, which sits at the conditioning's round-off (Bricard,
+            // step 808: 1.0004e-10 against 1e-10 for the last 18 iterates).
+            let stalled = x.deficient
+                && residual >= 0.5 * previous
+                && residual <= STALL_FACTOR * newton.tolerance;
+            if residual <= newton.tolerance || stalled {
                 return Ok(x);
             }
+            previous = residual;
             if x.iterations == newton.max_iterations {
                 return Err(NonlinearStepError::NewtonNotConverged {
                     step: at.step,
@@ -527,8 +552,15 @@ impl NonsmoothGeneralizedAlpha {
                 }
                 (false, false) => 0.0,
             });
-            let dx = solve_saddle(s, DVector::from_column_slice(&r), &x.gj, nb)
-                .ok_or_else(|| at.singular(x.iterations))?;
+            let (dx, deficient) = solve_saddle(
+                s,
+                DVector::from_column_slice(&r),
+                &x.gj,
+                nb,
+                system.newton_band(),
+            )
+            .ok_or_else(|| at.singular(x.iterations))?;
+            x.deficient |= deficient;
             for i in 0..n {
                 x.acc[i] -= dx[i];
             }
@@ -812,6 +844,11 @@ impl NonsmoothGeneralizedAlpha {
         system.joint_rates(t1, &q, &v, &mut jr);
         report.velocity_residual = amax(&jr);
         report.lambda.copy_from_slice(&smooth.lambda);
+        report.joint_rank = smooth.deficient.then(|| {
+            let mut g = vec![0.0; nb * n];
+            system.joint_jacobian(t1, &q, &mut g);
+            range_projection(&g, nb, n).0
+        });
 
         self.last = Some(NsAlphaMemory {
             step: at.step,
@@ -870,21 +907,39 @@ fn smooth_residual(
     (r, rel(r1, s1).max(rel(r2, s1)))
 }
 
-/// Solves Newton's saddle-point system S x = r of the smooth stage: LU when S is regular, the
-/// minimum-norm least-squares x of [`NewtonFactor`] when S is singular because the nb×n joint
-/// Jacobian `joints` has lost rank; None when S is singular otherwise.
+/// Solves Newton's saddle-point system S x = r of the smooth stage: LU when S is regular (the
+/// band LU in the order `band` for a large model, [`crate::soi2::banded`]), the minimum-norm
+/// least-squares x of [`NewtonFactor`] when S is singular because the nb×n joint Jacobian
+/// `joints` has lost rank (then true is returned with x); None when S is singular otherwise.
 fn solve_saddle(
     s: DMatrix<f64>,
     mut r: DVector<f64>,
     joints: &[f64],
     nb: usize,
-) -> Option<DVector<f64>> {
-    if let Some(lu) = lu_factor(s.clone()) {
-        return lu.solve(&r);
-    }
+    band: Option<&BandOrder>,
+) -> Option<(DVector<f64>, bool)> {
     let n = s.nrows() - nb;
-    let factor = NewtonFactor::new(&s, || range_projection(joints, nb, n).0 < nb);
-    (factor.deficient() && factor.solve_mut(&mut r)).then_some(r)
+    if let Some(band) = band.filter(|b| b.order.len() == s.nrows()) {
+        let lu = BandLu::factor(&s, band);
+        // Regular to working precision, as lu_factor asks.
+        let (lo, hi) = lu.pivot_range();
+        if lo > s.nrows() as f64 * f64::EPSILON * hi {
+            return lu.solve_mut(r.as_mut_slice()).then_some((r, false));
+        }
+    } else if let Some(lu) = lu_factor(s.clone()) {
+        return lu.solve(&r).map(|x| (x, false));
+    }
+    // Singular: the minimum-norm solve when the joints have lost rank, None otherwise. S's
+    // multiplier block goes like G M⁻¹ Gᵀ, so S is singular to working precision once
+    // σ_min(G)² ≤ size · ε · σ_max(G)²: the joints count as rank-deficient from that ratio
+    // (off the manifold, at q̃, Bricard's G has σ_min = 1e-10 σ_max, not 0).
+    let sv = DMatrix::from_row_slice(nb, n, joints).singular_values();
+    let lost = (s.nrows() as f64 * f64::EPSILON).sqrt() * sv.max();
+    if nb == 0 || !(sv.min() <= lost || nb > n) {
+        return None;
+    }
+    let factor = NewtonFactor::least_squares(&s);
+    (factor.deficient() && factor.solve_mut(&mut r)).then_some((r, true))
 }
 
 /// The rows C = [G; H_I] (joints, then the contacts of `active`), row-major.
@@ -912,6 +967,14 @@ pub struct NsAlphaRunStats {
     pub max_penetration: f64,
     /// Largest number of Newton iterates of a position stage.
     pub position_iterations_max: usize,
+    /// Steps whose smooth stage met a singular Newton matrix because the joints had lost
+    /// rank (minimum-norm increment), as SOI2's field of that name.
+    #[serde(default)]
+    pub rank_deficient_steps: u64,
+    /// The smallest numerical rank of G(q_{k+1}) over those steps (`None` when there were
+    /// none).
+    #[serde(default)]
+    pub smallest_rank: Option<usize>,
 }
 
 /// Summary of a run of the scheme (`summary.json`): the model's sizes, the step and the
@@ -1111,6 +1174,10 @@ impl<S: JointedSystem + ?Sized> TimeStepping for NsAlphaStepping<'_, S> {
         stats.position_iterations_max = stats
             .position_iterations_max
             .max(report.position_iterations);
+        if let Some(rank) = report.joint_rank {
+            stats.rank_deficient_steps += 1;
+            stats.smallest_rank = Some(stats.smallest_rank.map_or(rank, |s| s.min(rank)));
+        }
         Ok(())
     }
 

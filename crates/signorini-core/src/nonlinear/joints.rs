@@ -5,6 +5,8 @@
 
 use super::LagrangianSystem;
 use crate::lagrangian::UserModel;
+use crate::soi2::banded::BandOrder;
+use crate::soi2::sparsity::Pattern;
 use crate::soi2::{ConstrainedModel, Dual64, g_ddot};
 
 /// A [`LagrangianSystem`] with bilateral holonomic joints g(q, t) = 0 (nb of them). The
@@ -64,6 +66,13 @@ pub trait JointedSystem: LagrangianSystem {
     ) {
         let _ = (t, q, v, a, dq, dv);
     }
+
+    /// A band order of Newton's saddle-point matrix of the smooth stage (unknowns q̈ then λ),
+    /// when the model knows its structure and a band LU pays ([`crate::soi2::banded`]).
+    /// Default: none (dense LU).
+    fn newton_band(&self) -> Option<&BandOrder> {
+        None
+    }
 }
 
 /// The joints of a user model from its symbolic tapes; κ is the derivative of the tape of
@@ -75,6 +84,11 @@ impl JointedSystem for UserModel {
 
     fn joint_values(&self, t: f64, q: &[f64], out: &mut [f64]) {
         ConstrainedModel::g(self, t, q, out);
+    }
+
+    /// The band order of the model's one-block Newton pattern (coordinates, then joints).
+    fn newton_band(&self) -> Option<&BandOrder> {
+        self.newton_pattern(1).and_then(Pattern::band)
     }
 
     fn joint_jacobian(&self, t: f64, q: &[f64], out: &mut [f64]) {
@@ -96,46 +110,55 @@ impl JointedSystem for UserModel {
         }
     }
 
-    /// One forward-mode dual evaluation of the mass tape per coordinate.
+    /// One forward-mode dual evaluation of the mass tape per group of coordinates whose columns
+    /// share no row (the model's Newton pattern, [`crate::soi2::sparsity`]).
     fn mass_derivative(&self, q: &[f64], a: &[f64], out: &mut [f64]) {
         let n = q.len();
         let mut qd = duals(q);
         let mut m = vec![Dual64::from(0.0); n * n];
-        for j in 0..n {
-            qd[j].eps = 1.0;
+        out.fill(0.0);
+        let pattern = self.newton_pattern(1);
+        for group in coordinate_groups(n, pattern) {
+            seed(&mut qd, &group, 1.0);
             ConstrainedModel::mass(self, Dual64::from(0.0), &qd, &mut m);
-            qd[j].eps = 0.0;
-            for i in 0..n {
-                out[i * n + j] = m[i * n..(i + 1) * n]
-                    .iter()
-                    .zip(a)
-                    .map(|(mik, ak)| mik.eps * ak)
-                    .sum();
+            seed(&mut qd, &group, 0.0);
+            for &j in &group {
+                for i in motion_rows(n, pattern, j) {
+                    out[i * n + j] = m[i * n..(i + 1) * n]
+                        .iter()
+                        .zip(a)
+                        .map(|(mik, ak)| mik.eps * ak)
+                        .sum();
+                }
             }
         }
     }
 
-    /// One forward-mode dual evaluation of the tape of G per coordinate.
+    /// One forward-mode dual evaluation of the tape of G per group of coordinates.
     fn joint_force_derivative(&self, t: f64, q: &[f64], lambda: &[f64], out: &mut [f64]) {
         let n = q.len();
         let mut qd = duals(q);
         let mut g = vec![Dual64::from(0.0); lambda.len() * n];
-        for j in 0..n {
-            qd[j].eps = 1.0;
+        out.fill(0.0);
+        let pattern = self.newton_pattern(1);
+        for group in coordinate_groups(n, pattern) {
+            seed(&mut qd, &group, 1.0);
             ConstrainedModel::g_y(self, Dual64::from(t), &qd, &mut g);
-            qd[j].eps = 0.0;
-            for i in 0..n {
-                out[i * n + j] = lambda
-                    .iter()
-                    .enumerate()
-                    .map(|(r, l)| g[r * n + i].eps * l)
-                    .sum();
+            seed(&mut qd, &group, 0.0);
+            for &j in &group {
+                for i in motion_rows(n, pattern, j) {
+                    out[i * n + j] = lambda
+                        .iter()
+                        .enumerate()
+                        .map(|(r, l)| g[r * n + i].eps * l)
+                        .sum();
+                }
             }
         }
     }
 
     /// g̈ as the derivative of the tape of G v + g_t along (1, v, a) ([`g_ddot`]), its
-    /// derivatives by one more dual evaluation per coordinate of q and of v.
+    /// derivatives by one more dual evaluation per group of coordinates, of q and of v.
     fn joint_acceleration_derivatives(
         &self,
         t: f64,
@@ -149,18 +172,74 @@ impl JointedSystem for UserModel {
         let (mut qd, mut vd, ad) = (duals(q), duals(v), duals(a));
         let td = Dual64::from(t);
         let mut out = vec![Dual64::from(0.0); UserModel::joints(self)];
-        for j in 0..n {
-            qd[j].eps = 1.0;
+        dq.fill(0.0);
+        dv.fill(0.0);
+        let pattern = self.newton_pattern(1);
+        for group in coordinate_groups(n, pattern) {
+            seed(&mut qd, &group, 1.0);
             g_ddot(self, td, &qd, &vd, &ad, &mut out);
-            qd[j].eps = 0.0;
-            for (r, o) in out.iter().enumerate() {
-                dq[r * n + j] = o.eps;
+            seed(&mut qd, &group, 0.0);
+            scatter_joint_rows(n, pattern, &group, &out, dq);
+            seed(&mut vd, &group, 1.0);
+            g_ddot(self, td, &qd, &vd, &ad, &mut out);
+            seed(&mut vd, &group, 0.0);
+            scatter_joint_rows(n, pattern, &group, &out, dv);
+        }
+    }
+}
+
+/// Groups of coordinates whose columns share no row of the derivatives above (the coordinate
+/// columns of the model's one-block Newton pattern, [`crate::soi2::sparsity::Pattern`]), or
+/// one group per coordinate for a model without a pattern.
+fn coordinate_groups(n: usize, pattern: Option<&Pattern>) -> Vec<Vec<usize>> {
+    match pattern {
+        Some(p) => p
+            .groups()
+            .iter()
+            .map(|g| g.iter().copied().filter(|&c| c < n).collect::<Vec<_>>())
+            .filter(|g| !g.is_empty())
+            .collect(),
+        None => (0..n).map(|j| vec![j]).collect(),
+    }
+}
+
+/// The equations of motion (rows 0..n of the one-block pattern) that column `j` touches; all n
+/// without a pattern.
+fn motion_rows(n: usize, pattern: Option<&Pattern>, j: usize) -> impl Iterator<Item = usize> + '_ {
+    let (rows, all) = match pattern {
+        Some(p) => (p.rows_of(j), 0),
+        None => (&[][..], n),
+    };
+    rows.iter().copied().filter(move |&i| i < n).chain(0..all)
+}
+
+/// Sets the dual parts of the coordinates of `group` to `eps`.
+fn seed(x: &mut [Dual64], group: &[usize], eps: f64) {
+    for &j in group {
+        x[j].eps = eps;
+    }
+}
+
+/// Writes the derivative of each joint row along the column of `group` that touches it into
+/// `into` (joints×n row-major).
+fn scatter_joint_rows(
+    n: usize,
+    pattern: Option<&Pattern>,
+    group: &[usize],
+    out: &[Dual64],
+    into: &mut [f64],
+) {
+    for &j in group {
+        match pattern {
+            Some(p) => {
+                for r in p.rows_of(j).iter().filter(|&&i| i >= n).map(|i| i - n) {
+                    into[r * n + j] = out[r].eps;
+                }
             }
-            vd[j].eps = 1.0;
-            g_ddot(self, td, &qd, &vd, &ad, &mut out);
-            vd[j].eps = 0.0;
-            for (r, o) in out.iter().enumerate() {
-                dv[r * n + j] = o.eps;
+            None => {
+                for (r, o) in out.iter().enumerate() {
+                    into[r * n + j] = o.eps;
+                }
             }
         }
     }

@@ -15,6 +15,7 @@
 //! but it is needed only on the rank-deficient steps; a column-pivoted QR would give a basic
 //! rather than the minimum-norm increment.
 
+use super::banded::{BandLu, BandOrder};
 use nalgebra::{DMatrix, DVector, Dyn, LU, SVD};
 
 /// Smallest ratio min|u_ii| / max|u_ii| of LU's pivots trusted as a regular matrix. Below it
@@ -31,6 +32,9 @@ pub const RANK_TOLERANCE: f64 = 1e-10;
 pub enum NewtonFactor {
     /// LU with partial pivoting of a regular matrix.
     Regular(LU<f64, Dyn, Dyn>),
+    /// Band LU with partial pivoting of a regular matrix in a band order (a large mechanism,
+    /// [`super::banded`]).
+    Banded(BandLu),
     /// SVD of a numerically singular matrix, its rank and the threshold σ_max·RANK_TOLERANCE.
     Deficient {
         /// The decomposition.
@@ -50,22 +54,50 @@ impl NewtonFactor {
     /// singular matrix for another reason, a step far too large for the model, stays with LU
     /// and fails as it did).
     pub fn new(j: &DMatrix<f64>, joints_deficient: impl FnOnce() -> bool) -> NewtonFactor {
-        let lu = j.clone().lu();
-        let u = lu.u();
-        let (lo, hi) = u
-            .diagonal()
-            .iter()
-            .fold((f64::INFINITY, 0.0_f64), |(lo, hi), d| {
-                (lo.min(d.abs()), hi.max(d.abs()))
-            });
+        NewtonFactor::with_band(j, None, joints_deficient)
+    }
+
+    /// [`NewtonFactor::new`], by the band LU in the order `band` when one is given (its entries
+    /// outside the band must be zero); the same pivot test sends a numerically singular matrix
+    /// with rank-deficient joints to the (dense) SVD.
+    pub fn with_band(
+        j: &DMatrix<f64>,
+        band: Option<&BandOrder>,
+        joints_deficient: impl FnOnce() -> bool,
+    ) -> NewtonFactor {
+        let (regular, (lo, hi)) = match band {
+            Some(band) => {
+                let lu = BandLu::factor(j, band);
+                let range = lu.pivot_range();
+                (NewtonFactor::Banded(lu), range)
+            }
+            None => {
+                let lu = j.clone().lu();
+                let range = lu
+                    .u()
+                    .diagonal()
+                    .iter()
+                    .fold((f64::INFINITY, 0.0_f64), |(lo, hi), d| {
+                        (lo.min(d.abs()), hi.max(d.abs()))
+                    });
+                (NewtonFactor::Regular(lu), range)
+            }
+        };
         // A matrix with a NaN or an infinity stays with LU, whose solve then fails or gives a
         // non-finite increment that Newton reports.
         if (hi > 0.0 && lo >= LU_PIVOT_RATIO * hi)
             || !j.iter().all(|v| v.is_finite())
             || !joints_deficient()
         {
-            return NewtonFactor::Regular(lu);
+            return regular;
         }
+        NewtonFactor::least_squares(j)
+    }
+
+    /// The SVD of `j` with its numerical rank (singular values above [`RANK_TOLERANCE`] · σ_max):
+    /// the minimum-norm least-squares solve, for a matrix already known to be singular with
+    /// rank-deficient joints (whatever its LU pivots say).
+    pub fn least_squares(j: &DMatrix<f64>) -> NewtonFactor {
         let norm = j
             .row_iter()
             .map(|r| r.iter().map(|v| v.abs()).sum::<f64>())
@@ -86,6 +118,7 @@ impl NewtonFactor {
     pub fn solve_mut(&self, b: &mut DVector<f64>) -> bool {
         match self {
             NewtonFactor::Regular(lu) => lu.solve_mut(b),
+            NewtonFactor::Banded(lu) => lu.solve_mut(b.as_mut_slice()),
             NewtonFactor::Deficient { svd, threshold, .. } => {
                 match svd.solve(&*b, threshold.max(f64::MIN_POSITIVE)) {
                     Ok(x) => {

@@ -7,7 +7,9 @@
 //! `M_{1+α}`; on the first step `M(t₀ + αh, y₀ + hαz₀)`). The state carries the product
 //! `M_α a_α`, which is what (14b) adjusts.
 
+use super::banded::BandLu;
 use super::factor::NewtonFactor;
+use super::sparsity::Pattern;
 use super::{
     ConstrainedModel, Dims, Dual64, Scalar, Soi2Error, constraint_rank, g_ddot, k_dot, mass_matrix,
     max_norm,
@@ -159,6 +161,9 @@ pub struct NewtonCache {
     /// LU factorisations keyed by (h, system size), most recently used last; a few, so that a
     /// periodic step pattern (h/3, 2h/3) reuses one per size.
     lu: Vec<(LU<f64, Dyn, Dyn>, f64, usize)>,
+    /// The same for band LU factorisations ([`NewtonFactor::Banded`], large mechanisms).
+    #[serde(default)]
+    banded: Vec<(BandLu, f64, usize)>,
     /// The same for numerically singular matrices (their SVD, [`NewtonFactor::Deficient`]).
     /// Not part of a checkpoint: a resumed run rebuilds it at its first step, so a run with
     /// rank-deficient joints resumes to the Newton tolerance, not bit for bit.
@@ -177,6 +182,7 @@ impl NewtonCache {
         Self {
             strategy,
             lu: Vec::new(),
+            banded: Vec::new(),
             deficient: Vec::new(),
             jacobians: 0,
         }
@@ -186,6 +192,13 @@ impl NewtonCache {
     fn take(&mut self, h: f64, n: usize) -> Option<NewtonFactor> {
         if let Some(i) = self.lu.iter().position(|(_, hc, nc)| *hc == h && *nc == n) {
             return Some(NewtonFactor::Regular(self.lu.remove(i).0));
+        }
+        if let Some(i) = self
+            .banded
+            .iter()
+            .position(|(_, hc, nc)| *hc == h && *nc == n)
+        {
+            return Some(NewtonFactor::Banded(self.banded.remove(i).0));
         }
         let i = self
             .deficient
@@ -202,6 +215,12 @@ impl NewtonCache {
                     self.lu.remove(0);
                 }
                 self.lu.push((lu, h, n));
+            }
+            NewtonFactor::Banded(lu) => {
+                if self.banded.len() >= CACHED_JACOBIANS {
+                    self.banded.remove(0);
+                }
+                self.banded.push((lu, h, n));
             }
             deficient => {
                 if self.deficient.len() >= CACHED_JACOBIANS {
@@ -281,6 +300,11 @@ pub trait Residual {
         let _ = x;
         false
     }
+    /// The structure of the Jacobian, when known (then it is built one dual evaluation per
+    /// group of structurally orthogonal columns); `None`: one per column.
+    fn pattern(&self) -> Option<&Pattern> {
+        None
+    }
 }
 
 /// Newton failures before they get a step and a time.
@@ -293,8 +317,9 @@ enum NewtonFailure {
     },
 }
 
-/// Fills `jac` with the AD Jacobian of `res` at `x` and `r` with F(x) (one dual evaluation per
-/// column).
+/// Fills `jac` with the AD Jacobian of `res` at `x` and `r` with F(x): one dual evaluation per
+/// group of structurally orthogonal columns when the residual knows its pattern (the entries
+/// outside it are zero by construction), one per column otherwise.
 fn build_jacobian<R: Residual>(
     res: &R,
     x: &[f64],
@@ -306,6 +331,25 @@ fn build_jacobian<R: Residual>(
     let n = x.len();
     for (d, &v) in xd.iter_mut().zip(x.iter()) {
         *d = Dual64::from_re(v);
+    }
+    if let Some(pattern) = res.pattern().filter(|p| p.size() == n && n > 0) {
+        jac.fill(0.0);
+        for group in pattern.groups() {
+            for &j in group {
+                xd[j].eps = 1.0;
+            }
+            res.eval(xd, rd);
+            for &j in group {
+                xd[j].eps = 0.0;
+                for &i in pattern.rows_of(j) {
+                    jac[(i, j)] = rd[i].eps;
+                }
+            }
+        }
+        for (ri, d) in r.iter_mut().zip(rd.iter()) {
+            *ri = d.re;
+        }
+        return;
     }
     for j in 0..n {
         xd[j].eps = 1.0;
@@ -360,7 +404,11 @@ fn solve_newton_full<R: Residual>(
                 increment,
             });
         }
-        let factor = NewtonFactor::new(&jac, || res.joints_deficient(x));
+        let band = res
+            .pattern()
+            .filter(|p| p.size() == n)
+            .and_then(Pattern::band);
+        let factor = NewtonFactor::with_band(&jac, band, || res.joints_deficient(x));
         singular |= factor.deficient();
         let mut dx = r.clone();
         if !factor.solve_mut(&mut dx) {
@@ -455,7 +503,11 @@ fn solve_newton_simplified<R: Residual>(
         if current.is_none() {
             build_jacobian(res, x, &mut xd, &mut rd, &mut jac, &mut r);
             cache.jacobians += 1;
-            let factor = NewtonFactor::new(&jac, || res.joints_deficient(x));
+            let band = res
+                .pattern()
+                .filter(|p| p.size() == n)
+                .and_then(Pattern::band);
+            let factor = NewtonFactor::with_band(&jac, band, || res.joints_deficient(x));
             singular |= factor.deficient();
             current = Some(factor);
             built_here = true;
@@ -650,6 +702,14 @@ impl<M: ConstrainedModel + ?Sized> Residual for AccelerationSystem<'_, M> {
         constraint_rank(self.model, self.t, self.y, self.z).0 < d.holonomic + d.nonholonomic
     }
 
+    /// Unknowns (a, λ) and rows (dynamics, joints): one block of each.
+    fn pattern(&self) -> Option<&Pattern> {
+        if self.dims.nonholonomic > 0 {
+            return None;
+        }
+        self.model.newton_pattern(1)
+    }
+
     fn eval<T: Scalar>(&self, x: &[T], r: &mut [T]) {
         let Dims {
             n,
@@ -837,6 +897,19 @@ impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
         let (y, z) = (self.y1(&at), self.z1(&a));
         let d = self.dims;
         constraint_rank(self.model, self.t1, &y, &z).0 < d.holonomic + d.nonholonomic
+    }
+
+    /// Every formulation orders its unknowns and rows as [`Pattern`] describes: coordinate
+    /// blocks (two, one for HHT-I3) then joint blocks.
+    fn pattern(&self) -> Option<&Pattern> {
+        if self.dims.nonholonomic > 0 {
+            return None;
+        }
+        let blocks = match self.method.formulation {
+            Formulation::HhtI3 => 1,
+            Formulation::General | Formulation::Additive | Formulation::HhtSoi2 => 2,
+        };
+        self.model.newton_pattern(blocks)
     }
 
     /// Position-level rows g(t₁, y₁)/(βh²) carry round-off ε|y|/(βh²), which becomes

@@ -18,12 +18,18 @@
 //!   slider-crank.
 //! * [`factor`]: Newton's matrix factorised by LU, or by SVD (minimum-norm solve) when the
 //!   constraint Jacobian has lost rank.
+//! * [`banded`]: the band order (reverse Cuthill–McKee) and band LU of a large mechanism's
+//!   Newton matrix.
+//! * [`sparsity`]: which coordinates each equation touches, and the groups of columns that
+//!   build a sparse Newton matrix from a few dual evaluations.
 //! * [`run`]: the time loop over a step-size pattern, with energy and constraint streams.
 
+pub mod banded;
 pub mod factor;
 pub mod method;
 pub mod models;
 pub mod run;
+pub mod sparsity;
 
 use nalgebra::{DMatrix, DVector};
 pub use num_dual::{Dual, Dual64, DualNum};
@@ -169,6 +175,16 @@ pub trait ConstrainedModel {
     fn damping_force(&self, t: f64, y: &[f64], z: &[f64], out: &mut [f64]) {
         let _ = (t, y, z);
         out.fill(0.0);
+    }
+
+    /// The structure of Newton's matrix with `blocks` coordinate and joint blocks
+    /// ([`sparsity::Pattern`]), when the model knows which coordinates its equations touch;
+    /// the Jacobian is then built one dual evaluation per group of structurally orthogonal
+    /// columns. Default: `None`, one dual evaluation per column. A model with nonholonomic
+    /// constraints must return `None`.
+    fn newton_pattern(&self, blocks: usize) -> Option<&sparsity::Pattern> {
+        let _ = blocks;
+        None
     }
 
     /// Initial values at t₀.

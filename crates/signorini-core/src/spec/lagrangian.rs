@@ -108,8 +108,9 @@ pub struct LagrangianSpec {
     /// The joints are dependent on purpose (default false): redundant at every configuration,
     /// like Bricard's mechanism (Grübler's count says 0 degrees of freedom, the mobility is 1).
     /// Validation then accepts a rank-deficient g_q at q0 (otherwise refused naming
-    /// `model.constraints`, to catch a joint written twice), and the SOI2 schemes solve for the
-    /// minimum-norm multipliers (`rank_deficient_steps` in the summary).
+    /// `model.constraints`, to catch a joint written twice), and the SOI2 schemes and
+    /// `ns_generalized_alpha` solve for the minimum-norm multipliers (`rank_deficient_steps` in
+    /// the summary); `moreau_jean` refuses it.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub redundant_joints: bool,
     /// Unilateral contacts, each `{ gap = "...", restitution = e }`: gap(q, t) ≥ 0 with Newton's

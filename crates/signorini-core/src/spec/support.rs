@@ -133,7 +133,7 @@ const NS_ALPHA_FRICTION: Support = Support::Refused {
 };
 const FULL_RANK_JOINTS: Support = Support::Refused {
     field: "model.redundant_joints",
-    reason: "does not solve rank-deficient joints: redundant joints run with soi2_generalized_alpha, soi2_hht or hht_i3",
+    reason: "does not solve rank-deficient joints: redundant joints run with soi2_generalized_alpha, soi2_hht, hht_i3 or ns_generalized_alpha",
 };
 const HOLONOMIC_ONLY: Support = Support::Refused {
     field: "integrator.scheme",
@@ -179,9 +179,9 @@ const fn soi2(scheme: &'static str, family: ModelFamily, nonholonomic: Support) 
     }
 }
 
-/// A row of a fixed-step scheme on a `lagrangian` model: contacts and joints, friction as
-/// `friction` says, full-rank joints only.
-const fn lagrangian(scheme: &'static str, friction: Support) -> SchemeSupport {
+/// A row of a fixed-step scheme on a `lagrangian` model: contacts and joints, friction and
+/// redundant joints as `friction` and `redundant` say.
+const fn lagrangian(scheme: &'static str, friction: Support, redundant: Support) -> SchemeSupport {
     SchemeSupport {
         scheme,
         family: ModelFamily::Lagrangian,
@@ -190,7 +190,7 @@ const fn lagrangian(scheme: &'static str, friction: Support) -> SchemeSupport {
             (F::Friction, friction),
             (F::Tangents3d, NotInModel),
             (F::Joints, Takes),
-            (F::RedundantJoints, FULL_RANK_JOINTS),
+            (F::RedundantJoints, redundant),
             (F::Nonholonomic, NotInModel),
             (F::VariableStep, FIXED_STEP),
         ],
@@ -207,8 +207,8 @@ pub const TABLE: [SchemeSupport; 18] = [
     linear("ns_kh_alpha", Takes),
     linear("newmark_position_contact", POSITION_LEVEL_FRICTION),
     linear("hht_position_contact", POSITION_LEVEL_FRICTION),
-    lagrangian("moreau_jean", Takes),
-    lagrangian("ns_generalized_alpha", NS_ALPHA_FRICTION),
+    lagrangian("moreau_jean", Takes, FULL_RANK_JOINTS),
+    lagrangian("ns_generalized_alpha", NS_ALPHA_FRICTION, Takes),
     soi2(
         "soi2_generalized_alpha",
         ModelFamily::Lagrangian,

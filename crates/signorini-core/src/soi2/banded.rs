@@ -1,0 +1,296 @@
+//! LU factorisation with partial pivoting of a band matrix, for Newton's matrix of a large
+//! mechanism once its unknowns are put in a band order (docs/soi2.md, "Cost").
+//!
+//! The unknowns are renumbered by the reverse Cuthill–McKee ordering of the matrix's structure
+//! (Cuthill & McKee, "Reducing the bandwidth of sparse symmetric matrices", Proc. 24th ACM
+//! National Conference, 1969, doi:10.1145/800195.805928; reversed as George 1971 proposed), which
+//! keeps the nonzeros of a chain within a band of kl sub- and ku super-diagonals. Gaussian
+//! elimination with row interchanges stays inside a band of kl sub- and kl + ku
+//! super-diagonals (the row interchanges of partial pivoting widen U by kl; LAPACK's `dgbtrf`
+//! does the same), so the factorisation costs O(n · kl · (kl + ku)) instead of the dense n³/3,
+//! and a solve O(n · (2 kl + ku)).
+
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+
+/// The reverse Cuthill–McKee ordering of the symmetric graph `adjacent` (each vertex's
+/// neighbours): `order[k]` is the vertex numbered k. Every connected component starts from a
+/// vertex of least degree; neighbours are visited by increasing degree.
+pub fn reverse_cuthill_mckee(adjacent: &[Vec<usize>]) -> Vec<usize> {
+    let n = adjacent.len();
+    let degree = |v: usize| adjacent[v].len();
+    let mut by_degree: Vec<usize> = (0..n).collect();
+    by_degree.sort_by_key(|&v| (degree(v), v));
+    let mut seen = vec![false; n];
+    let mut order = Vec::with_capacity(n);
+    for &start in &by_degree {
+        if seen[start] {
+            continue;
+        }
+        seen[start] = true;
+        let mut head = order.len();
+        order.push(start);
+        while head < order.len() {
+            let v = order[head];
+            head += 1;
+            let mut next: Vec<usize> = adjacent[v].iter().copied().filter(|&w| !seen[w]).collect();
+            next.sort_by_key(|&w| (degree(w), w));
+            next.dedup();
+            for w in next {
+                seen[w] = true;
+                order.push(w);
+            }
+        }
+    }
+    order.reverse();
+    order
+}
+
+/// A band order of a square matrix's unknowns: `order[k]` is the unknown numbered k, and in
+/// that numbering the nonzeros lie within kl sub- and ku super-diagonals.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BandOrder {
+    /// The unknown numbered k.
+    pub order: Vec<usize>,
+    /// Sub-diagonals.
+    pub kl: usize,
+    /// Super-diagonals.
+    pub ku: usize,
+}
+
+impl BandOrder {
+    /// The reverse Cuthill–McKee order of a matrix whose column c touches the rows
+    /// `rows_of[c]`, and its bandwidths; `None` when the band LU would not cost less than a
+    /// quarter of the dense one, or the matrix is small (below 48 unknowns, where the dense LU
+    /// is as fast and its results stay as they were).
+    pub fn of_pattern(rows_of: &[Vec<usize>]) -> Option<BandOrder> {
+        let size = rows_of.len();
+        if size < 48 {
+            return None;
+        }
+        let mut adjacent: Vec<Vec<usize>> = vec![Vec::new(); size];
+        for (c, rows) in rows_of.iter().enumerate() {
+            for &r in rows {
+                if r != c {
+                    adjacent[c].push(r);
+                    adjacent[r].push(c);
+                }
+            }
+        }
+        for a in adjacent.iter_mut() {
+            a.sort_unstable();
+            a.dedup();
+        }
+        let order = reverse_cuthill_mckee(&adjacent);
+        let mut position = vec![0; size];
+        for (k, &o) in order.iter().enumerate() {
+            position[o] = k;
+        }
+        let (mut kl, mut ku) = (0, 0);
+        for (c, rows) in rows_of.iter().enumerate() {
+            for &r in rows {
+                let (pr, pc) = (position[r], position[c]);
+                kl = kl.max(pr.saturating_sub(pc));
+                ku = ku.max(pc.saturating_sub(pr));
+            }
+        }
+        let (n, l, u) = (size as f64, kl as f64, ku as f64);
+        (2.0 * n * l * (l + u) < n * n * n / 6.0).then_some(BandOrder { order, kl, ku })
+    }
+}
+
+/// An LU factorisation with partial pivoting of P A Pᵀ, A square and P the permutation of a
+/// band order: rows stored as bands of `2 kl + ku + 1` entries (columns i − kl … i + kl + ku).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BandLu {
+    n: usize,
+    kl: usize,
+    ku: usize,
+    /// order[k]: the original unknown numbered k.
+    order: Vec<usize>,
+    /// L (unit lower, below the diagonal) and U, row by row.
+    ab: Vec<f64>,
+    /// Row interchanged with row k at step k.
+    pivots: Vec<usize>,
+}
+
+impl BandLu {
+    /// Width of a stored row.
+    fn width(&self) -> usize {
+        2 * self.kl + self.ku + 1
+    }
+
+    /// Index of entry (i, j) of the permuted matrix in `ab` (i − kl ≤ j ≤ i + kl + ku).
+    fn at(&self, i: usize, j: usize) -> usize {
+        i * self.width() + (j + self.kl - i)
+    }
+
+    /// Factorises the matrix `a` in the band order `order` with kl sub- and ku super-diagonals
+    /// there (entries outside the band must be zero). A zero pivot is kept (its solve fails).
+    pub fn factor(a: &DMatrix<f64>, band: &BandOrder) -> BandLu {
+        let BandOrder { order, kl, ku } = band;
+        let (n, kl, ku) = (order.len(), *kl, *ku);
+        let mut lu = BandLu {
+            n,
+            kl,
+            ku,
+            order: order.to_vec(),
+            ab: vec![0.0; n * (2 * kl + ku + 1)],
+            pivots: vec![0; n],
+        };
+        for i in 0..n {
+            for j in i.saturating_sub(kl)..(i + ku + 1).min(n) {
+                let k = lu.at(i, j);
+                lu.ab[k] = a[(order[i], order[j])];
+            }
+        }
+        let w = lu.width();
+        for k in 0..n {
+            let last_row = (k + kl).min(n - 1);
+            let last_col = (k + kl + ku).min(n - 1);
+            let mut p = k;
+            for i in k + 1..=last_row {
+                if lu.ab[lu.at(i, k)].abs() > lu.ab[lu.at(p, k)].abs() {
+                    p = i;
+                }
+            }
+            lu.pivots[k] = p;
+            if p != k {
+                for j in k..=last_col {
+                    let (x, y) = (lu.at(k, j), lu.at(p, j));
+                    lu.ab.swap(x, y);
+                }
+            }
+            let pivot = lu.ab[lu.at(k, k)];
+            if pivot == 0.0 {
+                continue;
+            }
+            let row_k = lu.at(k, k);
+            for i in k + 1..=last_row {
+                let ik = lu.at(i, k);
+                let l = lu.ab[ik] / pivot;
+                lu.ab[ik] = l;
+                if l != 0.0 {
+                    // Row i from column k + 1 and row k from column k + 1 are contiguous.
+                    let (len, start_i) = (last_col - k, ik + 1);
+                    debug_assert!(start_i + len <= (i + 1) * w);
+                    for t in 0..len {
+                        lu.ab[start_i + t] -= l * lu.ab[row_k + 1 + t];
+                    }
+                }
+            }
+        }
+        lu
+    }
+
+    /// Largest and smallest |u_kk|.
+    pub fn pivot_range(&self) -> (f64, f64) {
+        (0..self.n)
+            .map(|k| self.ab[self.at(k, k)].abs())
+            .fold((f64::INFINITY, 0.0_f64), |(lo, hi), d| {
+                (lo.min(d), hi.max(d))
+            })
+    }
+
+    /// Solves A x = b in place; false on a zero pivot.
+    pub fn solve_mut(&self, b: &mut [f64]) -> bool {
+        let (n, kl, ku) = (self.n, self.kl, self.ku);
+        let mut x: Vec<f64> = self.order.iter().map(|&o| b[o]).collect();
+        for k in 0..n {
+            x.swap(k, self.pivots[k]);
+            let xk = x[k];
+            if xk != 0.0 {
+                let last = (k + kl).min(n - 1);
+                for (i, xi) in x.iter_mut().enumerate().take(last + 1).skip(k + 1) {
+                    *xi -= self.ab[self.at(i, k)] * xk;
+                }
+            }
+        }
+        for k in (0..n).rev() {
+            let last = (k + kl + ku).min(n - 1);
+            let row = self.at(k, k);
+            let s = x[k]
+                - x[k + 1..=last]
+                    .iter()
+                    .zip(&self.ab[row + 1..=row + last - k])
+                    .map(|(xj, u)| u * xj)
+                    .sum::<f64>();
+            let d = self.ab[self.at(k, k)];
+            if d == 0.0 {
+                return false;
+            }
+            x[k] = s / d;
+        }
+        for (k, &o) in self.order.iter().enumerate() {
+            b[o] = x[k];
+        }
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A saddle-point matrix of a chain (zero diagonal on the constraint rows, so pivoting is
+    /// needed) solved in a scrambled order: the band solve equals the dense LU solve.
+    #[test]
+    fn a_band_solve_with_row_interchanges_equals_the_dense_solve() {
+        let n = 6;
+        let m = 5;
+        let size = n + m;
+        let mut a = DMatrix::<f64>::zeros(size, size);
+        for i in 0..n {
+            a[(i, i)] = 2.0 + i as f64 * 0.1;
+            if i + 1 < n {
+                a[(i, i + 1)] = 0.3;
+                a[(i + 1, i)] = 0.3;
+            }
+        }
+        for q in 0..m {
+            for (j, g) in [(q, 1.0 + 0.2 * q as f64), (q + 1, -0.7)] {
+                a[(n + q, j)] = g;
+                a[(j, n + q)] = g;
+            }
+        }
+        let adjacent: Vec<Vec<usize>> = (0..size)
+            .map(|i| (0..size).filter(|&j| j != i && a[(i, j)] != 0.0).collect())
+            .collect();
+        let order = reverse_cuthill_mckee(&adjacent);
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..size).collect::<Vec<_>>());
+        let pos: Vec<usize> = {
+            let mut p = vec![0; size];
+            for (k, &o) in order.iter().enumerate() {
+                p[o] = k;
+            }
+            p
+        };
+        let (mut kl, mut ku) = (0, 0);
+        for i in 0..size {
+            for j in 0..size {
+                if a[(i, j)] != 0.0 {
+                    if pos[i] > pos[j] {
+                        kl = kl.max(pos[i] - pos[j]);
+                    } else {
+                        ku = ku.max(pos[j] - pos[i]);
+                    }
+                }
+            }
+        }
+        assert!(kl < size / 2 && ku < size / 2, "kl {kl}, ku {ku}");
+        let lu = BandLu::factor(&a, &BandOrder { order, kl, ku });
+        let b: Vec<f64> = (0..size).map(|i| (i as f64 * 0.37).sin()).collect();
+        let mut x = b.clone();
+        assert!(lu.solve_mut(&mut x));
+        let dense = a
+            .clone()
+            .lu()
+            .solve(&nalgebra::DVector::from_column_slice(&b))
+            .expect("regular");
+        for (u, v) in x.iter().zip(dense.iter()) {
+            assert!((u - v).abs() < 1e-13, "{u} vs {v}");
+        }
+    }
+}
