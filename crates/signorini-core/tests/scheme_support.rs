@@ -57,7 +57,8 @@ fn point_mass(joints: bool, contacts: bool, mu: f64) -> Value {
 }
 
 /// A spec of `family` with `feature` and as little else as the family allows, under `scheme`
-/// with its defaults; `None` when the family cannot express the feature here.
+/// with its defaults (ns_hht: α = 0.1, hht_position_contact: α = 0.1, which have none);
+/// `None` when the family cannot express the feature here.
 fn spec_with(family: ModelFamily, scheme: &str, feature: Feature) -> Option<Value> {
     let mut doc = match family {
         ModelFamily::Linear if scheme == "wfem" => example("wfem_dep_bar"),
@@ -98,7 +99,10 @@ fn spec_with(family: ModelFamily, scheme: &str, feature: Feature) -> Option<Valu
             _ => return None,
         },
     };
-    if scheme != "wfem" {
+    if scheme == "ns_hht" || scheme == "hht_position_contact" {
+        // Their α has no default.
+        doc["integrator"] = json!({"scheme": scheme, "alpha": 0.1});
+    } else if scheme != "wfem" {
         doc["integrator"] = json!({"scheme": scheme});
     }
     if feature == Feature::VariableStep {
