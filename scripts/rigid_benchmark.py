@@ -3,13 +3,17 @@
 
     /usr/bin/python3 scripts/rigid_benchmark.py write-spec      # examples/rigid/spheres_1000.toml
     /usr/bin/python3 scripts/rigid_benchmark.py run [--rounds R] [--steps N] [--siconos-steps N]
+        [--mujoco-solvers CG,Newton,PGS] [--no-signorini] [--no-mujoco] [--no-siconos]
+    /usr/bin/python3 scripts/rigid_benchmark.py one mujoco|siconos STEPS [SOLVER]
 
-`run` builds the release bench once (cargo bench --no-run), then runs in rounds, interleaved, the
-same scene (read from the TOML) in Signorini (crates/signorini-collision/benches/rigid_spheres.rs),
-MuJoCo (pip `mujoco`, MJCF written here: elliptic cones, Newton solver) and Siconos 4.4
-(`python3-siconos`, mechanics with Bullet collision, MoreauJeanOSI + NSGS), and prints one JSON
-line per run with its wall time per step and contacts per step, then the load average. Ratios are
-taken between runs of the same round only (the machine is shared).
+`run` builds the release bench once (cargo bench --no-run), then runs in rounds, one code after
+the other, the same scene (read from the TOML) in Signorini
+(crates/signorini-collision/benches/rigid_spheres.rs), MuJoCo (pip `mujoco`, MJCF written here:
+elliptic cones, CG by default: its Newton solver's cost per step grows without bound on this
+scene) and Siconos 4.4 (`python3-siconos`, mechanics with Bullet collision, MoreauJeanOSI + NSGS),
+MuJoCo and Siconos each in a child process (`one`), and prints one JSON line per run: wall time
+per step, contacts per step, solver iterations, energy at the start and the end, the load
+average. Ratios are taken between runs of the same round only (the machine is shared).
 """
 
 import json

@@ -76,12 +76,12 @@ fn pile() -> RigidScene {
         wall([0.0, 1.0, 0.0], [0.0, -0.2, 0.0]),
         wall([0.0, -1.0, 0.0], [0.0, 0.2, 0.0]),
     ];
-    let mut k = 0.0;
+    let mut k: f64 = 0.0;
     for iz in 0..3 {
         for iy in 0..3 {
             for ix in 0..3 {
                 k += 1.0;
-                let nudge = 0.004 * (1.7 * k as f64).sin();
+                let nudge = 0.004 * (1.7 * k).sin();
                 parts.push(free(
                     Shape::Sphere { radius: 0.05 },
                     [
