@@ -3,13 +3,17 @@
 
     /usr/bin/python3 scripts/rigid_benchmark.py write-spec      # examples/rigid/spheres_1000.toml
     /usr/bin/python3 scripts/rigid_benchmark.py run [--rounds R] [--steps N] [--siconos-steps N]
+        [--mujoco-solvers CG,Newton,PGS] [--no-signorini] [--no-mujoco] [--no-siconos]
+    /usr/bin/python3 scripts/rigid_benchmark.py one mujoco|siconos STEPS [SOLVER]
 
-`run` builds the release bench once (cargo bench --no-run), then runs in rounds, interleaved, the
-same scene (read from the TOML) in Signorini (crates/signorini-collision/benches/rigid_spheres.rs),
-MuJoCo (pip `mujoco`, MJCF written here: elliptic cones, Newton solver) and Siconos 4.4
-(`python3-siconos`, mechanics with Bullet collision, MoreauJeanOSI + NSGS), and prints one JSON
-line per run with its wall time per step and contacts per step, then the load average. Ratios are
-taken between runs of the same round only (the machine is shared).
+`run` builds the release bench once (cargo bench --no-run), then runs in rounds, one code after
+the other, the same scene (read from the TOML) in Signorini
+(crates/signorini-collision/benches/rigid_spheres.rs), MuJoCo (pip `mujoco`, MJCF written here:
+elliptic cones, CG by default: its Newton solver's cost per step grows without bound on this
+scene) and Siconos 4.4 (`python3-siconos`, mechanics with Bullet collision, MoreauJeanOSI + NSGS),
+MuJoCo and Siconos each in a child process (`one`), and prints one JSON line per run: wall time
+per step, contacts per step, solver iterations, energy at the start and the end, the load
+average. Ratios are taken between runs of the same round only (the machine is shared).
 """
 
 import json
@@ -122,18 +126,28 @@ def bench_binary():
     raise SystemExit("no bench executable")
 
 
-def run_signorini(exe, steps):
-    out = subprocess.run([exe, SPEC, "--steps", str(steps)], capture_output=True, text=True,
-                         check=True)
+def run_signorini(exe, steps, extra=()):
+    out = subprocess.run([exe, SPEC, "--steps", str(steps), *extra], capture_output=True,
+                         text=True, check=True)
     r = json.loads(out.stdout.strip().splitlines()[-1])
     return r
 
 
-def run_mujoco(steps):
+def sphere_energy(mass, inertia, positions, velocities, spins):
+    """Σ ½ m‖v‖² + ½ I‖Ω‖² + m g z over the spheres (the energy of Signorini's `energy` column,
+    potential −m g·x with g = (0, 0, −9.81))."""
+    e = 0.0
+    for (_, _, z), v, w in zip(positions, velocities, spins):
+        e += 0.5 * mass * sum(x * x for x in v) + 0.5 * inertia * sum(x * x for x in w)
+        e += mass * 9.81 * z
+    return e
+
+
+def run_mujoco(steps, solver="CG"):
+    """MuJoCo: the same spheres as free bodies in MJCF, elliptic cones, `solver` (CG by
+    default: Newton's cost per step grows without bound on this scene, docs/rigid_benchmark.md)."""
     import mujoco
-    import numpy as np
     spec, spheres = scene()
-    g = 9.81
     bodies = []
     for b in spheres:
         x, y, z = b["position"]
@@ -145,28 +159,47 @@ def run_mujoco(steps):
              f'<geom type="box" pos="{HALF + 0.05} 0 0.75" size="0.05 {HALF + 0.1} 0.75"/>'
              f'<geom type="box" pos="0 {-HALF - 0.05} 0.75" size="{HALF + 0.1} 0.05 0.75"/>'
              f'<geom type="box" pos="0 {HALF + 0.05} 0.75" size="{HALF + 0.1} 0.05 0.75"/>')
-    xml = (f'<mujoco><option timestep="{H}" gravity="0 0 {-g}" cone="elliptic" solver="Newton"/>'
+    xml = (f'<mujoco><option timestep="{H}" gravity="0 0 -9.81" cone="elliptic" '
+           f'solver="{solver}"/>'
            f'<worldbody>{walls}{"".join(bodies)}</worldbody></mujoco>')
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
-    contacts = 0
+    mass = float(model.body_mass[1])
+    inertia = float(model.body_inertia[1][0])
+
+    def energy():
+        q = data.qpos.reshape(-1, 7)
+        v = data.qvel.reshape(-1, 6)
+        return sphere_energy(mass, inertia, q[:, :3].tolist(), v[:, :3].tolist(),
+                             v[:, 3:].tolist())
+
+    e0 = energy()
+    contacts, max_contacts, depth, iterations = 0, 0, 0.0, 0
     start = time.perf_counter()
     for _ in range(steps):
         mujoco.mj_step(model, data)
         contacts += data.ncon
+        max_contacts = max(max_contacts, data.ncon)
+        iterations += int(data.solver_niter[0])
+        if data.ncon:
+            depth = max(depth, -float(data.contact.dist[:data.ncon].min()))
     seconds = time.perf_counter() - start
-    return {"code": "mujoco", "version": mujoco.__version__, "steps": steps, "seconds": seconds,
-            "ms_per_step": 1e3 * seconds / steps, "contacts_per_step": contacts / steps}
+    return {"code": "mujoco", "version": mujoco.__version__, "solver": solver, "steps": steps,
+            "seconds": seconds, "ms_per_step": 1e3 * seconds / steps,
+            "contacts_per_step": contacts / steps, "max_contacts": max_contacts,
+            "solver_iterations_per_step": iterations / steps, "max_penetration": depth,
+            "energy_start": e0, "energy_end": energy()}
 
 
 def run_siconos(steps):
     """Siconos 4.4 mechanics: NewtonEulerDS spheres, Bullet collision, MoreauJeanOSI(θ = ½),
-    FrictionContact(3) solved by NSGS; the same scene through MechanicsHdf5Runner."""
+    FrictionContact(3) solved by NSGS at 1e-6; the same scene through MechanicsHdf5Runner."""
     import tempfile
     from siconos.io.mechanics_run import MechanicsHdf5Runner
     import siconos.numerics as sn
     import siconos.kernel as sk
     from siconos.mechanics.collision.bullet import SiconosBulletOptions
+    from siconos.mechanics.collision.tools import Contactor
     spec, spheres = scene()
     directory = tempfile.mkdtemp(prefix="siconos_spheres_")
     path = os.path.join(directory, "spheres.hdf5")
@@ -178,54 +211,114 @@ def run_siconos(steps):
         io.add_primitive_shape("WallX", "Box", (0.1, 2 * HALF + 0.2, 1.5))
         io.add_primitive_shape("WallY", "Box", (2 * HALF + 0.2, 0.1, 1.5))
         io.add_Newton_impact_friction_nsl("contact", mu=MU, e=E)
-        io.add_object("ground", [sk.Contactor("Ground")], translation=[0, 0, -0.05])
-        io.add_object("wxm", [sk.Contactor("WallX")], translation=[-HALF - 0.05, 0, 0.75])
-        io.add_object("wxp", [sk.Contactor("WallX")], translation=[HALF + 0.05, 0, 0.75])
-        io.add_object("wym", [sk.Contactor("WallY")], translation=[0, -HALF - 0.05, 0.75])
-        io.add_object("wyp", [sk.Contactor("WallY")], translation=[0, HALF + 0.05, 0.75])
+        io.add_object("ground", [Contactor("Ground")], translation=[0, 0, -0.05])
+        io.add_object("wxm", [Contactor("WallX")], translation=[-HALF - 0.05, 0, 0.75])
+        io.add_object("wxp", [Contactor("WallX")], translation=[HALF + 0.05, 0, 0.75])
+        io.add_object("wym", [Contactor("WallY")], translation=[0, -HALF - 0.05, 0.75])
+        io.add_object("wyp", [Contactor("WallY")], translation=[0, HALF + 0.05, 0.75])
         for k, b in enumerate(spheres):
-            io.add_object(f"s{k}", [sk.Contactor("Ball")], translation=b["position"],
+            io.add_object(f"s{k}", [Contactor("Ball")], translation=b["position"],
                           velocity=[0, 0, 0, 0, 0, 0], mass=mass,
                           inertia=[inertia, inertia, inertia])
     options = SiconosBulletOptions()
     options.worldScale = 1.0
     options.contactBreakingThreshold = MARGIN
-    solver = sk.SolverOptions(sn.SICONOS_FRICTION_3D_NSGS)
+    # The kernel's wrapper of the options (the numerics one is refused by FrictionContact's
+    # constructor in the Debian 4.4 bindings).
+    solver = sk.solver_options_create(sn.SICONOS_FRICTION_3D_NSGS)
     solver.iparam[sn.SICONOS_IPARAM_MAX_ITER] = 1000
     solver.dparam[sn.SICONOS_DPARAM_TOL] = 1e-6
+    stats = {"contacts": 0, "max_contacts": 0, "iterations": 0, "residual_max": 0.0,
+             "first": None, "last": None}
+
+    def energy(io):
+        e = 0.0
+        dss = io._nsds.dynamicalSystemsVector()
+        for ds in dss:
+            ds = sk.cast_NewtonEulerDS(ds)
+            q, v = ds.q(), ds.twist()
+            e += sphere_energy(mass, inertia, [q[:3]], [v[:3]], [v[3:]])
+        return e, len(dss)
+
+    def after_step(io):
+        stats["last"] = time.perf_counter()
+        if stats["first"] is None:
+            stats["first"] = stats["last"]
+        problem = io._simulation.oneStepNSProblem(0)
+        m = problem.getSizeOutput() // 3
+        stats["contacts"] += m
+        stats["max_contacts"] = max(stats["max_contacts"], m)
+        if m:
+            so = problem.numericsSolverOptions()
+            stats["iterations"] += so.iparam[sn.SICONOS_IPARAM_ITER_DONE]
+            stats["residual_max"] = max(stats["residual_max"], so.dparam[sn.SICONOS_DPARAM_RESIDU])
+
     with MechanicsHdf5Runner(mode="r+", io_filename=path) as io:
-        start = time.perf_counter()
         io.run(with_timer=False, bullet_options=options, face_class=None, edge_class=None,
                t0=0, T=steps * H, h=H, theta=0.5, Newton_max_iter=1,
                set_external_forces=None, solver_options=solver, numerics_verbose=False,
-               output_frequency=10 ** 9, verbose=False)
-        seconds = time.perf_counter() - start
+               output_frequency=10 ** 9, verbose=False, verbose_progress=False,
+               end_run_iteration_hook=after_step)
+        # Steps 2 to N only: the runner imports the scene's 1 005 objects into the simulation
+        # during its first step (about 2 s), which is set-up, not stepping.
+        seconds = stats["last"] - stats["first"]
+        e1, bodies = energy(io)
+    e0 = sum(sphere_energy(mass, inertia, [b["position"]], [[0, 0, 0]], [[0, 0, 0]])
+             for b in spheres)
     return {"code": "siconos", "steps": steps, "seconds": seconds,
-            "ms_per_step": 1e3 * seconds / steps}
+            "ms_per_step": 1e3 * seconds / (steps - 1), "bodies": bodies,
+            "contacts_per_step": stats["contacts"] / steps, "max_contacts": stats["max_contacts"],
+            "solver_iterations_per_step": stats["iterations"] / steps,
+            "residual_max": stats["residual_max"], "energy_start": e0, "energy_end": e1}
+
+
+def run_one(code, steps, args):
+    """One code in a child process, so that each gets a fresh interpreter and memory."""
+    cmd = [sys.executable, os.path.abspath(__file__), "one", code, str(steps), *args]
+    out = subprocess.run(cmd, capture_output=True, text=True)
+    lines = [l for l in out.stdout.splitlines() if l.startswith("{")]
+    if out.returncode != 0 or not lines:
+        return {"code": code, "error": (out.stderr or out.stdout).strip()[-600:]}
+    return json.loads(lines[-1])
 
 
 def main():
     if len(sys.argv) > 1 and sys.argv[1] == "write-spec":
         write_spec()
         return
+    if len(sys.argv) > 1 and sys.argv[1] == "one":
+        code, steps = sys.argv[2], int(sys.argv[3])
+        if code == "mujoco":
+            res = run_mujoco(steps, sys.argv[4] if len(sys.argv) > 4 else "CG")
+        elif code == "siconos":
+            res = run_siconos(steps)
+        else:
+            raise SystemExit(f"unknown code {code}")
+        print(json.dumps(res), flush=True)
+        return
     args = sys.argv[2:]
 
     def opt(name, default):
-        return int(args[args.index(name) + 1]) if name in args else default
+        return args[args.index(name) + 1] if name in args else default
 
-    rounds, steps = opt("--rounds", 2), opt("--steps", int(round(T_END / H)))
-    siconos_steps = opt("--siconos-steps", steps)
+    rounds, steps = int(opt("--rounds", 2)), int(opt("--steps", int(round(T_END / H))))
+    siconos_steps = int(opt("--siconos-steps", steps))
+    mujoco_solvers = opt("--mujoco-solvers", "CG").split(",")
     codes = [c for c in ("signorini", "mujoco", "siconos") if f"--no-{c}" not in args]
     exe = bench_binary() if "signorini" in codes else None
     for r in range(rounds):
+        runs = []
         for code in codes:
+            if code == "signorini":
+                runs.append(("signorini", lambda: run_signorini(exe, steps)))
+            elif code == "mujoco":
+                for solver in mujoco_solvers:
+                    runs.append(("mujoco", lambda s=solver: run_one("mujoco", steps, [s])))
+            else:
+                runs.append(("siconos", lambda: run_one("siconos", siconos_steps, [])))
+        for code, run in runs:
             try:
-                if code == "signorini":
-                    res = run_signorini(exe, steps)
-                elif code == "mujoco":
-                    res = run_mujoco(steps)
-                else:
-                    res = run_siconos(siconos_steps)
+                res = run()
             except Exception as e:  # a failed code is reported, not hidden
                 res = {"code": code, "error": repr(e)}
             res["round"] = r

@@ -5,10 +5,17 @@
 //! problem, the FC3D solve and the update, measured by the phases the step reports
 //! ([`StepPhases`]).
 //!
-//! `cargo bench -p signorini-collision --bench rigid_spheres -- [SPEC] [--steps N]`
+//! `cargo bench -p signorini-collision --bench rigid_spheres -- [SPEC] [--steps N] [--cold]`
+//!
+//! `--cold` starts every friction solve from P = 0 instead of the last impulses of the same
+//! contacts (`RigidMoreauJeanParams::warm_start`), to measure what the warm start saves;
+//! `--solver auto|nsgs|prox` and `--auto-sweeps N` set the FC3D solver and `auto`'s Gauss–Seidel
+//! budget before its proximal-point stage (`Fc3dOptions`), to measure what the time stepping
+//! needs; `--trace` prints each step's contacts, FC3D iterations and error on stderr. The line also gives how many steps took ≤ 10, ≤ 100, ≤ 1 000 and more FC3D
+//! iterations.
 
 use signorini_collision::ParryDetectors;
-use signorini_core::friction::Fc3dOptions;
+use signorini_core::friction::{Fc3dOptions, Fc3dSolverKind};
 use signorini_core::rigid::{
     DetectorFactory, RigidMoreauJean, RigidMoreauJeanParams, RigidScratch, StepPhase, StepPhases,
 };
@@ -55,8 +62,24 @@ fn main() {
         env!("CARGO_MANIFEST_DIR")
     );
     let mut steps_arg: Option<u64> = None;
+    let mut warm_start = true;
+    let mut trace = false;
+    let mut kind = Fc3dSolverKind::Auto;
+    let mut auto_sweeps = signorini_core::rigid::AUTO_SWEEPS;
     while let Some(a) = args.next() {
-        if a == "--steps" {
+        if a == "--cold" {
+            warm_start = false;
+        } else if a == "--trace" {
+            trace = true;
+        } else if a == "--solver" {
+            let name = args.next().unwrap_or_default();
+            kind = Fc3dSolverKind::from_name(&name).expect("--solver auto|nsgs|nsn_ac|prox");
+        } else if a == "--auto-sweeps" {
+            auto_sweeps = args
+                .next()
+                .and_then(|s| s.parse().ok())
+                .expect("--auto-sweeps N");
+        } else if a == "--steps" {
             steps_arg = args.next().and_then(|s| s.parse().ok());
         } else {
             path = a;
@@ -75,10 +98,13 @@ fn main() {
     let scheme = RigidMoreauJean::new(
         RigidMoreauJeanParams {
             fc3d: Fc3dOptions {
+                kind,
+                auto_sweeps,
                 tolerance: spec.contact_solver.tolerance,
                 max_iterations: spec.contact_solver.max_iterations,
                 ..Fc3dOptions::default()
             },
+            warm_start,
             ..RigidMoreauJeanParams::default()
         },
         h,
@@ -94,6 +120,8 @@ fn main() {
     let mut contacts = 0u64;
     let mut max_contacts = 0usize;
     let mut friction_iterations = 0u64;
+    let mut friction_error_max: f64 = 0.0;
+    let mut histogram = [0u64; 4];
     let (k0, v0) = RigidMoreauJean::energies(&scene, &state);
     let start = Instant::now();
     for k in 1..=count {
@@ -112,16 +140,34 @@ fn main() {
         contacts += report.contacts as u64;
         max_contacts = max_contacts.max(report.contacts);
         friction_iterations += report.friction_iterations as u64;
+        friction_error_max = friction_error_max.max(report.friction_error);
+        if trace {
+            eprintln!(
+                "{k} {} {} {:e}",
+                report.contacts, report.friction_iterations, report.friction_error
+            );
+        }
+        histogram[match report.friction_iterations {
+            0..=10 => 0,
+            11..=100 => 1,
+            101..=1000 => 2,
+            _ => 3,
+        }] += 1;
     }
     let seconds = start.elapsed().as_secs_f64();
     let (k1, v1) = RigidMoreauJean::energies(&scene, &state);
+    let solver = kind.name();
     let split = clock.spent.map(|d| d.as_secs_f64());
     println!(
-        "{{\"code\": \"signorini\", \"bodies\": {}, \"h\": {h}, \"steps\": {count}, \"seconds\": {seconds:.4}, \"steps_per_second\": {:.2}, \"ms_per_step\": {:.4}, \"contacts_per_step\": {:.1}, \"max_contacts\": {max_contacts}, \"friction_iterations_per_step\": {:.2}, \"split_seconds\": {{\"detection\": {:.4}, \"assembly\": {:.4}, \"solve\": {:.4}, \"update\": {:.4}}}, \"energy_start\": {:.6}, \"energy_end\": {:.6}}}",
+        "{{\"code\": \"signorini\", \"bodies\": {}, \"h\": {h}, \"steps\": {count}, \"seconds\": {seconds:.4}, \"steps_per_second\": {:.2}, \"ms_per_step\": {:.4}, \"contacts_per_step\": {:.1}, \"max_contacts\": {max_contacts}, \"warm_start\": {warm_start}, \"solver\": \"{solver}\", \"auto_sweeps\": {auto_sweeps}, \"steps_by_iterations\": {{\"le10\": {}, \"le100\": {}, \"le1000\": {}, \"more\": {}}}, \"friction_iterations_per_step\": {:.2}, \"friction_error_max\": {friction_error_max:e}, \"split_seconds\": {{\"detection\": {:.4}, \"assembly\": {:.4}, \"solve\": {:.4}, \"update\": {:.4}}}, \"energy_start\": {:.6}, \"energy_end\": {:.6}}}",
         scene.bodies.len(),
         count as f64 / seconds,
         1e3 * seconds / count as f64,
         contacts as f64 / count as f64,
+        histogram[0],
+        histogram[1],
+        histogram[2],
+        histogram[3],
         friction_iterations as f64 / count as f64,
         split[0],
         split[1],

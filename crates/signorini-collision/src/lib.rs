@@ -251,6 +251,7 @@ impl ContactDetector for ParryDetector {
                         normal: n,
                         tangents: tangent_basis(n),
                         gap: point.dist,
+                        features: [point.fid1.0, point.fid2.0],
                     });
                 }
             }

@@ -7,7 +7,7 @@
 use proptest::prelude::*;
 use signorini_core::friction::{
     BlockCsr, Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind, FrictionProblem,
-    solve_fc3d, solve_friction,
+    solve_fc3d, solve_fc3d_from, solve_friction,
 };
 use signorini_core::lcp::{LcpOptions, LcpSolverKind};
 
@@ -430,4 +430,51 @@ proptest! {
             }
         }
     }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+
+    /// A warm start changes the path, not the answer's bound: from the built solution Gauss–Seidel
+    /// stops after one sweep (the solution is its fixed point), and from the built solution
+    /// perturbed by up to 50 % per entry every solver returns a point of error ≤ 1e-10, as from
+    /// r = 0.
+    #[test]
+    fn warm_started_solvers_meet_the_same_tolerance(
+        (problem, built) in built_problem(),
+        noise in prop::collection::vec(-0.5f64..0.5, 27),
+    ) {
+        let nsgs = Fc3dOptions { kind: Fc3dSolverKind::Nsgs, tolerance: 1e-10, ..Fc3dOptions::default() };
+        let s = solve_fc3d_from(&problem, &nsgs, &built).map_err(|e| TestCaseError::fail(e.to_string()))?;
+        prop_assert_eq!(s.iterations, 1);
+        prop_assert!(s.error <= 1e-10, "error {}", s.error);
+        let start: Vec<f64> = built.iter().zip(&noise).map(|(r, e)| r * (1.0 + e) + 0.1 * e).collect();
+        for (name, options) in configurations(1e-10) {
+            let s = solve_fc3d_from(&problem, &options, &start)
+                .map_err(|e| TestCaseError::fail(format!("{name}: {e}")))?;
+            prop_assert!(s.error <= 1e-10, "{}: error {}", name, s.error);
+            prop_assert!(problem.error(&s.r) <= 1e-10, "{}: error of r {}", name, problem.error(&s.r));
+        }
+    }
+}
+
+#[test]
+fn a_start_of_the_wrong_length_or_not_a_number_is_refused() {
+    let problem = diagonal_problem([1.0, 1.0, 1.0], [-1.0, 0.0, 0.0], 0.5);
+    let options = Fc3dOptions::default();
+    assert!(matches!(
+        solve_fc3d_from(&problem, &options, &[0.0; 2]),
+        Err(Fc3dError::StartLength {
+            expected: 3,
+            got: 2
+        })
+    ));
+    assert!(matches!(
+        solve_fc3d_from(&problem, &options, &[0.0, f64::NAN, 0.0]),
+        Err(Fc3dError::NotFiniteStart { index: 1, .. })
+    ));
+    // A start on the solution (r_n = 1: W r + q = 0, inside the cone) is kept to the last bit.
+    let s = solve_fc3d_from(&problem, &options, &[1.0, 0.0, 0.0]).unwrap();
+    assert_eq!(s.r, vec![1.0, 0.0, 0.0]);
+    assert_eq!(s.error, 0.0);
 }

@@ -336,6 +336,22 @@ pub enum Fc3dError {
         /// The tolerance given.
         tolerance: f64,
     },
+    /// A start (warm start) whose length is not 3m.
+    #[error("the start has {got} entries, the problem has {expected} unknowns")]
+    StartLength {
+        /// 3m.
+        expected: usize,
+        /// Entries given.
+        got: usize,
+    },
+    /// An entry of a start is not finite.
+    #[error("start[{index}] is {value}: it must be finite")]
+    NotFiniteStart {
+        /// Index in the start.
+        index: usize,
+        /// The value.
+        value: f64,
+    },
     /// The iteration budget ran out.
     #[error(
         "{solver} did not reach tolerance {tolerance:e} in {iterations} iterations (error {error:e})"

@@ -5,7 +5,8 @@ use super::fc3d_newton::solve_fc3d_newton;
 use super::fc3d_nsgs::solve_fc3d_nsgs;
 use super::fc3d_prox::solve_fc3d_prox;
 
-/// Solves the problem with the solver of `options.kind`, from r = 0. `Auto` runs Gauss–Seidel
+/// Solves the problem with the solver of `options.kind`, from r = 0
+/// ([`solve_fc3d_from`] with a zero start). `Auto` runs Gauss–Seidel
 /// for `auto_sweeps` sweeps (Acary, Brémond & Huber 2018: the fastest on rigid sets at loose
 /// tolerance), then the proximal point method with its inner Newton solves for at most
 /// `auto_newton_iterations` Newton iterations in all, from the best iterate so far (independent
@@ -16,13 +17,36 @@ use super::fc3d_prox::solve_fc3d_prox;
 /// reason only hands over to the next one; when none answers, the error holds the iterate of
 /// smallest error over all stages and the iterations of all of them.
 pub fn solve_fc3d(problem: &Fc3dProblem, options: &Fc3dOptions) -> Result<Fc3dSolution, Fc3dError> {
+    solve_fc3d_from(problem, options, &vec![0.0; problem.q.len()])
+}
+
+/// [`solve_fc3d`] from the impulses `start` (3m, `(r_n, r_t1, r_t2)` per contact) instead of
+/// r = 0: a warm start, as Siconos' time stepping starts each step's solver from the last step's
+/// impulses of the same interactions (`LinearOSNS::preCompute` with `keepLambdaAndYState`). The problem
+/// and the tolerance are those of a cold start, so a warm-started solution meets the same error
+/// bound; only the path (hence the iterations, and the last digits) changes. A start of the
+/// wrong length or with an entry that is not a number is refused.
+pub fn solve_fc3d_from(
+    problem: &Fc3dProblem,
+    options: &Fc3dOptions,
+    start: &[f64],
+) -> Result<Fc3dSolution, Fc3dError> {
     problem.validate()?;
     if options.tolerance.is_nan() || options.tolerance <= 0.0 {
         return Err(Fc3dError::InvalidTolerance {
             tolerance: options.tolerance,
         });
     }
-    let start = vec![0.0; problem.q.len()];
+    if start.len() != problem.q.len() {
+        return Err(Fc3dError::StartLength {
+            expected: problem.q.len(),
+            got: start.len(),
+        });
+    }
+    if let Some((index, &value)) = start.iter().enumerate().find(|(_, x)| !x.is_finite()) {
+        return Err(Fc3dError::NotFiniteStart { index, value });
+    }
+    let start = start.to_vec();
     match options.kind {
         Fc3dSolverKind::Nsgs => solve_fc3d_nsgs(problem, options, &start),
         Fc3dSolverKind::NewtonAlartCurnier => solve_fc3d_newton(problem, options, &start),

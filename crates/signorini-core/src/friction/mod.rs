@@ -56,7 +56,7 @@ pub use fc3d::{
 pub use fc3d_newton::solve_fc3d_newton;
 pub use fc3d_nsgs::solve_fc3d_nsgs;
 pub use fc3d_prox::solve_fc3d_prox;
-pub use fc3d_solve::solve_fc3d;
+pub use fc3d_solve::{solve_fc3d, solve_fc3d_from};
 pub use lemke_reformulation::solve_friction_lemke;
 pub use nsgs::solve_friction_nsgs;
 pub use work::{TangentialWork, split_tangential_work};

@@ -73,6 +73,7 @@ pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob,
             kind: Fc3dSolverKind::Auto,
             tolerance: spec.contact_solver.tolerance,
             max_iterations: spec.contact_solver.max_iterations,
+            auto_sweeps: crate::rigid::AUTO_SWEEPS,
             ..Fc3dOptions::default()
         },
         ..RigidMoreauJeanParams::default()

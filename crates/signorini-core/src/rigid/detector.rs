@@ -25,6 +25,10 @@ pub struct ContactPoint {
     pub tangents: [[f64; 3]; 2],
     /// Gap g = (p_1 − p_0)·n.
     pub gap: f64,
+    /// The features (vertex, edge or face of each shape, as the detector numbers them) the
+    /// point joins: with the two bodies, the key that recognises the same contact from one step
+    /// to the next, whose last impulse warm-starts the next step's friction problem.
+    pub features: [u32; 2],
 }
 
 /// Why detection failed.

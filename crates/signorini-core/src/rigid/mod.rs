@@ -15,8 +15,8 @@ pub use body::{Body, BodyState, Pose, Shape};
 pub use detector::{ContactDetector, ContactPoint, DetectError, DetectorFactory, tangent_basis};
 pub use joint::{Joint, JointKind, JointSide};
 pub use moreau_jean::{
-    RigidMoreauJean, RigidMoreauJeanParams, RigidScratch, RigidStepError, StepPhase, StepPhases,
-    StepReport,
+    AUTO_SWEEPS, ContactImpulse, RigidMoreauJean, RigidMoreauJeanParams, RigidScratch,
+    RigidStepError, StepPhase, StepPhases, StepReport,
 };
 pub use scene::{ContactLaw, RigidScene};
 pub use stepping::{

@@ -56,6 +56,17 @@
 //! enters the index set when its predicted gap g_c + γ h U_{n,k} ≤ `margin`
 //! (U_{n,k} = G_c v_k, γ = `gamma`, default ½).
 //!
+//! **Warm start** (`warm_start`, default on). Each FC3D solve starts from the best guess at hand
+//! instead of P = 0, as Siconos' `LinearOSNS::preCompute` does with `keepLambdaAndYState` (its
+//! default: each interaction's last λ is the next problem's start): a Newton iterate after the first starts from the previous iterate's impulses (same
+//! index set), and the first from the last step's impulse of the same contact, recognised by its
+//! two bodies and the features the detector says the point joins ([`ContactPoint::features`]); that
+//! impulse is kept in world coordinates, P = P_n n + P_t1 t_1 + P_t2 t_2, and read in the new frame
+//! as (P·n', P·t_1', P·t_2'), so a contact whose normal turned starts from the same vector (a pair
+//! found in the other order starts from −P). A new contact starts from 0. The problem, its tolerance
+//! and hence the bound on the error are those of a cold start; the last step's impulses are part of
+//! the state a checkpoint keeps, so a resumed run stays bit for bit.
+//!
 //! **Energy ledger.** `kinetic` K = Σ ½ m‖v‖² + ½ ΩᵀIΩ, `potential` V = −Σ m g·x, `work_ext` = 0
 //! (no applied load besides gravity, which is in V), `work_contact` = Σ_c P_n U_{n,k+θ},
 //! `work_friction` = Σ_c (P_t1 U_{t1,k+θ} + P_t2 U_{t2,k+θ}), with U_{k+θ} = G_c (v, Ω)_{k+θ},
@@ -80,9 +91,11 @@ use super::detector::{ContactDetector, ContactPoint, DetectError};
 use super::joint::{InverseMass, JointRow, add_joint_impulse, joint_operator, project};
 use super::scene::RigidScene;
 use crate::friction::{
-    BlockCsr, Fc3dError, Fc3dOptions, Fc3dProblem, solve_fc3d, split_tangential_work,
+    BlockCsr, Fc3dError, Fc3dOptions, Fc3dProblem, solve_fc3d_from, split_tangential_work,
 };
 use nalgebra::{DMatrix, DVector, Matrix3, Quaternion, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
 use thiserror::Error;
 
 /// The phases of a step, in the order Siconos' `TimeStepping` names them: contact detection,
@@ -111,6 +124,13 @@ impl StepPhases for () {
     fn enter(&mut self, _phase: StepPhase) {}
 }
 
+/// The Gauss–Seidel sweeps `auto` gives a rigid step's friction problem before its
+/// proximal-point stage (`Fc3dOptions::auto_sweeps`; 100 for a lone problem). On the 1 000-sphere
+/// benchmark (docs/rigid_benchmark.md), 223 of the first 300 steps need 100–1 000 sweeps at 1e-6
+/// and none more; with 100, those steps went on to the proximal point method, whose Newton
+/// iterations on 3 000–4 800 unknowns made the step 1.9× slower than Gauss–Seidel alone.
+pub const AUTO_SWEEPS: usize = 1000;
+
 /// Parameters of the scheme.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RigidMoreauJeanParams {
@@ -130,6 +150,9 @@ pub struct RigidMoreauJeanParams {
     pub projection_tolerance: f64,
     /// Projection iterates per step at most (default 20; quadratic convergence needs 2–3).
     pub projection_max_iterations: usize,
+    /// Start each FC3D solve from the last impulses of the same contacts (module
+    /// documentation) rather than from 0. Default true; false only to measure what it saves.
+    pub warm_start: bool,
 }
 
 impl Default for RigidMoreauJeanParams {
@@ -141,10 +164,12 @@ impl Default for RigidMoreauJeanParams {
             newton_max_iterations: 50,
             fc3d: Fc3dOptions {
                 tolerance: 1e-12,
+                auto_sweeps: AUTO_SWEEPS,
                 ..Fc3dOptions::default()
             },
             projection_tolerance: 1e-12,
             projection_max_iterations: 20,
+            warm_start: true,
         }
     }
 }
@@ -244,7 +269,20 @@ struct ActiveContact {
     friction: f64,
 }
 
-/// Buffers a step reuses (never in a checkpoint: rebuilt from the state).
+/// The impulse of one contact of a step's index set, kept to warm-start the next step's friction
+/// problem (module documentation): the key that recognises the contact, and its impulse.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ContactImpulse {
+    /// The two bodies, in the detector's order.
+    pub bodies: [usize; 2],
+    /// The features of [`ContactPoint::features`].
+    pub features: [u32; 2],
+    /// The impulse body 1 received, in world coordinates: P_n n + P_t1 t_1 + P_t2 t_2.
+    pub impulse: [f64; 3],
+}
+
+/// Buffers a step reuses (never in a checkpoint: rebuilt from the state), and the last step's
+/// impulses per contact, which are state ([`Self::previous_impulses`]).
 #[derive(Debug, Clone, Default)]
 pub struct RigidScratch {
     /// The contact points at the current poses, when `found_valid`.
@@ -256,9 +294,75 @@ pub struct RigidScratch {
     active_points: Vec<ContactPoint>,
     /// The last step's impulses P_{k+1}, (P_n, P_t1, P_t2) per contact of `active_points`.
     impulse: Vec<f64>,
+    /// The last step's impulses per contact, the warm start of the next step.
+    previous: Vec<ContactImpulse>,
 }
 
 impl RigidScratch {
+    /// A scratch whose next step starts from the impulses `previous` (a run resumed from a
+    /// checkpoint, which keeps them).
+    pub fn resumed(previous: Vec<ContactImpulse>) -> Self {
+        Self {
+            previous,
+            ..Self::default()
+        }
+    }
+
+    /// The last step's impulse of every contact of its index set (empty before the first step):
+    /// what the next step's friction problem starts from, part of the state a checkpoint keeps.
+    pub fn previous_impulses(&self) -> &[ContactImpulse] {
+        &self.previous
+    }
+
+    /// The start of the friction problem of the index set (`active_points`): per point, the last
+    /// step's impulse of the same contact (same bodies and features; a pair found in the other
+    /// order gives −P) in the point's frame, or 0 for a contact that was not in the last index
+    /// set; all 0 when `warm` is false.
+    fn warm_start(&self, warm: bool) -> Vec<f64> {
+        let points = &self.active_points;
+        if !warm {
+            return vec![0.0; 3 * points.len()];
+        }
+        let mut known: HashMap<([usize; 2], [u32; 2]), [f64; 3]> =
+            HashMap::with_capacity(self.previous.len());
+        for c in &self.previous {
+            known.entry((c.bodies, c.features)).or_insert(c.impulse);
+        }
+        let mut start = Vec::with_capacity(3 * points.len());
+        for point in points {
+            let [b0, b1] = point.bodies;
+            let [f0, f1] = point.features;
+            let p = match known.get(&(point.bodies, point.features)) {
+                Some(p) => *p,
+                None => match known.get(&([b1, b0], [f1, f0])) {
+                    Some(p) => [-p[0], -p[1], -p[2]],
+                    None => [0.0; 3],
+                },
+            };
+            let along = |d: [f64; 3]| p[0] * d[0] + p[1] * d[1] + p[2] * d[2];
+            start.extend([
+                along(point.normal),
+                along(point.tangents[0]),
+                along(point.tangents[1]),
+            ]);
+        }
+        start
+    }
+
+    /// Keeps the step's impulses (per contact of `active_points`) for the next step.
+    fn keep_impulses(&mut self) {
+        self.previous.clear();
+        for (point, p) in self.active_points.iter().zip(self.impulse.chunks_exact(3)) {
+            let [n, t1, t2] = [point.normal, point.tangents[0], point.tangents[1]];
+            let world = |i: usize| p[0] * n[i] + p[1] * t1[i] + p[2] * t2[i];
+            self.previous.push(ContactImpulse {
+                bodies: point.bodies,
+                features: point.features,
+                impulse: [world(0), world(1), world(2)],
+            });
+        }
+    }
+
     /// Detects the contact points at the current poses (kept for the next step).
     pub fn detect(
         &mut self,
@@ -396,7 +500,8 @@ impl RigidMoreauJean {
         let mut j_inv = vec![Matrix3::<f64>::identity(); n];
         let mut v_free = vec![V3::zeros(); n];
         let mut w_free = vec![V3::zeros(); n];
-        let mut impulse = vec![0.0; 3 * m];
+        let warm = self.params.warm_start;
+        let mut impulse = scratch.warm_start(warm);
         let mut report = StepReport {
             contacts: m,
             ..StepReport::default()
@@ -412,15 +517,7 @@ impl RigidMoreauJean {
                 (&mut j_inv, &mut v_free, &mut w_free),
                 (step, t),
             )?;
-            let inverse_mass: Vec<InverseMass> = scene
-                .bodies
-                .iter()
-                .zip(&j_inv)
-                .map(|(body, j)| InverseMass {
-                    linear: if body.fixed { 0.0 } else { 1.0 / body.mass },
-                    angular: *j,
-                })
-                .collect();
+            let inverse_mass = inverse_masses(scene, &j_inv);
             let condensed = (!joint_rows.is_empty())
                 .then(|| Condensed::new(joint_rows.clone(), &inverse_mass, &v_free, &w_free));
             if m > 0 {
@@ -434,8 +531,11 @@ impl RigidMoreauJean {
                     condensed.as_ref(),
                 );
                 phases.enter(StepPhase::Solve);
+                if !warm {
+                    impulse.fill(0.0);
+                }
                 let solution = problem
-                    .and_then(|problem| solve_fc3d(&problem, &self.params.fc3d))
+                    .and_then(|problem| solve_fc3d_from(&problem, &self.params.fc3d, &impulse))
                     .map_err(|source| RigidStepError::Friction {
                         step,
                         t,
@@ -449,19 +549,13 @@ impl RigidMoreauJean {
             }
             // (v, Ω)^{i+1} = free + M⁻¹ (Gᵀ P + Jᵀ Λ), Λ = −A⁺ J (free + M⁻¹ Gᵀ P), and the
             // residual of (1b) there.
-            let mut total: Vec<(V3, V3)> = (0..n)
-                .map(|b| generalized_impulse(&adjacency[b], active, &impulse))
-                .collect();
-            if let Some(c) = &condensed {
-                let twist: Vec<(V3, V3)> = (0..n)
-                    .map(|b| {
-                        let (dv, dw) = (inverse_mass[b].linear * total[b].0, j_inv[b] * total[b].1);
-                        (v_free[b] + dv, w_free[b] + dw)
-                    })
-                    .collect();
-                lambda = c.multipliers(&twist);
-                add_joint_impulse(&c.rows, &lambda, &mut total);
-            }
+            let total = total_impulses(
+                (&adjacency, active, &impulse),
+                condensed.as_ref(),
+                &inverse_mass,
+                (&v_free, &w_free),
+                &mut lambda,
+            );
             residual = self.next_twists(
                 scene,
                 &start,
@@ -494,6 +588,7 @@ impl RigidMoreauJean {
             t,
         )?;
         scratch.impulse = impulse;
+        scratch.keep_impulses();
         if !joint_rows.is_empty() {
             self.finish_joints(scene, &start, &joint_rows, &lambda, state, &mut report);
         }
@@ -971,6 +1066,46 @@ fn generalized_impulse(
     (lin, ang)
 }
 
+/// M⁻¹ = diag(m⁻¹ 1, J⁻¹) per body of a Newton iterate (zero for a fixed body's linear part).
+fn inverse_masses(scene: &RigidScene, j_inv: &[Matrix3<f64>]) -> Vec<InverseMass> {
+    scene
+        .bodies
+        .iter()
+        .zip(j_inv)
+        .map(|(body, j)| InverseMass {
+            linear: if body.fixed { 0.0 } else { 1.0 / body.mass },
+            angular: *j,
+        })
+        .collect()
+}
+
+/// Σ_c G_cᵀ P_c per body and, with joints, plus Jᵀ Λ with Λ = −A⁺ J (free + M⁻¹ Gᵀ P)
+/// ([`Condensed::multipliers`], written into `lambda`).
+fn total_impulses(
+    (adjacency, active, impulse): (&[Vec<(usize, usize)>], &[ActiveContact], &[f64]),
+    condensed: Option<&Condensed>,
+    inverse_mass: &[InverseMass],
+    (v_free, w_free): (&[V3], &[V3]),
+    lambda: &mut DVector<f64>,
+) -> Vec<(V3, V3)> {
+    let mut total: Vec<(V3, V3)> = adjacency
+        .iter()
+        .map(|touching| generalized_impulse(touching, active, impulse))
+        .collect();
+    if let Some(c) = condensed {
+        let twist: Vec<(V3, V3)> = (0..total.len())
+            .map(|b| {
+                let m = &inverse_mass[b];
+                let (dv, dw) = (m.linear * total[b].0, m.angular * total[b].1);
+                (v_free[b] + dv, w_free[b] + dw)
+            })
+            .collect();
+        *lambda = c.multipliers(&twist);
+        add_joint_impulse(&c.rows, lambda, &mut total);
+    }
+    total
+}
+
 /// Which active contacts touch each of the `n` bodies, as (contact, side) pairs.
 fn contact_adjacency(active: &[ActiveContact], n: usize) -> Vec<Vec<(usize, usize)>> {
     let mut adjacency: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
@@ -982,4 +1117,68 @@ fn contact_adjacency(active: &[ActiveContact], n: usize) -> Vec<Vec<(usize, usiz
         }
     }
     adjacency
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(bodies: [usize; 2], features: [u32; 2], normal: [f64; 3]) -> ContactPoint {
+        ContactPoint {
+            bodies,
+            points: [[0.0; 3]; 2],
+            normal,
+            tangents: super::super::tangent_basis(normal),
+            gap: 0.0,
+            features,
+        }
+    }
+
+    /// The warm start reads the last impulse of the same contact (bodies and features) in the
+    /// new contact frame, −P for the pair found in the other order, 0 for a new contact or with
+    /// the warm start off.
+    #[test]
+    fn warm_start_matches_contacts_by_bodies_and_features() {
+        let p = [0.3, -0.2, 5.0];
+        let mut scratch = RigidScratch::resumed(vec![ContactImpulse {
+            bodies: [1, 2],
+            features: [3, 4],
+            impulse: p,
+        }]);
+        let tilted = [0.6, 0.0, 0.8];
+        scratch.active_points = vec![
+            point([1, 2], [3, 4], tilted),
+            point([2, 1], [4, 3], [-0.6, 0.0, -0.8]),
+            point([1, 2], [3, 5], tilted),
+        ];
+        let start = scratch.warm_start(true);
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let frame = |n: [f64; 3]| {
+            let [t1, t2] = super::super::tangent_basis(n);
+            [n, t1, t2]
+        };
+        for (k, d) in frame(tilted).into_iter().enumerate() {
+            assert_eq!(start[k], dot(p, d));
+        }
+        for (k, d) in frame([-0.6, 0.0, -0.8]).into_iter().enumerate() {
+            assert_eq!(start[3 + k], -dot(p, d));
+        }
+        // Same bodies, another feature: a new contact.
+        assert_eq!(&start[6..9], &[0.0; 3]);
+        // The normal component of the matched contact is P·n = 0.18 + 4 = 4.18.
+        assert!((start[0] - 4.18).abs() < 1e-15 && (start[3] - 4.18).abs() < 1e-15);
+        assert_eq!(scratch.warm_start(false), vec![0.0; 9]);
+
+        // keep_impulses writes back P_n n + P_t1 t_1 + P_t2 t_2: the same vector, to round-off.
+        scratch.impulse = start;
+        scratch.keep_impulses();
+        let kept = scratch.previous_impulses();
+        assert_eq!(kept.len(), 3);
+        for k in 0..3 {
+            assert!((kept[0].impulse[k] - p[k]).abs() < 1e-15);
+            assert!((kept[1].impulse[k] + p[k]).abs() < 1e-15);
+        }
+        assert_eq!(kept[1].bodies, [2, 1]);
+        assert_eq!(kept[2].impulse, [0.0; 3]);
+    }
 }

@@ -5,7 +5,9 @@
 
 use super::body::BodyState;
 use super::detector::ContactDetector;
-use super::moreau_jean::{RigidMoreauJean, RigidScratch, RigidStepError, StepReport};
+use super::moreau_jean::{
+    ContactImpulse, RigidMoreauJean, RigidScratch, RigidStepError, StepReport,
+};
 use super::scene::RigidScene;
 use crate::checkpoint::{CheckpointError, RunKind};
 use crate::observer::Columns;
@@ -103,13 +105,17 @@ pub struct RigidRunStats {
     pub friction_error_max: f64,
 }
 
-/// What the next step reads: the step number, the bodies' states and the statistics.
+/// What the next step reads: the step number, the bodies' states, the last step's impulses per
+/// contact (the next friction problem's warm start) and the statistics.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RigidMemory {
     /// Steps done.
     pub k: u64,
     /// State of every body.
     pub bodies: Vec<BodyState>,
+    /// The last step's impulse of every contact of its index set
+    /// ([`RigidScratch::previous_impulses`]), filled when a checkpoint is taken.
+    pub impulses: Vec<ContactImpulse>,
     /// Running statistics.
     pub stats: RigidRunStats,
 }
@@ -157,6 +163,7 @@ impl<'a> RigidStepping<'a> {
             memory: RigidMemory {
                 k: 0,
                 bodies: scene.initial.clone(),
+                impulses: Vec::new(),
                 stats: RigidRunStats {
                     energy_initial: kinetic + potential,
                     energy_final: kinetic + potential,
@@ -344,7 +351,10 @@ impl TimeStepping for RigidStepping<'_> {
     }
 
     fn memory(&self) -> RigidMemory {
-        self.memory.clone()
+        RigidMemory {
+            impulses: self.scratch.previous_impulses().to_vec(),
+            ..self.memory.clone()
+        }
     }
 
     fn restore(&mut self, memory: RigidMemory) -> Result<(), RigidRunError> {
@@ -356,8 +366,8 @@ impl TimeStepping for RigidStepping<'_> {
             ))
             .into());
         }
+        self.scratch = RigidScratch::resumed(memory.impulses.clone());
         self.memory = memory;
-        self.scratch = RigidScratch::default();
         Ok(())
     }
 }
