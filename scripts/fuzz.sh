@@ -23,7 +23,9 @@ if [ ${#targets[@]} -eq 0 ]; then
     targets=(spec_json spec_toml expr checkpoint dat http_spec)
 fi
 
-cargo +nightly fuzz build -s none --debug-assertions
+if [ -z "${FUZZ_NO_BUILD:-}" ]; then # FUZZ_NO_BUILD=1: the targets are built already
+    cargo +nightly fuzz build -s none --debug-assertions
+fi
 bin=target/x86_64-unknown-linux-gnu/release
 
 failed=0
@@ -38,6 +40,11 @@ for t in "${targets[@]}"; do
         -artifact_prefix="artifacts/$t/" -print_final_stats=1 "$scratch" >"$log" 2>&1
     status=$?
     set -e
+    # With -jobs, libFuzzer runs the target in a child process that writes fuzz-0.log here.
+    if [ -f fuzz-0.log ]; then
+        cat fuzz-0.log >>"$log"
+        rm -f fuzz-0.log
+    fi
     cpu=$(awk '{printf "%.0f", $1 + $2}' "$log.time")
     last=$(grep -E '^#[0-9]+' "$log" | tail -1 || true)
     echo "$t: exit $status, ${cpu} s CPU, $last"
