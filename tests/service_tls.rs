@@ -341,9 +341,9 @@ async fn zenoh_links_to_a_router_speak_tls_and_refuse_plain_text_and_another_aut
     let dir = tempfile::tempdir().expect("tempdir");
     let pki = pki(dir.path());
     let endpoint = format!("tls/127.0.0.1:{}", common::free_port());
-    let router_config = zenoh::Config::from_json5(&zenoh_tls_config("router", &pki.ca, Some(&pki)))
-        .expect("router config");
-    let mut router_config = router_config;
+    let mut router_config =
+        zenoh::Config::from_json5(&zenoh_tls_config("router", &pki.ca, Some(&pki)))
+            .expect("router config");
     router_config
         .insert_json5("listen/endpoints", &format!("[\"{endpoint}\"]"))
         .expect("router endpoint");
