@@ -56,9 +56,13 @@ impl Expected {
         let Some(next) = self.next[k] else {
             return Ok(Vec::new());
         };
-        let rest = fetch(session, id, KINDS[k], next, None).await?;
-        if let Some(last) = rest.last() {
+        let mut rest = fetch(session, id, KINDS[k], next, None).await?;
+        if let Some(last) = rest.last_mut() {
             self.next[k] = Some(last.seq + 1);
+            // Asked once the job's status is terminal, so the history ends with the job's last
+            // frame; the history marks it `last` only once it has seen the job end itself,
+            // which may come after the status the watcher acted on.
+            last.last = true;
         }
         Ok(rest)
     }
