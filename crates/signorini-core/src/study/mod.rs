@@ -460,13 +460,16 @@ fn dep_bar_reference(spec: &BarSpec, t_end: f64) -> Result<Reference, SpecError>
     })
 }
 
+/// How a fine reference run is written, for the refusal below.
+const FINE_RUN: &str = "reference = { scheme = '...', h = ... }";
+
 /// The refusal of a study without a reference for a scene that has no exact solution.
 fn no_exact_solution(scene: &str) -> SpecError {
     SpecError::new(
         "study.reference",
         format!(
             "scene {scene} has no exact solution (bouncing_ball, dep_bar and jay_negrut_test do): \
-             give a fine run, reference = {{ scheme = \"...\", h = ... }}"
+             give a fine run, {FINE_RUN}"
         ),
     )
 }
