@@ -147,12 +147,18 @@ impl Postgres {
             .expect("the postmaster's pid");
         let mut pids = vec![postmaster];
         pids.extend(children(postmaster));
+        // The postmaster first, so that it starts nothing more. A backend may end between the
+        // listing and its signal, so `kill` may fail for it: only the postmaster's signal must
+        // land; the wait below checks that every process is gone.
         let kill = Command::new("kill")
-            .arg("-KILL")
-            .args(pids.iter().map(u32::to_string))
+            .args(["-KILL", &postmaster.to_string()])
             .status()
             .expect("running kill");
-        assert!(kill.success(), "kill -KILL {pids:?}");
+        assert!(kill.success(), "kill -KILL {postmaster} (the postmaster)");
+        let _ = Command::new("kill")
+            .arg("-KILL")
+            .args(pids[1..].iter().map(u32::to_string))
+            .status();
         let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
         while pids
             .iter()
