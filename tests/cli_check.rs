@@ -52,26 +52,33 @@ fn junit_counts(path: &Path) -> (usize, usize, usize) {
     (cases, failures, errors)
 }
 
-#[test]
-fn bounds_that_hold_exit_zero_with_pass_lines() {
+/// Runs `signorini check` on `specs`, asserts that it exits 0 with `bounds` PASS lines and as
+/// many passing JUnit cases, and returns its standard output.
+fn all_pass(specs: &[PathBuf], bounds: usize) -> String {
     let dir = tempfile::tempdir().unwrap();
     let junit = dir.path().join("report.xml");
+    let out = check(specs, &junit);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert_eq!(out.status.code(), Some(0), "stdout: {stdout}");
+    assert_eq!(
+        stdout.lines().filter(|l| l.starts_with("PASS ")).count(),
+        bounds,
+        "{stdout}"
+    );
+    assert_eq!(junit_counts(&junit), (bounds, 0, 0));
+    stdout
+}
+
+#[test]
+fn bounds_that_hold_exit_zero_with_pass_lines() {
     let specs = [
         example("bouncing_ball.toml"),
         example("chain.toml"),
         example("jay_negrut_test.toml"),
     ];
-    let out = check(&specs, &junit);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert_eq!(out.status.code(), Some(0), "stdout: {stdout}");
     // One line per bound: ball 2, chain 2, Jay–Negrut 1.
-    assert_eq!(
-        stdout.lines().filter(|l| l.starts_with("PASS ")).count(),
-        5,
-        "{stdout}"
-    );
+    let stdout = all_pass(&specs, 5);
     assert!(stdout.contains("max_balance_residual = "), "{stdout}");
-    assert_eq!(junit_counts(&junit), (5, 0, 0));
 }
 
 #[test]
@@ -186,23 +193,13 @@ rho_inf = 0.2
 /// joints on the manifold and the energy, A04 with its redundant joint; one line per bound.
 #[test]
 fn the_multibody_benchmarks_pass_their_checks() {
-    let dir = tempfile::tempdir().unwrap();
-    let junit = dir.path().join("report.xml");
     let specs: Vec<PathBuf> = ["a01_simple_pendulum", "a02_n_four_bar", "a04_bricard"]
         .iter()
         .map(|n| example(&format!("benchmarks/{n}.toml")))
         .collect();
-    let out = check(&specs, &junit);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert_eq!(out.status.code(), Some(0), "stdout: {stdout}");
     // A01: 2 bounds + 8 reference values; A02: 2 + 3; A04: 2.
-    assert_eq!(
-        stdout.lines().filter(|l| l.starts_with("PASS ")).count(),
-        17,
-        "{stdout}"
-    );
+    let stdout = all_pass(&specs, 17);
     assert!(stdout.contains("reference q_0 at t = 10"), "{stdout}");
-    assert_eq!(junit_counts(&junit), (17, 0, 0));
 }
 
 /// IFToMM A03, Andrews' squeezing mechanism (`examples/benchmarks/a03_andrews.toml`), passes its
@@ -210,18 +207,8 @@ fn the_multibody_benchmarks_pass_their_checks() {
 /// reference at h = 1e-5, the joints on the manifold; one PASS line per bound.
 #[test]
 fn andrews_mechanism_passes_its_check() {
-    let dir = tempfile::tempdir().unwrap();
-    let junit = dir.path().join("report.xml");
-    let out = check(&[example("benchmarks/a03_andrews.toml")], &junit);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert_eq!(out.status.code(), Some(0), "stdout: {stdout}");
     // 1 bound + 7 reference values.
-    assert_eq!(
-        stdout.lines().filter(|l| l.starts_with("PASS ")).count(),
-        8,
-        "{stdout}"
-    );
-    assert_eq!(junit_counts(&junit), (8, 0, 0));
+    all_pass(&[example("benchmarks/a03_andrews.toml")], 8);
 }
 
 /// Issue 30's two new-user models (`examples/double_pendulum_rough_wall.toml`, the double
@@ -231,21 +218,11 @@ fn andrews_mechanism_passes_its_check() {
 /// rolling disk's energy kept, no work of friction and the disk still on the floor at t = 5.
 #[test]
 fn the_new_user_examples_pass_their_checks() {
-    let dir = tempfile::tempdir().unwrap();
-    let junit = dir.path().join("report.xml");
     let specs = [
         example("double_pendulum_rough_wall.toml"),
         example("disk_on_sinusoidal_floor.toml"),
     ];
-    let out = check(&specs, &junit);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert_eq!(out.status.code(), Some(0), "stdout: {stdout}");
     // 1 bound + 3 reference values each.
-    assert_eq!(
-        stdout.lines().filter(|l| l.starts_with("PASS ")).count(),
-        8,
-        "{stdout}"
-    );
+    let stdout = all_pass(&specs, 8);
     assert!(stdout.contains("reference energy at t = 3"), "{stdout}");
-    assert_eq!(junit_counts(&junit), (8, 0, 0));
 }

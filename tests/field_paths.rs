@@ -8,7 +8,8 @@
 
 mod common;
 
-use common::{Options, TestServer, submit_json};
+use common::refusals::{edit, refusals};
+use common::{Options, TestServer};
 use serde_json::{Value, json};
 use tonic::Code;
 
@@ -69,18 +70,6 @@ fn study() -> Value {
                      "grid": {"time.h": [1e-2, 5e-3]}}})
 }
 
-/// Sets `value` at the JSON pointer (adding the key to its table when absent).
-fn edit(mut spec: Value, pointer: &str, value: Value) -> Value {
-    let (parent, key) = pointer.rsplit_once('/').expect("a JSON pointer");
-    match spec.pointer_mut(parent).expect("pointer into the base") {
-        Value::Object(table) => {
-            table.insert(key.to_string(), value);
-        }
-        Value::Array(list) => list[key.parse::<usize>().expect("an index")] = value,
-        other => panic!("{parent} is {other}"),
-    }
-    spec
-}
 
 /// (section, the spec with one bad field, the field the error must name, a piece of the reason)
 fn cases() -> Vec<(&'static str, Value, &'static str, &'static str)> {
@@ -257,42 +246,26 @@ async fn one_bad_field_per_section_is_named_by_its_path_over_cli_http_and_grpc()
     let mut client = server.grpc().await;
     let mut wrong = Vec::new();
     for (section, spec, field, reason) in cases() {
-        let file = dir.path().join("bad.toml");
-        std::fs::write(&file, toml::to_string(&spec).expect("TOML")).expect("writing the spec");
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_signorini"))
-            .arg("run")
-            .arg(&file)
-            .arg("--out")
-            .arg(dir.path().join("out"))
-            .output()
-            .expect("signorini run");
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        let cli_ok = out.status.code() == Some(1)
-            && stderr.contains(&format!("bad.toml: {field}: "))
-            && stderr.contains(reason);
+        let said = refusals(&server, &mut client, dir.path(), &spec).await;
+        let cli_ok = said.cli_code == Some(1)
+            && said.cli_stderr.contains(&format!("bad.toml: {field}: "))
+            && said.cli_stderr.contains(reason);
         if !cli_ok {
-            wrong.push(format!("{section}, CLI: {field}: {stderr}"));
+            wrong.push(format!("{section}, CLI: {field}: {}", said.cli_stderr));
         }
-
-        let text = spec.to_string();
-        let (code, body) = server.http("POST", "/v1/jobs", Some(&text), None).await;
-        let reason_said = body["error"]["reason"].as_str().unwrap_or_default();
-        if code != 400 || body["error"]["field"] != field || !reason_said.contains(reason) {
-            wrong.push(format!("{section}, HTTP: {field}: {code} {body}"));
-        }
-
-        let err = submit_json(&mut client, text, None)
-            .await
-            .expect_err("invalid");
-        let named = err
-            .metadata()
-            .get("x-error-field")
-            .and_then(|v| v.to_str().ok());
-        if err.code() != Code::InvalidArgument || named != Some(field) {
+        let reason_said = said.http_body["error"]["reason"]
+            .as_str()
+            .unwrap_or_default();
+        if said.http_code != 400 || said.http_body["error"]["field"] != field || !reason_said.contains(reason) {
             wrong.push(format!(
-                "{section}, gRPC: {field}: {:?} {named:?} {}",
-                err.code(),
-                err.message()
+                "{section}, HTTP: {field}: {} {}",
+                said.http_code, said.http_body
+            ));
+        }
+        if said.grpc_code != Code::InvalidArgument || said.grpc_field.as_deref() != Some(field) {
+            wrong.push(format!(
+                "{section}, gRPC: {field}: {:?} {:?} {}",
+                said.grpc_code, said.grpc_field, said.grpc_message
             ));
         }
     }

@@ -21,6 +21,20 @@ const FAILING: &str = r#"{"name":"leaves the domain","model":{"scene":"lagrangia
   "potential":"m*g*y + sqrt(y)","q0":[1.0],"v0":[0.0]},
   "integrator":{"scheme":"moreau_jean","theta":0.5},"time":{"h":0.001,"t_end":2.0}}"#;
 
+/// Opens the page of a succeeded job and waits until it shows that state and the stored curves
+/// (more than 1 000 energy points).
+fn open_succeeded(b: &mut Browser, url: &str) {
+    b.open(url);
+    b.wait_for(
+        "the succeeded state",
+        "document.getElementById('state').textContent === 'succeeded'",
+    );
+    b.wait_for(
+        "the stored curves",
+        "+document.getElementById('energy').dataset.points > 1000",
+    );
+}
+
 /// A number from a canvas `data-` attribute.
 fn data(b: &mut Browser, canvas: &str, key: &str) -> f64 {
     let v = b.eval(&format!(
@@ -104,15 +118,7 @@ async fn finished_failed_and_unknown_jobs_and_the_index_page() {
     let mut b = Browser::launch();
     let base = format!("http://{}", server.http);
 
-    b.open(&format!("{base}/jobs/{ok}"));
-    b.wait_for(
-        "the succeeded state",
-        "document.getElementById('state').textContent === 'succeeded'",
-    );
-    b.wait_for(
-        "the stored curves",
-        "+document.getElementById('energy').dataset.points > 1000",
-    );
+    open_succeeded(&mut b, &format!("{base}/jobs/{ok}"));
     assert_eq!(data(&mut b, "energy", "t0"), 0.0);
     assert_eq!(data(&mut b, "energy", "t1"), 5.0);
     assert_eq!(
@@ -408,15 +414,7 @@ async fn the_live_page_reads_with_its_fragment_token_and_fails_visibly_without()
 
     // With the read token in the fragment (a space and a slash in it: encoded in the cookie).
     let mut b = Browser::launch();
-    b.open(&format!("{page}#token=read%20token%2F1"));
-    b.wait_for(
-        "the succeeded state",
-        "document.getElementById('state').textContent === 'succeeded'",
-    );
-    b.wait_for(
-        "the stored curves",
-        "+document.getElementById('energy').dataset.points > 1000",
-    );
+    open_succeeded(&mut b, &format!("{page}#token=read%20token%2F1"));
     assert_eq!(data(&mut b, "energy", "t1"), 2.0);
     b.wait_for(
         "the figures loaded",

@@ -5,6 +5,7 @@
 
 mod common;
 
+use common::refusals::{edit, refusals};
 use common::{Options, TestServer, submit_json, wait_terminal};
 use serde_json::{Value, json};
 use signorini::proto::v1 as pb;
@@ -148,110 +149,22 @@ async fn every_bad_model_is_refused_naming_its_field_by_cli_http_and_grpc() {
     let server = TestServer::start(&dir.path().join("store.db"), &Options::default());
     let mut client = server.grpc().await;
     for (pointer, value, field) in cases {
-        let mut spec = base();
-        // Set the field, adding it to its table when the base does not have it.
-        let (parent, key) = pointer.rsplit_once('/').expect("a JSON pointer");
-        match spec.pointer_mut(parent).expect("pointer into the base") {
-            Value::Object(table) => {
-                table.insert(key.to_string(), value);
-            }
-            Value::Array(list) => list[key.parse::<usize>().expect("an index")] = value,
-            other => panic!("{parent} is {other}"),
-        }
-        let text = spec.to_string();
-
-        let file = dir.path().join("bad.json");
-        std::fs::write(&file, &text).expect("writing the spec");
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_signorini"))
-            .arg("run")
-            .arg(&file)
-            .arg("--out")
-            .arg(dir.path().join("out"))
-            .output()
-            .expect("signorini run");
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(1), "{pointer}: {stderr}");
-        assert!(stderr.contains(field), "{pointer}: CLI says {stderr}");
-
-        let (code, body) = server.http("POST", "/v1/jobs", Some(&text), None).await;
-        assert_eq!(code, 400, "{pointer}: {body}");
-        assert_eq!(body["error"]["field"], field, "{pointer}: {body}");
-
-        let err = submit_json(&mut client, text, None)
-            .await
-            .expect_err("invalid");
-        assert_eq!(err.code(), Code::InvalidArgument, "{pointer}");
-        assert_eq!(
-            err.metadata()
-                .get("x-error-field")
-                .and_then(|v| v.to_str().ok()),
-            Some(field),
-            "{pointer}"
-        );
-    }
-}
-
-/// Issue 30: a value of the wrong type or a misspelt field *inside* the model (a boolean in
-/// `q0`, `restitutin` in a contact, a number where a joint table goes) is named by its full
-/// path by the CLI (a TOML file), HTTP and gRPC alike: it used to be `model.contacts` (CLI),
-/// `model.coordinates` (HTTP) and `model.restitutin`.
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn a_bad_field_inside_the_model_is_named_by_its_path_over_cli_http_and_grpc() {
-    let cases: Vec<(&str, Value, &str)> = vec![
-        ("/model/q0", json!([true, -1.4, 0.0]), "model.q0[0]"),
-        (
-            "/model/contacts/0/restitutin",
-            json!(0.5),
-            "model.contacts[0].restitutin",
-        ),
-        ("/model/constraints/0", json!(1.0), "model.constraints[0]"),
-        ("/model/v0", json!([0.0, [1], 0.0]), "model.v0[1]"),
-    ];
-    let dir = tempfile::tempdir().expect("tempdir");
-    let server = TestServer::start(&dir.path().join("store.db"), &Options::default());
-    let mut client = server.grpc().await;
-    for (pointer, value, field) in cases {
-        let mut spec = base();
-        let (parent, key) = pointer.rsplit_once('/').expect("a JSON pointer");
-        match spec.pointer_mut(parent).expect("pointer into the base") {
-            Value::Object(table) => {
-                table.insert(key.to_string(), value);
-            }
-            Value::Array(list) => list[key.parse::<usize>().expect("an index")] = value,
-            other => panic!("{parent} is {other}"),
-        }
-        let file = dir.path().join("bad.toml");
-        std::fs::write(&file, toml::to_string(&spec).expect("TOML")).expect("writing the spec");
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_signorini"))
-            .arg("run")
-            .arg(&file)
-            .arg("--out")
-            .arg(dir.path().join("out"))
-            .output()
-            .expect("signorini run");
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(1), "{pointer}: {stderr}");
+        let spec = edit(base(), pointer, value);
+        let said = refusals(&server, &mut client, dir.path(), &spec).await;
+        assert_eq!(said.cli_code, Some(1), "{pointer}: {}", said.cli_stderr);
         assert!(
-            stderr.contains(&format!("{field}:")),
-            "{pointer}: CLI says {stderr}"
+            said.cli_stderr.contains(&format!("{field}:")),
+            "{pointer}: CLI says {}",
+            said.cli_stderr
         );
-
-        let text = spec.to_string();
-        let (code, body) = server.http("POST", "/v1/jobs", Some(&text), None).await;
-        assert_eq!(code, 400, "{pointer}: {body}");
-        assert_eq!(body["error"]["field"], field, "{pointer}: {body}");
-
-        let err = submit_json(&mut client, text, None)
-            .await
-            .expect_err("invalid");
-        assert_eq!(err.code(), Code::InvalidArgument, "{pointer}");
+        assert_eq!(said.http_code, 400, "{pointer}: {}", said.http_body);
         assert_eq!(
-            err.metadata()
-                .get("x-error-field")
-                .and_then(|v| v.to_str().ok()),
-            Some(field),
-            "{pointer}"
+            said.http_body["error"]["field"], field,
+            "{pointer}: {}",
+            said.http_body
         );
+        assert_eq!(said.grpc_code, Code::InvalidArgument, "{pointer}");
+        assert_eq!(said.grpc_field.as_deref(), Some(field), "{pointer}");
     }
 }
 

@@ -7,6 +7,7 @@
 pub mod browser;
 pub mod fingerprint;
 pub mod pg;
+pub mod refusals;
 
 use http_body_util::{BodyExt, Full};
 use hyper::body::Bytes;
