@@ -83,7 +83,9 @@ pub fn parse(text: &str) -> Result<RawProblem, ReadError> {
     let storage = c.count("the storage of W")?;
     let rows = c.count("the rows of W")?;
     let columns = c.count("the columns of W")?;
-    let size = dimension * contacts;
+    let size = dimension
+        .checked_mul(contacts)
+        .ok_or(ReadError::Contacts { contacts })?;
     if rows != size || columns != size {
         return Err(ReadError::MatrixSize {
             rows,

@@ -73,6 +73,12 @@ pub enum ReadError {
         /// The dimension read.
         dimension: usize,
     },
+    /// More contacts than any problem can hold (dimension × contacts overflows).
+    #[error("{contacts} contacts: dimension × contacts is beyond any problem")]
+    Contacts {
+        /// The number of contacts read.
+        contacts: usize,
+    },
     /// W is not (dimension × contacts) square.
     #[error(
         "W is {rows}×{columns} where dimension × contacts = {size} (a global problem, or a damaged file?)"
