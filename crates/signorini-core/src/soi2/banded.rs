@@ -125,6 +125,37 @@ impl BandLu {
         i * self.width() + (j + self.kl - i)
     }
 
+    /// Why this is not a factorisation of `n` unknowns that [`BandLu::solve_mut`] can follow
+    /// within its arrays (the order a permutation of 0..n, a pivot of step k in k..n, bands no
+    /// wider than the matrix, `ab` holding n rows of the band's width), or `None`. A band LU
+    /// read from a checkpoint is checked so (`stored_factor.rs`).
+    pub(crate) fn fault(&self, n: usize) -> Option<String> {
+        if self.n != n || self.order.len() != n || self.pivots.len() != n {
+            return Some(format!("a band LU of {} unknowns kept for {n}", self.n));
+        }
+        let mut seen = vec![false; n];
+        for &o in &self.order {
+            if o >= n || std::mem::replace(&mut seen[o], true) {
+                return Some(format!("a band order of {n} unknowns numbering {o} twice or out of range"));
+            }
+        }
+        if let Some((k, p)) = self.pivots.iter().enumerate().find(|&(k, &p)| p < k || p >= n) {
+            return Some(format!("a band LU pivoting row {k} with row {p} of {n}"));
+        }
+        let rows = (self.kl < n.max(1) && self.ku < n.max(1))
+            .then(|| n.checked_mul(self.width()))
+            .flatten();
+        if rows != Some(self.ab.len()) {
+            return Some(format!(
+                "a band LU of {n} unknowns, bands {} and {}, with {} stored entries",
+                self.kl,
+                self.ku,
+                self.ab.len()
+            ));
+        }
+        None
+    }
+
     /// Factorises the matrix `a` in the band order `order` with kl sub- and ku super-diagonals
     /// there (entries outside the band must be zero). A zero pivot is kept (its solve fails).
     pub fn factor(a: &DMatrix<f64>, band: &BandOrder) -> BandLu {

@@ -160,9 +160,11 @@ pub struct NewtonCache {
     pub strategy: NewtonStrategy,
     /// LU factorisations keyed by (h, system size), most recently used last; a few, so that a
     /// periodic step pattern (h/3, 2h/3) reuses one per size.
+    /// Read back checked (`stored_factor.rs`).
+    #[serde(deserialize_with = "super::stored_factor::lu_list")]
     lu: Vec<(LU<f64, Dyn, Dyn>, f64, usize)>,
     /// The same for band LU factorisations ([`NewtonFactor::Banded`], large mechanisms).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "super::stored_factor::band_lu_list")]
     banded: Vec<(BandLu, f64, usize)>,
     /// The same for numerically singular matrices (their SVD, [`NewtonFactor::Deficient`]).
     /// Not part of a checkpoint: a resumed run rebuilds it at its first step, so a run with

@@ -22,6 +22,8 @@
 //!   Newton matrix.
 //! * [`sparsity`]: which coordinates each equation touches, and the groups of columns that
 //!   build a sparse Newton matrix from a few dual evaluations.
+//! * `stored_factor`: Newton's factorisations read back from a checkpoint, checked before a
+//!   solve follows their indices.
 //! * [`run`]: the time loop over a step-size pattern, with energy and constraint streams.
 
 pub mod banded;
@@ -30,6 +32,7 @@ pub mod method;
 pub mod models;
 pub mod run;
 pub mod sparsity;
+mod stored_factor;
 
 use nalgebra::{DMatrix, DVector};
 pub use num_dual::{Dual, Dual64, DualNum};
