@@ -115,8 +115,8 @@ mod tests {
     use super::*;
 
     /// A run holding a 40 MiB vector is counted 40 MiB (to the few bytes of the test's own
-    /// bookkeeping), nothing once it is freed; what is allocated while paused is not counted,
-    /// and nothing is counted once the run's count is dropped.
+    /// bookkeeping), nothing once it is freed; what is allocated while paused is not counted, a
+    /// vector grown by reallocation is, and nothing is counted once the run's count is dropped.
     #[test]
     fn a_run_is_counted_what_it_holds_and_nothing_while_paused() {
         const BYTES: usize = 40 << 20;
@@ -139,7 +139,7 @@ mod tests {
         drop(run);
         let after = RunMemory::held();
         drop(grown);
+        drop(aside);
         assert_eq!(RunMemory::held(), after);
-        assert_eq!(aside.len() + 1, BYTES + 1);
     }
 }
