@@ -32,7 +32,7 @@ The TOML file uses the flag names with underscores, e.g.
   max_dofs = 100000
   max_steps = 100000000
   max_output_mb = 1024
-  max_memory_mb = 2048          # a job's memory, estimated from its model's sizes before it is compiled
+  max_memory_mb = 2048          # a job's memory: estimated before it is compiled, watched while it runs
   max_compile_seconds = 30      # compiling a job's model (a `lagrangian` one: its symbolic derivatives)
   max_wall_seconds = 86400      # a job's run (unlimited by default)
   retain_days = 30              # remove finished jobs 30 days after they ended (default: keep)
@@ -122,7 +122,8 @@ pub struct ServeArgs {
     #[arg(long, env = "SIGNORINI_MAX_OUTPUT_MB")]
     pub max_output_mb: Option<u64>,
     /// Largest memory a job may need, in MiB, estimated from its model's sizes before its model
-    /// is compiled; a larger job is refused naming the limit [default: 2048].
+    /// is compiled (a larger job is refused naming the limit) and watched while it runs (a run
+    /// holding more ends `failed` naming the limit) [default: 2048].
     #[arg(long, env = "SIGNORINI_MAX_MEMORY_MB")]
     pub max_memory_mb: Option<u64>,
     /// Longest a submission may spend compiling its model (a `lagrangian` model's symbolic

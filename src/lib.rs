@@ -16,3 +16,7 @@ pub mod store;
 pub mod stream;
 pub mod study;
 pub mod vtk;
+
+/// The system's allocator, counting what each job's run holds (`engine::memory`).
+#[global_allocator]
+static ALLOCATOR: engine::memory::CountingAllocator = engine::memory::CountingAllocator;

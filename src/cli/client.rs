@@ -871,10 +871,20 @@ async fn confirm(conn: &Connection, seen: &JobView) -> Result<()> {
     }
 }
 
+/// Live samples `watch` holds unread at most: past them the oldest are dropped (their frames
+/// are then fetched from the history), so zenoh never waits on `watch`.
+const LIVE_SAMPLES: usize = 256;
+
 async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<(Shown, JobView)> {
     let key = format!("signorini/v1/jobs/{}/*", args.id);
+    // A ring, not zenoh's default queue, which blocks the session's reading when full: while
+    // `watch` fetches frames from the history it reads no live sample, a server publishing its
+    // backlog (frames held up by a silent subscriber) filled the queue, zenoh stopped reading
+    // the link, and the server closed it after 5 s with the history's replies in it (the fetch
+    // then ended in a timeout, and the job's last frames were missing).
     let sub = session
         .declare_subscriber(key)
+        .with(zenoh::handlers::RingChannel::new(LIVE_SAMPLES))
         .await
         .map_err(|e| anyhow!("zenoh subscribe: {e}"))?;
     let mut shown = Shown::new(args.json);
@@ -927,15 +937,19 @@ async fn watch_session(session: &zenoh::Session, args: &WatchArgs) -> Result<(Sh
             }
         }
     };
-    // The frames after the last one seen live (lost while a router was down), then the end.
+    // Nothing live is read after the end.
+    if let Err(e) = sub.undeclare().await {
+        tracing::debug!("zenoh undeclare: {e}");
+    }
+    // The frames after the last one seen live (lost while a router was down, or dropped), then
+    // the end: frames that cannot be fetched are an error, not a hole in the output.
     for (k, kind) in KINDS.iter().enumerate() {
-        match expected.rest(session, &args.id, k).await {
-            Ok(frames) => {
-                for f in frames {
-                    shown.frame(kind, &f)?;
-                }
-            }
-            Err(e) => eprintln!("warning: the last {kind} frames of job {}: {e:#}", args.id),
+        let frames = expected
+            .rest(session, &args.id, k)
+            .await
+            .with_context(|| format!("the last {kind} frames of job {}", args.id))?;
+        for f in frames {
+            shown.frame(kind, &f)?;
         }
     }
     shown.status(&last_status)?;

@@ -1,7 +1,8 @@
 //! The step frames `watch` did not get live, fetched from the server's history: every frame of
 //! a job carries its batch number `seq` (0, 1, 2, … per key), so a live frame whose `seq` is past
 //! the next one expected shows a gap — frames put while a zenoh router between the server and
-//! the watcher was down, or dropped for a slow link — and the job's final status leaves the
+//! the watcher was down, dropped for a slow link, or dropped from `watch`'s own ring of unread
+//! live samples while it was fetching — and the job's final status leaves the
 //! frames after the last one seen. Both are asked of the history queryable
 //! (`signorini/v1/jobs/{id}/{energy,state}/*?from_seq=N`, at most
 //! [`stream::HISTORY_FRAMES`] replies per query, in no set order) and shown in `seq` order

@@ -17,6 +17,7 @@ mod error;
 pub mod events;
 mod history;
 pub mod ids;
+pub(crate) mod memory;
 mod observer;
 mod pause;
 mod queue;
@@ -1029,6 +1030,8 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
     let clock = Instant::now();
     // CPU seconds of this worker thread (a study's children report theirs as `cpu_s`).
     let cpu = cpu_time::ThreadTime::now();
+    // What the run holds is counted while it runs, against `max_memory_mb`.
+    let counted = memory::RunMemory::start();
     // A panic in the numerics (a bug) fails this job and keeps the worker and the server alive.
     let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         let threads = threads_per_job(inner.workers);
@@ -1042,6 +1045,7 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
         )
     }))
     .map_err(|panic| panic_message(panic.as_ref()));
+    drop(counted);
     let wall = clock.elapsed();
     let cpu_s = cpu.elapsed().as_secs_f64();
     // The last batch goes out after the result is stored: whoever saw it can fetch the result.
@@ -1106,13 +1110,11 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
                 return None;
             }
             Some(StopReason::Cancel) => (JobState::Cancelled, None, partial()),
-            Some(StopReason::WallLimit) => {
-                let max = inner.limits.max_wall.unwrap_or_default().as_secs_f64();
-                let reason = format!(
-                    "the run took longer than this server's limit of {max} s of wall time (max_wall_seconds), stopped at step {step}: ask for fewer steps"
-                );
-                (JobState::Failed, Some(("time".into(), reason)), partial())
-            }
+            Some(limit @ (StopReason::WallLimit | StopReason::MemoryLimit)) => (
+                JobState::Failed,
+                Some(past_limit(inner, limit, step, observer.memory_held())),
+                partial(),
+            ),
             None => {
                 let reason = format!(
                     "internal error (a bug: please report it with the spec): the run stopped at step {step} without being asked to"
@@ -1142,6 +1144,24 @@ fn run_one(inner: &Inner, live: &Arc<LiveJob>) -> Option<Arc<LiveJob>> {
         final_state,
     };
     end_job(inner, live, view, ending, Some(last_batch))
+}
+
+/// Why a run stopped at `step` for a limit of the server failed: the field to change, and the
+/// limit named (`max_wall_seconds`; `max_memory_mb`, the run then holding `held` bytes).
+fn past_limit(inner: &Inner, limit: StopReason, step: u64, held: u64) -> (String, String) {
+    if limit == StopReason::MemoryLimit {
+        let reason = format!(
+            "the run held {} MiB of memory, more than this server's limit of {} MiB (max_memory_mb), stopped at step {step}: use a smaller model",
+            held >> 20,
+            inner.limits.max_memory_bytes >> 20
+        );
+        return ("model".into(), reason);
+    }
+    let max = inner.limits.max_wall.unwrap_or_default().as_secs_f64();
+    let reason = format!(
+        "the run took longer than this server's limit of {max} s of wall time (max_wall_seconds), stopped at step {step}: ask for fewer steps"
+    );
+    ("time".into(), reason)
 }
 
 /// Ends a job a store write outside its run failed for (marking it running, dropping an

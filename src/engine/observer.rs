@@ -9,6 +9,7 @@
 
 use super::events::{ColumnGroup, JobEvent, StepBatch, split_columns};
 use super::ids::now_ns;
+use super::memory::{Paused, RunMemory};
 use super::stop::StopReason;
 use super::{Inner, LiveJob, Recent, StoredCheckpoint, lock};
 use crate::store::{ChunkMeta, StoreError, chunk_rows};
@@ -56,6 +57,8 @@ pub(super) struct ServiceObserver<'a> {
     stopped: Option<StopReason>,
     /// When this run (this attempt) started: the server's `max_wall_seconds` counts from here.
     started: Instant,
+    /// The bytes the run held when it went past the server's `max_memory_mb`.
+    memory_held: u64,
 }
 
 /// When and as which attempt a run checkpoints.
@@ -115,6 +118,7 @@ impl<'a> ServiceObserver<'a> {
             final_state: None,
             stopped: None,
             started: Instant::now(),
+            memory_held: 0,
         }
     }
 
@@ -229,6 +233,11 @@ impl<'a> ServiceObserver<'a> {
         self.stopped
     }
 
+    /// The bytes the run held when it was stopped for the server's `max_memory_mb`.
+    pub(super) fn memory_held(&self) -> u64 {
+        self.memory_held
+    }
+
     /// What the job's end stores besides its status, once the run is over: the column names
     /// (empty for a run that recorded no series) and the checkpoint kept back after the last
     /// step; or why the series could not be stored. The rows not yet stored stay in the job's
@@ -257,6 +266,7 @@ impl<'a> ServiceObserver<'a> {
 
 impl Observer for ServiceObserver<'_> {
     fn start(&mut self, columns: &Columns) {
+        let _paused = Paused::new();
         let mut recent = lock(&self.live.recent);
         recent.columns = columns.names().to_vec();
         self.chunk_rows = chunk_rows(recent.columns.len());
@@ -281,6 +291,7 @@ impl Observer for ServiceObserver<'_> {
     }
 
     fn observe(&mut self, record: &StepRecord<'_>) -> ControlFlow<()> {
+        let _paused = Paused::new();
         if let Some(reason) = self.after_checkpoint() {
             // Nothing after the last checkpoint is recorded: the run continues from it.
             return self.stop(reason);
@@ -307,6 +318,7 @@ impl Observer for ServiceObserver<'_> {
     }
 
     fn progress(&mut self, p: Progress) -> ControlFlow<()> {
+        let _paused = Paused::new();
         if let Some(reason) = self.after_checkpoint() {
             // The progress stays at the checkpoint's step, where the run continues.
             return self.stop(reason);
@@ -332,6 +344,11 @@ impl Observer for ServiceObserver<'_> {
         {
             return self.stop(StopReason::WallLimit);
         }
+        let held = RunMemory::held();
+        if held > self.inner.limits.max_memory_bytes {
+            self.memory_held = held;
+            return self.stop(StopReason::MemoryLimit);
+        }
         // At shutdown or at a pause, a run that checkpoints stops after its next checkpoint
         // (above); one that does not stops now.
         if self.checkpoints.is_none()
@@ -346,6 +363,7 @@ impl Observer for ServiceObserver<'_> {
     }
 
     fn checkpoint_due(&mut self, p: Progress) -> bool {
+        let _paused = Paused::new();
         let stopping = self.stopping().is_some();
         let Some(c) = &mut self.checkpoints else {
             return false;
@@ -364,6 +382,7 @@ impl Observer for ServiceObserver<'_> {
     /// The checkpoint after the last step (unless a shutdown or a pause asked for it) is kept
     /// back instead: the job's end stores it with the last rows, in the same store call.
     fn checkpoint(&mut self, checkpoint: &mut Checkpoint) {
+        let _paused = Paused::new();
         let stopping = self.stopping();
         if let Some(c) = &self.checkpoints
             && c.at_end

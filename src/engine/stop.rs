@@ -17,11 +17,14 @@ pub(super) enum StopReason {
     /// The run took longer than the server's `max_wall_seconds`: it ends `failed` naming the
     /// limit, with what it recorded kept as partial.
     WallLimit = 3,
+    /// The run held more memory than the server's `max_memory_mb`: it ends `failed` naming the
+    /// limit, with what it recorded kept as partial.
+    MemoryLimit = 4,
     /// A client cancelled the job: it ends `cancelled`, with what it recorded kept as partial.
-    Cancel = 4,
+    Cancel = 5,
     /// Another replica claimed the job again (this one did not renew its lease in time): this
     /// replica stores nothing more of it.
-    LeaseLost = 5,
+    LeaseLost = 6,
 }
 
 impl StopReason {
@@ -30,6 +33,7 @@ impl StopReason {
             StopReason::Shutdown,
             StopReason::Pause,
             StopReason::WallLimit,
+            StopReason::MemoryLimit,
             StopReason::Cancel,
             StopReason::LeaseLost,
         ]
