@@ -641,6 +641,7 @@ impl Job {
                 let recorded = j.steps / j.output.every.max(1) + 2;
                 let columns = ns_alpha_columns(
                     LagrangianSystem::contacts(&j.model),
+                    has_friction(&j.model),
                     JointedSystem::joints(&j.model),
                     &j.output.probes,
                 )

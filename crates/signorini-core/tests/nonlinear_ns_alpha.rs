@@ -338,38 +338,6 @@ fn bad_specs_name_their_field() {
     assert!(e.starts_with("model.constraints"), "{e}");
 }
 
-/// Issue 26, item 3: the scheme solves the frictionless impact law only, so Coulomb friction
-/// on a contact is refused naming `integrator.scheme`, the contact and its μ — it was dropped
-/// without a word before (a double pendulum on a wall with μ = 0.3 ran as with μ = 0). The same
-/// model with μ = 0 (its tangent kept) is accepted and runs.
-#[test]
-fn friction_is_refused_naming_the_scheme_not_dropped() {
-    let base = example_with(
-        "double_pendulum_cartesian",
-        NS_ALPHA,
-        "h = 0.001\nt_end = 0.05",
-        "every = 1",
-    );
-    let with_friction = |mu: f64| {
-        let mut doc = serde_json::to_value(&base).expect("json");
-        doc["model"]["contacts"] = serde_json::json!([
-            { "gap": "x1 + 0.5", "restitution": 0.5 },
-            { "gap": "x2 + 0.5", "restitution": 0.5, "friction": mu, "tangent": "y2" }
-        ]);
-        serde_json::from_value::<JobSpec>(doc).expect("spec")
-    };
-    let e = Job::from_spec(&with_friction(0.3)).expect_err("friction must be refused");
-    assert_eq!(e.field, "integrator.scheme");
-    let text = e.to_string();
-    assert!(
-        text.contains("ns_generalized_alpha does not take Coulomb friction")
-            && text.contains("model.contacts[1].friction = 0.3"),
-        "{text}"
-    );
-    let (rec, _) = record(&with_friction(0.0));
-    assert_eq!(rec.steps.last(), Some(&50));
-}
-
 /// The joints' curvature term κ = d/dt(G v + g_t) at q̈ = 0 (one dual-number evaluation of the
 /// symbolic G v + g_t) against central differences of G v + g_t along (t, q, v) → (1, v, 0),
 /// and G against central differences of g, on the two joint examples at random points.

@@ -74,19 +74,46 @@
 //! against the displacement, so that a position correction is counted with the rest of the
 //! step), `work_contact` = Σ_{α∈I} Λ_α H_α(q_{k+1})·½(ṽ + v_{k+1}) — the change of kinetic
 //! energy the contact impulses make, exactly (for a fixed obstacle ½(U_{k+1} + Ũ)Λ, ≤ 0 at an
-//! impact since U_{k+1} = −e U_k) — `work_friction` = 0 (frictionless: a model with friction
-//! is refused, `integrator.scheme`) and `energy_error` =
-//! ΔE − work_ext − work_contact: the error of the smooth stage, of the position correction and
-//! of the joint projection. Without contacts it shrinks as h² over a fixed time.
+//! impact since U_{k+1} = −e U_k) — `work_friction` (below, 0 without friction) and
+//! `energy_error` = ΔE − work_ext − work_contact − work_friction: the error of the smooth stage,
+//! of the position correction and of the joint projection. Without contacts it shrinks as h²
+//! over a fixed time.
+//!
+//! Coulomb friction (planar: one tangent per contact, tangential relative position τ_α(q, t),
+//! tangent row T_α = ∇_q τ_αᵀ; Moreau 1988; Acary & Brogliato 2008, ch. 12–13) acts in the
+//! velocity stage, the one stage with impulses: when some contact of the index set has μ > 0,
+//! its rows are `[G; H_1; T_1; …; H_k; T_k]` at q_{k+1}, the operator C M⁻¹ Cᵀ, the free
+//! values (G ṽ + g_t, then per contact H_α ṽ + ∂g_α/∂t + e_α U^α_k and T_α ṽ + ∂τ_α/∂t), and
+//! the problem is the planar friction problem (Signorini and Newton's impact law in the
+//! normal rows, Coulomb's law on U_t,{k+1} = T v_{k+1} + ∂τ/∂t in the tangent rows) with the
+//! joint rows condensed out exactly, as under the nonlinear Moreau–Jean scheme
+//! ([`super::moreau_jean`]: [`crate::lcp::EqualityElimination`], then
+//! [`crate::friction::solve_friction`]). The smooth stage and the position stage are unchanged:
+//! a sliding contact's friction is an impulse of the velocity stage at every step, as its
+//! normal reaction is. Without friction on the index set the step is the frictionless one,
+//! operation for operation.
+//!
+//! The tangential impulse's work is, like the normal one, the change of kinetic energy it
+//! makes: W_t = P_t T_α(q_{k+1}) · ½(ṽ + v_{k+1}) (v_{k+1} − ṽ = M⁻¹Cᵀ(Λ, P) makes
+//! ½ v_{k+1}ᵀMv_{k+1} − ½ ṽᵀMṽ = Σ of these terms exactly), split between `work_friction` and
+//! `work_contact` by [`crate::friction::split_tangential_work`] with θ = ½, the start velocity
+//! ṽ and the end velocity v_{k+1}: `work_friction` = W_t unless P_t T ṽ > 0 (the tangential
+//! velocity reversed within the impulse), then ½ P_t T v_{k+1} ≤ 0 and the rest goes to
+//! `work_contact`. For a fixed surface (∂τ/∂t = 0) T v_{k+1} is U_t,{k+1}, on which Coulomb's
+//! law makes P_t U_t ≤ 0, so `work_friction` ≤ 0 at every step; a moving surface (∂τ/∂t ≠ 0)
+//! can drive the body, and its work on the body, which is what the ledger counts, may be
+//! positive.
 
 pub use super::joints::JointedSystem;
 use super::moreau_jean::{
     NewtonOptions, NonlinearRunStats, NonlinearRunStop, NonlinearState, NonlinearStepError,
-    NonlinearStepReport, ParamError, StepAt, solve_mixed_at,
+    NonlinearStepReport, ParamError, StepAt, has_friction, solve_joint_friction_at, solve_mixed_at,
+    stacked_row,
 };
 use crate::checkpoint::RunKind;
 use crate::contact::LcpStats;
 use crate::dense::{amax, dot, kinetic, lu_factor};
+use crate::friction;
 use crate::integrators::OutputOptions;
 use crate::lcp::LcpOptions;
 use crate::observer::{Columns, Observer};
@@ -215,6 +242,11 @@ pub struct NonsmoothGeneralizedAlpha {
     n: usize,
     m: usize,
     nb: usize,
+    /// μ_α per contact.
+    mu: Vec<f64>,
+    /// Whether some contact has μ > 0 (the tangent rows are then formed at the end of each
+    /// step, for the tangential velocities).
+    friction: bool,
     last: Option<NsAlphaMemory>,
 }
 
@@ -234,14 +266,33 @@ struct SmoothStage {
     deficient: bool,
 }
 
-/// What the velocity stage hands to the end of the step: v_{k+1}, M(q_{k+1}), H(q_{k+1}),
-/// ∂g/∂t(q_{k+1}, t_{k+1}) and the contact work.
+/// The rows the velocity stage works on, at q_{k+1}: M, G, H, ∂g/∂t at t_{k+1} and at t_k,
+/// and for a system with friction T and ∂τ/∂t at t_{k+1} (empty otherwise).
+struct EndRows {
+    mass: Vec<f64>,
+    gj: Vec<f64>,
+    hj: Vec<f64>,
+    tj: Vec<f64>,
+    rates1: Vec<f64>,
+    rates0: Vec<f64>,
+    trates1: Vec<f64>,
+}
+
+/// What the velocity stage hands to the end of the step: v_{k+1}, the rows at q_{k+1} and the
+/// impulses' works (`work_contact`, `work_friction`).
 struct VelocityStage {
     v: Vec<f64>,
-    mass: Vec<f64>,
-    hj: Vec<f64>,
-    rates1: Vec<f64>,
+    rows: EndRows,
     work_contact: f64,
+    work_friction: f64,
+}
+
+/// The velocity stage's problem: the start of the step (v_k), ṽ, q_{k+1} and the index set.
+struct Impact<'a> {
+    start: &'a NsAlphaMemory,
+    vt: &'a [f64],
+    q: &'a [f64],
+    active: &'a [usize],
 }
 
 /// A row-major matrix as an nalgebra matrix.
@@ -306,6 +357,8 @@ impl NonsmoothGeneralizedAlpha {
             n: system.dofs(),
             m: system.contacts(),
             nb: system.joints(),
+            mu: (0..system.contacts()).map(|a| system.friction(a)).collect(),
+            friction: has_friction(system),
             last: None,
         })
     }
@@ -704,7 +757,9 @@ impl NonsmoothGeneralizedAlpha {
     }
 
     /// The velocity stage at q_{k+1}: v = ṽ + M⁻¹ Cᵀ Λ with G v + g_t = 0 and Newton's impact
-    /// law 0 ≤ U_{k+1} + e U_k ⊥ Λ ≥ 0 on the index set (one mixed LCP), and the contact work.
+    /// law 0 ≤ U_{k+1} + e U_k ⊥ Λ ≥ 0 on the index set (one mixed LCP), or, when a contact of
+    /// the index set has μ > 0, the planar friction problem with the joint rows condensed out
+    /// (module documentation); and the impulses' works.
     #[allow(clippy::too_many_arguments)]
     fn velocity_stage<S: JointedSystem + ?Sized>(
         &self,
@@ -717,78 +772,211 @@ impl NonsmoothGeneralizedAlpha {
         report: &mut NsAlphaStepReport,
         at: StepAt,
     ) -> Result<VelocityStage, NonlinearStepError> {
-        let (n, m, nb, t1) = (self.n, self.m, self.nb, at.t);
-        let mut mass = vec![0.0; n * n];
-        system.mass(q, &mut mass);
-        at.check(&mass, "M(q)")?;
-        let mut gj = vec![0.0; nb * n];
-        let mut hj = vec![0.0; m * n];
-        system.joint_jacobian(t1, q, &mut gj);
-        system.gap_jacobian(t1, q, &mut hj);
-        at.check(&gj, "the joint Jacobian")?;
-        at.check(&hj, "the gap Jacobian")?;
-        let mut rates1 = vec![0.0; m];
-        let mut rates0 = vec![0.0; m];
-        system.gap_rates(t1, q, &mut rates1);
-        system.gap_rates(t_k, q, &mut rates0);
-        at.check(&rates1, "∂g/∂t")?;
-        at.check(&rates0, "∂g/∂t")?;
-        let vt = &smooth.vt;
-        let mut v = vt.clone();
-        let k = nb + active.len();
+        let rows = self.end_rows(system, t_k, q, at)?;
         report.base.impulse.fill(0.0);
+        report.base.tangent_impulse.fill(0.0);
         report.base.lcp = LcpStats::default();
         report.joint_impulse.fill(0.0);
         report.local_velocity_before.fill(0.0);
         report.in_index_set.fill(false);
-        let mut work_contact = 0.0;
-        if k > 0 {
-            let rows = mat(k, n, &constraint_rows(&gj, &hj, active, n));
-            let m_lu = lu_factor(mat(n, n, &mass)).ok_or_else(|| at.singular(0))?;
-            let y = m_lu
-                .solve(&rows.transpose())
-                .ok_or_else(|| at.singular(0))?;
-            let d = &rows * &y;
-            let mut b = vec![0.0; k];
-            let mut joint_rate = vec![0.0; nb];
-            system.joint_rates(t1, q, vt, &mut joint_rate);
-            b[..nb].copy_from_slice(&joint_rate);
-            for (r, &a) in active.iter().enumerate() {
-                let row = &hj[a * n..(a + 1) * n];
-                let u_k = dot(row, &start.v) + rates0[a];
-                report.local_velocity_before[a] = u_k;
-                report.in_index_set[a] = true;
-                b[nb + r] = dot(row, vt) + rates1[a] + system.restitution(a) * u_k;
-            }
-            let sol = solve_mixed_at(&d, &b, nb, &self.lcp, at, 0)?;
-            let z = &sol.z;
-            let dv = &y * DVector::from_column_slice(z);
-            for (vi, d) in v.iter_mut().zip(dv.iter()) {
-                *vi += d;
-            }
-            at.check(&v, "the velocities")?;
-            report.joint_impulse.copy_from_slice(&z[..nb]);
-            for (r, &a) in active.iter().enumerate() {
-                let p = z[nb + r];
-                report.base.impulse[a] = p;
-                if p != 0.0 {
-                    let row = &hj[a * n..(a + 1) * n];
-                    work_contact += p * 0.5 * (dot(row, vt) + dot(row, &v));
-                }
-            }
-            report.base.lcp = LcpStats {
-                size: sol.size,
-                iterations: sol.iterations,
-                error: sol.error,
-            };
+        let mut stage = VelocityStage {
+            v: smooth.vt.clone(),
+            rows,
+            work_contact: 0.0,
+            work_friction: 0.0,
+        };
+        let impact = Impact {
+            start,
+            vt: &smooth.vt,
+            q,
+            active,
+        };
+        if active.iter().any(|&a| self.mu[a] > 0.0) {
+            self.friction_impact(system, &impact, &mut stage, report, at)?;
+        } else if self.nb + active.len() > 0 {
+            self.frictionless_impact(system, &impact, &mut stage, report, at)?;
         }
-        Ok(VelocityStage {
+        Ok(stage)
+    }
+
+    /// M, G, H, ∂g/∂t at t_{k+1} and t_k at q_{k+1}; with friction T and ∂τ/∂t at t_{k+1}.
+    fn end_rows<S: JointedSystem + ?Sized>(
+        &self,
+        system: &S,
+        t_k: f64,
+        q: &[f64],
+        at: StepAt,
+    ) -> Result<EndRows, NonlinearStepError> {
+        let (n, m, nb, t1) = (self.n, self.m, self.nb, at.t);
+        let mut r = EndRows {
+            mass: vec![0.0; n * n],
+            gj: vec![0.0; nb * n],
+            hj: vec![0.0; m * n],
+            tj: Vec::new(),
+            rates1: vec![0.0; m],
+            rates0: vec![0.0; m],
+            trates1: Vec::new(),
+        };
+        system.mass(q, &mut r.mass);
+        at.check(&r.mass, "M(q)")?;
+        system.joint_jacobian(t1, q, &mut r.gj);
+        system.gap_jacobian(t1, q, &mut r.hj);
+        at.check(&r.gj, "the joint Jacobian")?;
+        at.check(&r.hj, "the gap Jacobian")?;
+        system.gap_rates(t1, q, &mut r.rates1);
+        system.gap_rates(t_k, q, &mut r.rates0);
+        at.check(&r.rates1, "∂g/∂t")?;
+        at.check(&r.rates0, "∂g/∂t")?;
+        if self.friction {
+            r.tj = vec![0.0; m * n];
+            r.trates1 = vec![0.0; m];
+            system.tangent_jacobian(t1, q, &mut r.tj);
+            at.check(&r.tj, "the tangent Jacobian")?;
+            system.tangent_rates(t1, q, &mut r.trates1);
+            at.check(&r.trates1, "∂τ/∂t")?;
+        }
+        Ok(r)
+    }
+
+    /// U_k = H_α(q_{k+1}) v_k + ∂g_α/∂t(t_k) of contact `a` of the index set, kept in the
+    /// report, and the free value H_α ṽ + ∂g_α/∂t(t_{k+1}) + e_α U_k of its normal row.
+    fn normal_row<S: JointedSystem + ?Sized>(
+        &self,
+        system: &S,
+        impact: &Impact<'_>,
+        r: &EndRows,
+        a: usize,
+        report: &mut NsAlphaStepReport,
+    ) -> f64 {
+        let row = &r.hj[a * self.n..(a + 1) * self.n];
+        let u_k = dot(row, &impact.start.v) + r.rates0[a];
+        report.local_velocity_before[a] = u_k;
+        report.in_index_set[a] = true;
+        dot(row, impact.vt) + r.rates1[a] + system.restitution(a) * u_k
+    }
+
+    /// The frictionless velocity stage: the mixed LCP on the rows C = [G; H_I] at q_{k+1},
+    /// operator C M⁻¹ Cᵀ, free values (G ṽ + g_t, H ṽ + ∂g/∂t + e U_k).
+    fn frictionless_impact<S: JointedSystem + ?Sized>(
+        &self,
+        system: &S,
+        impact: &Impact<'_>,
+        stage: &mut VelocityStage,
+        report: &mut NsAlphaStepReport,
+        at: StepAt,
+    ) -> Result<(), NonlinearStepError> {
+        let (n, nb, t1) = (self.n, self.nb, at.t);
+        let (active, vt) = (impact.active, impact.vt);
+        let VelocityStage {
             v,
-            mass,
-            hj,
-            rates1,
+            rows: r,
             work_contact,
-        })
+            ..
+        } = stage;
+        let k = nb + active.len();
+        let rows = mat(k, n, &constraint_rows(&r.gj, &r.hj, active, n));
+        let m_lu = lu_factor(mat(n, n, &r.mass)).ok_or_else(|| at.singular(0))?;
+        let y = m_lu
+            .solve(&rows.transpose())
+            .ok_or_else(|| at.singular(0))?;
+        let d = &rows * &y;
+        let mut b = vec![0.0; k];
+        system.joint_rates(t1, impact.q, vt, &mut b[..nb]);
+        for (c, &a) in active.iter().enumerate() {
+            b[nb + c] = self.normal_row(system, impact, r, a, report);
+        }
+        let sol = solve_mixed_at(&d, &b, nb, &self.lcp, at, 0)?;
+        let z = &sol.z;
+        let dv = &y * DVector::from_column_slice(z);
+        for (vi, d) in v.iter_mut().zip(dv.iter()) {
+            *vi += d;
+        }
+        at.check(v, "the velocities")?;
+        report.joint_impulse.copy_from_slice(&z[..nb]);
+        for (c, &a) in active.iter().enumerate() {
+            let p = z[nb + c];
+            report.base.impulse[a] = p;
+            if p != 0.0 {
+                let row = &r.hj[a * n..(a + 1) * n];
+                *work_contact += p * 0.5 * (dot(row, vt) + dot(row, v));
+            }
+        }
+        report.base.lcp = LcpStats {
+            size: sol.size,
+            iterations: sol.iterations,
+            error: sol.error,
+        };
+        Ok(())
+    }
+
+    /// The velocity stage with friction on the index set: the planar friction problem on the
+    /// rows `[G; H_1; T_1; …; H_k; T_k]` at q_{k+1}, operator C M⁻¹ Cᵀ, free values
+    /// (G ṽ + g_t, then per contact H ṽ + ∂g/∂t + e U_k and T ṽ + ∂τ/∂t), the joint rows
+    /// condensed out as under the nonlinear Moreau–Jean scheme
+    /// (`moreau_jean::solve_joint_friction_at`); the tangential impulse's work split by
+    /// [`friction::split_tangential_work`] with θ = ½ (module documentation).
+    fn friction_impact<S: JointedSystem + ?Sized>(
+        &self,
+        system: &S,
+        impact: &Impact<'_>,
+        stage: &mut VelocityStage,
+        report: &mut NsAlphaStepReport,
+        at: StepAt,
+    ) -> Result<(), NonlinearStepError> {
+        let (n, nb, t1) = (self.n, self.nb, at.t);
+        let (active, vt) = (impact.active, impact.vt);
+        let VelocityStage {
+            v,
+            rows: r,
+            work_contact,
+            work_friction,
+        } = stage;
+        let size = nb + 2 * active.len();
+        let rows = DMatrix::from_fn(size, n, |i, j| {
+            stacked_row(&r.gj, &r.hj, &r.tj, active, (n, nb), i)[j]
+        });
+        let m_lu = lu_factor(mat(n, n, &r.mass)).ok_or_else(|| at.singular(0))?;
+        let y = m_lu
+            .solve(&rows.transpose())
+            .ok_or_else(|| at.singular(0))?;
+        let d = &rows * &y;
+        let mut b = vec![0.0; size];
+        system.joint_rates(t1, impact.q, vt, &mut b[..nb]);
+        for (c, &a) in active.iter().enumerate() {
+            b[nb + 2 * c] = self.normal_row(system, impact, r, a, report);
+            b[nb + 2 * c + 1] = dot(&r.tj[a * n..(a + 1) * n], vt) + r.trates1[a];
+        }
+        let mu: Vec<f64> = active.iter().map(|&a| self.mu[a]).collect();
+        let sol = solve_joint_friction_at(&d, &b, nb, &mu, &self.lcp, at, 0)?;
+        let dv = &y * DVector::from_column_slice(&sol.z);
+        for (vi, d) in v.iter_mut().zip(dv.iter()) {
+            *vi += d;
+        }
+        at.check(v, "the velocities")?;
+        report.joint_impulse.copy_from_slice(&sol.z[..nb]);
+        for (c, &a) in active.iter().enumerate() {
+            let (p, pt) = (sol.z[nb + 2 * c], sol.z[nb + 2 * c + 1]);
+            report.base.impulse[a] = p;
+            report.base.tangent_impulse[a] = pt;
+            if p != 0.0 {
+                let row = &r.hj[a * n..(a + 1) * n];
+                *work_contact += p * 0.5 * (dot(row, vt) + dot(row, v));
+            }
+            if pt != 0.0 {
+                let row = &r.tj[a * n..(a + 1) * n];
+                let (before, after) = (pt * dot(row, vt), pt * dot(row, v));
+                let split =
+                    friction::split_tangential_work(0.5 * (before + after), 0.5, before, after);
+                *work_friction += split.friction;
+                *work_contact += split.contact;
+            }
+        }
+        report.base.lcp = LcpStats {
+            size: active.len(),
+            iterations: sol.iterations,
+            error: sol.error,
+        };
+        Ok(())
     }
 
     /// The end of the step: the applied forces and the works, the energy, the gaps, local
@@ -809,10 +997,9 @@ impl NonsmoothGeneralizedAlpha {
         let (n, nb, t1) = (self.n, self.nb, at.t);
         let VelocityStage {
             v,
-            mass,
-            hj,
-            rates1,
+            rows,
             work_contact,
+            work_friction,
         } = velocity;
         let mut applied = vec![0.0; n];
         system.applied_forces(t1, &q, &v, &mut applied);
@@ -821,7 +1008,7 @@ impl NonsmoothGeneralizedAlpha {
             .map(|i| 0.5 * (start.applied[i] + applied[i]) * (q[i] - start.q[i]))
             .sum();
         let base = &mut report.base;
-        base.kinetic = kinetic(&mass, &v);
+        base.kinetic = kinetic(&rows.mass, &v);
         base.potential = system.potential(t1, &q);
         let energy = base.energy();
         if !energy.is_finite() {
@@ -829,12 +1016,18 @@ impl NonsmoothGeneralizedAlpha {
         }
         base.work_ext = work_ext;
         base.work_contact = work_contact;
-        base.energy_error = (energy - start.energy) - work_ext - work_contact;
+        base.work_friction = work_friction;
+        base.energy_error = (energy - start.energy) - work_ext - work_contact - work_friction;
         base.newton_iterations = smooth.iterations;
         system.gaps(t1, &q, &mut base.gap);
         at.check(&base.gap, "a gap g(q, t)")?;
         for (a, u) in base.local_velocity.iter_mut().enumerate() {
-            *u = dot(&hj[a * n..(a + 1) * n], &v) + rates1[a];
+            *u = dot(&rows.hj[a * n..(a + 1) * n], &v) + rows.rates1[a];
+        }
+        if self.friction {
+            for (a, u) in base.tangent_velocity.iter_mut().enumerate() {
+                *u = dot(&rows.tj[a * n..(a + 1) * n], &v) + rows.trates1[a];
+            }
         }
         report.penetration = base.gap.iter().fold(0.0f64, |p, &x| p.max(-x));
         let mut gb = vec![0.0; nb];
@@ -1003,10 +1196,18 @@ pub struct NsAlphaSummary {
 }
 
 /// Column names of a run of the scheme: `kinetic, potential, energy, work_ext, work_contact,
-/// work_friction, energy_error, work_ext_total, work_contact_total, newton_iterations,
-/// position_iterations`, then `gap_α, u_α, p_α` per contact, `lambda_j` per joint,
-/// `position_residual, velocity_residual`, then `q_j, v_j` per probe.
-pub fn ns_alpha_columns(contacts: usize, joints: usize, probes: &[usize]) -> Columns {
+/// work_friction, energy_error, work_ext_total, work_contact_total`, with friction
+/// `work_friction_total`, then `newton_iterations, position_iterations`, `gap_α, u_α, p_α` per
+/// contact (with friction also `pt_α, ut_α`: tangential impulse and velocity, as under the
+/// nonlinear Moreau–Jean scheme), `lambda_j` per joint, `position_residual,
+/// velocity_residual`, then `q_j, v_j` per probe. A system without friction has exactly the
+/// frictionless columns.
+pub fn ns_alpha_columns(
+    contacts: usize,
+    friction: bool,
+    joints: usize,
+    probes: &[usize],
+) -> Columns {
     let mut names: Vec<String> = [
         "kinetic",
         "potential",
@@ -1017,14 +1218,19 @@ pub fn ns_alpha_columns(contacts: usize, joints: usize, probes: &[usize]) -> Col
         "energy_error",
         "work_ext_total",
         "work_contact_total",
-        "newton_iterations",
-        "position_iterations",
     ]
     .iter()
     .map(|s| s.to_string())
     .collect();
+    if friction {
+        names.push("work_friction_total".into());
+    }
+    names.extend(["newton_iterations".into(), "position_iterations".into()]);
     for a in 0..contacts {
         names.extend([format!("gap_{a}"), format!("u_{a}"), format!("p_{a}")]);
+        if friction {
+            names.extend([format!("pt_{a}"), format!("ut_{a}")]);
+        }
     }
     names.extend((0..joints).map(|j| format!("lambda_{j}")));
     names.extend(["position_residual".into(), "velocity_residual".into()]);
@@ -1120,6 +1326,7 @@ impl<'a, S: JointedSystem + ?Sized> NsAlphaStepping<'a, S> {
                 energy_initial: e0,
                 energy_final: e0,
                 energy_max: e0,
+                work_friction_total: scheme.friction.then_some(0.0),
                 ..Default::default()
             },
             max_position_residual: report.position_residual,
@@ -1147,7 +1354,12 @@ impl<S: JointedSystem + ?Sized> TimeStepping for NsAlphaStepping<'_, S> {
     const RUN: RunKind = RunKind::NsAlpha;
 
     fn columns(&self) -> Columns {
-        ns_alpha_columns(self.system.contacts(), self.system.joints(), self.probes)
+        ns_alpha_columns(
+            self.system.contacts(),
+            self.scheme.friction,
+            self.system.joints(),
+            self.probes,
+        )
     }
 
     fn total_steps(&self) -> u64 {
@@ -1168,6 +1380,7 @@ impl<S: JointedSystem + ?Sized> TimeStepping for NsAlphaStepping<'_, S> {
             &mut self.newton_total,
             &mut self.previous_impulse,
         );
+        stats.base.add_friction(report.base.work_friction);
         stats.max_position_residual = stats.max_position_residual.max(report.position_residual);
         stats.max_velocity_residual = stats.max_velocity_residual.max(report.velocity_residual);
         stats.max_penetration = stats.max_penetration.max(report.penetration);
@@ -1198,15 +1411,19 @@ impl<S: JointedSystem + ?Sized> TimeStepping for NsAlphaStepping<'_, S> {
             b.energy(),
             b.work_ext,
             b.work_contact,
-            0.0,
+            b.work_friction,
             b.energy_error,
             stats.base.work_ext_total,
             stats.base.work_contact_total,
-            b.newton_iterations as f64,
-            r.position_iterations as f64,
         ]);
+        let friction = stats.base.work_friction_total;
+        row.extend(friction);
+        row.extend([b.newton_iterations as f64, r.position_iterations as f64]);
         for a in 0..self.system.contacts() {
             row.extend([b.gap[a], b.local_velocity[a], b.impulse[a]]);
+            if friction.is_some() {
+                row.extend([b.tangent_impulse[a], b.tangent_velocity[a]]);
+            }
         }
         row.extend_from_slice(&r.lambda);
         row.extend([r.position_residual, r.velocity_residual]);

@@ -1376,27 +1376,9 @@ impl NonlinearMoreauJean {
         s.friction_mu.extend(s.active.iter().map(|&a| self.mu[a]));
         at.check(&s.delassus, "the Delassus operator")?;
         let d = DMatrix::from_row_slice(size, size, &s.delassus);
-        let condensed = EqualityElimination::new(MixedLcp {
-            d: &d,
-            b: &b,
-            equalities: nb,
-        })
-        .map_err(|_| at.singular(iteration))?;
-        let w: Vec<f64> = (0..4 * k * k)
-            .map(|r| condensed.schur[(r / (2 * k), r % (2 * k))])
-            .collect();
-        let sol = solve_friction_at(
-            FrictionProblem {
-                w: &w,
-                q: condensed.free.as_slice(),
-                mu: &s.friction_mu,
-            },
-            &self.lcp,
-            at,
-        )?;
+        let sol = solve_joint_friction_at(&d, &b, nb, &s.friction_mu, &self.lcp, at, iteration)?;
         s.solution.clear();
-        s.solution.extend(condensed.equality_part(&sol.p));
-        s.solution.extend_from_slice(&sol.p);
+        s.solution.extend_from_slice(&sol.z);
         s.joint_impulse.copy_from_slice(&s.solution[..nb]);
         for (c, &p) in s.solution.iter().enumerate() {
             if let Some(i) = c.checked_sub(nb) {
@@ -1538,7 +1520,7 @@ fn solve_in_place(lu: &Lu, b: &mut [f64]) {
 /// Row r of the stacked rows `[J; H_{a_1}; T_{a_1}; H_{a_2}; T_{a_2}; …]` of a friction
 /// problem with joints: J the first nb rows of `joints` (n columns each), then the normal
 /// (`jac`) and tangent (`tjac`) rows of the active contacts `active`.
-fn stacked_row<'a>(
+pub(crate) fn stacked_row<'a>(
     joints: &'a [f64],
     jac: &'a [f64],
     tjac: &'a [f64],
@@ -1646,6 +1628,19 @@ impl NonlinearRunStats {
         *newton_total += report.newton_iterations as u64;
         self.newton_iterations_mean = *newton_total as f64 / k as f64;
         self.impacts += stepping::count_impacts(previous_impulse, &report.impulse);
+    }
+
+    /// Adds a step's friction work `work_friction` to `work_friction_total` and
+    /// `work_friction_max`, for a run of a system with friction (`work_friction_total` is
+    /// `Some`); nothing otherwise.
+    pub(crate) fn add_friction(&mut self, work_friction: f64) {
+        if let Some(total) = self.work_friction_total.as_mut() {
+            *total += work_friction;
+            self.work_friction_max = Some(
+                self.work_friction_max
+                    .map_or(work_friction, |w| w.max(work_friction)),
+            );
+        }
     }
 }
 
@@ -1958,6 +1953,69 @@ fn solve_friction_at(
         step: at.step,
         t: at.t,
         source,
+    })
+}
+
+/// The impulses of a planar friction problem with joint rows and its solve's diagnostics.
+pub(crate) struct JointFrictionSolution {
+    /// The joint impulses Λ, then (P_n, P_t) per contact.
+    pub(crate) z: Vec<f64>,
+    /// Iterations of the friction solver.
+    pub(crate) iterations: usize,
+    /// Its natural-map error.
+    pub(crate) error: f64,
+}
+
+/// The planar friction problem with `nb` joint rows at its head: `d` (nb + 2k square) and `b`
+/// on the rows `[G; H_1; T_1; …; H_k; T_k]`, `mu` per contact. The joint rows are condensed
+/// out by [`EqualityElimination`] (Λ = −A⁺(b_B + D_BI P), the friction problem on the Schur
+/// complement W' = D_II − D_IB A⁺ D_BI and q' = b_I − D_IB A⁺ b_B, module documentation), the
+/// contacts' problem is solved by [`friction::solve_friction`] and Λ recovered from its P;
+/// without joints the problem is solved as it stands. Its failure is named for Newton
+/// iteration `iteration` of step `at`.
+pub(crate) fn solve_joint_friction_at(
+    d: &DMatrix<f64>,
+    b: &[f64],
+    nb: usize,
+    mu: &[f64],
+    options: &LcpOptions,
+    at: StepAt,
+    iteration: usize,
+) -> Result<JointFrictionSolution, NonlinearStepError> {
+    let k2 = b.len() - nb;
+    if nb == 0 {
+        let w: Vec<f64> = (0..k2 * k2).map(|r| d[(r / k2, r % k2)]).collect();
+        let sol = solve_friction_at(FrictionProblem { w: &w, q: b, mu }, options, at)?;
+        return Ok(JointFrictionSolution {
+            z: sol.p,
+            iterations: sol.iterations,
+            error: sol.error,
+        });
+    }
+    let condensed = EqualityElimination::new(MixedLcp {
+        d,
+        b,
+        equalities: nb,
+    })
+    .map_err(|_| at.singular(iteration))?;
+    let w: Vec<f64> = (0..k2 * k2)
+        .map(|r| condensed.schur[(r / k2, r % k2)])
+        .collect();
+    let sol = solve_friction_at(
+        FrictionProblem {
+            w: &w,
+            q: condensed.free.as_slice(),
+            mu,
+        },
+        options,
+        at,
+    )?;
+    let mut z = condensed.equality_part(&sol.p);
+    z.extend_from_slice(&sol.p);
+    Ok(JointFrictionSolution {
+        z,
+        iterations: sol.iterations,
+        error: sol.error,
     })
 }
 

@@ -127,10 +127,6 @@ const SOI2_CONTACTS: Support = Support::Refused {
     field: "integrator.scheme",
     reason: "takes joints, not contacts: a lagrangian model with contacts runs with moreau_jean or ns_generalized_alpha",
 };
-const NS_ALPHA_FRICTION: Support = Support::Refused {
-    field: "integrator.scheme",
-    reason: "does not take Coulomb friction: its velocity stage solves the frictionless impact law only; run a model with friction with moreau_jean",
-};
 const FULL_RANK_JOINTS: Support = Support::Refused {
     field: "model.redundant_joints",
     reason: "does not solve rank-deficient joints: redundant joints run with soi2_generalized_alpha, soi2_hht, hht_i3 or ns_generalized_alpha",
@@ -208,7 +204,7 @@ pub const TABLE: [SchemeSupport; 18] = [
     linear("newmark_position_contact", POSITION_LEVEL_FRICTION),
     linear("hht_position_contact", POSITION_LEVEL_FRICTION),
     lagrangian("moreau_jean", Takes, FULL_RANK_JOINTS),
-    lagrangian("ns_generalized_alpha", NS_ALPHA_FRICTION, Takes),
+    lagrangian("ns_generalized_alpha", Takes, Takes),
     soi2(
         "soi2_generalized_alpha",
         ModelFamily::Lagrangian,
