@@ -117,6 +117,10 @@ pub enum StepPhase {
 pub trait StepPhases {
     /// Phase `phase` starts now.
     fn enter(&mut self, phase: StepPhase);
+
+    /// The one-step friction problem about to be solved and the start its solver is given (the
+    /// warm start, or zeros): a benchmark may keep it as a problem file. Nothing by default.
+    fn problem(&mut self, _problem: &Fc3dProblem, _start: &[f64]) {}
 }
 
 /// No one listening.
@@ -535,7 +539,10 @@ impl RigidMoreauJean {
                     impulse.fill(0.0);
                 }
                 let solution = problem
-                    .and_then(|problem| solve_fc3d_from(&problem, &self.params.fc3d, &impulse))
+                    .and_then(|problem| {
+                        phases.problem(&problem, &impulse);
+                        solve_fc3d_from(&problem, &self.params.fc3d, &impulse)
+                    })
                     .map_err(|source| RigidStepError::Friction {
                         step,
                         t,
