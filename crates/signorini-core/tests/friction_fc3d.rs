@@ -515,7 +515,8 @@ fn sphere_column(n: usize) -> Fc3dProblem {
 
 /// On the column of 30 spheres, Gauss–Seidel crawls (the weight crosses the column one contact
 /// per sweep, a spectral radius near 1 − π²/n²: 6 223 sweeps to 1e-10) and Anderson's
-/// acceleration of the same sweeps reaches the same tolerance in a fraction of them (79 sweeps);
+/// acceleration of the same sweeps reaches the same tolerance in a fraction of them (79 sweeps
+/// with its first restart rule);
 /// both return the weights of the spheres above each contact.
 #[test]
 fn anderson_acceleration_crosses_a_column_of_spheres_in_few_sweeps() {

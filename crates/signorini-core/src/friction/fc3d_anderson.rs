@@ -16,12 +16,13 @@
 //! ```
 //!
 //! (for a linear map this is GMRES on `r − g(r) = 0`, which is why it helps where the sweeps crawl).
-//! The least-squares problem is solved by the singular value decomposition of ΔF_k, singular
-//! values below 10⁻¹⁰ of the largest dropped. The error is measured on the sweeps' outputs
+//! The least-squares problem is solved through its d × d normal equations (singular values of
+//! ΔF_kᵀΔF_k below 10⁻¹⁴ of the largest dropped). The error is measured on the sweeps' outputs
 //! `g(r_k)`, which satisfy the cone contact by contact. The map is only semismooth (a contact
-//! that changes between take-off, stick and slide changes it), so the history is dropped — the
-//! next step a plain sweep — whenever a sweep's error exceeds [`RESTART_GROWTH`] times the
-//! smallest error so far. Deterministic; `iterations` counts sweeps.
+//! that changes between take-off, stick and slide changes it), so the history is dropped and the
+//! next sweep starts from the sweep output of smallest error whenever a sweep's error exceeds
+//! [`RESTART_GROWTH`] times the smallest error so far or [`STALL`] sweeps in a row have not
+//! lowered it. Deterministic; `iterations` counts sweeps.
 
 use super::fc3d::{Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, natural_map_error};
 use super::fc3d_nsgs::{diagonal_blocks, sweep};
@@ -30,10 +31,14 @@ use std::collections::VecDeque;
 
 /// Depth d: sweeps combined (besides the last).
 const DEPTH: usize = 5;
-/// A sweep whose error exceeds this factor times the smallest error so far restarts the history.
+/// A sweep whose error exceeds this factor times the smallest error so far restarts from the best
+/// sweep output.
 const RESTART_GROWTH: f64 = 2.0;
-/// Singular values of ΔF below this fraction of the largest are dropped.
-const SINGULAR_CUT: f64 = 1e-10;
+/// So do this many sweeps in a row without a new smallest error.
+const STALL: usize = 2 * DEPTH;
+/// Singular values of ΔFᵀΔF below this fraction of the largest are dropped (those of ΔF below
+/// 10⁻⁷ of its largest: below that the Gram matrix holds round-off only).
+const GRAM_CUT: f64 = 1e-14;
 
 /// Solves the problem by Gauss–Seidel sweeps with Anderson acceleration (module documentation)
 /// from `start`. On failure the error holds the sweep output of smallest error.
@@ -48,6 +53,7 @@ pub fn solve_fc3d_nsgs_anderson(
     let mut best = (f64::INFINITY, r.clone());
     let mut last: Option<(Vec<f64>, Vec<f64>)> = None;
     let mut history: VecDeque<(Vec<f64>, Vec<f64>)> = VecDeque::with_capacity(DEPTH);
+    let mut stalled = 0;
     for iteration in 1..=options.max_iterations {
         let mut g = r.clone();
         sweep(problem, &diagonal, &mut g);
@@ -67,9 +73,16 @@ pub fn solve_fc3d_nsgs_anderson(
         }
         if error < best.0 {
             best = (error, g.clone());
-        } else if error > RESTART_GROWTH * best.0 {
+            stalled = 0;
+        } else {
+            stalled += 1;
+        }
+        if error > RESTART_GROWTH * best.0 || stalled > STALL {
             history.clear();
             last = None;
+            stalled = 0;
+            r = best.1.clone();
+            continue;
         }
         let f: Vec<f64> = g.iter().zip(&r).map(|(g, r)| g - r).collect();
         if let Some((f_last, g_last)) = last.take() {
@@ -94,17 +107,20 @@ fn difference(a: &[f64], b: &[f64]) -> Vec<f64> {
     a.iter().zip(b).map(|(a, b)| a - b).collect()
 }
 
-/// `g − ΔG γ` with `γ = argmin ‖f − ΔF γ‖₂` (module documentation); `g` itself without history
-/// or when the least-squares solve fails.
+/// `g − ΔG γ` with `γ = argmin ‖f − ΔF γ‖₂` (module documentation), γ from the normal equations
+/// `ΔFᵀΔF γ = ΔFᵀ f` (d × d) by the singular value decomposition, singular values below
+/// [`GRAM_CUT`] of the largest dropped; `g` itself without history or when that solve fails.
 fn extrapolate(history: &VecDeque<(Vec<f64>, Vec<f64>)>, f: &[f64], g: &[f64]) -> Vec<f64> {
     if history.is_empty() {
         return g.to_vec();
     }
-    let n = f.len();
-    let df = DMatrix::from_fn(n, history.len(), |i, j| history[j].0[i]);
-    let svd = df.svd(true, true);
-    let cut = SINGULAR_CUT * svd.singular_values.max();
-    let Ok(gamma) = svd.solve(&DVector::from_column_slice(f), cut) else {
+    let d = history.len();
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let gram = DMatrix::from_fn(d, d, |i, j| dot(&history[i].0, &history[j].0));
+    let rhs = DVector::from_fn(d, |i, _| dot(&history[i].0, f));
+    let svd = gram.svd(true, true);
+    let cut = GRAM_CUT * svd.singular_values.max();
+    let Ok(gamma) = svd.solve(&rhs, cut) else {
         return g.to_vec();
     };
     let mut next = g.to_vec();
