@@ -17,7 +17,8 @@ pub struct SolveArgs {
     /// Problem files: Siconos `.dat` or FCLib HDF5 (local or global).
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
-    /// Solver: `auto` (Gauss–Seidel, then semismooth Newton), `nsgs`, `nsn_ac` or `prox`.
+    /// Solver: `auto` (Gauss–Seidel, then semismooth Newton), `nsgs`, `nsgs_aa` (Gauss–Seidel
+    /// with Anderson acceleration), `nsn_ac` or `prox`.
     #[arg(long, default_value = "auto")]
     pub solver: String,
     /// Largest relative natural-map error accepted (Siconos' measure).
@@ -42,7 +43,7 @@ pub struct SolveArgs {
 pub fn solve(args: SolveArgs) -> Result<()> {
     let Some(kind) = Fc3dSolverKind::from_name(&args.solver) else {
         bail!(
-            "--solver {}: unknown (auto, nsgs, nsn_ac or prox)",
+            "--solver {}: unknown (auto, nsgs, nsgs_aa, nsn_ac or prox)",
             args.solver
         );
     };

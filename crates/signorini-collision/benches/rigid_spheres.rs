@@ -11,15 +11,20 @@
 //! contacts (`RigidMoreauJeanParams::warm_start`), to measure what the warm start saves;
 //! `--solver auto|nsgs|prox` and `--auto-sweeps N` set the FC3D solver and `auto`'s Gauss–Seidel
 //! budget before its proximal-point stage (`Fc3dOptions`), to measure what the time stepping
-//! needs; `--trace` prints each step's contacts, FC3D iterations and error on stderr. The line also gives how many steps took ≤ 10, ≤ 100, ≤ 1 000 and more FC3D
-//! iterations.
+//! needs; `--trace` prints each step's contacts, FC3D iterations, error and milliseconds on
+//! stderr. The line also gives how many steps took ≤ 10, ≤ 100, ≤ 1 000 and more FC3D
+//! iterations. `--dump K FILE` (repeatable) writes step K's one-step friction problem (W, q, μ) as a Siconos
+//! `.dat` file (sparse-block storage) that `signorini solve` and Siconos' `fc3d_driver` read, and
+//! the start its solver was given (the warm start) to `FILE.start`, one number a line.
 
 use signorini_collision::ParryDetectors;
+use signorini_core::friction::Fc3dProblem;
 use signorini_core::friction::{Fc3dOptions, Fc3dSolverKind};
 use signorini_core::rigid::{
     DetectorFactory, RigidMoreauJean, RigidMoreauJeanParams, RigidScratch, StepPhase, StepPhases,
 };
 use signorini_core::spec::{JobSpec, ModelSpec};
+use std::fmt::Write as _;
 use std::time::{Duration, Instant};
 
 /// Time spent in each phase.
@@ -27,6 +32,47 @@ struct PhaseClock {
     current: Option<StepPhase>,
     since: Instant,
     spent: [Duration; 4],
+    /// Write the problem of these steps to these files (`--dump`).
+    dump: Vec<(u64, String)>,
+    step: u64,
+}
+
+/// `problem` as Siconos writes it (`frictionContact_printInFile`): d, contacts, W as a
+/// sparse-block matrix (`SBM_print_in_file`: sizes, block starts, block columns, then each block
+/// column-major), q, μ; numbers in Rust's shortest round-trip form.
+fn siconos_dat(problem: &Fc3dProblem) -> String {
+    let m = problem.contacts();
+    let blocks = problem.w.stored_blocks();
+    let mut out = format!("3\n{m}\n1\n{0}\n{0}\n{blocks}\n{m}\n{m}\n", 3 * m);
+    let ends: Vec<String> = (1..=m).map(|a| (3 * a).to_string()).collect();
+    let _ = writeln!(
+        out,
+        "{}\n{}\n{}\n{blocks}",
+        ends.join(" "),
+        ends.join(" "),
+        m + 1
+    );
+    let mut starts = vec!["0".to_string()];
+    let mut columns = Vec::new();
+    for a in 0..m {
+        columns.extend(problem.w.row(a).map(|(b, _)| b.to_string()));
+        starts.push(columns.len().to_string());
+    }
+    let _ = writeln!(out, "{}\n{}", starts.join(" "), columns.join(" "));
+    let mut number = 0;
+    for a in 0..m {
+        for (_, block) in problem.w.row(a) {
+            let _ = writeln!(out, "{number}");
+            number += 1;
+            for k in 0..9 {
+                let _ = writeln!(out, "{:e}", block[(k % 3) * 3 + k / 3]);
+            }
+        }
+    }
+    for x in problem.q.iter().chain(&problem.mu) {
+        let _ = writeln!(out, "{x:e}");
+    }
+    out
 }
 
 impl PhaseClock {
@@ -53,6 +99,14 @@ impl StepPhases for PhaseClock {
         self.stop();
         self.current = Some(phase);
     }
+
+    fn problem(&mut self, problem: &Fc3dProblem, start: &[f64]) {
+        if let Some((_, path)) = self.dump.iter().find(|(k, _)| *k == self.step) {
+            std::fs::write(path, siconos_dat(problem)).expect("writing the problem");
+            let start: String = start.iter().map(|x| format!("{x:e}\n")).collect();
+            std::fs::write(format!("{path}.start"), start).expect("writing the start");
+        }
+    }
 }
 
 fn main() {
@@ -62,6 +116,7 @@ fn main() {
         env!("CARGO_MANIFEST_DIR")
     );
     let mut steps_arg: Option<u64> = None;
+    let mut dump = Vec::new();
     let mut warm_start = true;
     let mut trace = false;
     let mut kind = Fc3dSolverKind::Auto;
@@ -73,12 +128,19 @@ fn main() {
             trace = true;
         } else if a == "--solver" {
             let name = args.next().unwrap_or_default();
-            kind = Fc3dSolverKind::from_name(&name).expect("--solver auto|nsgs|nsn_ac|prox");
+            kind =
+                Fc3dSolverKind::from_name(&name).expect("--solver auto|nsgs|nsgs_aa|nsn_ac|prox");
         } else if a == "--auto-sweeps" {
             auto_sweeps = args
                 .next()
                 .and_then(|s| s.parse().ok())
                 .expect("--auto-sweeps N");
+        } else if a == "--dump" {
+            let step = args
+                .next()
+                .and_then(|s| s.parse().ok())
+                .expect("--dump K FILE");
+            dump.push((step, args.next().expect("--dump K FILE")));
         } else if a == "--steps" {
             steps_arg = args.next().and_then(|s| s.parse().ok());
         } else {
@@ -92,7 +154,7 @@ fn main() {
     };
     let scene = model.validate().expect("a valid scene");
     let time = spec.time_section().expect("a time section");
-    let steps = time.steps(false).expect("steps");
+    let steps = time.steps(None).expect("steps");
     let h = steps.h;
     let count = steps_arg.unwrap_or(steps.count());
     let scheme = RigidMoreauJean::new(
@@ -116,6 +178,8 @@ fn main() {
         current: None,
         since: Instant::now(),
         spent: [Duration::ZERO; 4],
+        dump,
+        step: 0,
     };
     let mut contacts = 0u64;
     let mut max_contacts = 0usize;
@@ -126,6 +190,8 @@ fn main() {
     let start = Instant::now();
     for k in 1..=count {
         let t = (k - 1) as f64 * h;
+        clock.step = k;
+        let step_start = Instant::now();
         let report = scheme
             .step_in_phases(
                 &scene,
@@ -143,8 +209,11 @@ fn main() {
         friction_error_max = friction_error_max.max(report.friction_error);
         if trace {
             eprintln!(
-                "{k} {} {} {:e}",
-                report.contacts, report.friction_iterations, report.friction_error
+                "{k} {} {} {:e} {:.1}",
+                report.contacts,
+                report.friction_iterations,
+                report.friction_error,
+                1e3 * step_start.elapsed().as_secs_f64()
             );
         }
         histogram[match report.friction_iterations {

@@ -169,12 +169,15 @@ impl RunKind {
     /// Moreau–Jean and ns_generalized_alpha states are at version 2: it keeps only what the
     /// next step reads (the scheme's memory), where version 1 also held the last step's report
     /// and, for Moreau–Jean, its scratch buffers (mass matrix, Jacobians, Delassus operator).
-    /// Rigid bodies are at version 2: it adds the last step's impulses per contact, from which
-    /// the next step's friction problem starts (version 1 had none, and a run resumed from it
-    /// would not continue bit for bit). The other kinds are at version 1.
+    /// Rigid bodies are at version 3: version 2 added the last step's impulses per contact, from
+    /// which the next step's friction problem starts (version 1 had none, and a run resumed from
+    /// it would not continue bit for bit), version 3 the rows of the `contacts` table so far (a
+    /// run resumed from version 2 wrote only the rows after the checkpoint). The other kinds are
+    /// at version 1.
     pub fn state_version(self) -> u32 {
         match self {
-            RunKind::Nonlinear | RunKind::NsAlpha | RunKind::Rigid => 2,
+            RunKind::Rigid => 3,
+            RunKind::Nonlinear | RunKind::NsAlpha => 2,
             RunKind::Linear | RunKind::Soi2 | RunKind::Wave => 1,
         }
     }

@@ -193,6 +193,8 @@ pub enum Fc3dSolverKind {
     Auto,
     /// Nonsmooth Gauss–Seidel over contacts ([`super::solve_fc3d_nsgs`]).
     Nsgs,
+    /// Those sweeps with Anderson acceleration ([`super::solve_fc3d_nsgs_anderson`]).
+    NsgsAnderson,
     /// Semismooth Newton on Alart–Curnier's function with a line search
     /// ([`super::solve_fc3d_newton`]).
     NewtonAlartCurnier,
@@ -202,11 +204,13 @@ pub enum Fc3dSolverKind {
 }
 
 impl Fc3dSolverKind {
-    /// The name used on the command line and in reports: `auto`, `nsgs`, `nsn_ac`, `prox`.
+    /// The name used on the command line and in reports: `auto`, `nsgs`, `nsgs_aa`, `nsn_ac`,
+    /// `prox`.
     pub fn name(self) -> &'static str {
         match self {
             Self::Auto => "auto",
             Self::Nsgs => "nsgs",
+            Self::NsgsAnderson => "nsgs_aa",
             Self::NewtonAlartCurnier => "nsn_ac",
             Self::Prox => "prox",
         }
@@ -214,9 +218,15 @@ impl Fc3dSolverKind {
 
     /// The kind of a name given by [`Self::name`].
     pub fn from_name(name: &str) -> Option<Self> {
-        [Self::Auto, Self::Nsgs, Self::NewtonAlartCurnier, Self::Prox]
-            .into_iter()
-            .find(|k| k.name() == name)
+        [
+            Self::Auto,
+            Self::Nsgs,
+            Self::NsgsAnderson,
+            Self::NewtonAlartCurnier,
+            Self::Prox,
+        ]
+        .into_iter()
+        .find(|k| k.name() == name)
     }
 }
 
@@ -275,7 +285,7 @@ pub struct Fc3dSolution {
     pub iterations: usize,
     /// The error of `r` (module documentation).
     pub error: f64,
-    /// The solver that answered: `nsgs`, `nsn_ac` or `prox`.
+    /// The solver that answered: `nsgs`, `nsgs_aa`, `nsn_ac` or `prox`.
     pub solver: &'static str,
 }
 

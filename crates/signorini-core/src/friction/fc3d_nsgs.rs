@@ -42,27 +42,11 @@ pub fn solve_fc3d_nsgs(
     start: &[f64],
 ) -> Result<Fc3dSolution, Fc3dError> {
     problem.validate()?;
-    let m = problem.contacts();
-    let diagonal: Vec<[f64; 9]> = (0..m)
-        .map(|a| {
-            let b = problem.w.diagonal_block(a);
-            [b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8]]
-        })
-        .collect();
+    let diagonal = diagonal_blocks(problem);
     let mut r = start.to_vec();
     let mut best = (f64::INFINITY, r.clone());
     for sweep in 1..=options.max_iterations {
-        for (a, w) in diagonal.iter().enumerate() {
-            let k = 3 * a;
-            let mut b = [problem.q[k], problem.q[k + 1], problem.q[k + 2]];
-            problem.w.add_row_product(a, &r, &mut b);
-            let ra = [r[k], r[k + 1], r[k + 2]];
-            for (i, bi) in b.iter_mut().enumerate() {
-                *bi -= w[3 * i] * ra[0] + w[3 * i + 1] * ra[1] + w[3 * i + 2] * ra[2];
-            }
-            let local = solve_local(problem.mu[a], w, b, ra);
-            r[k..k + 3].copy_from_slice(&local);
-        }
+        self::sweep(problem, &diagonal, &mut r);
         let u = problem.local_velocity(&r);
         let error = natural_map_error(&problem.mu, &problem.q, &r, &u);
         if error <= options.tolerance {
@@ -88,6 +72,32 @@ pub fn solve_fc3d_nsgs(
         tolerance: options.tolerance,
         best: best.1,
     })
+}
+
+/// The diagonal 3×3 blocks W_aa of every contact, row-major.
+pub(crate) fn diagonal_blocks(problem: &Fc3dProblem) -> Vec<[f64; 9]> {
+    (0..problem.contacts())
+        .map(|a| {
+            let b = problem.w.diagonal_block(a);
+            [b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8]]
+        })
+        .collect()
+}
+
+/// One Gauss–Seidel sweep over the contacts in order (module documentation), in place; `diagonal`
+/// holds the blocks W_aa ([`diagonal_blocks`]).
+pub(crate) fn sweep(problem: &Fc3dProblem, diagonal: &[[f64; 9]], r: &mut [f64]) {
+    for (a, w) in diagonal.iter().enumerate() {
+        let k = 3 * a;
+        let mut b = [problem.q[k], problem.q[k + 1], problem.q[k + 2]];
+        problem.w.add_row_product(a, r, &mut b);
+        let ra = [r[k], r[k + 1], r[k + 2]];
+        for (i, bi) in b.iter_mut().enumerate() {
+            *bi -= w[3 * i] * ra[0] + w[3 * i + 1] * ra[1] + w[3 * i + 2] * ra[2];
+        }
+        let local = solve_local(problem.mu[a], w, b, ra);
+        r[k..k + 3].copy_from_slice(&local);
+    }
 }
 
 fn velocity(w: &[f64; 9], r: [f64; 3], b: [f64; 3]) -> [f64; 3] {

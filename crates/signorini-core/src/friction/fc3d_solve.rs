@@ -1,6 +1,7 @@
 //! The FC3D solver chosen by [`Fc3dOptions::kind`], and `auto`'s chain of solvers.
 
 use super::fc3d::{Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind};
+use super::fc3d_anderson::solve_fc3d_nsgs_anderson;
 use super::fc3d_newton::solve_fc3d_newton;
 use super::fc3d_nsgs::solve_fc3d_nsgs;
 use super::fc3d_prox::solve_fc3d_prox;
@@ -49,6 +50,7 @@ pub fn solve_fc3d_from(
     let start = start.to_vec();
     match options.kind {
         Fc3dSolverKind::Nsgs => solve_fc3d_nsgs(problem, options, &start),
+        Fc3dSolverKind::NsgsAnderson => solve_fc3d_nsgs_anderson(problem, options, &start),
         Fc3dSolverKind::NewtonAlartCurnier => solve_fc3d_newton(problem, options, &start),
         Fc3dSolverKind::Prox => solve_fc3d_prox(problem, options, &start),
         Fc3dSolverKind::Auto => solve_auto(problem, options, start),

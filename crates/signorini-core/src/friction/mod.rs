@@ -41,6 +41,7 @@
 
 pub mod block_csr;
 pub mod fc3d;
+mod fc3d_anderson;
 mod fc3d_newton;
 mod fc3d_nsgs;
 mod fc3d_prox;
@@ -53,6 +54,7 @@ pub use block_csr::{BlockCsr, BlockCsrError};
 pub use fc3d::{
     Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind, natural_map_error,
 };
+pub use fc3d_anderson::solve_fc3d_nsgs_anderson;
 pub use fc3d_newton::solve_fc3d_newton;
 pub use fc3d_nsgs::solve_fc3d_nsgs;
 pub use fc3d_prox::solve_fc3d_prox;

@@ -117,6 +117,10 @@ pub enum StepPhase {
 pub trait StepPhases {
     /// Phase `phase` starts now.
     fn enter(&mut self, phase: StepPhase);
+
+    /// The one-step friction problem about to be solved and the start its solver is given (the
+    /// warm start, or zeros): a benchmark may keep it as a problem file. Nothing by default.
+    fn problem(&mut self, _problem: &Fc3dProblem, _start: &[f64]) {}
 }
 
 /// No one listening.
@@ -535,7 +539,10 @@ impl RigidMoreauJean {
                     impulse.fill(0.0);
                 }
                 let solution = problem
-                    .and_then(|problem| solve_fc3d_from(&problem, &self.params.fc3d, &impulse))
+                    .and_then(|problem| {
+                        phases.problem(&problem, &impulse);
+                        solve_fc3d_from(&problem, &self.params.fc3d, &impulse)
+                    })
                     .map_err(|source| RigidStepError::Friction {
                         step,
                         t,
@@ -1081,6 +1088,7 @@ fn inverse_masses(scene: &RigidScene, j_inv: &[Matrix3<f64>]) -> Vec<InverseMass
 
 /// Σ_c G_cᵀ P_c per body and, with joints, plus Jᵀ Λ with Λ = −A⁺ J (free + M⁻¹ Gᵀ P)
 /// ([`Condensed::multipliers`], written into `lambda`).
+#[allow(clippy::type_complexity)]
 fn total_impulses(
     (adjacency, active, impulse): (&[Vec<(usize, usize)>], &[ActiveContact], &[f64]),
     condensed: Option<&Condensed>,
@@ -1174,9 +1182,9 @@ mod tests {
         scratch.keep_impulses();
         let kept = scratch.previous_impulses();
         assert_eq!(kept.len(), 3);
-        for k in 0..3 {
-            assert!((kept[0].impulse[k] - p[k]).abs() < 1e-15);
-            assert!((kept[1].impulse[k] + p[k]).abs() < 1e-15);
+        for (k, pk) in p.iter().enumerate() {
+            assert!((kept[0].impulse[k] - pk).abs() < 1e-15);
+            assert!((kept[1].impulse[k] + pk).abs() < 1e-15);
         }
         assert_eq!(kept[1].bodies, [2, 1]);
         assert_eq!(kept[2].impulse, [0.0; 3]);

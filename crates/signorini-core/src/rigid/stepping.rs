@@ -1,7 +1,7 @@
 //! Rigid bodies under [`crate::stepping::run`]: the rigid-body columns, one step of
-//! [`RigidMoreauJean`], the record, and the memory a checkpoint holds (the bodies' states and the
-//! running statistics; the contact points and the solver's buffers are scratch, detected again
-//! from the restored poses).
+//! [`RigidMoreauJean`], the record, and the memory a checkpoint holds (the bodies' states, the
+//! running statistics, the last impulses and the `contacts` table's rows so far; the contact
+//! points and the solver's buffers are scratch, detected again from the restored poses).
 
 use super::body::BodyState;
 use super::detector::ContactDetector;
@@ -106,7 +106,9 @@ pub struct RigidRunStats {
 }
 
 /// What the next step reads: the step number, the bodies' states, the last step's impulses per
-/// contact (the next friction problem's warm start) and the statistics.
+/// contact (the next friction problem's warm start) and the statistics; and what the run has
+/// output so far beyond its records: the rows of the `contacts` table, so that a resumed run
+/// writes the whole table.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RigidMemory {
     /// Steps done.
@@ -118,6 +120,9 @@ pub struct RigidMemory {
     pub impulses: Vec<ContactImpulse>,
     /// Running statistics.
     pub stats: RigidRunStats,
+    /// The rows of the `contacts` table of the records so far ([`CONTACT_COLUMNS`]), when the
+    /// run keeps it ([`RigidStepping::with_contact_table`]).
+    pub contact_rows: Option<Vec<Vec<f64>>>,
 }
 
 /// Why a rigid run stopped with an error.
@@ -142,8 +147,6 @@ pub struct RigidStepping<'a> {
     /// The last step's report and energy error (the record of that step).
     last: StepReport,
     last_energy_error: f64,
-    /// The rows of the `contacts` table, when asked for ([`RigidStepping::with_contact_table`]).
-    contact_rows: Option<Vec<Vec<f64>>>,
 }
 
 impl<'a> RigidStepping<'a> {
@@ -169,25 +172,25 @@ impl<'a> RigidStepping<'a> {
                     energy_final: kinetic + potential,
                     ..RigidRunStats::default()
                 },
+                contact_rows: None,
             },
             scratch: RigidScratch::default(),
             last: StepReport::default(),
             last_energy_error: 0.0,
-            contact_rows: None,
         }
     }
 
     /// Also keeps, at every recorded step, the rows of the `contacts` table
     /// ([`CONTACT_COLUMNS`]) of that step's index set.
     pub fn with_contact_table(mut self) -> Self {
-        self.contact_rows = Some(Vec::new());
+        self.memory.contact_rows = Some(Vec::new());
         self
     }
 
-    /// The rows of the `contacts` table so far, when asked for: those of the records of this
-    /// run (a run resumed from a checkpoint has the rows of the records after the checkpoint).
+    /// The rows of the `contacts` table so far, when asked for: those of every record of the
+    /// run, a resumed run's included (the checkpoint keeps the rows before it).
     pub fn contact_rows(&self) -> Option<&[Vec<f64>]> {
-        self.contact_rows.as_deref()
+        self.memory.contact_rows.as_deref()
     }
 
     /// The bodies' current states.
@@ -303,7 +306,7 @@ impl TimeStepping for RigidStepping<'_> {
             (self.last, self.last_energy_error)
         };
         let StepTime { step, t } = self.now();
-        if let (Some(rows), true) = (&mut self.contact_rows, step > 0) {
+        if let (Some(rows), true) = (&mut self.memory.contact_rows, step > 0) {
             for (point, p) in self.scratch.active_impulses() {
                 let [n, t1, t2] = [point.normal, point.tangents[0], point.tangents[1]];
                 let world = |i: usize| p[0] * n[i] + p[1] * t1[i] + p[2] * t2[i];
@@ -367,7 +370,14 @@ impl TimeStepping for RigidStepping<'_> {
             .into());
         }
         self.scratch = RigidScratch::resumed(memory.impulses.clone());
+        // The job decides whether the table is kept; the checkpoint holds its rows so far.
+        let wanted = self.memory.contact_rows.is_some();
         self.memory = memory;
+        if !wanted {
+            self.memory.contact_rows = None;
+        } else if self.memory.contact_rows.is_none() {
+            self.memory.contact_rows = Some(Vec::new());
+        }
         Ok(())
     }
 }
