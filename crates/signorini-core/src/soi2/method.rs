@@ -100,16 +100,19 @@ pub enum StartValue {
 /// the units of an acceleration times a mass or of an acceleration):
 /// * **increment test**: `‖Δx‖∞ ≤ tolerance · (1 + ‖x‖∞)`, or the increments stopped
 ///   shrinking (`‖Δx_k‖ ≥ ½‖Δx_{k−1}‖`) below `max(100 · tolerance · (1 + ‖x‖∞), noise floor)`
-///   where the noise floor is the round-off of the scaled position rows (ε|y|/(βh²));
+///   where the noise floor is 25 u (u the rounding of the positions below);
 /// * **residual test**, when the matrix is numerically singular (rank-deficient g_y: singular
 ///   positions, redundant joints; see [`super::factor`]) or the increments stopped shrinking
-///   (`‖Δx_k‖ ≥ ½‖Δx_{k−1}‖`, Newton no longer contracts): `‖F(x)‖∞ ≤ tolerance · ‖J‖∞ ·
-///   (1 + ‖x‖∞)` (J the Newton matrix of the iterate), a normwise backward-error test: x solves
-///   exactly a system whose matrix and right side differ from the step's by `tolerance`
-///   relative. On a singular matrix the increment along the lost directions cannot shrink
-///   below the conditioning's round-off, but the equations hold: such a step is accepted and
-///   counted (`rank_deficient_steps` when g_y has lost rank, `near_singular_steps` when it
-///   kept its numerical rank). The test is not gated by the size of the increment: near a
+///   (`‖Δx_k‖ ≥ ½‖Δx_{k−1}‖`, Newton no longer contracts): `‖F(x)‖∞ ≤ ‖J‖∞ · (tolerance ·
+///   (1 + ‖x‖∞) + u)` (J the Newton matrix of the iterate), a normwise backward-error test: x
+///   solves exactly a system whose matrix and right side differ from the step's by `tolerance`
+///   relative, or whose positions differ by their own rounding. u is that rounding seen as a
+///   change of the unknowns, 4ε(1 + ‖y₀‖∞)/(βh²) for a step (the position rows cannot be
+///   evaluated closer: coordinates that wind up, a crank's angle at 17 rad, put it above
+///   `tolerance`; see [`Residual::rounding`]). On a singular matrix the increment along the
+///   lost directions cannot shrink below the conditioning's round-off, but the equations hold:
+///   such a step is accepted and counted (`rank_deficient_steps` when g_y has lost rank,
+///   `near_singular_steps` when it kept its numerical rank). The test is not gated by the size of the increment: near a
 ///   singular position the multipliers of the vanishing rows grow like 1/σ_min(g_y) and the
 ///   round-off of their increments like cond(J)·ε·‖x‖∞ (A02 at its first horizontal passage,
 ///   h = 10⁻³, ρ∞ = 0.2: ‖λ‖∞ from 40 to 1 100 over the last three steps, increments stalled
@@ -296,6 +299,12 @@ pub trait Residual {
     fn noise_floor(&self) -> f64 {
         0.0
     }
+    /// The rounding of the data the residual is evaluated from, as a change of the unknowns
+    /// (0 when negligible): the residual test's bound ‖J‖∞ · (tolerance · (1 + ‖x‖∞) + this)
+    /// accepts the residual such a change produces (see [`NewtonOptions`]).
+    fn rounding(&self) -> f64 {
+        0.0
+    }
     /// Whether the constraint Jacobian (g_y; k_z) has lost rank at the iterate `x` (then a
     /// singular Newton matrix is solved in the least-squares sense).
     fn joints_deficient(&self, x: &[f64]) -> bool {
@@ -381,6 +390,18 @@ fn row_sum_norm(jac: &DMatrix<f64>) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The residual test of [`NewtonOptions`]: ‖F(x)‖∞ ≤ ‖J‖∞ · (tolerance · scale + rounding),
+/// `norm` = ‖J‖∞ and `scale` = 1 + ‖x‖∞.
+fn residual_holds<R: Residual>(
+    res: &R,
+    r: &DVector<f64>,
+    norm: f64,
+    tolerance: f64,
+    scale: f64,
+) -> bool {
+    r.amax() <= norm * (tolerance * scale + res.rounding())
+}
+
 /// Full Newton; also returns the factorisation of the last Jacobian (for reuse). Convergence:
 /// the increment and residual tests of [`NewtonOptions`].
 fn solve_newton_full<R: Residual>(
@@ -440,7 +461,7 @@ fn solve_newton_full<R: Residual>(
             // must also pass the residual test.
             let holds = factor
                 .singular_norm()
-                .is_none_or(|norm| r.amax() <= opts.tolerance * norm * scale);
+                .is_none_or(|norm| residual_holds(res, &r, norm, opts.tolerance, scale));
             if holds {
                 let info = StepInfo {
                     iterations: it,
@@ -455,7 +476,7 @@ fn solve_newton_full<R: Residual>(
         if slow || factor.deficient() {
             // The residual test: the equations hold although the increment cannot shrink.
             res.eval(x, r.as_mut_slice());
-            if r.amax() <= opts.tolerance * row_sum_norm(&jac) * scale {
+            if residual_holds(res, &r, row_sum_norm(&jac), opts.tolerance, scale) {
                 let info = StepInfo {
                     iterations: it,
                     residual: r.amax(),
@@ -569,12 +590,12 @@ fn solve_newton_simplified<R: Residual>(
         if converged && let Some(norm) = factor.singular_norm() {
             // A least-squares increment also vanishes where no solution is.
             res.eval(x, r.as_mut_slice());
-            converged = r.amax() <= opts.tolerance * norm * scale;
+            converged = residual_holds(res, &r, norm, opts.tolerance, scale);
         }
         if !converged && built_here && (slow || factor.deficient()) {
             // The residual test (the Jacobian of this step is in `jac`).
             res.eval(x, r.as_mut_slice());
-            converged = r.amax() <= opts.tolerance * row_sum_norm(&jac) * scale;
+            converged = residual_holds(res, &r, row_sum_norm(&jac), opts.tolerance, scale);
             singular |= converged;
         }
         if converged {
@@ -917,8 +938,20 @@ impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
     /// Position-level rows g(t₁, y₁)/(βh²) carry round-off ε|y|/(βh²), which becomes
     /// acceleration noise of that size.
     fn noise_floor(&self) -> f64 {
+        25.0 * self.rounding()
+    }
+
+    /// y₁ = y₀ + h z₀ + ½h²(1 − 2β) a_α + βh² a (13a)/(17a) is a sum of four rounded terms and
+    /// g(t₁, y₁) a sum of rounded functions of it: together a few units ε(1 + ‖y‖∞) of the
+    /// positions, which the position rows g/(βh²) see as the change 4ε(1 + ‖y₀‖∞)/(βh²) of the
+    /// acceleration they are solved for. Coordinates that grow without bound (the angles of a
+    /// rotating crank) make it dominate: A02 at t = 6.6 s has |φ| ≈ 17 rad, the position rows
+    /// cannot be evaluated closer than ulp(17)/(βh²) = 1.3·10⁻⁸ at h = 10⁻³, β = 0.276, and
+    /// the residual of the HHT schemes stalled there, 100× above tolerance · ‖J‖∞(1 + ‖x‖∞);
+    /// with the angles reduced modulo 2π the same steps converged.
+    fn rounding(&self) -> f64 {
         let beta = self.method.coefficients.beta;
-        100.0 * f64::EPSILON * (1.0 + max_norm(self.y0)) / (beta * self.h * self.h)
+        4.0 * f64::EPSILON * (1.0 + max_norm(self.y0)) / (beta * self.h * self.h)
     }
 
     fn eval<T: Scalar>(&self, x: &[T], r: &mut [T]) {
