@@ -70,7 +70,6 @@ fn study() -> Value {
                      "grid": {"time.h": [1e-2, 5e-3]}}})
 }
 
-
 /// (section, the spec with one bad field, the field the error must name, a piece of the reason)
 fn cases() -> Vec<(&'static str, Value, &'static str, &'static str)> {
     vec![
@@ -256,7 +255,10 @@ async fn one_bad_field_per_section_is_named_by_its_path_over_cli_http_and_grpc()
         let reason_said = said.http_body["error"]["reason"]
             .as_str()
             .unwrap_or_default();
-        if said.http_code != 400 || said.http_body["error"]["field"] != field || !reason_said.contains(reason) {
+        if said.http_code != 400
+            || said.http_body["error"]["field"] != field
+            || !reason_said.contains(reason)
+        {
             wrong.push(format!(
                 "{section}, HTTP: {field}: {} {}",
                 said.http_code, said.http_body

@@ -175,7 +175,8 @@ fn the_checkpoint_corpus_is_answered() {
         let bytes = checkpoint_input::edited(job, payload, edits);
         match job.read_checkpoint(&bytes) {
             Ok(checkpoint) => {
-                if job::resume(job, 1, &mut checkpoint_input::Keep::default(), &checkpoint).is_ok() {
+                if job::resume(job, 1, &mut checkpoint_input::Keep::default(), &checkpoint).is_ok()
+                {
                     resumed += 1;
                 }
             }

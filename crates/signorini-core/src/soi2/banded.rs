@@ -136,10 +136,17 @@ impl BandLu {
         let mut seen = vec![false; n];
         for &o in &self.order {
             if o >= n || std::mem::replace(&mut seen[o], true) {
-                return Some(format!("a band order of {n} unknowns numbering {o} twice or out of range"));
+                return Some(format!(
+                    "a band order of {n} unknowns numbering {o} twice or out of range"
+                ));
             }
         }
-        if let Some((k, p)) = self.pivots.iter().enumerate().find(|&(k, &p)| p < k || p >= n) {
+        if let Some((k, p)) = self
+            .pivots
+            .iter()
+            .enumerate()
+            .find(|&(k, &p)| p < k || p >= n)
+        {
             return Some(format!("a band LU pivoting row {k} with row {p} of {n}"));
         }
         let rows = (self.kl < n.max(1) && self.ku < n.max(1))
