@@ -27,6 +27,9 @@ struct PermutationParts {
     ipiv: DVector<(usize, usize)>,
 }
 
+/// The cache's LU factorisations: (factorisation, step size, system size).
+type LuList = Vec<(LU<f64, Dyn, Dyn>, f64, usize)>;
+
 /// Why a stored LU of a system of `n` unknowns is unusable, or `None`.
 fn lu_fault(parts: &LuParts, n: usize) -> Option<String> {
     let (rows, columns) = parts.lu.shape();
@@ -51,9 +54,7 @@ fn lu_fault(parts: &LuParts, n: usize) -> Option<String> {
 
 /// Deserializes the cache's LU factorisations `(LU, h, n)`, refusing one whose size is not
 /// its `n` or whose row interchanges leave its rows.
-pub(super) fn lu_list<'de, D: Deserializer<'de>>(
-    d: D,
-) -> Result<Vec<(LU<f64, Dyn, Dyn>, f64, usize)>, D::Error> {
+pub(super) fn lu_list<'de, D: Deserializer<'de>>(d: D) -> Result<LuList, D::Error> {
     let stored = Vec::<(LuParts, f64, usize)>::deserialize(d)?;
     stored
         .into_iter()
