@@ -8,6 +8,7 @@
 #![cfg(feature = "hdf5")]
 
 use serde_json::Value;
+use signorini::problem_file::fclib_layout::Datasets;
 use signorini::problem_file::{self, RawProblem, dat, fclib};
 use signorini_core::friction::{BlockCsr, Fc3dOptions, solve_fc3d};
 use std::path::{Path, PathBuf};
@@ -173,7 +174,7 @@ fn global_layout_round_trips_through_its_local_reduction() {
     let mass = [2.0, 4.0];
     let h = [(0, 0, 1.0), (1, 0, 0.5), (0, 1, -1.0), (1, 2, 2.0)];
     let (fv, w, mu) = ([1.0, -8.0], [0.1, 0.2, 0.3], [0.6]);
-    fclib::write_global(&path, 3, &mass, &h, &fv, &w, &mu).unwrap();
+    fclib::write_datasets(&path, &Datasets::global(3, &mass, &h, &fv, &w, &mu)).unwrap();
     let raw = problem_file::read(&path).unwrap();
     // Columns of H: c0 = (1, 0.5), c1 = (−1, 0), c2 = (0, 2); W_ab = Σ_k H_ka H_kb / M_k.
     let expected = [0.5 + 0.0625, -0.5, 0.25, -0.5, 0.5, 0.0, 0.25, 0.0, 1.0];

@@ -1,10 +1,12 @@
 //! Readers and writers of one-step friction problem files (docs/friction_benchmark.md): Siconos' text `.dat`
-//! files ([`dat`]) and FCLib's HDF5 files ([`fclib`]). The core takes the parsed problem
+//! files ([`dat`]) and FCLib's HDF5 files ([`fclib`], the layout of their datasets in
+//! [`fclib_layout`]). The core takes the parsed problem
 //! ([`RawProblem::to_fc3d`]); it never sees a file.
 
 pub mod dat;
 #[cfg(feature = "hdf5")]
 pub mod fclib;
+pub mod fclib_layout;
 
 use signorini_core::friction::{BlockCsr, BlockCsrError, Fc3dError, Fc3dProblem};
 use std::path::{Path, PathBuf};
