@@ -26,7 +26,7 @@ wall_budget=${FUZZ_WALL_SECONDS:-$((4 * cpu_budget))}
 ticks=$(getconf CLK_TCK)
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then
-    targets=(spec_json spec_toml expr checkpoint dat http_spec)
+    targets=(spec_json spec_toml expr checkpoint dat fclib http_spec)
 fi
 
 if [ -z "${FUZZ_NO_BUILD:-}" ]; then # FUZZ_NO_BUILD=1: the targets are built already

@@ -8,6 +8,8 @@
 mod checkpoint_input;
 #[path = "../fuzz/inputs/dat.rs"]
 mod dat_round_trip;
+#[path = "../fuzz/inputs/fclib.rs"]
+mod fclib_input;
 
 use signorini::problem_file::{self, dat};
 use signorini::spec_file::{self, Format};
@@ -187,4 +189,86 @@ fn the_checkpoint_corpus_is_answered() {
         resumed >= checkpoint_input::JOBS.len(),
         "only {resumed} checkpoints of the corpus resumed"
     );
+}
+
+/// `fclib.rs`: the datasets every input decodes to are read into a problem or refused with a
+/// reason, and a problem read stores again (W as CSR) to the same bits. With HDF5 built in, each
+/// input is also written to a real FCLib file, which reads back to the same datasets and the
+/// same answer. The seeds (FCLib files of `tests/fixtures`, and Siconos' `.dat` problems stored
+/// as FCLib stores them) are read.
+#[test]
+fn the_fclib_corpus_is_answered() {
+    let mut read = 0;
+    #[cfg(feature = "hdf5")]
+    let (dir, mut through_hdf5) = (tempfile::tempdir().expect("a temporary directory"), 0);
+    for (name, data) in corpus("fclib") {
+        let datasets = fclib_input::decode(&data);
+        if let Err(e) = fclib_input::check(&datasets) {
+            panic!("fclib/{name}: {e}");
+        }
+        let answer = datasets.assemble().map_err(|e| e.to_string());
+        read += usize::from(answer.is_ok());
+        #[cfg(feature = "hdf5")]
+        {
+            use signorini::problem_file::fclib;
+            let path = dir.path().join(&name);
+            // Integers beyond FCLib's 32-bit int cannot be stored (refused, naming them).
+            if fclib::write_datasets(&path, &datasets).is_ok() {
+                through_hdf5 += 1;
+                let back = fclib::read_datasets(&path).expect("a file just written");
+                assert_eq!(format!("{back:?}"), format!("{datasets:?}"), "fclib/{name}");
+                let again = fclib::read(&path).map_err(|e| e.to_string());
+                assert_eq!(format!("{again:?}"), format!("{answer:?}"), "fclib/{name}");
+            }
+        }
+    }
+    assert!(read >= 5, "only {read} problems of the corpus read");
+    #[cfg(feature = "hdf5")]
+    assert!(
+        through_hdf5 >= 5,
+        "only {through_hdf5} inputs went through HDF5"
+    );
+}
+
+/// The `fclib` corpus' seeds are the fixtures encoded (`fuzz/inputs/fclib.rs`): FCLib's two
+/// files, two `.dat` problems stored as FCLib stores them (3D and 2D), and a small global problem.
+/// `SIGNORINI_WRITE_FUZZ_SEEDS=1` writes them instead of comparing.
+#[cfg(feature = "hdf5")]
+#[test]
+fn the_fclib_seeds_are_the_fixtures_encoded() {
+    use signorini::problem_file::{fclib, fclib_layout::Datasets};
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let fixture = |name: &str| root.join("tests/fixtures/friction").join(name);
+    let mut seeds = Vec::new();
+    for name in [
+        "Box_Stacks-i0122-82-5.hdf5",
+        "LMGC_100_PR_PerioBox-i00361-60-03000.hdf5",
+    ] {
+        let datasets = fclib::read_datasets(&fixture(name)).expect("a fixture");
+        seeds.push((name.to_string(), datasets));
+    }
+    for name in ["Rover1039.dat", "FrictionContactProblem00031.dat"] {
+        let problem = problem_file::read(&fixture(name)).expect("a fixture");
+        seeds.push((name.to_string(), Datasets::local(&problem)));
+    }
+    let h = [(0, 0, 1.0), (1, 0, 0.5), (0, 1, -1.0), (1, 2, 2.0)];
+    let global = Datasets::global(3, &[2.0, 4.0], &h, &[1.0, -8.0], &[0.1, 0.2, 0.3], &[0.6]);
+    seeds.push(("global-2-dofs".to_string(), global));
+    let write = std::env::var_os("SIGNORINI_WRITE_FUZZ_SEEDS").is_some();
+    for (name, datasets) in seeds {
+        let bytes = fclib_input::encode(&datasets).expect("arrays of at most 65 535 entries");
+        assert_eq!(
+            format!("{:?}", fclib_input::decode(&bytes)),
+            format!("{datasets:?}"),
+            "{name}: encoded and decoded"
+        );
+        let path = root.join("fuzz/corpus/fclib").join(format!("seed-{name}"));
+        if write {
+            std::fs::create_dir_all(path.parent().expect("the corpus")).expect("the corpus");
+            std::fs::write(&path, &bytes).expect("writing a seed");
+        } else {
+            let kept = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            assert!(kept == bytes, "{}: not the fixture encoded", path.display());
+        }
+    }
 }
