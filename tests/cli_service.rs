@@ -410,7 +410,8 @@ async fn pause_resume_extend_and_children_from_the_command_line() {
     );
 }
 
-/// Issue 30: `capabilities --local` answers offline, the same as a server of this version;
+/// Issue 30: `capabilities --local` answers offline, the same as a server of this version
+/// over gRPC and over HTTP (issue 26: one shape of the scheme × feature table);
 /// `watch` takes the zenoh endpoint as `--zenoh-connect`, the name `serve` uses (`--zenoh`
 /// stays as a hidden alias).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -444,6 +445,22 @@ async fn capabilities_offline_and_one_flag_name_for_zenoh_endpoints() {
     assert_eq!(
         String::from_utf8_lossy(&online.stdout),
         String::from_utf8_lossy(&offline.stdout)
+    );
+    // HTTP answers the same document, the scheme × feature table in the same shape (it was
+    // `family` and `[feature, {support}]` pairs over HTTP, `model` and objects over gRPC).
+    let (code, over_http) = server.http("GET", "/v1/capabilities", None, None).await;
+    assert_eq!(code, 200);
+    assert_eq!(over_http, caps);
+    assert_eq!(
+        caps["support"][0]["features"][0]
+            .as_object()
+            .map(|cell| cell.keys().cloned().collect::<Vec<_>>()),
+        Some(vec![
+            "feature".into(),
+            "support".into(),
+            "field".into(),
+            "reason".into()
+        ])
     );
 
     let mut client = server.grpc().await;

@@ -781,7 +781,6 @@ pub fn capabilities_to_proto(
 fn scheme_support_to_proto(
     row: &signorini_core::spec::support::SchemeSupport,
 ) -> pb::SchemeSupport {
-    use signorini_core::spec::support::Support;
     pb::SchemeSupport {
         scheme: row.scheme.to_string(),
         model: row.family.name().to_string(),
@@ -789,11 +788,7 @@ fn scheme_support_to_proto(
             .features
             .iter()
             .map(|(feature, support)| {
-                let (kind, field, reason) = match support {
-                    Support::Takes => ("takes", "", ""),
-                    Support::Refused { field, reason } => ("refused", *field, *reason),
-                    Support::NotInModel => ("not_in_model", "", ""),
-                };
+                let (kind, field, reason) = support.parts();
                 pb::FeatureSupport {
                     feature: feature.name().to_string(),
                     support: kind.to_string(),

@@ -84,8 +84,7 @@ pub const FEATURES: [Feature; 7] = [
 ];
 
 /// Whether a scheme takes a feature of a model family.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(tag = "support", rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Support {
     /// The scheme takes it.
     Takes,
@@ -100,9 +99,24 @@ pub enum Support {
     NotInModel,
 }
 
+impl Support {
+    /// As `capabilities` lists it: `(support, field, reason)`, where `support` is `takes`,
+    /// `refused` or `not_in_model` and only a refusal has a field and a reason (empty
+    /// otherwise).
+    pub fn parts(self) -> (&'static str, &'static str, &'static str) {
+        match self {
+            Support::Takes => ("takes", "", ""),
+            Support::Refused { field, reason } => ("refused", field, reason),
+            Support::NotInModel => ("not_in_model", "", ""),
+        }
+    }
+}
+
 /// One row of the table: what `scheme` takes of a `family` model, one [`Support`] per
-/// [`FEATURES`] entry.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+/// [`FEATURES`] entry. Serialized as `capabilities` answers it over gRPC and HTTP alike:
+/// `{"scheme", "model", "features": [{"feature", "support", "field", "reason"}]}`
+/// ([`Support::parts`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SchemeSupport {
     /// The scheme, as written in specs.
     pub scheme: &'static str,
@@ -110,6 +124,42 @@ pub struct SchemeSupport {
     pub family: ModelFamily,
     /// Per feature of [`FEATURES`], in that order.
     pub features: [(Feature, Support); 7],
+}
+
+impl Serialize for SchemeSupport {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        #[derive(Serialize)]
+        struct Cell {
+            feature: &'static str,
+            support: &'static str,
+            field: &'static str,
+            reason: &'static str,
+        }
+        #[derive(Serialize)]
+        struct Row {
+            scheme: &'static str,
+            model: &'static str,
+            features: Vec<Cell>,
+        }
+        Row {
+            scheme: self.scheme,
+            model: self.family.name(),
+            features: self
+                .features
+                .iter()
+                .map(|&(feature, support)| {
+                    let (support, field, reason) = support.parts();
+                    Cell {
+                        feature: feature.name(),
+                        support,
+                        field,
+                        reason,
+                    }
+                })
+                .collect(),
+        }
+        .serialize(serializer)
+    }
 }
 
 use Feature as F;
