@@ -300,6 +300,35 @@ fn mat(rows: usize, cols: usize, data: &[f64]) -> DMatrix<f64> {
     DMatrix::from_row_slice(rows, cols, data)
 }
 
+/// The Delassus operator `C M⁻¹ Cᵀ` of the constraint rows `C` (stacked as a matrix) at
+/// q_{k+1}, and `M⁻¹ Cᵀ`, which maps the stage's impulses to its velocity jump.
+fn delassus(
+    rows: &DMatrix<f64>,
+    mass: &[f64],
+    at: StepAt,
+) -> Result<(DMatrix<f64>, DMatrix<f64>), NonlinearStepError> {
+    let n = rows.ncols();
+    let m_lu = lu_factor(mat(n, n, mass)).ok_or_else(|| at.singular(0))?;
+    let y = m_lu
+        .solve(&rows.transpose())
+        .ok_or_else(|| at.singular(0))?;
+    Ok((rows * &y, y))
+}
+
+/// The velocity jump of the impulses `z`: `v += M⁻¹ Cᵀ z` (`y` = `M⁻¹ Cᵀ` from [`delassus`]).
+fn apply_impulse(
+    y: &DMatrix<f64>,
+    z: &[f64],
+    v: &mut [f64],
+    at: StepAt,
+) -> Result<(), NonlinearStepError> {
+    let dv = y * DVector::from_column_slice(z);
+    for (vi, d) in v.iter_mut().zip(dv.iter()) {
+        *vi += d;
+    }
+    at.check(v, "the velocities")
+}
+
 impl NonsmoothGeneralizedAlpha {
     /// Prepares the scheme for `system` with step `h`. Errors name the parameter.
     pub fn new<S: JointedSystem + ?Sized>(
@@ -875,11 +904,7 @@ impl NonsmoothGeneralizedAlpha {
         } = stage;
         let k = nb + active.len();
         let rows = mat(k, n, &constraint_rows(&r.gj, &r.hj, active, n));
-        let m_lu = lu_factor(mat(n, n, &r.mass)).ok_or_else(|| at.singular(0))?;
-        let y = m_lu
-            .solve(&rows.transpose())
-            .ok_or_else(|| at.singular(0))?;
-        let d = &rows * &y;
+        let (d, y) = delassus(&rows, &r.mass, at)?;
         let mut b = vec![0.0; k];
         system.joint_rates(t1, impact.q, vt, &mut b[..nb]);
         for (c, &a) in active.iter().enumerate() {
@@ -887,11 +912,7 @@ impl NonsmoothGeneralizedAlpha {
         }
         let sol = solve_mixed_at(&d, &b, nb, &self.lcp, at, 0)?;
         let z = &sol.z;
-        let dv = &y * DVector::from_column_slice(z);
-        for (vi, d) in v.iter_mut().zip(dv.iter()) {
-            *vi += d;
-        }
-        at.check(v, "the velocities")?;
+        apply_impulse(&y, z, v, at)?;
         report.joint_impulse.copy_from_slice(&z[..nb]);
         for (c, &a) in active.iter().enumerate() {
             let p = z[nb + c];
@@ -935,11 +956,7 @@ impl NonsmoothGeneralizedAlpha {
         let rows = DMatrix::from_fn(size, n, |i, j| {
             stacked_row(&r.gj, &r.hj, &r.tj, active, (n, nb), i)[j]
         });
-        let m_lu = lu_factor(mat(n, n, &r.mass)).ok_or_else(|| at.singular(0))?;
-        let y = m_lu
-            .solve(&rows.transpose())
-            .ok_or_else(|| at.singular(0))?;
-        let d = &rows * &y;
+        let (d, y) = delassus(&rows, &r.mass, at)?;
         let mut b = vec![0.0; size];
         system.joint_rates(t1, impact.q, vt, &mut b[..nb]);
         for (c, &a) in active.iter().enumerate() {
@@ -948,11 +965,7 @@ impl NonsmoothGeneralizedAlpha {
         }
         let mu: Vec<f64> = active.iter().map(|&a| self.mu[a]).collect();
         let sol = solve_joint_friction_at(&d, &b, nb, &mu, &self.lcp, at, 0)?;
-        let dv = &y * DVector::from_column_slice(&sol.z);
-        for (vi, d) in v.iter_mut().zip(dv.iter()) {
-            *vi += d;
-        }
-        at.check(v, "the velocities")?;
+        apply_impulse(&y, &sol.z, v, at)?;
         report.joint_impulse.copy_from_slice(&sol.z[..nb]);
         for (c, &a) in active.iter().enumerate() {
             let (p, pt) = (sol.z[nb + 2 * c], sol.z[nb + 2 * c + 1]);
