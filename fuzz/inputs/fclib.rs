@@ -89,7 +89,7 @@ impl Reader<'_> {
 /// The datasets the bytes encode (module documentation).
 pub fn decode(data: &[u8]) -> Datasets {
     let mut r = Reader { data };
-    if r.byte() % 2 == 0 {
+    if r.byte().is_multiple_of(2) {
         Datasets::Local {
             spacedim: r.int(),
             w: r.sparse(),
@@ -177,7 +177,9 @@ pub fn encode(datasets: &Datasets) -> Option<Vec<u8>> {
 }
 
 /// W's non-zero entries, q and μ, as bits.
-fn bits(p: &RawProblem) -> (Vec<(usize, usize, u64)>, Vec<u64>, Vec<u64>) {
+type Bits = (Vec<(usize, usize, u64)>, Vec<u64>, Vec<u64>);
+
+fn bits(p: &RawProblem) -> Bits {
     let w =
         p.w.entries()
             .filter(|&(_, _, x)| x != 0.0)
