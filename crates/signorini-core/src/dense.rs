@@ -1,9 +1,16 @@
 //! Small dense linear algebra shared by the schemes that assemble their matrices densely (the
 //! nonlinear Moreau–Jean and nonsmooth generalized-α schemes, the mixed LCP): row-major dot
-//! products, the kinetic energy ½ vᵀMv, and an LU factorisation that refuses a matrix singular
-//! to working precision.
+//! products, the kinetic energy ½ vᵀMv, an LU factorisation that refuses a matrix singular
+//! to working precision, and singular values that refuse a matrix holding a NaN.
 
-use nalgebra::{DMatrix, Dyn, LU};
+use nalgebra::{DMatrix, DVector, Dyn, LU};
+
+/// The singular values of `a`, or `None` when an entry is not finite: nalgebra sorts them
+/// and panics on a NaN ("Singular value was NaN"), which a user's constraint can produce at a
+/// point where its expression is undefined.
+pub fn singular_values(a: DMatrix<f64>) -> Option<DVector<f64>> {
+    a.iter().all(|x| x.is_finite()).then(|| a.singular_values())
+}
 
 /// Σ aᵢ bᵢ, summed in index order.
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {

@@ -431,9 +431,20 @@ fn check_joint_start(model: &UserModel, scheme: &str, redundant: bool) -> Result
     let mut g = vec![0.0; nb * n];
     model.joint_jacobian(0.0, &q0, &mut g);
     let gm = nalgebra::DMatrix::from_row_slice(nb, n, &g);
-    let sv = gm.singular_values();
+    let Some(sv) = crate::dense::singular_values(gm) else {
+        let k = g.iter().position(|x| !x.is_finite()).unwrap_or(0);
+        return Err(SpecError::new(
+            "model.constraints",
+            format!(
+                "g_q at q0 is not finite: entry ({}, {}) is {} (constraint {} is undefined there)",
+                k / n,
+                k % n,
+                g[k],
+                k / n
+            ),
+        ));
+    };
     let (smax, smin) = (sv.max(), sv.min());
-    // A NaN in g_q fails the comparison, hence the check, too.
     let independent = nb <= n && smin > 1e-10 * smax;
     if !(independent || redundant && smax.is_finite()) {
         return Err(SpecError::new(

@@ -188,3 +188,23 @@ fn the_rocking_block_never_gains_energy_from_its_contacts() {
     let energy = col(&rec, "energy");
     assert!(energy.iter().all(|&x| x <= energy[0] * (1.0 + 1e-9)));
 }
+
+/// A joint whose Jacobian is undefined at q0 (√u at u = 0: g_q holds an infinity) is refused naming
+/// `model.constraints` and the entry; it panicked inside nalgebra's SVD, which sorts its
+/// singular values (found by the `spec_json` fuzz target, fuzz/corpus/spec_json/crash-2731…).
+#[test]
+fn a_joint_undefined_at_q0_is_refused_naming_it() {
+    let spec: JobSpec = serde_json::from_str(
+        r#"{"name": "undefined joint", "model": {"scene": "lagrangian",
+            "coordinates": ["x1", "y1", "x2", "y2"],
+            "mass": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]],
+            "potential": "9.81*(y1 + y2)", "q0": [-1.0, 0.0, -2.0, 0.0], "v0": [0, 0, 0, 0],
+            "constraints": [{"expr": "(x1^2 + y1^2 - 1)/2"}, {"expr": "sqrt(x2 - x1 + 1)"}],
+            "contacts": [{"gap": "0.5 - x2", "restitution": 0.5}]},
+          "integrator": {"scheme": "moreau_jean"}, "time": {"h": 0.001, "t_end": 0.01}}"#,
+    )
+    .expect("the spec parses");
+    let e = Job::from_spec(&spec).expect_err("g_q is not finite at q0");
+    assert_eq!(e.field, "model.constraints", "{e}");
+    assert!(e.to_string().contains("not finite: entry (1, "), "{e}");
+}

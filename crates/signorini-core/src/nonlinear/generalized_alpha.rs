@@ -1139,7 +1139,7 @@ fn solve_saddle(
     // multiplier block goes like G M⁻¹ Gᵀ, so S is singular to working precision once
     // σ_min(G)² ≤ size · ε · σ_max(G)²: the joints count as rank-deficient from that ratio
     // (off the manifold, at q̃, Bricard's G has σ_min = 1e-10 σ_max, not 0).
-    let sv = DMatrix::from_row_slice(nb, n, joints).singular_values();
+    let sv = crate::dense::singular_values(DMatrix::from_row_slice(nb, n, joints))?;
     let lost = (s.nrows() as f64 * f64::EPSILON).sqrt() * sv.max();
     if nb == 0 || !(sv.min() <= lost || nb > n) {
         return None;
