@@ -110,6 +110,7 @@ use super::moreau_jean::{
     NonlinearStepReport, ParamError, StepAt, has_friction, solve_joint_friction_at, solve_mixed_at,
     stacked_row,
 };
+use super::run_memory::UserModelRun;
 use crate::checkpoint::RunKind;
 use crate::contact::LcpStats;
 use crate::dense::{amax, dot, kinetic, lu_factor};
@@ -1266,19 +1267,6 @@ pub fn run_ns_alpha<S: JointedSystem + ?Sized>(
     run_ns_alpha_from(system, scheme, state, steps, output, observer, None)
 }
 
-/// What [`run_ns_alpha`] carries from one step to the next, and all a checkpoint holds of it:
-/// the state, the running statistics, the previous impulses and the scheme's memory of the end
-/// of the last step ([`NsAlphaMemory`]: a_k, q̈_k, λ_k, the applied forces and the energy). The
-/// step's report is rebuilt by the next step.
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-pub(crate) struct NsAlphaRun {
-    pub(crate) state: NonlinearState,
-    stats: NsAlphaRunStats,
-    previous_impulse: Vec<f64>,
-    newton_total: u64,
-    memory: Option<NsAlphaMemory>,
-}
-
 /// [`run_ns_alpha`], or its continuation from a checkpoint's `resume`, through the
 /// time-stepping driver ([`stepping::run`]).
 pub(crate) fn run_ns_alpha_from<S: JointedSystem + ?Sized>(
@@ -1362,7 +1350,7 @@ impl<'a, S: JointedSystem + ?Sized> NsAlphaStepping<'a, S> {
 }
 
 impl<S: JointedSystem + ?Sized> TimeStepping for NsAlphaStepping<'_, S> {
-    type Memory = NsAlphaRun;
+    type Memory = UserModelRun<NsAlphaRunStats, Option<NsAlphaMemory>>;
     type Error = NonlinearRunStop;
     const RUN: RunKind = RunKind::NsAlpha;
 
@@ -1446,8 +1434,8 @@ impl<S: JointedSystem + ?Sized> TimeStepping for NsAlphaStepping<'_, S> {
         Ok(())
     }
 
-    fn memory(&self) -> NsAlphaRun {
-        NsAlphaRun {
+    fn memory(&self) -> Self::Memory {
+        UserModelRun {
             state: self.state.clone(),
             stats: self.stats.clone(),
             previous_impulse: self.previous_impulse.clone(),
@@ -1456,13 +1444,8 @@ impl<S: JointedSystem + ?Sized> TimeStepping for NsAlphaStepping<'_, S> {
         }
     }
 
-    fn restore(&mut self, run: NsAlphaRun) -> Result<(), NonlinearRunStop> {
-        super::moreau_jean::check_run_fits(
-            "an ns_generalized_alpha",
-            self.system,
-            &run.state,
-            &run.previous_impulse,
-        )?;
+    fn restore(&mut self, run: Self::Memory) -> Result<(), NonlinearRunStop> {
+        run.check_fits("an ns_generalized_alpha", self.system)?;
         self.scheme.restore(run.memory)?;
         *self.state = run.state;
         self.stats = run.stats;

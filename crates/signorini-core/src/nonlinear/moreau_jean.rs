@@ -140,6 +140,7 @@
 
 use super::LagrangianSystem;
 use super::joints::JointedSystem;
+use super::run_memory::UserModelRun;
 use crate::checkpoint::RunKind;
 use crate::contact::{Activation, IndexSetRule, LcpStats};
 use crate::dense::{amax, dot, kinetic, lu_factor};
@@ -1715,20 +1716,6 @@ pub fn run_nonlinear<S: JointedSystem + ?Sized>(
     run_nonlinear_from(system, scheme, state, steps, output, observer, None)
 }
 
-/// What [`run_nonlinear`] carries from one step to the next, and all a checkpoint holds of it:
-/// the state, the running statistics and sums, the previous impulses and the scheme's memory
-/// ([`MoreauJeanMemory`]). The step's report is rebuilt by the next step and the scheme's
-/// scratch (M, the iteration matrix, the Delassus operator) is never stored.
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-pub(crate) struct NonlinearRun {
-    pub(crate) state: NonlinearState,
-    stats: NonlinearRunStats,
-    previous_impulse: Vec<f64>,
-    newton_total: u64,
-    work_friction_total: f64,
-    memory: MoreauJeanMemory,
-}
-
 /// [`run_nonlinear`], or its continuation from a checkpoint's `resume`, through the
 /// time-stepping driver ([`stepping::run`]).
 pub(crate) fn run_nonlinear_from<S: JointedSystem + ?Sized>(
@@ -1765,7 +1752,6 @@ struct NonlinearStepping<'a, S: JointedSystem + ?Sized> {
     stats: NonlinearRunStats,
     previous_impulse: Vec<f64>,
     newton_total: u64,
-    work_friction_total: f64,
 }
 
 impl<'a, S: JointedSystem + ?Sized> NonlinearStepping<'a, S> {
@@ -1806,13 +1792,12 @@ impl<'a, S: JointedSystem + ?Sized> NonlinearStepping<'a, S> {
             report,
             stats,
             newton_total: 0,
-            work_friction_total: 0.0,
         }
     }
 }
 
 impl<S: JointedSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
-    type Memory = NonlinearRun;
+    type Memory = UserModelRun<NonlinearRunStats, MoreauJeanMemory>;
     type Error = NonlinearRunStop;
     const RUN: RunKind = RunKind::Nonlinear;
 
@@ -1843,15 +1828,7 @@ impl<S: JointedSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
             &mut self.newton_total,
             &mut self.previous_impulse,
         );
-        if self.friction {
-            self.work_friction_total += report.work_friction;
-            stats.work_friction_total = Some(self.work_friction_total);
-            stats.work_friction_max = Some(
-                stats
-                    .work_friction_max
-                    .map_or(report.work_friction, |w| w.max(report.work_friction)),
-            );
-        }
+        stats.add_friction(report.work_friction);
         if let Some(r) = stats.max_position_residual.as_mut() {
             *r = r.max(report.position_residual);
         }
@@ -1879,8 +1856,8 @@ impl<S: JointedSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
             stats.work_contact_total,
             report.newton_iterations as f64,
         ]);
-        if self.friction {
-            row.extend([report.work_friction, self.work_friction_total]);
+        if let Some(total) = stats.work_friction_total {
+            row.extend([report.work_friction, total]);
         }
         for a in 0..self.system.contacts() {
             row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
@@ -1897,50 +1874,25 @@ impl<S: JointedSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
         Ok(())
     }
 
-    fn memory(&self) -> NonlinearRun {
-        NonlinearRun {
+    fn memory(&self) -> Self::Memory {
+        UserModelRun {
             state: self.state.clone(),
             stats: self.stats.clone(),
             previous_impulse: self.previous_impulse.clone(),
             newton_total: self.newton_total,
-            work_friction_total: self.work_friction_total,
             memory: self.scheme.memory().clone(),
         }
     }
 
-    fn restore(&mut self, run: NonlinearRun) -> Result<(), NonlinearRunStop> {
-        check_run_fits(
-            "a nonlinear",
-            self.system,
-            &run.state,
-            &run.previous_impulse,
-        )?;
+    fn restore(&mut self, run: Self::Memory) -> Result<(), NonlinearRunStop> {
+        run.check_fits("a nonlinear", self.system)?;
         self.scheme.restore(run.memory)?;
         *self.state = run.state;
         self.stats = run.stats;
         self.previous_impulse = run.previous_impulse;
         self.newton_total = run.newton_total;
-        self.work_friction_total = run.work_friction_total;
         Ok(())
     }
-}
-
-/// Refuses a checkpointed nonlinear run (`what`: "a nonlinear", "an ns_generalized_alpha")
-/// whose state or previous impulses do not have the sizes of `system`.
-pub(crate) fn check_run_fits<S: LagrangianSystem + ?Sized>(
-    what: &str,
-    system: &S,
-    state: &NonlinearState,
-    previous_impulse: &[f64],
-) -> Result<(), crate::checkpoint::CheckpointError> {
-    let (n, m) = (system.dofs(), system.contacts());
-    if state.q.len() != n || previous_impulse.len() != m {
-        return Err(crate::checkpoint::CheckpointError::Mismatch(format!(
-            "{what} state of {} coordinates, the system has {n}",
-            state.q.len()
-        )));
-    }
-    Ok(())
 }
 
 /// The planar friction problem of step `at`, its failure named for the step.
