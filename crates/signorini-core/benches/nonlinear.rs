@@ -19,8 +19,8 @@ use signorini_core::nonlinear::LagrangianSystem;
 use signorini_core::nonlinear::generalized_alpha::JointedSystem;
 use signorini_core::nonlinear::moreau_jean::{
     NonlinearMoreauJean, NonlinearMoreauJeanParams, NonlinearRunStats, NonlinearState,
-    run_nonlinear,
 };
+use signorini_core::nonlinear::run::run_nonlinear;
 use signorini_core::observer::{Observer, StepRecord};
 use std::ops::ControlFlow;
 use std::time::Instant;

@@ -30,12 +30,11 @@ use signorini_core::integrators::OutputOptions;
 use signorini_core::lagrangian::UserModel;
 use signorini_core::lcp::LcpOptions;
 use signorini_core::nonlinear::LagrangianSystem;
-use signorini_core::nonlinear::generalized_alpha::{
-    NonsmoothGeneralizedAlpha, NsAlphaParams, run_ns_alpha,
-};
+use signorini_core::nonlinear::generalized_alpha::{NonsmoothGeneralizedAlpha, NsAlphaParams};
 use signorini_core::nonlinear::moreau_jean::{
-    NonlinearMoreauJean, NonlinearMoreauJeanParams, NonlinearState, run_nonlinear,
+    NonlinearMoreauJean, NonlinearMoreauJeanParams, NonlinearState,
 };
+use signorini_core::nonlinear::run::{run_nonlinear, run_ns_alpha};
 use signorini_core::observer::Recorder;
 use signorini_core::spec::{JobSpec, ModelSpec};
 use std::hint::black_box;

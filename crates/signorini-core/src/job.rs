@@ -25,12 +25,12 @@ use crate::model::{
 use crate::nonlinear::LagrangianSystem;
 use crate::nonlinear::generalized_alpha::{
     JointedSystem, NonsmoothGeneralizedAlpha, NsAlphaParams, NsAlphaSummary, ns_alpha_columns,
-    run_ns_alpha_from,
 };
 use crate::nonlinear::moreau_jean::{
     NewtonOptions, NonlinearMoreauJean, NonlinearMoreauJeanParams, NonlinearState, has_friction,
-    nonlinear_columns, run_nonlinear_from,
+    nonlinear_columns,
 };
+use crate::nonlinear::run::run_user_model;
 use crate::observer::{Columns, Observer, Progress, StepRecord};
 use crate::outcome::{
     LinearSummary, NonlinearSummary, RunError, RunOutput, RunSummary, SummaryBody, SummaryHeader,
@@ -818,7 +818,7 @@ fn run_nonlinear_job(
 ) -> Result<RunOutput, RunError> {
     let mut scheme = j.scheme.clone();
     let mut state = NonlinearState::initial(&j.model);
-    let stats = run_nonlinear_from(
+    let stats = run_user_model(
         &j.model,
         &mut scheme,
         &mut state,
@@ -848,7 +848,7 @@ fn run_ns_alpha_job(
 ) -> Result<RunOutput, RunError> {
     let mut scheme = j.scheme.clone();
     let mut state = NonlinearState::initial(&j.model);
-    let stats = run_ns_alpha_from(
+    let stats = run_user_model(
         &j.model,
         &mut scheme,
         &mut state,

@@ -10,8 +10,9 @@ use signorini_core::nonlinear::LagrangianSystem;
 use signorini_core::nonlinear::generalized_alpha::JointedSystem;
 use signorini_core::nonlinear::moreau_jean::{
     NewtonOptions, NonlinearMoreauJean, NonlinearMoreauJeanParams, NonlinearRunStats,
-    NonlinearRunStop, NonlinearState, NonlinearStepError, run_nonlinear,
+    NonlinearRunStop, NonlinearState, NonlinearStepError,
 };
+use signorini_core::nonlinear::run::run_nonlinear;
 use signorini_core::observer::{Observer, Recorder, StepRecord};
 use signorini_core::scenes::BouncingBall;
 use std::ops::ControlFlow;

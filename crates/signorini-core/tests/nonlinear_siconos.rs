@@ -16,8 +16,9 @@ use signorini_core::lcp::LcpOptions;
 use signorini_core::nonlinear::LagrangianSystem;
 use signorini_core::nonlinear::generalized_alpha::JointedSystem;
 use signorini_core::nonlinear::moreau_jean::{
-    NewtonOptions, NonlinearMoreauJean, NonlinearMoreauJeanParams, NonlinearState, run_nonlinear,
+    NewtonOptions, NonlinearMoreauJean, NonlinearMoreauJeanParams, NonlinearState,
 };
+use signorini_core::nonlinear::run::run_nonlinear;
 use signorini_core::observer::Recorder;
 use std::path::PathBuf;
 

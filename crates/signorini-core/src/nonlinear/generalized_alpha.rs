@@ -106,21 +106,17 @@
 
 pub use super::joints::JointedSystem;
 use super::moreau_jean::{
-    NewtonOptions, NonlinearRunStats, NonlinearRunStop, NonlinearState, NonlinearStepError,
-    NonlinearStepReport, ParamError, StepAt, has_friction, solve_joint_friction_at, solve_mixed_at,
-    stacked_row,
+    NewtonOptions, NonlinearRunStats, NonlinearState, NonlinearStepError, NonlinearStepReport,
+    ParamError, StepAt, contact_columns, has_friction, probe_columns, solve_joint_friction_at,
+    solve_mixed_at, stacked_row,
 };
-use super::run_memory::UserModelRun;
-use crate::checkpoint::RunKind;
 use crate::contact::LcpStats;
 use crate::dense::{amax, dot, kinetic, lu_factor};
 use crate::friction;
-use crate::integrators::OutputOptions;
 use crate::lcp::LcpOptions;
-use crate::observer::{Columns, Observer};
+use crate::observer::Columns;
 use crate::soi2::banded::{BandLu, BandOrder};
 use crate::soi2::factor::{NewtonFactor, range_projection};
-use crate::stepping::{self, StepTime, StopReason, TimeStepping};
 use nalgebra::{DMatrix, DVector};
 
 /// How far above the Newton tolerance the smooth stage accepts a residual that stopped
@@ -247,7 +243,7 @@ pub struct NonsmoothGeneralizedAlpha {
     mu: Vec<f64>,
     /// Whether some contact has μ > 0 (the tangent rows are then formed at the end of each
     /// step, for the tangential velocities).
-    friction: bool,
+    pub(super) friction: bool,
     last: Option<NsAlphaMemory>,
 }
 
@@ -425,7 +421,7 @@ impl NonsmoothGeneralizedAlpha {
 
     /// q̈ and λ at (t, q, v) from the smooth equations with the joints at acceleration level:
     /// `[M Gᵀ; G 0][q̈; λ] = [F; −κ]` (the consistent start, a_0 = q̈_0).
-    fn consistent<S: JointedSystem + ?Sized>(
+    pub(super) fn consistent<S: JointedSystem + ?Sized>(
         &self,
         system: &S,
         t: f64,
@@ -1240,217 +1236,9 @@ pub fn ns_alpha_columns(
         names.push("work_friction_total".into());
     }
     names.extend(["newton_iterations".into(), "position_iterations".into()]);
-    for a in 0..contacts {
-        names.extend([format!("gap_{a}"), format!("u_{a}"), format!("p_{a}")]);
-        if friction {
-            names.extend([format!("pt_{a}"), format!("ut_{a}")]);
-        }
-    }
+    contact_columns(contacts, friction, &mut names);
     names.extend((0..joints).map(|j| format!("lambda_{j}")));
     names.extend(["position_residual".into(), "velocity_residual".into()]);
-    for j in probes {
-        names.extend([format!("q_{j}"), format!("v_{j}")]);
-    }
+    probe_columns(probes, &mut names);
     Columns::new(names)
-}
-
-/// Runs `steps` steps of `scheme` on `system` from `state`, recording per `output` (every
-/// `output.every`-th step and the last; a probe ≥ the number of coordinates is refused).
-pub fn run_ns_alpha<S: JointedSystem + ?Sized>(
-    system: &S,
-    scheme: &mut NonsmoothGeneralizedAlpha,
-    state: &mut NonlinearState,
-    steps: u64,
-    output: &OutputOptions,
-    observer: &mut dyn Observer,
-) -> Result<NsAlphaRunStats, NonlinearRunStop> {
-    run_ns_alpha_from(system, scheme, state, steps, output, observer, None)
-}
-
-/// [`run_ns_alpha`], or its continuation from a checkpoint's `resume`, through the
-/// time-stepping driver ([`stepping::run`]).
-pub(crate) fn run_ns_alpha_from<S: JointedSystem + ?Sized>(
-    system: &S,
-    scheme: &mut NonsmoothGeneralizedAlpha,
-    state: &mut NonlinearState,
-    steps: u64,
-    output: &OutputOptions,
-    observer: &mut dyn Observer,
-    resume: Option<&crate::checkpoint::Checkpoint>,
-) -> Result<NsAlphaRunStats, NonlinearRunStop> {
-    let n = system.dofs();
-    if let Some(&probe) = output.probes.iter().find(|&&j| j >= n) {
-        return Err(NonlinearRunStop::Probe { probe, dofs: n });
-    }
-    let mut run = NsAlphaStepping::new(system, scheme, state, steps, &output.probes);
-    match stepping::run(&mut run, output.every, observer, resume)? {
-        StopReason::Finished { .. } => Ok(run.stats),
-        StopReason::Observer { step } => Err(NonlinearRunStop::Stopped { step }),
-    }
-}
-
-/// The scheme on its system and state, as [`stepping::run`] drives it: the state, the running
-/// statistics, the previous impulses (impact count) and the last step's report.
-struct NsAlphaStepping<'a, S: JointedSystem + ?Sized> {
-    system: &'a S,
-    scheme: &'a mut NonsmoothGeneralizedAlpha,
-    state: &'a mut NonlinearState,
-    steps: u64,
-    probes: &'a [usize],
-    report: NsAlphaStepReport,
-    stats: NsAlphaRunStats,
-    previous_impulse: Vec<f64>,
-    newton_total: u64,
-}
-
-impl<'a, S: JointedSystem + ?Sized> NsAlphaStepping<'a, S> {
-    /// The run of `steps` steps from `state`, with its initial report (the multipliers of the
-    /// consistent start) and statistics.
-    fn new(
-        system: &'a S,
-        scheme: &'a mut NonsmoothGeneralizedAlpha,
-        state: &'a mut NonlinearState,
-        steps: u64,
-        probes: &'a [usize],
-    ) -> Self {
-        let mut report = NsAlphaStepReport::of_state(system, state);
-        if system.joints() > 0 {
-            // The multipliers of the start, from the consistent accelerations.
-            if let Some((_, lambda)) = scheme.consistent(system, state.t, &state.q, &state.v) {
-                report.lambda = lambda;
-            }
-        }
-        let e0 = report.base.energy();
-        let stats = NsAlphaRunStats {
-            base: NonlinearRunStats {
-                t_end: state.t,
-                energy_initial: e0,
-                energy_final: e0,
-                energy_max: e0,
-                work_friction_total: scheme.friction.then_some(0.0),
-                ..Default::default()
-            },
-            max_position_residual: report.position_residual,
-            max_velocity_residual: report.velocity_residual,
-            max_penetration: report.penetration,
-            ..Default::default()
-        };
-        Self {
-            previous_impulse: vec![0.0; system.contacts()],
-            system,
-            scheme,
-            state,
-            steps,
-            probes,
-            report,
-            stats,
-            newton_total: 0,
-        }
-    }
-}
-
-impl<S: JointedSystem + ?Sized> TimeStepping for NsAlphaStepping<'_, S> {
-    type Memory = UserModelRun<NsAlphaRunStats, Option<NsAlphaMemory>>;
-    type Error = NonlinearRunStop;
-    const RUN: RunKind = RunKind::NsAlpha;
-
-    fn columns(&self) -> Columns {
-        ns_alpha_columns(
-            self.system.contacts(),
-            self.scheme.friction,
-            self.system.joints(),
-            self.probes,
-        )
-    }
-
-    fn total_steps(&self) -> u64 {
-        self.steps
-    }
-
-    fn is_done(&mut self, k: u64) -> bool {
-        k >= self.steps
-    }
-
-    fn step(&mut self, k: u64) -> Result<(), NonlinearRunStop> {
-        let (report, stats) = (&mut self.report, &mut self.stats);
-        self.scheme.step(self.system, self.state, report)?;
-        stats.base.add_step(
-            k,
-            self.state.t,
-            &report.base,
-            &mut self.newton_total,
-            &mut self.previous_impulse,
-        );
-        stats.base.add_friction(report.base.work_friction);
-        stats.max_position_residual = stats.max_position_residual.max(report.position_residual);
-        stats.max_velocity_residual = stats.max_velocity_residual.max(report.velocity_residual);
-        stats.max_penetration = stats.max_penetration.max(report.penetration);
-        stats.position_iterations_max = stats
-            .position_iterations_max
-            .max(report.position_iterations);
-        if let Some(rank) = report.joint_rank {
-            stats.rank_deficient_steps += 1;
-            stats.smallest_rank = Some(stats.smallest_rank.map_or(rank, |s| s.min(rank)));
-        }
-        Ok(())
-    }
-
-    fn now(&self) -> StepTime {
-        StepTime {
-            step: self.state.step,
-            t: self.state.t,
-        }
-    }
-
-    fn record(&mut self, row: &mut Vec<f64>) -> Result<(), NonlinearRunStop> {
-        let (r, stats) = (&self.report, &self.stats);
-        let b = &r.base;
-        row.clear();
-        row.extend([
-            b.kinetic,
-            b.potential,
-            b.energy(),
-            b.work_ext,
-            b.work_contact,
-            b.work_friction,
-            b.energy_error,
-            stats.base.work_ext_total,
-            stats.base.work_contact_total,
-        ]);
-        let friction = stats.base.work_friction_total;
-        row.extend(friction);
-        row.extend([b.newton_iterations as f64, r.position_iterations as f64]);
-        for a in 0..self.system.contacts() {
-            row.extend([b.gap[a], b.local_velocity[a], b.impulse[a]]);
-            if friction.is_some() {
-                row.extend([b.tangent_impulse[a], b.tangent_velocity[a]]);
-            }
-        }
-        row.extend_from_slice(&r.lambda);
-        row.extend([r.position_residual, r.velocity_residual]);
-        for &j in self.probes {
-            row.extend([self.state.q[j], self.state.v[j]]);
-        }
-        Ok(())
-    }
-
-    fn memory(&self) -> Self::Memory {
-        UserModelRun {
-            state: self.state.clone(),
-            stats: self.stats.clone(),
-            previous_impulse: self.previous_impulse.clone(),
-            newton_total: self.newton_total,
-            memory: self.scheme.memory().cloned(),
-        }
-    }
-
-    fn restore(&mut self, run: Self::Memory) -> Result<(), NonlinearRunStop> {
-        run.check_fits("an ns_generalized_alpha", self.system)?;
-        self.scheme.restore(run.memory)?;
-        *self.state = run.state;
-        self.stats = run.stats;
-        self.previous_impulse = run.previous_impulse;
-        self.newton_total = run.newton_total;
-        Ok(())
-    }
 }

@@ -20,7 +20,7 @@
 pub mod generalized_alpha;
 pub mod joints;
 pub mod moreau_jean;
-mod run_memory;
+pub mod run;
 
 /// A nonlinear mechanical system with unilateral contacts, as the nonlinear Moreau–Jean
 /// time-stepping sees it. Matrices are row-major slices; sizes are [`Self::dofs`] = n and

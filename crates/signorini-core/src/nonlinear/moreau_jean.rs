@@ -140,18 +140,15 @@
 
 use super::LagrangianSystem;
 use super::joints::JointedSystem;
-use super::run_memory::UserModelRun;
-use crate::checkpoint::RunKind;
 use crate::contact::{Activation, IndexSetRule, LcpStats};
 use crate::dense::{amax, dot, kinetic, lu_factor};
 use crate::friction::{self, FrictionError, FrictionProblem};
-use crate::integrators::OutputOptions;
 use crate::lcp::{
     self, EqualityElimination, Lcp, LcpError, LcpOptions, MixedLcp, MixedLcpError, MixedSolution,
     solve_mixed,
 };
-use crate::observer::{Columns, Observer};
-use crate::stepping::{self, StepTime, StopReason, TimeStepping};
+use crate::observer::Columns;
+use crate::stepping;
 use nalgebra::{DMatrix, DVector};
 use thiserror::Error;
 
@@ -1631,6 +1628,19 @@ impl NonlinearRunStats {
         self.impacts += stepping::count_impacts(previous_impulse, &report.impulse);
     }
 
+    /// The statistics of a run starting at `t` with energy `energy`; `friction`: the run sums
+    /// the friction work (its system has friction).
+    pub(crate) fn starting(t: f64, energy: f64, friction: bool) -> Self {
+        Self {
+            t_end: t,
+            energy_initial: energy,
+            energy_final: energy,
+            energy_max: energy,
+            work_friction_total: friction.then_some(0.0),
+            ..Default::default()
+        }
+    }
+
     /// Adds a step's friction work `work_friction` to `work_friction_total` and
     /// `work_friction_max`, for a run of a system with friction (`work_friction_total` is
     /// `Some`); nothing otherwise.
@@ -1688,210 +1698,39 @@ pub fn nonlinear_columns(
     if friction {
         names.extend(FRICTION_COLUMNS.iter().map(|s| s.to_string()));
     }
+    contact_columns(contacts, friction, &mut names);
+    if joints {
+        names.push("position_residual".into());
+    }
+    probe_columns(probes, &mut names);
+    Columns::new(names)
+}
+
+/// The values of each contact's columns (`gap_α`, `u_α`, `p_α`, with friction `pt_α`, `ut_α`)
+/// from a step's report.
+pub(crate) fn contact_values(report: &NonlinearStepReport, friction: bool, row: &mut Vec<f64>) {
+    for a in 0..report.gap.len() {
+        row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
+        if friction {
+            row.extend([report.tangent_impulse[a], report.tangent_velocity[a]]);
+        }
+    }
+}
+
+/// The names of each contact's columns, as [`contact_values`] writes them.
+pub(crate) fn contact_columns(contacts: usize, friction: bool, names: &mut Vec<String>) {
     for a in 0..contacts {
         names.extend([format!("gap_{a}"), format!("u_{a}"), format!("p_{a}")]);
         if friction {
             names.extend([format!("pt_{a}"), format!("ut_{a}")]);
         }
     }
-    if joints {
-        names.push("position_residual".into());
-    }
+}
+
+/// The names of the probes' columns (`q_j`, `v_j`), last in every row.
+pub(crate) fn probe_columns(probes: &[usize], names: &mut Vec<String>) {
     for j in probes {
         names.extend([format!("q_{j}"), format!("v_{j}")]);
-    }
-    Columns::new(names)
-}
-
-/// Runs `steps` steps of `scheme` on `system` from `state`, recording per `output` (every
-/// `output.every`-th step and the last; a probe ≥ [`LagrangianSystem::dofs`] is refused).
-pub fn run_nonlinear<S: JointedSystem + ?Sized>(
-    system: &S,
-    scheme: &mut NonlinearMoreauJean,
-    state: &mut NonlinearState,
-    steps: u64,
-    output: &OutputOptions,
-    observer: &mut dyn Observer,
-) -> Result<NonlinearRunStats, NonlinearRunStop> {
-    run_nonlinear_from(system, scheme, state, steps, output, observer, None)
-}
-
-/// [`run_nonlinear`], or its continuation from a checkpoint's `resume`, through the
-/// time-stepping driver ([`stepping::run`]).
-pub(crate) fn run_nonlinear_from<S: JointedSystem + ?Sized>(
-    system: &S,
-    scheme: &mut NonlinearMoreauJean,
-    state: &mut NonlinearState,
-    steps: u64,
-    output: &OutputOptions,
-    observer: &mut dyn Observer,
-    resume: Option<&crate::checkpoint::Checkpoint>,
-) -> Result<NonlinearRunStats, NonlinearRunStop> {
-    let n = system.dofs();
-    if let Some(&probe) = output.probes.iter().find(|&&j| j >= n) {
-        return Err(NonlinearRunStop::Probe { probe, dofs: n });
-    }
-    let mut run = NonlinearStepping::new(system, scheme, state, steps, &output.probes);
-    match stepping::run(&mut run, output.every, observer, resume)? {
-        StopReason::Finished { .. } => Ok(run.stats),
-        StopReason::Observer { step } => Err(NonlinearRunStop::Stopped { step }),
-    }
-}
-
-/// The nonlinear Moreau–Jean scheme on its system and state, as [`stepping::run`] drives it:
-/// the state, the running statistics and sums, the previous impulses (impact count) and the
-/// last step's report.
-struct NonlinearStepping<'a, S: JointedSystem + ?Sized> {
-    system: &'a S,
-    scheme: &'a mut NonlinearMoreauJean,
-    state: &'a mut NonlinearState,
-    steps: u64,
-    probes: &'a [usize],
-    friction: bool,
-    report: NonlinearStepReport,
-    stats: NonlinearRunStats,
-    previous_impulse: Vec<f64>,
-    newton_total: u64,
-}
-
-impl<'a, S: JointedSystem + ?Sized> NonlinearStepping<'a, S> {
-    /// The run of `steps` steps from `state`, with its initial report and statistics.
-    fn new(
-        system: &'a S,
-        scheme: &'a mut NonlinearMoreauJean,
-        state: &'a mut NonlinearState,
-        steps: u64,
-        probes: &'a [usize],
-    ) -> Self {
-        let friction = has_friction(system);
-        let mut report = NonlinearStepReport::of_state(system, state);
-        let nb = system.joints();
-        if nb > 0 {
-            let mut g = vec![0.0; nb];
-            system.joint_values(state.t, &state.q, &mut g);
-            report.position_residual = amax(&g);
-        }
-        let e0 = report.energy();
-        let stats = NonlinearRunStats {
-            t_end: state.t,
-            energy_initial: e0,
-            energy_final: e0,
-            energy_max: e0,
-            work_friction_total: friction.then_some(0.0),
-            max_position_residual: (nb > 0).then_some(report.position_residual),
-            ..Default::default()
-        };
-        Self {
-            previous_impulse: vec![0.0; system.contacts()],
-            system,
-            scheme,
-            state,
-            steps,
-            probes,
-            friction,
-            report,
-            stats,
-            newton_total: 0,
-        }
-    }
-}
-
-impl<S: JointedSystem + ?Sized> TimeStepping for NonlinearStepping<'_, S> {
-    type Memory = UserModelRun<NonlinearRunStats, MoreauJeanMemory>;
-    type Error = NonlinearRunStop;
-    const RUN: RunKind = RunKind::Nonlinear;
-
-    fn columns(&self) -> Columns {
-        nonlinear_columns(
-            self.system.contacts(),
-            self.friction,
-            self.system.joints() > 0,
-            self.probes,
-        )
-    }
-
-    fn total_steps(&self) -> u64 {
-        self.steps
-    }
-
-    fn is_done(&mut self, k: u64) -> bool {
-        k >= self.steps
-    }
-
-    fn step(&mut self, k: u64) -> Result<(), NonlinearRunStop> {
-        let (report, stats) = (&mut self.report, &mut self.stats);
-        self.scheme.step(self.system, self.state, report)?;
-        stats.add_step(
-            k,
-            self.state.t,
-            report,
-            &mut self.newton_total,
-            &mut self.previous_impulse,
-        );
-        stats.add_friction(report.work_friction);
-        if let Some(r) = stats.max_position_residual.as_mut() {
-            *r = r.max(report.position_residual);
-        }
-        Ok(())
-    }
-
-    fn now(&self) -> StepTime {
-        StepTime {
-            step: self.state.step,
-            t: self.state.t,
-        }
-    }
-
-    fn record(&mut self, row: &mut Vec<f64>) -> Result<(), NonlinearRunStop> {
-        let (report, stats) = (&self.report, &self.stats);
-        row.clear();
-        row.extend([
-            report.kinetic,
-            report.potential,
-            report.energy(),
-            report.work_ext,
-            report.work_contact,
-            report.energy_error,
-            stats.work_ext_total,
-            stats.work_contact_total,
-            report.newton_iterations as f64,
-        ]);
-        if let Some(total) = stats.work_friction_total {
-            row.extend([report.work_friction, total]);
-        }
-        for a in 0..self.system.contacts() {
-            row.extend([report.gap[a], report.local_velocity[a], report.impulse[a]]);
-            if self.friction {
-                row.extend([report.tangent_impulse[a], report.tangent_velocity[a]]);
-            }
-        }
-        if self.system.joints() > 0 {
-            row.push(report.position_residual);
-        }
-        for &j in self.probes {
-            row.extend([self.state.q[j], self.state.v[j]]);
-        }
-        Ok(())
-    }
-
-    fn memory(&self) -> Self::Memory {
-        UserModelRun {
-            state: self.state.clone(),
-            stats: self.stats.clone(),
-            previous_impulse: self.previous_impulse.clone(),
-            newton_total: self.newton_total,
-            memory: self.scheme.memory().clone(),
-        }
-    }
-
-    fn restore(&mut self, run: Self::Memory) -> Result<(), NonlinearRunStop> {
-        run.check_fits("a nonlinear", self.system)?;
-        self.scheme.restore(run.memory)?;
-        *self.state = run.state;
-        self.stats = run.stats;
-        self.previous_impulse = run.previous_impulse;
-        self.newton_total = run.newton_total;
-        Ok(())
     }
 }
 
