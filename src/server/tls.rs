@@ -125,6 +125,7 @@ impl TlsListener {
                         continue;
                     }
                 };
+                super::no_delay(&stream);
                 let (acceptor, tx) = (acceptor.clone(), tx.clone());
                 tokio::spawn(async move {
                     match tokio::time::timeout(HANDSHAKE_TIMEOUT, acceptor.accept(stream)).await {
