@@ -288,8 +288,9 @@ fn starved_solvers_fail_with_a_typed_error() {
 }
 
 /// `auto` starved of iterations fails with the iterate of smallest error over its stages, never
-/// worse than its first stage (Gauss–Seidel alone with the same budget), and counts the
-/// iterations of every stage it ran.
+/// worse than its first stage (the accelerated sweeps, whose first sweep is a plain Gauss–Seidel
+/// sweep: Gauss–Seidel alone with the same budget), and counts the iterations of every stage it
+/// ran.
 #[test]
 fn starved_auto_keeps_the_best_iterate_of_its_stages() {
     let problem = Fc3dProblem {
