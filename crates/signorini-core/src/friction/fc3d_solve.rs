@@ -11,11 +11,11 @@ use super::fc3d_prox::solve_fc3d_prox;
 /// ([`super::solve_fc3d_nsgs_anderson`], which falls back to plain sweeps where the acceleration
 /// stalls) for `auto_sweeps` sweeps (Gauss–Seidel: Acary, Brémond & Huber 2018, the fastest on
 /// rigid sets at loose tolerance; the acceleration cut the sweeps of the 1 000-sphere benchmark's
-/// first 362 steps 4.5× and its time 3.8×, docs/rigid_benchmark.md Round 7), then the proximal point method with its inner Newton solves for at most
-/// `auto_newton_iterations` Newton iterations in all, from the best iterate so far (independent
-/// of the contact ordering, and the best of their solvers at 1e-8 on rigid sets whose W is
-/// rank-deficient), then Gauss–Seidel again from the best iterate of both with the whole
-/// `max_iterations` budget. The first that
+/// first 400 steps 4.1× and its time 1.6×, docs/rigid_benchmark.md Round 7), then the proximal
+/// point method with its inner Newton solves for at most `auto_newton_iterations` Newton
+/// iterations in all, from the best iterate so far (independent of the contact ordering, and the
+/// best of their solvers at 1e-8 on rigid sets whose W is rank-deficient), then Gauss–Seidel
+/// again from the best iterate of both with the whole `max_iterations` budget. The first that
 /// reaches the tolerance answers, and its name is in the solution. A stage that fails for any
 /// reason only hands over to the next one; when none answers, the error holds the iterate of
 /// smallest error over all stages and the iterations of all of them.
