@@ -1,13 +1,17 @@
-//! `signorini solve FILE… [--solver S] [--tolerance T] [--out DIR] [--json]` (docs/friction_benchmark.md): reads
-//! one-step friction problems (Siconos `.dat`, FCLib HDF5), solves each with the core's FC3D
-//! solvers (planar problems embedded exactly), prints per problem the contacts, the solver that
-//! answered, iterations, error and time, and with `--out` writes `DIR/NAME.hdf5` (FCLib layout:
-//! the local problem and `/solution/{r,u}`).
+//! `signorini solve FILE… [--solver S] [--tolerance T] [--auto-sweeps N] [--warm-start] [--out DIR]
+//! [--json]` (docs/friction_benchmark.md): reads one-step friction problems (Siconos `.dat`, FCLib
+//! HDF5), solves each with the core's FC3D solvers (planar problems embedded exactly), prints per
+//! problem the contacts, the solver that answered, iterations, error and time, and with `--out`
+//! writes `DIR/NAME.hdf5` (FCLib layout: the local problem and `/solution/{r,u}`). With
+//! `--warm-start` each solve starts from `FILE.start` (one number a line, as the rigid bench's
+//! `--dump` writes the start a time step gave its solver) instead of r = 0.
 
 use crate::problem_file::{self, RawProblem};
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use signorini_core::friction::{Fc3dError, Fc3dOptions, Fc3dSolution, Fc3dSolverKind, solve_fc3d};
+use signorini_core::friction::{
+    Fc3dError, Fc3dOptions, Fc3dSolution, Fc3dSolverKind, solve_fc3d, solve_fc3d_from,
+};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -17,8 +21,8 @@ pub struct SolveArgs {
     /// Problem files: Siconos `.dat` or FCLib HDF5 (local or global).
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
-    /// Solver: `auto` (Gauss–Seidel, then semismooth Newton), `nsgs`, `nsgs_aa` (Gauss–Seidel
-    /// with Anderson acceleration), `nsn_ac` or `prox`.
+    /// Solver: `auto` (Gauss–Seidel with Anderson acceleration, then the proximal point method),
+    /// `nsgs`, `nsgs_aa` (Gauss–Seidel with Anderson acceleration), `nsn_ac` or `prox`.
     #[arg(long, default_value = "auto")]
     pub solver: String,
     /// Largest relative natural-map error accepted (Siconos' measure).
@@ -27,6 +31,14 @@ pub struct SolveArgs {
     /// Budget of sweeps or Newton iterations.
     #[arg(long, default_value_t = 10_000)]
     pub max_iterations: usize,
+    /// Sweeps `auto`'s first stage (Gauss–Seidel with Anderson acceleration) runs before its
+    /// proximal-point stage (a rigid time step gives 1 000).
+    #[arg(long, default_value_t = Fc3dOptions::default().auto_sweeps)]
+    pub auto_sweeps: usize,
+    /// Start each solve from `FILE.start` (3 × contacts numbers, one a line: the warm start the
+    /// rigid bench's `--dump` writes next to the problem) instead of r = 0.
+    #[arg(long)]
+    pub warm_start: bool,
     /// Newton's linear systems: dense LU up to this many unknowns (3 × contacts), GMRES above.
     #[arg(long, default_value_t = Fc3dOptions::default().dense_newton_max)]
     pub dense_newton_max: usize,
@@ -54,6 +66,7 @@ pub fn solve(args: SolveArgs) -> Result<()> {
         kind,
         tolerance: args.tolerance,
         max_iterations: args.max_iterations,
+        auto_sweeps: args.auto_sweeps,
         dense_newton_max: args.dense_newton_max,
         ..Fc3dOptions::default()
     };
@@ -85,9 +98,24 @@ pub fn solve(args: SolveArgs) -> Result<()> {
         let problem = raw
             .to_fc3d()
             .with_context(|| format!("{}", file.display()))?;
-        let start = Instant::now();
-        let outcome = solve_fc3d(&problem, &options);
-        let seconds = start.elapsed().as_secs_f64();
+        let start = if args.warm_start {
+            match read_start(file) {
+                Ok(start) => Some(start),
+                Err(e) => {
+                    eprintln!("{e:#}");
+                    failures.push(format!("{e:#}"));
+                    continue;
+                }
+            }
+        } else {
+            None
+        };
+        let clock = Instant::now();
+        let outcome = match &start {
+            Some(start) => solve_fc3d_from(&problem, &options, start),
+            None => solve_fc3d(&problem, &options),
+        };
+        let seconds = clock.elapsed().as_secs_f64();
         let (converged, solver, iterations, error) = match &outcome {
             Ok(s) => (true, s.solver, s.iterations, s.error),
             Err(Fc3dError::NotConverged {
@@ -145,6 +173,24 @@ pub fn solve(args: SolveArgs) -> Result<()> {
     } else {
         bail!("{} of {} problems failed", failures.len(), args.files.len())
     }
+}
+
+/// The warm start of `file`: `FILE.start`, one number a line (its length is checked by the solve).
+fn read_start(file: &Path) -> Result<Vec<f64>> {
+    let mut path = file.as_os_str().to_owned();
+    path.push(".start");
+    let path = PathBuf::from(path);
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    text.lines()
+        .enumerate()
+        .filter(|(_, line)| !line.trim().is_empty())
+        .map(|(k, line)| {
+            line.trim()
+                .parse::<f64>()
+                .with_context(|| format!("{} line {}: not a number", path.display(), k + 1))
+        })
+        .collect()
 }
 
 /// Writes `DIR/NAME.hdf5`: the problem of `file` and FCLib's `/solution` (r, u; a planar

@@ -288,8 +288,9 @@ fn starved_solvers_fail_with_a_typed_error() {
 }
 
 /// `auto` starved of iterations fails with the iterate of smallest error over its stages, never
-/// worse than its first stage (Gauss–Seidel alone with the same budget), and counts the
-/// iterations of every stage it ran.
+/// worse than its first stage (the accelerated sweeps, whose first sweep is a plain Gauss–Seidel
+/// sweep: Gauss–Seidel alone with the same budget), and counts the iterations of every stage it
+/// ran.
 #[test]
 fn starved_auto_keeps_the_best_iterate_of_its_stages() {
     let problem = Fc3dProblem {
@@ -516,7 +517,8 @@ fn sphere_column(n: usize) -> Fc3dProblem {
 /// On the column of 30 spheres, Gauss–Seidel crawls (the weight crosses the column one contact
 /// per sweep, a spectral radius near 1 − π²/n²: 6 223 sweeps to 1e-10) and Anderson's
 /// acceleration of the same sweeps reaches the same tolerance in a fraction of them (79 sweeps
-/// with its first restart rule);
+/// with its first restart rule, 78 with the restarts from the best sweep output, which never
+/// make it fall back to plain sweeps here);
 /// both return the weights of the spheres above each contact.
 #[test]
 fn anderson_acceleration_crosses_a_column_of_spheres_in_few_sweeps() {
@@ -554,4 +556,5 @@ fn anderson_acceleration_crosses_a_column_of_spheres_in_few_sweeps() {
         fast.iterations,
         plain.iterations
     );
+    assert!(fast.iterations <= 85, "{}", fast.iterations);
 }

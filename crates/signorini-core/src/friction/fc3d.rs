@@ -185,7 +185,8 @@ pub(crate) fn project_cone(mu: f64, [n, t1, t2]: [f64; 3]) -> [f64; 3] {
 /// Which FC3D solver.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Fc3dSolverKind {
-    /// Nonsmooth Gauss–Seidel for a few sweeps (fast on well-posed rigid sets), then the
+    /// Nonsmooth Gauss–Seidel with Anderson acceleration for a few sweeps (fast on well-posed
+    /// rigid sets and on dense piles), then the
     /// proximal point method for a bounded number of Newton iterations from the best iterate,
     /// then Gauss–Seidel again from the best iterate of both with the whole budget
     /// ([`super::solve_fc3d`]).
@@ -239,7 +240,8 @@ pub struct Fc3dOptions {
     pub tolerance: f64,
     /// Budget of sweeps (Gauss–Seidel) or Newton iterations. Default 10 000.
     pub max_iterations: usize,
-    /// Sweeps `Auto` gives Gauss–Seidel before it turns to Newton. Default 100.
+    /// Sweeps `Auto` gives its first stage (Gauss–Seidel with Anderson acceleration) before it
+    /// turns to Newton. Default 100.
     pub auto_sweeps: usize,
     /// Newton iterations, summed over its proximal steps, that `Auto` gives the proximal point
     /// method before it turns back to Gauss–Seidel. Default 200: on Siconos' Capsules,

@@ -22,7 +22,24 @@
 //! that changes between take-off, stick and slide changes it), so the history is dropped and the
 //! next sweep starts from the sweep output of smallest error whenever a sweep's error exceeds
 //! [`RESTART_GROWTH`] times the smallest error so far or [`STALL`] sweeps in a row have not
-//! lowered it. Deterministic; `iterations` counts sweeps.
+//! lowered it.
+//!
+//! **Fallback to plain sweeps.** Nothing guarantees that Anderson's method converges on such a
+//! map (Walker & Ni 2011 relate it to GMRES for a linear map; no result covers a nonsmooth one),
+//! and it can stagnate: on dense piles of spheres (docs/rigid_benchmark.md, Round 7) the
+//! accelerated sweeps plateau at an error of 10⁻⁵–10⁻⁴ where plain Gauss–Seidel converges. A
+//! restart from the same best output with an empty history is deterministic, so a restart that
+//! found no new best replays the same sweeps until the budget is spent. A restart therefore
+//! *makes progress* when the smallest error has fallen to at most [`PROGRESS`] times its value at
+//! the previous restart; after [`FRUITLESS_RESTARTS`] restarts in a row without progress the
+//! acceleration is dropped for good and plain sweeps run from `start` again for the rest of the
+//! budget: they are then Gauss–Seidel's own iterates, so the solver converges wherever Gauss–Seidel
+//! converges within the budget left, in the sweeps spent accelerated (≈ 100–200 on the measured
+//! stalls) plus Gauss–Seidel's. Plain sweeps from the best output instead were measured to need up
+//! to 3.2× Gauss–Seidel's sweeps from the start (its error is smaller, its slow components are
+//! not), and blocks of plain sweeps alternating with the acceleration again were slower still
+//! (Round 7). The smallest error is still tracked over both phases.
+//! Deterministic; `iterations` counts sweeps, accelerated and plain.
 
 use super::fc3d::{Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, natural_map_error};
 use super::fc3d_nsgs::{diagonal_blocks, sweep};
@@ -36,12 +53,19 @@ const DEPTH: usize = 5;
 const RESTART_GROWTH: f64 = 2.0;
 /// So do this many sweeps in a row without a new smallest error.
 const STALL: usize = 2 * DEPTH;
+/// Restarts in a row without progress before the acceleration is dropped.
+const FRUITLESS_RESTARTS: usize = 3;
+/// A restart makes progress when the smallest error is at most this factor times the smallest
+/// error at the previous restart.
+const PROGRESS: f64 = 0.5;
 /// Singular values of ΔFᵀΔF below this fraction of the largest are dropped (those of ΔF below
 /// 10⁻⁷ of its largest: below that the Gram matrix holds round-off only).
 const GRAM_CUT: f64 = 1e-14;
 
 /// Solves the problem by Gauss–Seidel sweeps with Anderson acceleration (module documentation)
-/// from `start`. On failure the error holds the sweep output of smallest error.
+/// from `start`, falling back to plain sweeps from `start` after [`FRUITLESS_RESTARTS`] restarts
+/// in a row without progress. `iterations` counts sweeps, accelerated or plain. On failure the error
+/// holds the sweep output of smallest error.
 pub fn solve_fc3d_nsgs_anderson(
     problem: &Fc3dProblem,
     options: &Fc3dOptions,
@@ -54,6 +78,10 @@ pub fn solve_fc3d_nsgs_anderson(
     let mut last: Option<(Vec<f64>, Vec<f64>)> = None;
     let mut history: VecDeque<(Vec<f64>, Vec<f64>)> = VecDeque::with_capacity(DEPTH);
     let mut stalled = 0;
+    // Restarts in a row without progress, and the smallest error at the last restart.
+    let mut fruitless = 0;
+    let mut best_at_restart = f64::INFINITY;
+    let mut accelerated = true;
     for iteration in 1..=options.max_iterations {
         let mut g = r.clone();
         sweep(problem, &diagonal, &mut g);
@@ -77,11 +105,26 @@ pub fn solve_fc3d_nsgs_anderson(
         } else {
             stalled += 1;
         }
+        if !accelerated {
+            r = g;
+            continue;
+        }
         if error > RESTART_GROWTH * best.0 || stalled > STALL {
+            if best.0 <= PROGRESS * best_at_restart {
+                fruitless = 0;
+            } else {
+                fruitless += 1;
+            }
+            best_at_restart = best.0;
             history.clear();
             last = None;
             stalled = 0;
-            r = best.1.clone();
+            accelerated = fruitless < FRUITLESS_RESTARTS;
+            r = if accelerated {
+                best.1.clone()
+            } else {
+                start.to_vec()
+            };
             continue;
         }
         let f: Vec<f64> = g.iter().zip(&r).map(|(g, r)| g - r).collect();

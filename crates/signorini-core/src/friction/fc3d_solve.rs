@@ -7,13 +7,15 @@ use super::fc3d_nsgs::solve_fc3d_nsgs;
 use super::fc3d_prox::solve_fc3d_prox;
 
 /// Solves the problem with the solver of `options.kind`, from r = 0
-/// ([`solve_fc3d_from`] with a zero start). `Auto` runs Gauss–Seidel
-/// for `auto_sweeps` sweeps (Acary, Brémond & Huber 2018: the fastest on rigid sets at loose
-/// tolerance), then the proximal point method with its inner Newton solves for at most
-/// `auto_newton_iterations` Newton iterations in all, from the best iterate so far (independent
-/// of the contact ordering, and the best of their solvers at 1e-8 on rigid sets whose W is
-/// rank-deficient), then Gauss–Seidel again from the best iterate of both with the whole
-/// `max_iterations` budget. The first that
+/// ([`solve_fc3d_from`] with a zero start). `Auto` runs Gauss–Seidel with Anderson acceleration
+/// ([`super::solve_fc3d_nsgs_anderson`], which falls back to plain sweeps where the acceleration
+/// stalls) for `auto_sweeps` sweeps (Gauss–Seidel: Acary, Brémond & Huber 2018, the fastest on
+/// rigid sets at loose tolerance; the acceleration cut the sweeps of the 1 000-sphere benchmark's
+/// first 400 steps 4.1× and its time 1.6×, docs/rigid_benchmark.md Round 7), then the proximal
+/// point method with its inner Newton solves for at most `auto_newton_iterations` Newton
+/// iterations in all, from the best iterate so far (independent of the contact ordering, and the
+/// best of their solvers at 1e-8 on rigid sets whose W is rank-deficient), then Gauss–Seidel
+/// again from the best iterate of both with the whole `max_iterations` budget. The first that
 /// reaches the tolerance answers, and its name is in the solution. A stage that fails for any
 /// reason only hands over to the next one; when none answers, the error holds the iterate of
 /// smallest error over all stages and the iterations of all of them.
@@ -113,7 +115,7 @@ fn solve_auto(
         error: problem.error(&start),
         best: start,
         spent: 0,
-        solver: "nsgs",
+        solver: "nsgs_aa",
     };
     let sweeps = options.auto_sweeps.min(options.max_iterations);
     let short = Fc3dOptions {
@@ -121,9 +123,9 @@ fn solve_auto(
         ..*options
     };
     if let Some(s) = chain.stage(
-        "nsgs",
+        "nsgs_aa",
         sweeps,
-        solve_fc3d_nsgs(problem, &short, &chain.best),
+        solve_fc3d_nsgs_anderson(problem, &short, &chain.best),
     ) {
         return Ok(s);
     }
