@@ -35,12 +35,21 @@ pub fn kinetic(mass: &[f64], v: &[f64]) -> f64 {
 /// coordinate, e.g. a mass of 1e-7 next to one of 1e3, does not make `w` look singular), or a
 /// pivot that is not finite.
 pub fn lu_factor(w: DMatrix<f64>) -> Option<LU<f64, Dyn, Dyn>> {
+    lu_factor_with(w, &mut Vec::new())
+}
+
+/// [`lu_factor`] with the column maxima of `w` kept in `column_max`, a buffer the caller keeps
+/// from one factorisation to the next (a scheme factorising at every Newton iterate).
+pub fn lu_factor_with(w: DMatrix<f64>, column_max: &mut Vec<f64>) -> Option<LU<f64, Dyn, Dyn>> {
     let n = w.nrows();
-    let column_max: Vec<f64> = w.column_iter().map(|c| c.amax()).collect();
+    column_max.clear();
+    column_max.extend(w.column_iter().map(|c| c.amax()));
     let lu = w.lu();
-    let u = lu.u();
+    // U's diagonal read in place: `LU::u()` would copy the whole upper triangle, a matrix
+    // allocated per factorisation (per Newton iterate of the nonlinear schemes).
+    let factors = lu.lu_internal();
     let singular = (0..n).any(|j| {
-        let p = u[(j, j)].abs();
+        let p = factors[(j, j)].abs();
         !p.is_finite() || p <= n as f64 * f64::EPSILON * column_max[j]
     });
     (!singular).then_some(lu)

@@ -50,12 +50,14 @@ impl Lcp<'_> {
 
     /// The natural-residual error of `z` (see the module documentation).
     pub fn error(&self, z: &[f64]) -> f64 {
-        let w = self.w(z);
+        let n = self.size();
         let scale = self.q.iter().fold(1.0f64, |s, a| s.max(a.abs()));
-        z.iter()
-            .zip(&w)
-            .fold(0.0f64, |e, (&zi, &wi)| e.max(zi.min(wi).abs()))
-            / scale
+        // w_i = (M z + q)_i as `w` sums it, one row at a time: no vector allocated per call
+        // (the nonlinear schemes measure an LCP's error at every Newton iterate).
+        (0..n).fold(0.0f64, |e, i| {
+            let wi = self.q[i] + (0..n).map(|j| self.m[i * n + j] * z[j]).sum::<f64>();
+            e.max(z[i].min(wi).abs())
+        }) / scale
     }
 }
 

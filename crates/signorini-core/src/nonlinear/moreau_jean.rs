@@ -141,7 +141,7 @@
 use super::LagrangianSystem;
 use super::joints::JointedSystem;
 use crate::contact::{Activation, IndexSetRule, LcpStats};
-use crate::dense::{amax, dot, kinetic, lu_factor};
+use crate::dense::{amax, dot, kinetic, lu_factor_with};
 use crate::friction::{self, FrictionError, FrictionProblem};
 use crate::lcp::{
     self, EqualityElimination, Lcp, LcpError, LcpOptions, MixedLcp, MixedLcpError, MixedSolution,
@@ -149,7 +149,7 @@ use crate::lcp::{
 };
 use crate::observer::Columns;
 use crate::stepping;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVectorViewMut};
 use thiserror::Error;
 
 /// Names of the per-step energy columns of a nonlinear run, in output order.
@@ -592,6 +592,8 @@ struct Scratch {
     offset: usize,
     /// The midpoint ½(q_k + q) of the iterate.
     midpoint: Vec<f64>,
+    /// The column maxima of W^i, for the singularity test of its LU factors.
+    column_max: Vec<f64>,
 }
 
 impl NonlinearMoreauJean {
@@ -683,6 +685,7 @@ impl NonlinearMoreauJean {
                 joint_impulse: z(nb),
                 offset: 0,
                 midpoint: z(if nb > 0 { n } else { 0 }),
+                column_max: z(n),
             },
         })
     }
@@ -894,7 +897,7 @@ impl NonlinearMoreauJean {
             let r = i * n + j;
             s.mass[r] - cv * s.dfdv[r] - cq * s.dfdq[r]
         });
-        lu_factor(w).ok_or(at.singular(iteration))
+        lu_factor_with(w, &mut s.column_max).ok_or(at.singular(iteration))
     }
 
     /// The free velocity Δv_free = Δv^i − (W^i)⁻¹ R_free(v^i).
@@ -1510,9 +1513,8 @@ pub(crate) type Lu = nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>;
 
 /// b ← W⁻¹ b with the LU factors of W.
 fn solve_in_place(lu: &Lu, b: &mut [f64]) {
-    let mut x = DVector::from_column_slice(b);
-    lu.solve_mut(&mut x);
-    b.copy_from_slice(x.as_slice());
+    let n = b.len();
+    lu.solve_mut(&mut DVectorViewMut::from_slice(b, n));
 }
 
 /// Row r of the stacked rows `[J; H_{a_1}; T_{a_1}; H_{a_2}; T_{a_2}; …]` of a friction
