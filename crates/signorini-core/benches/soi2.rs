@@ -2,6 +2,11 @@
 //! against CPU time (work–precision) for HHT-SOI2 and generalized-α-SOI2.
 //!
 //! `cargo bench -p signorini-core --bench soi2` (plain main, harness = false). Figures in docs/soi2.md.
+//!
+//! Arguments (after `--`), for one case under callgrind or alternating timings:
+//! `--case SCENE/SCHEME` (e.g. `slider_crank/soi2_generalized_alpha`) runs only that throughput
+//! case and skips the work–precision tables; `--newton full|simplified` only that strategy;
+//! `--t-end T` replaces the case's end time (slider-crank 4 s = 4 096 steps of 2⁻¹⁰).
 
 // Only the core library must stay pure (clippy.toml): a benchmark times itself and prints.
 #![allow(clippy::disallowed_macros, clippy::disallowed_methods)]
@@ -59,7 +64,33 @@ fn run<M: ConstrainedModel>(
     (s, st, w0.elapsed().as_secs_f64(), cpu_seconds() - c0)
 }
 
+/// The command line: `--case`, `--newton`, `--t-end` (cargo's own `--bench` is ignored).
+struct Args {
+    case: Option<String>,
+    newton: Option<String>,
+    t_end: Option<f64>,
+}
+
+fn args() -> Args {
+    let mut a = Args {
+        case: None,
+        newton: None,
+        t_end: None,
+    };
+    let mut it = std::env::args().skip(1);
+    while let Some(k) = it.next() {
+        match k.as_str() {
+            "--case" => a.case = it.next(),
+            "--newton" => a.newton = it.next(),
+            "--t-end" => a.t_end = it.next().and_then(|v| v.parse().ok()),
+            _ => {}
+        }
+    }
+    a
+}
+
 fn main() {
+    let a = args();
     let newton = NewtonOptions::default();
     let ga = |f| Method {
         formulation: f,
@@ -78,6 +109,7 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|");
     let p = Pendulum::default();
     let s = SliderCrank::default();
+    let end = |t: f64| a.t_end.unwrap_or(t);
     let cases: Vec<(&str, &str, Box<Case>)> = vec![
         (
             "pendulum",
@@ -88,7 +120,7 @@ fn main() {
                     &ga(Formulation::Additive),
                     nw,
                     2f64.powi(-12),
-                    2.0,
+                    end(2.0),
                     &[1.0],
                 )
             }),
@@ -102,7 +134,7 @@ fn main() {
                     &hht(Formulation::HhtSoi2),
                     nw,
                     2f64.powi(-12),
-                    2.0,
+                    end(2.0),
                     &[1.0],
                 )
             }),
@@ -116,7 +148,7 @@ fn main() {
                     &hht(Formulation::HhtI3),
                     nw,
                     2f64.powi(-12),
-                    2.0,
+                    end(2.0),
                     &[1.0],
                 )
             }),
@@ -130,7 +162,7 @@ fn main() {
                     &ga(Formulation::Additive),
                     nw,
                     2f64.powi(-10),
-                    4.0,
+                    end(4.0),
                     &[1.0],
                 )
             }),
@@ -144,7 +176,7 @@ fn main() {
                     &hht(Formulation::HhtSoi2),
                     nw,
                     2f64.powi(-10),
-                    4.0,
+                    end(4.0),
                     &[1.0],
                 )
             }),
@@ -158,17 +190,26 @@ fn main() {
                     &hht(Formulation::HhtI3),
                     nw,
                     2f64.powi(-10),
-                    4.0,
+                    end(4.0),
                     &[1.0],
                 )
             }),
         ),
     ];
     for (scene, scheme, f) in &cases {
+        if a.case
+            .as_ref()
+            .is_some_and(|c| *c != format!("{scene}/{scheme}"))
+        {
+            continue;
+        }
         for (nw, name) in [
             (NewtonStrategy::Full, "full"),
             (NewtonStrategy::Simplified, "simplified"),
         ] {
+            if a.newton.as_ref().is_some_and(|n| n != name) {
+                continue;
+            }
             let (_, st, wall, _) = f(nw);
             println!(
                 "| {scene} | {scheme} | {name} | {:.3e} | {} | {wall:.3} | {:.0} | {:.2} | {:.2} |",
@@ -185,6 +226,9 @@ fn main() {
         }
     }
 
+    if a.case.is_some() {
+        return;
+    }
     println!(
         "\n## Work–precision, pendulum (16), t = 2, error ‖y − y_ref‖₂ (reference: same scheme, h = 2⁻¹⁵)\n"
     );

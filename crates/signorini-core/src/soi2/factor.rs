@@ -73,13 +73,7 @@ impl NewtonFactor {
             }
             None => {
                 let lu = j.clone().lu();
-                let range = lu
-                    .u()
-                    .diagonal()
-                    .iter()
-                    .fold((f64::INFINITY, 0.0_f64), |(lo, hi), d| {
-                        (lo.min(d.abs()), hi.max(d.abs()))
-                    });
+                let range = pivot_range(&lu);
                 (NewtonFactor::Regular(lu), range)
             }
         };
@@ -146,6 +140,20 @@ impl NewtonFactor {
     }
 }
 
+/// (min |u_ii|, max |u_ii|) over the pivots of `lu`, read in place: the diagonal of nalgebra's
+/// packed factors (`lu_internal`, L below the diagonal and U on and above it) is U's. `LU::u()`
+/// copied the whole upper triangle through a strided iterator at every factorisation, 8 % of
+/// the instructions of a full-Newton slider-crank run (issue 26); the values, hence the
+/// choice between LU and SVD, are the same.
+fn pivot_range(lu: &LU<f64, Dyn, Dyn>) -> (f64, f64) {
+    let packed = lu.lu_internal();
+    (0..packed.nrows().min(packed.ncols()))
+        .map(|i| packed[(i, i)].abs())
+        .fold((f64::INFINITY, 0.0_f64), |(lo, hi), d| {
+            (lo.min(d), hi.max(d))
+        })
+}
+
 /// Numerical rank of the rows×n matrix `jac` (row-major) and the orthogonal projector onto its
 /// column space, an rows×rows matrix: λ ↦ P λ keeps g_yᵀλ and removes the part of λ that
 /// g_yᵀ does not see, giving the minimum-norm multipliers.
@@ -185,6 +193,34 @@ mod tests {
         let mut b = &j * &x;
         assert!(f.solve_mut(&mut b));
         assert!((b - x).amax() < 1e-14);
+    }
+
+    /// The pivots read in place are U's diagonal, on a matrix whose LU interchanges rows (the
+    /// packed layout is nalgebra's, not a documented API: this fails if it changes).
+    #[test]
+    fn the_pivot_range_is_that_of_u() {
+        let j = DMatrix::from_row_slice(
+            4,
+            4,
+            &[
+                1.0, 2.0, 0.5, -1.0, //
+                -3.0, 1.0, 2.0, 0.0, //
+                0.25, -4.0, 1.0, 2.0, //
+                2.0, 0.5, -1.5, 6.0,
+            ],
+        );
+        let lu = j.lu();
+        let u = lu.u();
+        let d: Vec<f64> = u.diagonal().iter().map(|v: &f64| v.abs()).collect();
+        let want = (
+            d.iter().copied().fold(f64::INFINITY, f64::min),
+            d.iter().copied().fold(0.0, f64::max),
+        );
+        assert_eq!(pivot_range(&lu), want);
+        assert!(
+            !lu.p().is_empty(),
+            "the test matrix should interchange rows"
+        );
     }
 
     /// The saddle-point matrix [[I, Gᵀ], [G, 0]] with G's two rows equal (a joint written twice):
