@@ -67,7 +67,12 @@
 //! stage uses the exact derivative of g(q̃ + M̃⁻¹C̃ᵀν) in ν, C(q^i) M̃⁻¹ C̃ᵀ (quadratic
 //! convergence). The mixed LCPs are plain problems for [`crate::lcp::solve_mixed`], which
 //! eliminates the joint rows by their Schur complement (minimum-norm when the joints are
-//! dependent) and hands the contact rows to `lcp::solve`.
+//! dependent) and hands the contact rows to `lcp::solve`. When only joints are in a stage and
+//! the model's Delassus operator G M⁻¹ Gᵀ has a band ([`JointedSystem::joint_structure`]:
+//! M block diagonal, a chain of joints), the stage forms it from M's blocks and G's nonzeros
+//! and solves its equality rows by a band LU ([`super::delassus`]), the same Newton iterate
+//! and impulses in O(n) instead of O(n³); a step whose band operator is singular to working
+//! precision takes the dense path and its minimum-norm solve.
 //!
 //! Energy (as for the nonlinear Moreau–Jean scheme): `kinetic` = ½ vᵀM(q)v, `potential` =
 //! V(q, t), `work_ext` = ½(f_k + f_{k+1})·(q_{k+1} − q_k) (the applied forces, trapezoidal
