@@ -24,6 +24,7 @@ pub use projection::{PROJECTION_ITERATIONS, ProjectionError, StartProjection, pr
 
 use crate::expr::{Expr, Node, Number, Tape};
 use crate::nonlinear::LagrangianSystem;
+use crate::nonlinear::delassus::JointStructure;
 use crate::soi2::sparsity::{Coupling, Pattern};
 use crate::soi2::{ConstrainedModel, Dims, InitialValues, Scalar};
 use std::sync::OnceLock;
@@ -78,6 +79,9 @@ pub struct UserModel {
     tangent_rates: Tape,
     /// Which coordinates each equation of motion and each joint uses.
     coupling: Coupling,
+    /// The structure of the joints' Delassus operator when M is block diagonal and it has a
+    /// band ([`crate::nonlinear::delassus`]).
+    joint_structure: Option<JointStructure>,
     /// The structure of Newton's matrix with one and with two coordinate and joint blocks
     /// (SOI2's systems), built at first use.
     patterns: Patterns,
@@ -344,6 +348,12 @@ impl UserModel {
             .unzip();
         let tangent_jacobian: Vec<Expr> = tangent_jacobian.concat();
         let coupling = coupling_of(&mass, &forces, &joints, n);
+        let mass_entries: Vec<(usize, usize)> = upper
+            .iter()
+            .filter(|(_, _, e)| !e.is_zero())
+            .map(|&(i, j, _)| (i, j))
+            .collect();
+        let joint_structure = JointStructure::new(n, &mass_entries, &coupling.joints);
         UserModel {
             n,
             joints: joints.len(),
@@ -367,6 +377,7 @@ impl UserModel {
             tangent_jacobian: Tape::compile(&tangent_jacobian),
             tangent_rates: Tape::compile(&tangent_rates),
             coupling,
+            joint_structure,
             patterns: Patterns::default(),
         }
     }
@@ -374,6 +385,12 @@ impl UserModel {
     /// Which coordinates each equation of motion and each joint uses.
     pub fn coupling(&self) -> &Coupling {
         &self.coupling
+    }
+
+    /// The structure of the joints' Delassus operator, when M is block diagonal and the
+    /// operator has a band that pays ([`crate::nonlinear::delassus`]).
+    pub fn joint_structure(&self) -> Option<&JointStructure> {
+        self.joint_structure.as_ref()
     }
 
     /// Number of joints (holonomic constraints).

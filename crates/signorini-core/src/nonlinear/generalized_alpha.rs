@@ -67,7 +67,12 @@
 //! stage uses the exact derivative of g(q̃ + M̃⁻¹C̃ᵀν) in ν, C(q^i) M̃⁻¹ C̃ᵀ (quadratic
 //! convergence). The mixed LCPs are plain problems for [`crate::lcp::solve_mixed`], which
 //! eliminates the joint rows by their Schur complement (minimum-norm when the joints are
-//! dependent) and hands the contact rows to `lcp::solve`.
+//! dependent) and hands the contact rows to `lcp::solve`. When only joints are in a stage and
+//! the model's Delassus operator G M⁻¹ Gᵀ has a band ([`JointedSystem::joint_structure`]:
+//! M block diagonal, a chain of joints), the stage forms it from M's blocks and G's nonzeros
+//! and solves its equality rows by a band LU ([`super::delassus`]), the same Newton iterate
+//! and impulses in O(n) instead of O(n³); a step whose band operator is singular to working
+//! precision takes the dense path and its minimum-norm solve.
 //!
 //! Energy (as for the nonlinear Moreau–Jean scheme): `kinetic` = ½ vᵀM(q)v, `potential` =
 //! V(q, t), `work_ext` = ½(f_k + f_{k+1})·(q_{k+1} − q_k) (the applied forces, trapezoidal
@@ -104,6 +109,7 @@
 //! can drive the body, and its work on the body, which is what the ledger counts, may be
 //! positive.
 
+use super::delassus::{JointCompliance, JointStructure};
 pub use super::joints::JointedSystem;
 use super::moreau_jean::{
     NewtonOptions, NonlinearRunStats, NonlinearState, NonlinearStepError, NonlinearStepReport,
@@ -666,27 +672,47 @@ impl NonsmoothGeneralizedAlpha {
         let mut hj = vec![0.0; m * n];
         let mut q = qt.clone();
         let mut position_iterations = 0;
-        let m_lu = lu_factor(mat(n, n, &smooth.mass)).ok_or_else(|| at.singular(0))?;
+        // M̃'s dense LU, unless the joints' Delassus operator has a band (factorised then when
+        // a contact joins the stage or the band path declines).
+        let structure = system.joint_structure();
+        let mut m_lu = match structure {
+            Some(_) => None,
+            None => Some(lu_factor(mat(n, n, &smooth.mass)).ok_or_else(|| at.singular(0))?),
+        };
         loop {
             let k = nb + active.len();
             if k == 0 {
                 break;
             }
-            // C̃ rows and Y = M̃⁻¹ C̃ᵀ (n×k).
             system.gap_jacobian(t1, qt, &mut hj);
             at.check(&hj, "the gap Jacobian")?;
             let rows_t = constraint_rows(&smooth.gj, &hj, active, n);
-            let ct = mat(k, n, &rows_t);
-            let y = m_lu.solve(&ct.transpose()).ok_or_else(|| at.singular(0))?;
             let scale = (0..k)
                 .map(|r| {
+                    let row = &rows_t[r * n..(r + 1) * n];
                     (0..n)
-                        .map(|j| ct[(r, j)].abs() * (qt[j].abs() + (qt[j] - start.q[j]).abs()))
+                        .map(|j| row[j].abs() * (qt[j].abs() + (qt[j] - start.q[j]).abs()))
                         .sum::<f64>()
                 })
                 .fold(0.0f64, f64::max);
-            position_iterations +=
-                self.project_positions(system, qt, active, &y, scale, &mut q, &mut gaps, at)?;
+            let banded = match structure.filter(|_| active.is_empty()) {
+                Some(s) => self.project_joints(system, qt, smooth, s, scale, &mut q, at)?,
+                None => None,
+            };
+            position_iterations += match banded {
+                Some(iterations) => iterations,
+                None => {
+                    // C̃ rows and Y = M̃⁻¹ C̃ᵀ (n×k), dense.
+                    let lu = match m_lu.take() {
+                        Some(lu) => lu,
+                        None => lu_factor(mat(n, n, &smooth.mass)).ok_or_else(|| at.singular(0))?,
+                    };
+                    let ct = mat(k, n, &rows_t);
+                    let y = lu.solve(&ct.transpose()).ok_or_else(|| at.singular(0))?;
+                    m_lu = Some(lu);
+                    self.project_positions(system, qt, active, &y, scale, &mut q, &mut gaps, at)?
+                }
+            };
             // A contact outside the index set that the correction pushed into its obstacle
             // joins it, and the stage starts again.
             system.gaps(t1, &q, &mut gaps);
@@ -701,6 +727,87 @@ impl NonsmoothGeneralizedAlpha {
             active.sort_unstable();
         }
         Ok((q, position_iterations))
+    }
+
+    /// [`Self::project_positions`] for the joints alone (no contact in the index set) through
+    /// their band Delassus operator ([`super::delassus`]): each iterate solves
+    /// G(q^i) M̃⁻¹ G̃ᵀ ν = −(g(q^i) − G(q^i) M̃⁻¹ G̃ᵀ ν^i) by its band LU, the same Newton
+    /// iterate as the mixed LCP's equality rows; the same tests. `None` when the band path
+    /// declines (a block of M̃ not positive definite, an operator singular to working
+    /// precision: joints that lost rank), and the dense path takes the stage from q̃ again.
+    #[allow(clippy::too_many_arguments)]
+    fn project_joints<S: JointedSystem + ?Sized>(
+        &self,
+        system: &S,
+        qt: &[f64],
+        smooth: &SmoothStage,
+        structure: &JointStructure,
+        scale: f64,
+        q: &mut [f64],
+        at: StepAt,
+    ) -> Result<Option<usize>, NonlinearStepError> {
+        let (n, m, nb, t1, newton) = (self.n, self.m, self.nb, at.t, self.params.newton);
+        let Some(y) = JointCompliance::new(structure, &smooth.mass, &smooth.gj) else {
+            return Ok(None);
+        };
+        let tol = newton.tolerance * scale;
+        let mut nu = vec![0.0; nb];
+        q.copy_from_slice(qt);
+        let mut gb = vec![0.0; nb];
+        let mut gaps = vec![0.0; m];
+        let mut h_q = vec![0.0; m * n];
+        let mut g_q = vec![0.0; nb * n];
+        let mut iter = 0;
+        loop {
+            system.joint_values(t1, q, &mut gb);
+            system.gaps(t1, q, &mut gaps);
+            at.check(&gb, "a joint g(q, t)")?;
+            at.check(&gaps, "a gap g(q, t)")?;
+            let violation = amax(&gb);
+            if violation <= tol && iter > 0 {
+                return Ok(Some(iter));
+            }
+            if iter == newton.max_iterations {
+                return Err(NonlinearStepError::NewtonNotConverged {
+                    step: at.step,
+                    t: t1,
+                    iterations: iter,
+                    residual: violation / scale,
+                    tolerance: newton.tolerance,
+                });
+            }
+            iter += 1;
+            system.joint_jacobian(t1, q, &mut g_q);
+            system.gap_jacobian(t1, q, &mut h_q);
+            at.check(&g_q, "the joint Jacobian")?;
+            at.check(&h_q, "the gap Jacobian")?;
+            let Some(lu) = y.operator(&g_q) else {
+                return Ok(None);
+            };
+            // b = g(q^i) − D ν^i, with D ν^i = G(q^i) (Y ν^i); then ν^{i+1} = −D⁻¹ b.
+            let mut y_nu = vec![0.0; n];
+            y.apply(&nu, &mut y_nu);
+            let mut b: Vec<f64> = (0..nb)
+                .map(|r| gb[r] - structure.row_dot(r, &g_q, &y_nu))
+                .collect();
+            if !lu.solve_mut(&mut b) {
+                return Ok(None);
+            }
+            let step: Vec<f64> = b.iter().zip(&nu).map(|(x, v)| -x - v).collect();
+            let mut dq = vec![0.0; n];
+            y.apply(&step, &mut dq);
+            for (v, x) in nu.iter_mut().zip(&b) {
+                *v = -x;
+            }
+            q.copy_from_slice(qt);
+            y.apply(&nu, q);
+            at.check(q, "the corrected positions")?;
+            let size = q.iter().fold(0.0f64, |s, x| s.max(x.abs()));
+            if amax(&dq) <= 4.0 * f64::EPSILON * size {
+                // The correction is at round-off: nothing more to gain.
+                return Ok(Some(iter));
+            }
+        }
     }
 
     /// Newton on ν for one index set: each iterate solves the mixed LCP of the constraints
@@ -900,10 +1007,26 @@ impl NonsmoothGeneralizedAlpha {
             ..
         } = stage;
         let k = nb + active.len();
-        let rows = mat(k, n, &constraint_rows(&r.gj, &r.hj, active, n));
-        let (d, y) = delassus(&rows, &r.mass, at)?;
         let mut b = vec![0.0; k];
         system.joint_rates(t1, impact.q, vt, &mut b[..nb]);
+        // The joints alone with a band Delassus operator: Λ_B = −D⁻¹(G ṽ + g_t) by its band
+        // LU, the mixed LCP's equality rows; the dense path when the band path declines.
+        if let Some(s) = system.joint_structure().filter(|_| active.is_empty())
+            && let Some(y) = JointCompliance::new(s, &r.mass, &r.gj)
+            && let Some(lu) = y.operator(&r.gj)
+        {
+            let mut z = b.clone();
+            if lu.solve_mut(&mut z) {
+                z.iter_mut().for_each(|x| *x = -*x);
+                y.apply(&z, v);
+                at.check(v, "the velocities")?;
+                report.joint_impulse.copy_from_slice(&z);
+                report.base.lcp = LcpStats::default();
+                return Ok(());
+            }
+        }
+        let rows = mat(k, n, &constraint_rows(&r.gj, &r.hj, active, n));
+        let (d, y) = delassus(&rows, &r.mass, at)?;
         for (c, &a) in active.iter().enumerate() {
             b[nb + c] = self.normal_row(system, impact, r, a, report);
         }

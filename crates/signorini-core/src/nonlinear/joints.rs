@@ -4,6 +4,7 @@
 //! implementation by the user models of `scene = "lagrangian"`.
 
 use super::LagrangianSystem;
+use super::delassus::JointStructure;
 use crate::lagrangian::UserModel;
 use crate::soi2::banded::BandOrder;
 use crate::soi2::sparsity::Pattern;
@@ -73,6 +74,13 @@ pub trait JointedSystem: LagrangianSystem {
     fn newton_band(&self) -> Option<&BandOrder> {
         None
     }
+
+    /// The structure of the joints' Delassus operator G M⁻¹ Gᵀ when M is block diagonal and
+    /// the operator has a band that pays ([`super::delassus`]): the position and velocity
+    /// stages then form and factorise it from its sparse pieces. Default: none (dense).
+    fn joint_structure(&self) -> Option<&JointStructure> {
+        None
+    }
 }
 
 /// The joints of a user model from its symbolic tapes; κ is the derivative of the tape of
@@ -89,6 +97,12 @@ impl JointedSystem for UserModel {
     /// The band order of the model's one-block Newton pattern (coordinates, then joints).
     fn newton_band(&self) -> Option<&BandOrder> {
         self.newton_pattern(1).and_then(Pattern::band)
+    }
+
+    /// From the nonzero entries of M and the coordinates of each joint, found when the model
+    /// was compiled.
+    fn joint_structure(&self) -> Option<&JointStructure> {
+        UserModel::joint_structure(self)
     }
 
     fn joint_jacobian(&self, t: f64, q: &[f64], out: &mut [f64]) {

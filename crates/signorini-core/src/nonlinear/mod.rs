@@ -17,6 +17,7 @@
 //! [`generalized_alpha`] (the nonsmooth generalized-α scheme) runs it with bilateral joints too
 //! ([`joints::JointedSystem`]).
 
+pub mod delassus;
 pub mod generalized_alpha;
 pub mod joints;
 pub mod moreau_jean;

@@ -166,22 +166,60 @@ impl BandLu {
     /// Factorises the matrix `a` in the band order `order` with kl sub- and ku super-diagonals
     /// there (entries outside the band must be zero). A zero pivot is kept (its solve fails).
     pub fn factor(a: &DMatrix<f64>, band: &BandOrder) -> BandLu {
-        let BandOrder { order, kl, ku } = band;
-        let (n, kl, ku) = (order.len(), *kl, *ku);
-        let mut lu = BandLu {
-            n,
-            kl,
-            ku,
-            order: order.to_vec(),
-            ab: vec![0.0; n * (2 * kl + ku + 1)],
-            pivots: vec![0; n],
-        };
+        let mut lu = BandLu::zeros(band);
+        let (n, kl, ku, order) = (lu.n, lu.kl, lu.ku, &band.order);
         for i in 0..n {
             for j in i.saturating_sub(kl)..(i + ku + 1).min(n) {
                 let k = lu.at(i, j);
                 lu.ab[k] = a[(order[i], order[j])];
             }
         }
+        lu.eliminate();
+        lu
+    }
+
+    /// Factorises the square matrix whose nonzeros are `entries` (row, column, value; a
+    /// repeated position adds up) in the band order `band`, without forming it densely:
+    /// O(entries + n · kl · (kl + ku)). `None` when an entry lies outside the band.
+    pub fn factor_entries(
+        band: &BandOrder,
+        entries: impl IntoIterator<Item = (usize, usize, f64)>,
+    ) -> Option<BandLu> {
+        let mut lu = BandLu::zeros(band);
+        let mut position = vec![0; lu.n];
+        for (k, &o) in band.order.iter().enumerate() {
+            position[o] = k;
+        }
+        for (r, c, v) in entries {
+            let (i, j) = (*position.get(r)?, *position.get(c)?);
+            if i > j + lu.kl || j > i + lu.ku {
+                return None;
+            }
+            let k = lu.at(i, j);
+            lu.ab[k] += v;
+        }
+        lu.eliminate();
+        Some(lu)
+    }
+
+    /// The zero matrix of the band order `band`, ready to be filled and factorised.
+    fn zeros(band: &BandOrder) -> BandLu {
+        let BandOrder { order, kl, ku } = band;
+        let (n, kl, ku) = (order.len(), *kl, *ku);
+        BandLu {
+            n,
+            kl,
+            ku,
+            order: order.to_vec(),
+            ab: vec![0.0; n * (2 * kl + ku + 1)],
+            pivots: vec![0; n],
+        }
+    }
+
+    /// Gaussian elimination with partial pivoting of the stored band, in place.
+    fn eliminate(&mut self) {
+        let (n, kl, ku) = (self.n, self.kl, self.ku);
+        let lu = self;
         let w = lu.width();
         for k in 0..n {
             let last_row = (k + kl).min(n - 1);
@@ -218,7 +256,6 @@ impl BandLu {
                 }
             }
         }
-        lu
     }
 
     /// Largest and smallest |u_kk|.
