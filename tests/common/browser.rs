@@ -77,6 +77,9 @@ impl Browser {
                 "--headless",
                 "--no-sandbox",
                 "--disable-gpu",
+                // WebGL on the CPU (SwiftShader): Chromium 137 and later no longer fall back to
+                // it by themselves, and the rigid bodies' live page draws its 3D view in WebGL.
+                "--enable-unsafe-swiftshader",
                 "--disable-dev-shm-usage",
                 "--no-first-run",
                 "--remote-debugging-address=127.0.0.1",
