@@ -605,13 +605,7 @@ impl NonsmoothGeneralizedAlpha {
             }
             previous = residual;
             if x.iterations == newton.max_iterations {
-                return Err(NonlinearStepError::NewtonNotConverged {
-                    step: at.step,
-                    t: t1,
-                    iterations: x.iterations,
-                    residual,
-                    tolerance: newton.tolerance,
-                });
+                return Err(at.newton_not_converged(x.iterations, residual, newton.tolerance));
             }
             x.iterations += 1;
             system.force_jacobians(t1, &x.qt, &x.vt, &mut dfdq, &mut dfdv);
@@ -716,6 +710,7 @@ impl NonsmoothGeneralizedAlpha {
             // A contact outside the index set that the correction pushed into its obstacle
             // joins it, and the stage starts again.
             system.gaps(t1, &q, &mut gaps);
+            at.check(&gaps, "a gap g(q, t)")?;
             let tol = self.params.newton.tolerance * scale;
             let joined: Vec<usize> = (0..m)
                 .filter(|a| !active.contains(a) && gaps[*a] < -tol)
@@ -732,9 +727,10 @@ impl NonsmoothGeneralizedAlpha {
     /// [`Self::project_positions`] for the joints alone (no contact in the index set) through
     /// their band Delassus operator ([`super::delassus`]): each iterate solves
     /// G(q^i) M̃⁻¹ G̃ᵀ ν = −(g(q^i) − G(q^i) M̃⁻¹ G̃ᵀ ν^i) by its band LU, the same Newton
-    /// iterate as the mixed LCP's equality rows; the same tests. `None` when the band path
-    /// declines (a block of M̃ not positive definite, an operator singular to working
-    /// precision: joints that lost rank), and the dense path takes the stage from q̃ again.
+    /// iterate as the mixed LCP's equality rows; the same tests. No gap enters: the caller
+    /// evaluates the gaps at the result. `None` when the band path declines (a block of M̃ not
+    /// positive definite, an operator singular to working precision: joints that lost rank),
+    /// and the dense path takes the stage from q̃ again.
     #[allow(clippy::too_many_arguments)]
     fn project_joints<S: JointedSystem + ?Sized>(
         &self,
@@ -746,65 +742,55 @@ impl NonsmoothGeneralizedAlpha {
         q: &mut [f64],
         at: StepAt,
     ) -> Result<Option<usize>, NonlinearStepError> {
-        let (n, m, nb, t1, newton) = (self.n, self.m, self.nb, at.t, self.params.newton);
+        let (n, nb, t1, newton) = (self.n, self.nb, at.t, self.params.newton);
         let Some(y) = JointCompliance::new(structure, &smooth.mass, &smooth.gj) else {
             return Ok(None);
         };
         let tol = newton.tolerance * scale;
-        let mut nu = vec![0.0; nb];
         q.copy_from_slice(qt);
+        let mut nu = vec![0.0; nb];
         let mut gb = vec![0.0; nb];
-        let mut gaps = vec![0.0; m];
-        let mut h_q = vec![0.0; m * n];
         let mut g_q = vec![0.0; nb * n];
+        // Y ν^i, then the increment M̃⁻¹ G̃ᵀ (ν^{i+1} − ν^i) of the positions.
+        let mut y_x = vec![0.0; n];
+        let mut b = vec![0.0; nb];
+        let mut step = vec![0.0; nb];
         let mut iter = 0;
         loop {
             system.joint_values(t1, q, &mut gb);
-            system.gaps(t1, q, &mut gaps);
             at.check(&gb, "a joint g(q, t)")?;
-            at.check(&gaps, "a gap g(q, t)")?;
             let violation = amax(&gb);
             if violation <= tol && iter > 0 {
                 return Ok(Some(iter));
             }
             if iter == newton.max_iterations {
-                return Err(NonlinearStepError::NewtonNotConverged {
-                    step: at.step,
-                    t: t1,
-                    iterations: iter,
-                    residual: violation / scale,
-                    tolerance: newton.tolerance,
-                });
+                return Err(at.newton_not_converged(iter, violation / scale, newton.tolerance));
             }
             iter += 1;
             system.joint_jacobian(t1, q, &mut g_q);
-            system.gap_jacobian(t1, q, &mut h_q);
             at.check(&g_q, "the joint Jacobian")?;
-            at.check(&h_q, "the gap Jacobian")?;
             let Some(lu) = y.operator(&g_q) else {
                 return Ok(None);
             };
             // b = g(q^i) − D ν^i, with D ν^i = G(q^i) (Y ν^i); then ν^{i+1} = −D⁻¹ b.
-            let mut y_nu = vec![0.0; n];
-            y.apply(&nu, &mut y_nu);
-            let mut b: Vec<f64> = (0..nb)
-                .map(|r| gb[r] - structure.row_dot(r, &g_q, &y_nu))
-                .collect();
+            y_x.fill(0.0);
+            y.apply(&nu, &mut y_x);
+            for (r, b_r) in b.iter_mut().enumerate() {
+                *b_r = gb[r] - structure.row_dot(r, &g_q, &y_x);
+            }
             if !lu.solve_mut(&mut b) {
                 return Ok(None);
             }
-            let step: Vec<f64> = b.iter().zip(&nu).map(|(x, v)| -x - v).collect();
-            let mut dq = vec![0.0; n];
-            y.apply(&step, &mut dq);
-            for (v, x) in nu.iter_mut().zip(&b) {
+            for ((s, x), v) in step.iter_mut().zip(&b).zip(nu.iter_mut()) {
+                *s = -x - *v;
                 *v = -x;
             }
+            y_x.fill(0.0);
+            y.apply(&step, &mut y_x);
             q.copy_from_slice(qt);
             y.apply(&nu, q);
             at.check(q, "the corrected positions")?;
-            let size = q.iter().fold(0.0f64, |s, x| s.max(x.abs()));
-            if amax(&dq) <= 4.0 * f64::EPSILON * size {
-                // The correction is at round-off: nothing more to gain.
+            if at_round_off(&y_x, q) {
                 return Ok(Some(iter));
             }
         }
@@ -857,13 +843,7 @@ impl NonsmoothGeneralizedAlpha {
                 return Ok(iter);
             }
             if iter == newton.max_iterations {
-                return Err(NonlinearStepError::NewtonNotConverged {
-                    step: at.step,
-                    t: t1,
-                    iterations: iter,
-                    residual: violation / scale,
-                    tolerance: newton.tolerance,
-                });
+                return Err(at.newton_not_converged(iter, violation / scale, newton.tolerance));
             }
             iter += 1;
             system.joint_jacobian(t1, q, &mut g_q);
@@ -880,9 +860,7 @@ impl NonsmoothGeneralizedAlpha {
             let q_new = DVector::from_column_slice(qt) + y * &nu;
             q.copy_from_slice(q_new.as_slice());
             at.check(q, "the corrected positions")?;
-            let size = q.iter().fold(0.0f64, |s, x| s.max(x.abs()));
-            if dq.amax() <= 4.0 * f64::EPSILON * size {
-                // The correction is at round-off: nothing more to gain.
+            if at_round_off(dq.as_slice(), q) {
                 system.gaps(t1, q, gaps);
                 return Ok(iter);
             }
@@ -1269,6 +1247,12 @@ fn solve_saddle(
 }
 
 /// The rows C = [G; H_I] (joints, then the contacts of `active`), row-major.
+/// The last position correction `dq` is at the round-off of the positions `q`: Newton has
+/// nothing more to gain.
+fn at_round_off(dq: &[f64], q: &[f64]) -> bool {
+    amax(dq) <= 4.0 * f64::EPSILON * amax(q)
+}
+
 fn constraint_rows(g: &[f64], h: &[f64], active: &[usize], n: usize) -> Vec<f64> {
     let mut rows = g.to_vec();
     for &a in active {

@@ -451,6 +451,22 @@ fn where_not_finite(component: Option<usize>, value: f64, q: &[f64], v: &[f64]) 
 }
 
 impl StepAt {
+    /// Newton stopped after `iterations` with the relative `residual` still above `tolerance`.
+    pub(crate) fn newton_not_converged(
+        self,
+        iterations: usize,
+        residual: f64,
+        tolerance: f64,
+    ) -> NonlinearStepError {
+        NonlinearStepError::NewtonNotConverged {
+            step: self.step,
+            t: self.t,
+            iterations,
+            residual,
+            tolerance,
+        }
+    }
+
     /// A scalar value of the system or of the state (`value`) is not finite.
     pub(crate) fn not_finite(self, what: &'static str, value: f64) -> NonlinearStepError {
         NonlinearStepError::NotFinite {
@@ -870,13 +886,7 @@ impl NonlinearMoreauJean {
             }
         }
         if residual > newton.tolerance {
-            return Err(NonlinearStepError::NewtonNotConverged {
-                step: at.step,
-                t: at.t,
-                iterations: outcome.iterations,
-                residual,
-                tolerance: newton.tolerance,
-            });
+            return Err(at.newton_not_converged(outcome.iterations, residual, newton.tolerance));
         }
         Ok(outcome)
     }
