@@ -190,16 +190,23 @@ rho_inf = 0.2
 
 /// The IFToMM benchmarks of `examples/benchmarks/` (docs/soi2.md) pass their `[check]` bounds:
 /// the reference values of A01 (elliptic functions) and A02 (its parallelogram motion), the
-/// joints on the manifold and the energy, A04 with its redundant joint; one line per bound.
+/// joints on the manifold and the energy, A04 with its redundant joint, A05 (the stiff flyball
+/// governor) against its independently integrated reference; one line per bound.
 #[test]
 fn the_multibody_benchmarks_pass_their_checks() {
-    let specs: Vec<PathBuf> = ["a01_simple_pendulum", "a02_n_four_bar", "a04_bricard"]
-        .iter()
-        .map(|n| example(&format!("benchmarks/{n}.toml")))
-        .collect();
-    // A01: 2 bounds + 8 reference values; A02: 2 + 3; A04: 2.
-    let stdout = all_pass(&specs, 17);
+    let specs: Vec<PathBuf> = [
+        "a01_simple_pendulum",
+        "a02_n_four_bar",
+        "a04_bricard",
+        "a05_flyball_governor",
+    ]
+    .iter()
+    .map(|n| example(&format!("benchmarks/{n}.toml")))
+    .collect();
+    // A01: 2 bounds + 8 reference values; A02: 2 + 3; A04: 2; A05: 1 + 15.
+    let stdout = all_pass(&specs, 33);
     assert!(stdout.contains("reference q_0 at t = 10"), "{stdout}");
+    assert!(stdout.contains("reference v_0 at t = 7.5"), "{stdout}");
 }
 
 /// IFToMM A03, Andrews' squeezing mechanism (`examples/benchmarks/a03_andrews.toml`), passes its

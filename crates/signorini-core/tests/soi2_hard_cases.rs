@@ -4,7 +4,8 @@
 //! the exact one-degree-of-freedom motion of its parallelogram branch; Andrews' squeezing
 //! mechanism (A03) against the Test Set's reference; Bricard's mechanism (A04), whose joints
 //! are redundant at every configuration; the simple pendulum (A01) against its
-//! elliptic-function solution; and joint sets that cannot hold (refused at validation, or a run
+//! elliptic-function solution; the stiff flyball governor (A05) against a reference
+//! integrated independently; and joint sets that cannot hold (refused at validation, or a run
 //! error with the step, never a panic or a hang).
 
 // Only the core library must stay pure (clippy.toml): a test may read fixtures and print.
@@ -875,5 +876,60 @@ fn inconsistent_joints_are_refused_or_fail_with_the_step() {
             }
             other => panic!("{pattern}: expected a Newton failure, got {other:?}"),
         }
+    }
+}
+
+/// The stiff flyball governor (A05, `examples/benchmarks/a05_flyball_governor.toml`) against the
+/// reference its spec holds (`flyball_governor.py`: the equations of motion written out by hand
+/// and integrated by SciPy's Radau IIA and DOP853 at 1e-12): under the three SOI2 schemes and
+/// the nonsmooth generalized-α, the largest error over the 15 reference values (s, th1 and the
+/// shaft's speed at five instants over 10 s) is within the benchmark's high-precision class at
+/// h = 1e-3 and divides by 4 when h is halved (second order, through the stiff spring-dampers).
+#[test]
+fn flyball_governor_matches_its_reference_to_second_order_under_every_scheme() {
+    let base = benchmark("a05_flyball_governor");
+    let references = base["check"]["reference"]
+        .as_array()
+        .expect("reference values")
+        .clone();
+    assert_eq!(references.len(), 15);
+    let error = |integrator: &Value, h: f64| {
+        let mut doc = base.clone();
+        doc["integrator"] = integrator.clone();
+        doc["time"]["h"] = json!(h);
+        doc["output"]["every"] = json!((0.01 / h).round() as u64);
+        let job = Job::from_spec(&spec(&doc)).unwrap_or_else(|e| panic!("valid spec: {e}"));
+        let mut rec = Recorder::default();
+        run(&job, 1, &mut rec).unwrap_or_else(|e| panic!("{integrator}, h = {h}: {e}"));
+        let times = &rec.t;
+        references
+            .iter()
+            .map(|r| {
+                let t = r["t"].as_f64().expect("t");
+                let column = rec
+                    .column(r["column"].as_str().expect("column"))
+                    .expect("a recorded column");
+                let i = times
+                    .iter()
+                    .position(|s| (s - t).abs() < 1e-9)
+                    .unwrap_or_else(|| panic!("t = {t} recorded"));
+                (column[i] - r["value"].as_f64().expect("value")).abs()
+            })
+            .fold(0.0, f64::max)
+    };
+    let mut integrators = schemes().to_vec();
+    integrators[0] = json!({"scheme": "soi2_generalized_alpha", "rho_inf": 0.8});
+    integrators.push(json!({"scheme": "ns_generalized_alpha"}));
+    for integrator in &integrators {
+        let (coarse, fine) = (error(integrator, 2e-3), error(integrator, 1e-3));
+        println!(
+            "{integrator}: error {coarse:.3e} at h = 2e-3, {fine:.3e} at h = 1e-3, ratio {:.2}",
+            coarse / fine
+        );
+        assert!(fine < 2e-4, "{integrator}: error {fine:e} at h = 1e-3");
+        assert!(
+            (3.5..4.5).contains(&(coarse / fine)),
+            "{integrator}: errors {coarse:e}, {fine:e} are not of second order"
+        );
     }
 }
