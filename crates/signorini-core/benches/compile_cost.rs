@@ -5,10 +5,13 @@
 //! flat sum of n − 1 spring terms and n gravity terms, the first node held by a joint
 //! (`x0 = 0`) and the last one above a floor (a contact). Per n: the seconds to parse the TOML,
 //! to validate it (`LagrangianSpec::validate`: the symbolic checks at q0) and to compile it
-//! (`UserModel::new`: the derivatives and their tapes), and the process's peak resident memory
-//! after it (VmHWM; the sizes run in increasing order, so the peak is the largest model's).
+//! (`UserModel::new`: the derivatives and their tapes), in wall time (`*_s`) and in CPU time of
+//! the thread (`*_cpu_s`, from `/proc/thread-self/schedstat`: what to compare on a loaded
+//! machine), and the process's peak resident memory after it (VmHWM; the sizes run in
+//! increasing order, so the peak is the largest model's).
 //!
-//! `cargo bench -p signorini-core --bench compile_cost [-- --sizes 100,1000,10000]`
+//! `cargo bench -p signorini-core --bench compile_cost [-- --sizes 100,1000,10000]` (the
+//! default sizes are 100, 1 000 and 10 000).
 
 // Only the core library must stay pure (clippy.toml): a benchmark times itself and prints.
 #![allow(clippy::disallowed_macros, clippy::disallowed_methods)]
@@ -48,6 +51,14 @@ fn bar_spec(n: usize) -> String {
     s
 }
 
+/// CPU time of this thread so far, in seconds (NaN where the kernel does not say).
+fn cpu_s() -> f64 {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse::<f64>().ok())
+        .map_or(f64::NAN, |ns| ns * 1e-9)
+}
+
 /// The process's peak resident set (VmHWM), in MiB.
 fn peak_mib() -> f64 {
     let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
@@ -72,20 +83,23 @@ fn main() {
         .unwrap_or_else(|| vec![100, 1_000, 10_000]);
     for n in sizes {
         let text = bar_spec(n);
-        let t0 = Instant::now();
+        let (t0, c0) = (Instant::now(), cpu_s());
         let spec: LagrangianSpec = toml::from_str(&text).expect("the bar spec parses");
-        let t1 = Instant::now();
+        let (t1, c1) = (Instant::now(), cpu_s());
         let params = spec.validate().expect("the bar spec is valid");
-        let t2 = Instant::now();
+        let (t2, c2) = (Instant::now(), cpu_s());
         let model = UserModel::new(params);
-        let t3 = Instant::now();
+        let (t3, c3) = (Instant::now(), cpu_s());
         std::hint::black_box(&model);
         println!(
-            "{{\"bench\":\"compile_bar\",\"n\":{n},\"spec_bytes\":{},\"parse_s\":{:.4},\"validate_s\":{:.4},\"compile_s\":{:.4},\"peak_mib\":{:.1}}}",
+            "{{\"bench\":\"compile_bar\",\"n\":{n},\"spec_bytes\":{},\"parse_s\":{:.4},\"validate_s\":{:.4},\"compile_s\":{:.4},\"parse_cpu_s\":{:.4},\"validate_cpu_s\":{:.4},\"compile_cpu_s\":{:.4},\"peak_mib\":{:.1}}}",
             text.len(),
             (t1 - t0).as_secs_f64(),
             (t2 - t1).as_secs_f64(),
             (t3 - t2).as_secs_f64(),
+            c1 - c0,
+            c2 - c1,
+            c3 - c2,
             peak_mib(),
         );
     }

@@ -689,3 +689,64 @@ fn flat_sums_and_products_are_one_level() {
     tape.eval_into(&vars, &mut Vec::new(), &mut out);
     assert_eq!(out, [500.5, 1001.0]);
 }
+
+/// Issue 27: the sparse gradient is the dense one without its zeros; a sum of up to 32 terms is
+/// the left-to-right fold, a longer one a shallow tree with the same value; a sparse tape
+/// evaluates to the dense tape of the same outputs.
+#[test]
+fn sparse_gradients_sums_and_sparse_tapes_agree_with_the_dense_forms() {
+    let coordinates: Vec<String> = (0..50).map(|i| format!("x{i}")).collect();
+    let scope = Scope::lagrangian(&coordinates, &[]).expect("scope");
+    let terms: Vec<String> = (0..49)
+        .map(|i| format!("{}*sin(x{i})*x{}^2", 1 + i % 5, i + 1))
+        .collect();
+    let e = Expr::parse(&terms.join(" + "), &scope).expect("parses");
+    let all: Vec<usize> = (0..101).collect();
+    let dense = e.gradient(&all);
+    let sparse = e.sparse_gradient(0..101);
+    assert_eq!(sparse.len(), 50);
+    for (k, d) in &dense.iter().enumerate().collect::<Vec<_>>() {
+        match sparse.iter().find(|(v, _)| v == k) {
+            Some((_, s)) => assert_eq!(s, *d),
+            None => assert!(d.is_zero(), "∂/∂x{k} = {d:?}"),
+        }
+    }
+    assert_eq!(e.variables(), (0..50).collect::<Vec<_>>());
+    assert!(e.depends_on(7) && !e.depends_on(50) && !e.depends_on(100));
+    // Sums: the fold for ≤ 32 terms, the same value for more.
+    let parts: Vec<Expr> = (0..40)
+        .map(|i| Expr::var(i) * Expr::constant(0.5 + i as f64))
+        .collect();
+    let short: Expr = parts[..32].iter().cloned().sum();
+    let fold = parts[..32]
+        .iter()
+        .cloned()
+        .fold(Expr::constant(0.0), |a, b| a + b);
+    assert_eq!(short, fold);
+    let long: Expr = parts.iter().cloned().sum();
+    let at: Vec<f64> = (0..101).map(|i| 0.01 * i as f64 - 0.3).collect();
+    let fold_long = parts
+        .iter()
+        .cloned()
+        .fold(Expr::constant(0.0), |a, b| a + b);
+    assert!((long.eval(&at) - fold_long.eval(&at)).abs() <= 1e-13 * fold_long.eval(&at).abs());
+    // A sparse tape against the dense one.
+    let entries: Vec<(usize, Expr)> = sparse.iter().map(|(k, d)| (k * 2 + 1, d.clone())).collect();
+    let mut wide = vec![Expr::constant(0.0); 250];
+    for (k, d) in &entries {
+        wide[*k] = d.clone();
+    }
+    let (tape_sparse, tape_dense) = (Tape::compile_sparse(250, &entries), Tape::compile(&wide));
+    assert_eq!(tape_sparse.outputs(), 250);
+    assert_eq!(tape_sparse.stored_outputs().map(<[u32]>::len), Some(50));
+    let (mut a, mut b) = (vec![f64::NAN; 250], vec![0.0; 250]);
+    tape_sparse.eval_into(&at, &mut Vec::new(), &mut a);
+    tape_dense.eval_into(&at, &mut Vec::new(), &mut b);
+    assert_eq!(a, b);
+    let mut stored = vec![0.0; 50];
+    tape_sparse.eval_stored_into(&at, &mut Vec::new(), &mut stored);
+    assert_eq!(
+        stored,
+        entries.iter().map(|(k, _)| b[*k]).collect::<Vec<_>>()
+    );
+}

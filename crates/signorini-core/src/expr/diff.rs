@@ -7,10 +7,54 @@
 
 use super::{Expr, Func, Func2, Node};
 use std::collections::HashMap;
-use std::sync::Arc;
+
+/// The hasher of the memo and hash-consing tables: keys are addresses and small integers built
+/// by the program, never by a user, so a fast non-keyed hash is safe (SipHash was a fifth of
+/// the compile time of a large model, issue 27).
+pub(super) type FastHash = foldhash::fast::FixedState;
+
+/// A hash map with [`FastHash`].
+pub(super) type FastMap<K, V> = HashMap<K, V, FastHash>;
 
 fn mk(n: Node) -> Expr {
-    Expr(Arc::new(n))
+    Expr::from_node(n)
+}
+
+/// Operands of a sum folded left to right before it is split into blocks added pairwise (the
+/// parser's `CHAIN_BLOCK`).
+const SUM_BLOCK: usize = 32;
+
+/// Σ terms: left to right up to [`SUM_BLOCK`] nonzero terms (exactly the fold
+/// `((0 + a) + b) + …` with its zeros dropped), blocks of [`SUM_BLOCK`] added pairwise beyond.
+pub(super) fn sum(terms: impl Iterator<Item = Expr>) -> Expr {
+    let mut blocks: Vec<Expr> = Vec::new();
+    let mut e = Expr::constant(0.0);
+    let mut in_block = 0;
+    for t in terms.filter(|t| !t.is_zero()) {
+        if in_block == SUM_BLOCK {
+            blocks.push(std::mem::replace(&mut e, t));
+            in_block = 1;
+        } else {
+            e = add(e, t);
+            in_block += 1;
+        }
+    }
+    if blocks.is_empty() {
+        return e;
+    }
+    blocks.push(e);
+    while blocks.len() > 1 {
+        let mut next = Vec::with_capacity(blocks.len().div_ceil(2));
+        let mut it = blocks.into_iter();
+        while let Some(l) = it.next() {
+            next.push(match it.next() {
+                Some(r) => add(l, r),
+                None => l,
+            });
+        }
+        blocks = next;
+    }
+    blocks.pop().unwrap_or_else(|| Expr::constant(0.0))
 }
 
 /// a + b.
@@ -143,15 +187,26 @@ fn c(x: f64) -> Expr {
     Expr::constant(x)
 }
 
-/// ∂e/∂x_var. Shared subtrees are differentiated once (memo on the node's address), so the work
-/// is linear in the number of distinct nodes.
+/// ∂e/∂x_var. A subtree that does not depend on x_var (its dependence set says so) is not
+/// visited: its derivative is 0. Shared subtrees are differentiated once (memo on the node's
+/// address), so the work is linear in the number of distinct nodes that depend on x_var.
 pub(super) fn derivative(e: &Expr, var: usize) -> Expr {
-    let mut memo = HashMap::new();
+    if !e.depends_on(var) {
+        return c(0.0);
+    }
+    let mut memo = FastMap::default();
     d(e, var, &mut memo)
 }
 
-fn d(e: &Expr, x: usize, memo: &mut HashMap<*const Node, Expr>) -> Expr {
-    let key = Arc::as_ptr(&e.0);
+fn d(e: &Expr, x: usize, memo: &mut FastMap<usize, Expr>) -> Expr {
+    if !e.depends_on(x) {
+        return c(0.0);
+    }
+    if let Node::Var(_) = e.node() {
+        // The only variable it depends on is x.
+        return c(1.0);
+    }
+    let key = e.address();
     if let Some(r) = memo.get(&key) {
         return r.clone();
     }

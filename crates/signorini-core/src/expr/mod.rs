@@ -62,6 +62,7 @@
 //! where b < a and the mean at a tie (likewise `max`). The simplifier folds `0·u` to 0 even where
 //! u is not finite, as every computer algebra system does.
 
+mod deps;
 mod diff;
 mod parse;
 mod scope;
@@ -365,9 +366,52 @@ pub enum Node {
 }
 
 /// An expression: an immutable tree with shared subtrees (cheap to clone; `Send + Sync`, so a
-/// model that holds expressions can move between threads).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Expr(Arc<Node>);
+/// model that holds expressions can move between threads). Every node knows the variables it
+/// depends on, so a derivative skips the subtrees without its variable.
+#[derive(Clone)]
+pub struct Expr(Arc<Inner>);
+
+/// A node and its dependence set (a function of the node, computed once when it is built).
+struct Inner {
+    node: Node,
+    deps: deps::Deps,
+}
+
+impl Expr {
+    /// The expression of `node`, with its dependence set: the union of its operands'.
+    pub(crate) fn from_node(node: Node) -> Expr {
+        let deps = match &node {
+            Node::Const(_) => deps::Deps::None,
+            Node::Var(i) => deps::Deps::var(*i),
+            Node::Neg(a) | Node::Call(_, a) => a.0.deps.clone(),
+            Node::Add(a, b)
+            | Node::Sub(a, b)
+            | Node::Mul(a, b)
+            | Node::Div(a, b)
+            | Node::Pow(a, b)
+            | Node::Call2(_, a, b) => deps::Deps::union(&a.0.deps, &b.0.deps),
+        };
+        Expr(Arc::new(Inner { node, deps }))
+    }
+
+    /// The address of the node, the key of memo tables over one DAG.
+    pub(crate) fn address(&self) -> usize {
+        Arc::as_ptr(&self.0) as usize
+    }
+}
+
+/// Structural equality (the same tree), whatever the sharing.
+impl PartialEq for Expr {
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.0, &other.0) || self.0.node == other.0.node
+    }
+}
+
+impl fmt::Debug for Expr {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_tuple("Expr").field(&self.0.node).finish()
+    }
+}
 
 impl Expr {
     /// Parses `src` with the names of `scope`; parameters are folded into constants.
@@ -377,22 +421,22 @@ impl Expr {
 
     /// The constant `c`.
     pub fn constant(c: f64) -> Expr {
-        Expr(Arc::new(Node::Const(c)))
+        Expr::from_node(Node::Const(c))
     }
 
     /// The variable of index `i` in the scope.
     pub fn var(i: usize) -> Expr {
-        Expr(Arc::new(Node::Var(i)))
+        Expr::from_node(Node::Var(i))
     }
 
     /// The root node.
     pub fn node(&self) -> &Node {
-        &self.0
+        &self.0.node
     }
 
     /// The value if the expression is a constant (after folding).
     pub fn as_constant(&self) -> Option<f64> {
-        match *self.0 {
+        match self.0.node {
             Node::Const(c) => Some(c),
             _ => None,
         }
@@ -404,29 +448,24 @@ impl Expr {
     }
 
     /// The indices of the variables the expression depends on, sorted, without repeats
-    /// (for checks such as "M(q) may not depend on velocities").
+    /// (for checks such as "M(q) may not depend on velocities"). Kept in every node: no walk.
     pub fn variables(&self) -> Vec<usize> {
-        let mut out = Vec::new();
-        let mut stack = vec![self];
-        while let Some(e) = stack.pop() {
-            match e.node() {
-                Node::Const(_) => {}
-                Node::Var(i) => out.push(*i),
-                Node::Neg(a) | Node::Call(_, a) => stack.push(a),
-                Node::Add(a, b)
-                | Node::Sub(a, b)
-                | Node::Mul(a, b)
-                | Node::Div(a, b)
-                | Node::Pow(a, b)
-                | Node::Call2(_, a, b) => {
-                    stack.push(a);
-                    stack.push(b);
-                }
-            }
-        }
-        out.sort_unstable();
-        out.dedup();
-        out
+        self.0.deps.iter().map(|v| v as usize).collect()
+    }
+
+    /// Whether the expression depends on the variable of index `var` (a constant in it if not).
+    pub fn depends_on(&self, var: usize) -> bool {
+        u32::try_from(var).is_ok_and(|v| self.0.deps.contains(v))
+    }
+
+    /// The variables the expression depends on among `vars` (a range of variable indices), in
+    /// increasing order.
+    pub fn variables_in(&self, vars: std::ops::Range<usize>) -> impl Iterator<Item = usize> + '_ {
+        self.0
+            .deps
+            .iter()
+            .map(|v| v as usize)
+            .filter(move |v| vars.contains(v))
     }
 
     /// Value at `vars` by walking the tree (slow: for checks and tests; a time loop compiles a
@@ -456,6 +495,17 @@ impl Expr {
         vars.iter().map(|&v| self.derivative(v)).collect()
     }
 
+    /// The structurally nonzero part of the gradient along the variables of `vars`: the pairs
+    /// (variable, ∂self/∂variable) for the variables the expression depends on, in increasing
+    /// order (derivatives that simplify to 0 left out). The cost grows with the variables
+    /// present, not with the range: what a sparse Jacobian row is built from.
+    pub fn sparse_gradient(&self, vars: std::ops::Range<usize>) -> Vec<(usize, Expr)> {
+        self.variables_in(vars)
+            .map(|v| (v, self.derivative(v)))
+            .filter(|(_, d)| !d.is_zero())
+            .collect()
+    }
+
     /// The Hessian with respect to `vars`, row-major `vars.len()²` entries; each mixed derivative
     /// is computed once and mirrored.
     pub fn hessian(&self, vars: &[usize]) -> Vec<Expr> {
@@ -476,10 +526,14 @@ impl Expr {
     /// `n` coordinates: ė = Σᵢ ∂e/∂qᵢ q̇ᵢ + ∂e/∂t (the velocity of a gap, g_q q̇ + g_t of a joint).
     /// `None` if the expression uses a velocity (its derivative would need accelerations).
     pub fn time_derivative(&self, n: usize) -> Option<Expr> {
-        if self.variables().iter().any(|&v| (n..2 * n).contains(&v)) {
+        if self.variables_in(n..2 * n).next().is_some() {
             return None;
         }
-        let along: Expr = (0..n).map(|i| self.derivative(i) * Expr::var(n + i)).sum();
+        // Only the coordinates present: the other terms are 0·q̇_i, which the sum drops.
+        let along: Expr = self
+            .variables_in(0..n)
+            .map(|i| self.derivative(i) * Expr::var(n + i))
+            .sum();
         Some(along + self.derivative(2 * n))
     }
 
@@ -632,9 +686,13 @@ impl std::ops::Neg for Expr {
     }
 }
 
+/// Left to right as written (`((a + b) + c) + …`) for up to 32 nonzero terms; a longer sum
+/// is split into blocks of 32 terms, each folded so, and the blocks are added pairwise, as the
+/// parser does with a long chain: its tree stays shallow (⌈log₂(terms/32)⌉ + 32 levels) and
+/// building it costs time and memory linear in its terms.
 impl std::iter::Sum for Expr {
     fn sum<I: Iterator<Item = Expr>>(iter: I) -> Expr {
-        iter.fold(Expr::constant(0.0), |a, b| a + b)
+        diff::sum(iter)
     }
 }
 

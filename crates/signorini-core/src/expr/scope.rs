@@ -4,6 +4,7 @@ use super::parse::{Tok, tokenize};
 use super::{Expr, ExprError, reserved_names};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
 use thiserror::Error;
 
 /// A parameter's definition in the spec: a number, or an expression of other parameters
@@ -95,6 +96,9 @@ impl ScopeError {
 pub struct Scope {
     variables: Vec<String>,
     parameters: Vec<(String, f64)>,
+    /// The index of each variable by name (a model of 10⁴ coordinates names 2·10⁴ + 1
+    /// variables: looked up per name of every expression, a scan would be quadratic).
+    index: HashMap<String, usize>,
 }
 
 fn is_identifier(s: &str) -> bool {
@@ -135,7 +139,8 @@ impl Scope {
         vars: Vec<(&'static str, String)>,
         parameters: &[(String, Param)],
     ) -> Result<Scope, ScopeError> {
-        let mut taken: Vec<(&'static str, String)> = Vec::new();
+        // Every name claimed so far, with its kind.
+        let mut taken: HashMap<String, &'static str> = HashMap::with_capacity(vars.len());
         let describe = |kind: &str, name: &str| -> String {
             match kind {
                 "time" => "the time t".to_string(),
@@ -154,18 +159,12 @@ impl Scope {
             } else if reserved_names().any(|r| r == name) {
                 Some(format!("the function {name}"))
             } else {
-                taken
-                    .iter()
-                    .find(|(_, n)| n == name)
-                    .map(|(k, n)| describe(k, n))
+                taken.get(name).map(|k| describe(k, name))
             };
             if let Some(other) = other {
                 // The time clashes with a coordinate named `t`: report the coordinate.
                 let (kind, other) = if kind == "time" {
-                    let k = taken
-                        .iter()
-                        .find(|(_, n)| n == name)
-                        .map_or("variable", |t| t.0);
+                    let k = taken.get(name).map_or("variable", |k| *k);
                     (k, "the time t".to_string())
                 } else {
                     (kind, other)
@@ -176,7 +175,7 @@ impl Scope {
                     other,
                 });
             }
-            taken.push((kind, name.to_string()));
+            taken.insert(name.to_string(), kind);
             Ok(())
         };
         for (kind, name) in &vars {
@@ -185,9 +184,16 @@ impl Scope {
         for (name, _) in parameters {
             claim("parameter", name)?;
         }
+        let variables: Vec<String> = vars.into_iter().map(|(_, n)| n).collect();
+        let index = variables
+            .iter()
+            .enumerate()
+            .map(|(i, n)| (n.clone(), i))
+            .collect();
         let mut scope = Scope {
-            variables: vars.into_iter().map(|(_, n)| n).collect(),
+            variables,
             parameters: Vec::with_capacity(parameters.len()),
+            index,
         };
         scope.resolve(parameters)?;
         Ok(scope)
@@ -297,7 +303,7 @@ impl Scope {
 
     /// The index of a variable.
     pub fn variable(&self, name: &str) -> Option<usize> {
-        self.variables.iter().position(|v| v == name)
+        self.index.get(name).copied()
     }
 
     /// The value of a parameter.

@@ -3,9 +3,8 @@
 //! the layout then puts the variables and constants first in the register file, so that only
 //! operations are dispatched, each writing the next register.
 
+use super::diff::FastMap;
 use super::{Expr, Func, Func2, Node, Number};
-use std::collections::HashMap;
-use std::sync::Arc;
 
 /// One instruction of the builder; operands are earlier instructions.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -93,7 +92,11 @@ const POWI_MAX: f64 = 64.0;
 pub struct Tape {
     constants: Vec<f64>,
     code: Vec<Op>,
+    /// The register of each output, or of each stored output of a sparse tape.
     outputs: Vec<u32>,
+    /// A sparse tape ([`Tape::compile_sparse`]): the number of outputs and the (increasing)
+    /// index of each stored one; every other output is 0.
+    sparse: Option<(usize, Vec<u32>)>,
     n_vars: usize,
     /// Distinct nodes: operations, constants and the variables used.
     nodes: usize,
@@ -103,8 +106,9 @@ pub struct Tape {
 
 struct Builder {
     code: Vec<Instr>,
-    keys: HashMap<Key, u32>,
-    memo: HashMap<*const Node, u32>,
+    keys: FastMap<Key, u32>,
+    /// Register of each node already compiled, by the node's address.
+    memo: FastMap<usize, u32>,
     n_vars: usize,
 }
 
@@ -121,7 +125,7 @@ impl Builder {
     }
 
     fn node(&mut self, e: &Expr) -> u32 {
-        let ptr = Arc::as_ptr(&e.0);
+        let ptr = e.address();
         if let Some(&r) = self.memo.get(&ptr) {
             return r;
         }
@@ -156,22 +160,48 @@ impl Builder {
 impl Tape {
     /// Compiles `exprs` into one tape with one output per expression, in order.
     pub fn compile(exprs: &[Expr]) -> Tape {
+        Tape::build(exprs.iter())
+    }
+
+    /// Compiles a sparse list of outputs: `len` outputs, entry k of `entries` = (index, e) the
+    /// output `index` (indices distinct, below `len`), every other output 0. It evaluates to
+    /// what [`Tape::compile`] of the dense list does, but stores and computes the listed
+    /// entries only: a Jacobian with n² entries of which O(n) are nonzero compiles in O(n).
+    ///
+    /// Panics if an index is not below `len` or repeats (the model builds them, not a user).
+    pub fn compile_sparse(len: usize, entries: &[(usize, Expr)]) -> Tape {
+        let mut index: Vec<(usize, usize)> = entries
+            .iter()
+            .enumerate()
+            .map(|(k, (i, _))| (*i, k))
+            .collect();
+        index.sort_unstable();
+        assert!(
+            index.windows(2).all(|w| w[0].0 < w[1].0) && index.last().is_none_or(|l| l.0 < len),
+            "sparse tape outputs must be distinct and below {len}"
+        );
+        let mut tape = Tape::build(index.iter().map(|&(_, k)| &entries[k].1));
+        tape.sparse = Some((len, index.iter().map(|&(i, _)| i as u32).collect()));
+        tape
+    }
+
+    fn build<'a>(exprs: impl Iterator<Item = &'a Expr>) -> Tape {
         let mut b = Builder {
             code: Vec::new(),
-            keys: HashMap::new(),
-            memo: HashMap::new(),
+            keys: FastMap::default(),
+            memo: FastMap::default(),
             n_vars: 0,
         };
-        let roots: Vec<u32> = exprs.iter().map(|e| b.node(e)).collect();
+        let roots: Vec<u32> = exprs.map(|e| b.node(e)).collect();
         // sin(a) and cos(a) both present: one `sin_cos` (one libm call, and what a dual number's
         // sin or cos computes anyway) fills both registers. Mechanisms have both for every angle.
-        let mut sin_of = HashMap::new();
+        let mut sin_of = FastMap::default();
         for (k, ins) in b.code.iter().enumerate() {
             if let Instr::Call(Func::Sin, a) = *ins {
                 sin_of.insert(a, k);
             }
         }
-        let mut cos_of_sin = HashMap::new();
+        let mut cos_of_sin = FastMap::default();
         for (k, ins) in b.code.iter().enumerate() {
             if let Instr::Call(Func::Cos, a) = *ins
                 && let Some(&s) = sin_of.get(&a)
@@ -240,6 +270,7 @@ impl Tape {
             constants,
             code,
             outputs: roots.iter().map(|&r| slot[r as usize]).collect(),
+            sparse: None,
             n_vars,
             nodes: b.code.len(),
             registers: next as usize,
@@ -264,7 +295,33 @@ impl Tape {
 
     /// Number of outputs.
     pub fn outputs(&self) -> usize {
-        self.outputs.len()
+        self.sparse
+            .as_ref()
+            .map_or(self.outputs.len(), |(len, _)| *len)
+    }
+
+    /// The outputs a sparse tape ([`Tape::compile_sparse`]) computes, in increasing order (all
+    /// others are 0); `None` for a dense tape. With [`Tape::eval_stored_into`], what a caller
+    /// that keeps the matrix sparse reads.
+    pub fn stored_outputs(&self) -> Option<&[u32]> {
+        self.sparse.as_ref().map(|(_, index)| index.as_slice())
+    }
+
+    /// Evaluates the stored outputs only (all outputs of a dense tape; those of
+    /// [`Tape::stored_outputs`] of a sparse one, in that order) into `out`.
+    ///
+    /// Panics if `out` is shorter than the stored outputs.
+    pub fn eval_stored_into<T: Number>(&self, vars: &[T], scratch: &mut Vec<T>, out: &mut [T]) {
+        assert!(
+            out.len() >= self.outputs.len(),
+            "tape stores {} outputs, got room for {}",
+            self.outputs.len(),
+            out.len()
+        );
+        self.run(vars, scratch);
+        for (o, &r) in out.iter_mut().zip(&self.outputs) {
+            *o = scratch[r as usize];
+        }
     }
 
     /// The length a variable vector must have at least (1 + the largest variable index used).
@@ -279,23 +336,35 @@ impl Tape {
     /// (sizes fixed by the model, not by user input).
     pub fn eval_into<T: Number>(&self, vars: &[T], scratch: &mut Vec<T>, out: &mut [T]) {
         assert!(
-            out.len() >= self.outputs.len(),
+            out.len() >= self.outputs(),
             "tape has {} outputs, got room for {}",
-            self.outputs.len(),
+            self.outputs(),
             out.len()
         );
         self.run(vars, scratch);
-        for (o, &r) in out.iter_mut().zip(&self.outputs) {
-            *o = scratch[r as usize];
+        match &self.sparse {
+            None => {
+                for (o, &r) in out.iter_mut().zip(&self.outputs) {
+                    *o = scratch[r as usize];
+                }
+            }
+            Some((len, index)) => {
+                out[..*len].fill(T::zero());
+                for (&i, &r) in index.iter().zip(&self.outputs) {
+                    out[i as usize] = scratch[r as usize];
+                }
+            }
         }
     }
 
     /// Evaluates the tape's only (or first) output; see [`Tape::eval_into`].
     pub fn eval_one<T: Number>(&self, vars: &[T], scratch: &mut Vec<T>) -> T {
         self.run(vars, scratch);
-        self.outputs
-            .first()
-            .map_or_else(T::zero, |&r| scratch[r as usize])
+        let first = match &self.sparse {
+            Some((_, index)) if index.first() != Some(&0) => None,
+            _ => self.outputs.first(),
+        };
+        first.map_or_else(T::zero, |&r| scratch[r as usize])
     }
 
     /// The first output at `vars`, allocating its registers: for one-off checks (validation at

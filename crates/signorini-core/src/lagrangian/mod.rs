@@ -153,21 +153,35 @@ impl Tangent {
     /// model with n coordinates (variables q, q̇, t as in
     /// [`Scope::lagrangian`](crate::expr::Scope::lagrangian)).
     pub fn row_and_rate(&self, n: usize) -> (Vec<Expr>, Expr) {
+        let (entries, rate) = self.sparse_row_and_rate(n);
+        let mut row = vec![Expr::constant(0.0); n];
+        for (k, e) in entries {
+            row[k] = e;
+        }
+        (row, rate)
+    }
+
+    /// [`Tangent::row_and_rate`] with the row as its nonzero entries (coordinate, T_k), in
+    /// increasing order.
+    pub fn sparse_row_and_rate(&self, n: usize) -> (Vec<(usize, Expr)>, Expr) {
         match self {
-            Tangent::Position(tau) => {
-                let q: Vec<usize> = (0..n).collect();
-                (sparse_gradient(tau, &q), tau.derivative(2 * n))
-            }
-            Tangent::Velocity(u) => {
-                let v: Vec<usize> = (n..2 * n).collect();
-                (sparse_gradient(u, &v), at_rest(u, n))
-            }
+            Tangent::Position(tau) => (tau.sparse_gradient(0..n), tau.derivative(2 * n)),
+            Tangent::Velocity(u) => (
+                u.sparse_gradient(n..2 * n)
+                    .into_iter()
+                    .map(|(k, e)| (k - n, e))
+                    .collect(),
+                at_rest(u, n),
+            ),
         }
     }
 }
 
 /// `e` with every velocity q̇_i (variables n..2n) replaced by 0.
 fn at_rest(e: &Expr, n: usize) -> Expr {
+    if e.variables_in(n..2 * n).next().is_none() {
+        return e.clone();
+    }
     let r = |a: &Expr| at_rest(a, n);
     match e.node() {
         Node::Const(_) => e.clone(),
@@ -184,48 +198,65 @@ fn at_rest(e: &Expr, n: usize) -> Expr {
     }
 }
 
-/// The gradient of `e` with respect to `vars`, differentiating only along the variables `e`
-/// uses (the others give 0 at once): the same expressions as [`Expr::gradient`], at a cost that
-/// grows with the variables present rather than with all of them.
-fn sparse_gradient(e: &Expr, vars: &[usize]) -> Vec<Expr> {
-    let present = e.variables();
-    vars.iter()
-        .map(|&v| {
-            if present.binary_search(&v).is_ok() {
-                e.derivative(v)
-            } else {
-                Expr::constant(0.0)
+/// The nonzero entries of M(q) by row: row i the pairs (j, index into the upper-triangle list
+/// of the entry M_ij = M_ji), sorted by column; entries that are the constant 0 are left out,
+/// and an entry given twice keeps its last expression (as a dense matrix written entry by
+/// entry would).
+fn mass_rows(upper: &[(usize, usize, Expr)], n: usize) -> Vec<Vec<(usize, usize)>> {
+    let mut rows: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
+    for (k, (i, j, e)) in upper.iter().enumerate() {
+        if e.is_zero() {
+            continue;
+        }
+        rows[*i].push((*j, k));
+        if i != j {
+            rows[*j].push((*i, k));
+        }
+    }
+    for row in &mut rows {
+        row.sort_by_key(|&(j, _)| j);
+        let mut kept: Vec<(usize, usize)> = Vec::with_capacity(row.len());
+        for &(j, k) in row.iter() {
+            match kept.last_mut() {
+                Some(last) if last.0 == j => *last = (j, k),
+                _ => kept.push((j, k)),
             }
-        })
-        .collect()
+        }
+        *row = kept;
+    }
+    rows
 }
 
-/// The Coriolis/centrifugal vector c = Ṁq̇ − ½∇_q(q̇ᵀMq̇) of the n×n row-major M(q):
+/// The Coriolis/centrifugal vector c = Ṁq̇ − ½∇_q(q̇ᵀMq̇) of M(q) given by its nonzero entries
+/// (`rows` of [`mass_rows`] over `upper`):
 /// `c_i = Σ_j (Σ_k ∂M_ij/∂q_k q̇_k) q̇_j − ½ Σ_{j,k} ∂M_jk/∂q_i q̇_j q̇_k`. Only the nonzero
 /// entries of M and the coordinates each one uses are visited, in the order of the dense sums
 /// (j, then k ascending), so the expressions are those of the dense sums with their zero terms
 /// folded away; a constant or diagonal-in-its-own-coordinate M costs O(n + nonzeros), not n³.
-fn coriolis(mass: &[Expr], n: usize) -> Vec<Expr> {
+fn coriolis(upper: &[(usize, usize, Expr)], rows: &[Vec<(usize, usize)>], n: usize) -> Vec<Expr> {
     let vel = |k: usize| Expr::var(n + k);
-    // For each nonzero M_ij: the coordinates k it uses and ∂M_ij/∂q_k.
-    let mut partials: Vec<Vec<(usize, Expr)>> = vec![Vec::new(); n * n];
-    // For each coordinate i: the entries (j, k) of M that use q_i, in row-major order.
-    let mut users: Vec<Vec<usize>> = vec![Vec::new(); n];
-    for (jk, e) in mass.iter().enumerate() {
-        if e.is_zero() {
-            continue;
-        }
-        for k in e.variables().into_iter().filter(|&k| k < n) {
-            partials[jk].push((k, e.derivative(k)));
-            users[k].push(jk);
+    // For each entry of the upper triangle: the coordinates k it uses and ∂M_ij/∂q_k (once for
+    // both M_ij and M_ji).
+    let partials: Vec<Vec<(usize, Expr)>> = upper
+        .iter()
+        .map(|(_, _, e)| e.variables_in(0..n).map(|k| (k, e.derivative(k))).collect())
+        .collect();
+    // For each coordinate i: the entries (j, k, entry) of M that use q_i, in row-major order.
+    let mut users: Vec<Vec<(usize, usize, usize)>> = vec![Vec::new(); n];
+    for (j, row) in rows.iter().enumerate() {
+        for &(k, entry) in row {
+            for (i, _) in &partials[entry] {
+                users[*i].push((j, k, entry));
+            }
         }
     }
     (0..n)
         .map(|i| {
-            let mdot_v: Expr = (0..n)
-                .filter(|&j| !partials[i * n + j].is_empty())
-                .map(|j| {
-                    let mdot_ij: Expr = partials[i * n + j]
+            let mdot_v: Expr = rows[i]
+                .iter()
+                .filter(|(_, entry)| !partials[*entry].is_empty())
+                .map(|&(j, entry)| {
+                    let mdot_ij: Expr = partials[entry]
                         .iter()
                         .map(|(k, d)| d.clone() * vel(*k))
                         .sum();
@@ -234,13 +265,13 @@ fn coriolis(mass: &[Expr], n: usize) -> Vec<Expr> {
                 .sum();
             let quadratic: Expr = users[i]
                 .iter()
-                .map(|&jk| {
-                    let d = partials[jk]
+                .map(|&(j, k, entry)| {
+                    let d = partials[entry]
                         .iter()
                         .find(|(k, _)| *k == i)
                         .map(|(_, d)| d.clone())
                         .unwrap_or_else(|| Expr::constant(0.0));
-                    d * vel(jk / n) * vel(jk % n)
+                    d * vel(j) * vel(k)
                 })
                 .sum();
             mdot_v - Expr::constant(0.5) * quadratic
@@ -249,25 +280,25 @@ fn coriolis(mass: &[Expr], n: usize) -> Vec<Expr> {
 }
 
 /// Which coordinates each equation uses: row i of the equations of motion the columns of the
-/// nonzeros of row i of M (`mass`, n×n row-major), the coordinates (position or velocity) of
-/// those entries and of the force `forces[i]`; each joint the coordinates of its expression.
-fn coupling_of(mass: &[Expr], forces: &[Expr], joints: &[Expr], n: usize) -> Coupling {
+/// nonzeros of row i of M (`rows` of [`mass_rows`] over `upper`), the coordinates (position or
+/// velocity) of those entries and of the force `forces[i]`; each joint the coordinates of its
+/// expression.
+fn coupling_of(
+    upper: &[(usize, usize, Expr)],
+    rows: &[Vec<(usize, usize)>],
+    forces: &[Expr],
+    joints: &[Expr],
+    n: usize,
+) -> Coupling {
     let coordinates = |e: &Expr, into: &mut Vec<usize>| {
-        into.extend(
-            e.variables()
-                .into_iter()
-                .filter(|&v| v < 2 * n)
-                .map(|v| v % n),
-        );
+        into.extend(e.variables_in(0..2 * n).map(|v| v % n));
     };
     let motion = (0..n)
         .map(|i| {
             let mut row = Vec::new();
-            for (j, e) in mass[i * n..(i + 1) * n].iter().enumerate() {
-                if !e.is_zero() {
-                    row.push(j);
-                    coordinates(e, &mut row);
-                }
+            for &(j, entry) in &rows[i] {
+                row.push(j);
+                coordinates(&upper[entry].2, &mut row);
             }
             coordinates(&forces[i], &mut row);
             row.sort_unstable();
@@ -288,6 +319,18 @@ fn coupling_of(mass: &[Expr], forces: &[Expr], joints: &[Expr], n: usize) -> Cou
     Coupling { motion, joints }
 }
 
+/// The rows of a matrix as the nonzero entries of a row-major `rows.len()`×`width` list: entry
+/// (r, k) at r·width + k + `offset`.
+fn flatten(rows: &[Vec<(usize, Expr)>], width: usize, offset: usize) -> Vec<(usize, Expr)> {
+    rows.iter()
+        .enumerate()
+        .flat_map(|(r, row)| {
+            row.iter()
+                .map(move |(k, e)| (offset + r * width + k, e.clone()))
+        })
+        .collect()
+}
+
 impl UserModel {
     /// Compiles a validated model ([`LagrangianSpec::validate`](crate::spec::LagrangianSpec::validate)):
     /// the exact symbolic derivatives and their tapes.
@@ -303,11 +346,17 @@ impl UserModel {
             projection: _,
         } = params;
         let n = q0.len();
-        let mut mass = vec![Expr::constant(0.0); n * n];
-        for (i, j, e) in &upper {
-            mass[i * n + j] = e.clone();
-            mass[j * n + i] = e.clone();
-        }
+        let nn = n * n;
+        // Everything below is built from the nonzero entries and the variables each
+        // expression depends on: no n×n loop, no derivative along a variable an expression
+        // does not use (issue 27).
+        let rows = mass_rows(&upper, n);
+        let mass: Vec<(usize, Expr)> = rows
+            .iter()
+            .enumerate()
+            .flat_map(|(i, row)| row.iter().map(move |&(j, k)| (i * n + j, k)))
+            .map(|(at, k)| (at, upper[k].2.clone()))
+            .collect();
         let (mut gaps, mut restitution, mut friction, mut tangents) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for c in contacts {
@@ -317,18 +366,28 @@ impl UserModel {
             tangents.push(c.tangent);
         }
         // Exact derivatives, built symbolically.
-        let q: Vec<usize> = (0..n).collect();
-        let v: Vec<usize> = (n..2 * n).collect();
-        let coriolis = coriolis(&mass, n);
-        let grad_v = sparse_gradient(&potential, &q);
+        let coriolis = coriolis(&upper, &rows, n);
+        let mut grad_v = vec![Expr::constant(0.0); n];
+        for (k, d) in potential.sparse_gradient(0..n) {
+            grad_v[k] = d;
+        }
         let forces: Vec<Expr> = (0..n)
             .map(|i| applied[i].clone() - grad_v[i].clone() - coriolis[i].clone())
             .collect();
-        let mut force_jacobians: Vec<Expr> =
-            forces.iter().flat_map(|f| sparse_gradient(f, &q)).collect();
-        force_jacobians.extend(forces.iter().flat_map(|f| sparse_gradient(f, &v)));
-        let joint_jacobian: Vec<Expr> =
-            joints.iter().flat_map(|g| sparse_gradient(g, &q)).collect();
+        drop(grad_v);
+        let (dq, dv): (Vec<_>, Vec<_>) = forces
+            .iter()
+            .map(|f| {
+                let dv = f.sparse_gradient(n..2 * n);
+                let dv = dv.into_iter().map(|(k, e)| (k - n, e)).collect();
+                (f.sparse_gradient(0..n), dv)
+            })
+            .unzip();
+        let mut force_jacobians = flatten(&dq, n, 0);
+        force_jacobians.extend(flatten(&dv, n, nn));
+        drop((dq, dv));
+        let joint_jacobian: Vec<Vec<(usize, Expr)>> =
+            joints.iter().map(|g| g.sparse_gradient(0..n)).collect();
         // Velocities were refused above, so the time derivative exists.
         let joint_rate: Vec<Expr> = joints
             .iter()
@@ -337,17 +396,17 @@ impl UserModel {
                     .unwrap_or_else(|| Expr::constant(f64::NAN))
             })
             .collect();
-        let gap_jacobian: Vec<Expr> = gaps.iter().flat_map(|g| sparse_gradient(g, &q)).collect();
+        let gap_jacobian: Vec<Vec<(usize, Expr)>> =
+            gaps.iter().map(|g| g.sparse_gradient(0..n)).collect();
         let gap_rates: Vec<Expr> = gaps.iter().map(|g| g.derivative(2 * n)).collect();
-        let (tangent_jacobian, tangent_rates): (Vec<Vec<Expr>>, Vec<Expr>) = tangents
+        let (tangent_jacobian, tangent_rates): (Vec<Vec<(usize, Expr)>>, Vec<Expr>) = tangents
             .iter()
             .map(|t| match t {
-                Some(t) => t.row_and_rate(n),
-                None => (vec![Expr::constant(0.0); n], Expr::constant(0.0)),
+                Some(t) => t.sparse_row_and_rate(n),
+                None => (Vec::new(), Expr::constant(0.0)),
             })
             .unzip();
-        let tangent_jacobian: Vec<Expr> = tangent_jacobian.concat();
-        let coupling = coupling_of(&mass, &forces, &joints, n);
+        let coupling = coupling_of(&upper, &rows, &forces, &joints, n);
         let mass_entries: Vec<(usize, usize)> = upper
             .iter()
             .filter(|(_, _, e)| !e.is_zero())
@@ -362,19 +421,22 @@ impl UserModel {
             v0,
             restitution,
             friction,
-            mass: Tape::compile(&mass),
+            mass: Tape::compile_sparse(nn, &mass),
             potential: potential.compile(),
             forces: Tape::compile(&forces),
             applied: Tape::compile(&applied),
             coriolis: Tape::compile(&coriolis),
-            force_jacobians: Tape::compile(&force_jacobians),
+            force_jacobians: Tape::compile_sparse(2 * nn, &force_jacobians),
             joint: Tape::compile(&joints),
-            joint_jacobian: Tape::compile(&joint_jacobian),
+            joint_jacobian: Tape::compile_sparse(joints.len() * n, &flatten(&joint_jacobian, n, 0)),
             joint_rate: Tape::compile(&joint_rate),
             gaps: Tape::compile(&gaps),
-            gap_jacobian: Tape::compile(&gap_jacobian),
+            gap_jacobian: Tape::compile_sparse(gaps.len() * n, &flatten(&gap_jacobian, n, 0)),
             gap_rates: Tape::compile(&gap_rates),
-            tangent_jacobian: Tape::compile(&tangent_jacobian),
+            tangent_jacobian: Tape::compile_sparse(
+                tangents.len() * n,
+                &flatten(&tangent_jacobian, n, 0),
+            ),
             tangent_rates: Tape::compile(&tangent_rates),
             coupling,
             joint_structure,

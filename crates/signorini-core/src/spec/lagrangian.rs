@@ -4,6 +4,7 @@
 //! [`crate::lagrangian::UserModel`] compiles).
 
 use super::SpecError;
+use crate::band::SymBand;
 use crate::expr::{Expr, Param, Scope, ScopeError};
 use crate::lagrangian::{
     ContactParams, JOINT_TOLERANCE, SYMMETRY_TOLERANCE, StartProjection, Tangent, UserModelParams,
@@ -531,28 +532,68 @@ fn start_tolerance(q0: &[f64]) -> f64 {
 }
 
 /// M(q): the entries of its upper triangle (i ≤ j), checked positive definite at q0 by
-/// Cholesky (`model.mass`, with the smallest eigenvalue when it is not).
+/// Cholesky (`model.mass`, with the smallest eigenvalue when it is not). A banded M (the
+/// half-bandwidth kd of its nonzeros at q0 below n/4) is factorised in its band, O(n·kd²) time
+/// and O(n·kd) memory; a wider one densely.
 fn mass_matrix(
     p: &Parser<'_>,
     spec: &MassSpec,
     n: usize,
 ) -> Result<Vec<(usize, usize, Expr)>, SpecError> {
     let upper = mass_entries(p, spec, n)?;
-    let mut mass = vec![Expr::constant(0.0); n * n];
-    for (i, j, e) in &upper {
-        mass[i * n + j] = e.clone();
-        mass[j * n + i] = e.clone();
+    let m0: Vec<(usize, usize, f64)> = upper
+        .iter()
+        .map(|(i, j, e)| (*i, *j, e.eval(&p.at_start)))
+        .filter(|&(_, _, v)| v != 0.0)
+        .collect();
+    let kd = m0.iter().map(|&(i, j, _)| j - i).max().unwrap_or(0);
+    if kd < n / 4 {
+        let mut band = SymBand::zeros(n, kd);
+        for &(i, j, v) in &m0 {
+            band.set(j, i, v);
+        }
+        return match band.cholesky() {
+            Ok(_) => Ok(upper),
+            Err(_) => Err(not_positive_definite(&m0, n)),
+        };
     }
-    let m0: Vec<f64> = mass.iter().map(|e| e.eval(&p.at_start)).collect();
-    let m0 = DMatrix::from_row_slice(n, n, &m0);
-    if m0.clone().cholesky().is_none() {
-        let smallest = m0.symmetric_eigenvalues().min();
-        return Err(SpecError::new(
-            "model.mass",
-            format!("M is not positive definite at q0 (smallest eigenvalue {smallest:e})"),
-        ));
+    let dense = dense_mass(&m0, n);
+    if dense.clone().cholesky().is_none() {
+        return Err(not_positive_definite(&m0, n));
     }
     Ok(upper)
+}
+
+/// The dense M at q0 from its upper-triangle entries.
+fn dense_mass(m0: &[(usize, usize, f64)], n: usize) -> DMatrix<f64> {
+    let mut m = DMatrix::zeros(n, n);
+    for &(i, j, v) in m0 {
+        m[(i, j)] = v;
+        m[(j, i)] = v;
+    }
+    m
+}
+
+/// Largest n for which the error message computes the smallest eigenvalue of M at q0 (a dense
+/// symmetric eigensolver: O(n³) time, 8n² bytes).
+const EIGENVALUE_REPORT_MAX: usize = 2000;
+
+/// `model.mass` is not positive definite at q0: the error, with M's smallest eigenvalue at q0
+/// when n ≤ [`EIGENVALUE_REPORT_MAX`].
+fn not_positive_definite(m0: &[(usize, usize, f64)], n: usize) -> SpecError {
+    if n <= EIGENVALUE_REPORT_MAX {
+        let smallest = dense_mass(m0, n).symmetric_eigenvalues().min();
+        return SpecError::new(
+            "model.mass",
+            format!("M is not positive definite at q0 (smallest eigenvalue {smallest:e})"),
+        );
+    }
+    SpecError::new(
+        "model.mass",
+        format!(
+            "M is not positive definite at q0 (its Cholesky factorisation breaks down; {n} coordinates, too many to compute its smallest eigenvalue)"
+        ),
+    )
 }
 
 /// The applied forces f(t, q, q̇), n entries (`model.forces[i]`); zero when absent.
