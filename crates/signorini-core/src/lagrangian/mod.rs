@@ -467,6 +467,11 @@ impl UserModel {
 
     /// Evaluates `tape` at (q, v, t); v = 0 when `None` (the tape does not use it).
     fn eval<T: Number>(&self, tape: &Tape, t: T, q: &[T], v: Option<&[T]>, out: &mut [T]) {
+        tape.eval_into(&self.variables(t, q, v), &mut Vec::new(), out);
+    }
+
+    /// The tapes' variables: q, then v (zeros when the tape takes no velocity), then t.
+    fn variables<T: Number>(&self, t: T, q: &[T], v: Option<&[T]>) -> Vec<T> {
         let mut vars = Vec::with_capacity(2 * self.n + 1);
         vars.extend_from_slice(&q[..self.n]);
         match v {
@@ -474,7 +479,20 @@ impl UserModel {
             None => vars.resize(2 * self.n, T::zero()),
         }
         vars.push(t);
-        tape.eval_into(&vars, &mut Vec::new(), out);
+        vars
+    }
+
+    /// The flat row-major indices i·n + k of the entries of M the mass tape stores (its
+    /// structural nonzeros), or `None` when it stores all n² of them.
+    pub(crate) fn mass_pattern(&self) -> Option<&[u32]> {
+        self.mass.stored_outputs()
+    }
+
+    /// The stored entries of M(q), in the order of [`UserModel::mass_pattern`] (all n² row by
+    /// row when it is `None`): the derivatives of M read these without a dense n×n array.
+    pub(crate) fn mass_stored<T: Number>(&self, q: &[T], out: &mut [T]) {
+        let vars = self.variables(T::zero(), q, None);
+        self.mass.eval_stored_into(&vars, &mut Vec::new(), out);
     }
 }
 

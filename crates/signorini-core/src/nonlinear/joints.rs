@@ -124,25 +124,33 @@ impl JointedSystem for UserModel {
         }
     }
 
-    /// One forward-mode dual evaluation of the mass tape per group of coordinates whose columns
-    /// share no row (the model's Newton pattern, [`crate::soi2::sparsity`]).
+    /// One forward-mode dual evaluation of M's stored entries (its nonzeros) per group of
+    /// coordinates whose columns share no row (the model's Newton pattern,
+    /// [`crate::soi2::sparsity`]): (∂M/∂q_G a)_i = Σ_k ∂M_ik/∂q_G a_k over the nonzeros of
+    /// row i, where q_G seeds the group's coordinates together.
     fn mass_derivative(&self, q: &[f64], a: &[f64], out: &mut [f64]) {
         let n = q.len();
+        let entries: Vec<u32> = match self.mass_pattern() {
+            Some(stored) => stored.to_vec(),
+            None => (0..(n * n) as u32).collect(),
+        };
         let mut qd = duals(q);
-        let mut m = vec![Dual64::from(0.0); n * n];
+        let mut m = vec![Dual64::from(0.0); entries.len()];
+        let mut rows = vec![0.0; n];
         out.fill(0.0);
         let pattern = self.newton_pattern(1);
         for group in coordinate_groups(n, pattern) {
             seed(&mut qd, &group, 1.0);
-            ConstrainedModel::mass(self, Dual64::from(0.0), &qd, &mut m);
+            self.mass_stored(&qd, &mut m);
             seed(&mut qd, &group, 0.0);
+            rows.fill(0.0);
+            for (&e, mik) in entries.iter().zip(&m) {
+                let (i, k) = (e as usize / n, e as usize % n);
+                rows[i] += mik.eps * a[k];
+            }
             for &j in &group {
                 for i in motion_rows(n, pattern, j) {
-                    out[i * n + j] = m[i * n..(i + 1) * n]
-                        .iter()
-                        .zip(a)
-                        .map(|(mik, ak)| mik.eps * ak)
-                        .sum();
+                    out[i * n + j] = rows[i];
                 }
             }
         }
