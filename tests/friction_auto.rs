@@ -68,7 +68,7 @@ fn auto_solves_what_gauss_seidel_solves_on_the_fixtures() {
 /// Issue 28: at 1e-8 `auto` missed Capsules-i122-1617 (solved by Siconos' PROX): its proximal
 /// stage started from the first stage's best iterate and did not converge within its 200 Newton
 /// iterations, and Gauss–Seidel then stopped at 1.2e-8 after 10 000 sweeps. The proximal stage
-/// now starts from `auto`'s own start (here r = 0) and answers.
+/// now tries `auto`'s own start (here r = 0) after the best iterate, and answers.
 #[test]
 fn auto_solves_capsules_i122_by_prox_from_the_start() {
     let problem = fixture("Capsules-i122-1617.dat");
@@ -76,8 +76,9 @@ fn auto_solves_capsules_i122_by_prox_from_the_start() {
     assert_eq!(s.solver, "prox");
     assert!(s.error <= 1e-8, "{}", s.error);
     assert_eq!(problem.error(&s.r), s.error);
-    // 100 sweeps of the first stage, then at most the stage's 200 Newton iterations (104 measured).
-    assert!(s.iterations <= 300, "{}", s.iterations);
+    // 100 sweeps of the first stage, then at most 200 Newton iterations from each start (58 from
+    // the best iterate, within a third of the work budget, then 104 from r = 0, measured).
+    assert!(s.iterations <= 500, "{}", s.iterations);
     // The old start: the proximal point method from the first stage's best iterate, with the
     // stage's 200 Newton iterations, does not reach 1e-8.
     let first = Fc3dOptions {
@@ -98,18 +99,19 @@ fn auto_solves_capsules_i122_by_prox_from_the_start() {
     );
 }
 
-/// Issue 28: OneObject-i100000-499, which the proximal point method solves from r = 0 in a few
-/// Newton iterations, is answered by `auto`'s proximal stage.
+/// Issue 28: OneObject-i100000-499, which Gauss–Seidel does not solve at 1e-8 and the proximal
+/// point method solves from r = 0 in a few Newton iterations, is answered by `auto`'s proximal
+/// stage.
 #[test]
 fn auto_solves_oneobject_499_by_prox() {
     let problem = fixture("OneObject-i100000-499.hdf5.dat");
+    assert!(solve_fc3d(&problem, &at_1e8(Fc3dSolverKind::Nsgs)).is_err());
     let prox = solve_fc3d(&problem, &at_1e8(Fc3dSolverKind::Prox)).unwrap();
+    assert!(prox.iterations <= 10, "{}", prox.iterations);
     let auto = solve_fc3d(&problem, &at_1e8(Fc3dSolverKind::Auto)).unwrap();
     assert_eq!(auto.solver, "prox");
     assert!(auto.error <= 1e-8, "{}", auto.error);
-    // The same proximal iterations from the same start, after the first stage's 100 sweeps.
-    assert_eq!(auto.iterations, 100 + prox.iterations);
-    assert_eq!(auto.r, prox.r);
+    assert_eq!(problem.error(&auto.r), auto.error);
 }
 
 /// `auto_prox_work` bounds the proximal stage's work: with none, the proximal stage stops before
