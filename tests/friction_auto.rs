@@ -6,8 +6,25 @@
 #![cfg(feature = "hdf5")]
 
 use signorini::problem_file;
-use signorini_core::friction::{Fc3dOptions, Fc3dSolverKind, solve_fc3d};
+use signorini_core::friction::{
+    Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolverKind, solve_fc3d, solve_fc3d_from,
+};
 use std::path::Path;
+
+fn fixture(name: &str) -> Fc3dProblem {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/friction")
+        .join(name);
+    problem_file::read(&path).unwrap().to_fc3d().unwrap()
+}
+
+fn at_1e8(kind: Fc3dSolverKind) -> Fc3dOptions {
+    Fc3dOptions {
+        kind,
+        tolerance: 1e-8,
+        ..Fc3dOptions::default()
+    }
+}
 
 #[test]
 fn auto_solves_what_gauss_seidel_solves_on_the_fixtures() {
@@ -19,7 +36,7 @@ fn auto_solves_what_gauss_seidel_solves_on_the_fixtures() {
         .filter(|p| p.extension().is_some_and(|e| e == "dat" || e == "hdf5"))
         .collect();
     files.sort();
-    assert_eq!(files.len(), 10, "fixtures in {}", dir.display());
+    assert_eq!(files.len(), 12, "fixtures in {}", dir.display());
     let options = |kind| Fc3dOptions {
         kind,
         tolerance: 1e-8,
@@ -42,7 +59,74 @@ fn auto_solves_what_gauss_seidel_solves_on_the_fixtures() {
             assert!(auto.is_ok(), "{name}: nsgs solves it, auto fails: {auto:?}");
         }
     }
-    // Gauss–Seidel alone solves 9 of the 10 (not BoxesStack1); auto solves all of them.
+    // Gauss–Seidel alone solves 9 of the 12 (not BoxesStack1, Capsules-i122-1617,
+    // OneObject-i100000-499); auto solves all of them.
     assert_eq!(by_nsgs, 9);
-    assert_eq!(by_auto.len(), 10, "{by_auto:?}");
+    assert_eq!(by_auto.len(), 12, "{by_auto:?}");
+}
+
+/// Issue 28: at 1e-8 `auto` missed Capsules-i122-1617 (solved by Siconos' PROX): its proximal
+/// stage started from the first stage's best iterate and did not converge within its 200 Newton
+/// iterations, and Gauss–Seidel then stopped at 1.2e-8 after 10 000 sweeps. The proximal stage
+/// now tries `auto`'s own start (here r = 0) after the best iterate, and answers.
+#[test]
+fn auto_solves_capsules_i122_by_prox_from_the_start() {
+    let problem = fixture("Capsules-i122-1617.dat");
+    let s = solve_fc3d(&problem, &at_1e8(Fc3dSolverKind::Auto)).unwrap();
+    assert_eq!(s.solver, "prox");
+    assert!(s.error <= 1e-8, "{}", s.error);
+    assert_eq!(problem.error(&s.r), s.error);
+    // 100 sweeps of the first stage, then at most 200 Newton iterations from each start (58 from
+    // the best iterate, within a third of the work budget, then 104 from r = 0, measured).
+    assert!(s.iterations <= 500, "{}", s.iterations);
+    // The old start: the proximal point method from the first stage's best iterate, with the
+    // stage's 200 Newton iterations, does not reach 1e-8.
+    let first = Fc3dOptions {
+        max_iterations: 100,
+        ..at_1e8(Fc3dSolverKind::NsgsAnderson)
+    };
+    let Err(Fc3dError::NotConverged { best, .. }) = solve_fc3d(&problem, &first) else {
+        panic!("100 accelerated sweeps solve Capsules-i122-1617 at 1e-8");
+    };
+    let prox = Fc3dOptions {
+        max_iterations: 200,
+        ..at_1e8(Fc3dSolverKind::Prox)
+    };
+    let from_best = solve_fc3d_from(&problem, &prox, &best);
+    assert!(
+        matches!(from_best, Err(Fc3dError::NotConverged { .. })),
+        "{from_best:?}"
+    );
+}
+
+/// Issue 28: OneObject-i100000-499, which Gauss–Seidel does not solve at 1e-8 and the proximal
+/// point method solves from r = 0 in a few Newton iterations, is answered by `auto`'s proximal
+/// stage.
+#[test]
+fn auto_solves_oneobject_499_by_prox() {
+    let problem = fixture("OneObject-i100000-499.hdf5.dat");
+    assert!(solve_fc3d(&problem, &at_1e8(Fc3dSolverKind::Nsgs)).is_err());
+    let prox = solve_fc3d(&problem, &at_1e8(Fc3dSolverKind::Prox)).unwrap();
+    assert!(prox.iterations <= 10, "{}", prox.iterations);
+    let auto = solve_fc3d(&problem, &at_1e8(Fc3dSolverKind::Auto)).unwrap();
+    assert_eq!(auto.solver, "prox");
+    assert!(auto.error <= 1e-8, "{}", auto.error);
+    assert_eq!(problem.error(&auto.r), auto.error);
+}
+
+/// `auto_prox_work` bounds the proximal stage's work: with none, the proximal stage stops before
+/// its first Newton iteration and Gauss–Seidel answers Capsules-i101-404 (which it solves alone);
+/// with the default, the proximal stage answers.
+#[test]
+fn auto_hands_over_when_the_proximal_work_is_spent() {
+    let problem = fixture("Capsules-i101-404.dat");
+    let starved = Fc3dOptions {
+        auto_prox_work: 0,
+        ..at_1e8(Fc3dSolverKind::Auto)
+    };
+    let s = solve_fc3d(&problem, &starved).unwrap();
+    assert_eq!(s.solver, "nsgs");
+    assert!(s.error <= 1e-8, "{}", s.error);
+    let s = solve_fc3d(&problem, &at_1e8(Fc3dSolverKind::Auto)).unwrap();
+    assert_eq!(s.solver, "prox");
 }

@@ -187,8 +187,9 @@ pub(crate) fn project_cone(mu: f64, [n, t1, t2]: [f64; 3]) -> [f64; 3] {
 pub enum Fc3dSolverKind {
     /// Nonsmooth Gauss–Seidel with Anderson acceleration for a few sweeps (fast on well-posed
     /// rigid sets and on dense piles), then the
-    /// proximal point method for a bounded number of Newton iterations from the best iterate,
-    /// then Gauss–Seidel again from the best iterate of both with the whole budget
+    /// proximal point method from the best iterate, then from the start, each for a bounded
+    /// number of Newton iterations and a bounded work, then Gauss–Seidel again from the best
+    /// iterate of all with the whole budget
     /// ([`super::solve_fc3d`]).
     #[default]
     Auto,
@@ -248,6 +249,14 @@ pub struct Fc3dOptions {
     /// KaplasTower and BoxesStack problems it converges in 12–161, and each iteration costs a
     /// linear solve, so a larger budget mostly delays the fallback.
     pub auto_newton_iterations: usize,
+    /// Work that `Auto` gives the proximal point method from its start, in products by a 3×3
+    /// block of W (a product by W counts its stored blocks, a Gauss–Seidel sweep costs as much,
+    /// a dense LU factorisation of n unknowns 2n³/54; GMRES's Gram–Schmidt is not counted), a
+    /// third of it to the attempt from the best iterate before, and then it turns back to
+    /// Gauss–Seidel. Default 10⁸ (≈ 2.5–3.5 s on the benchmark's machine; 1.8× what
+    /// Capsules-i122-1617 needs from r = 0, and its third 2× what Capsules-i100-889 needs from
+    /// Gauss–Seidel's iterate).
+    pub auto_prox_work: usize,
     /// Newton solves its linear systems with a dense LU factorisation up to this many unknowns
     /// (3m; 8·n² bytes, 2 MB at the default 500), above it with restarted GMRES on the sparse
     /// Jacobian, which is never formed densely. Default 500: on Capsules-i101-404 (675 unknowns)
@@ -269,6 +278,7 @@ impl Default for Fc3dOptions {
             max_iterations: 10_000,
             auto_sweeps: 100,
             auto_newton_iterations: 200,
+            auto_prox_work: 100_000_000,
             dense_newton_max: 500,
             prox_outer_iterations: 100,
             prox_inner_iterations: 100,

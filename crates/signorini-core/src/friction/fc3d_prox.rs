@@ -19,7 +19,7 @@
 //! shorter step). A fixed point `r_{k+1} = r_k` solves the original problem.
 
 use super::fc3d::{Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind};
-use super::fc3d_newton::solve_fc3d_newton;
+use super::fc3d_newton::{Work, solve_fc3d_newton_within};
 
 /// σ of the weight `α = σ e^ν` (Siconos' default).
 const SIGMA: f64 = 5.0;
@@ -40,10 +40,23 @@ pub fn solve_fc3d_prox(
     options: &Fc3dOptions,
     start: &[f64],
 ) -> Result<Fc3dSolution, Fc3dError> {
+    solve_fc3d_prox_within(problem, options, start, &mut Work::unbounded())
+}
+
+/// [`solve_fc3d_prox`] counting its passes over W in `work` (the inner Newton solves' and one
+/// per error evaluation) and stopping, not converged, once the budget is spent.
+pub(crate) fn solve_fc3d_prox_within(
+    problem: &Fc3dProblem,
+    options: &Fc3dOptions,
+    start: &[f64],
+    work: &mut Work,
+) -> Result<Fc3dSolution, Fc3dError> {
     problem.validate()?;
     let m = problem.contacts();
     let mut r = start.to_vec();
+    let pass = problem.w.stored_blocks().max(1);
     let mut error = problem.error(&r);
+    work.spent += pass;
     let mut best = (error, r.clone());
     let mut spent = 0;
     let mut alpha = SIGMA * error.powf(NU);
@@ -56,7 +69,10 @@ pub fn solve_fc3d_prox(
         if error <= options.tolerance {
             break;
         }
-        if spent >= options.max_iterations || !(alpha.is_finite() && alpha > 0.0) {
+        if spent >= options.max_iterations
+            || work.spent >= work.budget
+            || !(alpha.is_finite() && alpha > 0.0)
+        {
             break;
         }
         let regularised = Fc3dProblem {
@@ -74,7 +90,7 @@ pub fn solve_fc3d_prox(
             max_iterations: inner.max_iterations.min(options.max_iterations - spent),
             ..inner
         };
-        let failed = match solve_fc3d_newton(&regularised, &inner, &r) {
+        let failed = match solve_fc3d_newton_within(&regularised, &inner, &r, work) {
             Ok(s) => {
                 spent += s.iterations;
                 r = s.r;
@@ -92,6 +108,7 @@ pub fn solve_fc3d_prox(
             Err(other) => return Err(other),
         };
         error = problem.error(&r);
+        work.spent += pass;
         if error < best.0 {
             best = (error, r.clone());
         }

@@ -2,9 +2,9 @@
 
 use super::fc3d::{Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind};
 use super::fc3d_anderson::solve_fc3d_nsgs_anderson;
-use super::fc3d_newton::solve_fc3d_newton;
+use super::fc3d_newton::{Work, solve_fc3d_newton};
 use super::fc3d_nsgs::solve_fc3d_nsgs;
-use super::fc3d_prox::solve_fc3d_prox;
+use super::fc3d_prox::{solve_fc3d_prox, solve_fc3d_prox_within};
 
 /// Solves the problem with the solver of `options.kind`, from r = 0
 /// ([`solve_fc3d_from`] with a zero start). `Auto` runs Gauss–Seidel with Anderson acceleration
@@ -12,10 +12,21 @@ use super::fc3d_prox::solve_fc3d_prox;
 /// stalls) for `auto_sweeps` sweeps (Gauss–Seidel: Acary, Brémond & Huber 2018, the fastest on
 /// rigid sets at loose tolerance; the acceleration cut the sweeps of the 1 000-sphere benchmark's
 /// first 400 steps 4.1× and its time 1.6×, docs/rigid_benchmark.md Round 7), then the proximal
-/// point method with its inner Newton solves for at most `auto_newton_iterations` Newton
-/// iterations in all, from the best iterate so far (independent of the contact ordering, and the
-/// best of their solvers at 1e-8 on rigid sets whose W is rank-deficient), then Gauss–Seidel
-/// again from the best iterate of both with the whole `max_iterations` budget. The first that
+/// point method with its inner Newton solves (independent of the contact ordering, and the best
+/// of their solvers at 1e-8 on rigid sets whose W is rank-deficient) twice: from the best
+/// iterate so far with `auto_prox_work / 3` products by W's 3×3 blocks, then from `start` (the
+/// caller's: r = 0 or the warm start) with `auto_prox_work`, each for at most
+/// `auto_newton_iterations` Newton iterations; then Gauss–Seidel again from the best iterate of
+/// all with the whole `max_iterations` budget.
+///
+/// Why two starts (docs/friction_benchmark.md, Round 9): from Gauss–Seidel's best iterate (small
+/// error, hence a small first weight α = σ e, a weak regularisation) the method is fast where
+/// that iterate is close (Capsules-i100-889: 1.7·10⁷ block products, where from r = 0 it needs
+/// 1.4·10⁸) and fails where it is not (Capsules-i122-1617: not solved in 200 Newton iterations,
+/// solved from r = 0 in 104, 5.5·10⁷ block products). The budgets bound what the proximal
+/// stage costs where it does not converge: on the 7 002-contact granular problem it reached
+/// 1e-4 only after 60 s (1.7·10⁹ block products), where Gauss–Seidel needs 605 sweeps (1 s).
+/// The first that
 /// reaches the tolerance answers, and its name is in the solution. A stage that fails for any
 /// reason only hands over to the next one; when none answers, the error holds the iterate of
 /// smallest error over all stages and the iterations of all of them.
@@ -113,7 +124,7 @@ fn solve_auto(
 ) -> Result<Fc3dSolution, Fc3dError> {
     let mut chain = Chain {
         error: problem.error(&start),
-        best: start,
+        best: start.clone(),
         spent: 0,
         solver: "nsgs_aa",
     };
@@ -134,10 +145,26 @@ fn solve_auto(
         max_iterations: newton_budget,
         ..*options
     };
+    let mut short_work = Work {
+        spent: 0,
+        budget: options.auto_prox_work / 3,
+    };
+    let from_best = chain.best.clone();
     if let Some(s) = chain.stage(
         "prox",
         newton_budget,
-        solve_fc3d_prox(problem, &prox, &chain.best),
+        solve_fc3d_prox_within(problem, &prox, &from_best, &mut short_work),
+    ) {
+        return Ok(s);
+    }
+    let mut work = Work {
+        spent: 0,
+        budget: options.auto_prox_work,
+    };
+    if let Some(s) = chain.stage(
+        "prox",
+        newton_budget,
+        solve_fc3d_prox_within(problem, &prox, &start, &mut work),
     ) {
         return Ok(s);
     }
