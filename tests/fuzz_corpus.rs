@@ -8,6 +8,8 @@
 mod checkpoint_input;
 #[path = "../fuzz/inputs/dat.rs"]
 mod dat_round_trip;
+// Its `encode` is used only by the test of the seeds, which needs an HDF5 library.
+#[cfg_attr(not(feature = "hdf5"), allow(dead_code))]
 #[path = "../fuzz/inputs/fclib.rs"]
 mod fclib_input;
 
