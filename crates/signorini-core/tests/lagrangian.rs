@@ -15,6 +15,9 @@ use signorini_core::soi2::ConstrainedModel;
 use signorini_core::spec::{JobSpec, LagrangianSpec, ModelSpec};
 use std::path::{Path, PathBuf};
 
+mod random;
+use random::Random;
+
 fn examples() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples")
 }
@@ -129,19 +132,6 @@ fn pendulum_written_as_a_lagrangian_model_runs_the_builtin_trajectory() {
                 .sum::<f64>()
         };
         assert_eq!(iterations(&a), iterations(&b), "{scheme}");
-    }
-}
-
-/// A small deterministic generator (xorshift64*), uniform in [−1, 1).
-struct Random(u64);
-
-impl Random {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        let r = self.0.wrapping_mul(0x2545_f491_4f6c_dd1d);
-        (r >> 11) as f64 / (1u64 << 52) as f64 - 1.0
     }
 }
 

@@ -17,21 +17,12 @@ use signorini_core::soi2::ConstrainedModel;
 use signorini_core::spec::LagrangianSpec;
 use std::fmt::Write;
 
-/// A small deterministic generator (xorshift64*), uniform in [−1, 1).
-struct Random(u64);
+mod random;
+use random::Random;
 
-impl Random {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        let x = self.0.wrapping_mul(0x2545_f491_4f6c_dd1d);
-        (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-    }
-
-    fn index(&mut self, n: usize) -> usize {
-        (((self.next() + 1.0) * 0.5 * n as f64) as usize).min(n - 1)
-    }
+/// A uniform index below `n`.
+fn index(rng: &mut Random, n: usize) -> usize {
+    (((rng.next() + 1.0) * 0.5 * n as f64) as usize).min(n - 1)
 }
 
 /// A random model of `n` coordinates: M pentadiagonal, diagonally dominant, depending on q;
@@ -57,8 +48,8 @@ fn random_model(n: usize, terms: usize, rng: &mut Random) -> String {
     writeln!(s, "mass = {{ entries = [{}] }}", entries.join(", ")).unwrap();
     let mut potential = Vec::new();
     for _ in 0..terms {
-        let (a, b, k) = (rng.index(n), rng.index(n), rng.next());
-        potential.push(match rng.index(4) {
+        let (a, b, k) = (index(rng, n), index(rng, n), rng.next());
+        potential.push(match index(rng, 4) {
             0 => format!("{k:?}*(x{a} - x{b})^2"),
             1 => format!("{k:?}*cos(x{a})*x{b}"),
             2 => format!("{k:?}*x{a}^3"),
@@ -68,7 +59,7 @@ fn random_model(n: usize, terms: usize, rng: &mut Random) -> String {
     writeln!(s, "potential = \"{}\"", potential.join(" + ")).unwrap();
     let forces: Vec<String> = (0..n)
         .map(|i| {
-            let (j, k, d, e) = (rng.index(n), rng.index(n), rng.next(), rng.next());
+            let (j, k, d, e) = (index(rng, n), index(rng, n), rng.next(), rng.next());
             format!("-{:?}*x{i}_dot + {e:?}*sin(x{j})*x{k}_dot", d.abs())
         })
         .collect();
@@ -79,7 +70,7 @@ fn random_model(n: usize, terms: usize, rng: &mut Random) -> String {
     writeln!(s, "q0 = {q0:?}").unwrap();
     writeln!(s, "v0 = {v0:?}").unwrap();
     writeln!(s, "constraints = [{{ expr = \"x0 - x1 + 0.1*t*sin(t)\" }}]").unwrap();
-    let (a, b, c, d) = (rng.index(n), rng.index(n), rng.index(n), rng.index(n));
+    let (a, b, c, d) = (index(rng, n), index(rng, n), index(rng, n), index(rng, n));
     writeln!(
         s,
         "contacts = [{{ gap = \"x{a} + 0.3*x{b}^2 + 5 + 0.1*t\", friction = 0.3, tangent = \"x{c}*cos(x{d}) + t\" }}, {{ gap = \"x{d} - x{c} + 4\" }}]"
