@@ -32,4 +32,5 @@ pub mod spec;
 pub mod stepping;
 pub mod study;
 pub mod trace;
+pub mod triplets;
 pub mod wfem;

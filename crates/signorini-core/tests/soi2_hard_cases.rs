@@ -26,6 +26,7 @@ use signorini_core::soi2::method::{
 use signorini_core::soi2::run::{Soi2Output, Soi2Stats, integrate_with};
 use signorini_core::soi2::{ConstrainedModel, Dims, Dual64, InitialValues, Scalar, g_ddot};
 use signorini_core::spec::{JobSpec, ModelSpec};
+use signorini_core::triplets::Triplets;
 use std::path::Path;
 
 /// An example of `examples/benchmarks/` as JSON, to edit.
@@ -463,11 +464,13 @@ fn grouped_derivatives_of_the_smooth_stage_equal_column_by_column_ones() {
     let v: Vec<f64> = (0..n).map(|i| 0.5 - 0.21 * (i as f64).cos()).collect();
     let a: Vec<f64> = (0..n).map(|i| 0.3 * (1.3 * i as f64).sin()).collect();
     let l: Vec<f64> = (0..nb).map(|r| 2.0 - 0.4 * r as f64).collect();
-    let (mut dm, mut dg) = (vec![0.0; n * n], vec![0.0; n * n]);
-    let (mut dq, mut dv) = (vec![0.0; nb * n], vec![0.0; nb * n]);
+    let (mut dm, mut dg) = (Triplets::new(n, n), Triplets::new(n, n));
+    let (mut dq, mut dv) = (Triplets::new(nb, n), Triplets::new(nb, n));
     model.mass_derivative(&q, &a, &mut dm);
     model.joint_force_derivative(0.0, &q, &l, &mut dg);
     model.joint_acceleration_derivatives(0.0, &q, &v, &a, &mut dq, &mut dv);
+    // Their entries, dense (a position given twice would add up).
+    let (dm, dg, dq, dv) = (dm.to_dense(), dg.to_dense(), dq.to_dense(), dv.to_dense());
     let d = |x: &[f64], j: usize| -> Vec<Dual64> {
         x.iter()
             .enumerate()
@@ -509,6 +512,31 @@ fn grouped_derivatives_of_the_smooth_stage_equal_column_by_column_ones() {
     }
     // Not all zero: the comparison saw real entries.
     assert!(dm.iter().any(|x| x.abs() > 1e-3) && dq.iter().any(|x| x.abs() > 1e-3));
+    // M, G, ∂F/∂q and ∂F/∂v as their nonzeros equal the dense evaluations, with fewer
+    // entries than n² (the tapes store the structure only).
+    let (mut m_e, mut g_e) = (Triplets::new(n, n), Triplets::new(nb, n));
+    model.mass_entries(&q, &mut m_e);
+    model.joint_jacobian_entries(0.0, &q, &mut g_e);
+    let (mut fq_e, mut fv_e) = (Triplets::new(n, n), Triplets::new(n, n));
+    model.force_jacobian_entries(0.0, &q, &v, &mut fq_e, &mut fv_e);
+    let (mut m, mut g) = (vec![0.0; n * n], vec![0.0; nb * n]);
+    LagrangianSystem::mass(&model, &q, &mut m);
+    model.joint_jacobian(0.0, &q, &mut g);
+    let (mut fq, mut fv) = (vec![0.0; n * n], vec![0.0; n * n]);
+    model.force_jacobians(0.0, &q, &v, &mut fq, &mut fv);
+    for (sparse, dense, what) in [
+        (&m_e, &m, "M"),
+        (&g_e, &g, "G"),
+        (&fq_e, &fq, "∂F/∂q"),
+        (&fv_e, &fv, "∂F/∂v"),
+    ] {
+        assert_eq!(&sparse.to_dense(), dense, "{what}");
+        assert!(
+            sparse.entries().len() < n * n / 2,
+            "{what}: {}",
+            sparse.entries().len()
+        );
+    }
 }
 
 /// The nonsmooth generalized-α scheme (`ns_generalized_alpha`) on A02: with N = 2 loops, the

@@ -27,6 +27,7 @@ use crate::nonlinear::LagrangianSystem;
 use crate::nonlinear::delassus::JointStructure;
 use crate::soi2::sparsity::{Coupling, Pattern};
 use crate::soi2::{ConstrainedModel, Dims, InitialValues, Scalar};
+use crate::triplets::Triplets;
 use std::sync::OnceLock;
 
 /// Relative tolerance of the symmetry check of M at q0.
@@ -482,18 +483,73 @@ impl UserModel {
         vars
     }
 
-    /// The flat row-major indices i·n + k of the entries of M the mass tape stores (its
-    /// structural nonzeros), or `None` when it stores all n² of them.
-    pub(crate) fn mass_pattern(&self) -> Option<&[u32]> {
-        self.mass.stored_outputs()
+    /// Calls `f(k, value)` for every output k the tape stores (its structural nonzeros, by
+    /// flat row-major index; every output of a dense tape), evaluated at (q, v, t).
+    fn for_each_stored(
+        &self,
+        tape: &Tape,
+        t: f64,
+        q: &[f64],
+        v: Option<&[f64]>,
+        mut f: impl FnMut(usize, f64),
+    ) {
+        let vars = self.variables(t, q, v);
+        let mut scratch = Vec::new();
+        match tape.stored_outputs() {
+            Some(index) => {
+                let mut values = vec![0.0; index.len()];
+                tape.eval_stored_into(&vars, &mut scratch, &mut values);
+                for (&k, &x) in index.iter().zip(&values) {
+                    f(k as usize, x);
+                }
+            }
+            None => {
+                let mut values = vec![0.0; tape.outputs()];
+                tape.eval_into(&vars, &mut scratch, &mut values);
+                for (k, &x) in values.iter().enumerate() {
+                    f(k, x);
+                }
+            }
+        }
     }
 
-    /// The stored entries of M(q), in the order of [`UserModel::mass_pattern`] (all n² row by
-    /// row when it is `None`): the derivatives of M read these without a dense n×n array.
-    pub(crate) fn mass_stored<T: Number>(&self, q: &[T], out: &mut [T]) {
-        let vars = self.variables(T::zero(), q, None);
-        self.mass.eval_stored_into(&vars, &mut Vec::new(), out);
+    /// The flat row-major indices (i·cols + k) of the entries of M (n×n) or G (nb×n) their
+    /// tapes store (the structural nonzeros), or `None` when the tape stores all of them.
+    pub(crate) fn stored_pattern(&self, which: StoredMatrix) -> Option<&[u32]> {
+        self.stored_tape(which).stored_outputs()
     }
+
+    /// The stored entries of M(q) or G(q, t), in the order of [`UserModel::stored_pattern`]
+    /// (all of them row by row when it is `None`): the derivatives of M and G read these
+    /// without a dense array, in any number type (dual numbers for their own derivatives).
+    pub(crate) fn stored_values<T: Number>(
+        &self,
+        which: StoredMatrix,
+        t: T,
+        q: &[T],
+        out: &mut [T],
+    ) {
+        let vars = self.variables(t, q, None);
+        self.stored_tape(which)
+            .eval_stored_into(&vars, &mut Vec::new(), out);
+    }
+
+    fn stored_tape(&self, which: StoredMatrix) -> &Tape {
+        match which {
+            StoredMatrix::Mass => &self.mass,
+            StoredMatrix::JointJacobian => &self.joint_jacobian,
+        }
+    }
+}
+
+/// The matrices of a user model whose stored entries the derivatives of
+/// [`crate::nonlinear::joints::JointedSystem`] read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum StoredMatrix {
+    /// M(q), n×n.
+    Mass,
+    /// G(q, t) = ∂g/∂q, nb×n.
+    JointJacobian,
 }
 
 /// Joints as holonomic constraints in the additive form f = F(t, y, z) − g_yᵀλ (§6 of Jay &
@@ -602,6 +658,35 @@ impl LagrangianSystem for UserModel {
         self.eval(&self.force_jacobians, t, q, Some(v), &mut both);
         dq[..nn].copy_from_slice(&both[..nn]);
         dv[..nn].copy_from_slice(&both[nn..]);
+    }
+
+    /// The entries the mass tape stores.
+    fn mass_entries(&self, q: &[f64], out: &mut Triplets) {
+        let n = self.n;
+        out.clear();
+        self.for_each_stored(&self.mass, 0.0, q, None, |k, x| out.push(k / n, k % n, x));
+    }
+
+    /// The entries the tape of ∂F/∂q then ∂F/∂v stores.
+    fn force_jacobian_entries(
+        &self,
+        t: f64,
+        q: &[f64],
+        v: &[f64],
+        dq: &mut Triplets,
+        dv: &mut Triplets,
+    ) {
+        let n = self.n;
+        dq.clear();
+        dv.clear();
+        self.for_each_stored(&self.force_jacobians, t, q, Some(v), |k, x| {
+            let (into, k) = if k < n * n {
+                (&mut *dq, k)
+            } else {
+                (&mut *dv, k - n * n)
+            };
+            into.push(k / n, k % n, x);
+        });
     }
 
     fn applied_forces(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {

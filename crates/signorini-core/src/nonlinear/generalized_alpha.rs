@@ -123,6 +123,7 @@ use crate::lcp::LcpOptions;
 use crate::observer::Columns;
 use crate::soi2::banded::{BandLu, BandOrder};
 use crate::soi2::factor::{NewtonFactor, range_projection};
+use crate::triplets::Triplets;
 use nalgebra::{DMatrix, DVector};
 
 /// How far above the Newton tolerance the smooth stage accepts a residual that stopped
@@ -435,23 +436,25 @@ impl NonsmoothGeneralizedAlpha {
         v: &[f64],
     ) -> Option<(Vec<f64>, Vec<f64>)> {
         let (n, nb) = (self.n, self.nb);
-        let mut mass = vec![0.0; n * n];
-        system.mass(q, &mut mass);
+        let mut mass = Triplets::new(n, n);
+        system.mass_entries(q, &mut mass);
         let mut f = vec![0.0; n];
         system.forces(t, q, v, &mut f);
-        let mut g = vec![0.0; nb * n];
-        system.joint_jacobian(t, q, &mut g);
+        let mut g = Triplets::new(nb, n);
+        system.joint_jacobian_entries(t, q, &mut g);
         let mut kappa = vec![0.0; nb];
         system.joint_curvature(t, q, v, &mut kappa);
-        let k = DMatrix::from_fn(n + nb, n + nb, |i, j| match (i < n, j < n) {
-            (true, true) => mass[i * n + j],
-            (true, false) => g[(j - n) * n + i],
-            (false, true) => g[(i - n) * n + j],
-            (false, false) => 0.0,
-        });
+        let mut k = Triplets::new(n + nb, n + nb);
+        for &(i, j, m) in mass.entries() {
+            k.push(i, j, m);
+        }
+        for &(r, i, x) in g.entries() {
+            k.push(n + r, i, x);
+            k.push(i, n + r, x);
+        }
         let rhs = DVector::from_fn(n + nb, |i, _| if i < n { f[i] } else { -kappa[i - n] });
         // Minimum-norm multipliers when the joints are rank-deficient (redundant joints).
-        let (x, _) = solve_saddle(k, rhs, &g, nb, system.newton_band())?;
+        let (x, _) = solve_saddle(&k, rhs, &g, system.newton_band())?;
         if x.iter().any(|x| !x.is_finite()) {
             return None;
         }
@@ -560,16 +563,19 @@ impl NonsmoothGeneralizedAlpha {
             lambda: start.lambda.clone(),
             qt: vec![0.0; n],
             vt: vec![0.0; n],
-            mass: vec![0.0; n * n],
-            gj: vec![0.0; nb * n],
+            mass: Vec::new(),
+            gj: Vec::new(),
             iterations: 0,
             deficient: false,
         };
         let mut f = vec![0.0; n];
         let mut kappa = vec![0.0; nb];
-        let (mut dfdq, mut dfdv) = (vec![0.0; n * n], vec![0.0; n * n]);
-        let (mut dmdq, mut dgldq) = (vec![0.0; n * n], vec![0.0; n * n]);
-        let (mut dgaq, mut dgav) = (vec![0.0; nb * n], vec![0.0; nb * n]);
+        // The model's matrices as their nonzeros, and S assembled from them.
+        let (mut mass, mut gj) = (Triplets::new(n, n), Triplets::new(nb, n));
+        let (mut dfdq, mut dfdv) = (Triplets::new(n, n), Triplets::new(n, n));
+        let (mut dmdq, mut dgldq) = (Triplets::new(n, n), Triplets::new(n, n));
+        let (mut dgaq, mut dgav) = (Triplets::new(nb, n), Triplets::new(nb, n));
+        let mut s = Triplets::new(n + nb, n + nb);
         let mut previous = f64::INFINITY;
         loop {
             for i in 0..n {
@@ -581,15 +587,15 @@ impl NonsmoothGeneralizedAlpha {
                     + h * h * ((0.5 - beta) * start.a[i] + beta * x.a1[i]);
                 x.vt[i] = start.v[i] + h * ((1.0 - gamma) * start.a[i] + gamma * x.a1[i]);
             }
-            system.mass(&x.qt, &mut x.mass);
-            at.check_at(&x.mass, "M(q)", &x.qt, &[])?;
+            system.mass_entries(&x.qt, &mut mass);
+            at.check_entries_at(&mass, "M(q)", &x.qt, &[])?;
             system.forces(t1, &x.qt, &x.vt, &mut f);
             at.check_at(&f, "F(t, q, v)", &x.qt, &x.vt)?;
-            system.joint_jacobian(t1, &x.qt, &mut x.gj);
+            system.joint_jacobian_entries(t1, &x.qt, &mut gj);
             system.joint_curvature(t1, &x.qt, &x.vt, &mut kappa);
-            at.check(&x.gj, "the joint Jacobian")?;
+            at.check_entries_at(&gj, "the joint Jacobian", &[], &[])?;
             at.check(&kappa, "the joints' curvature term")?;
-            let (r, residual) = smooth_residual(&x, &f, &kappa, n, nb);
+            let (r, residual) = smooth_residual(&x, &mass, &gj, &f, &kappa);
             if !residual.is_finite() {
                 return Err(at.not_finite("the Newton residual", residual));
             }
@@ -601,6 +607,8 @@ impl NonsmoothGeneralizedAlpha {
                 && residual >= 0.5 * previous
                 && residual <= STALL_FACTOR * newton.tolerance;
             if residual <= newton.tolerance || stalled {
+                x.mass = mass.to_dense();
+                x.gj = gj.to_dense();
                 return Ok(x);
             }
             previous = residual;
@@ -608,34 +616,46 @@ impl NonsmoothGeneralizedAlpha {
                 return Err(at.newton_not_converged(x.iterations, residual, newton.tolerance));
             }
             x.iterations += 1;
-            system.force_jacobians(t1, &x.qt, &x.vt, &mut dfdq, &mut dfdv);
+            system.force_jacobian_entries(t1, &x.qt, &x.vt, &mut dfdq, &mut dfdv);
             system.mass_derivative(&x.qt, &x.acc, &mut dmdq);
             system.joint_force_derivative(t1, &x.qt, &x.lambda, &mut dgldq);
             system.joint_acceleration_derivatives(t1, &x.qt, &x.vt, &x.acc, &mut dgaq, &mut dgav);
-            at.check(&dfdq, "∂F/∂q")?;
-            at.check(&dfdv, "∂F/∂v")?;
-            at.check(&dmdq, "∂(M q̈)/∂q")?;
-            at.check(&dgldq, "∂(Gᵀλ)/∂q")?;
-            at.check(&dgaq, "∂(G q̈ + κ)/∂q")?;
-            at.check(&dgav, "∂κ/∂v")?;
-            // S of the module documentation.
-            let s = DMatrix::from_fn(n + nb, n + nb, |i, j| match (i < n, j < n) {
-                (true, true) => {
-                    let k = i * n + j;
-                    x.mass[k] + bp * (dmdq[k] + dgldq[k] - dfdq[k]) - gp * dfdv[k]
+            for (d, what) in [
+                (&dfdq, "∂F/∂q"),
+                (&dfdv, "∂F/∂v"),
+                (&dmdq, "∂(M q̈)/∂q"),
+                (&dgldq, "∂(Gᵀλ)/∂q"),
+                (&dgaq, "∂(G q̈ + κ)/∂q"),
+                (&dgav, "∂κ/∂v"),
+            ] {
+                at.check_entries_at(d, what, &[], &[])?;
+            }
+            // S of the module documentation, entry by entry.
+            s.clear();
+            for (d, c) in [
+                (&mass, 1.0),
+                (&dmdq, bp),
+                (&dgldq, bp),
+                (&dfdq, -bp),
+                (&dfdv, -gp),
+            ] {
+                for &(i, j, v) in d.entries() {
+                    s.push(i, j, c * v);
                 }
-                (true, false) => x.gj[(j - n) * n + i],
-                (false, true) => {
-                    let k = (i - n) * n + j;
-                    x.gj[k] + bp * dgaq[k] + gp * dgav[k]
+            }
+            for &(k, i, v) in gj.entries() {
+                s.push(n + k, i, v);
+                s.push(i, n + k, v);
+            }
+            for (d, c) in [(&dgaq, bp), (&dgav, gp)] {
+                for &(k, j, v) in d.entries() {
+                    s.push(n + k, j, c * v);
                 }
-                (false, false) => 0.0,
-            });
+            }
             let (dx, deficient) = solve_saddle(
-                s,
+                &s,
                 DVector::from_column_slice(&r),
-                &x.gj,
-                nb,
+                &gj,
                 system.newton_band(),
             )
             .ok_or_else(|| at.singular(x.iterations))?;
@@ -1175,74 +1195,82 @@ impl NonsmoothGeneralizedAlpha {
 
 /// The smooth stage's residual r = (M q̈ + Gᵀλ − F, G q̈ + κ) at the iterate, and its size
 /// (module documentation): the dynamics rows relative to s = max_i (Σ_j |M_ij q̈_j| +
-/// Σ_j |G_ji λ_j| + |F_i|), the joint rows as the force |r_j| ‖M‖∞ / ‖G_j‖∞ relative to s.
+/// Σ_j |G_ji λ_j| + |F_i|), the joint rows as the force |r_j| ‖M‖∞ / ‖G_j‖∞ relative to s. M
+/// and G are read through their nonzeros.
 fn smooth_residual(
     x: &SmoothStage,
+    mass: &Triplets,
+    gj: &Triplets,
     f: &[f64],
     kappa: &[f64],
-    n: usize,
-    nb: usize,
 ) -> (Vec<f64>, f64) {
+    let (n, nb) = (f.len(), kappa.len());
     let mut r = vec![0.0; n + nb];
-    let (mut r1, mut s1, mut r2) = (0.0f64, 0.0f64, 0.0f64);
-    let mut mass_norm = 0.0f64;
-    for i in 0..n {
-        let row = &x.mass[i * n..(i + 1) * n];
-        let ma = dot(row, &x.acc);
-        let ma_abs: f64 = row.iter().zip(&x.acc).map(|(m, a)| (m * a).abs()).sum();
-        mass_norm = mass_norm.max(row.iter().map(|m| m.abs()).sum());
-        let (mut gl, mut gl_abs) = (0.0, 0.0);
-        for (j, &l) in x.lambda.iter().enumerate() {
-            let t = x.gj[j * n + i] * l;
-            gl += t;
-            gl_abs += t.abs();
-        }
-        r[i] = ma + gl - f[i];
-        r1 = r1.max(r[i].abs());
-        s1 = s1.max(ma_abs + gl_abs + f[i].abs());
+    // Per dynamics row: Σ_j |M_ij q̈_j| + Σ_j |G_ji λ_j|, and Σ_j |M_ij|; per joint ‖G_j‖∞.
+    let (mut terms, mut mass_rows, mut g_rows) = (vec![0.0; n], vec![0.0; n], vec![0.0f64; nb]);
+    for &(i, j, m) in mass.entries() {
+        r[i] += m * x.acc[j];
+        terms[i] += (m * x.acc[j]).abs();
+        mass_rows[i] += m.abs();
     }
+    for &(k, i, g) in gj.entries() {
+        r[i] += g * x.lambda[k];
+        terms[i] += (g * x.lambda[k]).abs();
+        r[n + k] += g * x.acc[i];
+        g_rows[k] = g_rows[k].max(g.abs());
+    }
+    let (mut r1, mut s1) = (0.0f64, 0.0f64);
+    for i in 0..n {
+        r[i] -= f[i];
+        r1 = r1.max(r[i].abs());
+        s1 = s1.max(terms[i] + f[i].abs());
+    }
+    let mass_norm = mass_rows.iter().fold(0.0f64, |a, &b| a.max(b));
+    let mut r2 = 0.0f64;
     for j in 0..nb {
-        let row = &x.gj[j * n..(j + 1) * n];
-        r[n + j] = dot(row, &x.acc) + kappa[j];
-        let row_norm = row.iter().fold(0.0f64, |m, g| m.max(g.abs()));
-        r2 = r2.max(r[n + j].abs() * mass_norm / row_norm.max(f64::MIN_POSITIVE));
+        r[n + j] += kappa[j];
+        r2 = r2.max(r[n + j].abs() * mass_norm / g_rows[j].max(f64::MIN_POSITIVE));
     }
     let rel = |r: f64, s: f64| if r == 0.0 { 0.0 } else { r / s };
     (r, rel(r1, s1).max(rel(r2, s1)))
 }
 
-/// Solves Newton's saddle-point system S x = r of the smooth stage: LU when S is regular (the
-/// band LU in the order `band` for a large model, [`crate::soi2::banded`]), the minimum-norm
-/// least-squares x of [`NewtonFactor`] when S is singular because the nb×n joint Jacobian
-/// `joints` has lost rank (then true is returned with x); None when S is singular otherwise.
+/// Solves Newton's saddle-point system S x = r of the smooth stage (S given by its entries):
+/// LU when S is regular (the band LU in the order `band` for a large model, assembled from
+/// the entries, [`crate::soi2::banded`]), the minimum-norm least-squares x of [`NewtonFactor`]
+/// when S is singular because the nb×n joint Jacobian `joints` has lost rank (then true is
+/// returned with x); None when S is singular otherwise.
 fn solve_saddle(
-    s: DMatrix<f64>,
+    s: &Triplets,
     mut r: DVector<f64>,
-    joints: &[f64],
-    nb: usize,
+    joints: &Triplets,
     band: Option<&BandOrder>,
 ) -> Option<(DVector<f64>, bool)> {
-    let n = s.nrows() - nb;
-    if let Some(band) = band.filter(|b| b.order.len() == s.nrows()) {
-        let lu = BandLu::factor(&s, band);
+    let (size, nb) = (s.rows(), joints.rows());
+    let n = size - nb;
+    let dense = || DMatrix::from_row_slice(size, size, &s.to_dense());
+    let banded = band
+        .filter(|b| b.order.len() == size)
+        .and_then(|b| BandLu::factor_entries(b, s.entries().iter().copied()));
+    if let Some(lu) = banded {
         // Regular to working precision, as lu_factor asks.
         let (lo, hi) = lu.pivot_range();
-        if lo > s.nrows() as f64 * f64::EPSILON * hi {
+        if lo > size as f64 * f64::EPSILON * hi {
             return lu.solve_mut(r.as_mut_slice()).then_some((r, false));
         }
-    } else if let Some(lu) = lu_factor(s.clone()) {
+    } else if let Some(lu) = lu_factor(dense()) {
         return lu.solve(&r).map(|x| (x, false));
     }
     // Singular: the minimum-norm solve when the joints have lost rank, None otherwise. S's
     // multiplier block goes like G M⁻¹ Gᵀ, so S is singular to working precision once
     // σ_min(G)² ≤ size · ε · σ_max(G)²: the joints count as rank-deficient from that ratio
     // (off the manifold, at q̃, Bricard's G has σ_min = 1e-10 σ_max, not 0).
-    let sv = crate::dense::singular_values(DMatrix::from_row_slice(nb, n, joints))?;
-    let lost = (s.nrows() as f64 * f64::EPSILON).sqrt() * sv.max();
+    let sv = crate::dense::singular_values(DMatrix::from_row_slice(nb, n, &joints.to_dense()))?;
+    let lost = (size as f64 * f64::EPSILON).sqrt() * sv.max();
     if nb == 0 || !(sv.min() <= lost || nb > n) {
         return None;
     }
-    let factor = NewtonFactor::least_squares(&s);
+    let factor = NewtonFactor::least_squares(&dense());
     (factor.deficient() && factor.solve_mut(&mut r)).then_some((r, true))
 }
 

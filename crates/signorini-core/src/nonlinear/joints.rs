@@ -5,10 +5,11 @@
 
 use super::LagrangianSystem;
 use super::delassus::JointStructure;
-use crate::lagrangian::UserModel;
+use crate::lagrangian::{StoredMatrix, UserModel};
 use crate::soi2::banded::BandOrder;
 use crate::soi2::sparsity::Pattern;
 use crate::soi2::{ConstrainedModel, Dual64, g_ddot};
+use crate::triplets::Triplets;
 
 /// A [`LagrangianSystem`] with bilateral holonomic joints g(q, t) = 0 (nb of them). The
 /// defaults describe a system without joints.
@@ -38,34 +39,46 @@ pub trait JointedSystem: LagrangianSystem {
         let _ = (t, q, v, out);
     }
 
-    /// ∂(M(q) a)/∂q, n×n row-major: how the inertia forces of the acceleration `a` change with
-    /// the positions (a term of Newton's exact iteration matrix). Default: zero, exact for a
-    /// constant mass matrix.
-    fn mass_derivative(&self, q: &[f64], a: &[f64], out: &mut [f64]) {
-        let _ = (q, a);
-        out.fill(0.0);
+    /// G as its structural nonzeros, replacing the entries of `out` (nb×n). Default: every
+    /// entry of [`Self::joint_jacobian`].
+    fn joint_jacobian_entries(&self, t: f64, q: &[f64], out: &mut Triplets) {
+        let g = out.rows() * q.len();
+        let mut dense = vec![0.0; g];
+        self.joint_jacobian(t, q, &mut dense);
+        out.clear();
+        out.extend_dense(&dense, true);
     }
 
-    /// ∂(G(q, t)ᵀ λ)/∂q = Σ_j λ_j ∇²g_j, n×n row-major: how the joint forces change with the
-    /// positions. Default: zero (no joints).
-    fn joint_force_derivative(&self, t: f64, q: &[f64], lambda: &[f64], out: &mut [f64]) {
+    /// ∂(M(q) a)/∂q, n×n: how the inertia forces of the acceleration `a` change with the
+    /// positions (a term of Newton's exact iteration matrix), replacing the entries of `out`.
+    /// Default: none, exact for a constant mass matrix.
+    fn mass_derivative(&self, q: &[f64], a: &[f64], out: &mut Triplets) {
+        let _ = (q, a);
+        out.clear();
+    }
+
+    /// ∂(G(q, t)ᵀ λ)/∂q = Σ_j λ_j ∇²g_j, n×n: how the joint forces change with the positions,
+    /// replacing the entries of `out`. Default: none (no joints).
+    fn joint_force_derivative(&self, t: f64, q: &[f64], lambda: &[f64], out: &mut Triplets) {
         let _ = (t, q, lambda);
-        out.fill(0.0);
+        out.clear();
     }
 
     /// The derivatives of the joints' acceleration level g̈ = G(q, t) a + κ(t, q, v) at fixed
-    /// a: ∂g̈/∂q into `dq` and ∂g̈/∂v = ∂κ/∂v into `dv`, nb×n row-major each. Default: none
-    /// (no joints).
+    /// a: ∂g̈/∂q into `dq` and ∂g̈/∂v = ∂κ/∂v into `dv`, nb×n each, replacing their entries.
+    /// Default: none (no joints).
     fn joint_acceleration_derivatives(
         &self,
         t: f64,
         q: &[f64],
         v: &[f64],
         a: &[f64],
-        dq: &mut [f64],
-        dv: &mut [f64],
+        dq: &mut Triplets,
+        dv: &mut Triplets,
     ) {
-        let _ = (t, q, v, a, dq, dv);
+        let _ = (t, q, v, a);
+        dq.clear();
+        dv.clear();
     }
 
     /// A band order of Newton's saddle-point matrix of the smooth stage (unknowns q̈ then λ),
@@ -124,59 +137,47 @@ impl JointedSystem for UserModel {
         }
     }
 
+    /// The entries the tape of G stores.
+    fn joint_jacobian_entries(&self, t: f64, q: &[f64], out: &mut Triplets) {
+        let n = q.len();
+        out.clear();
+        let mut values = vec![0.0; self.stored_count(StoredMatrix::JointJacobian)];
+        self.stored_values(StoredMatrix::JointJacobian, t, q, &mut values);
+        for (k, x) in self
+            .stored_index(StoredMatrix::JointJacobian)
+            .into_iter()
+            .zip(values)
+        {
+            out.push(k / n, k % n, x);
+        }
+    }
+
     /// One forward-mode dual evaluation of M's stored entries (its nonzeros) per group of
     /// coordinates whose columns share no row (the model's Newton pattern,
     /// [`crate::soi2::sparsity`]): (∂M/∂q_G a)_i = Σ_k ∂M_ik/∂q_G a_k over the nonzeros of
     /// row i, where q_G seeds the group's coordinates together.
-    fn mass_derivative(&self, q: &[f64], a: &[f64], out: &mut [f64]) {
-        let n = q.len();
-        let entries: Vec<u32> = match self.mass_pattern() {
-            Some(stored) => stored.to_vec(),
-            None => (0..(n * n) as u32).collect(),
-        };
-        let mut qd = duals(q);
-        let mut m = vec![Dual64::from(0.0); entries.len()];
-        let mut rows = vec![0.0; n];
-        out.fill(0.0);
-        let pattern = self.newton_pattern(1);
-        for group in coordinate_groups(n, pattern) {
-            seed(&mut qd, &group, 1.0);
-            self.mass_stored(&qd, &mut m);
-            seed(&mut qd, &group, 0.0);
-            rows.fill(0.0);
-            for (&e, mik) in entries.iter().zip(&m) {
-                let (i, k) = (e as usize / n, e as usize % n);
-                rows[i] += mik.eps * a[k];
-            }
-            for &j in &group {
-                for i in motion_rows(n, pattern, j) {
-                    out[i * n + j] = rows[i];
-                }
-            }
-        }
+    fn mass_derivative(&self, q: &[f64], a: &[f64], out: &mut Triplets) {
+        let entries = self.stored_index(StoredMatrix::Mass);
+        self.stored_derivative(
+            StoredMatrix::Mass,
+            0.0,
+            q,
+            &entries,
+            out,
+            |(i, k), d, rows| {
+                rows[i] += d * a[k];
+            },
+        );
     }
 
-    /// One forward-mode dual evaluation of the tape of G per group of coordinates.
-    fn joint_force_derivative(&self, t: f64, q: &[f64], lambda: &[f64], out: &mut [f64]) {
-        let n = q.len();
-        let mut qd = duals(q);
-        let mut g = vec![Dual64::from(0.0); lambda.len() * n];
-        out.fill(0.0);
-        let pattern = self.newton_pattern(1);
-        for group in coordinate_groups(n, pattern) {
-            seed(&mut qd, &group, 1.0);
-            ConstrainedModel::g_y(self, Dual64::from(t), &qd, &mut g);
-            seed(&mut qd, &group, 0.0);
-            for &j in &group {
-                for i in motion_rows(n, pattern, j) {
-                    out[i * n + j] = lambda
-                        .iter()
-                        .enumerate()
-                        .map(|(r, l)| g[r * n + i].eps * l)
-                        .sum();
-                }
-            }
-        }
+    /// One forward-mode dual evaluation of G's stored entries per group of coordinates:
+    /// (∂(Gᵀλ)/∂q_G)_i = Σ_r λ_r ∂G_ri/∂q_G over the nonzeros of column i of G.
+    fn joint_force_derivative(&self, t: f64, q: &[f64], lambda: &[f64], out: &mut Triplets) {
+        let entries = self.stored_index(StoredMatrix::JointJacobian);
+        let g = StoredMatrix::JointJacobian;
+        self.stored_derivative(g, t, q, &entries, out, |(r, i), d, rows| {
+            rows[i] += d * lambda[r];
+        });
     }
 
     /// g̈ as the derivative of the tape of G v + g_t along (1, v, a) ([`g_ddot`]), its
@@ -187,25 +188,86 @@ impl JointedSystem for UserModel {
         q: &[f64],
         v: &[f64],
         a: &[f64],
-        dq: &mut [f64],
-        dv: &mut [f64],
+        dq: &mut Triplets,
+        dv: &mut Triplets,
     ) {
         let n = q.len();
         let (mut qd, mut vd, ad) = (duals(q), duals(v), duals(a));
         let td = Dual64::from(t);
         let mut out = vec![Dual64::from(0.0); UserModel::joints(self)];
-        dq.fill(0.0);
-        dv.fill(0.0);
+        dq.clear();
+        dv.clear();
         let pattern = self.newton_pattern(1);
         for group in coordinate_groups(n, pattern) {
             seed(&mut qd, &group, 1.0);
             g_ddot(self, td, &qd, &vd, &ad, &mut out);
             seed(&mut qd, &group, 0.0);
-            scatter_joint_rows(n, pattern, &group, &out, dq);
+            push_joint_rows(n, pattern, &group, &out, dq);
             seed(&mut vd, &group, 1.0);
             g_ddot(self, td, &qd, &vd, &ad, &mut out);
             seed(&mut vd, &group, 0.0);
-            scatter_joint_rows(n, pattern, &group, &out, dv);
+            push_joint_rows(n, pattern, &group, &out, dv);
+        }
+    }
+}
+
+impl UserModel {
+    /// The flat row-major indices of the entries of `which` its tape stores (all rows×n of them
+    /// when the tape is dense).
+    fn stored_index(&self, which: StoredMatrix) -> Vec<usize> {
+        match self.stored_pattern(which) {
+            Some(p) => p.iter().map(|&k| k as usize).collect(),
+            None => (0..self.stored_count(which)).collect(),
+        }
+    }
+
+    /// Number of stored entries of `which`.
+    fn stored_count(&self, which: StoredMatrix) -> usize {
+        match self.stored_pattern(which) {
+            Some(p) => p.len(),
+            None => {
+                let rows = match which {
+                    StoredMatrix::Mass => LagrangianSystem::dofs(self),
+                    StoredMatrix::JointJacobian => UserModel::joints(self),
+                };
+                rows * LagrangianSystem::dofs(self)
+            }
+        }
+    }
+
+    /// The derivative along each group of coordinates of a quantity linear in the stored
+    /// entries of `which` (n columns, at `t` and `q`): one dual evaluation of the entries per
+    /// group, `add((i, k), ∂X_ik/∂q_G, rows)` accumulating the quantity's n rows, which are then
+    /// pushed into `out` at the group's columns (each row is touched by one column of a group).
+    #[allow(clippy::too_many_arguments)]
+    fn stored_derivative(
+        &self,
+        which: StoredMatrix,
+        t: f64,
+        q: &[f64],
+        entries: &[usize],
+        out: &mut Triplets,
+        mut add: impl FnMut((usize, usize), f64, &mut [f64]),
+    ) {
+        let n = q.len();
+        let mut qd = duals(q);
+        let mut x = vec![Dual64::from(0.0); entries.len()];
+        let mut rows = vec![0.0; n];
+        out.clear();
+        let pattern = self.newton_pattern(1);
+        for group in coordinate_groups(n, pattern) {
+            seed(&mut qd, &group, 1.0);
+            self.stored_values(which, Dual64::from(t), &qd, &mut x);
+            seed(&mut qd, &group, 0.0);
+            rows.fill(0.0);
+            for (&e, xe) in entries.iter().zip(&x) {
+                add((e / n, e % n), xe.eps, &mut rows);
+            }
+            for &j in &group {
+                for i in motion_rows(n, pattern, j) {
+                    out.push(i, j, rows[i]);
+                }
+            }
         }
     }
 }
@@ -242,25 +304,25 @@ fn seed(x: &mut [Dual64], group: &[usize], eps: f64) {
     }
 }
 
-/// Writes the derivative of each joint row along the column of `group` that touches it into
-/// `into` (joints×n row-major).
-fn scatter_joint_rows(
+/// Pushes the derivative of each joint row along the column of `group` that touches it into
+/// `into` (joints×n).
+fn push_joint_rows(
     n: usize,
     pattern: Option<&Pattern>,
     group: &[usize],
     out: &[Dual64],
-    into: &mut [f64],
+    into: &mut Triplets,
 ) {
     for &j in group {
         match pattern {
             Some(p) => {
                 for r in p.rows_of(j).iter().filter(|&&i| i >= n).map(|i| i - n) {
-                    into[r * n + j] = out[r].eps;
+                    into.push(r, j, out[r].eps);
                 }
             }
             None => {
                 for (r, o) in out.iter().enumerate() {
-                    into[r * n + j] = o.eps;
+                    into.push(r, j, o.eps);
                 }
             }
         }

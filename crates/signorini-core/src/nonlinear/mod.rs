@@ -23,6 +23,8 @@ pub mod joints;
 pub mod moreau_jean;
 pub mod run;
 
+use crate::triplets::Triplets;
+
 /// A nonlinear mechanical system with unilateral contacts, as the nonlinear Moreau–Jean
 /// time-stepping sees it. Matrices are row-major slices; sizes are [`Self::dofs`] = n and
 /// [`Self::contacts`] = m. Every function is exact (closed form, symbolic or automatic
@@ -45,6 +47,36 @@ pub trait LagrangianSystem {
 
     /// Jacobians ∂F/∂q and ∂F/∂v, n×n each (Newton's iteration matrix).
     fn force_jacobians(&self, t: f64, q: &[f64], v: &[f64], dq: &mut [f64], dv: &mut [f64]);
+
+    /// M(q) as its structural nonzeros, replacing the entries of `out` (n×n): what an
+    /// integrator reads when it multiplies with M or assembles a sparse Newton matrix from it.
+    /// Default: every entry of [`Self::mass`].
+    fn mass_entries(&self, q: &[f64], out: &mut Triplets) {
+        let n = self.dofs();
+        let mut m = vec![0.0; n * n];
+        self.mass(q, &mut m);
+        out.clear();
+        out.extend_dense(&m, true);
+    }
+
+    /// ∂F/∂q and ∂F/∂v as their structural nonzeros, replacing the entries of `dq` and `dv`
+    /// (n×n each). Default: every entry of [`Self::force_jacobians`].
+    fn force_jacobian_entries(
+        &self,
+        t: f64,
+        q: &[f64],
+        v: &[f64],
+        dq: &mut Triplets,
+        dv: &mut Triplets,
+    ) {
+        let n = self.dofs();
+        let (mut a, mut b) = (vec![0.0; n * n], vec![0.0; n * n]);
+        self.force_jacobians(t, q, v, &mut a, &mut b);
+        dq.clear();
+        dq.extend_dense(&a, true);
+        dv.clear();
+        dv.extend_dense(&b, true);
+    }
 
     /// The applied non-conservative forces f(t, q, v) alone, n entries (their work is
     /// `work_ext`).

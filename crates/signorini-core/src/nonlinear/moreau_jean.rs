@@ -149,6 +149,7 @@ use crate::lcp::{
 };
 use crate::observer::Columns;
 use crate::stepping;
+use crate::triplets::Triplets;
 use nalgebra::{DMatrix, DVectorViewMut};
 use thiserror::Error;
 
@@ -503,6 +504,29 @@ impl StepAt {
                 what,
                 component: Some(i),
                 value: x[i],
+                q: q.to_vec(),
+                v: v.to_vec(),
+            }),
+        }
+    }
+
+    /// [`StepAt::check_at`] for a sparse matrix: the error names the first entry that is not
+    /// finite by its row-major index.
+    pub(crate) fn check_entries_at(
+        self,
+        x: &Triplets,
+        what: &'static str,
+        q: &[f64],
+        v: &[f64],
+    ) -> Result<(), NonlinearStepError> {
+        match x.first_non_finite() {
+            None => Ok(()),
+            Some((i, value)) => Err(NonlinearStepError::NotFinite {
+                step: self.step,
+                t: self.t,
+                what,
+                component: Some(i),
+                value,
                 q: q.to_vec(),
                 v: v.to_vec(),
             }),
