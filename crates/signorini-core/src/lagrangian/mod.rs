@@ -485,53 +485,48 @@ impl UserModel {
 
     /// Calls `f(k, value)` for every output k the tape stores (its structural nonzeros, by
     /// flat row-major index; every output of a dense tape), evaluated at (q, v, t).
-    fn for_each_stored(
+    fn for_each_stored<T: Number>(
         &self,
         tape: &Tape,
-        t: f64,
-        q: &[f64],
-        v: Option<&[f64]>,
-        mut f: impl FnMut(usize, f64),
+        t: T,
+        q: &[T],
+        v: Option<&[T]>,
+        mut f: impl FnMut(usize, T),
     ) {
         let vars = self.variables(t, q, v);
         let mut scratch = Vec::new();
         match tape.stored_outputs() {
             Some(index) => {
-                let mut values = vec![0.0; index.len()];
+                let mut values = vec![T::zero(); index.len()];
                 tape.eval_stored_into(&vars, &mut scratch, &mut values);
-                for (&k, &x) in index.iter().zip(&values) {
+                for (&k, x) in index.iter().zip(values) {
                     f(k as usize, x);
                 }
             }
             None => {
-                let mut values = vec![0.0; tape.outputs()];
+                let mut values = vec![T::zero(); tape.outputs()];
                 tape.eval_into(&vars, &mut scratch, &mut values);
-                for (k, &x) in values.iter().enumerate() {
+                for (k, x) in values.into_iter().enumerate() {
                     f(k, x);
                 }
             }
         }
     }
 
-    /// The flat row-major indices (i·cols + k) of the entries of M (n×n) or G (nb×n) their
-    /// tapes store (the structural nonzeros), or `None` when the tape stores all of them.
-    pub(crate) fn stored_pattern(&self, which: StoredMatrix) -> Option<&[u32]> {
-        self.stored_tape(which).stored_outputs()
-    }
-
-    /// The stored entries of M(q) or G(q, t), in the order of [`UserModel::stored_pattern`]
-    /// (all of them row by row when it is `None`): the derivatives of M and G read these
-    /// without a dense array, in any number type (dual numbers for their own derivatives).
-    pub(crate) fn stored_values<T: Number>(
+    /// Calls `f(i, k, value)` for every entry (i, k) of M(q) (n×n) or G(q, t) (nb×n) that its
+    /// tape stores (the structural nonzeros): the derivatives of M and G read these without a
+    /// dense array, in any number type (dual numbers for their own derivatives).
+    pub(crate) fn stored_entries<T: Number>(
         &self,
         which: StoredMatrix,
         t: T,
         q: &[T],
-        out: &mut [T],
+        mut f: impl FnMut(usize, usize, T),
     ) {
-        let vars = self.variables(t, q, None);
-        self.stored_tape(which)
-            .eval_stored_into(&vars, &mut Vec::new(), out);
+        let n = self.n;
+        self.for_each_stored(self.stored_tape(which), t, q, None, |k, x| {
+            f(k / n, k % n, x)
+        });
     }
 
     fn stored_tape(&self, which: StoredMatrix) -> &Tape {
@@ -576,14 +571,9 @@ impl ConstrainedModel for UserModel {
     fn force<T: Scalar>(&self, t: T, y: &[T], z: &[T], lambda: &[T], _psi: &[T], f: &mut [T]) {
         self.eval(&self.forces, t, y, Some(z), f);
         if self.joints > 0 {
-            let n = self.n;
-            let mut gy = vec![T::zero(); self.joints * n];
-            self.eval(&self.joint_jacobian, t, y, None, &mut gy);
-            for (r, &l) in lambda.iter().enumerate() {
-                for (fi, &g) in f.iter_mut().zip(&gy[r * n..(r + 1) * n]) {
-                    *fi -= g * l;
-                }
-            }
+            self.stored_entries(StoredMatrix::JointJacobian, t, y, |r, i, g| {
+                f[i] -= g * lambda[r];
+            });
         }
     }
 
@@ -593,6 +583,12 @@ impl ConstrainedModel for UserModel {
 
     fn g_y<T: Scalar>(&self, t: T, y: &[T], out: &mut [T]) {
         self.eval(&self.joint_jacobian, t, y, None, out);
+    }
+
+    fn g_y_entries<T: Scalar>(&self, t: T, y: &[T], out: &mut Vec<(usize, usize, T)>) {
+        self.stored_entries(StoredMatrix::JointJacobian, t, y, |r, i, g| {
+            out.push((r, i, g));
+        });
     }
 
     fn g_dot<T: Scalar>(&self, t: T, y: &[T], z: &[T], out: &mut [T]) {
@@ -662,9 +658,8 @@ impl LagrangianSystem for UserModel {
 
     /// The entries the mass tape stores.
     fn mass_entries(&self, q: &[f64], out: &mut Triplets) {
-        let n = self.n;
         out.clear();
-        self.for_each_stored(&self.mass, 0.0, q, None, |k, x| out.push(k / n, k % n, x));
+        self.stored_entries(StoredMatrix::Mass, 0.0, q, |i, k, x| out.push(i, k, x));
     }
 
     /// The entries the tape of ∂F/∂q then ∂F/∂v stores.

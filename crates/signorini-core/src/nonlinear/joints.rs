@@ -139,17 +139,10 @@ impl JointedSystem for UserModel {
 
     /// The entries the tape of G stores.
     fn joint_jacobian_entries(&self, t: f64, q: &[f64], out: &mut Triplets) {
-        let n = q.len();
         out.clear();
-        let mut values = vec![0.0; self.stored_count(StoredMatrix::JointJacobian)];
-        self.stored_values(StoredMatrix::JointJacobian, t, q, &mut values);
-        for (k, x) in self
-            .stored_index(StoredMatrix::JointJacobian)
-            .into_iter()
-            .zip(values)
-        {
-            out.push(k / n, k % n, x);
-        }
+        self.stored_entries(StoredMatrix::JointJacobian, t, q, |r, i, x| {
+            out.push(r, i, x)
+        });
     }
 
     /// One forward-mode dual evaluation of M's stored entries (its nonzeros) per group of
@@ -157,27 +150,15 @@ impl JointedSystem for UserModel {
     /// [`crate::soi2::sparsity`]): (∂M/∂q_G a)_i = Σ_k ∂M_ik/∂q_G a_k over the nonzeros of
     /// row i, where q_G seeds the group's coordinates together.
     fn mass_derivative(&self, q: &[f64], a: &[f64], out: &mut Triplets) {
-        let entries = self.stored_index(StoredMatrix::Mass);
-        self.stored_derivative(
-            StoredMatrix::Mass,
-            0.0,
-            q,
-            &entries,
-            out,
-            |(i, k), d, rows| {
-                rows[i] += d * a[k];
-            },
-        );
+        let m = StoredMatrix::Mass;
+        self.stored_derivative(m, 0.0, q, out, |i, k, d| (i, d * a[k]));
     }
 
     /// One forward-mode dual evaluation of G's stored entries per group of coordinates:
     /// (∂(Gᵀλ)/∂q_G)_i = Σ_r λ_r ∂G_ri/∂q_G over the nonzeros of column i of G.
     fn joint_force_derivative(&self, t: f64, q: &[f64], lambda: &[f64], out: &mut Triplets) {
-        let entries = self.stored_index(StoredMatrix::JointJacobian);
         let g = StoredMatrix::JointJacobian;
-        self.stored_derivative(g, t, q, &entries, out, |(r, i), d, rows| {
-            rows[i] += d * lambda[r];
-        });
+        self.stored_derivative(g, t, q, out, |r, i, d| (i, d * lambda[r]));
     }
 
     /// g̈ as the derivative of the tape of G v + g_t along (1, v, a) ([`g_ddot`]), its
@@ -212,57 +193,32 @@ impl JointedSystem for UserModel {
 }
 
 impl UserModel {
-    /// The flat row-major indices of the entries of `which` its tape stores (all rows×n of them
-    /// when the tape is dense).
-    fn stored_index(&self, which: StoredMatrix) -> Vec<usize> {
-        match self.stored_pattern(which) {
-            Some(p) => p.iter().map(|&k| k as usize).collect(),
-            None => (0..self.stored_count(which)).collect(),
-        }
-    }
-
-    /// Number of stored entries of `which`.
-    fn stored_count(&self, which: StoredMatrix) -> usize {
-        match self.stored_pattern(which) {
-            Some(p) => p.len(),
-            None => {
-                let rows = match which {
-                    StoredMatrix::Mass => LagrangianSystem::dofs(self),
-                    StoredMatrix::JointJacobian => UserModel::joints(self),
-                };
-                rows * LagrangianSystem::dofs(self)
-            }
-        }
-    }
-
-    /// The derivative along each group of coordinates of a quantity linear in the stored
-    /// entries of `which` (n columns, at `t` and `q`): one dual evaluation of the entries per
-    /// group, `add((i, k), ∂X_ik/∂q_G, rows)` accumulating the quantity's n rows, which are then
-    /// pushed into `out` at the group's columns (each row is touched by one column of a group).
-    #[allow(clippy::too_many_arguments)]
+    /// The derivative along each group of coordinates of an n-vector linear in the stored
+    /// entries X_ik of `which` (at `t` and `q`): one dual evaluation of the entries per group;
+    /// `term(i, k, ∂X_ik/∂q_G)` gives the row of the vector that entry adds to and how much,
+    /// and the rows are pushed into `out` at the group's columns (each row is touched by one
+    /// column of a group).
     fn stored_derivative(
         &self,
         which: StoredMatrix,
         t: f64,
         q: &[f64],
-        entries: &[usize],
         out: &mut Triplets,
-        mut add: impl FnMut((usize, usize), f64, &mut [f64]),
+        term: impl Fn(usize, usize, f64) -> (usize, f64),
     ) {
         let n = q.len();
         let mut qd = duals(q);
-        let mut x = vec![Dual64::from(0.0); entries.len()];
         let mut rows = vec![0.0; n];
         out.clear();
         let pattern = self.newton_pattern(1);
         for group in coordinate_groups(n, pattern) {
             seed(&mut qd, &group, 1.0);
-            self.stored_values(which, Dual64::from(t), &qd, &mut x);
-            seed(&mut qd, &group, 0.0);
             rows.fill(0.0);
-            for (&e, xe) in entries.iter().zip(&x) {
-                add((e / n, e % n), xe.eps, &mut rows);
-            }
+            self.stored_entries(which, Dual64::from(t), &qd, |i, k, x| {
+                let (row, value) = term(i, k, x.eps);
+                rows[row] += value;
+            });
+            seed(&mut qd, &group, 0.0);
             for &j in &group {
                 for i in motion_rows(n, pattern, j) {
                     out.push(i, j, rows[i]);

@@ -827,8 +827,9 @@ struct StepSystem<'a, M: ?Sized> {
     ma_alpha: &'a [f64],
     /// f(t₀, y₀, z₀, λ₀, ψ₀).
     f0: &'a [f64],
-    /// M_{1+α}, row-major.
-    m1: &'a [f64],
+    /// The nonzero entries (i, j, M_ij) of M_{1+α}: every product with it runs over these
+    /// (a mechanism's M couples few coordinates).
+    m1: &'a [(usize, usize, f64)],
 }
 
 impl<M: ConstrainedModel + ?Sized> StepSystem<'_, M> {
@@ -892,11 +893,10 @@ impl<M: ConstrainedModel + ?Sized> StepSystem<'_, M> {
             alpha_m, alpha_f, ..
         } = self.method.coefficients;
         for i in 0..n {
-            let mut v = c::<T>(alpha_m * self.ma_alpha[i] - alpha_f * self.f0[i]) - f[i] * wf;
-            for (aj, mij) in a.iter().zip(&self.m1[i * n..(i + 1) * n]) {
-                v += *aj * (s * mij);
-            }
-            out[i] = v;
+            out[i] = c::<T>(alpha_m * self.ma_alpha[i] - alpha_f * self.f0[i]) - f[i] * wf;
+        }
+        for &(i, j, mij) in self.m1 {
+            out[i] += a[j] * (s * mij);
         }
     }
 }
@@ -997,22 +997,21 @@ impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
                     self.dynamics(1.0 - alpha_m, at, 1.0 - alpha_f, &f, r_d);
                 } else {
                     // Additive (13d): (1−α_m)M_{1+α}(ã − a) − (1−α_f)[g_yᵀ(λ₁ − λ̃₁) + k_zᵀ(ψ₁ − ψ̃₁)].
-                    let mut gy = vec![T::zero(); mg * n];
-                    self.model.g_y(t1, &y1, &mut gy);
+                    let mut gy = Vec::new();
+                    self.model.g_y_entries(t1, &y1, &mut gy);
                     let mut kz = vec![T::zero(); mk * n];
                     self.model.k_z(t1, &y1, &z1, &mut kz);
-                    for i in 0..n {
-                        let mut v = T::zero();
-                        for j in 0..n {
-                            v += (at[j] - a[j]) * ((1.0 - alpha_m) * self.m1[i * n + j]);
-                        }
-                        for q in 0..mg {
-                            v -= gy[q * n + i] * (l[q] - lt[q]) * (1.0 - alpha_f);
-                        }
+                    r_d.fill(T::zero());
+                    for &(i, j, mij) in self.m1 {
+                        r_d[i] += (at[j] - a[j]) * ((1.0 - alpha_m) * mij);
+                    }
+                    for &(q, i, g) in &gy {
+                        r_d[i] -= g * (l[q] - lt[q]) * (1.0 - alpha_f);
+                    }
+                    for (i, r) in r_d.iter_mut().enumerate() {
                         for q in 0..mk {
-                            v -= kz[q * n + i] * (p[q] - pt[q]) * (1.0 - alpha_f);
+                            *r -= kz[q * n + i] * (p[q] - pt[q]) * (1.0 - alpha_f);
                         }
-                        r_d[i] = v;
                     }
                 }
                 // (13f), (13g)
@@ -1040,17 +1039,14 @@ impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
                 let (r_d, rest) = rest.split_at_mut(n);
                 let (r_e, r_f) = rest.split_at_mut(mg);
                 // (17c): M_{1+α} δ̃ − g_yᵀ(t₁, y₁) μ̃
-                let mut gy = vec![T::zero(); mg * n];
-                self.model.g_y(t1, &y1, &mut gy);
-                for i in 0..n {
-                    let mut v = T::zero();
-                    for (dj, mij) in delta.iter().zip(&self.m1[i * n..(i + 1) * n]) {
-                        v += *dj * *mij;
-                    }
-                    for q in 0..mg {
-                        v -= gy[q * n + i] * mu[q];
-                    }
-                    r_c[i] = v;
+                let mut gy = Vec::new();
+                self.model.g_y_entries(t1, &y1, &mut gy);
+                r_c.fill(T::zero());
+                for &(i, j, mij) in self.m1 {
+                    r_c[i] += delta[j] * mij;
+                }
+                for &(q, i, g) in &gy {
+                    r_c[i] -= g * mu[q];
                 }
                 // (17d): M_{1+α} a − (1+α) f(t₁, y₁, z₁, λ₁) + α f₀
                 self.model.force(t1, &y1, &z1, l, &zero, &mut f);
@@ -1174,7 +1170,12 @@ pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
         a_alpha: &state.a_alpha,
         ma_alpha: &ma_alpha,
         f0: &f0,
-        m1: &m1,
+        m1: &m1
+            .iter()
+            .enumerate()
+            .filter(|&(_, &m)| m != 0.0)
+            .map(|(k, &m)| (k / n, k % n, m))
+            .collect::<Vec<_>>(),
     };
     // Start from the previous values (tilded = untilded, corrections 0).
     let mut x = Vec::with_capacity(sys.size());

@@ -119,6 +119,15 @@ pub trait ConstrainedModel {
         }
     }
 
+    /// g_y(t, y) as its structural nonzeros (row, column, value), appended to `out`: what the
+    /// schemes multiply with. Default: every entry of [`Self::g_y`].
+    fn g_y_entries<T: Scalar>(&self, t: T, y: &[T], out: &mut Vec<(usize, usize, T)>) {
+        let (n, m) = (y.len(), self.dims().holonomic);
+        let mut g = vec![T::zero(); m * n];
+        self.g_y(t, y, &mut g);
+        out.extend(g.into_iter().enumerate().map(|(k, v)| (k / n, k % n, v)));
+    }
+
     /// Velocity constraints g_t(t, y) + g_y(t, y) z (11d). Default: the derivative of g along
     /// (1, z) by forward-mode AD.
     fn g_dot<T: Scalar>(&self, t: T, y: &[T], z: &[T], out: &mut [T]) {
