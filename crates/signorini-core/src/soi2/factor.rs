@@ -154,6 +154,20 @@ fn pivot_range(lu: &LU<f64, Dyn, Dyn>) -> (f64, f64) {
         })
 }
 
+/// Numerical rank of the rows×n matrix `jac` (row-major), as [`range_projection`] counts it,
+/// from its singular values alone (no singular vectors, no projector: the rank test of a
+/// Newton matrix whose pivots look singular costs a few times less).
+pub fn numerical_rank(jac: &[f64], rows: usize, n: usize) -> usize {
+    if rows == 0 {
+        return 0;
+    }
+    let Some(sv) = crate::dense::singular_values(DMatrix::from_row_slice(rows, n, jac)) else {
+        return 0;
+    };
+    let threshold = RANK_TOLERANCE * sv.max().max(1.0);
+    sv.iter().filter(|&&s| s > threshold).count()
+}
+
 /// Numerical rank of the rows×n matrix `jac` (row-major) and the orthogonal projector onto its
 /// column space, an rows×rows matrix: λ ↦ P λ keeps g_yᵀλ and removes the part of λ that
 /// g_yᵀ does not see, giving the minimum-norm multipliers.

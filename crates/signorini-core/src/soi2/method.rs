@@ -11,8 +11,8 @@ use super::banded::BandLu;
 use super::factor::NewtonFactor;
 use super::sparsity::Pattern;
 use super::{
-    ConstrainedModel, Dims, Dual64, Scalar, Soi2Error, constraint_rank, g_ddot, k_dot, mass_matrix,
-    max_norm,
+    ConstrainedModel, Dims, Dual64, Scalar, Soi2Error, constraint_numerical_rank, constraint_rank,
+    g_ddot, k_dot, mass_matrix, max_norm,
 };
 use nalgebra::{DMatrix, DVector, Dyn, LU};
 
@@ -679,7 +679,7 @@ fn rank_at<M: ConstrainedModel + ?Sized>(
 ) -> (usize, usize) {
     let d = model.dims();
     (
-        constraint_rank(model, t, y, z).0,
+        constraint_numerical_rank(model, t, y, z),
         d.holonomic + d.nonholonomic,
     )
 }
@@ -722,7 +722,7 @@ impl<M: ConstrainedModel + ?Sized> Residual for AccelerationSystem<'_, M> {
 
     fn joints_deficient(&self, _x: &[f64]) -> bool {
         let d = self.dims;
-        constraint_rank(self.model, self.t, self.y, self.z).0 < d.holonomic + d.nonholonomic
+        constraint_numerical_rank(self.model, self.t, self.y, self.z) < d.holonomic + d.nonholonomic
     }
 
     /// Unknowns (a, λ) and rows (dynamics, joints): one block of each.
@@ -919,7 +919,7 @@ impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
         let (a, _, _, at) = self.unpack(x);
         let (y, z) = (self.y1(&at), self.z1(&a));
         let d = self.dims;
-        constraint_rank(self.model, self.t1, &y, &z).0 < d.holonomic + d.nonholonomic
+        constraint_numerical_rank(self.model, self.t1, &y, &z) < d.holonomic + d.nonholonomic
     }
 
     /// Every formulation orders its unknowns and rows as [`Pattern`] describes: coordinate
@@ -1216,9 +1216,15 @@ pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
     let y = sys.y1(&at);
     let z = sys.z1(&a);
     if info.singular {
-        let (rank, projector) = constraint_rank(model, t1, &y, &z);
+        // A step accepted on its residual near a singular position may still have joints of
+        // full rank: their projector is the identity, and the multipliers are already the
+        // minimum-norm ones (the singular values decide without the O(m³) projector).
+        let rank = constraint_numerical_rank(model, t1, &y, &z);
         info.rank = Some(rank);
-        minimum_norm_multipliers(model, &projector, &mut lambda);
+        if rank < dims.holonomic + dims.nonholonomic {
+            let (_, projector) = constraint_rank(model, t1, &y, &z);
+            minimum_norm_multipliers(model, &projector, &mut lambda);
+        }
     }
     let ma = (DMatrix::from_row_slice(n, n, &m1) * DVector::from_column_slice(&a))
         .as_slice()

@@ -405,6 +405,23 @@ pub fn constraint_rank<M: ConstrainedModel + ?Sized>(
     factor::range_projection(&jac, d.holonomic + d.nonholonomic, d.n)
 }
 
+/// Numerical rank of (g_y; k_z) at (t, y, z), as [`constraint_rank`] counts it, without the
+/// projector ([`factor::numerical_rank`]).
+pub fn constraint_numerical_rank<M: ConstrainedModel + ?Sized>(
+    model: &M,
+    t: f64,
+    y: &[f64],
+    z: &[f64],
+) -> usize {
+    let d = model.dims();
+    let mut jac = vec![0.0; d.holonomic * d.n];
+    model.g_y(t, y, &mut jac);
+    let mut kz = vec![0.0; d.nonholonomic * d.n];
+    model.k_z(t, y, z, &mut kz);
+    jac.extend_from_slice(&kz);
+    factor::numerical_rank(&jac, d.holonomic + d.nonholonomic, d.n)
+}
+
 /// Max-norms of the position, velocity and nonholonomic constraint residuals at (t, y, z).
 pub fn constraint_residuals<M: ConstrainedModel + ?Sized>(
     model: &M,
