@@ -10,7 +10,8 @@ use crate::problem_file::{self, RawProblem};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use signorini_core::friction::{
-    Fc3dError, Fc3dOptions, Fc3dSolution, Fc3dSolverKind, solve_fc3d, solve_fc3d_from,
+    Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dSolution, Fc3dSolverKind, solve_fc3d,
+    solve_fc3d_from,
 };
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -42,6 +43,10 @@ pub struct SolveArgs {
     /// Newton's linear systems: dense LU up to this many unknowns (3 × contacts), GMRES above.
     #[arg(long, default_value_t = Fc3dOptions::default().dense_newton_max)]
     pub dense_newton_max: usize,
+    /// Newton's linear solve: `auto` (dense LU up to `--dense-newton-max` unknowns, sparse LU
+    /// above), `dense_lu`, `sparse_lu` or `gmres`.
+    #[arg(long, default_value = "auto")]
+    pub newton_linear: String,
     /// Write `DIR/NAME.hdf5` (the problem and FCLib's `/solution`) for each problem solved.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -59,6 +64,12 @@ pub fn solve(args: SolveArgs) -> Result<()> {
             args.solver
         );
     };
+    let Some(newton_linear) = Fc3dNewtonLinear::from_name(&args.newton_linear) else {
+        bail!(
+            "--newton-linear {}: unknown (auto, dense_lu, sparse_lu or gmres)",
+            args.newton_linear
+        );
+    };
     if args.tolerance.is_nan() || args.tolerance <= 0.0 {
         bail!("--tolerance {}: must be > 0", args.tolerance);
     }
@@ -68,6 +79,7 @@ pub fn solve(args: SolveArgs) -> Result<()> {
         max_iterations: args.max_iterations,
         auto_sweeps: args.auto_sweeps,
         dense_newton_max: args.dense_newton_max,
+        newton_linear,
         ..Fc3dOptions::default()
     };
     if args.out.is_some() && !cfg!(feature = "hdf5") {

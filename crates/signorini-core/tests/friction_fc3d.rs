@@ -6,12 +6,13 @@
 
 use proptest::prelude::*;
 use signorini_core::friction::{
-    BlockCsr, Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind, FrictionProblem,
-    solve_fc3d, solve_fc3d_from, solve_friction,
+    BlockCsr, Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind,
+    FrictionProblem, solve_fc3d, solve_fc3d_from, solve_friction,
 };
 use signorini_core::lcp::{LcpOptions, LcpSolverKind};
 
-/// Every solver configuration: the five kinds, and Newton with its GMRES path forced.
+/// Every solver configuration: the five kinds, and Newton with its GMRES and sparse LU paths
+/// forced.
 fn configurations(tolerance: f64) -> Vec<(&'static str, Fc3dOptions)> {
     let base = Fc3dOptions {
         tolerance,
@@ -50,7 +51,15 @@ fn configurations(tolerance: f64) -> Vec<(&'static str, Fc3dOptions)> {
             "nsn_ac gmres",
             Fc3dOptions {
                 kind: Fc3dSolverKind::NewtonAlartCurnier,
-                dense_newton_max: 0,
+                newton_linear: Fc3dNewtonLinear::Gmres,
+                ..base
+            },
+        ),
+        (
+            "nsn_ac sparse_lu",
+            Fc3dOptions {
+                kind: Fc3dSolverKind::NewtonAlartCurnier,
+                newton_linear: Fc3dNewtonLinear::SparseLu,
                 ..base
             },
         ),

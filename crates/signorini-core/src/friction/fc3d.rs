@@ -232,6 +232,40 @@ impl Fc3dSolverKind {
     }
 }
 
+/// How the semismooth Newton method (`NewtonAlartCurnier`, and `Prox`'s inner solves) solves
+/// its linear systems `J d = −Φ`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Fc3dNewtonLinear {
+    /// Dense LU up to [`Fc3dOptions::dense_newton_max`] unknowns, the sparse LU above.
+    #[default]
+    Auto,
+    /// Dense LU with partial pivoting (J formed densely, 8·n² bytes).
+    DenseLu,
+    /// Sparse LU of J assembled from W's blocks (`fc3d_sparse_lu`).
+    SparseLu,
+    /// Restarted GMRES(40) with a block-Jacobi preconditioner and products by the sparse W.
+    Gmres,
+}
+
+impl Fc3dNewtonLinear {
+    /// The name used on the command line: `auto`, `dense_lu`, `sparse_lu`, `gmres`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Auto => "auto",
+            Self::DenseLu => "dense_lu",
+            Self::SparseLu => "sparse_lu",
+            Self::Gmres => "gmres",
+        }
+    }
+
+    /// The linear solve of a name (see [`Fc3dNewtonLinear::name`]).
+    pub fn from_name(name: &str) -> Option<Self> {
+        [Self::Auto, Self::DenseLu, Self::SparseLu, Self::Gmres]
+            .into_iter()
+            .find(|k| k.name() == name)
+    }
+}
+
 /// Solver settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Fc3dOptions {
@@ -251,18 +285,26 @@ pub struct Fc3dOptions {
     pub auto_newton_iterations: usize,
     /// Work that `Auto` gives the proximal point method from its start, in products by a 3×3
     /// block of W (a product by W counts its stored blocks, a Gauss–Seidel sweep costs as much,
-    /// a dense LU factorisation of n unknowns 2n³/54; GMRES's Gram–Schmidt is not counted), a
+    /// a dense LU factorisation of n unknowns 2n³/54, a sparse LU the flops of its elimination
+    /// over 18 plus 3 per stored block for assembling J; GMRES's Gram–Schmidt is not counted), a
     /// third of it to the attempt from the best iterate before, and then it turns back to
     /// Gauss–Seidel. Default 10⁸ (≈ 2.5–3.5 s on the benchmark's machine; 1.8× what
     /// Capsules-i122-1617 needs from r = 0, and its third 2× what Capsules-i100-889 needs from
     /// Gauss–Seidel's iterate).
     pub auto_prox_work: usize,
-    /// Newton solves its linear systems with a dense LU factorisation up to this many unknowns
-    /// (3m; 8·n² bytes, 2 MB at the default 500), above it with restarted GMRES on the sparse
-    /// Jacobian, which is never formed densely. Default 500: on Capsules-i101-404 (675 unknowns)
-    /// an iteration of the proximal point method's Newton took 0.12 s with the dense LU and
-    /// 0.027 s with GMRES, while on BoxesStack1 (156 unknowns) only the dense LU converged.
+    /// Where the sparse LU's factors fill in (`newton_linear` = `Auto`), Newton solves its
+    /// linear systems with a dense LU factorisation up to this many unknowns (3m; 8·n² bytes,
+    /// 2 MB at the default 500), above it with restarted GMRES on the sparse Jacobian, which is
+    /// never formed densely. Default 500: on Capsules-i101-404 (675 unknowns) an iteration of
+    /// the proximal point method's Newton took 0.12 s with the dense LU and 0.027 s with GMRES,
+    /// while on BoxesStack1 (156 unknowns) only the dense LU converged (Round 9, before the
+    /// sparse LU).
     pub dense_newton_max: usize,
+    /// Newton's linear solve. Default `Auto`: the sparse LU, unless its factors fill in
+    /// (module `fc3d_newton`); on Capsules-i122-1617 the proximal point method then takes 76
+    /// Newton iterations and 0.1 s where GMRES, whose block-Jacobi preconditioner is too weak
+    /// there, took 104 and 1.5 s (docs/friction_benchmark.md, Round 10).
+    pub newton_linear: Fc3dNewtonLinear,
     /// Outer iterations of the proximal point method (`Prox`). Default 100 (Siconos' default).
     pub prox_outer_iterations: usize,
     /// Newton iterations per proximal step (`Prox`). Default 100; the total over the steps is
@@ -280,6 +322,7 @@ impl Default for Fc3dOptions {
             auto_newton_iterations: 200,
             auto_prox_work: 100_000_000,
             dense_newton_max: 500,
+            newton_linear: Fc3dNewtonLinear::Auto,
             prox_outer_iterations: 100,
             prox_inner_iterations: 100,
         }

@@ -23,11 +23,15 @@
 //! the merit `ψ = ½‖Φ‖²` by Armijo's rule `ψ(r + t d) ≤ (1 − 2σt) ψ(r)` (σ = 10⁻⁴; Qi & Sun's
 //! semismooth Newton with a line search). When no step does, one projection step
 //! `r ← P_K(r − ρ û)` (De Saxcé's fixed point) is taken instead. Nothing depends on the order of
-//! the contacts. The linear systems are solved densely (LU with partial pivoting) up to
-//! [`Fc3dOptions::dense_newton_max`] unknowns, and above it by GMRES (Y. Saad, M. H. Schultz,
-//! *GMRES: a generalized minimal residual algorithm for solving nonsymmetric linear systems*,
-//! SIAM J. Sci. Stat. Comput. 7(3):856–869, 1986, doi:10.1137/0907058) preconditioned by the
-//! inverse of J's diagonal blocks, with products by the sparse W only.
+//! the contacts. The linear systems ([`Fc3dOptions::newton_linear`]) are solved by a sparse LU
+//! of J assembled from W's blocks ([`super::fc3d_sparse_lu`]), densely (LU with partial
+//! pivoting), or by GMRES (Y. Saad, M. H. Schultz, *GMRES: a generalized minimal residual
+//! algorithm for solving nonsymmetric linear systems*, SIAM J. Sci. Stat. Comput.
+//! 7(3):856–869, 1986, doi:10.1137/0907058) preconditioned by the inverse of J's diagonal
+//! blocks, with products by the sparse W only. `Auto` takes the sparse LU until one of its
+//! factorisations costs more than [`SPARSE_LU_MAX_PASSES`] products by W (its factors filled
+//! in), and from then on, for the rest of the solve, the dense LU up to
+//! [`Fc3dOptions::dense_newton_max`] unknowns and GMRES above.
 //!
 //! **Inexact Newton.** GMRES stops at the relative residual `‖J d + Φ_k‖ ≤ η_k ‖Φ_k‖` of a
 //! forcing term that follows ‖Φ‖ (S. C. Eisenstat, H. F. Walker, *Choosing the forcing terms in
@@ -46,13 +50,16 @@
 //! `ψ(r + t d) ≤ (1 − 2σt(1 − η)) ψ(r)` with η the residual GMRES reached (S. C. Eisenstat,
 //! H. F. Walker, *Globally convergent inexact Newton methods*, SIAM J. Optim. 4(2):393–422,
 //! 1994, doi:10.1137/0804022: such a d descends on ψ with slope ≤ −2(1 − η)ψ; η = 0 for the
-//! dense LU). η_max is 10⁻³, not Eisenstat and Walker's 0.9: measured on Siconos' Capsules and
+//! dense and sparse LU). η_max is 10⁻³, not Eisenstat and Walker's 0.9: measured on Siconos' Capsules and
 //! KaplasTower problems (docs/friction_benchmark.md, Round 9), the proximal point method's Newton
 //! took 1.7–22× more iterations with η_max = 0.9 or 0.1 than with GMRES solved to 10⁻¹⁰, while
 //! 10⁻³ keeps those iteration counts (±4) and needs 1.06–4.4× fewer products by W's blocks.
 
 use super::fc3d::contact_natural_map;
-use super::fc3d::{Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, natural_map_error};
+use super::fc3d::{
+    Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dProblem, Fc3dSolution, natural_map_error,
+};
+use super::fc3d_sparse_lu::SparseNewton;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 /// The Armijo constant σ of the line search.
@@ -170,13 +177,34 @@ pub fn solve_fc3d_newton(
     start: &[f64],
 ) -> Result<Fc3dSolution, Fc3dError> {
     let mut work = Work::unbounded();
-    solve_fc3d_newton_within(problem, options, start, &mut work)
+    let mut linear = LinearCache::default();
+    solve_fc3d_newton_within(problem, options, start, &mut work, &mut linear)
+}
+
+/// Largest work of a sparse LU factorisation, in passes over W (products by its stored blocks),
+/// for which `Fc3dNewtonLinear::Auto` keeps the sparse LU; above it the factors fill in and
+/// GMRES takes over for the rest of the solve. Measured (docs/friction_benchmark.md, Round 10):
+/// a factorisation costs 7–8 passes on Siconos' Capsules problems, where GMRES spends up to 400
+/// per Newton iteration (one restart cycle is 41), and 460 on KaplasTower, where GMRES needs
+/// about 80 per Newton iteration.
+const SPARSE_LU_MAX_PASSES: usize = 50;
+
+/// What Newton's linear solve keeps from one iteration to the next, and from one of the
+/// proximal point method's inner solves to the next (their W + α I share W's pattern): the
+/// sparse LU's pattern and ordering, and whether its factors filled in beyond
+/// [`SPARSE_LU_MAX_PASSES`].
+#[derive(Default)]
+pub(crate) struct LinearCache {
+    sparse: Option<SparseNewton>,
+    sparse_fills_in: bool,
 }
 
 /// Work of a solve in products by a 3×3 block of W (18 flops each): a product by W (a local
 /// velocity, a line-search trial, a GMRES iteration; a Gauss–Seidel sweep costs the same) is one
-/// per stored block, a dense LU factorisation of n unknowns its 2n³/3 flops over 18. `spent`
-/// accumulates; a solve stops (not converged) once it reaches `budget`.
+/// per stored block, a dense LU factorisation of n unknowns its 2n³/3 flops over 18, a sparse LU
+/// its assembly, the flops of its elimination counted from its factors, and its triangular
+/// solves ([`super::fc3d_sparse_lu`]). `spent` accumulates; a solve stops (not converged) once it
+/// reaches `budget`.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Work {
     pub(crate) spent: usize,
@@ -203,6 +231,7 @@ pub(crate) fn solve_fc3d_newton_within(
     options: &Fc3dOptions,
     start: &[f64],
     work: &mut Work,
+    cache: &mut LinearCache,
 ) -> Result<Fc3dSolution, Fc3dError> {
     problem.validate()?;
     let m = problem.contacts();
@@ -243,7 +272,7 @@ pub(crate) fn solve_fc3d_newton_within(
             gs: &gs,
             diagonal: &diagonal,
         };
-        let direction = newton_direction(problem, &linear, &phi, options, eta, work);
+        let direction = newton_direction(problem, &linear, &phi, options, eta, cache, work);
         let mut step = 1.0;
         let mut accepted = false;
         // A direction with ‖J d + Φ‖ ≤ η‖Φ‖ (η < 1) descends on ψ with slope ≤ −2(1 − η)ψ.
@@ -314,13 +343,33 @@ fn newton_direction(
     phi: &[f64],
     options: &Fc3dOptions,
     eta: f64,
+    cache: &mut LinearCache,
     work: &mut Work,
 ) -> Option<(Vec<f64>, f64)> {
     let Linearisation { rho, gs, diagonal } = *linear;
     let m = problem.contacts();
     let n = 3 * m;
     let rhs: Vec<f64> = phi.iter().map(|x| -x).collect();
-    if n <= options.dense_newton_max {
+    let method = match options.newton_linear {
+        Fc3dNewtonLinear::Auto if !cache.sparse_fills_in => Fc3dNewtonLinear::SparseLu,
+        Fc3dNewtonLinear::Auto if n <= options.dense_newton_max => Fc3dNewtonLinear::DenseLu,
+        Fc3dNewtonLinear::Auto => Fc3dNewtonLinear::Gmres,
+        other => other,
+    };
+    if method == Fc3dNewtonLinear::SparseLu {
+        if !cache.sparse.as_ref().is_some_and(|s| s.fits(&problem.w)) {
+            cache.sparse = SparseNewton::new(&problem.w).ok();
+        }
+        let factors = cache.sparse.as_ref()?;
+        let (d, factorisation) = factors
+            .solve(&problem.w, gs, rho, &rhs, &mut work.spent)
+            .ok()?;
+        if factorisation > SPARSE_LU_MAX_PASSES * problem.w.stored_blocks().max(1) {
+            cache.sparse_fills_in = true;
+        }
+        return Some((d, 0.0));
+    }
+    if method == Fc3dNewtonLinear::DenseLu {
         let mut j = DMatrix::<f64>::zeros(n, n);
         for a in 0..m {
             let g = &gs[a];

@@ -19,7 +19,7 @@
 //! shorter step). A fixed point `r_{k+1} = r_k` solves the original problem.
 
 use super::fc3d::{Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind};
-use super::fc3d_newton::{Work, solve_fc3d_newton_within};
+use super::fc3d_newton::{LinearCache, Work, solve_fc3d_newton_within};
 
 /// σ of the weight `α = σ e^ν` (Siconos' default).
 const SIGMA: f64 = 5.0;
@@ -65,6 +65,7 @@ pub(crate) fn solve_fc3d_prox_within(
         max_iterations: options.prox_inner_iterations,
         ..*options
     };
+    let mut linear = LinearCache::default();
     for _ in 0..options.prox_outer_iterations {
         if error <= options.tolerance {
             break;
@@ -90,7 +91,7 @@ pub(crate) fn solve_fc3d_prox_within(
             max_iterations: inner.max_iterations.min(options.max_iterations - spent),
             ..inner
         };
-        let failed = match solve_fc3d_newton_within(&regularised, &inner, &r, work) {
+        let failed = match solve_fc3d_newton_within(&regularised, &inner, &r, work, &mut linear) {
             Ok(s) => {
                 spent += s.iterations;
                 r = s.r;

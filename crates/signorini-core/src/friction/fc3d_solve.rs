@@ -19,17 +19,18 @@ use super::fc3d_prox::{solve_fc3d_prox, solve_fc3d_prox_within};
 /// `auto_newton_iterations` Newton iterations; then Gauss–Seidel again from the best iterate of
 /// all with the whole `max_iterations` budget.
 ///
-/// Why two starts (docs/friction_benchmark.md, Round 9): from Gauss–Seidel's best iterate (small
-/// error, hence a small first weight α = σ e, a weak regularisation) the method is fast where
-/// that iterate is close (Capsules-i100-889: 1.7·10⁷ block products, where from r = 0 it needs
-/// 1.4·10⁸) and fails where it is not (Capsules-i122-1617: not solved in 200 Newton iterations,
-/// solved from r = 0 in 104, 5.5·10⁷ block products). The budgets bound what the proximal
-/// stage costs where it does not converge: on the 7 002-contact granular problem it reached
-/// 1e-4 only after 60 s (1.7·10⁹ block products), where Gauss–Seidel needs 605 sweeps (1 s).
-/// The first that
-/// reaches the tolerance answers, and its name is in the solution. A stage that fails for any
-/// reason only hands over to the next one; when none answers, the error holds the iterate of
-/// smallest error over all stages and the iterations of all of them.
+/// The first stage that reaches the tolerance answers, and its name is in the solution. A stage
+/// that fails for any reason only hands over to the next one; when none answers, the error holds
+/// the iterate of smallest error over all stages and the iterations of all of them.
+///
+/// Why two starts (docs/friction_benchmark.md, Round 9, with GMRES as Newton's linear solve):
+/// from Gauss–Seidel's best iterate (small error, hence a small first weight α = σ e, a weak
+/// regularisation) the method is fast where that iterate is close (Capsules-i100-889: 1.7·10⁷
+/// block products, where from r = 0 it needs 1.4·10⁸) and fails where it is not
+/// (Capsules-i122-1617: not solved in 200 Newton iterations, solved from r = 0 in 104, 5.5·10⁷
+/// block products). The budgets bound what the proximal stage costs where it does not converge:
+/// on the 7 002-contact granular problem it reached 1e-4 only after 60 s (1.7·10⁹ block
+/// products), where Gauss–Seidel needs 605 sweeps (1 s).
 pub fn solve_fc3d(problem: &Fc3dProblem, options: &Fc3dOptions) -> Result<Fc3dSolution, Fc3dError> {
     solve_fc3d_from(problem, options, &vec![0.0; problem.q.len()])
 }

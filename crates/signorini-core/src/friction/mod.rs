@@ -46,13 +46,15 @@ mod fc3d_newton;
 mod fc3d_nsgs;
 mod fc3d_prox;
 mod fc3d_solve;
+mod fc3d_sparse_lu;
 mod lemke_reformulation;
 mod nsgs;
 mod work;
 
 pub use block_csr::{BlockCsr, BlockCsrError};
 pub use fc3d::{
-    Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind, natural_map_error,
+    Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind,
+    natural_map_error,
 };
 pub use fc3d_anderson::solve_fc3d_nsgs_anderson;
 pub use fc3d_newton::solve_fc3d_newton;
