@@ -22,7 +22,11 @@
 //! Each iteration solves `J d = −Φ` and takes the largest step `t ∈ {1, ½, ¼, …}` that decreases
 //! the merit `ψ = ½‖Φ‖²` by Armijo's rule `ψ(r + t d) ≤ (1 − 2σt) ψ(r)` (σ = 10⁻⁴; Qi & Sun's
 //! semismooth Newton with a line search). When no step does, one projection step
-//! `r ← P_K(r − ρ û)` (De Saxcé's fixed point) is taken instead. Nothing depends on the order of
+//! `r ← P_K(r − ρ û)` (De Saxcé's fixed point) is taken instead. Alart–Curnier's merit has
+//! spurious stationary points where Φ ≠ 0, at which the line search keeps finding tiny steps
+//! that change nothing: when the smallest error has not fallen by 1 % in [`STALL_ITERATIONS`]
+//! iterations, as many projection steps follow before Newton resumes (a problem built from a
+//! known solution, six contacts, stalled at error 6.5e-4 for 10 000 iterations without them). Nothing depends on the order of
 //! the contacts. The linear systems ([`Fc3dOptions::newton_linear`]) are solved by a sparse LU
 //! of J assembled from W's blocks ([`super::fc3d_sparse_lu`]), densely (LU with partial
 //! pivoting), or by GMRES (Y. Saad, M. H. Schultz, *GMRES: a generalized minimal residual
@@ -66,6 +70,14 @@ use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 const ARMIJO: f64 = 1e-4;
 /// Smallest step of the line search before the projection step is taken instead.
 const SMALLEST_STEP: f64 = 1.0 / 1024.0;
+/// Newton iterations without reducing the smallest error by the factor [`STALL_DECREASE`] after
+/// which the iteration counts as stalled at a spurious stationary point of the merit, and as
+/// many projection steps follow.
+const STALL_ITERATIONS: usize = 20;
+/// See [`STALL_ITERATIONS`]: a stall is an iteration that gains less than 1 % in 20 iterations
+/// (a slow but real descent, as in the proximal point's inner solves on Siconos' Capsules
+/// problems, is not interrupted).
+const STALL_DECREASE: f64 = 0.99;
 /// GMRES: restart length, budget of inner iterations.
 const GMRES_RESTART: usize = 40;
 const GMRES_MAX: usize = 400;
@@ -178,7 +190,7 @@ pub fn solve_fc3d_newton(
 ) -> Result<Fc3dSolution, Fc3dError> {
     let mut work = Work::unbounded();
     let mut linear = LinearCache::default();
-    solve_fc3d_newton_within(problem, options, start, &mut work, &mut linear)
+    solve_fc3d_newton_within(problem, options, start, &mut work, &mut linear, true)
 }
 
 /// Largest work of a sparse LU factorisation, in passes over W (products by its stored blocks),
@@ -225,13 +237,17 @@ impl Work {
 }
 
 /// [`solve_fc3d_newton`] counting its passes over W in `work` and stopping, not converged, at
-/// the first iteration that starts with the budget spent.
+/// the first iteration that starts with the budget spent. `unstall` takes the projection steps
+/// of a stall ([`STALL_ITERATIONS`]); the proximal point method's inner solves go without them
+/// (its outer iteration answers an inner solve that fails by a larger regularisation, and on
+/// Siconos' Capsules-i122 the projection steps cost it 264 Newton iterations instead of 76).
 pub(crate) fn solve_fc3d_newton_within(
     problem: &Fc3dProblem,
     options: &Fc3dOptions,
     start: &[f64],
     work: &mut Work,
     cache: &mut LinearCache,
+    unstall: bool,
 ) -> Result<Fc3dSolution, Fc3dError> {
     problem.validate()?;
     let m = problem.contacts();
@@ -244,10 +260,20 @@ pub(crate) fn solve_fc3d_newton_within(
     let mut best = (f64::INFINITY, r.clone());
     let mut previous = None;
     let mut done = options.max_iterations;
+    // The iteration and the smallest error at the last decrease of the smallest error by
+    // STALL_DECREASE, and the projection steps left to take after a stall.
+    let mut progress = (0, f64::INFINITY);
+    let mut projections = 0;
     for iteration in 0..=options.max_iterations {
         let error = natural_map_error(&problem.mu, &problem.q, &r, &u);
         if error < best.0 {
             best = (error, r.clone());
+        }
+        if best.0 <= STALL_DECREASE * progress.1 {
+            progress = (iteration, best.0);
+        } else if unstall && projections == 0 && iteration >= progress.0 + STALL_ITERATIONS {
+            projections = STALL_ITERATIONS;
+            progress = (iteration + STALL_ITERATIONS, best.0);
         }
         if error <= options.tolerance {
             return Ok(Fc3dSolution {
@@ -261,6 +287,12 @@ pub(crate) fn solve_fc3d_newton_within(
         if iteration == options.max_iterations || !error.is_finite() || work.exhausted() {
             done = iteration;
             break;
+        }
+        if projections > 0 {
+            projections -= 1;
+            projection_step(problem, &rho, &mut r, &mut u);
+            work.spent += pass;
+            continue;
         }
         let (phi, gs) = residual(problem, &rho, &r, &u);
         let psi = half_squared(&phi);
@@ -293,19 +325,7 @@ pub(crate) fn solve_fc3d_newton_within(
             }
         }
         if !accepted {
-            // De Saxcé's projection step r ← P_K(r − ρ û).
-            for (c, &rho_c) in rho.iter().enumerate() {
-                let k = 3 * c;
-                let d = contact_natural_map(
-                    problem.mu[c],
-                    [r[k], r[k + 1], r[k + 2]],
-                    [rho_c * u[k], rho_c * u[k + 1], rho_c * u[k + 2]],
-                );
-                for (ri, di) in r[k..k + 3].iter_mut().zip(d) {
-                    *ri -= di;
-                }
-            }
-            u = problem.local_velocity(&r);
+            projection_step(problem, &rho, &mut r, &mut u);
             work.spent += pass;
         }
     }
@@ -316,6 +336,22 @@ pub(crate) fn solve_fc3d_newton_within(
         tolerance: options.tolerance,
         best: best.1,
     })
+}
+
+/// De Saxcé's projection step r ← P_K(r − ρ û) on every contact, then u = W r + q.
+fn projection_step(problem: &Fc3dProblem, rho: &[f64], r: &mut [f64], u: &mut Vec<f64>) {
+    for (c, &rho_c) in rho.iter().enumerate() {
+        let k = 3 * c;
+        let d = contact_natural_map(
+            problem.mu[c],
+            [r[k], r[k + 1], r[k + 2]],
+            [rho_c * u[k], rho_c * u[k + 1], rho_c * u[k + 2]],
+        );
+        for (ri, di) in r[k..k + 3].iter_mut().zip(d) {
+            *ri -= di;
+        }
+    }
+    *u = problem.local_velocity(r);
 }
 
 /// `G_a · x_a` for a 3-vector block.

@@ -91,23 +91,24 @@ pub(crate) fn solve_fc3d_prox_within(
             max_iterations: inner.max_iterations.min(options.max_iterations - spent),
             ..inner
         };
-        let failed = match solve_fc3d_newton_within(&regularised, &inner, &r, work, &mut linear) {
-            Ok(s) => {
-                spent += s.iterations;
-                r = s.r;
-                false
-            }
-            Err(Fc3dError::NotConverged {
-                iterations,
-                best: inner_best,
-                ..
-            }) => {
-                spent += iterations;
-                r = inner_best;
-                true
-            }
-            Err(other) => return Err(other),
-        };
+        let failed =
+            match solve_fc3d_newton_within(&regularised, &inner, &r, work, &mut linear, false) {
+                Ok(s) => {
+                    spent += s.iterations;
+                    r = s.r;
+                    false
+                }
+                Err(Fc3dError::NotConverged {
+                    iterations,
+                    best: inner_best,
+                    ..
+                }) => {
+                    spent += iterations;
+                    r = inner_best;
+                    true
+                }
+                Err(other) => return Err(other),
+            };
         error = problem.error(&r);
         work.spent += pass;
         if error < best.0 {
