@@ -98,9 +98,11 @@ pub enum StartValue {
 /// Convergence (both tests on the max-norm, x the unknowns of the step, F its residual with the
 /// position rows scaled by 1/(βh²) and the velocity rows by 1/(γh), so that every row is in
 /// the units of an acceleration times a mass or of an acceleration):
-/// * **increment test**: `‖Δx‖∞ ≤ tolerance · (1 + ‖x‖∞)`, or the increments stopped
-///   shrinking (`‖Δx_k‖ ≥ ½‖Δx_{k−1}‖`) below `max(100 · tolerance · (1 + ‖x‖∞), noise floor)`
-///   where the noise floor is 25 u (u the rounding of the positions below);
+/// * **increment test**: `‖Δx‖∞ ≤ tolerance · (1 + ‖x‖∞)`; or the error the iterate has left
+///   by the measured contraction ρ = ‖Δx_k‖/‖Δx_{k−1}‖, ρ/(1 − ρ)·‖Δx_k‖, is below u/16 (u the
+///   rounding of the positions below: more iterations only stir round-off; `at_rounding`);
+///   or the increments stopped shrinking (`‖Δx_k‖ ≥ ½‖Δx_{k−1}‖`) below
+///   `max(100 · tolerance · (1 + ‖x‖∞), noise floor)` where the noise floor is 25 u;
 /// * **residual test**, when the matrix is numerically singular (rank-deficient g_y: singular
 ///   positions, redundant joints; see [`super::factor`]) or the increments stopped shrinking
 ///   (`‖Δx_k‖ ≥ ½‖Δx_{k−1}‖`, Newton no longer contracts): `‖F(x)‖∞ ≤ ‖J‖∞ · (tolerance ·
@@ -155,8 +157,9 @@ pub enum NewtonStrategy {
     Full,
 }
 
-/// The Jacobian a run carries from step to step (simplified Newton): its LU factorisation, the
-/// step size and the system size it was built for.
+/// What Newton carries from step to step: the Jacobian (simplified Newton), its LU
+/// factorisation, the step size and the system size it was built for; and the solutions of the
+/// last steps, from which the next step's start value is extrapolated ([`Self::predict`]).
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct NewtonCache {
     /// Strategy.
@@ -176,10 +179,20 @@ pub struct NewtonCache {
     deficient: Vec<(NewtonFactor, f64, usize)>,
     /// Jacobians built (AD evaluations of the full matrix), for statistics.
     pub jacobians: u64,
+    /// The last [`PREDICTOR_POINTS`] step solutions x (oldest first), all of steps of size
+    /// `solutions_h`; emptied when the size changes.
+    #[serde(default)]
+    solutions: Vec<Vec<f64>>,
+    /// The step size of `solutions`.
+    #[serde(default)]
+    solutions_h: f64,
 }
 
 /// Jacobians kept per run (one per distinct step size, least recently used dropped).
 const CACHED_JACOBIANS: usize = 4;
+
+/// Solutions the start value is extrapolated from (a quadratic).
+const PREDICTOR_POINTS: usize = 3;
 
 impl NewtonCache {
     /// An empty cache for `strategy`.
@@ -190,7 +203,36 @@ impl NewtonCache {
             banded: Vec::new(),
             deficient: Vec::new(),
             jacobians: 0,
+            solutions: Vec::new(),
+            solutions_h: 0.0,
         }
+    }
+
+    /// The start value of a step of size `h` with `n` unknowns: the polynomial through the last
+    /// [`PREDICTOR_POINTS`] solutions, evaluated one step ahead (for the quadratic,
+    /// x̂ = 3x_k − 3x_{k−1} + x_{k−2}, off by O(h³) on a smooth motion where the previous solution
+    /// is off by O(h)); `None` until that many steps of this size were solved.
+    fn predict(&self, h: f64, n: usize) -> Option<Vec<f64>> {
+        if self.solutions_h != h
+            || self.solutions.len() < PREDICTOR_POINTS
+            || self.solutions.iter().any(|x| x.len() != n)
+        {
+            return None;
+        }
+        let [x0, x1, x2] = [&self.solutions[0], &self.solutions[1], &self.solutions[2]];
+        Some((0..n).map(|i| 3.0 * x2[i] - 3.0 * x1[i] + x0[i]).collect())
+    }
+
+    /// Keeps `x`, the solution of a step of size `h`, for [`Self::predict`].
+    fn remember(&mut self, h: f64, x: &[f64]) {
+        if self.solutions_h != h {
+            self.solutions.clear();
+            self.solutions_h = h;
+        }
+        if self.solutions.len() == PREDICTOR_POINTS {
+            self.solutions.remove(0);
+        }
+        self.solutions.push(x.to_vec());
     }
 
     /// Removes and returns the factorisation kept for (h, n).
@@ -450,12 +492,13 @@ fn solve_newton_full<R: Residual>(
             });
         }
         let scale = 1.0 + xnorm.max(max_norm(x));
-        // Converged, or stalled at the round-off floor just above the tolerance (the increment
+        // Converged, at the round-off floor, or stalled just above the tolerance (the increment
         // stopped shrinking: more iterations only stir round-off).
         let slow = increment >= 0.5 * previous;
         let stalled = slow && increment <= (100.0 * opts.tolerance * scale).max(res.noise_floor());
+        let at_floor = at_rounding(increment, previous, res.rounding());
         previous = increment;
-        if increment <= opts.tolerance * scale || stalled {
+        if increment <= opts.tolerance * scale || stalled || at_floor {
             res.eval(x, r.as_mut_slice());
             // A least-squares increment also vanishes where no solution is: a singular matrix
             // must also pass the residual test.
@@ -494,6 +537,30 @@ fn solve_newton_full<R: Residual>(
         increment,
     })
 }
+
+/// Whether Newton's iterate after an increment of max-norm `increment`, which followed one of
+/// `previous`, is as close to the solution as the data's `rounding` ([`Residual::rounding`])
+/// lets it be: the error left, ρ/(1 − ρ)·‖Δx‖ with ρ = ‖Δx‖/‖Δx_prev‖ the contraction just
+/// measured (E. Hairer, G. Wanner, *Solving Ordinary Differential Equations II*, 2nd ed.,
+/// Springer 1996, §IV.8, doi:10.1007/978-3-642-05221-7), is below it with a margin
+/// ([`ROUNDING_MARGIN`]). Iterations past that point only stir round-off: on A02 (N = 40,
+/// h = 10⁻³) the increments then hover at 0.3–1.5 roundings, above the tolerance
+/// 10⁻¹⁰·(1 + ‖x‖∞), and each step spent 2–4 more iterations and often a new Jacobian before
+/// the stall was recognised. Never on a first increment (no contraction measured yet).
+fn at_rounding(increment: f64, previous: f64, rounding: f64) -> bool {
+    let rate = increment / previous;
+    previous.is_finite()
+        && rate < 1.0
+        && rate / (1.0 - rate) * increment <= rounding / ROUNDING_MARGIN
+}
+
+/// The margin of [`at_rounding`]: a contraction measured from increments near round-off can
+/// look small by chance, and a step accepted on it carries an error of the rounding's size into
+/// the velocities (γh per step). Measured against `soi2_newton`'s test that simplified and full
+/// Newton give the same trajectory to 10⁻⁸ (slider-crank, 2 s, h = 2⁻¹⁰, where the crank's angle
+/// winds up and the rounding is large): margins 1 and 4 gave trajectories 1.4·10⁻⁸ and
+/// 3.1·10⁻⁸ apart, 16 gave ≤ 4.9·10⁻⁹ (1.5·10⁻⁹ with the other tests alone).
+const ROUNDING_MARGIN: f64 = 16.0;
 
 /// Largest contraction ‖Δx_{k+1}‖/‖Δx_k‖ simplified Newton accepts before it rebuilds the
 /// Jacobian.
@@ -586,7 +653,8 @@ fn solve_newton_simplified<R: Residual>(
         let stalled = built_here
             && slow
             && increment <= (100.0 * opts.tolerance * scale).max(res.noise_floor());
-        let mut converged = increment <= opts.tolerance * scale || stalled;
+        let at_floor = at_rounding(increment, previous, res.rounding());
+        let mut converged = increment <= opts.tolerance * scale || stalled || at_floor;
         if converged && let Some(norm) = factor.singular_norm() {
             // A least-squares increment also vanishes where no solution is.
             res.eval(x, r.as_mut_slice());
@@ -1177,7 +1245,8 @@ pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
             .map(|(k, &m)| (k / n, k % n, m))
             .collect::<Vec<_>>(),
     };
-    // Start from the previous values (tilded = untilded, corrections 0).
+    // The previous values (tilded = untilded, corrections 0): the start value until three steps
+    // of this size are solved, and the fallback when Newton fails from the extrapolated one.
     let mut x = Vec::with_capacity(sys.size());
     match method.formulation {
         Formulation::General | Formulation::Additive => {
@@ -1199,15 +1268,28 @@ pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
             x.extend_from_slice(&state.lambda);
         }
     }
-    let solved = match cache.strategy {
-        NewtonStrategy::Full => solve_newton_full(&sys, &mut x, &method.newton).map(|(i, _)| {
+    let solve = |x: &mut Vec<f64>, cache: &mut NewtonCache| match cache.strategy {
+        NewtonStrategy::Full => solve_newton_full(&sys, x, &method.newton).map(|(i, _)| {
             cache.jacobians += i.iterations as u64;
             i
         }),
-        NewtonStrategy::Simplified => {
-            solve_newton_simplified(&sys, &mut x, &method.newton, cache, h)
-        }
+        NewtonStrategy::Simplified => solve_newton_simplified(&sys, x, &method.newton, cache, h),
     };
+    // From the extrapolated start value when the last steps had this size; from the previous
+    // values again if Newton fails from there.
+    let solved = match cache.predict(h, x.len()) {
+        Some(mut predicted) => match solve(&mut predicted, cache) {
+            Ok(info) => {
+                x = predicted;
+                Ok(info)
+            }
+            Err(_) => solve(&mut x, cache),
+        },
+        None => solve(&mut x, cache),
+    };
+    if solved.is_ok() {
+        cache.remember(h, &x);
+    }
     let (a, mut lambda, psi, at) = sys.unpack(&x);
     let mut info = solved.map_err(|e| {
         let (y, z) = (sys.y1(&at), sys.z1(&a));
