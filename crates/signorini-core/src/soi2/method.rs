@@ -157,9 +157,8 @@ pub enum NewtonStrategy {
     Full,
 }
 
-/// What Newton carries from step to step: the Jacobian (simplified Newton), its LU
-/// factorisation, the step size and the system size it was built for; and the solutions of the
-/// last steps, from which the next step's start value is extrapolated ([`Self::predict`]).
+/// The Jacobian a run carries from step to step (simplified Newton): its LU factorisation, the
+/// step size and the system size it was built for.
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct NewtonCache {
     /// Strategy.
@@ -179,20 +178,10 @@ pub struct NewtonCache {
     deficient: Vec<(NewtonFactor, f64, usize)>,
     /// Jacobians built (AD evaluations of the full matrix), for statistics.
     pub jacobians: u64,
-    /// The last [`PREDICTOR_POINTS`] step solutions x (oldest first), all of steps of size
-    /// `solutions_h`; emptied when the size changes.
-    #[serde(default)]
-    solutions: Vec<Vec<f64>>,
-    /// The step size of `solutions`.
-    #[serde(default)]
-    solutions_h: f64,
 }
 
 /// Jacobians kept per run (one per distinct step size, least recently used dropped).
 const CACHED_JACOBIANS: usize = 4;
-
-/// Solutions the start value is extrapolated from (a quadratic).
-const PREDICTOR_POINTS: usize = 3;
 
 impl NewtonCache {
     /// An empty cache for `strategy`.
@@ -203,36 +192,7 @@ impl NewtonCache {
             banded: Vec::new(),
             deficient: Vec::new(),
             jacobians: 0,
-            solutions: Vec::new(),
-            solutions_h: 0.0,
         }
-    }
-
-    /// The start value of a step of size `h` with `n` unknowns: the polynomial through the last
-    /// [`PREDICTOR_POINTS`] solutions, evaluated one step ahead (for the quadratic,
-    /// x̂ = 3x_k − 3x_{k−1} + x_{k−2}, off by O(h³) on a smooth motion where the previous solution
-    /// is off by O(h)); `None` until that many steps of this size were solved.
-    fn predict(&self, h: f64, n: usize) -> Option<Vec<f64>> {
-        if self.solutions_h != h
-            || self.solutions.len() < PREDICTOR_POINTS
-            || self.solutions.iter().any(|x| x.len() != n)
-        {
-            return None;
-        }
-        let [x0, x1, x2] = [&self.solutions[0], &self.solutions[1], &self.solutions[2]];
-        Some((0..n).map(|i| 3.0 * x2[i] - 3.0 * x1[i] + x0[i]).collect())
-    }
-
-    /// Keeps `x`, the solution of a step of size `h`, for [`Self::predict`].
-    fn remember(&mut self, h: f64, x: &[f64]) {
-        if self.solutions_h != h {
-            self.solutions.clear();
-            self.solutions_h = h;
-        }
-        if self.solutions.len() == PREDICTOR_POINTS {
-            self.solutions.remove(0);
-        }
-        self.solutions.push(x.to_vec());
     }
 
     /// Removes and returns the factorisation kept for (h, n).
@@ -559,7 +519,9 @@ fn at_rounding(increment: f64, previous: f64, rounding: f64) -> bool {
 /// the velocities (γh per step). Measured against `soi2_newton`'s test that simplified and full
 /// Newton give the same trajectory to 10⁻⁸ (slider-crank, 2 s, h = 2⁻¹⁰, where the crank's angle
 /// winds up and the rounding is large): margins 1 and 4 gave trajectories 1.4·10⁻⁸ and
-/// 3.1·10⁻⁸ apart, 16 gave ≤ 4.9·10⁻⁹ (1.5·10⁻⁹ with the other tests alone).
+/// 3.1·10⁻⁸ apart (measured with Newton started from an extrapolation of the last steps,
+/// since dropped), 16 gives ≤ 4.9·10⁻⁹ with or without it (1.5·10⁻⁹ with the other tests
+/// alone).
 const ROUNDING_MARGIN: f64 = 16.0;
 
 /// Largest contraction ‖Δx_{k+1}‖/‖Δx_k‖ simplified Newton accepts before it rebuilds the
@@ -1245,8 +1207,7 @@ pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
             .map(|(k, &m)| (k / n, k % n, m))
             .collect::<Vec<_>>(),
     };
-    // The previous values (tilded = untilded, corrections 0): the start value until three steps
-    // of this size are solved, and the fallback when Newton fails from the extrapolated one.
+    // Start from the previous values (tilded = untilded, corrections 0).
     let mut x = Vec::with_capacity(sys.size());
     match method.formulation {
         Formulation::General | Formulation::Additive => {
@@ -1268,28 +1229,15 @@ pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
             x.extend_from_slice(&state.lambda);
         }
     }
-    let solve = |x: &mut Vec<f64>, cache: &mut NewtonCache| match cache.strategy {
-        NewtonStrategy::Full => solve_newton_full(&sys, x, &method.newton).map(|(i, _)| {
+    let solved = match cache.strategy {
+        NewtonStrategy::Full => solve_newton_full(&sys, &mut x, &method.newton).map(|(i, _)| {
             cache.jacobians += i.iterations as u64;
             i
         }),
-        NewtonStrategy::Simplified => solve_newton_simplified(&sys, x, &method.newton, cache, h),
+        NewtonStrategy::Simplified => {
+            solve_newton_simplified(&sys, &mut x, &method.newton, cache, h)
+        }
     };
-    // From the extrapolated start value when the last steps had this size; from the previous
-    // values again if Newton fails from there.
-    let solved = match cache.predict(h, x.len()) {
-        Some(mut predicted) => match solve(&mut predicted, cache) {
-            Ok(info) => {
-                x = predicted;
-                Ok(info)
-            }
-            Err(_) => solve(&mut x, cache),
-        },
-        None => solve(&mut x, cache),
-    };
-    if solved.is_ok() {
-        cache.remember(h, &x);
-    }
     let (a, mut lambda, psi, at) = sys.unpack(&x);
     let mut info = solved.map_err(|e| {
         let (y, z) = (sys.y1(&at), sys.z1(&a));
