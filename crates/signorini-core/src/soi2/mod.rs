@@ -364,12 +364,7 @@ pub fn check_constraint_rank<M: ConstrainedModel + ?Sized>(
     if rows == 0 {
         return Ok(());
     }
-    let mut gy = vec![0.0; d.holonomic * d.n];
-    model.g_y(t, y, &mut gy);
-    let mut kz = vec![0.0; d.nonholonomic * d.n];
-    model.k_z(t, y, z, &mut kz);
-    gy.extend_from_slice(&kz);
-    let jac = DMatrix::from_row_slice(rows, d.n, &gy);
+    let jac = DMatrix::from_row_slice(rows, d.n, &constraint_jacobian(model, t, y, z));
     // Not finite: no rank to speak of (as `factor::range_projection` says).
     let sv = crate::dense::singular_values(jac).unwrap_or_else(|| DVector::zeros(rows));
     let smax = sv.max();
@@ -397,11 +392,7 @@ pub fn constraint_rank<M: ConstrainedModel + ?Sized>(
     z: &[f64],
 ) -> (usize, DMatrix<f64>) {
     let d = model.dims();
-    let mut jac = vec![0.0; d.holonomic * d.n];
-    model.g_y(t, y, &mut jac);
-    let mut kz = vec![0.0; d.nonholonomic * d.n];
-    model.k_z(t, y, z, &mut kz);
-    jac.extend_from_slice(&kz);
+    let jac = constraint_jacobian(model, t, y, z);
     factor::range_projection(&jac, d.holonomic + d.nonholonomic, d.n)
 }
 
@@ -414,12 +405,24 @@ pub fn constraint_numerical_rank<M: ConstrainedModel + ?Sized>(
     z: &[f64],
 ) -> usize {
     let d = model.dims();
+    let jac = constraint_jacobian(model, t, y, z);
+    factor::numerical_rank(&jac, d.holonomic + d.nonholonomic, d.n)
+}
+
+/// (g_y; k_z) at (t, y, z): the holonomic rows, then the nonholonomic ones, row-major.
+fn constraint_jacobian<M: ConstrainedModel + ?Sized>(
+    model: &M,
+    t: f64,
+    y: &[f64],
+    z: &[f64],
+) -> Vec<f64> {
+    let d = model.dims();
     let mut jac = vec![0.0; d.holonomic * d.n];
     model.g_y(t, y, &mut jac);
     let mut kz = vec![0.0; d.nonholonomic * d.n];
     model.k_z(t, y, z, &mut kz);
     jac.extend_from_slice(&kz);
-    factor::numerical_rank(&jac, d.holonomic + d.nonholonomic, d.n)
+    jac
 }
 
 /// Max-norms of the position, velocity and nonholonomic constraint residuals at (t, y, z).
