@@ -137,6 +137,13 @@ impl StepPhases for () {
 /// 7 of the first 400 steps need more than 1 000 of them.
 pub const AUTO_SWEEPS: usize = 1000;
 
+/// The over-relaxation ω of the plain Gauss–Seidel sweeps that a rigid step's `auto` falls back
+/// to when the accelerated ones stall (`Fc3dOptions::relaxation`; 1 for a lone problem). On the
+/// 1 000-sphere pile (docs/rigid_benchmark.md, Round 11) plain sweeps from the warm start needed
+/// 1.9–3.1× fewer sweeps at 1.5 than at 1 on five dumped steps of 1 800–2 220 contacts; 1.6 was
+/// faster still on three of them, but 1.7 stalled on one and 1.85 on all: 1.5 keeps a margin.
+pub const RELAXATION: f64 = 1.5;
+
 /// Parameters of the scheme.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RigidMoreauJeanParams {
@@ -171,6 +178,7 @@ impl Default for RigidMoreauJeanParams {
             fc3d: Fc3dOptions {
                 tolerance: 1e-12,
                 auto_sweeps: AUTO_SWEEPS,
+                relaxation: RELAXATION,
                 ..Fc3dOptions::default()
             },
             projection_tolerance: 1e-12,
