@@ -36,6 +36,10 @@ pub struct SolveArgs {
     /// proximal-point stage (a rigid time step gives 1 000).
     #[arg(long, default_value_t = Fc3dOptions::default().auto_sweeps)]
     pub auto_sweeps: usize,
+    /// Over-relaxation ω ∈ (0, 2) of the plain Gauss–Seidel sweeps (`nsgs`, and those
+    /// `nsgs_aa` and `auto` fall back to; a rigid time step gives 1.5).
+    #[arg(long, default_value_t = Fc3dOptions::default().relaxation)]
+    pub relaxation: f64,
     /// Start each solve from `FILE.start` (3 × contacts numbers, one a line: the warm start the
     /// rigid bench's `--dump` writes next to the problem) instead of r = 0.
     #[arg(long)]
@@ -73,11 +77,15 @@ pub fn solve(args: SolveArgs) -> Result<()> {
     if args.tolerance.is_nan() || args.tolerance <= 0.0 {
         bail!("--tolerance {}: must be > 0", args.tolerance);
     }
+    if !(args.relaxation > 0.0 && args.relaxation < 2.0) {
+        bail!("--relaxation {}: must lie in (0, 2)", args.relaxation);
+    }
     let options = Fc3dOptions {
         kind,
         tolerance: args.tolerance,
         max_iterations: args.max_iterations,
         auto_sweeps: args.auto_sweeps,
+        relaxation: args.relaxation,
         dense_newton_max: args.dense_newton_max,
         newton_linear,
         ..Fc3dOptions::default()

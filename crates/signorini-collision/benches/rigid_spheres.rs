@@ -10,8 +10,9 @@
 //! `--cold` starts every friction solve from P = 0 instead of the last impulses of the same
 //! contacts (`RigidMoreauJeanParams::warm_start`), to measure what the warm start saves;
 //! `--solver auto|nsgs|prox` and `--auto-sweeps N` set the FC3D solver and `auto`'s Gauss–Seidel
-//! budget before its proximal-point stage (`Fc3dOptions`), to measure what the time stepping
-//! needs; `--trace` prints each step's contacts, FC3D iterations, error and milliseconds on
+//! budget before its proximal-point stage and `--relaxation W` the over-relaxation of its plain
+//! sweeps (`Fc3dOptions`; `rigid::RELAXATION` by default, 1 for none), to measure what the time
+//! stepping needs; `--trace` prints each step's contacts, FC3D iterations, error and milliseconds on
 //! stderr. The line also gives how many steps took ≤ 10, ≤ 100, ≤ 1 000 and more FC3D
 //! iterations. `--dump K FILE` (repeatable) writes step K's one-step friction problem (W, q, μ) as a Siconos
 //! `.dat` file (sparse-block storage) that `signorini solve` and Siconos' `fc3d_driver` read, and
@@ -121,6 +122,7 @@ fn main() {
     let mut trace = false;
     let mut kind = Fc3dSolverKind::Auto;
     let mut auto_sweeps = signorini_core::rigid::AUTO_SWEEPS;
+    let mut relaxation = signorini_core::rigid::RELAXATION;
     while let Some(a) = args.next() {
         if a == "--cold" {
             warm_start = false;
@@ -135,6 +137,11 @@ fn main() {
                 .next()
                 .and_then(|s| s.parse().ok())
                 .expect("--auto-sweeps N");
+        } else if a == "--relaxation" {
+            relaxation = args
+                .next()
+                .and_then(|s| s.parse().ok())
+                .expect("--relaxation W");
         } else if a == "--dump" {
             let step = args
                 .next()
@@ -162,6 +169,7 @@ fn main() {
             fc3d: Fc3dOptions {
                 kind,
                 auto_sweeps,
+                relaxation,
                 tolerance: spec.contact_solver.tolerance,
                 max_iterations: spec.contact_solver.max_iterations,
                 ..Fc3dOptions::default()
@@ -228,7 +236,7 @@ fn main() {
     let solver = kind.name();
     let split = clock.spent.map(|d| d.as_secs_f64());
     println!(
-        "{{\"code\": \"signorini\", \"bodies\": {}, \"h\": {h}, \"steps\": {count}, \"seconds\": {seconds:.4}, \"steps_per_second\": {:.2}, \"ms_per_step\": {:.4}, \"contacts_per_step\": {:.1}, \"max_contacts\": {max_contacts}, \"warm_start\": {warm_start}, \"solver\": \"{solver}\", \"auto_sweeps\": {auto_sweeps}, \"steps_by_iterations\": {{\"le10\": {}, \"le100\": {}, \"le1000\": {}, \"more\": {}}}, \"friction_iterations_per_step\": {:.2}, \"friction_error_max\": {friction_error_max:e}, \"split_seconds\": {{\"detection\": {:.4}, \"assembly\": {:.4}, \"solve\": {:.4}, \"update\": {:.4}}}, \"energy_start\": {:.6}, \"energy_end\": {:.6}}}",
+        "{{\"code\": \"signorini\", \"bodies\": {}, \"h\": {h}, \"steps\": {count}, \"seconds\": {seconds:.4}, \"steps_per_second\": {:.2}, \"ms_per_step\": {:.4}, \"contacts_per_step\": {:.1}, \"max_contacts\": {max_contacts}, \"warm_start\": {warm_start}, \"solver\": \"{solver}\", \"auto_sweeps\": {auto_sweeps}, \"relaxation\": {relaxation}, \"steps_by_iterations\": {{\"le10\": {}, \"le100\": {}, \"le1000\": {}, \"more\": {}}}, \"friction_iterations_per_step\": {:.2}, \"friction_error_max\": {friction_error_max:e}, \"split_seconds\": {{\"detection\": {:.4}, \"assembly\": {:.4}, \"solve\": {:.4}, \"update\": {:.4}}}, \"energy_start\": {:.6}, \"energy_end\": {:.6}}}",
         scene.bodies.len(),
         count as f64 / seconds,
         1e3 * seconds / count as f64,

@@ -310,6 +310,24 @@ pub struct Fc3dOptions {
     /// Newton iterations per proximal step (`Prox`). Default 100; the total over the steps is
     /// bounded by `max_iterations`.
     pub prox_inner_iterations: usize,
+    /// Over-relaxation ω ∈ (0, 2) of the plain Gauss–Seidel sweeps (`Nsgs`, the fallback of
+    /// `NsgsAnderson`, `Auto`'s first and last stages, the last followed by plain sweeps at ω = 1
+    /// where it fails; never the accelerated sweeps): module `fc3d_nsgs`. Default 1 (none); a
+    /// rigid time step gives 1.5 (`rigid::RELAXATION`).
+    pub relaxation: f64,
+}
+
+impl Fc3dOptions {
+    /// Refuses an over-relaxation outside (0, 2).
+    pub(crate) fn check_relaxation(&self) -> Result<(), Fc3dError> {
+        if self.relaxation > 0.0 && self.relaxation < 2.0 {
+            Ok(())
+        } else {
+            Err(Fc3dError::InvalidRelaxation {
+                relaxation: self.relaxation,
+            })
+        }
+    }
 }
 
 impl Default for Fc3dOptions {
@@ -325,6 +343,7 @@ impl Default for Fc3dOptions {
             newton_linear: Fc3dNewtonLinear::Auto,
             prox_outer_iterations: 100,
             prox_inner_iterations: 100,
+            relaxation: 1.0,
         }
     }
 }
@@ -400,6 +419,12 @@ pub enum Fc3dError {
     InvalidTolerance {
         /// The tolerance given.
         tolerance: f64,
+    },
+    /// The over-relaxation is not in (0, 2).
+    #[error("over-relaxation {relaxation} must lie in (0, 2)")]
+    InvalidRelaxation {
+        /// The over-relaxation given.
+        relaxation: f64,
     },
     /// A start (warm start) whose length is not 3m.
     #[error("the start has {got} entries, the problem has {expected} unknowns")]

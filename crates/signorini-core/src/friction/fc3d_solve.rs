@@ -17,7 +17,9 @@ use super::fc3d_prox::{solve_fc3d_prox, solve_fc3d_prox_within};
 /// iterate so far with `auto_prox_work / 3` products by W's 3×3 blocks, then from `start` (the
 /// caller's: r = 0 or the warm start) with `auto_prox_work`, each for at most
 /// `auto_newton_iterations` Newton iterations; then Gauss–Seidel again from the best iterate of
-/// all with the whole `max_iterations` budget.
+/// all with the whole `max_iterations` budget, over-relaxed by `relaxation`, and when that
+/// fails with ω ≠ 1, once more without over-relaxation (so that `auto` still converges wherever
+/// plain Gauss–Seidel does within the budget).
 ///
 /// The first stage that reaches the tolerance answers, and its name is in the solution. A stage
 /// that fails for any reason only hands over to the next one; when none answers, the error holds
@@ -52,6 +54,7 @@ pub fn solve_fc3d_from(
             tolerance: options.tolerance,
         });
     }
+    options.check_relaxation()?;
     if start.len() != problem.q.len() {
         return Err(Fc3dError::StartLength {
             expected: problem.q.len(),
@@ -172,6 +175,16 @@ fn solve_auto(
     let outcome = solve_fc3d_nsgs(problem, options, &chain.best);
     if let Some(s) = chain.stage("nsgs", options.max_iterations, outcome) {
         return Ok(s);
+    }
+    if options.relaxation != 1.0 {
+        let plain = Fc3dOptions {
+            relaxation: 1.0,
+            ..*options
+        };
+        let outcome = solve_fc3d_nsgs(problem, &plain, &chain.best);
+        if let Some(s) = chain.stage("nsgs", options.max_iterations, outcome) {
+            return Ok(s);
+        }
     }
     Err(Fc3dError::NotConverged {
         solver: chain.solver,

@@ -74,6 +74,7 @@ pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob,
             tolerance: spec.contact_solver.tolerance,
             max_iterations: spec.contact_solver.max_iterations,
             auto_sweeps: crate::rigid::AUTO_SWEEPS,
+            relaxation: crate::rigid::RELAXATION,
             ..Fc3dOptions::default()
         },
         ..RigidMoreauJeanParams::default()

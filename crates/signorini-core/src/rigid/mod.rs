@@ -15,7 +15,7 @@ pub use body::{Body, BodyState, Pose, Shape};
 pub use detector::{ContactDetector, ContactPoint, DetectError, DetectorFactory, tangent_basis};
 pub use joint::{Joint, JointKind, JointSide};
 pub use moreau_jean::{
-    AUTO_SWEEPS, ContactImpulse, RigidMoreauJean, RigidMoreauJeanParams, RigidScratch,
+    AUTO_SWEEPS, ContactImpulse, RELAXATION, RigidMoreauJean, RigidMoreauJeanParams, RigidScratch,
     RigidStepError, StepPhase, StepPhases, StepReport,
 };
 pub use scene::{ContactLaw, RigidScene};

@@ -134,8 +134,20 @@ impl StepPhases for () {
 /// and none more; with 100, those steps went on to the proximal point method, whose Newton
 /// iterations on 3 000–4 800 unknowns made the step 1.9× slower than Gauss–Seidel alone. Since
 /// Round 7 the sweeps are accelerated (Anderson, falling back to plain sweeps where that stalls):
-/// 7 of the first 400 steps need more than 1 000 of them.
-pub const AUTO_SWEEPS: usize = 1000;
+/// 7 of the first 400 steps need more than 1 000 of them. Once the pile has formed (steps
+/// 385–614, 1 900–2 200 contacts) half the steps did, and the proximal point then failed on most
+/// of them at 1–7 s a step before Gauss–Seidel finished (Round 11); with the fallback
+/// over-relaxed ([`RELAXATION`]) the sweeps finish within 5 000 on the dumped steps (1 050–2 125
+/// from the warm start, where plain ones need 2 331–7 520), at about 1 ms a sweep: what the
+/// proximal attempt cost.
+pub const AUTO_SWEEPS: usize = 5000;
+
+/// The over-relaxation ω of the plain Gauss–Seidel sweeps that a rigid step's `auto` falls back
+/// to when the accelerated ones stall (`Fc3dOptions::relaxation`; 1 for a lone problem). On the
+/// 1 000-sphere pile (docs/rigid_benchmark.md, Round 11) plain sweeps from the warm start needed
+/// 1.9–3.1× fewer sweeps at 1.5 than at 1 on five dumped steps of 1 800–2 220 contacts; 1.6 was
+/// faster still on three of them, but 1.7 stalled on one and 1.85 on all: 1.5 keeps a margin.
+pub const RELAXATION: f64 = 1.5;
 
 /// Parameters of the scheme.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -171,6 +183,7 @@ impl Default for RigidMoreauJeanParams {
             fc3d: Fc3dOptions {
                 tolerance: 1e-12,
                 auto_sweeps: AUTO_SWEEPS,
+                relaxation: RELAXATION,
                 ..Fc3dOptions::default()
             },
             projection_tolerance: 1e-12,
