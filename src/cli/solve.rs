@@ -33,7 +33,7 @@ pub struct SolveArgs {
     #[arg(long, default_value_t = 10_000)]
     pub max_iterations: usize,
     /// Sweeps `auto`'s first stage (Gauss–Seidel with Anderson acceleration) runs before its
-    /// proximal-point stage (a rigid time step gives 1 000).
+    /// proximal-point stage (a rigid time step gives 5 000).
     #[arg(long, default_value_t = Fc3dOptions::default().auto_sweeps)]
     pub auto_sweeps: usize,
     /// Over-relaxation ω ∈ (0, 2) of the plain Gauss–Seidel sweeps (`nsgs`, and those
@@ -77,9 +77,6 @@ pub fn solve(args: SolveArgs) -> Result<()> {
     if args.tolerance.is_nan() || args.tolerance <= 0.0 {
         bail!("--tolerance {}: must be > 0", args.tolerance);
     }
-    if !(args.relaxation > 0.0 && args.relaxation < 2.0) {
-        bail!("--relaxation {}: must lie in (0, 2)", args.relaxation);
-    }
     let options = Fc3dOptions {
         kind,
         tolerance: args.tolerance,
@@ -90,6 +87,9 @@ pub fn solve(args: SolveArgs) -> Result<()> {
         newton_linear,
         ..Fc3dOptions::default()
     };
+    options
+        .check_relaxation()
+        .map_err(|e| anyhow::anyhow!("--relaxation: {e}"))?;
     if args.out.is_some() && !cfg!(feature = "hdf5") {
         bail!(
             "--out writes FCLib HDF5 files: this signorini was built without HDF5; rebuild with \

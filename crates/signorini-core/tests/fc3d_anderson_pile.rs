@@ -43,10 +43,6 @@ fn pile() -> (Fc3dProblem, Vec<f64>) {
     )
 }
 
-fn solve(problem: &Fc3dProblem, kind: Fc3dSolverKind, start: &[f64]) -> Fc3dSolution {
-    solve_relaxed(problem, kind, start, 1.0)
-}
-
 fn solve_relaxed(
     problem: &Fc3dProblem,
     kind: Fc3dSolverKind,
@@ -73,18 +69,26 @@ fn accelerated_sweeps_fall_back_to_plain_sweeps_where_they_stall() {
     let (problem, warm) = pile();
     assert_eq!(problem.contacts(), 66);
     for (start, sweeps) in [(warm.clone(), 877), (vec![0.0; warm.len()], 878)] {
-        let plain = solve(&problem, Fc3dSolverKind::Nsgs, &start);
-        let fast = solve(&problem, Fc3dSolverKind::NsgsAnderson, &start);
-        assert_eq!(plain.iterations, sweeps);
-        assert_eq!(fast.solver, "nsgs_aa");
-        assert_eq!(fast.r, plain.r);
-        assert!(fast.error <= 1e-6 && problem.error(&fast.r) == fast.error);
-        let accelerated = fast.iterations - plain.iterations;
-        assert!(
-            (40..=150).contains(&accelerated),
-            "{accelerated} sweeps accelerated"
-        );
+        assert_eq!(falls_back_to_plain_sweeps(&problem, &start, 1.0), sweeps);
     }
+}
+
+/// Plain sweeps (over-relaxed by `relaxation`) and the accelerated ones from `start`: the
+/// accelerated ones return the plain ones' impulses to the bit, at the tolerance, after 40–150
+/// sweeps of their own. Returns the plain sweeps.
+fn falls_back_to_plain_sweeps(problem: &Fc3dProblem, start: &[f64], relaxation: f64) -> usize {
+    let plain = solve_relaxed(problem, Fc3dSolverKind::Nsgs, start, relaxation);
+    let fast = solve_relaxed(problem, Fc3dSolverKind::NsgsAnderson, start, relaxation);
+    assert_eq!(fast.solver, "nsgs_aa");
+    assert_eq!(fast.r, plain.r);
+    assert!(plain.error <= 1e-6 && problem.error(&plain.r) == plain.error);
+    assert!(fast.error <= 1e-6 && problem.error(&fast.r) == fast.error);
+    let accelerated = fast.iterations - plain.iterations;
+    assert!(
+        (40..=150).contains(&accelerated),
+        "{accelerated} sweeps accelerated"
+    );
+    plain.iterations
 }
 
 /// Over-relaxed plain sweeps (ω = 1.5, a rigid step's `rigid::RELAXATION`; Cryer's projected
@@ -96,16 +100,7 @@ fn accelerated_sweeps_fall_back_to_plain_sweeps_where_they_stall() {
 fn over_relaxed_plain_sweeps_converge_in_fewer_sweeps_on_the_pile() {
     let (problem, warm) = pile();
     for (start, sweeps) in [(warm.clone(), 291), (vec![0.0; warm.len()], 292)] {
-        let plain = solve_relaxed(&problem, Fc3dSolverKind::Nsgs, &start, 1.5);
-        let fast = solve_relaxed(&problem, Fc3dSolverKind::NsgsAnderson, &start, 1.5);
-        assert_eq!(plain.iterations, sweeps);
-        assert_eq!(fast.r, plain.r);
-        assert!(plain.error <= 1e-6 && problem.error(&plain.r) == plain.error);
-        let accelerated = fast.iterations - plain.iterations;
-        assert!(
-            (40..=150).contains(&accelerated),
-            "{accelerated} sweeps accelerated"
-        );
+        assert_eq!(falls_back_to_plain_sweeps(&problem, &start, 1.5), sweeps);
     }
     for relaxation in [0.0, 2.0, -1.0, f64::NAN] {
         let options = Fc3dOptions {

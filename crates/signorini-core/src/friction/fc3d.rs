@@ -319,7 +319,7 @@ pub struct Fc3dOptions {
 
 impl Fc3dOptions {
     /// Refuses an over-relaxation outside (0, 2).
-    pub(crate) fn check_relaxation(&self) -> Result<(), Fc3dError> {
+    pub fn check_relaxation(&self) -> Result<(), Fc3dError> {
         if self.relaxation > 0.0 && self.relaxation < 2.0 {
             Ok(())
         } else {

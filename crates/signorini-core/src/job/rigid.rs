@@ -69,13 +69,13 @@ pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob,
     let params = RigidMoreauJeanParams {
         theta: p.theta,
         gamma,
+        // A rigid step's own FC3D settings (first-stage sweeps, over-relaxation) come with the
+        // scheme's defaults.
         fc3d: Fc3dOptions {
             kind: Fc3dSolverKind::Auto,
             tolerance: spec.contact_solver.tolerance,
             max_iterations: spec.contact_solver.max_iterations,
-            auto_sweeps: crate::rigid::AUTO_SWEEPS,
-            relaxation: crate::rigid::RELAXATION,
-            ..Fc3dOptions::default()
+            ..RigidMoreauJeanParams::default().fc3d
         },
         ..RigidMoreauJeanParams::default()
     };
