@@ -63,6 +63,21 @@ impl Triplets {
         &self.entries
     }
 
+    /// Number of entries.
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// Whether there is no entry.
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+
+    /// Makes room for `additional` more entries.
+    pub fn reserve(&mut self, additional: usize) {
+        self.entries.reserve(additional);
+    }
+
     /// Removes every entry, keeping the allocation and the shape.
     pub fn clear(&mut self) {
         self.entries.clear();
@@ -94,6 +109,11 @@ impl Triplets {
         for &(i, j, v) in &self.entries {
             y[j] += v * x[i];
         }
+    }
+
+    /// xᵀ A x (A square).
+    pub fn quadratic(&self, x: &[f64]) -> f64 {
+        self.entries.iter().map(|&(i, j, v)| x[i] * v * x[j]).sum()
     }
 
     /// The matrix, row-major rows×cols.
@@ -131,6 +151,14 @@ mod tests {
         a.push(0, 0, 0.5);
         a.push(1, 1, -3.0);
         assert_eq!(a.to_dense(), vec![1.5, 0.0, 0.0, 0.0, -3.0, 2.0]);
+        let mut sq = Triplets::new(2, 2);
+        sq.push(0, 0, 2.0);
+        sq.push(0, 1, 1.0);
+        sq.push(1, 0, 1.0);
+        sq.push(1, 1, 3.0);
+        sq.push(1, 1, 0.5);
+        // M = [[2, 1], [1, 3.5]], x = (1, −2): 2 − 4 + 14 = 12.
+        assert_eq!(sq.quadratic(&[1.0, -2.0]), 12.0);
         let mut y = vec![1.0, 1.0];
         a.mul_add(&[1.0, 2.0, 3.0], &mut y);
         assert_eq!(y, vec![2.5, 1.0 - 6.0 + 6.0]);

@@ -300,6 +300,12 @@ impl Tape {
             .map_or(self.outputs.len(), |(len, _)| *len)
     }
 
+    /// Number of outputs [`Tape::eval_stored_into`] writes: the stored ones of a sparse tape,
+    /// all of a dense one.
+    pub fn stored(&self) -> usize {
+        self.outputs.len()
+    }
+
     /// The outputs a sparse tape ([`Tape::compile_sparse`]) computes, in increasing order (all
     /// others are 0); `None` for a dense tape. With [`Tape::eval_stored_into`], what a caller
     /// that keeps the matrix sparse reads.

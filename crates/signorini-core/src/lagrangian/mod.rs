@@ -18,6 +18,7 @@
 //! [`LagrangianSpec::validate`](crate::spec::LagrangianSpec::validate), into the
 //! [`UserModelParams`] compiled here.
 
+pub(crate) mod newton_terms;
 pub mod projection;
 
 pub use projection::{PROJECTION_ITERATIONS, ProjectionError, StartProjection, project_start};
@@ -28,6 +29,7 @@ use crate::nonlinear::delassus::JointStructure;
 use crate::soi2::sparsity::{Coupling, Pattern};
 use crate::soi2::{ConstrainedModel, Dims, InitialValues, Scalar};
 use crate::triplets::Triplets;
+use newton_terms::{NewtonSources, NewtonTerms};
 use std::sync::OnceLock;
 
 /// Relative tolerance of the symmetry check of M at q0.
@@ -86,6 +88,22 @@ pub struct UserModel {
     /// The structure of Newton's matrix with one and with two coordinate and joint blocks
     /// (SOI2's systems), built at first use.
     patterns: Patterns,
+    /// The expressions of M, G and G q̇ + g_t that the second-derivative terms of
+    /// `ns_generalized_alpha`'s Newton matrix are derived from.
+    newton_sources: NewtonSources,
+    /// Those terms' tapes, built at first use ([`newton_terms`]).
+    newton_terms: NewtonTermsCell,
+}
+
+/// [`NewtonTerms`] built at first use: a cache, so two models compare equal whether or not it
+/// is filled.
+#[derive(Debug, Clone, Default)]
+struct NewtonTermsCell(OnceLock<NewtonTerms>);
+
+impl PartialEq for NewtonTermsCell {
+    fn eq(&self, _other: &Self) -> bool {
+        true
+    }
 }
 
 /// Newton patterns derived from [`UserModel::coupling`] at first use: a cache, so two models
@@ -442,7 +460,21 @@ impl UserModel {
             coupling,
             joint_structure,
             patterns: Patterns::default(),
+            newton_sources: NewtonSources {
+                mass,
+                joint_jacobian,
+                joint_rate,
+            },
+            newton_terms: NewtonTermsCell::default(),
         }
+    }
+
+    /// The second-derivative terms of `ns_generalized_alpha`'s Newton matrix, compiled at the
+    /// first call.
+    pub(crate) fn newton_terms(&self) -> &NewtonTerms {
+        self.newton_terms
+            .0
+            .get_or_init(|| NewtonTerms::new(self.n, &self.newton_sources))
     }
 
     /// Which coordinates each equation of motion and each joint uses.
@@ -484,16 +516,16 @@ impl UserModel {
     }
 
     /// Calls `f(k, value)` for every output k the tape stores (its structural nonzeros, by
-    /// flat row-major index; every output of a dense tape), evaluated at (q, v, t).
+    /// flat row-major index; every output of a dense tape), evaluated at (q, v, t) and, for a
+    /// tape with more variables after t ([`newton_terms`]), `w`.
     fn for_each_stored<T: Number>(
         &self,
         tape: &Tape,
-        t: T,
-        q: &[T],
-        v: Option<&[T]>,
+        (t, q, v, w): (T, &[T], Option<&[T]>, &[T]),
         mut f: impl FnMut(usize, T),
     ) {
-        let vars = self.variables(t, q, v);
+        let mut vars = self.variables(t, q, v);
+        vars.extend_from_slice(w);
         let mut scratch = Vec::new();
         match tape.stored_outputs() {
             Some(index) => {
@@ -524,12 +556,13 @@ impl UserModel {
         mut f: impl FnMut(usize, usize, T),
     ) {
         let n = self.n;
-        self.for_each_stored(self.stored_tape(which), t, q, None, |k, x| {
+        self.for_each_stored(self.stored_tape(which), (t, q, None, &[]), |k, x| {
             f(k / n, k % n, x)
         });
     }
 
-    fn stored_tape(&self, which: StoredMatrix) -> &Tape {
+    /// The tape of `which`.
+    pub(crate) fn stored_tape(&self, which: StoredMatrix) -> &Tape {
         match which {
             StoredMatrix::Mass => &self.mass,
             StoredMatrix::JointJacobian => &self.joint_jacobian,
@@ -659,6 +692,7 @@ impl LagrangianSystem for UserModel {
     /// The entries the mass tape stores.
     fn mass_entries(&self, q: &[f64], out: &mut Triplets) {
         out.clear();
+        out.reserve(self.mass.stored());
         self.stored_entries(StoredMatrix::Mass, 0.0, q, |i, k, x| out.push(i, k, x));
     }
 
@@ -674,7 +708,9 @@ impl LagrangianSystem for UserModel {
         let n = self.n;
         dq.clear();
         dv.clear();
-        self.for_each_stored(&self.force_jacobians, t, q, Some(v), |k, x| {
+        dq.reserve(self.force_jacobians.stored());
+        dv.reserve(self.force_jacobians.stored());
+        self.for_each_stored(&self.force_jacobians, (t, q, Some(v), &[]), |k, x| {
             let (into, k) = if k < n * n {
                 (&mut *dq, k)
             } else {

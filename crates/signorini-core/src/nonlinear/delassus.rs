@@ -21,6 +21,7 @@
 //! dense path too, whose mixed LCP takes the minimum-norm impulses.
 
 use crate::soi2::banded::{BandLu, BandOrder};
+use crate::triplets::Triplets;
 
 /// The structure of D = G M⁻¹ Gᵀ for a model's joints (module documentation).
 #[derive(Debug, Clone, PartialEq)]
@@ -28,10 +29,19 @@ pub struct JointStructure {
     n: usize,
     /// The coordinates of each block of M (sorted).
     blocks: Vec<Vec<usize>>,
+    /// Per coordinate: its block and its place in the block.
+    place: Vec<(usize, usize)>,
+    /// Where each block's b×b entries start in a flat array of all blocks.
+    block_start: Vec<usize>,
     /// The blocks each joint touches (sorted).
     joint_blocks: Vec<Vec<usize>>,
     /// The coordinates each joint uses (sorted): the nonzeros of its row of G.
     joint_coordinates: Vec<Vec<usize>>,
+    /// Where each joint's coordinates start in [`JointRows`]' flat values.
+    row_start: Vec<usize>,
+    /// Where each column of Y = M⁻¹ Gᵀ starts in [`JointCompliance`]'s flat entries (column j
+    /// fills the blocks joint j touches).
+    column_start: Vec<usize>,
     /// For each joint k, the joints j with D_jk structurally nonzero (sorted, k among them).
     coupled: Vec<Vec<usize>>,
     /// The band order of D.
@@ -72,6 +82,23 @@ impl JointStructure {
             block_of[i] = b;
             blocks[b].push(i);
         }
+        let mut place = vec![(0, 0); n];
+        let mut block_start = Vec::with_capacity(blocks.len() + 1);
+        block_start.push(0);
+        for (b, block) in blocks.iter().enumerate() {
+            for (k, &i) in block.iter().enumerate() {
+                place[i] = (b, k);
+            }
+            block_start.push(block_start[b] + block.len() * block.len());
+        }
+        let mut joint_coordinates: Vec<Vec<usize>> = joints.to_vec();
+        let mut row_start = Vec::with_capacity(joints.len() + 1);
+        row_start.push(0);
+        for (j, coordinates) in joint_coordinates.iter_mut().enumerate() {
+            coordinates.sort_unstable();
+            coordinates.dedup();
+            row_start.push(row_start[j] + coordinates.len());
+        }
         let mut joint_blocks = Vec::with_capacity(joints.len());
         for coordinates in joints {
             let mut touched = Vec::with_capacity(coordinates.len());
@@ -81,6 +108,12 @@ impl JointStructure {
             touched.sort_unstable();
             touched.dedup();
             joint_blocks.push(touched);
+        }
+        let mut column_start = Vec::with_capacity(joint_blocks.len() + 1);
+        column_start.push(0);
+        for (j, touched) in joint_blocks.iter().enumerate() {
+            let size: usize = touched.iter().map(|&b| blocks[b].len()).sum();
+            column_start.push(column_start[j] + size);
         }
         let mut joints_of_block: Vec<Vec<usize>> = vec![Vec::new(); blocks.len()];
         for (j, touched) in joint_blocks.iter().enumerate() {
@@ -104,8 +137,12 @@ impl JointStructure {
         Some(Self {
             n,
             blocks,
+            place,
+            block_start,
             joint_blocks,
-            joint_coordinates: joints.to_vec(),
+            joint_coordinates,
+            row_start,
+            column_start,
             coupled,
             band,
         })
@@ -116,14 +153,48 @@ impl JointStructure {
         self.coupled.len()
     }
 
-    /// G_j x for the nb×n row-major G, over the coordinates joint j uses.
-    pub fn row_dot(&self, j: usize, g: &[f64], x: &[f64]) -> f64 {
-        let row = &g[j * self.n..(j + 1) * self.n];
+    /// The rows of the nb×n matrix `c` (a joint Jacobian: its entries on the coordinates of
+    /// each joint) over the coordinates each joint uses; `None` when `c` has a nonzero entry
+    /// elsewhere (then the dense path decides).
+    pub fn rows(&self, c: &Triplets) -> Option<JointRows> {
+        let mut values = vec![0.0; self.row_start[self.joints()]];
+        for &(j, i, v) in c.entries() {
+            let coordinates = self.joint_coordinates.get(j)?;
+            match coordinates.binary_search(&i) {
+                Ok(k) => values[self.row_start[j] + k] += v,
+                Err(_) if v == 0.0 => {}
+                Err(_) => return None,
+            }
+        }
+        Some(JointRows { values })
+    }
+
+    /// Joint j's coordinates and its row of `c` on them.
+    fn row<'r>(&'r self, j: usize, c: &'r JointRows) -> impl Iterator<Item = (usize, f64)> + 'r {
+        let values = &c.values[self.row_start[j]..self.row_start[j + 1]];
         self.joint_coordinates[j]
             .iter()
-            .map(|&i| row[i] * x[i])
-            .sum()
+            .copied()
+            .zip(values.iter().copied())
     }
+
+    /// Σ_i |C_ji| w_i for the rows `c`, over the coordinates joint j uses.
+    pub fn row_weight(&self, j: usize, c: &JointRows, w: &[f64]) -> f64 {
+        self.row(j, c).map(|(i, v)| v.abs() * w[i]).sum()
+    }
+
+    /// C_j x for the rows `c`, over the coordinates joint j uses.
+    pub fn row_dot(&self, j: usize, c: &JointRows, x: &[f64]) -> f64 {
+        self.row(j, c).map(|(i, v)| v * x[i]).sum()
+    }
+}
+
+/// An nb×n matrix with the pattern of the joint Jacobian G (each row on the coordinates its
+/// joint uses, [`JointStructure::rows`]): G itself, or G at another configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointRows {
+    /// Row j's values on joint j's coordinates, rows one after another.
+    values: Vec<f64>,
 }
 
 /// Y = M⁻¹ Gᵀ of one configuration, column by column on the blocks each joint touches: the map
@@ -132,90 +203,117 @@ impl JointStructure {
 #[derive(Debug, Clone)]
 pub struct JointCompliance<'a> {
     structure: &'a JointStructure,
-    /// Column j of Y: its coordinates and values.
-    columns: Vec<Vec<(usize, f64)>>,
+    /// The columns of Y, each as its coordinates and values, one after another
+    /// ([`JointStructure::column_start`]).
+    columns: Vec<(usize, f64)>,
 }
 
 impl<'a> JointCompliance<'a> {
-    /// Y for the mass matrix `mass` (n×n row-major) and the joint rows `g` (nb×n row-major);
-    /// `None` when a block of M is not positive definite to working precision (the dense
-    /// path then decides).
-    pub fn new(structure: &'a JointStructure, mass: &[f64], g: &[f64]) -> Option<Self> {
-        let n = structure.n;
-        // Cholesky factor L of each block, row-major b×b (lower triangle).
-        let mut factors: Vec<Vec<f64>> = Vec::with_capacity(structure.blocks.len());
-        for block in &structure.blocks {
+    /// Y for the mass matrix `mass` (n×n, its entries) and the joint rows `g`; `None` when M
+    /// has a nonzero entry outside its blocks or a block of M is not positive definite to
+    /// working precision (the dense path then decides).
+    pub fn new(structure: &'a JointStructure, mass: &Triplets, g: &JointRows) -> Option<Self> {
+        let s = structure;
+        // The blocks of M, each b×b row-major, one after another.
+        let mut blocks = vec![0.0; s.block_start[s.blocks.len()]];
+        for &(i, j, v) in mass.entries() {
+            let ((bi, ri), (bj, cj)) = (*s.place.get(i)?, *s.place.get(j)?);
+            if bi == bj {
+                blocks[s.block_start[bi] + ri * s.blocks[bi].len() + cj] += v;
+            } else if v != 0.0 {
+                return None;
+            }
+        }
+        // Cholesky factor L of each block, in place (lower triangle).
+        for (bk, block) in s.blocks.iter().enumerate() {
             let b = block.len();
-            let mut l = vec![0.0; b * b];
+            let l = &mut blocks[s.block_start[bk]..s.block_start[bk + 1]];
             for r in 0..b {
+                let scale = l[r * b + r].abs();
                 for c in 0..=r {
-                    let s = mass[block[r] * n + block[c]]
-                        - (0..c).map(|k| l[r * b + k] * l[c * b + k]).sum::<f64>();
+                    let sum =
+                        l[r * b + c] - (0..c).map(|k| l[r * b + k] * l[c * b + k]).sum::<f64>();
                     if r == c {
-                        let scale = mass[block[r] * n + block[r]].abs();
-                        if !s.is_finite() || s <= 4.0 * f64::EPSILON * scale {
+                        if !sum.is_finite() || sum <= 4.0 * f64::EPSILON * scale {
                             return None;
                         }
-                        l[r * b + r] = s.sqrt();
+                        l[r * b + r] = sum.sqrt();
                     } else {
-                        l[r * b + c] = s / l[c * b + c];
+                        l[r * b + c] = sum / l[c * b + c];
                     }
                 }
             }
-            factors.push(l);
         }
-        let columns = (0..structure.joints())
-            .map(|j| {
-                let row = &g[j * n..(j + 1) * n];
-                let mut column: Vec<(usize, f64)> = Vec::new();
-                for &bk in &structure.joint_blocks[j] {
-                    let (block, l) = (&structure.blocks[bk], &factors[bk]);
-                    let b = block.len();
-                    let start = column.len();
-                    // L Lᵀ y = G_j on the block: forward, then backward substitution.
-                    for r in 0..b {
-                        let s = row[block[r]]
-                            - (0..r)
-                                .map(|k| l[r * b + k] * column[start + k].1)
-                                .sum::<f64>();
-                        column.push((block[r], s / l[r * b + r]));
-                    }
-                    for r in (0..b).rev() {
-                        let s = column[start + r].1
-                            - (r + 1..b)
-                                .map(|k| l[k * b + r] * column[start + k].1)
-                                .sum::<f64>();
-                        column[start + r].1 = s / l[r * b + r];
-                    }
+        let mut row = vec![0.0; s.n];
+        let mut columns: Vec<(usize, f64)> = Vec::with_capacity(s.column_start[s.joints()]);
+        for j in 0..s.joints() {
+            for (i, v) in s.row(j, g) {
+                row[i] = v;
+            }
+            for &bk in &s.joint_blocks[j] {
+                let block = &s.blocks[bk];
+                let l = &blocks[s.block_start[bk]..s.block_start[bk + 1]];
+                let b = block.len();
+                let start = columns.len();
+                // L Lᵀ y = G_j on the block: forward, then backward substitution.
+                for r in 0..b {
+                    let sum = row[block[r]]
+                        - (0..r)
+                            .map(|k| l[r * b + k] * columns[start + k].1)
+                            .sum::<f64>();
+                    columns.push((block[r], sum / l[r * b + r]));
                 }
-                column
-            })
-            .collect();
+                for r in (0..b).rev() {
+                    let sum = columns[start + r].1
+                        - (r + 1..b)
+                            .map(|k| l[k * b + r] * columns[start + k].1)
+                            .sum::<f64>();
+                    columns[start + r].1 = sum / l[r * b + r];
+                }
+            }
+            for (i, _) in s.row(j, g) {
+                row[i] = 0.0;
+            }
+        }
         Some(Self { structure, columns })
     }
 
-    /// The band LU of C Y for the joint rows C (nb×n row-major, with G's pattern: G itself
-    /// for the velocity stage's D = G M⁻¹ Gᵀ, G at a Newton iterate for the position stage's
-    /// exact derivative); `None` when it is singular to working precision (a pivot below
-    /// nb ε times the largest, as for Newton's band LU of the smooth stage).
-    pub fn operator(&self, c: &[f64]) -> Option<BandLu> {
+    /// The band LU of C Y for the joint rows C (with G's pattern: G itself for the velocity
+    /// stage's D = G M⁻¹ Gᵀ, G at a Newton iterate for the position stage's exact
+    /// derivative); `None` when it is singular to working precision (a pivot below nb ε times
+    /// the largest, as for Newton's band LU of the smooth stage).
+    pub fn operator(&self, c: &JointRows) -> Option<BandLu> {
         let s = self.structure;
-        let entries = self.columns.iter().enumerate().flat_map(|(k, column)| {
-            s.coupled[k].iter().map(move |&j| {
-                let row = &c[j * s.n..(j + 1) * s.n];
-                (j, k, column.iter().map(|&(i, y)| row[i] * y).sum::<f64>())
-            })
-        });
+        let mut row = vec![0.0; s.n];
+        let mut entries = Vec::with_capacity(s.coupled.iter().map(Vec::len).sum());
+        for j in 0..s.joints() {
+            for (i, v) in s.row(j, c) {
+                row[i] = v;
+            }
+            for &k in &s.coupled[j] {
+                let d = self.column(k).iter().map(|&(i, y)| row[i] * y).sum::<f64>();
+                entries.push((j, k, d));
+            }
+            for (i, _) in s.row(j, c) {
+                row[i] = 0.0;
+            }
+        }
         let lu = BandLu::factor_entries(&s.band, entries)?;
         let (lo, hi) = lu.pivot_range();
         (lo > s.joints() as f64 * f64::EPSILON * hi).then_some(lu)
     }
 
+    /// Column k of Y: its coordinates and values.
+    fn column(&self, k: usize) -> &[(usize, f64)] {
+        let start = &self.structure.column_start;
+        &self.columns[start[k]..start[k + 1]]
+    }
+
     /// out += Y z.
     pub fn apply(&self, z: &[f64], out: &mut [f64]) {
-        for (column, &zj) in self.columns.iter().zip(z) {
+        for (k, &zj) in z.iter().enumerate().take(self.structure.joints()) {
             if zj != 0.0 {
-                for &(i, y) in column {
+                for &(i, y) in self.column(k) {
                     out[i] += y * zj;
                 }
             }
@@ -258,7 +356,12 @@ mod tests {
             joints.push(coordinates);
         }
         let structure = JointStructure::new(n, &entries, &joints).expect("a band");
-        let y = JointCompliance::new(&structure, &mass, &g).expect("M positive definite");
+        let mass_entries = Triplets::from_dense(n, n, &mass, false);
+        let g_rows = structure
+            .rows(&Triplets::from_dense(nb, n, &g, false))
+            .expect("G on the joints' coordinates");
+        let y =
+            JointCompliance::new(&structure, &mass_entries, &g_rows).expect("M positive definite");
         let (m_d, g_d) = (
             DMatrix::from_row_slice(n, n, &mass),
             DMatrix::from_row_slice(nb, n, &g),
@@ -272,7 +375,7 @@ mod tests {
         for (a, b) in yz.iter().zip(yz_d.iter()) {
             assert!((a - b).abs() < 1e-12 * (1.0 + b.abs()), "{a} vs {b}");
         }
-        let lu = y.operator(&g).expect("regular");
+        let lu = y.operator(&g_rows).expect("regular");
         let mut x = z.clone();
         assert!(lu.solve_mut(&mut x));
         let x_d = d_d
@@ -296,8 +399,19 @@ mod tests {
         // Two joints sharing their coordinates make D singular: left to the dense path.
         let mut twice = g.clone();
         twice.copy_within(0..n, n);
-        let y = JointCompliance::new(&structure, &mass, &twice).expect("M positive definite");
+        let twice = structure
+            .rows(&Triplets::from_dense(nb, n, &twice, false))
+            .expect("G on the joints' coordinates");
+        let y =
+            JointCompliance::new(&structure, &mass_entries, &twice).expect("M positive definite");
         assert!(y.operator(&twice).is_none());
+        // An entry outside a joint's coordinates, or of M outside its blocks: the dense path.
+        let mut outside = Triplets::from_dense(nb, n, &g, false);
+        outside.push(0, n - 1, 1.0);
+        assert!(structure.rows(&outside).is_none());
+        let mut coupled = mass_entries.clone();
+        coupled.push(0, 2, 0.5);
+        assert!(JointCompliance::new(&structure, &coupled, &g_rows).is_none());
     }
 
     /// A mass matrix coupling every coordinate is one block: D is full, no band.

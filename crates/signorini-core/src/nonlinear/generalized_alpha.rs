@@ -55,7 +55,8 @@
 //!
 //! every derivative exact ([`JointedSystem::mass_derivative`],
 //! [`JointedSystem::joint_force_derivative`], [`JointedSystem::joint_acceleration_derivatives`]
-//! and ∂F/∂q, ∂F/∂v with the Coriolis terms), so the smooth stage converges quadratically.
+//! — for a `lagrangian` model symbolic tapes, [`crate::lagrangian::newton_terms`] — and ∂F/∂q,
+//! ∂F/∂v with the Coriolis terms), so the smooth stage converges quadratically.
 //! Its convergence test is on the residual, each block relative to the size of its terms:
 //! the dynamics rows against s = max_i (Σ_j |M_ij q̈_j| + Σ_j |G_ji λ_j| + |F_i|), the joint
 //! rows as the generalized force that would remove them, |r_j| ‖M‖∞ / ‖G_j‖∞, against the
@@ -109,7 +110,7 @@
 //! can drive the body, and its work on the body, which is what the ledger counts, may be
 //! positive.
 
-use super::delassus::{JointCompliance, JointStructure};
+use super::delassus::{JointCompliance, JointRows, JointStructure};
 pub use super::joints::JointedSystem;
 use super::moreau_jean::{
     NewtonOptions, NonlinearRunStats, NonlinearState, NonlinearStepError, NonlinearStepReport,
@@ -117,7 +118,7 @@ use super::moreau_jean::{
     solve_mixed_at, stacked_row,
 };
 use crate::contact::LcpStats;
-use crate::dense::{amax, dot, kinetic, lu_factor};
+use crate::dense::{amax, dot, lu_factor};
 use crate::friction;
 use crate::lcp::LcpOptions;
 use crate::observer::Columns;
@@ -262,8 +263,8 @@ struct SmoothStage {
     lambda: Vec<f64>,
     qt: Vec<f64>,
     vt: Vec<f64>,
-    mass: Vec<f64>,
-    gj: Vec<f64>,
+    mass: Triplets,
+    gj: Triplets,
     iterations: usize,
     /// An iterate's Newton matrix was singular with the joints rank-deficient (solved by the
     /// minimum-norm increment).
@@ -273,8 +274,8 @@ struct SmoothStage {
 /// The rows the velocity stage works on, at q_{k+1}: M, G, H, ∂g/∂t at t_{k+1} and at t_k,
 /// and for a system with friction T and ∂τ/∂t at t_{k+1} (empty otherwise).
 struct EndRows {
-    mass: Vec<f64>,
-    gj: Vec<f64>,
+    mass: Triplets,
+    gj: Triplets,
     hj: Vec<f64>,
     tj: Vec<f64>,
     rates1: Vec<f64>,
@@ -520,9 +521,9 @@ impl NonsmoothGeneralizedAlpha {
             &state.q,
             &state.v,
         )?;
-        let mut mass = vec![0.0; n * n];
-        system.mass(&state.q, &mut mass);
-        let energy = kinetic(&mass, &state.v) + system.potential(t_k, &state.q);
+        let mut mass = Triplets::new(n, n);
+        system.mass_entries(&state.q, &mut mass);
+        let energy = 0.5 * mass.quadratic(&state.v) + system.potential(t_k, &state.q);
         if !energy.is_finite() {
             return Err(at.not_finite("the energy", energy));
         }
@@ -563,8 +564,8 @@ impl NonsmoothGeneralizedAlpha {
             lambda: start.lambda.clone(),
             qt: vec![0.0; n],
             vt: vec![0.0; n],
-            mass: Vec::new(),
-            gj: Vec::new(),
+            mass: Triplets::new(n, n),
+            gj: Triplets::new(nb, n),
             iterations: 0,
             deficient: false,
         };
@@ -607,8 +608,8 @@ impl NonsmoothGeneralizedAlpha {
                 && residual >= 0.5 * previous
                 && residual <= STALL_FACTOR * newton.tolerance;
             if residual <= newton.tolerance || stalled {
-                x.mass = mass.to_dense();
-                x.gj = gj.to_dense();
+                x.mass = mass;
+                x.gj = gj;
                 return Ok(x);
             }
             previous = residual;
@@ -632,6 +633,12 @@ impl NonsmoothGeneralizedAlpha {
             }
             // S of the module documentation, entry by entry.
             s.clear();
+            s.reserve(
+                [&mass, &dmdq, &dgldq, &dfdq, &dfdv, &gj, &gj, &dgaq, &dgav]
+                    .iter()
+                    .map(|d| d.len())
+                    .sum(),
+            );
             for (d, c) in [
                 (&mass, 1.0),
                 (&dmdq, bp),
@@ -691,8 +698,14 @@ impl NonsmoothGeneralizedAlpha {
         let structure = system.joint_structure();
         let mut m_lu = match structure {
             Some(_) => None,
-            None => Some(lu_factor(mat(n, n, &smooth.mass)).ok_or_else(|| at.singular(0))?),
+            None => {
+                Some(lu_factor(mat(n, n, &smooth.mass.to_dense())).ok_or_else(|| at.singular(0))?)
+            }
         };
+        // The weight of coordinate j in a constraint row's scale.
+        let weight: Vec<f64> = (0..n)
+            .map(|j| qt[j].abs() + (qt[j] - start.q[j]).abs())
+            .collect();
         loop {
             let k = nb + active.len();
             if k == 0 {
@@ -700,26 +713,33 @@ impl NonsmoothGeneralizedAlpha {
             }
             system.gap_jacobian(t1, qt, &mut hj);
             at.check(&hj, "the gap Jacobian")?;
-            let rows_t = constraint_rows(&smooth.gj, &hj, active, n);
-            let scale = (0..k)
-                .map(|r| {
-                    let row = &rows_t[r * n..(r + 1) * n];
-                    (0..n)
-                        .map(|j| row[j].abs() * (qt[j].abs() + (qt[j] - start.q[j]).abs()))
-                        .sum::<f64>()
-                })
-                .fold(0.0f64, f64::max);
-            let banded = match structure.filter(|_| active.is_empty()) {
-                Some(s) => self.project_joints(system, qt, smooth, s, scale, &mut q, at)?,
-                None => None,
-            };
+            // The joints alone through their band Delassus operator, G̃ read on the joints'
+            // coordinates; the scale as the dense path's, row by row.
+            let joints = structure
+                .filter(|_| active.is_empty())
+                .and_then(|s| Some((s, s.rows(&smooth.gj)?)));
+            let (mut banded, mut scale) = (None, 0.0);
+            if let Some((s, g)) = &joints {
+                scale = (0..nb)
+                    .map(|r| s.row_weight(r, g, &weight))
+                    .fold(0.0f64, f64::max);
+                banded = self.project_joints(system, qt, smooth, s, g, scale, &mut q, at)?;
+            }
             position_iterations += match banded {
                 Some(iterations) => iterations,
                 None => {
                     // C̃ rows and Y = M̃⁻¹ C̃ᵀ (n×k), dense.
+                    let rows_t = constraint_rows(&smooth.gj.to_dense(), &hj, active, n);
+                    scale = (0..k)
+                        .map(|r| {
+                            let row = &rows_t[r * n..(r + 1) * n];
+                            (0..n).map(|j| row[j].abs() * weight[j]).sum::<f64>()
+                        })
+                        .fold(0.0f64, f64::max);
                     let lu = match m_lu.take() {
                         Some(lu) => lu,
-                        None => lu_factor(mat(n, n, &smooth.mass)).ok_or_else(|| at.singular(0))?,
+                        None => lu_factor(mat(n, n, &smooth.mass.to_dense()))
+                            .ok_or_else(|| at.singular(0))?,
                     };
                     let ct = mat(k, n, &rows_t);
                     let y = lu.solve(&ct.transpose()).ok_or_else(|| at.singular(0))?;
@@ -758,19 +778,20 @@ impl NonsmoothGeneralizedAlpha {
         qt: &[f64],
         smooth: &SmoothStage,
         structure: &JointStructure,
+        g: &JointRows,
         scale: f64,
         q: &mut [f64],
         at: StepAt,
     ) -> Result<Option<usize>, NonlinearStepError> {
         let (n, nb, t1, newton) = (self.n, self.nb, at.t, self.params.newton);
-        let Some(y) = JointCompliance::new(structure, &smooth.mass, &smooth.gj) else {
+        let Some(y) = JointCompliance::new(structure, &smooth.mass, g) else {
             return Ok(None);
         };
         let tol = newton.tolerance * scale;
         q.copy_from_slice(qt);
         let mut nu = vec![0.0; nb];
         let mut gb = vec![0.0; nb];
-        let mut g_q = vec![0.0; nb * n];
+        let mut g_q = Triplets::new(nb, n);
         // Y ν^i, then the increment M̃⁻¹ G̃ᵀ (ν^{i+1} − ν^i) of the positions.
         let mut y_x = vec![0.0; n];
         let mut b = vec![0.0; nb];
@@ -787,8 +808,11 @@ impl NonsmoothGeneralizedAlpha {
                 return Err(at.newton_not_converged(iter, violation / scale, newton.tolerance));
             }
             iter += 1;
-            system.joint_jacobian(t1, q, &mut g_q);
-            at.check(&g_q, "the joint Jacobian")?;
+            system.joint_jacobian_entries(t1, q, &mut g_q);
+            at.check_entries_at(&g_q, "the joint Jacobian", &[], &[])?;
+            let Some(g_q) = structure.rows(&g_q) else {
+                return Ok(None);
+            };
             let Some(lu) = y.operator(&g_q) else {
                 return Ok(None);
             };
@@ -940,19 +964,19 @@ impl NonsmoothGeneralizedAlpha {
     ) -> Result<EndRows, NonlinearStepError> {
         let (n, m, nb, t1) = (self.n, self.m, self.nb, at.t);
         let mut r = EndRows {
-            mass: vec![0.0; n * n],
-            gj: vec![0.0; nb * n],
+            mass: Triplets::new(n, n),
+            gj: Triplets::new(nb, n),
             hj: vec![0.0; m * n],
             tj: Vec::new(),
             rates1: vec![0.0; m],
             rates0: vec![0.0; m],
             trates1: Vec::new(),
         };
-        system.mass(q, &mut r.mass);
-        at.check(&r.mass, "M(q)")?;
-        system.joint_jacobian(t1, q, &mut r.gj);
+        system.mass_entries(q, &mut r.mass);
+        at.check_entries_at(&r.mass, "M(q)", &[], &[])?;
+        system.joint_jacobian_entries(t1, q, &mut r.gj);
         system.gap_jacobian(t1, q, &mut r.hj);
-        at.check(&r.gj, "the joint Jacobian")?;
+        at.check_entries_at(&r.gj, "the joint Jacobian", &[], &[])?;
         at.check(&r.hj, "the gap Jacobian")?;
         system.gap_rates(t1, q, &mut r.rates1);
         system.gap_rates(t_k, q, &mut r.rates0);
@@ -1010,8 +1034,9 @@ impl NonsmoothGeneralizedAlpha {
         // The joints alone with a band Delassus operator: Λ_B = −D⁻¹(G ṽ + g_t) by its band
         // LU, the mixed LCP's equality rows; the dense path when the band path declines.
         if let Some(s) = system.joint_structure().filter(|_| active.is_empty())
-            && let Some(y) = JointCompliance::new(s, &r.mass, &r.gj)
-            && let Some(lu) = y.operator(&r.gj)
+            && let Some(g) = s.rows(&r.gj)
+            && let Some(y) = JointCompliance::new(s, &r.mass, &g)
+            && let Some(lu) = y.operator(&g)
         {
             let mut z = b.clone();
             if lu.solve_mut(&mut z) {
@@ -1023,8 +1048,8 @@ impl NonsmoothGeneralizedAlpha {
                 return Ok(());
             }
         }
-        let rows = mat(k, n, &constraint_rows(&r.gj, &r.hj, active, n));
-        let (d, y) = delassus(&rows, &r.mass, at)?;
+        let rows = mat(k, n, &constraint_rows(&r.gj.to_dense(), &r.hj, active, n));
+        let (d, y) = delassus(&rows, &r.mass.to_dense(), at)?;
         for (c, &a) in active.iter().enumerate() {
             b[nb + c] = self.normal_row(system, impact, r, a, report);
         }
@@ -1071,10 +1096,11 @@ impl NonsmoothGeneralizedAlpha {
             work_friction,
         } = stage;
         let size = nb + 2 * active.len();
+        let gj = r.gj.to_dense();
         let rows = DMatrix::from_fn(size, n, |i, j| {
-            stacked_row(&r.gj, &r.hj, &r.tj, active, (n, nb), i)[j]
+            stacked_row(&gj, &r.hj, &r.tj, active, (n, nb), i)[j]
         });
-        let (d, y) = delassus(&rows, &r.mass, at)?;
+        let (d, y) = delassus(&rows, &r.mass.to_dense(), at)?;
         let mut b = vec![0.0; size];
         system.joint_rates(t1, impact.q, vt, &mut b[..nb]);
         for (c, &a) in active.iter().enumerate() {
@@ -1139,7 +1165,7 @@ impl NonsmoothGeneralizedAlpha {
             .map(|i| 0.5 * (start.applied[i] + applied[i]) * (q[i] - start.q[i]))
             .sum();
         let base = &mut report.base;
-        base.kinetic = kinetic(&rows.mass, &v);
+        base.kinetic = 0.5 * rows.mass.quadratic(&v);
         base.potential = system.potential(t1, &q);
         let energy = base.energy();
         if !energy.is_finite() {

@@ -6,9 +6,9 @@
 use super::LagrangianSystem;
 use super::delassus::JointStructure;
 use crate::lagrangian::{StoredMatrix, UserModel};
+use crate::soi2::ConstrainedModel;
 use crate::soi2::banded::BandOrder;
 use crate::soi2::sparsity::Pattern;
-use crate::soi2::{ConstrainedModel, Dual64, g_ddot};
 use crate::triplets::Triplets;
 
 /// A [`LagrangianSystem`] with bilateral holonomic joints g(q, t) = 0 (nb of them). The
@@ -96,8 +96,8 @@ pub trait JointedSystem: LagrangianSystem {
     }
 }
 
-/// The joints of a user model from its symbolic tapes; κ is the derivative of the tape of
-/// G v + g_t along (t, q, v) → (1, v, 0), by one forward-mode dual evaluation.
+/// The joints of a user model from its symbolic tapes; κ and the derivatives of Newton's
+/// matrix from those derived for the nonsmooth generalized-α ([`crate::lagrangian::newton_terms`]).
 impl JointedSystem for UserModel {
     fn joints(&self) -> usize {
         UserModel::joints(self)
@@ -126,43 +126,31 @@ impl JointedSystem for UserModel {
         ConstrainedModel::g_dot(self, t, q, v, out);
     }
 
+    /// From its symbolic tape ([`crate::lagrangian::UserModel::newton_terms`]).
     fn joint_curvature(&self, t: f64, q: &[f64], v: &[f64], out: &mut [f64]) {
-        let td = Dual64::new(t, 1.0);
-        let qd: Vec<Dual64> = q.iter().zip(v).map(|(&x, &w)| Dual64::new(x, w)).collect();
-        let vd: Vec<Dual64> = v.iter().map(|&w| Dual64::from(w)).collect();
-        let mut rd = vec![Dual64::from(0.0); out.len()];
-        ConstrainedModel::g_dot(self, td, &qd, &vd, &mut rd);
-        for (o, r) in out.iter_mut().zip(&rd) {
-            *o = r.eps;
-        }
+        self.newton_terms().curvature(self, (t, q, v), out);
     }
 
     /// The entries the tape of G stores.
     fn joint_jacobian_entries(&self, t: f64, q: &[f64], out: &mut Triplets) {
         out.clear();
+        out.reserve(self.stored_tape(StoredMatrix::JointJacobian).stored());
         self.stored_entries(StoredMatrix::JointJacobian, t, q, |r, i, x| {
             out.push(r, i, x)
         });
     }
 
-    /// One forward-mode dual evaluation of M's stored entries (its nonzeros) per group of
-    /// coordinates whose columns share no row (the model's Newton pattern,
-    /// [`crate::soi2::sparsity`]): (∂M/∂q_G a)_i = Σ_k ∂M_ik/∂q_G a_k over the nonzeros of
-    /// row i, where q_G seeds the group's coordinates together.
+    /// From its symbolic tape ([`crate::lagrangian::UserModel::newton_terms`]).
     fn mass_derivative(&self, q: &[f64], a: &[f64], out: &mut Triplets) {
-        let m = StoredMatrix::Mass;
-        self.stored_derivative(m, 0.0, q, out, |i, k, d| (i, d * a[k]));
+        self.newton_terms().mass(self, q, a, out);
     }
 
-    /// One forward-mode dual evaluation of G's stored entries per group of coordinates:
-    /// (∂(Gᵀλ)/∂q_G)_i = Σ_r λ_r ∂G_ri/∂q_G over the nonzeros of column i of G.
+    /// From its symbolic tape: Σ_r λ_r ∇²g_r over the nonzeros.
     fn joint_force_derivative(&self, t: f64, q: &[f64], lambda: &[f64], out: &mut Triplets) {
-        let g = StoredMatrix::JointJacobian;
-        self.stored_derivative(g, t, q, out, |r, i, d| (i, d * lambda[r]));
+        self.newton_terms().joint_force(self, (t, q, lambda), out);
     }
 
-    /// g̈ as the derivative of the tape of G v + g_t along (1, v, a) ([`g_ddot`]), its
-    /// derivatives by one more dual evaluation per group of coordinates, of q and of v.
+    /// From the symbolic tape of the gradients of g̈ = d/dt(G v + g_t) along (1, v, a).
     fn joint_acceleration_derivatives(
         &self,
         t: f64,
@@ -172,120 +160,7 @@ impl JointedSystem for UserModel {
         dq: &mut Triplets,
         dv: &mut Triplets,
     ) {
-        let n = q.len();
-        let (mut qd, mut vd, ad) = (duals(q), duals(v), duals(a));
-        let td = Dual64::from(t);
-        let mut out = vec![Dual64::from(0.0); UserModel::joints(self)];
-        dq.clear();
-        dv.clear();
-        let pattern = self.newton_pattern(1);
-        for group in coordinate_groups(n, pattern) {
-            seed(&mut qd, &group, 1.0);
-            g_ddot(self, td, &qd, &vd, &ad, &mut out);
-            seed(&mut qd, &group, 0.0);
-            push_joint_rows(n, pattern, &group, &out, dq);
-            seed(&mut vd, &group, 1.0);
-            g_ddot(self, td, &qd, &vd, &ad, &mut out);
-            seed(&mut vd, &group, 0.0);
-            push_joint_rows(n, pattern, &group, &out, dv);
-        }
+        self.newton_terms()
+            .joint_acceleration(self, (t, q, v, a), dq, dv);
     }
-}
-
-impl UserModel {
-    /// The derivative along each group of coordinates of an n-vector linear in the stored
-    /// entries X_ik of `which` (at `t` and `q`): one dual evaluation of the entries per group;
-    /// `term(i, k, ∂X_ik/∂q_G)` gives the row of the vector that entry adds to and how much,
-    /// and the rows are pushed into `out` at the group's columns (each row is touched by one
-    /// column of a group).
-    fn stored_derivative(
-        &self,
-        which: StoredMatrix,
-        t: f64,
-        q: &[f64],
-        out: &mut Triplets,
-        term: impl Fn(usize, usize, f64) -> (usize, f64),
-    ) {
-        let n = q.len();
-        let mut qd = duals(q);
-        let mut rows = vec![0.0; n];
-        out.clear();
-        let pattern = self.newton_pattern(1);
-        for group in coordinate_groups(n, pattern) {
-            seed(&mut qd, &group, 1.0);
-            rows.fill(0.0);
-            self.stored_entries(which, Dual64::from(t), &qd, |i, k, x| {
-                let (row, value) = term(i, k, x.eps);
-                rows[row] += value;
-            });
-            seed(&mut qd, &group, 0.0);
-            for &j in &group {
-                for i in motion_rows(n, pattern, j) {
-                    out.push(i, j, rows[i]);
-                }
-            }
-        }
-    }
-}
-
-/// Groups of coordinates whose columns share no row of the derivatives above (the coordinate
-/// columns of the model's one-block Newton pattern, [`crate::soi2::sparsity::Pattern`]), or
-/// one group per coordinate for a model without a pattern.
-fn coordinate_groups(n: usize, pattern: Option<&Pattern>) -> Vec<Vec<usize>> {
-    match pattern {
-        Some(p) => p
-            .groups()
-            .iter()
-            .map(|g| g.iter().copied().filter(|&c| c < n).collect::<Vec<_>>())
-            .filter(|g| !g.is_empty())
-            .collect(),
-        None => (0..n).map(|j| vec![j]).collect(),
-    }
-}
-
-/// The equations of motion (rows 0..n of the one-block pattern) that column `j` touches; all n
-/// without a pattern.
-fn motion_rows(n: usize, pattern: Option<&Pattern>, j: usize) -> impl Iterator<Item = usize> + '_ {
-    let (rows, all) = match pattern {
-        Some(p) => (p.rows_of(j), 0),
-        None => (&[][..], n),
-    };
-    rows.iter().copied().filter(move |&i| i < n).chain(0..all)
-}
-
-/// Sets the dual parts of the coordinates of `group` to `eps`.
-fn seed(x: &mut [Dual64], group: &[usize], eps: f64) {
-    for &j in group {
-        x[j].eps = eps;
-    }
-}
-
-/// Pushes the derivative of each joint row along the column of `group` that touches it into
-/// `into` (joints×n).
-fn push_joint_rows(
-    n: usize,
-    pattern: Option<&Pattern>,
-    group: &[usize],
-    out: &[Dual64],
-    into: &mut Triplets,
-) {
-    for &j in group {
-        match pattern {
-            Some(p) => {
-                for r in p.rows_of(j).iter().filter(|&&i| i >= n).map(|i| i - n) {
-                    into.push(r, j, out[r].eps);
-                }
-            }
-            None => {
-                for (r, o) in out.iter().enumerate() {
-                    into.push(r, j, o.eps);
-                }
-            }
-        }
-    }
-}
-
-/// Constant dual numbers of `x` (no derivative direction yet).
-fn duals(x: &[f64]) -> Vec<Dual64> {
-    x.iter().map(|&v| Dual64::from(v)).collect()
 }

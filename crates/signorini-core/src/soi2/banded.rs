@@ -216,42 +216,49 @@ impl BandLu {
         }
     }
 
-    /// Gaussian elimination with partial pivoting of the stored band, in place.
+    /// Gaussian elimination with partial pivoting of the stored band, in place. Row i holds
+    /// columns i − kl … i + kl + ku at i·w … (i + 1)·w − 1 ([`BandLu::at`]), so a row's
+    /// stretch from a given column on is one slice: the interchanges and the updates run on
+    /// slices.
     fn eliminate(&mut self) {
         let (n, kl, ku) = (self.n, self.kl, self.ku);
-        let lu = self;
-        let w = lu.width();
+        let w = self.width();
+        let ab = &mut self.ab;
         for k in 0..n {
             let last_row = (k + kl).min(n - 1);
-            let last_col = (k + kl + ku).min(n - 1);
+            let len = (k + kl + ku).min(n - 1) - k;
+            // (i, k) of row i ≥ k sits at i·w + k + kl − i.
+            let at_k = |i: usize| i * w + k + kl - i;
             let mut p = k;
+            let mut largest = ab[at_k(k)].abs();
             for i in k + 1..=last_row {
-                if lu.ab[lu.at(i, k)].abs() > lu.ab[lu.at(p, k)].abs() {
+                let a = ab[at_k(i)].abs();
+                if a > largest {
                     p = i;
+                    largest = a;
                 }
             }
-            lu.pivots[k] = p;
+            self.pivots[k] = p;
             if p != k {
-                for j in k..=last_col {
-                    let (x, y) = (lu.at(k, j), lu.at(p, j));
-                    lu.ab.swap(x, y);
-                }
+                // Columns k … k + len of rows k and p.
+                let (upper, lower) = ab.split_at_mut(p * w);
+                let row_k = &mut upper[at_k(k)..=at_k(k) + len];
+                let start = at_k(p) - p * w;
+                row_k.swap_with_slice(&mut lower[start..=start + len]);
             }
-            let pivot = lu.ab[lu.at(k, k)];
+            let pivot = ab[at_k(k)];
             if pivot == 0.0 {
                 continue;
             }
-            let row_k = lu.at(k, k);
+            let (upper, lower) = ab.split_at_mut((k + 1) * w);
+            let pivot_row = &upper[at_k(k) + 1..=at_k(k) + len];
             for i in k + 1..=last_row {
-                let ik = lu.at(i, k);
-                let l = lu.ab[ik] / pivot;
-                lu.ab[ik] = l;
+                let ik = at_k(i) - (k + 1) * w;
+                let l = lower[ik] / pivot;
+                lower[ik] = l;
                 if l != 0.0 {
-                    // Row i from column k + 1 and row k from column k + 1 are contiguous.
-                    let (len, start_i) = (last_col - k, ik + 1);
-                    debug_assert!(start_i + len <= (i + 1) * w);
-                    for t in 0..len {
-                        lu.ab[start_i + t] -= l * lu.ab[row_k + 1 + t];
+                    for (a, &u) in lower[ik + 1..=ik + len].iter_mut().zip(pivot_row) {
+                        *a -= l * u;
                     }
                 }
             }
