@@ -469,13 +469,24 @@ mod random {
             (x(), index_set()).prop_map(|(theta, index_set)| MoreauJeanSpec { theta, index_set })
         };
         let alpha = || {
-            (coefficients(), index_set(), any::<bool>()).prop_map(
-                |(coefficients, index_set, allow_unstable)| NsAlphaSpec {
-                    coefficients,
-                    index_set,
-                    allow_unstable,
-                },
+            (
+                coefficients(),
+                index_set(),
+                any::<bool>(),
+                prop_oneof![
+                    Just(None),
+                    Just(Some(NewtonSpec::Full)),
+                    Just(Some(NewtonSpec::Simplified))
+                ],
             )
+                .prop_map(|(coefficients, index_set, allow_unstable, newton)| {
+                    NsAlphaSpec {
+                        coefficients,
+                        index_set,
+                        allow_unstable,
+                        newton,
+                    }
+                })
         };
         let position = || {
             (ox(), ox(), ox(), any::<bool>()).prop_map(|(alpha, beta, gamma, allow_unstable)| {

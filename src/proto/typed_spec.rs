@@ -436,6 +436,7 @@ fn ns_alpha_to_proto(a: &NsAlphaSpec) -> pb::NsAlpha {
             activation_gamma,
         },
         allow_unstable,
+        newton,
     } = a;
     pb::NsAlpha {
         rho_inf: *rho_inf,
@@ -446,6 +447,7 @@ fn ns_alpha_to_proto(a: &NsAlphaSpec) -> pb::NsAlpha {
         activation: activation_to_proto(*activation),
         activation_gamma: *activation_gamma,
         allow_unstable: *allow_unstable,
+        newton: newton.map_or(pb::Soi2Newton::Unspecified as i32, newton_to_proto),
     }
 }
 

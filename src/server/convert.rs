@@ -365,6 +365,7 @@ fn ns_alpha(p: pb::NsAlpha) -> Result<NsAlphaSpec, SpecError> {
         activation: act,
         activation_gamma,
         allow_unstable,
+        newton,
     } = p;
     Ok(NsAlphaSpec {
         coefficients: AlphaCoefficientsSpec {
@@ -376,6 +377,10 @@ fn ns_alpha(p: pb::NsAlpha) -> Result<NsAlphaSpec, SpecError> {
         },
         index_set: index_set(act, activation_gamma)?,
         allow_unstable,
+        // Unspecified: the scheme's own default (full Newton), not the SOI2 schemes'.
+        newton: (newton != pb::Soi2Newton::Unspecified as i32)
+            .then(|| soi2_newton(newton))
+            .transpose()?,
     })
 }
 

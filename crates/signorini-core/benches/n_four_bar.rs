@@ -2,7 +2,9 @@
 //! and the error of B0 against the exact motion, for N loops and each scheme that takes joints.
 //!
 //! `cargo bench -p signorini-core --bench n_four_bar -- [--loops 10,40,160] [--t-end 1]
-//! [--h 0.001] [--schemes soi2_generalized_alpha,soi2_hht,hht_i3,ns_generalized_alpha]`
+//! [--h 0.001] [--schemes soi2_generalized_alpha,soi2_hht,hht_i3,ns_generalized_alpha]
+//! [--newton full|simplified]` (`--newton`: every scheme's Newton strategy; each scheme's own
+//! default without it)
 //! (plain main, harness = false). CPU seconds of the process, so a busy machine shows in the
 //! wall column but not in the CPU one.
 
@@ -102,11 +104,15 @@ fn four_bar_angle(n: usize, ts: &[f64]) -> Vec<f64> {
     out
 }
 
-fn integrator(scheme: &str) -> Value {
-    match scheme {
+fn integrator(scheme: &str, newton: Option<&str>) -> Value {
+    let mut doc = match scheme {
         "soi2_hht" | "hht_i3" => json!({"scheme": scheme, "alpha": -0.05}),
         _ => json!({"scheme": scheme}),
+    };
+    if let Some(newton) = newton {
+        doc["newton"] = json!(newton);
     }
+    doc
 }
 
 fn arg(args: &[String], name: &str) -> Option<String> {
@@ -126,6 +132,7 @@ fn main() {
     let h: f64 = arg(&args, "--h").map_or(1e-3, |v| v.parse().expect("--h"));
     let schemes = arg(&args, "--schemes")
         .unwrap_or_else(|| "soi2_generalized_alpha,soi2_hht,hht_i3,ns_generalized_alpha".into());
+    let newton = arg(&args, "--newton");
     println!("A02 over {t_end} s at h = {h}\n");
     println!(
         "| N | scheme | steps | CPU s | wall s | steps/s (CPU) | Newton it/step | Jacobians/step | B0 error (m) | energy drift |"
@@ -133,7 +140,7 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|---|");
     for &n in &loops {
         for scheme in schemes.split(',') {
-            let doc = four_bar_spec(n, &integrator(scheme), h, t_end);
+            let doc = four_bar_spec(n, &integrator(scheme, newton.as_deref()), h, t_end);
             let spec: JobSpec = serde_json::from_value(doc).expect("a spec");
             let (w0, c0) = (Instant::now(), cpu_seconds());
             let job = Job::from_spec(&spec).expect("a valid spec");
@@ -156,7 +163,7 @@ fn main() {
                 SummaryBody::NsAlpha(s) => (
                     s.stats.base.steps,
                     s.stats.base.newton_iterations_mean,
-                    s.stats.base.newton_iterations_mean,
+                    s.stats.newton_jacobians_total as f64 / s.stats.base.steps as f64,
                 ),
                 _ => unreachable!("a jointed run"),
             };

@@ -37,6 +37,7 @@ use crate::outcome::{
 };
 use crate::rigid::DetectorFactory;
 use crate::scenes::Bar;
+use crate::soi2::method::NewtonStrategy;
 use crate::soi2::run::Soi2Job;
 use crate::spec::support::{self, Feature, ModelFamily};
 use crate::spec::{
@@ -176,6 +177,10 @@ impl LinearJob {
             | IntegratorSpec::NsHht(_)
             | IntegratorSpec::NsGeneralizedAlpha(_)
             | IntegratorSpec::NsKhAlpha(_) => {
+                refuse_newton_strategy(
+                    &spec.integrator,
+                    "a linear model's step solves no nonlinear system",
+                )?;
                 LinearSchemeChoice::Alpha(alpha_params(&spec.integrator)?)
             }
             IntegratorSpec::NewmarkPositionContact(p) => {
@@ -369,6 +374,7 @@ fn lagrangian_ns_alpha(l: &LagrangianSpec, spec: &JobSpec) -> Result<JobKind, Sp
         beta: alpha.beta,
         gamma: alpha.gamma,
         newton: NewtonOptions::default(),
+        strategy: p.newton.map_or(NewtonStrategy::Full, NewtonStrategy::from),
     };
     refuse_friction(l, spec.integrator.scheme())?;
     check_joint_start(&model, "ns_generalized_alpha", l.redundant_joints)?;
@@ -382,6 +388,26 @@ fn lagrangian_ns_alpha(l: &LagrangianSpec, spec: &JobSpec) -> Result<JobKind, Sp
         steps: steps.count(),
         output,
     })))
+}
+
+/// Refuses `integrator.newton` on `ns_generalized_alpha` or `ns_kh_alpha` for a model whose
+/// step has no Newton iteration (`why`).
+fn refuse_newton_strategy(integrator: &IntegratorSpec, why: &str) -> Result<(), SpecError> {
+    let newton = match integrator {
+        IntegratorSpec::NsGeneralizedAlpha(p) | IntegratorSpec::NsKhAlpha(p) => p.newton,
+        _ => None,
+    };
+    match newton {
+        Some(n) => Err(SpecError::new(
+            "integrator.newton",
+            format!(
+                "newton = \"{}\" is not taken by {} here: {why}",
+                n.name(),
+                integrator.scheme()
+            ),
+        )),
+        None => Ok(()),
+    }
 }
 
 /// Refuses `redundant_joints = true` under `scheme` when the scheme × feature table does (the

@@ -176,6 +176,19 @@ fn ns_generalized_alpha_resumes_bit_for_bit() {
         23,
         150,
     );
+    // Simplified Newton keeps the smooth stage's matrix across steps: the checkpoint keeps
+    // where it was formed, and the resumed run forms the same one there again.
+    resumes_bit_for_bit(
+        &example_edited(
+            "slider_crank_clearance_joints.toml",
+            200,
+            1,
+            "rho_inf = 0.8",
+            "rho_inf = 0.8\nnewton = \"simplified\"",
+        ),
+        23,
+        150,
+    );
 }
 
 #[test]

@@ -400,3 +400,90 @@ fn joint_curvature_matches_central_differences() {
         }
     }
 }
+
+/// `newton = "simplified"` (the smooth stage's matrix kept across iterates and steps, the start
+/// extrapolated) on the double pendulum with joints (h = 1e-3) and on the slider-crank with
+/// clearance and joints at its example's h = 1e-5: the same motion as full Newton to 1e-7, the
+/// joints held as tightly, fewer matrices formed than iterates (full Newton forms one per
+/// iterate), and at most 3 iterates a step on average. (At h = 1e-3 the slider-crank turns
+/// 0.15 rad a step and simplified Newton forms a matrix at every step: 3.15 iterates and 1.0
+/// matrices a step against full Newton's 2.14 and 2.14.)
+#[test]
+fn simplified_newton_keeps_the_motion_of_full_newton_with_fewer_matrices() {
+    for (example, h, t_end) in [
+        ("double_pendulum_cartesian", "1e-3", "1.0"),
+        ("slider_crank_clearance_joints", "1e-5", "0.02"),
+    ] {
+        let run_with = |newton: &str| {
+            let spec = example_with(
+                example,
+                &format!("{NS_ALPHA}\nnewton = \"{newton}\""),
+                &format!("h = {h}\nt_end = {t_end}"),
+                "every = 1\nprobes = [0, 1]",
+            );
+            record(&spec)
+        };
+        let (full, full_summary) = run_with("full");
+        let (simplified, summary) = run_with("simplified");
+        let steps = num(&summary, "steps");
+        let (iterations, matrices) = (
+            num(&summary, "newton_iterations_mean"),
+            num(&summary, "newton_jacobians_total"),
+        );
+        println!(
+            "{example}: full {:.3} iterates and {} matrices a step; simplified {iterations:.3} and {:.3}",
+            num(&full_summary, "newton_iterations_mean"),
+            num(&full_summary, "newton_jacobians_total") / steps,
+            matrices / steps
+        );
+        let full_iterates = num(&full_summary, "newton_iterations_mean") * steps;
+        assert!(
+            (num(&full_summary, "newton_jacobians_total") - full_iterates).abs() < 0.5,
+            "full Newton forms a matrix per iterate"
+        );
+        assert!(matrices < 0.8 * iterations * steps, "{matrices} matrices");
+        assert!(iterations <= 3.0, "{iterations} iterates a step");
+        for name in ["q_0", "q_1", "v_0", "v_1"] {
+            let gap = col(&full, name)
+                .iter()
+                .zip(col(&simplified, name))
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0f64, f64::max);
+            assert!(gap < 1e-7, "{example}: {name} differs by {gap:e}");
+        }
+        for (name, tol) in [
+            ("max_position_residual", 1e-9),
+            ("max_velocity_residual", 1e-12),
+        ] {
+            assert!(
+                num(&summary, name) <= tol,
+                "{example}: {name} {}",
+                num(&summary, name)
+            );
+        }
+    }
+}
+
+/// `newton` is the smooth stage's: refused, naming `integrator.newton`, on a model whose step
+/// has no Newton iteration (a linear chain under `ns_generalized_alpha` or `ns_kh_alpha`).
+#[test]
+fn the_newton_strategy_is_refused_where_no_step_solves_a_nonlinear_system() {
+    for scheme in ["ns_generalized_alpha", "ns_kh_alpha"] {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/chain.toml");
+        let text = std::fs::read_to_string(&path).expect("reading the example");
+        let mut doc: toml::Table = toml::from_str(&text).expect("the example parses");
+        let integrator: toml::Table =
+            toml::from_str(&format!("scheme = \"{scheme}\"\nnewton = \"simplified\""))
+                .expect("a table");
+        doc.insert("integrator".into(), toml::Value::Table(integrator));
+        let spec: JobSpec = doc.try_into().expect("a job spec");
+        match Job::from_spec(&spec) {
+            Ok(_) => panic!("{scheme}: newton accepted on a linear model"),
+            Err(e) => {
+                let e = e.to_string();
+                assert!(e.starts_with("integrator.newton"), "{e}");
+                assert!(e.contains("no nonlinear system"), "{e}");
+            }
+        }
+    }
+}

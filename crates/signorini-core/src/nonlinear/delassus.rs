@@ -203,6 +203,8 @@ pub struct JointRows {
 #[derive(Debug, Clone)]
 pub struct JointCompliance<'a> {
     structure: &'a JointStructure,
+    /// The joint rows G that Y was formed with.
+    g: &'a JointRows,
     /// The columns of Y, each as its coordinates and values, one after another
     /// ([`JointStructure::column_start`]).
     columns: Vec<(usize, f64)>,
@@ -212,7 +214,7 @@ impl<'a> JointCompliance<'a> {
     /// Y for the mass matrix `mass` (n×n, its entries) and the joint rows `g`; `None` when M
     /// has a nonzero entry outside its blocks or a block of M is not positive definite to
     /// working precision (the dense path then decides).
-    pub fn new(structure: &'a JointStructure, mass: &Triplets, g: &JointRows) -> Option<Self> {
+    pub fn new(structure: &'a JointStructure, mass: &Triplets, g: &'a JointRows) -> Option<Self> {
         let s = structure;
         // The blocks of M, each b×b row-major, one after another.
         let mut blocks = vec![0.0; s.block_start[s.blocks.len()]];
@@ -275,7 +277,11 @@ impl<'a> JointCompliance<'a> {
                 row[i] = 0.0;
             }
         }
-        Some(Self { structure, columns })
+        Some(Self {
+            structure,
+            g,
+            columns,
+        })
     }
 
     /// The band LU of C Y for the joint rows C (with G's pattern: G itself for the velocity
@@ -283,6 +289,17 @@ impl<'a> JointCompliance<'a> {
     /// derivative); `None` when it is singular to working precision (a pivot below nb ε times
     /// the largest, as for Newton's band LU of the smooth stage).
     pub fn operator(&self, c: &JointRows) -> Option<BandLu> {
+        self.factor(c, false)
+    }
+
+    /// [`JointCompliance::operator`] of the joint rows Y was formed with: the symmetric
+    /// D = G M⁻¹ Gᵀ, each entry below the diagonal the mirror of the one above (formed once).
+    pub fn delassus(&self) -> Option<BandLu> {
+        self.factor(self.g, true)
+    }
+
+    /// The band LU of C Y, with only its upper triangle formed when `symmetric`.
+    fn factor(&self, c: &JointRows, symmetric: bool) -> Option<BandLu> {
         let s = self.structure;
         let mut row = vec![0.0; s.n];
         let mut entries = Vec::with_capacity(s.coupled.iter().map(Vec::len).sum());
@@ -291,8 +308,14 @@ impl<'a> JointCompliance<'a> {
                 row[i] = v;
             }
             for &k in &s.coupled[j] {
+                if symmetric && k < j {
+                    continue;
+                }
                 let d = self.column(k).iter().map(|&(i, y)| row[i] * y).sum::<f64>();
                 entries.push((j, k, d));
+                if symmetric && k > j {
+                    entries.push((k, j, d));
+                }
             }
             for (i, _) in s.row(j, c) {
                 row[i] = 0.0;

@@ -409,6 +409,7 @@ impl UserModelScheme for NonsmoothGeneralizedAlpha {
         stats.position_iterations_max = stats
             .position_iterations_max
             .max(report.position_iterations);
+        stats.newton_jacobians_total += report.newton_matrices as u64;
         if let Some(rank) = report.joint_rank {
             stats.rank_deficient_steps += 1;
             stats.smallest_rank = Some(stats.smallest_rank.map_or(rank, |s| s.min(rank)));

@@ -260,6 +260,13 @@ pub struct NsAlphaSpec {
     #[serde(default, skip_serializing_if = "is_false")]
     #[schemars(extend("default" = false))]
     pub allow_unstable: bool,
+    /// How the smooth stage's Newton iterations get their matrix, `lagrangian` models under
+    /// `ns_generalized_alpha` only (refused elsewhere: a linear model's step has no Newton):
+    /// `full` (the default here: formed at every iterate, quadratic convergence) or
+    /// `simplified` (kept across iterates and steps while it contracts the residual tenfold
+    /// per iterate).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub newton: Option<NewtonSpec>,
 }
 
 /// Parameters of `newmark_position_contact` (β default ¼, γ default ½, no α) and
