@@ -244,8 +244,9 @@ impl NsAlphaStepReport {
 
 /// What the next step of the scheme reads besides the state: the end of the last step, kept as
 /// the start of the next (a_k, q̈_k, λ_k, f_k and E_k, with the state they belong to: a state
-/// changed between steps is made consistent afresh). This is all a checkpoint keeps of the
-/// scheme; its Newton matrices and Delassus operators are rebuilt by each step.
+/// changed between steps is made consistent afresh), and for simplified Newton q̈_{k−1}, λ_{k−1}
+/// and where its kept matrix was formed. This is all a checkpoint keeps of the scheme; the
+/// Delassus operators, and the Newton matrix under full Newton, are formed by each step.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) struct NsAlphaMemory {
     step: u64,
