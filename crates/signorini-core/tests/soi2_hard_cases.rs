@@ -783,6 +783,66 @@ fn bricard_runs_its_full_duration_under_the_nonsmooth_generalized_alpha() {
     );
 }
 
+/// Bricard's mechanism under `ns_generalized_alpha` at a coarser step, its largest |λ| and
+/// its energy drift relative to the largest kinetic energy. Off the manifold the redundant
+/// joint's singular value of G(q̃) is small but not zero; before the smooth stage took the
+/// joints' rank deficit from the start of the step, a step at h = 2e-3 whose Newton matrix
+/// passed the pivot test put 2.5e6 into λ's near-null component at t = 0.26 s, the energy
+/// grew from t ≈ 2 s and Newton failed at t = 5.19 s (h = 4e-3 failed at t = 3.74 s).
+fn bricard_at_step(h: f64) -> (f64, f64) {
+    let mut doc = benchmark("a04_bricard");
+    doc["integrator"] = json!({"scheme": "ns_generalized_alpha", "rho_inf": 0.8});
+    doc["time"]["h"] = json!(h);
+    let job = Job::from_spec(&spec(&doc)).unwrap_or_else(|e| panic!("valid spec: {e}"));
+    let mut rec = Recorder::default();
+    let out = run(&job, 1, &mut rec).unwrap_or_else(|e| panic!("the run at h = {h}: {e}"));
+    let SummaryBody::NsAlpha(summary) = out.summary.body else {
+        panic!("an ns_generalized_alpha run")
+    };
+    let stats = &summary.stats;
+    assert!(
+        (stats.base.t_end - 10.0).abs() < 1e-9,
+        "h = {h}: stopped at {}",
+        stats.base.t_end
+    );
+    assert_eq!(stats.rank_deficient_steps, stats.base.steps, "h = {h}");
+    assert_eq!(stats.smallest_rank, Some(11), "h = {h}");
+    assert!(stats.max_position_residual < 1e-10, "h = {h}");
+    let lambda = (0..12)
+        .flat_map(|j| rec.column(&format!("lambda_{j}")).expect("lambda_j"))
+        .fold(0.0, |m: f64, l| m.max(l.abs()));
+    let energy = rec.column("energy").expect("energy");
+    let drift = energy
+        .iter()
+        .map(|e| (e - energy[0]).abs())
+        .fold(0.0, f64::max);
+    let kinetic = rec.column("kinetic").expect("kinetic");
+    let scale = kinetic.iter().fold(0.0, |m: f64, k| m.max(*k));
+    (lambda, drift / scale)
+}
+
+#[test]
+fn bricard_keeps_the_minimum_norm_multipliers_at_coarser_steps_under_the_nonsmooth_generalized_alpha()
+ {
+    let (fine, fine_drift) = bricard_at_step(1e-3);
+    assert!(fine > 20.0 && fine < 30.0, "max |λ| = {fine} at h = 1e-3");
+    let mut drifts = vec![fine_drift];
+    for h in [2e-3, 4e-3] {
+        let (lambda, drift) = bricard_at_step(h);
+        println!("h = {h:e}: max |λ| {lambda:.3}, drift {drift:.2e} of the kinetic energy");
+        assert!(
+            (lambda - fine).abs() < 0.05 * fine,
+            "max |λ| = {lambda:e} at h = {h}, {fine} at h = 1e-3"
+        );
+        drifts.push(drift);
+    }
+    // The drift goes like h²: ×4 per doubling of h, within a factor 2.
+    for w in drifts.windows(2) {
+        let ratio = w[1] / w[0];
+        assert!((2.0..8.0).contains(&ratio), "drifts {drifts:?}");
+    }
+}
+
 /// Jacobi's sn, cn, dn of (u | m) by the arithmetic–geometric mean (Abramowitz & Stegun 16.4),
 /// and the complete elliptic integral K(m) = π / (2 AGM(1, √(1 − m))).
 fn jacobi(u: f64, m: f64) -> (f64, f64, f64) {

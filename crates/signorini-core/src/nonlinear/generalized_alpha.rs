@@ -76,7 +76,11 @@
 //! two-loop four-bar: on its parallelogram motion both vanish, and the round-off of r_j,
 //! 10⁻¹⁷, was 3 % of that scale at every iterate.) When S is singular because the joints
 //! have lost rank (a singular position, redundant joints: docs/soi2.md) the increment is the
-//! minimum-norm least-squares one of [`crate::soi2::factor::NewtonFactor`]. The position
+//! minimum-norm least-squares one of [`crate::soi2::factor::NewtonFactor`]; when the joints
+//! were rank-deficient at the start of the step (on the manifold, where the rank is sharp),
+//! every S of the step is solved at least that deficient, since off the manifold the
+//! near-null singular values of G(q̃) are small but not zero and a regular solve would put an
+//! unbounded component into λ ([`factor_saddle`]). The position
 //! stage uses the exact derivative of g(q̃ + M̃⁻¹C̃ᵀν) in ν, C(q^i) M̃⁻¹ C̃ᵀ (quadratic
 //! convergence). The mixed LCPs are plain problems for [`crate::lcp::solve_mixed`], which
 //! eliminates the joint rows by their Schur complement (minimum-norm when the joints are
@@ -135,7 +139,7 @@ use crate::friction;
 use crate::lcp::LcpOptions;
 use crate::observer::Columns;
 use crate::soi2::banded::{BandLu, BandOrder};
-use crate::soi2::factor::{NewtonFactor, range_projection};
+use crate::soi2::factor::{NewtonFactor, numerical_rank, pivot_range, range_projection};
 use crate::soi2::method::NewtonStrategy;
 use crate::triplets::Triplets;
 use nalgebra::{DMatrix, DVector};
@@ -268,6 +272,12 @@ pub(crate) struct NsAlphaMemory {
     /// a start made consistent afresh).
     #[serde(default)]
     before: Option<(Vec<f64>, Vec<f64>)>,
+    /// The numerical rank of G(q_k) when it is below the joints' count (the step that ended at
+    /// q_k, or the consistent start, met rank-deficient joints): the next smooth stage's
+    /// Newton matrices are then solved at a rank deficit of at least the joints' (see
+    /// [`factor_saddle`]).
+    #[serde(default)]
+    joint_rank: Option<usize>,
 }
 
 /// The iterate at which the smooth stage formed a Newton matrix S: the step's time t_{k+1},
@@ -508,14 +518,15 @@ impl NonsmoothGeneralizedAlpha {
     }
 
     /// q̈ and λ at (t, q, v) from the smooth equations with the joints at acceleration level:
-    /// `[M Gᵀ; G 0][q̈; λ] = [F; −κ]` (the consistent start, a_0 = q̈_0).
+    /// `[M Gᵀ; G 0][q̈; λ] = [F; −κ]` (the consistent start, a_0 = q̈_0), and whether the
+    /// joints were rank-deficient there (λ then the minimum-norm multipliers).
     pub(super) fn consistent<S: JointedSystem + ?Sized>(
         &self,
         system: &S,
         t: f64,
         q: &[f64],
         v: &[f64],
-    ) -> Option<(Vec<f64>, Vec<f64>)> {
+    ) -> Option<(Vec<f64>, Vec<f64>, bool)> {
         let (n, nb) = (self.n, self.nb);
         let mut mass = Triplets::new(n, n);
         system.mass_entries(q, &mut mass);
@@ -535,11 +546,15 @@ impl NonsmoothGeneralizedAlpha {
         }
         let rhs = DVector::from_fn(n + nb, |i, _| if i < n { f[i] } else { -kappa[i - n] });
         // Minimum-norm multipliers when the joints are rank-deficient (redundant joints).
-        let (x, _) = solve_saddle(&k, rhs, &g, system.newton_band())?;
+        let (x, deficient) = solve_saddle(&k, rhs, &g, system.newton_band())?;
         if x.iter().any(|x| !x.is_finite()) {
             return None;
         }
-        Some((x.as_slice()[..n].to_vec(), x.as_slice()[n..].to_vec()))
+        Some((
+            x.as_slice()[..n].to_vec(),
+            x.as_slice()[n..].to_vec(),
+            deficient,
+        ))
     }
 
     /// Advances `state` by one step, writing the step's terms into `report` (sized by
@@ -593,9 +608,14 @@ impl NonsmoothGeneralizedAlpha {
         {
             return Ok(e);
         }
-        let (acc, lambda) = self
+        let (acc, lambda, deficient) = self
             .consistent(system, t_k, &state.q, &state.v)
             .ok_or_else(|| at.singular(0))?;
+        let joint_rank = deficient.then(|| {
+            let mut g = vec![0.0; self.nb * n];
+            system.joint_jacobian(t_k, &state.q, &mut g);
+            numerical_rank(&g, self.nb, n)
+        });
         let mut applied = vec![0.0; n];
         system.applied_forces(t_k, &state.q, &state.v, &mut applied);
         at.check_at(
@@ -622,6 +642,7 @@ impl NonsmoothGeneralizedAlpha {
             energy,
             matrix_at: None,
             before: None,
+            joint_rank: joint_rank.filter(|&r| r < self.nb),
         })
     }
 
@@ -646,6 +667,12 @@ impl NonsmoothGeneralizedAlpha {
             strategy,
         } = self.params;
         let simplified = strategy == NewtonStrategy::Simplified;
+        // The joints' rank deficit at the start of the step (on the manifold): the Newton
+        // matrices at q̃ are solved at least that deficient, and none is kept.
+        let redundant = start.joint_rank.map_or(0, |r| nb.saturating_sub(r));
+        if redundant > 0 {
+            *kept = None;
+        }
         let mut x = SmoothStage {
             a1: vec![0.0; n],
             acc: start.acc.clone(),
@@ -728,7 +755,10 @@ impl NonsmoothGeneralizedAlpha {
                     let (mut m_at, mut g_at) = (Triplets::new(n, n), Triplets::new(nb, n));
                     system.mass_entries(&k.at.q, &mut m_at);
                     system.joint_jacobian_entries(k.at.t, &k.at.q, &mut g_at);
-                    k.factor = Some(self.newton_factor(system, &k.at, &m_at, &g_at, at, &x)?);
+                    k.factor = Some(
+                        self.newton_factor(system, &k.at, &m_at, &g_at, redundant, at)?
+                            .ok_or_else(|| at.singular(x.iterations))?,
+                    );
                 }
                 reused = k.factor.as_ref().is_some_and(|f| f.solve_mut(&mut dx));
             }
@@ -740,7 +770,9 @@ impl NonsmoothGeneralizedAlpha {
                     acc: x.acc.clone(),
                     lambda: x.lambda.clone(),
                 };
-                let factor = self.newton_factor(system, &point, &mass, &gj, at, &x)?;
+                let factor = self
+                    .newton_factor(system, &point, &mass, &gj, redundant, at)?
+                    .ok_or_else(|| at.singular(x.iterations))?;
                 x.matrices += 1;
                 dx.copy_from_slice(&r);
                 if !factor.solve_mut(&mut dx) {
@@ -766,17 +798,18 @@ impl NonsmoothGeneralizedAlpha {
     }
 
     /// The smooth stage's Newton matrix S at `p` (module documentation), from M(q̃) and G(q̃)
-    /// there (`mass`, `gj`), factorised ([`factor_saddle`]); an error when it is singular
-    /// other than for want of joint rank.
+    /// there (`mass`, `gj`), factorised ([`factor_saddle`], at a rank deficit of at least
+    /// `redundant`); None when it is singular other than for want of joint rank, an error when
+    /// a derivative is not finite.
     fn newton_factor<S: JointedSystem + ?Sized>(
         &self,
         system: &S,
         p: &MatrixPoint,
         mass: &Triplets,
         gj: &Triplets,
+        redundant: usize,
         at: StepAt,
-        x: &SmoothStage,
-    ) -> Result<NewtonFactor, NonlinearStepError> {
+    ) -> Result<Option<NewtonFactor>, NonlinearStepError> {
         let (h, n, nb) = (self.h, self.n, self.nb);
         let NsAlphaParams {
             alpha_m,
@@ -832,7 +865,7 @@ impl NonsmoothGeneralizedAlpha {
                 s.push(n + k, j, c * v);
             }
         }
-        factor_saddle(&s, gj, system.newton_band()).ok_or_else(|| at.singular(x.iterations))
+        Ok(factor_saddle(&s, gj, system.newton_band(), redundant))
     }
 
     /// The position stage: q = q̃ + M(q̃)⁻¹ C(q̃)ᵀ ν with g = 0 on the joints and
@@ -1380,6 +1413,7 @@ impl NonsmoothGeneralizedAlpha {
             energy,
             matrix_at: self.kept.as_ref().map(|k| k.at.clone()),
             before: Some((start.acc, start.lambda)),
+            joint_rank: report.joint_rank.filter(|&r| r < nb),
         });
         state.q.copy_from_slice(&q);
         state.v.copy_from_slice(&v);
@@ -1440,46 +1474,87 @@ fn solve_saddle(
     joints: &Triplets,
     band: Option<&BandOrder>,
 ) -> Option<(DVector<f64>, bool)> {
-    let factor = factor_saddle(s, joints, band)?;
+    let factor = factor_saddle(s, joints, band, 0)?;
     factor.solve_mut(&mut r).then(|| (r, factor.deficient()))
 }
 
 /// Factorises Newton's saddle-point matrix S of the smooth stage (given by its entries): LU
 /// when S is regular (the band LU in the order `band` for a large model, assembled from the
 /// entries, [`crate::soi2::banded`]), the SVD of [`NewtonFactor`] for the minimum-norm
-/// least-squares solve when S is singular because the nb×n joint Jacobian `joints` has lost
-/// rank; None when S is singular otherwise.
+/// least-squares solve when S is singular to working precision because the nb×n joint
+/// Jacobian `joints` has lost rank; None when S is singular otherwise.
+///
+/// "Singular to working precision" is read from LU's pivots, min |u_kk| ≤ size · ε · max
+/// |u_kk|, for the dense LU as for the band LU. The dense LU's own test (each pivot against
+/// its column) is not enough: off the manifold Bricard's redundant joints give G(q̃) a
+/// smallest singular value of 1e-9 σ_max (not 0), S's pivots span 1e-17 and pass that test,
+/// and the regular solve puts a component of the size of the residual over σ_min² along the
+/// near-null direction of Gᵀ into λ (3e7 instead of 21 at h = 2e-3, until the run failed).
+/// A dense S with such pivots whose joints keep their rank stays with its LU, as before.
+///
+/// `redundant` > 0 is the joints' rank deficit at the start of the step, where the positions
+/// are on the manifold and the rank is sharp: S is then solved by its SVD at rank at most
+/// size − `redundant` whatever its pivots say. Off the manifold the near-null singular values
+/// of G(q̃) only approach zero, and a single step whose S passed the pivot test put λ's
+/// near-null component at 2.5e6 for the rest of the run (the minimum-norm increments never
+/// remove it): Bricard at h = 2e-3, t = 0.26 s.
 fn factor_saddle(
     s: &Triplets,
     joints: &Triplets,
     band: Option<&BandOrder>,
+    redundant: usize,
 ) -> Option<NewtonFactor> {
     let (size, nb) = (s.rows(), joints.rows());
     let n = size - nb;
     let dense = || DMatrix::from_row_slice(size, size, &s.to_dense());
+    if redundant > 0 {
+        return Some(NewtonFactor::least_squares_of_rank(
+            &dense(),
+            size - redundant.min(nb),
+        ));
+    }
     let banded = band
         .filter(|b| b.order.len() == size)
         .and_then(|b| BandLu::factor_entries(b, s.entries().iter().copied()));
-    if let Some(lu) = banded {
-        // Regular to working precision, as lu_factor asks.
-        let (lo, hi) = lu.pivot_range();
-        if lo > size as f64 * f64::EPSILON * hi {
-            return Some(NewtonFactor::Banded(lu));
+    // The LU, whether its pivots show a regular matrix, and what stands when they do not and
+    // the joints keep their rank (the dense LU that passed its column test; no band LU).
+    let (regular, fallback) = match banded {
+        Some(lu) => {
+            let (lo, hi) = lu.pivot_range();
+            let regular = lo > size as f64 * f64::EPSILON * hi;
+            (regular.then_some(NewtonFactor::Banded(lu)), None)
         }
-    } else if let Some(lu) = lu_factor(dense()) {
-        return Some(NewtonFactor::Regular(lu));
+        None => match lu_factor(dense()) {
+            Some(lu) => {
+                let (lo, hi) = pivot_range(&lu);
+                let lu = NewtonFactor::Regular(lu);
+                if lo > size as f64 * f64::EPSILON * hi {
+                    (Some(lu), None)
+                } else {
+                    (None, Some(lu))
+                }
+            }
+            None => (None, None),
+        },
+    };
+    if regular.is_some() {
+        return regular;
     }
-    // Singular: the minimum-norm solve when the joints have lost rank, None otherwise. S's
-    // multiplier block goes like G M⁻¹ Gᵀ, so S is singular to working precision once
-    // σ_min(G)² ≤ size · ε · σ_max(G)²: the joints count as rank-deficient from that ratio
-    // (off the manifold, at q̃, Bricard's G has σ_min = 1e-10 σ_max, not 0).
+    // Singular: the minimum-norm solve when the joints have lost rank. S's multiplier block
+    // goes like G M⁻¹ Gᵀ, so S is singular to working precision once σ_min(G)² ≤ size · ε ·
+    // σ_max(G)²: the joints count as rank-deficient from that ratio (off the manifold, at q̃,
+    // Bricard's G has σ_min = 1e-10 to 1e-9 σ_max, not 0).
     let sv = crate::dense::singular_values(DMatrix::from_row_slice(nb, n, &joints.to_dense()))?;
     let lost = (size as f64 * f64::EPSILON).sqrt() * sv.max();
     if nb == 0 || !(sv.min() <= lost || nb > n) {
-        return None;
+        return fallback;
     }
     let factor = NewtonFactor::least_squares(&dense());
-    factor.deficient().then_some(factor)
+    if factor.deficient() {
+        Some(factor)
+    } else {
+        fallback
+    }
 }
 
 /// The rows C = [G; H_I] (joints, then the contacts of `active`), row-major.

@@ -371,7 +371,7 @@ impl UserModelScheme for NonsmoothGeneralizedAlpha {
         let mut report = NsAlphaStepReport::of_state(system, state);
         if system.joints() > 0 {
             // The multipliers of the start, from the consistent accelerations.
-            if let Some((_, lambda)) = self.consistent(system, state.t, &state.q, &state.v) {
+            if let Some((_, lambda, _)) = self.consistent(system, state.t, &state.q, &state.v) {
                 report.lambda = lambda;
             }
         }

@@ -92,12 +92,26 @@ impl NewtonFactor {
     /// the minimum-norm least-squares solve, for a matrix already known to be singular with
     /// rank-deficient joints (whatever its LU pivots say).
     pub fn least_squares(j: &DMatrix<f64>) -> NewtonFactor {
+        NewtonFactor::least_squares_of_rank(j, j.nrows())
+    }
+
+    /// [`NewtonFactor::least_squares`] with the rank at most `max_rank`: the singular values
+    /// after the `max_rank` largest count as zero too. For a Newton matrix whose joints are
+    /// known to be redundant (rank deficit d at the start of the step, on the manifold) but
+    /// which is evaluated off the manifold, where the d smallest singular values are small
+    /// (1e-9 σ_max on Bricard's mechanism) rather than below [`RANK_TOLERANCE`].
+    pub fn least_squares_of_rank(j: &DMatrix<f64>, max_rank: usize) -> NewtonFactor {
         let norm = j
             .row_iter()
             .map(|r| r.iter().map(|v| v.abs()).sum::<f64>())
             .fold(0.0, f64::max);
         let svd = j.clone().svd(true, true);
-        let threshold = RANK_TOLERANCE * svd.singular_values.max();
+        let mut sorted: Vec<f64> = svd.singular_values.iter().copied().collect();
+        sorted.sort_by(|a, b| b.total_cmp(a));
+        let mut threshold = RANK_TOLERANCE * svd.singular_values.max();
+        if let Some(&first_dropped) = sorted.get(max_rank) {
+            threshold = threshold.max(first_dropped);
+        }
         let rank = svd.rank(threshold);
         NewtonFactor::Deficient {
             svd,
@@ -145,7 +159,7 @@ impl NewtonFactor {
 /// copied the whole upper triangle through a strided iterator at every factorisation, 8 % of
 /// the instructions of a full-Newton slider-crank run (issue 26); the values, hence the
 /// choice between LU and SVD, are the same.
-fn pivot_range(lu: &LU<f64, Dyn, Dyn>) -> (f64, f64) {
+pub(crate) fn pivot_range(lu: &LU<f64, Dyn, Dyn>) -> (f64, f64) {
     let packed = lu.lu_internal();
     (0..packed.nrows().min(packed.ncols()))
         .map(|i| packed[(i, i)].abs())
