@@ -945,11 +945,17 @@ impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
         }
     }
 
+    /// Also true when the joints were rank-deficient at the start of the step (y₀, z₀, on the
+    /// manifold, where the rank is sharp): off the manifold a redundant joint's singular value
+    /// is small but not below the rank threshold, and the LU of a Newton matrix whose pivots
+    /// spanned 1.6e-16 (Bricard at h = 4e-3, t = 4.0 s) gave an increment that diverged.
     fn joints_deficient(&self, x: &[f64]) -> bool {
         let (a, _, _, at) = self.unpack(x);
         let (y, z) = (self.y1(&at), self.z1(&a));
         let d = self.dims;
-        constraint_numerical_rank(self.model, self.t1, &y, &z) < d.holonomic + d.nonholonomic
+        let rows = d.holonomic + d.nonholonomic;
+        constraint_numerical_rank(self.model, self.t1, &y, &z) < rows
+            || constraint_numerical_rank(self.model, self.t1 - self.h, self.y0, self.z0) < rows
     }
 
     /// Every formulation orders its unknowns and rows as [`Pattern`] describes: coordinate
