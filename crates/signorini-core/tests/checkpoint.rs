@@ -189,6 +189,19 @@ fn ns_generalized_alpha_resumes_bit_for_bit() {
         23,
         150,
     );
+    // Redundant joints (Bricard): the joints' rank deficit at the start of a step, which makes
+    // the smooth stage solve every Newton matrix by the SVD at that deficit, is in the memory.
+    resumes_bit_for_bit(
+        &example_edited(
+            "benchmarks/a04_bricard.toml",
+            200,
+            1,
+            "scheme = \"soi2_generalized_alpha\"",
+            "scheme = \"ns_generalized_alpha\"\nrho_inf = 0.8",
+        ),
+        23,
+        150,
+    );
 }
 
 #[test]
