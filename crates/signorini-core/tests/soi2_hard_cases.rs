@@ -716,17 +716,8 @@ fn bricard_runs_its_full_duration_with_the_redundant_joint() {
             "{integrator}: position residual {:e}",
             summary.max_position_residual
         );
-        let energy = rec.column("energy").expect("energy");
-        let drift = energy
-            .iter()
-            .map(|e| (e - energy[0]).abs())
-            .fold(0.0, f64::max);
         // E₀ = 0 (potential zero at the start): the drift relative to the kinetic energy range.
-        let scale = rec
-            .column("kinetic")
-            .expect("kinetic")
-            .iter()
-            .fold(0.0, |m: f64, k| m.max(*k));
+        let (drift, scale) = energy_drift(&rec);
         assert!(
             scale > 1.0,
             "{integrator}: the mechanism moves (kinetic {scale})"
@@ -772,16 +763,7 @@ fn bricard_runs_its_full_duration_under_the_nonsmooth_generalized_alpha() {
         stats.max_position_residual,
         stats.max_velocity_residual
     );
-    let energy = rec.column("energy").expect("energy");
-    let drift = energy
-        .iter()
-        .map(|e| (e - energy[0]).abs())
-        .fold(0.0, f64::max);
-    let scale = rec
-        .column("kinetic")
-        .expect("kinetic")
-        .iter()
-        .fold(0.0, |m: f64, k| m.max(*k));
+    let (drift, scale) = energy_drift(&rec);
     assert!(scale > 1.0, "the mechanism moves (kinetic {scale})");
     assert!(drift < 1e-3 * scale, "energy drift {drift:e} of {scale}");
     println!(
@@ -789,6 +771,17 @@ fn bricard_runs_its_full_duration_under_the_nonsmooth_generalized_alpha() {
          joints {:.1e} (position) {:.1e} (velocity)",
         stats.base.newton_iterations_mean, stats.max_position_residual, stats.max_velocity_residual
     );
+}
+
+/// The largest |E − E₀| of a recorded run and its largest kinetic energy (the scale of the drift).
+fn energy_drift(rec: &Recorder) -> (f64, f64) {
+    let energy = rec.column("energy").expect("energy");
+    let drift = energy
+        .iter()
+        .map(|e| (e - energy[0]).abs())
+        .fold(0.0, f64::max);
+    let kinetic = rec.column("kinetic").expect("kinetic");
+    (drift, kinetic.iter().fold(0.0, |m: f64, k| m.max(*k)))
 }
 
 /// Bricard's mechanism under `ns_generalized_alpha` at a coarser step, its largest |λ| and
@@ -819,13 +812,7 @@ fn bricard_at_step(h: f64) -> (f64, f64) {
     let lambda = (0..12)
         .flat_map(|j| rec.column(&format!("lambda_{j}")).expect("lambda_j"))
         .fold(0.0, |m: f64, l| m.max(l.abs()));
-    let energy = rec.column("energy").expect("energy");
-    let drift = energy
-        .iter()
-        .map(|e| (e - energy[0]).abs())
-        .fold(0.0, f64::max);
-    let kinetic = rec.column("kinetic").expect("kinetic");
-    let scale = kinetic.iter().fold(0.0, |m: f64, k| m.max(*k));
+    let (drift, scale) = energy_drift(&rec);
     (lambda, drift / scale)
 }
 

@@ -139,7 +139,7 @@ use crate::friction;
 use crate::lcp::LcpOptions;
 use crate::observer::Columns;
 use crate::soi2::banded::{BandLu, BandOrder};
-use crate::soi2::factor::{NewtonFactor, numerical_rank, pivot_range, range_projection};
+use crate::soi2::factor::{NewtonFactor, numerical_rank, pivot_range};
 use crate::soi2::method::NewtonStrategy;
 use crate::triplets::Triplets;
 use nalgebra::{DMatrix, DVector};
@@ -1398,7 +1398,7 @@ impl NonsmoothGeneralizedAlpha {
         report.joint_rank = smooth.deficient.then(|| {
             let mut g = vec![0.0; nb * n];
             system.joint_jacobian(t1, &q, &mut g);
-            range_projection(&g, nb, n).0
+            numerical_rank(&g, nb, n)
         });
 
         self.last = Some(NsAlphaMemory {
