@@ -110,12 +110,21 @@ fn auto_solves_capsules_i122_by_prox_from_the_start() {
     assert!(from_best.iterations <= 100, "{}", from_best.iterations);
 }
 
-/// Issue 28, Round 10: the sparse LU of the Newton systems follows the dense LU's path (the
-/// same directions up to round-off, so the same Newton iterations and the same impulses) on
-/// BoxesStack1 (156 unknowns) and Capsules-i101-404 (675), and answers Capsules-i122-1617 from
-/// r = 0 in 76 Newton iterations, where GMRES needs 104.
+/// Issue 28, Rounds 10 and 15: the sparse LU of the Newton systems follows the dense LU's path
+/// on BoxesStack1 (156 unknowns) and Capsules-i101-404 (675): the same Newton iterations, the
+/// same local velocities u = W r + q (to 1e-10 of ‖q‖), and on i101 the same impulses. On
+/// BoxesStack1, whose W is rank-deficient, the block LU's directions (inexact within the
+/// forcing term) reach a solution whose impulses differ from the dense LU's along W's null
+/// space (by 7e-4 of the largest impulse, where u differs by 1e-12 of ‖q‖). The sparse LU
+/// answers Capsules-i122-1617 from r = 0 in 76 Newton iterations, where GMRES needs 104.
 #[test]
 fn sparse_lu_follows_the_dense_lu_and_answers_capsules_i122() {
+    let largest = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let gap = |a: &[f64], b: &[f64]| {
+        a.iter()
+            .zip(b)
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+    };
     for name in ["BoxesStack1-i100000-32.hdf5.dat", "Capsules-i101-404.dat"] {
         let problem = fixture(name);
         let with = |newton_linear| Fc3dOptions {
@@ -127,13 +136,15 @@ fn sparse_lu_follows_the_dense_lu_and_answers_capsules_i122() {
         let sparse = solve_fc3d(&problem, &with(Fc3dNewtonLinear::SparseLu)).unwrap();
         assert!(sparse.error <= 1e-8, "{name}: {}", sparse.error);
         assert_eq!(sparse.iterations, dense.iterations, "{name}");
-        let scale = dense.r.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        let gap = sparse
-            .r
-            .iter()
-            .zip(&dense.r)
-            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-        assert!(gap <= 1e-6 * scale, "{name}: {gap} of {scale}");
+        let u_gap = gap(
+            &problem.local_velocity(&sparse.r),
+            &problem.local_velocity(&dense.r),
+        );
+        assert!(u_gap <= 1e-10 * largest(&problem.q), "{name}: {u_gap}");
+        if name.starts_with("Capsules") {
+            let r_gap = gap(&sparse.r, &dense.r);
+            assert!(r_gap <= 1e-6 * largest(&dense.r), "{name}: {r_gap}");
+        }
     }
     let problem = fixture("Capsules-i122-1617.dat");
     let prox = at_1e8(Fc3dSolverKind::Prox);

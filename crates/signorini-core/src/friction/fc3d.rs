@@ -236,12 +236,14 @@ impl Fc3dSolverKind {
 /// its linear systems `J d = −Φ`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Fc3dNewtonLinear {
-    /// Dense LU up to [`Fc3dOptions::dense_newton_max`] unknowns, the sparse LU above.
+    /// The sparse LU while its factors stay sparse (at most 50 passes over W a factorisation),
+    /// then the dense LU up to [`Fc3dOptions::dense_newton_max`] unknowns and GMRES above.
     #[default]
     Auto,
     /// Dense LU with partial pivoting (J formed densely, 8·n² bytes).
     DenseLu,
-    /// Sparse LU of J assembled from W's blocks (`fc3d_sparse_lu`).
+    /// Sparse LU of J assembled from W's blocks: the block LU (`fc3d_block_lu`), and the LU
+    /// with partial pivoting (`fc3d_sparse_lu`) where the block LU's direction falls short.
     SparseLu,
     /// Restarted GMRES(40) with a block-Jacobi preconditioner and products by the sparse W.
     Gmres,

@@ -28,14 +28,17 @@
 //! iterations, as many projection steps follow before Newton resumes (a problem built from a
 //! known solution, six contacts, stalled at error 6.5e-4 for 10 000 iterations without them). Nothing depends on the order of
 //! the contacts. The linear systems ([`Fc3dOptions::newton_linear`]) are solved by a sparse LU
-//! of J assembled from W's blocks ([`super::fc3d_sparse_lu`]), densely (LU with partial
-//! pivoting), or by GMRES (Y. Saad, M. H. Schultz, *GMRES: a generalized minimal residual
-//! algorithm for solving nonsymmetric linear systems*, SIAM J. Sci. Stat. Comput.
-//! 7(3):856–869, 1986, doi:10.1137/0907058) preconditioned by the inverse of J's diagonal
-//! blocks, with products by the sparse W only. `Auto` takes the sparse LU until one of its
-//! factorisations costs more than [`SPARSE_LU_MAX_PASSES`] products by W (its factors filled
-//! in), and from then on, for the rest of the solve, the dense LU up to
-//! [`Fc3dOptions::dense_newton_max`] unknowns and GMRES above.
+//! of J assembled from W's blocks — first the block LU of [`super::fc3d_block_lu`] (3×3 blocks,
+//! its pattern ordered and filled once, no pivoting between blocks; its direction is taken when
+//! its measured residual meets the forcing term below), else the LU with partial pivoting of
+//! [`super::fc3d_sparse_lu`] —, densely (LU with partial pivoting), or by GMRES (Y. Saad,
+//! M. H. Schultz, *GMRES: a generalized minimal residual algorithm for solving nonsymmetric
+//! linear systems*, SIAM J. Sci. Stat. Comput. 7(3):856–869, 1986, doi:10.1137/0907058)
+//! preconditioned by the inverse of J's diagonal blocks, with products by the sparse W only.
+//! `Auto` takes the sparse LU unless a factorisation costs more than [`SPARSE_LU_MAX_PASSES`]
+//! products by W (its factors fill in: the block LU knows it from its pattern before any
+//! arithmetic, the pivoting LU after its first factorisation), and from then on, for the rest
+//! of the solve, the dense LU up to [`Fc3dOptions::dense_newton_max`] unknowns and GMRES above.
 //!
 //! **Inexact Newton.** GMRES stops at the relative residual `‖J d + Φ_k‖ ≤ η_k ‖Φ_k‖` of a
 //! forcing term that follows ‖Φ‖ (S. C. Eisenstat, H. F. Walker, *Choosing the forcing terms in
@@ -63,6 +66,7 @@ use super::fc3d::contact_natural_map;
 use super::fc3d::{
     Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dProblem, Fc3dSolution, natural_map_error,
 };
+use super::fc3d_block_lu::BlockLu;
 use super::fc3d_sparse_lu::SparseNewton;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
@@ -195,10 +199,11 @@ pub fn solve_fc3d_newton(
 
 /// Largest work of a sparse LU factorisation, in passes over W (products by its stored blocks),
 /// for which `Fc3dNewtonLinear::Auto` keeps the sparse LU; above it the factors fill in and
-/// GMRES takes over for the rest of the solve. Measured (docs/friction_benchmark.md, Round 10):
-/// a factorisation costs 7–8 passes on Siconos' Capsules problems, where GMRES spends up to 400
-/// per Newton iteration (one restart cycle is 41), and 460 on KaplasTower, where GMRES needs
-/// about 80 per Newton iteration.
+/// GMRES takes over for the rest of the solve. Measured (docs/friction_benchmark.md, Rounds 10
+/// and 15): a factorisation costs 10–14 passes with the block LU (7–19 with the pivoting LU) on
+/// Siconos' Capsules and BoxesStack1 problems, where GMRES spends up to 400 per Newton iteration
+/// (one restart cycle is 41), and 134 (460) on KaplasTower, where GMRES needs about 80 per
+/// Newton iteration.
 const SPARSE_LU_MAX_PASSES: usize = 50;
 
 /// What Newton's linear solve keeps from one iteration to the next, and from one of the
@@ -207,6 +212,7 @@ const SPARSE_LU_MAX_PASSES: usize = 50;
 /// [`SPARSE_LU_MAX_PASSES`].
 #[derive(Default)]
 pub(crate) struct LinearCache {
+    block: Option<BlockLu>,
     sparse: Option<SparseNewton>,
     sparse_fills_in: bool,
 }
@@ -393,6 +399,26 @@ fn newton_direction(
         other => other,
     };
     if method == Fc3dNewtonLinear::SparseLu {
+        if !cache.block.as_ref().is_some_and(|b| b.fits(&problem.w)) {
+            cache.block = BlockLu::new(&problem.w);
+        }
+        if let Some(block) = cache.block.as_ref() {
+            if options.newton_linear == Fc3dNewtonLinear::Auto
+                && block.work() > SPARSE_LU_MAX_PASSES * problem.w.stored_blocks().max(1)
+            {
+                // The factors fill in: the rest of the solve goes without a sparse LU.
+                cache.sparse_fills_in = true;
+                return newton_direction(problem, linear, phi, options, eta, cache, work);
+            }
+            work.spent += block.work();
+            // An inexact direction is taken when it meets the forcing term GMRES is held to;
+            // otherwise the LU with partial pivoting solves again.
+            if let Ok((d, residual)) = block.solve(&problem.w, gs, rho, &rhs)
+                && residual <= eta
+            {
+                return Some((d, residual));
+            }
+        }
         if !cache.sparse.as_ref().is_some_and(|s| s.fits(&problem.w)) {
             cache.sparse = SparseNewton::new(&problem.w).ok();
         }

@@ -229,7 +229,7 @@ fn factorisation_work(lu: &SimplicialLu<usize, f64>) -> usize {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::friction::fc3d_newton::alart_curnier;
     use nalgebra::{DMatrix, DVector};
@@ -246,11 +246,19 @@ mod tests {
         }
     }
 
-    /// The sparse LU's direction is the dense LU's on a chain of contacts whose J mixes take-off
-    /// (G = 0), stick and slide blocks, with one contact that W does not couple to itself (its
-    /// diagonal block missing from W), and the work charged is more than the assembly alone.
-    #[test]
-    fn sparse_lu_solves_the_newton_system_as_the_dense_lu_does() {
+    /// A Newton system `J d = rhs` on a chain of 40 contacts whose J mixes take-off (G = 0),
+    /// stick and slide blocks, with one contact that W does not couple to itself (its diagonal
+    /// block missing from W): W, the G blocks, the weights, the right-hand side, and d by a
+    /// dense LU with partial pivoting.
+    pub(crate) struct MixedNewtonSystem {
+        pub(crate) w: BlockCsr,
+        pub(crate) gs: Vec<[f64; 9]>,
+        pub(crate) rho: Vec<f64>,
+        pub(crate) rhs: Vec<f64>,
+        pub(crate) expected: DVector<f64>,
+    }
+
+    pub(crate) fn mixed_newton_system() -> MixedNewtonSystem {
         let m = 40;
         let n = 3 * m;
         let mut random = Sequence(0x9e37_79b9_7f4a_7c15);
@@ -319,6 +327,26 @@ mod tests {
             }
         }
         let expected = dense.lu().solve(&DVector::from_column_slice(&rhs)).unwrap();
+        MixedNewtonSystem {
+            w,
+            gs,
+            rho,
+            rhs,
+            expected,
+        }
+    }
+
+    /// The sparse LU's direction is the dense LU's on the mixed system, and the work charged is
+    /// more than the assembly alone.
+    #[test]
+    fn sparse_lu_solves_the_newton_system_as_the_dense_lu_does() {
+        let MixedNewtonSystem {
+            w,
+            gs,
+            rho,
+            rhs,
+            expected,
+        } = mixed_newton_system();
         let factors = SparseNewton::new(&w).unwrap();
         assert!(factors.fits(&w));
         let mut work = 0;

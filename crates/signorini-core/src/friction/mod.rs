@@ -42,6 +42,7 @@
 pub mod block_csr;
 pub mod fc3d;
 mod fc3d_anderson;
+mod fc3d_block_lu;
 mod fc3d_newton;
 mod fc3d_nsgs;
 mod fc3d_prox;
