@@ -82,9 +82,10 @@ fn auto_solves_capsules_i122_by_prox_from_the_start() {
     // r = 0, 262 in all).
     assert!(s.iterations <= 200, "{}", s.iterations);
     // The start that failed in Round 9: the proximal point method from the first stage's best
-    // iterate, with the stage's 200 Newton iterations, does not reach 1e-8 when Newton solves
-    // its systems by GMRES, whose block-Jacobi preconditioner does not reach the forcing term
-    // there; with the sparse LU (the default) it does.
+    // iterate, with the stage's 200 Newton iterations. With the sparse LU (the default) it
+    // converges. (With GMRES, whose block-Jacobi preconditioner does not reach the forcing term
+    // there, it failed through Round 14; since Round 15's local solver, whose round-off differs,
+    // it converges in 59 iterations: that outcome hangs on round-off and is not asserted.)
     let first = Fc3dOptions {
         max_iterations: 100,
         ..at_1e8(Fc3dSolverKind::NsgsAnderson)
@@ -96,15 +97,6 @@ fn auto_solves_capsules_i122_by_prox_from_the_start() {
         max_iterations: 200,
         ..at_1e8(Fc3dSolverKind::Prox)
     };
-    let gmres = Fc3dOptions {
-        newton_linear: Fc3dNewtonLinear::Gmres,
-        ..prox
-    };
-    let from_best = solve_fc3d_from(&problem, &gmres, &best);
-    assert!(
-        matches!(from_best, Err(Fc3dError::NotConverged { .. })),
-        "{from_best:?}"
-    );
     let from_best = solve_fc3d_from(&problem, &prox, &best).unwrap();
     assert!(from_best.error <= 1e-8, "{}", from_best.error);
     assert!(from_best.iterations <= 100, "{}", from_best.iterations);
@@ -116,7 +108,8 @@ fn auto_solves_capsules_i122_by_prox_from_the_start() {
 /// BoxesStack1, whose W is rank-deficient, the block LU's directions (inexact within the
 /// forcing term) reach a solution whose impulses differ from the dense LU's along W's null
 /// space (by 7e-4 of the largest impulse, where u differs by 1e-12 of ‖q‖). The sparse LU
-/// answers Capsules-i122-1617 from r = 0 in 76 Newton iterations, where GMRES needs 104.
+/// answers Capsules-i122-1617 from r = 0 in 76 Newton iterations, where GMRES needs 98 (104
+/// before Round 15's local solver changed the round-off).
 #[test]
 fn sparse_lu_follows_the_dense_lu_and_answers_capsules_i122() {
     let largest = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
@@ -166,7 +159,7 @@ fn sparse_lu_follows_the_dense_lu_and_answers_capsules_i122() {
     )
     .unwrap();
     assert!(
-        sparse.iterations <= 80 && gmres.iterations >= 100,
+        sparse.iterations <= 80 && gmres.iterations > sparse.iterations + 15,
         "sparse LU {}, GMRES {}",
         sparse.iterations,
         gmres.iterations

@@ -19,8 +19,8 @@
 //!   each step a 3×3 block inverted by its adjugate; no pivoting between blocks. That is exact
 //!   arithmetic on the symmetric pattern, but it is stable only when the pivot blocks stay
 //!   well conditioned, which J does not promise (it is unsymmetric, and W is rank-deficient on
-//!   rigid sets). Two guards make it safe: a pivot block whose determinant is below
-//!   [`PIVOT_DETERMINANT`] times the cube of its largest entry stops the factorisation, and the
+//!   rigid sets). Two guards make it safe: a pivot block that [`super::block3::inverse`] finds
+//!   singular stops the factorisation, and the
 //!   direction's residual `‖J d − b‖ / ‖b‖` is measured after the solve (one product by W). The
 //!   caller takes the direction as an inexact Newton direction when that residual is within the
 //!   forcing term it would ask of GMRES, and falls back to the sparse LU with partial pivoting
@@ -34,16 +34,10 @@
 //! residual check, one pass over W.
 
 use super::block_csr::BlockCsr;
+use super::block3::{Block, inverse, product, subtract_apply, subtract_product};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::SymbolicSparseColMatRef;
 use faer::sparse::linalg::amd;
-
-/// Smallest |det P| of a pivot block P relative to `max |P_ij|³`: below it the block counts as
-/// singular and the factorisation stops (the caller then pivots).
-const PIVOT_DETERMINANT: f64 = 1e-24;
-
-/// A 3×3 block, row-major.
-type Block = [f64; 9];
 
 /// The ordered, filled pattern of J for the Delassus operators of one block pattern, and the
 /// work of a factorisation with it.
@@ -71,63 +65,6 @@ pub(crate) enum BlockLuFailure {
     Pivot,
     /// W has a block outside the pattern ([`BlockLu::fits`]).
     Pattern,
-}
-
-/// `a · b` for 3×3 blocks.
-fn product(a: &Block, b: &Block) -> Block {
-    let mut c = [0.0; 9];
-    for i in 0..3 {
-        for k in 0..3 {
-            c[3 * i + k] = a[3 * i] * b[k] + a[3 * i + 1] * b[3 + k] + a[3 * i + 2] * b[6 + k];
-        }
-    }
-    c
-}
-
-/// `c ← c − a · b` for 3×3 blocks.
-fn subtract_product(c: &mut Block, a: &Block, b: &Block) {
-    for i in 0..3 {
-        for k in 0..3 {
-            c[3 * i + k] -= a[3 * i] * b[k] + a[3 * i + 1] * b[3 + k] + a[3 * i + 2] * b[6 + k];
-        }
-    }
-}
-
-/// `y ← y − a · x` for a 3×3 block and 3-vectors.
-fn subtract_apply(y: &mut [f64], a: &Block, x: &[f64]) {
-    for i in 0..3 {
-        y[i] -= a[3 * i] * x[0] + a[3 * i + 1] * x[1] + a[3 * i + 2] * x[2];
-    }
-}
-
-/// The inverse of a 3×3 block by its adjugate, or None when its determinant is below
-/// [`PIVOT_DETERMINANT`] relative to the cube of its largest entry.
-fn inverse(p: &Block) -> Option<Block> {
-    let cofactor = [
-        p[4] * p[8] - p[5] * p[7],
-        p[5] * p[6] - p[3] * p[8],
-        p[3] * p[7] - p[4] * p[6],
-    ];
-    let det = p[0] * cofactor[0] + p[1] * cofactor[1] + p[2] * cofactor[2];
-    let scale = p.iter().fold(0.0f64, |s, x| s.max(x.abs()));
-    // Also refuses a determinant that is not a number.
-    if det.abs().partial_cmp(&(PIVOT_DETERMINANT * scale * scale * scale))
-        != Some(std::cmp::Ordering::Greater)
-    {
-        return None;
-    }
-    let d = 1.0 / det;
-    Some([
-        cofactor[0] * d,
-        (p[2] * p[7] - p[1] * p[8]) * d,
-        (p[1] * p[5] - p[2] * p[4]) * d,
-        cofactor[1] * d,
-        (p[0] * p[8] - p[2] * p[6]) * d,
-        (p[2] * p[3] - p[0] * p[5]) * d,
-        cofactor[2] * d,
-        (p[1] * p[6] - p[0] * p[7]) * d,
-        (p[0] * p[4] - p[1] * p[3]) * d,
-    ])
 }
 
 /// Merges the increasing list `from` into the increasing list `into`, leaving out `except`.

@@ -27,12 +27,12 @@
 //! Convergence is not guaranteed (Coulomb friction is not monotone); a spent budget is
 //! [`Fc3dError::NotConverged`] with the best iterate.
 
+use super::block3::{self, Block};
 use super::fc3d::{
     Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, contact_natural_map, natural_map_error,
     project_cone,
 };
 use super::fc3d_newton::{alart_curnier, weight};
-use nalgebra::{Matrix3, Vector3};
 
 /// Newton iterations of the local solver.
 const LOCAL_NEWTON: usize = 30;
@@ -85,28 +85,44 @@ pub fn solve_fc3d_nsgs(
     })
 }
 
-/// The diagonal 3×3 blocks W_aa of every contact, row-major.
-pub(crate) fn diagonal_blocks(problem: &Fc3dProblem) -> Vec<[f64; 9]> {
+/// What a contact's local problem needs from W, computed once per solve: its diagonal block
+/// W_aa (row-major), that block's inverse (None when singular: the stick test is then left to
+/// the local Newton method) and the weight ρ of its Alart–Curnier function.
+pub(crate) struct LocalBlock {
+    w: Block,
+    inverse: Option<Block>,
+    rho: f64,
+}
+
+/// The [`LocalBlock`] of every contact.
+pub(crate) fn diagonal_blocks(problem: &Fc3dProblem) -> Vec<LocalBlock> {
     (0..problem.contacts())
         .map(|a| {
             let b = problem.w.diagonal_block(a);
-            [b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8]]
+            let w = [b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8]];
+            LocalBlock {
+                inverse: block3::inverse(&w),
+                rho: weight(&w),
+                w,
+            }
         })
         .collect()
 }
 
 /// One Gauss–Seidel sweep over the contacts in order (module documentation), in place; `diagonal`
-/// holds the blocks W_aa ([`diagonal_blocks`]), `omega` is the over-relaxation (1: none).
-pub(crate) fn sweep(problem: &Fc3dProblem, diagonal: &[[f64; 9]], omega: f64, r: &mut [f64]) {
-    for (a, w) in diagonal.iter().enumerate() {
+/// holds the contacts' [`LocalBlock`]s ([`diagonal_blocks`]), `omega` is the over-relaxation
+/// (1: none).
+pub(crate) fn sweep(problem: &Fc3dProblem, diagonal: &[LocalBlock], omega: f64, r: &mut [f64]) {
+    for (a, block) in diagonal.iter().enumerate() {
         let k = 3 * a;
+        let w = &block.w;
         let mut b = [problem.q[k], problem.q[k + 1], problem.q[k + 2]];
         problem.w.add_row_product(a, r, &mut b);
         let ra = [r[k], r[k + 1], r[k + 2]];
         for (i, bi) in b.iter_mut().enumerate() {
             *bi -= w[3 * i] * ra[0] + w[3 * i + 1] * ra[1] + w[3 * i + 2] * ra[2];
         }
-        let local = solve_local(problem.mu[a], w, b, ra);
+        let local = solve_local(problem.mu[a], block, b, ra);
         let local = if omega == 1.0 {
             local
         } else {
@@ -137,21 +153,21 @@ fn local_residual(mu: f64, w: &[f64; 9], b: [f64; 3], r: [f64; 3]) -> f64 {
 }
 
 /// Solves the one-contact problem `u = W r + b` (module documentation), from `r0`.
-pub(crate) fn solve_local(mu: f64, w: &[f64; 9], b: [f64; 3], r0: [f64; 3]) -> [f64; 3] {
+pub(crate) fn solve_local(mu: f64, block: &LocalBlock, b: [f64; 3], r0: [f64; 3]) -> [f64; 3] {
+    let w = &block.w;
     if b[0] >= 0.0 {
         return [0.0; 3];
     }
     if mu == 0.0 && w[0] > 0.0 {
         return [-b[0] / w[0], 0.0, 0.0];
     }
-    let wm = Matrix3::from_row_slice(w);
-    if let Some(inverse) = wm.try_inverse() {
-        let s = -(inverse * Vector3::new(b[0], b[1], b[2]));
-        if s[0] >= 0.0 && s[1].hypot(s[2]) <= mu * s[0] {
-            return [s[0], s[1], s[2]];
+    if let Some(inverse) = &block.inverse {
+        let s = velocity(inverse, b, [0.0; 3]).map(|x| -x);
+        if s[0] >= 0.0 && (s[1] * s[1] + s[2] * s[2]).sqrt() <= mu * s[0] {
+            return s;
         }
     }
-    let rho = weight(w);
+    let rho = block.rho;
     let scale = norm3(r0).max(rho * norm3(b));
     let (newton, converged) = local_newton(mu, rho, w, b, r0, scale);
     if converged {
@@ -180,7 +196,6 @@ fn local_newton(
     r0: [f64; 3],
     scale: f64,
 ) -> ([f64; 3], bool) {
-    let wm = Matrix3::from_row_slice(w);
     let mut r = r0;
     let (mut phi, mut g) = alart_curnier(mu, rho, r, velocity(w, r, b));
     for _ in 0..LOCAL_NEWTON {
@@ -188,9 +203,14 @@ fn local_newton(
         if size <= LOCAL_TOLERANCE * scale {
             return (r, true);
         }
-        let gm = Matrix3::from_row_slice(&g);
-        let j = Matrix3::identity() - gm + gm * wm * rho;
-        let Some(d) = j.lu().solve(&Vector3::new(-phi[0], -phi[1], -phi[2])) else {
+        // J = (I − G) + ρ G W.
+        let mut j = block3::product(&g, w).map(|x| rho * x);
+        for i in 0..3 {
+            for c in 0..3 {
+                j[3 * i + c] += f64::from(i == c) - g[3 * i + c];
+            }
+        }
+        let Some(d) = block3::solve(&j, phi.map(|x| -x)) else {
             break;
         };
         let mut step = 1.0;

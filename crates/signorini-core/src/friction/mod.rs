@@ -39,6 +39,7 @@
 //! ([`solve_friction_lemke`]) and the nonsmooth Gauss–Seidel over contacts
 //! ([`solve_friction_nsgs`]); [`solve_friction`] dispatches on [`LcpOptions::kind`].
 
+mod block3;
 pub mod block_csr;
 pub mod fc3d;
 mod fc3d_anderson;
