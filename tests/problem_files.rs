@@ -360,3 +360,36 @@ fn solve_command_starts_from_the_file_next_to_the_problem() {
     assert!(stderr.contains("alone.dat.start"), "{stderr}");
     assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 1);
 }
+
+/// `--repeat N` solves N times and reports the fastest time next to the first; the answer is
+/// the single solve's (the solvers are deterministic). `--repeat 0` is refused by name.
+#[test]
+fn solve_command_repeats_a_solve_and_reports_the_fastest() {
+    let solve = |repeat: &str| {
+        Command::new(env!("CARGO_BIN_EXE_signorini"))
+            .arg("solve")
+            .arg(fixtures().join("Rover1039.dat"))
+            .args(["--json", "--solver", "prox", "--repeat", repeat])
+            .output()
+            .unwrap()
+    };
+    let line = |out: &std::process::Output| -> Value {
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_str(String::from_utf8_lossy(&out.stdout).trim()).unwrap()
+    };
+    let once = line(&solve("1"));
+    let five = line(&solve("5"));
+    assert_eq!(five["repeat"], 5);
+    assert!(f(&five["seconds"]) <= f(&five["seconds_first"]), "{five}");
+    assert_eq!(once["seconds"], once["seconds_first"], "{once}");
+    for key in ["solver", "iterations", "error"] {
+        assert_eq!(once[key], five[key], "{key}");
+    }
+    let refused = solve("0");
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("--repeat"));
+}
