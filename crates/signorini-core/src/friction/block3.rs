@@ -85,10 +85,12 @@ pub(crate) fn solve(a: &Block, b: [f64; 3]) -> Option<[f64; 3]> {
         if m[k][k] == 0.0 {
             return None;
         }
-        for i in k + 1..3 {
-            let f = m[i][k] / m[k][k];
-            for c in k..4 {
-                m[i][c] -= f * m[k][c];
+        let (upper, lower) = m.split_at_mut(k + 1);
+        let pivot_row = &upper[k];
+        for row in lower {
+            let f = row[k] / pivot_row[k];
+            for (x, p) in row[k..].iter_mut().zip(&pivot_row[k..]) {
+                *x -= f * p;
             }
         }
     }
