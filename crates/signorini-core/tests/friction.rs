@@ -159,6 +159,116 @@ fn zero_friction_is_the_frictionless_lcp() {
     }
 }
 
+/// Four frictionless contacts on which Lemke's method on the 4m-unknown reformulation ended on
+/// a ray (found by `both_solvers_solve_random_problems`, the case it shrank to): every μ is 0,
+/// so the rows `0 ≤ −β⁺ − β⁻ ⊥ λ` only force β = 0 and cost the matrix its copositivity-plus.
+/// A frictionless contact now keeps its normal unknown alone, and Lemke solves the problem as
+/// the frictionless LCP on W_nn (an SPD matrix here) does.
+#[test]
+fn lemke_solves_frictionless_contacts_on_their_normal_lcp() {
+    let g = [
+        0.0,
+        0.17906238483479173,
+        0.0,
+        -0.7024584745235901,
+        0.0,
+        0.398513206484654,
+        0.0,
+        0.2841930825126067,
+        0.6222823750869008,
+        0.7472723050052968,
+        0.0,
+        0.46736804561088374,
+        0.0,
+        0.5915685052389497,
+        0.0,
+        0.7996236944669913,
+        0.0,
+        0.6058196580344979,
+        0.0,
+        -0.22717680900184697,
+        0.0,
+        0.58321310380903,
+        0.0,
+        -0.15128764580609694,
+        0.0,
+        0.44061179644527054,
+        -0.950530418201461,
+        0.049068659640149066,
+        0.0,
+        -0.8132177815671314,
+        0.0,
+        -0.7763694553616894,
+        0.0,
+        -0.25401127132075757,
+        0.0,
+        -0.4028630635988386,
+        0.0,
+        0.0,
+        0.0,
+        -0.5053383788644189,
+        0.0,
+        -0.02350951894525018,
+        0.0,
+        0.6103588354338468,
+        0.0,
+        -0.5154353372228079,
+        0.0,
+        0.9321162698281035,
+        -0.11826331662847459,
+        -0.154778098146176,
+        0.0,
+        0.6790140670963344,
+        0.0,
+        -0.6124527684489218,
+        0.0,
+        0.28489978566498053,
+        -0.7177138061606646,
+        -0.17544526372359748,
+        0.0,
+        -0.363044465932068,
+        0.0,
+        -0.6428800286439561,
+        0.0,
+        0.6448525896162447,
+    ];
+    let masses = [
+        1.7482691709149247,
+        0.5469465442538046,
+        1.3545952829220396,
+        3.5711459769111484,
+        1.1386523877531636,
+        0.5302871882998041,
+        4.91555562054409,
+        0.20249693255807902,
+    ];
+    let q = [
+        -0.9308737315552157,
+        1.803729317969632,
+        0.0,
+        1.713343269985822,
+        0.0,
+        1.861786985456195,
+        1.1325182065365622,
+        1.930187339728494,
+    ];
+    let w = delassus(4, &g, &masses);
+    let problem = FrictionProblem {
+        w: &w,
+        q: &q,
+        mu: &[0.0; 4],
+    };
+    let s = solve_friction_lemke(problem, &options(LcpSolverKind::Lemke)).unwrap();
+    let wnn: Vec<f64> = (0..16).map(|k| w[16 * (k / 4) + 2 * (k % 4)]).collect();
+    let qn: Vec<f64> = (0..4).map(|c| q[2 * c]).collect();
+    let lcp = solve(Lcp { m: &wnn, q: &qn }, &options(LcpSolverKind::Lemke)).unwrap();
+    for c in 0..4 {
+        assert_eq!(s.p[2 * c + 1], 0.0);
+        assert!(close(s.p[2 * c], lcp.z[c]), "{:?} vs {:?}", s.p, lcp.z);
+    }
+    assert!(s.error <= 1e-12, "{}", s.error);
+}
+
 /// A block of mass m at rest on a plane inclined by α, one step h with gravity, e = 0. Local
 /// frame: n the outward normal, t down the slope; W = diag(1/m, 1/m) and the free velocity
 /// q = h g (−cos α, sin α). Sticking (tan α ≤ μ): P = m h g (cos α, −sin α) and U = 0.
