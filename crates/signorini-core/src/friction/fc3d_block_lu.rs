@@ -35,6 +35,7 @@
 
 use super::block_csr::BlockCsr;
 use super::block3::{Block, inverse, product, subtract_apply, subtract_product};
+use super::fc3d_newton::newton_product;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::SymbolicSparseColMatRef;
 use faer::sparse::linalg::amd;
@@ -317,19 +318,14 @@ impl BlockLu {
 /// `‖J d − rhs‖ / ‖rhs‖` for `J = (I − G) + ρ G W` (0 when rhs = 0 and J d = 0; infinite when d
 /// has an entry that is not a number).
 fn relative_residual(w: &BlockCsr, gs: &[[f64; 9]], rho: &[f64], d: &[f64], rhs: &[f64]) -> f64 {
-    let wd = w.affine(d, &vec![0.0; d.len()]);
-    let mut residual = 0.0;
-    for (a, g) in gs.iter().enumerate() {
-        let k = 3 * a;
-        for r in 0..3 {
-            let gd: f64 = (0..3).map(|c| g[3 * r + c] * d[k + c]).sum();
-            let gwd: f64 = (0..3).map(|c| g[3 * r + c] * wd[k + c]).sum();
-            let e = d[k + r] - gd + rho[a] * gwd - rhs[k + r];
-            residual += e * e;
-        }
-    }
+    let jd = newton_product(w, gs, rho, d);
+    let residual = jd
+        .iter()
+        .zip(rhs)
+        .map(|(x, b)| (x - b) * (x - b))
+        .sum::<f64>()
+        .sqrt();
     let scale = rhs.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let residual = residual.sqrt();
     if !residual.is_finite() {
         f64::INFINITY
     } else if scale > 0.0 {
@@ -344,29 +340,22 @@ fn relative_residual(w: &BlockCsr, gs: &[[f64; 9]], rho: &[f64], d: &[f64], rhs:
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::friction::fc3d_sparse_lu::tests::{MixedNewtonSystem, mixed_newton_system};
+    use crate::friction::fc3d_sparse_lu::tests::mixed_newton_system;
 
     /// The block LU's direction is the dense LU's (partial pivoting) on a system mixing
     /// take-off, stick and slide, with a contact whose own block W lacks; its residual is at
     /// round-off; the pattern takes W + α I (which has that block).
     #[test]
     fn block_lu_solves_the_newton_system_as_the_dense_lu_does() {
-        let MixedNewtonSystem {
-            w,
-            gs,
-            rho,
-            rhs,
-            expected,
-        } = mixed_newton_system();
-        let lu = BlockLu::new(&w).unwrap();
-        assert!(lu.fits(&w));
-        assert!(lu.fits(&w.with_diagonal_shift(0.5).unwrap()));
-        let (d, residual) = lu.solve(&w, &gs, &rho, &rhs).unwrap();
+        let system = mixed_newton_system();
+        let lu = BlockLu::new(&system.w).unwrap();
+        assert!(lu.fits(&system.w));
+        assert!(lu.fits(&system.w.with_diagonal_shift(0.5).unwrap()));
+        let (d, residual) = lu
+            .solve(&system.w, &system.gs, &system.rho, &system.rhs)
+            .unwrap();
         assert!(residual <= 1e-14, "{residual}");
-        let scale = expected.amax();
-        for (x, y) in d.iter().zip(expected.iter()) {
-            assert!((x - y).abs() <= 1e-12 * scale, "{x} against {y}");
-        }
+        system.assert_dense_direction(&d);
     }
 
     /// A chain (each contact coupled to its neighbours) has no fill: the factors keep W's

@@ -62,6 +62,7 @@
 //! took 1.7–22× more iterations with η_max = 0.9 or 0.1 than with GMRES solved to 10⁻¹⁰, while
 //! 10⁻³ keeps those iteration counts (±4) and needs 1.06–4.4× fewer products by W's blocks.
 
+use super::block_csr::BlockCsr;
 use super::fc3d::contact_natural_map;
 use super::fc3d::{
     Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dProblem, Fc3dSolution, natural_map_error,
@@ -370,6 +371,22 @@ fn block_times(g: &[f64; 9], x: &[f64]) -> [f64; 3] {
     ]
 }
 
+/// `J v = v − G v + ρ G (W v)`, blockwise, for `J = (I − G) + ρ G W` (module documentation):
+/// GMRES's product, and the block LU's residual check.
+pub(crate) fn newton_product(w: &BlockCsr, gs: &[[f64; 9]], rho: &[f64], v: &[f64]) -> Vec<f64> {
+    let wv = w.affine(v, &vec![0.0; v.len()]);
+    let mut out = vec![0.0; v.len()];
+    for (a, (g, rho)) in gs.iter().zip(rho).enumerate() {
+        let k = 3 * a;
+        let gv = block_times(g, &v[k..k + 3]);
+        let gwv = block_times(g, &wv[k..k + 3]);
+        for i in 0..3 {
+            out[k + i] = v[k + i] - gv[i] + rho * gwv[i];
+        }
+    }
+    out
+}
+
 /// What J is made of at r_k: the weights ρ per contact, the blocks G of ∂Π, the diagonal blocks
 /// of W.
 struct Linearisation<'a> {
@@ -458,20 +475,7 @@ fn newton_direction(
             .all(|x| x.is_finite())
             .then(|| (d.as_slice().to_vec(), 0.0));
     }
-    // J v = v − G v + ρ G (W v), blockwise.
-    let apply = |v: &[f64]| {
-        let wv = problem.w.affine(v, &vec![0.0; n]);
-        let mut out = vec![0.0; n];
-        for a in 0..m {
-            let k = 3 * a;
-            let gv = block_times(&gs[a], &v[k..k + 3]);
-            let gwv = block_times(&gs[a], &wv[k..k + 3]);
-            for i in 0..3 {
-                out[k + i] = v[k + i] - gv[i] + rho[a] * gwv[i];
-            }
-        }
-        out
-    };
+    let apply = |v: &[f64]| newton_product(&problem.w, gs, rho, v);
     // Block-Jacobi preconditioner: the inverse of J's diagonal blocks (identity where singular).
     let inverses: Vec<Matrix3<f64>> = (0..m)
         .map(|a| {

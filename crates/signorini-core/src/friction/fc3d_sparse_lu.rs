@@ -258,6 +258,17 @@ pub(crate) mod tests {
         pub(crate) expected: DVector<f64>,
     }
 
+    impl MixedNewtonSystem {
+        /// Asserts that `d` is the dense LU's direction, entry by entry, to 1e-12 of its
+        /// largest entry.
+        pub(crate) fn assert_dense_direction(&self, d: &[f64]) {
+            let scale = self.expected.amax();
+            for (x, y) in d.iter().zip(self.expected.iter()) {
+                assert!((x - y).abs() <= 1e-12 * scale, "{x} against {y}");
+            }
+        }
+    }
+
     pub(crate) fn mixed_newton_system() -> MixedNewtonSystem {
         let m = 40;
         let n = 3 * m;
@@ -340,22 +351,16 @@ pub(crate) mod tests {
     /// more than the assembly alone.
     #[test]
     fn sparse_lu_solves_the_newton_system_as_the_dense_lu_does() {
+        let system = mixed_newton_system();
         let MixedNewtonSystem {
-            w,
-            gs,
-            rho,
-            rhs,
-            expected,
-        } = mixed_newton_system();
-        let factors = SparseNewton::new(&w).unwrap();
-        assert!(factors.fits(&w));
+            w, gs, rho, rhs, ..
+        } = &system;
+        let factors = SparseNewton::new(w).unwrap();
+        assert!(factors.fits(w));
         let mut work = 0;
-        let (d, factorisation) = factors.solve(&w, &gs, &rho, &rhs, &mut work).unwrap();
+        let (d, factorisation) = factors.solve(w, gs, rho, rhs, &mut work).unwrap();
         assert_eq!(work, 3 * w.stored_blocks() + factorisation);
-        let scale = expected.amax();
-        for (x, y) in d.iter().zip(expected.iter()) {
-            assert!((x - y).abs() <= 1e-12 * scale, "{x} against {y}");
-        }
+        system.assert_dense_direction(&d);
         assert!(factorisation > 0);
         // W + α I has the diagonal block of contact 7 that W lacks: the pattern has it.
         assert!(factors.fits(&w.with_diagonal_shift(0.5).unwrap()));
