@@ -30,6 +30,15 @@ pub(crate) fn subtract_product(c: &mut Block, a: &Block, b: &Block) {
     }
 }
 
+/// `a · x` for a 3×3 block and a 3-vector.
+pub(crate) fn apply(a: &Block, x: &[f64]) -> [f64; 3] {
+    [
+        a[0] * x[0] + a[1] * x[1] + a[2] * x[2],
+        a[3] * x[0] + a[4] * x[1] + a[5] * x[2],
+        a[6] * x[0] + a[7] * x[1] + a[8] * x[2],
+    ]
+}
+
 /// `y ← y − a · x` for a 3×3 block and 3-vectors.
 pub(crate) fn subtract_apply(y: &mut [f64], a: &Block, x: &[f64]) {
     for i in 0..3 {

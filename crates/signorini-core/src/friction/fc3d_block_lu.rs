@@ -34,8 +34,7 @@
 //! residual check, one pass over W.
 
 use super::block_csr::BlockCsr;
-use super::block3::{Block, inverse, product, subtract_apply, subtract_product};
-use super::fc3d_newton::newton_product;
+use super::block3::{self, Block, inverse, product, subtract_apply, subtract_product};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::SymbolicSparseColMatRef;
 use faer::sparse::linalg::amd;
@@ -313,6 +312,22 @@ impl BlockLu {
         let residual = relative_residual(w, gs, rho, &d, rhs);
         Ok((d, residual))
     }
+}
+
+/// `J v = v − G v + ρ G (W v)`, blockwise, for `J = (I − G) + ρ G W` (module documentation):
+/// GMRES's product, and the block LU's residual check.
+pub(crate) fn newton_product(w: &BlockCsr, gs: &[[f64; 9]], rho: &[f64], v: &[f64]) -> Vec<f64> {
+    let wv = w.affine(v, &vec![0.0; v.len()]);
+    let mut out = vec![0.0; v.len()];
+    for (a, (g, rho)) in gs.iter().zip(rho).enumerate() {
+        let k = 3 * a;
+        let gv = block3::apply(g, &v[k..k + 3]);
+        let gwv = block3::apply(g, &wv[k..k + 3]);
+        for i in 0..3 {
+            out[k + i] = v[k + i] - gv[i] + rho * gwv[i];
+        }
+    }
+    out
 }
 
 /// `‖J d − rhs‖ / ‖rhs‖` for `J = (I − G) + ρ G W` (0 when rhs = 0 and J d = 0; infinite when d

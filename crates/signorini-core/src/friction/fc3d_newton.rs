@@ -62,12 +62,11 @@
 //! took 1.7–22× more iterations with η_max = 0.9 or 0.1 than with GMRES solved to 10⁻¹⁰, while
 //! 10⁻³ keeps those iteration counts (±4) and needs 1.06–4.4× fewer products by W's blocks.
 
-use super::block_csr::BlockCsr;
 use super::fc3d::contact_natural_map;
 use super::fc3d::{
     Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dProblem, Fc3dSolution, natural_map_error,
 };
-use super::fc3d_block_lu::BlockLu;
+use super::fc3d_block_lu::{BlockLu, newton_product};
 use super::fc3d_sparse_lu::SparseNewton;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
@@ -362,31 +361,6 @@ fn projection_step(problem: &Fc3dProblem, rho: &[f64], r: &mut [f64], u: &mut Ve
     *u = problem.local_velocity(r);
 }
 
-/// `G_a · x_a` for a 3-vector block.
-fn block_times(g: &[f64; 9], x: &[f64]) -> [f64; 3] {
-    [
-        g[0] * x[0] + g[1] * x[1] + g[2] * x[2],
-        g[3] * x[0] + g[4] * x[1] + g[5] * x[2],
-        g[6] * x[0] + g[7] * x[1] + g[8] * x[2],
-    ]
-}
-
-/// `J v = v − G v + ρ G (W v)`, blockwise, for `J = (I − G) + ρ G W` (module documentation):
-/// GMRES's product, and the block LU's residual check.
-pub(crate) fn newton_product(w: &BlockCsr, gs: &[[f64; 9]], rho: &[f64], v: &[f64]) -> Vec<f64> {
-    let wv = w.affine(v, &vec![0.0; v.len()]);
-    let mut out = vec![0.0; v.len()];
-    for (a, (g, rho)) in gs.iter().zip(rho).enumerate() {
-        let k = 3 * a;
-        let gv = block_times(g, &v[k..k + 3]);
-        let gwv = block_times(g, &wv[k..k + 3]);
-        for i in 0..3 {
-            out[k + i] = v[k + i] - gv[i] + rho * gwv[i];
-        }
-    }
-    out
-}
-
 /// What J is made of at r_k: the weights ρ per contact, the blocks G of ∂Π, the diagonal blocks
 /// of W.
 struct Linearisation<'a> {
@@ -625,10 +599,10 @@ mod tests {
     #[test]
     fn gmres_solves_a_nonsymmetric_system() {
         let a = [4.0, 1.0, 0.0, -1.0, 3.0, 2.0, 0.5, 0.0, 5.0];
-        let apply = |v: &[f64]| block_times(&a, v).to_vec();
+        let apply = |v: &[f64]| crate::friction::block3::apply(&a, v).to_vec();
         let (x, achieved, _) = gmres(apply, |v: &[f64]| v.to_vec(), &[1.0, 2.0, 3.0], 1e-10);
         assert!(achieved <= 1e-10, "{achieved}");
-        let back = block_times(&a, &x);
+        let back = crate::friction::block3::apply(&a, &x);
         for (b, e) in back.iter().zip([1.0, 2.0, 3.0]) {
             assert!((b - e).abs() <= 1e-9, "{back:?}");
         }
