@@ -78,35 +78,65 @@ pub(crate) fn inverse(p: &Block) -> Option<Block> {
     ])
 }
 
-/// Solves `a x = b` by Gaussian elimination with partial pivoting; None when a pivot is 0 or
-/// the answer is not a number (as nalgebra's LU, which this replaces on the local solves).
+/// Solves `a x = b` by the adjugate (Cramer's rule: `x = adj(a) b / det a`, the cofactors
+/// shared with [`inverse`]'s), branch-free; None when the determinant is 0 or the answer is not
+/// a number. The local Newton solves of the Gauss–Seidel sweeps call it once per iteration,
+/// where the elimination with partial pivoting it replaces cost a third of a sweep on small
+/// problems (docs/friction_benchmark.md, Round 16).
+#[inline]
 pub(crate) fn solve(a: &Block, b: [f64; 3]) -> Option<[f64; 3]> {
-    let mut m = [
-        [a[0], a[1], a[2], b[0]],
-        [a[3], a[4], a[5], b[1]],
-        [a[6], a[7], a[8], b[2]],
+    let c00 = a[4] * a[8] - a[5] * a[7];
+    let c01 = a[5] * a[6] - a[3] * a[8];
+    let c02 = a[3] * a[7] - a[4] * a[6];
+    let det = a[0] * c00 + a[1] * c01 + a[2] * c02;
+    if det == 0.0 {
+        return None;
+    }
+    let d = 1.0 / det;
+    let x = [
+        (c00 * b[0] + (a[2] * a[7] - a[1] * a[8]) * b[1] + (a[1] * a[5] - a[2] * a[4]) * b[2]) * d,
+        (c01 * b[0] + (a[0] * a[8] - a[2] * a[6]) * b[1] + (a[2] * a[3] - a[0] * a[5]) * b[2]) * d,
+        (c02 * b[0] + (a[1] * a[6] - a[0] * a[7]) * b[1] + (a[0] * a[4] - a[1] * a[3]) * b[2]) * d,
     ];
-    for k in 0..3 {
-        let pivot = (k..3)
-            .max_by(|&i, &j| m[i][k].abs().total_cmp(&m[j][k].abs()))
-            .unwrap_or(k);
-        m.swap(k, pivot);
-        if m[k][k] == 0.0 {
-            return None;
-        }
-        let (upper, lower) = m.split_at_mut(k + 1);
-        let pivot_row = &upper[k];
-        for row in lower {
-            let f = row[k] / pivot_row[k];
-            for (x, p) in row[k..].iter_mut().zip(&pivot_row[k..]) {
-                *x -= f * p;
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix3, Vector3};
+
+    /// The adjugate solve agrees with nalgebra's LU with partial pivoting to round-off, on
+    /// blocks of a Newton matrix's kinds: with a zero leading entry (elimination without
+    /// pivoting would divide by it), unsymmetric, badly scaled; and refuses a singular one.
+    #[test]
+    fn the_adjugate_solve_agrees_with_a_pivoting_lu() {
+        let blocks: [Block; 4] = [
+            [0.0, 2.0, 1.0, 1.0, 0.5, -3.0, 4.0, 1.0, 0.0],
+            [1.0, 0.0, 0.0, 0.3, 2.5, -0.7, 0.1, 0.9, 1.8],
+            [1e-3, 2e-3, 0.0, -4.0, 1e3, 2.0, 0.5, -0.25, 7.0],
+            [3.0, 1.0, -1.0, 1.0, 4.0, 2.0, -2.0, 0.5, 5.0],
+        ];
+        let b = [1.0, -2.0, 0.5];
+        for a in &blocks {
+            let x = solve(a, b).unwrap();
+            let expected = Matrix3::from_row_slice(a)
+                .lu()
+                .solve(&Vector3::from_row_slice(&b))
+                .unwrap();
+            let size = expected.amax();
+            for i in 0..3 {
+                assert!((x[i] - expected[i]).abs() <= 1e-13 * size, "{a:?}: {x:?}");
+            }
+            let ax = apply(a, &x);
+            for i in 0..3 {
+                assert!((ax[i] - b[i]).abs() <= 1e-12, "{a:?}: residual {ax:?}");
             }
         }
+        assert_eq!(
+            solve(&[1.0, 2.0, 3.0, 2.0, 4.0, 6.0, 0.0, 1.0, 1.0], b),
+            None
+        );
+        assert_eq!(solve(&[0.0; 9], b), None);
     }
-    let mut x = [0.0; 3];
-    for k in (0..3).rev() {
-        let s: f64 = (k + 1..3).map(|c| m[k][c] * x[c]).sum();
-        x[k] = (m[k][3] - s) / m[k][k];
-    }
-    x.iter().all(|v| v.is_finite()).then_some(x)
 }
