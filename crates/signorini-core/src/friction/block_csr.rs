@@ -174,13 +174,10 @@ impl BlockCsr {
             .map(move |k| (self.column[k], &self.values[k * d2..(k + 1) * d2]))
     }
 
-    /// The diagonal block of contact `a` (row-major; zeros when it is not stored).
-    pub fn diagonal_block(&self, a: usize) -> Vec<f64> {
+    /// The stored diagonal block of contact `a` (row-major), if it is stored.
+    pub fn stored_diagonal_block(&self, a: usize) -> Option<&[f64]> {
         let d2 = self.dim * self.dim;
-        match self.diagonal[a] {
-            Some(k) => self.values[k * d2..(k + 1) * d2].to_vec(),
-            None => vec![0.0; d2],
-        }
+        self.diagonal[a].map(|k| &self.values[k * d2..(k + 1) * d2])
     }
 
     /// Every stored entry `(row, column, value)`, block row by block row.
@@ -268,8 +265,8 @@ mod tests {
         )
         .unwrap();
         assert_eq!(w.stored_blocks(), 3);
-        assert_eq!(w.diagonal_block(0)[0], 2.5);
-        assert_eq!(w.diagonal_block(1)[4], 3.0);
+        assert_eq!(w.stored_diagonal_block(0).unwrap()[0], 2.5);
+        assert_eq!(w.stored_diagonal_block(1).unwrap()[4], 3.0);
         let y = w.affine(&[1.0, 0.0, 0.0, 0.0, 2.0, 0.0], &[0.0; 6]);
         assert_eq!(y, vec![2.5, 0.0, -2.0, 0.0, 6.0, 0.0]);
         let mut back: Vec<_> = w.entries().filter(|e| e.2 != 0.0).collect();

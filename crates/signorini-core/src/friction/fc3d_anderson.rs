@@ -49,7 +49,7 @@
 //! Deterministic; `iterations` counts sweeps, accelerated and plain.
 
 use super::fc3d::{Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, natural_map_error};
-use super::fc3d_nsgs::{diagonal_blocks, sweep};
+use super::fc3d_nsgs::{diagonal_blocks, local_tolerance, sweep};
 use nalgebra::{DMatrix, DVector};
 use std::collections::VecDeque;
 
@@ -85,18 +85,27 @@ pub fn solve_fc3d_nsgs_anderson(
     let mut r = start.to_vec();
     let mut best = (f64::INFINITY, r.clone());
     let mut last: Option<(Vec<f64>, Vec<f64>)> = None;
-    let mut history: VecDeque<(Vec<f64>, Vec<f64>)> = VecDeque::with_capacity(DEPTH);
+    let mut history = History::default();
     let mut stalled = 0;
     // Restarts in a row without progress, and the smallest error at the last restart.
     let mut fruitless = 0;
     let mut best_at_restart = f64::INFINITY;
     let mut accelerated = true;
+    let mut last_error = f64::INFINITY;
     for iteration in 1..=options.max_iterations {
         let mut g = r.clone();
         let omega = if accelerated { 1.0 } else { options.relaxation };
-        sweep(problem, &diagonal, omega, &mut g);
+        // The accelerated sweeps solve their local problems tightly: Anderson's combination
+        // needs the same map g from one sweep to the next.
+        let local = if accelerated {
+            local_tolerance(0.0)
+        } else {
+            local_tolerance(last_error)
+        };
+        sweep(problem, &diagonal, omega, local, &mut g);
         let u = problem.local_velocity(&g);
         let error = natural_map_error(&problem.mu, &problem.q, &g, &u);
+        last_error = error;
         if error <= options.tolerance {
             return Ok(Fc3dSolution {
                 r: g,
@@ -139,12 +148,9 @@ pub fn solve_fc3d_nsgs_anderson(
         }
         let f: Vec<f64> = g.iter().zip(&r).map(|(g, r)| g - r).collect();
         if let Some((f_last, g_last)) = last.take() {
-            if history.len() == DEPTH {
-                history.pop_front();
-            }
-            history.push_back((difference(&f, &f_last), difference(&g, &g_last)));
+            history.push(difference(&f, &f_last), difference(&g, &g_last));
         }
-        r = extrapolate(&history, &f, &g);
+        r = history.extrapolate(&f, &g);
         last = Some((f, g));
     }
     Err(Fc3dError::NotConverged {
@@ -160,31 +166,102 @@ fn difference(a: &[f64], b: &[f64]) -> Vec<f64> {
     a.iter().zip(b).map(|(a, b)| a - b).collect()
 }
 
-/// `g − ΔG γ` with `γ = argmin ‖f − ΔF γ‖₂` (module documentation), γ from the normal equations
-/// `ΔFᵀΔF γ = ΔFᵀ f` (d × d) by the singular value decomposition, singular values below
-/// [`GRAM_CUT`] of the largest dropped; `g` itself without history or when that solve fails.
-fn extrapolate(history: &VecDeque<(Vec<f64>, Vec<f64>)>, f: &[f64], g: &[f64]) -> Vec<f64> {
-    if history.is_empty() {
-        return g.to_vec();
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// The last d differences `(Δf, Δg)` (oldest first) and the Gram matrix `ΔFᵀΔF` of the Δf,
+/// kept up to date as they come and go: a new difference costs d dot products, not d².
+#[derive(Default)]
+struct History {
+    differences: VecDeque<(Vec<f64>, Vec<f64>)>,
+    /// `gram[i][j] = Δf_i · Δf_j` for the stored differences.
+    gram: VecDeque<VecDeque<f64>>,
+}
+
+impl History {
+    fn clear(&mut self) {
+        self.differences.clear();
+        self.gram.clear();
     }
-    let d = history.len();
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-    let gram = DMatrix::from_fn(d, d, |i, j| dot(&history[i].0, &history[j].0));
-    let rhs = DVector::from_fn(d, |i, _| dot(&history[i].0, f));
-    let svd = gram.svd(true, true);
-    let cut = GRAM_CUT * svd.singular_values.max();
-    let Ok(gamma) = svd.solve(&rhs, cut) else {
-        return g.to_vec();
-    };
-    let mut next = g.to_vec();
-    for (j, (_, dg)) in history.iter().enumerate() {
-        for (x, d) in next.iter_mut().zip(dg) {
-            *x -= gamma[j] * d;
+
+    /// Appends a difference, dropping the oldest beyond [`DEPTH`].
+    fn push(&mut self, df: Vec<f64>, dg: Vec<f64>) {
+        if self.differences.len() == DEPTH {
+            self.differences.pop_front();
+            self.gram.pop_front();
+            for row in &mut self.gram {
+                row.pop_front();
+            }
+        }
+        let column: Vec<f64> = self.differences.iter().map(|(f, _)| dot(f, &df)).collect();
+        for (row, &x) in self.gram.iter_mut().zip(&column) {
+            row.push_back(x);
+        }
+        let mut row: VecDeque<f64> = column.into();
+        row.push_back(dot(&df, &df));
+        self.gram.push_back(row);
+        self.differences.push_back((df, dg));
+    }
+
+    /// `g − ΔG γ` with `γ = argmin ‖f − ΔF γ‖₂` (module documentation), γ from the normal
+    /// equations `ΔFᵀΔF γ = ΔFᵀ f` (d × d) by the singular value decomposition, singular values
+    /// below [`GRAM_CUT`] of the largest dropped; `g` itself without history or when that solve
+    /// fails.
+    fn extrapolate(&self, f: &[f64], g: &[f64]) -> Vec<f64> {
+        let history = &self.differences;
+        if history.is_empty() {
+            return g.to_vec();
+        }
+        let d = history.len();
+        let gram = DMatrix::from_fn(d, d, |i, j| self.gram[i][j]);
+        let rhs = DVector::from_fn(d, |i, _| dot(&history[i].0, f));
+        let svd = gram.svd(true, true);
+        let cut = GRAM_CUT * svd.singular_values.max();
+        let Ok(gamma) = svd.solve(&rhs, cut) else {
+            return g.to_vec();
+        };
+        let mut next = g.to_vec();
+        for (j, (_, dg)) in history.iter().enumerate() {
+            for (x, d) in next.iter_mut().zip(dg) {
+                *x -= gamma[j] * d;
+            }
+        }
+        if next.iter().all(|x| x.is_finite()) {
+            next
+        } else {
+            g.to_vec()
         }
     }
-    if next.iter().all(|x| x.is_finite()) {
-        next
-    } else {
-        g.to_vec()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The Gram matrix kept up to date as differences come and go past the depth is, bit for
+    /// bit, the one computed afresh from the differences held.
+    #[test]
+    fn the_kept_gram_matrix_is_the_fresh_one() {
+        let mut history = History::default();
+        for k in 0..2 * DEPTH + 3 {
+            let df: Vec<f64> = (0..7).map(|i| ((k * 7 + i) as f64 * 0.37).sin()).collect();
+            let dg: Vec<f64> = df.iter().map(|x| 2.0 * x).collect();
+            history.push(df, dg);
+            let d = history.differences.len();
+            assert_eq!(d, (k + 1).min(DEPTH));
+            for i in 0..d {
+                for j in 0..d {
+                    let fresh = dot(&history.differences[i].0, &history.differences[j].0);
+                    assert_eq!(
+                        history.gram[i][j].to_bits(),
+                        fresh.to_bits(),
+                        "{k}: ({i}, {j})"
+                    );
+                }
+            }
+        }
+        history.clear();
+        assert!(history.differences.is_empty() && history.gram.is_empty());
     }
 }

@@ -258,7 +258,15 @@ pub(crate) fn solve_fc3d_newton_within(
 ) -> Result<Fc3dSolution, Fc3dError> {
     problem.validate()?;
     let m = problem.contacts();
-    let diagonal: Vec<Vec<f64>> = (0..m).map(|a| problem.w.diagonal_block(a)).collect();
+    let diagonal: Vec<[f64; 9]> = (0..m)
+        .map(|a| {
+            let mut block = [0.0; 9];
+            if let Some(stored) = problem.w.stored_diagonal_block(a) {
+                block.copy_from_slice(stored);
+            }
+            block
+        })
+        .collect();
     let rho: Vec<f64> = diagonal.iter().map(|b| weight(b)).collect();
     let mut r = start.to_vec();
     let pass = problem.w.stored_blocks().max(1);
@@ -366,7 +374,7 @@ fn projection_step(problem: &Fc3dProblem, rho: &[f64], r: &mut [f64], u: &mut Ve
 struct Linearisation<'a> {
     rho: &'a [f64],
     gs: &'a [[f64; 9]],
-    diagonal: &'a [Vec<f64>],
+    diagonal: &'a [[f64; 9]],
 }
 
 /// The Newton direction d of `J d = −Φ` and the relative residual `‖J d + Φ‖ / ‖Φ‖` reached (0

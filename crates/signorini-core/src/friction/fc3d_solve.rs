@@ -126,8 +126,10 @@ fn solve_auto(
     options: &Fc3dOptions,
     start: Vec<f64>,
 ) -> Result<Fc3dSolution, Fc3dError> {
+    // The start competes for the best iterate from the first failure on: a problem the first
+    // stage solves never pays for the start's error.
     let mut chain = Chain {
-        error: problem.error(&start),
+        error: f64::INFINITY,
         best: start.clone(),
         spent: 0,
         solver: "nsgs_aa",
@@ -140,9 +142,14 @@ fn solve_auto(
     if let Some(s) = chain.stage(
         "nsgs_aa",
         sweeps,
-        solve_fc3d_nsgs_anderson(problem, &short, &chain.best),
+        solve_fc3d_nsgs_anderson(problem, &short, &start),
     ) {
         return Ok(s);
+    }
+    let start_error = problem.error(&start);
+    if start_error < chain.error {
+        chain.error = start_error;
+        chain.best = start.clone();
     }
     let newton_budget = options.auto_newton_iterations.min(options.max_iterations);
     let prox = Fc3dOptions {
