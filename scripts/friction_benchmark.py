@@ -36,7 +36,7 @@ import numpy as np
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from friction_fixtures import natural_map_error, sparse  # noqa: E402
 
-OURS = ["auto", "nsgs", "nsn_ac"]
+OURS = ["auto", "nsgs", "nsgs_aa", "nsn_ac", "prox"]
 THEIRS = {
     "NSGS": "SICONOS_FRICTION_3D_NSGS",
     "NSN-AC": "SICONOS_FRICTION_3D_NSN_AC",
