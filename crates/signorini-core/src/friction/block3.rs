@@ -3,12 +3,23 @@
 //! pivoting, written out (nalgebra's general LU costs several times as much at this size, and
 //! the Gauss–Seidel sweeps solve one local problem per contact and sweep).
 
+use super::block_csr::BlockCsr;
+
 /// Smallest |det P| of a block P relative to `max |P_ij|³` for which [`inverse`] inverts it;
 /// below it the block counts as singular.
 const PIVOT_DETERMINANT: f64 = 1e-24;
 
 /// A 3×3 block, row-major.
 pub(crate) type Block = [f64; 9];
+
+/// Contact a's diagonal block of a 3×3-block W (zeros when it is not stored).
+pub(crate) fn diagonal(w: &BlockCsr, a: usize) -> Block {
+    let mut block = [0.0; 9];
+    if let Some(stored) = w.stored_diagonal_block(a) {
+        block.copy_from_slice(stored);
+    }
+    block
+}
 
 /// `a · b` for 3×3 blocks.
 pub(crate) fn product(a: &Block, b: &Block) -> Block {

@@ -49,7 +49,7 @@
 //! Deterministic; `iterations` counts sweeps, accelerated and plain.
 
 use super::fc3d::{Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, natural_map_error};
-use super::fc3d_nsgs::{diagonal_blocks, local_tolerance, sweep};
+use super::fc3d_nsgs::{LOCAL_TOLERANCE, diagonal_blocks, local_tolerance, sweep};
 use nalgebra::{DMatrix, DVector};
 use std::collections::VecDeque;
 
@@ -98,7 +98,7 @@ pub fn solve_fc3d_nsgs_anderson(
         // The accelerated sweeps solve their local problems tightly: Anderson's combination
         // needs the same map g from one sweep to the next.
         let local = if accelerated {
-            local_tolerance(0.0)
+            LOCAL_TOLERANCE
         } else {
             local_tolerance(last_error)
         };

@@ -259,13 +259,7 @@ pub(crate) fn solve_fc3d_newton_within(
     problem.validate()?;
     let m = problem.contacts();
     let diagonal: Vec<[f64; 9]> = (0..m)
-        .map(|a| {
-            let mut block = [0.0; 9];
-            if let Some(stored) = problem.w.stored_diagonal_block(a) {
-                block.copy_from_slice(stored);
-            }
-            block
-        })
+        .map(|a| super::block3::diagonal(&problem.w, a))
         .collect();
     let rho: Vec<f64> = diagonal.iter().map(|b| weight(b)).collect();
     let mut r = start.to_vec();

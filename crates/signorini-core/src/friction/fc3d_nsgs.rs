@@ -52,7 +52,7 @@ const LOCAL_PROJECTION: usize = 200;
 /// Relative size of the local Alart–Curnier residual at which the local Newton stops, at its
 /// tightest: the local solves of a sweep stop at [`local_tolerance`] of the last sweep's global
 /// error, which reaches this bound as the sweeps converge.
-const LOCAL_TOLERANCE: f64 = 1e-14;
+pub(crate) const LOCAL_TOLERANCE: f64 = 1e-14;
 /// The loosest local tolerance, for the first sweep (no global error known yet).
 const LOCAL_TOLERANCE_FIRST: f64 = 1e-6;
 /// The local tolerance as a fraction of the last sweep's global error.
@@ -128,10 +128,7 @@ pub(crate) struct LocalBlock {
 pub(crate) fn diagonal_blocks(problem: &Fc3dProblem) -> Vec<LocalBlock> {
     (0..problem.contacts())
         .map(|a| {
-            let w = match problem.w.stored_diagonal_block(a) {
-                Some(b) => [b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8]],
-                None => [0.0; 9],
-            };
+            let w = block3::diagonal(&problem.w, a);
             LocalBlock {
                 inverse: OnceCell::new(),
                 rho: weight(&w),
