@@ -7,7 +7,8 @@
 use proptest::prelude::*;
 use signorini_core::friction::{
     BlockCsr, Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind,
-    FrictionProblem, solve_fc3d, solve_fc3d_from, solve_friction,
+    FrictionProblem, solve_fc3d, solve_fc3d_from, solve_fc3d_newton, solve_fc3d_nsgs,
+    solve_fc3d_nsgs_anderson, solve_fc3d_prox, solve_friction,
 };
 use signorini_core::lcp::{LcpOptions, LcpSolverKind};
 
@@ -491,6 +492,34 @@ fn a_start_of_the_wrong_length_or_not_a_number_is_refused() {
         solve_fc3d_from(&problem, &options, &[0.0, f64::NAN, 0.0]),
         Err(Fc3dError::NotFiniteStart { index: 1, .. })
     ));
+    // Each solver's own entry checks its inputs as `solve_fc3d_from` does (a short start used
+    // to index past its end in Gauss–Seidel's sweep).
+    type Solver = fn(&Fc3dProblem, &Fc3dOptions, &[f64]) -> Result<Fc3dSolution, Fc3dError>;
+    let solvers: [Solver; 4] = [
+        solve_fc3d_nsgs,
+        solve_fc3d_nsgs_anderson,
+        solve_fc3d_newton,
+        solve_fc3d_prox,
+    ];
+    for solve in solvers {
+        assert!(matches!(
+            solve(&problem, &options, &[0.0; 2]),
+            Err(Fc3dError::StartLength {
+                expected: 3,
+                got: 2
+            })
+        ));
+        let nan_tolerance = Fc3dOptions {
+            tolerance: f64::NAN,
+            ..options
+        };
+        assert!(matches!(
+            solve(&problem, &nan_tolerance, &[0.0; 3]),
+            Err(Fc3dError::InvalidTolerance { .. })
+        ));
+        let s = solve(&problem, &options, &[0.0; 3]).unwrap();
+        assert!(s.error <= options.tolerance && close(s.r[0], 1.0), "{s:?}");
+    }
     // A start on the solution (r_n = 1: W r + q = 0, inside the cone) is kept to the last bit.
     let s = solve_fc3d_from(&problem, &options, &[1.0, 0.0, 0.0]).unwrap();
     assert_eq!(s.r, vec![1.0, 0.0, 0.0]);

@@ -48,7 +48,7 @@
 //! stall on a problem they solved in 328 sweeps at ω = 1.
 //! Deterministic; `iterations` counts sweeps, accelerated and plain.
 
-use super::fc3d::{Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, natural_map_error};
+use super::fc3d::{ErrorMeter, Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, check_solve};
 use super::fc3d_nsgs::{LOCAL_TOLERANCE, diagonal_blocks, local_tolerance, sweep};
 use nalgebra::{DMatrix, DVector};
 use std::collections::VecDeque;
@@ -79,11 +79,21 @@ pub fn solve_fc3d_nsgs_anderson(
     options: &Fc3dOptions,
     start: &[f64],
 ) -> Result<Fc3dSolution, Fc3dError> {
-    problem.validate()?;
-    options.check_relaxation()?;
+    check_solve(problem, options, start)?;
+    nsgs_anderson(problem, options, start)
+}
+
+/// [`solve_fc3d_nsgs_anderson`] on checked inputs ([`check_solve`]).
+pub(crate) fn nsgs_anderson(
+    problem: &Fc3dProblem,
+    options: &Fc3dOptions,
+    start: &[f64],
+) -> Result<Fc3dSolution, Fc3dError> {
     let diagonal = diagonal_blocks(problem);
+    let mut meter = ErrorMeter::new(problem);
     let mut r = start.to_vec();
-    let mut best = (f64::INFINITY, r.clone());
+    // The sweep output of smallest error (none yet: the start, of infinite error).
+    let mut best = (f64::INFINITY, None::<Vec<f64>>);
     let mut last: Option<(Vec<f64>, Vec<f64>)> = None;
     let mut history = History::default();
     let mut stalled = 0;
@@ -103,13 +113,12 @@ pub fn solve_fc3d_nsgs_anderson(
             local_tolerance(last_error)
         };
         sweep(problem, &diagonal, omega, local, &mut g);
-        let u = problem.local_velocity(&g);
-        let error = natural_map_error(&problem.mu, &problem.q, &g, &u);
+        let error = meter.error(&g);
         last_error = error;
         if error <= options.tolerance {
             return Ok(Fc3dSolution {
                 r: g,
-                u,
+                u: meter.into_velocity(),
                 iterations: iteration,
                 error,
                 solver: "nsgs_aa",
@@ -119,7 +128,7 @@ pub fn solve_fc3d_nsgs_anderson(
             break;
         }
         if error < best.0 {
-            best = (error, g.clone());
+            best = (error, Some(g.clone()));
             stalled = 0;
         } else {
             stalled += 1;
@@ -139,10 +148,9 @@ pub fn solve_fc3d_nsgs_anderson(
             last = None;
             stalled = 0;
             accelerated = fruitless < FRUITLESS_RESTARTS;
-            r = if accelerated {
-                best.1.clone()
-            } else {
-                start.to_vec()
+            r = match (&best.1, accelerated) {
+                (Some(best), true) => best.clone(),
+                _ => start.to_vec(),
             };
             continue;
         }
@@ -158,7 +166,7 @@ pub fn solve_fc3d_nsgs_anderson(
         iterations: options.max_iterations,
         error: best.0,
         tolerance: options.tolerance,
-        best: best.1,
+        best: best.1.unwrap_or_else(|| start.to_vec()),
     })
 }
 

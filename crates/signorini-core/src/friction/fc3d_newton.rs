@@ -62,9 +62,9 @@
 //! took 1.7–22× more iterations with η_max = 0.9 or 0.1 than with GMRES solved to 10⁻¹⁰, while
 //! 10⁻³ keeps those iteration counts (±4) and needs 1.06–4.4× fewer products by W's blocks.
 
-use super::fc3d::contact_natural_map;
 use super::fc3d::{
-    Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dProblem, Fc3dSolution, natural_map_error,
+    Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dProblem, Fc3dSolution, check_solve,
+    contact_natural_map, natural_map_error,
 };
 use super::fc3d_block_lu::{BlockLu, newton_product};
 use super::fc3d_sparse_lu::SparseNewton;
@@ -193,9 +193,19 @@ pub fn solve_fc3d_newton(
     options: &Fc3dOptions,
     start: &[f64],
 ) -> Result<Fc3dSolution, Fc3dError> {
+    check_solve(problem, options, start)?;
+    newton(problem, options, start)
+}
+
+/// [`solve_fc3d_newton`] on checked inputs ([`check_solve`]).
+pub(crate) fn newton(
+    problem: &Fc3dProblem,
+    options: &Fc3dOptions,
+    start: &[f64],
+) -> Result<Fc3dSolution, Fc3dError> {
     let mut work = Work::unbounded();
     let mut linear = LinearCache::default();
-    solve_fc3d_newton_within(problem, options, start, &mut work, &mut linear, true)
+    newton_within(problem, options, start, &mut work, &mut linear, true)
 }
 
 /// Largest work of a sparse LU factorisation, in passes over W (products by its stored blocks),
@@ -248,7 +258,7 @@ impl Work {
 /// of a stall ([`STALL_ITERATIONS`]); the proximal point method's inner solves go without them
 /// (its outer iteration answers an inner solve that fails by a larger regularisation, and on
 /// Siconos' Capsules-i122 the projection steps cost it 264 Newton iterations instead of 76).
-pub(crate) fn solve_fc3d_newton_within(
+pub(crate) fn newton_within(
     problem: &Fc3dProblem,
     options: &Fc3dOptions,
     start: &[f64],
@@ -256,7 +266,6 @@ pub(crate) fn solve_fc3d_newton_within(
     cache: &mut LinearCache,
     unstall: bool,
 ) -> Result<Fc3dSolution, Fc3dError> {
-    problem.validate()?;
     let m = problem.contacts();
     let diagonal: Vec<[f64; 9]> = (0..m)
         .map(|a| super::block3::diagonal(&problem.w, a))

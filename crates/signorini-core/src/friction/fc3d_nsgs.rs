@@ -39,8 +39,8 @@
 
 use super::block3::{self, Block};
 use super::fc3d::{
-    Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, contact_natural_map, natural_map_error,
-    project_cone,
+    ErrorMeter, Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, check_solve,
+    contact_natural_map, project_cone,
 };
 use super::fc3d_newton::{alart_curnier, weight};
 use std::cell::OnceCell;
@@ -78,39 +78,49 @@ pub fn solve_fc3d_nsgs(
     options: &Fc3dOptions,
     start: &[f64],
 ) -> Result<Fc3dSolution, Fc3dError> {
-    problem.validate()?;
-    options.check_relaxation()?;
+    check_solve(problem, options, start)?;
+    nsgs(problem, options, start.to_vec())
+}
+
+/// [`solve_fc3d_nsgs`] on checked inputs ([`check_solve`]), from `r`.
+pub(crate) fn nsgs(
+    problem: &Fc3dProblem,
+    options: &Fc3dOptions,
+    mut r: Vec<f64>,
+) -> Result<Fc3dSolution, Fc3dError> {
     let diagonal = diagonal_blocks(problem);
-    let mut r = start.to_vec();
-    let mut best = (f64::INFINITY, r.clone());
+    let mut meter = ErrorMeter::new(problem);
+    // The sweep output of smallest error, copied only when a sweep fails to converge.
+    let mut best: Option<(f64, Vec<f64>)> = None;
     let mut error = f64::INFINITY;
     for sweep in 1..=options.max_iterations {
         let local = local_tolerance(error);
         self::sweep(problem, &diagonal, options.relaxation, local, &mut r);
-        let u = problem.local_velocity(&r);
-        error = natural_map_error(&problem.mu, &problem.q, &r, &u);
+        error = meter.error(&r);
         if error <= options.tolerance {
             return Ok(Fc3dSolution {
                 r,
-                u,
+                u: meter.into_velocity(),
                 iterations: sweep,
                 error,
                 solver: "nsgs",
             });
         }
-        if error < best.0 {
-            best = (error, r.clone());
-        }
         if !error.is_finite() {
             break;
         }
+        if best.as_ref().is_none_or(|(smallest, _)| error < *smallest) {
+            best = Some((error, r.clone()));
+        }
     }
+    // No sweep of finite error: the last iterate, of infinite error.
+    let (error, best) = best.unwrap_or((f64::INFINITY, r));
     Err(Fc3dError::NotConverged {
         solver: "nsgs",
         iterations: options.max_iterations,
-        error: best.0,
+        error,
         tolerance: options.tolerance,
-        best: best.1,
+        best,
     })
 }
 

@@ -18,8 +18,8 @@
 //! `α_{k+1} = 10 α_k` after an inner failure (a stronger regularisation, an easier problem, a
 //! shorter step). A fixed point `r_{k+1} = r_k` solves the original problem.
 
-use super::fc3d::{Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind};
-use super::fc3d_newton::{LinearCache, Work, solve_fc3d_newton_within};
+use super::fc3d::{Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind, check_solve};
+use super::fc3d_newton::{LinearCache, Work, newton_within};
 
 /// σ of the weight `α = σ e^ν` (Siconos' default).
 const SIGMA: f64 = 5.0;
@@ -40,18 +40,27 @@ pub fn solve_fc3d_prox(
     options: &Fc3dOptions,
     start: &[f64],
 ) -> Result<Fc3dSolution, Fc3dError> {
-    solve_fc3d_prox_within(problem, options, start, &mut Work::unbounded())
+    check_solve(problem, options, start)?;
+    prox(problem, options, start)
 }
 
-/// [`solve_fc3d_prox`] counting its passes over W in `work` (the inner Newton solves' and one
-/// per error evaluation) and stopping, not converged, once the budget is spent.
-pub(crate) fn solve_fc3d_prox_within(
+/// [`solve_fc3d_prox`] on checked inputs ([`check_solve`]).
+pub(crate) fn prox(
+    problem: &Fc3dProblem,
+    options: &Fc3dOptions,
+    start: &[f64],
+) -> Result<Fc3dSolution, Fc3dError> {
+    prox_within(problem, options, start, &mut Work::unbounded())
+}
+
+/// [`prox`] counting its passes over W in `work` (the inner Newton solves' and one per error
+/// evaluation) and stopping, not converged, once the budget is spent.
+pub(crate) fn prox_within(
     problem: &Fc3dProblem,
     options: &Fc3dOptions,
     start: &[f64],
     work: &mut Work,
 ) -> Result<Fc3dSolution, Fc3dError> {
-    problem.validate()?;
     let m = problem.contacts();
     let mut r = start.to_vec();
     let pass = problem.w.stored_blocks().max(1);
@@ -91,24 +100,23 @@ pub(crate) fn solve_fc3d_prox_within(
             max_iterations: inner.max_iterations.min(options.max_iterations - spent),
             ..inner
         };
-        let failed =
-            match solve_fc3d_newton_within(&regularised, &inner, &r, work, &mut linear, false) {
-                Ok(s) => {
-                    spent += s.iterations;
-                    r = s.r;
-                    false
-                }
-                Err(Fc3dError::NotConverged {
-                    iterations,
-                    best: inner_best,
-                    ..
-                }) => {
-                    spent += iterations;
-                    r = inner_best;
-                    true
-                }
-                Err(other) => return Err(other),
-            };
+        let failed = match newton_within(&regularised, &inner, &r, work, &mut linear, false) {
+            Ok(s) => {
+                spent += s.iterations;
+                r = s.r;
+                false
+            }
+            Err(Fc3dError::NotConverged {
+                iterations,
+                best: inner_best,
+                ..
+            }) => {
+                spent += iterations;
+                r = inner_best;
+                true
+            }
+            Err(other) => return Err(other),
+        };
         error = problem.error(&r);
         work.spent += pass;
         if error < best.0 {

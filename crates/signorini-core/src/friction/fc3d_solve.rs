@@ -1,10 +1,12 @@
 //! The FC3D solver chosen by [`Fc3dOptions::kind`], and `auto`'s chain of solvers.
 
-use super::fc3d::{Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind};
-use super::fc3d_anderson::solve_fc3d_nsgs_anderson;
-use super::fc3d_newton::{Work, solve_fc3d_newton};
-use super::fc3d_nsgs::solve_fc3d_nsgs;
-use super::fc3d_prox::{solve_fc3d_prox, solve_fc3d_prox_within};
+use super::fc3d::{
+    Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind, check_problem, check_solve,
+};
+use super::fc3d_anderson::nsgs_anderson;
+use super::fc3d_newton::{Work, newton};
+use super::fc3d_nsgs::nsgs;
+use super::fc3d_prox::{prox, prox_within};
 
 /// Solves the problem with the solver of `options.kind`, from r = 0
 /// ([`solve_fc3d_from`] with a zero start). `Auto` runs Gauss–Seidel with Anderson acceleration
@@ -34,7 +36,8 @@ use super::fc3d_prox::{solve_fc3d_prox, solve_fc3d_prox_within};
 /// on the 7 002-contact granular problem it reached 1e-4 only after 60 s (1.7·10⁹ block
 /// products), where Gauss–Seidel needs 605 sweeps (1 s).
 pub fn solve_fc3d(problem: &Fc3dProblem, options: &Fc3dOptions) -> Result<Fc3dSolution, Fc3dError> {
-    solve_fc3d_from(problem, options, &vec![0.0; problem.q.len()])
+    check_problem(problem, options)?;
+    solve_checked(problem, options, vec![0.0; problem.q.len()])
 }
 
 /// [`solve_fc3d`] from the impulses `start` (3m, `(r_n, r_t1, r_t2)` per contact) instead of
@@ -48,28 +51,21 @@ pub fn solve_fc3d_from(
     options: &Fc3dOptions,
     start: &[f64],
 ) -> Result<Fc3dSolution, Fc3dError> {
-    problem.validate()?;
-    if options.tolerance.is_nan() || options.tolerance <= 0.0 {
-        return Err(Fc3dError::InvalidTolerance {
-            tolerance: options.tolerance,
-        });
-    }
-    options.check_relaxation()?;
-    if start.len() != problem.q.len() {
-        return Err(Fc3dError::StartLength {
-            expected: problem.q.len(),
-            got: start.len(),
-        });
-    }
-    if let Some((index, &value)) = start.iter().enumerate().find(|(_, x)| !x.is_finite()) {
-        return Err(Fc3dError::NotFiniteStart { index, value });
-    }
-    let start = start.to_vec();
+    check_solve(problem, options, start)?;
+    solve_checked(problem, options, start.to_vec())
+}
+
+/// The solver of `options.kind` on checked inputs ([`check_solve`]), from `start`.
+fn solve_checked(
+    problem: &Fc3dProblem,
+    options: &Fc3dOptions,
+    start: Vec<f64>,
+) -> Result<Fc3dSolution, Fc3dError> {
     match options.kind {
-        Fc3dSolverKind::Nsgs => solve_fc3d_nsgs(problem, options, &start),
-        Fc3dSolverKind::NsgsAnderson => solve_fc3d_nsgs_anderson(problem, options, &start),
-        Fc3dSolverKind::NewtonAlartCurnier => solve_fc3d_newton(problem, options, &start),
-        Fc3dSolverKind::Prox => solve_fc3d_prox(problem, options, &start),
+        Fc3dSolverKind::Nsgs => nsgs(problem, options, start),
+        Fc3dSolverKind::NsgsAnderson => nsgs_anderson(problem, options, &start),
+        Fc3dSolverKind::NewtonAlartCurnier => newton(problem, options, &start),
+        Fc3dSolverKind::Prox => prox(problem, options, &start),
         Fc3dSolverKind::Auto => solve_auto(problem, options, start),
     }
 }
@@ -139,11 +135,7 @@ fn solve_auto(
         max_iterations: sweeps,
         ..*options
     };
-    if let Some(s) = chain.stage(
-        "nsgs_aa",
-        sweeps,
-        solve_fc3d_nsgs_anderson(problem, &short, &start),
-    ) {
+    if let Some(s) = chain.stage("nsgs_aa", sweeps, nsgs_anderson(problem, &short, &start)) {
         return Ok(s);
     }
     let start_error = problem.error(&start);
@@ -164,7 +156,7 @@ fn solve_auto(
     if let Some(s) = chain.stage(
         "prox",
         newton_budget,
-        solve_fc3d_prox_within(problem, &prox, &from_best, &mut short_work),
+        prox_within(problem, &prox, &from_best, &mut short_work),
     ) {
         return Ok(s);
     }
@@ -175,11 +167,11 @@ fn solve_auto(
     if let Some(s) = chain.stage(
         "prox",
         newton_budget,
-        solve_fc3d_prox_within(problem, &prox, &start, &mut work),
+        prox_within(problem, &prox, &start, &mut work),
     ) {
         return Ok(s);
     }
-    let outcome = solve_fc3d_nsgs(problem, options, &chain.best);
+    let outcome = nsgs(problem, options, chain.best.clone());
     if let Some(s) = chain.stage("nsgs", options.max_iterations, outcome) {
         return Ok(s);
     }
@@ -188,7 +180,7 @@ fn solve_auto(
             relaxation: 1.0,
             ..*options
         };
-        let outcome = solve_fc3d_nsgs(problem, &plain, &chain.best);
+        let outcome = nsgs(problem, &plain, chain.best.clone());
         if let Some(s) = chain.stage("nsgs", options.max_iterations, outcome) {
             return Ok(s);
         }

@@ -153,8 +153,13 @@ impl FrictionProblem<'_> {
 /// `squared`: `‖P − proj(P − Û)‖₂ / max(‖q‖₂, ‖P‖₂, ‖U‖₂)` (`fc3d_compute_error`, the same for
 /// the planar and the 3D cone; not divided when the scale is ≤ the machine epsilon).
 pub(crate) fn relative_error(squared: f64, q: &[f64], p: &[f64], u: &[f64]) -> f64 {
-    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let scale = norm(q).max(norm(p)).max(norm(u));
+    let squares = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>();
+    relative_error_of_squares(squared, squares(q), squares(p), squares(u))
+}
+
+/// [`relative_error`] from the squared norms of q, P and U.
+pub(crate) fn relative_error_of_squares(squared: f64, q: f64, p: f64, u: f64) -> f64 {
+    let scale = q.sqrt().max(p.sqrt()).max(u.sqrt());
     if scale > f64::EPSILON {
         squared.sqrt() / scale
     } else {
