@@ -640,11 +640,15 @@ mod random {
             ],
             x(),
             n(),
+            ox(),
         )
-            .prop_map(|(kind, tolerance, max_iterations)| ContactSolverSpec {
-                kind,
-                tolerance,
-                max_iterations,
+            .prop_map(|(kind, tolerance, max_iterations, accept_error)| {
+                ContactSolverSpec {
+                    kind,
+                    tolerance,
+                    max_iterations,
+                    accept_error,
+                }
             });
         let output = (
             any::<u64>(),

@@ -537,6 +537,7 @@ fn contact_solver_to_proto(c: &ContactSolverSpec) -> Result<pb::ContactSolverSpe
         kind,
         tolerance,
         max_iterations,
+        accept_error,
     } = c;
     Ok(pb::ContactSolverSpec {
         kind: match kind {
@@ -550,6 +551,7 @@ fn contact_solver_to_proto(c: &ContactSolverSpec) -> Result<pb::ContactSolverSpe
         } as i32,
         tolerance: Some(*tolerance),
         max_iterations: Some(u64_of(*max_iterations)),
+        accept_error: *accept_error,
     })
 }
 

@@ -698,6 +698,7 @@ fn contact_solver_spec(p: pb::ContactSolverSpec) -> Result<ContactSolverSpec, Sp
         kind,
         tolerance,
         max_iterations,
+        accept_error,
     } = p;
     let d = ContactSolverSpec::default();
     let kind = match pb::LcpSolver::try_from(kind) {
@@ -720,6 +721,7 @@ fn contact_solver_spec(p: pb::ContactSolverSpec) -> Result<ContactSolverSpec, Sp
             .map(|m| usize_of("contact_solver.max_iterations", m))
             .transpose()?
             .unwrap_or(d.max_iterations),
+        accept_error,
     })
 }
 

@@ -175,6 +175,10 @@ fn main() {
                 ..Fc3dOptions::default()
             },
             warm_start,
+            accept_error: spec
+                .contact_solver
+                .accept_error()
+                .unwrap_or_else(|e| panic!("{e}")),
             ..RigidMoreauJeanParams::default()
         },
         h,
@@ -193,6 +197,8 @@ fn main() {
     let mut max_contacts = 0usize;
     let mut friction_iterations = 0u64;
     let mut friction_error_max: f64 = 0.0;
+    // Steps that went on with a friction solve above the tolerance (`contact_solver.accept_error`).
+    let mut accepted = 0u64;
     let mut histogram = [0u64; 4];
     let (k0, v0) = RigidMoreauJean::energies(&scene, &state);
     let start = Instant::now();
@@ -215,6 +221,7 @@ fn main() {
         max_contacts = max_contacts.max(report.contacts);
         friction_iterations += report.friction_iterations as u64;
         friction_error_max = friction_error_max.max(report.friction_error);
+        accepted += u64::from(report.friction_accepted);
         if trace {
             eprintln!(
                 "{k} {} {} {:e} {:.1}",
@@ -236,7 +243,7 @@ fn main() {
     let solver = kind.name();
     let split = clock.spent.map(|d| d.as_secs_f64());
     println!(
-        "{{\"code\": \"signorini\", \"bodies\": {}, \"h\": {h}, \"steps\": {count}, \"seconds\": {seconds:.4}, \"steps_per_second\": {:.2}, \"ms_per_step\": {:.4}, \"contacts_per_step\": {:.1}, \"max_contacts\": {max_contacts}, \"warm_start\": {warm_start}, \"solver\": \"{solver}\", \"auto_sweeps\": {auto_sweeps}, \"relaxation\": {relaxation}, \"steps_by_iterations\": {{\"le10\": {}, \"le100\": {}, \"le1000\": {}, \"more\": {}}}, \"friction_iterations_per_step\": {:.2}, \"friction_error_max\": {friction_error_max:e}, \"split_seconds\": {{\"detection\": {:.4}, \"assembly\": {:.4}, \"solve\": {:.4}, \"update\": {:.4}}}, \"energy_start\": {:.6}, \"energy_end\": {:.6}}}",
+        "{{\"code\": \"signorini\", \"bodies\": {}, \"h\": {h}, \"steps\": {count}, \"seconds\": {seconds:.4}, \"steps_per_second\": {:.2}, \"ms_per_step\": {:.4}, \"contacts_per_step\": {:.1}, \"max_contacts\": {max_contacts}, \"warm_start\": {warm_start}, \"solver\": \"{solver}\", \"auto_sweeps\": {auto_sweeps}, \"relaxation\": {relaxation}, \"steps_by_iterations\": {{\"le10\": {}, \"le100\": {}, \"le1000\": {}, \"more\": {}}}, \"friction_iterations_per_step\": {:.2}, \"friction_error_max\": {friction_error_max:e}, \"friction_steps_accepted\": {accepted}, \"split_seconds\": {{\"detection\": {:.4}, \"assembly\": {:.4}, \"solve\": {:.4}, \"update\": {:.4}}}, \"energy_start\": {:.6}, \"energy_end\": {:.6}}}",
         scene.bodies.len(),
         count as f64 / seconds,
         1e3 * seconds / count as f64,

@@ -373,3 +373,69 @@ fn a_rigid_ball_on_a_floor_equals_the_same_ball_written_as_a_lagrangian_model() 
     assert!(col(&rigid, "ball_wx").iter().all(|w| *w == 0.0));
     assert!(col(&rigid, "ball_qw").iter().all(|q| *q == 1.0));
 }
+
+/// A stack of three boxes asked for an FC3D error no solver reaches (1e-300) within three
+/// iterations: without `accept_error` the first step fails on its friction problem; with it the
+/// run goes on with the best iterates, counts every step as accepted, reports the largest error
+/// of a step's last solve (the one whose impulses the step applies) within the bound, and the
+/// energy ledger still closes to round-off (it holds for any impulse the update applies).
+#[test]
+fn a_step_above_the_friction_tolerance_fails_unless_its_error_is_accepted_and_then_is_counted() {
+    let a = 0.1;
+    let mut parts = vec![floor()];
+    for i in 0..3 {
+        parts.push(free(
+            &format!("box{i}"),
+            Shape::Box {
+                half_extents: [0.2 - 0.01 * i as f64, 0.2 - 0.01 * i as f64, a],
+            },
+            500.0,
+            at_rest([0.0, 0.0, a + 2.0 * a * i as f64], [0.0; 3]),
+        ));
+    }
+    let s = scene(
+        parts,
+        ContactLaw {
+            restitution: 0.0,
+            friction: 0.5,
+        },
+        G,
+    );
+    let unreachable = |accept_error| {
+        let mut params = RigidMoreauJeanParams {
+            accept_error,
+            ..RigidMoreauJeanParams::default()
+        };
+        params.fc3d.tolerance = 1e-300;
+        params.fc3d.max_iterations = 3;
+        params
+    };
+    let steps = 20;
+    let scheme = RigidMoreauJean::new(unreachable(None), 2e-3);
+    let detector = ParryDetectors.detector(&s.bodies).unwrap();
+    let mut family = RigidStepping::new(&s, &scheme, detector, steps);
+    let failed = run(&mut family, 1, &mut Recorder::default(), None);
+    let message = format!("{:?}", failed.unwrap_err());
+    assert!(
+        message.contains("Friction { step: 1") && message.contains("NotConverged"),
+        "{message}"
+    );
+
+    let bound = 0.1;
+    let scheme = RigidMoreauJean::new(unreachable(Some(bound)), 2e-3);
+    let detector = ParryDetectors.detector(&s.bodies).unwrap();
+    let mut family = RigidStepping::new(&s, &scheme, detector, steps);
+    let mut rec = Recorder::default();
+    run(&mut family, 1, &mut rec, None).unwrap();
+    let stats = family.stats();
+    assert_eq!(stats.steps, steps);
+    assert_eq!(stats.friction_steps_accepted, steps);
+    assert!(
+        stats.friction_error_max > 1e-300 && stats.friction_error_max <= bound,
+        "{stats:?}"
+    );
+    let scale = col(&rec, "potential")[0].abs();
+    for (k, e) in col(&rec, "energy_error").iter().enumerate() {
+        assert!(e.abs() <= 1e-12 * scale, "record {k}: energy_error {e:e}");
+    }
+}

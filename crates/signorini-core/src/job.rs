@@ -564,6 +564,14 @@ impl Job {
                     ));
                 }
             }
+            if spec.contact_solver.accept_error.is_some() {
+                return Err(SpecError::new(
+                    "contact_solver.accept_error",
+                    "only a `rigid_bodies` step accepts a friction problem solved above the \
+                     tolerance; this job's steps solve their contact problems to the tolerance \
+                     or fail",
+                ));
+            }
         }
         // The model validated once more for its report: its start projection, when it asks
         // for one (parsing and checks only, no tapes).

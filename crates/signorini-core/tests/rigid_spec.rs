@@ -213,6 +213,10 @@ fn every_error_names_its_field() {
             Box::new(|s| s["contact_solver"] = json!({ "kind": "lemke" })),
         ),
         (
+            "contact_solver.accept_error",
+            Box::new(|s| s["contact_solver"] = json!({ "tolerance": 1e-6, "accept_error": 1e-7 })),
+        ),
+        (
             "output.probes",
             Box::new(|s| s["output"] = json!({ "probes": [0] })),
         ),
@@ -222,4 +226,21 @@ fn every_error_names_its_field() {
         edit(&mut spec);
         assert_eq!(field_of(spec), field);
     }
+}
+
+/// `contact_solver.accept_error` is a rigid scene's alone: a model whose steps solve their contact
+/// problem to the tolerance or fail refuses it, naming the field.
+#[test]
+fn accept_error_is_refused_outside_rigid_scenes() {
+    let ball = json!({
+        "model": { "scene": "bouncing_ball" },
+        "integrator": { "scheme": "moreau_jean" },
+        "time": { "h": 1e-3, "steps": 10 },
+        "contact_solver": { "accept_error": 1e-4 }
+    });
+    assert_eq!(field_of(ball), "contact_solver.accept_error");
+    let mut rigid = base();
+    rigid["contact_solver"] = json!({ "tolerance": 1e-6, "accept_error": 1e-4 });
+    let spec: JobSpec = serde_json::from_value(rigid).unwrap();
+    Job::from_spec(&spec).expect("a rigid scene takes it");
 }

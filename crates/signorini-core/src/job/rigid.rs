@@ -57,6 +57,7 @@ pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob,
         "",
     ))?;
     let lcp = spec.contact_solver.options()?;
+    let accept_error = spec.contact_solver.accept_error()?;
     if lcp.kind != LcpSolverKind::Auto {
         return Err(SpecError::new(
             "contact_solver.kind",
@@ -77,6 +78,7 @@ pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob,
             max_iterations: spec.contact_solver.max_iterations,
             ..RigidMoreauJeanParams::default().fc3d
         },
+        accept_error,
         ..RigidMoreauJeanParams::default()
     };
     Ok(RigidJob {

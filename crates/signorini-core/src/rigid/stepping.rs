@@ -103,6 +103,10 @@ pub struct RigidRunStats {
     pub friction_iterations_total: u64,
     /// Largest FC3D error accepted.
     pub friction_error_max: f64,
+    /// Steps that accepted a friction solve above the tolerance
+    /// ([`super::RigidMoreauJeanParams::accept_error`]).
+    #[serde(default)]
+    pub friction_steps_accepted: u64,
 }
 
 /// What the next step reads: the step number, the bodies' states, the last step's impulses per
@@ -270,6 +274,7 @@ impl TimeStepping for RigidStepping<'_> {
         s.newton_iterations_max = s.newton_iterations_max.max(report.newton_iterations);
         s.friction_iterations_total += report.friction_iterations as u64;
         s.friction_error_max = s.friction_error_max.max(report.friction_error);
+        s.friction_steps_accepted += u64::from(report.friction_accepted);
         self.memory.k = k;
         self.last = report;
         self.last_energy_error = error;

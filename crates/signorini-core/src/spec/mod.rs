@@ -122,6 +122,13 @@ pub struct ContactSolverSpec {
     #[serde(default = "default_max_iterations")]
     #[schemars(range(min = 1))]
     pub max_iterations: usize,
+    /// `rigid_bodies` scenes only: the largest error of a step's 3D friction problem accepted
+    /// when the solver spends its budget above `tolerance` (≥ `tolerance`). The step then goes
+    /// on with the solver's iterate of smallest error, and the summary counts such steps
+    /// (`friction_steps_accepted`) and their largest error (`friction_error_max`). Unset
+    /// (default): such a step fails the run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accept_error: Option<f64>,
 }
 
 impl Default for ContactSolverSpec {
@@ -130,6 +137,7 @@ impl Default for ContactSolverSpec {
             kind: LcpSolverKind::Auto,
             tolerance: default_tolerance(),
             max_iterations: default_max_iterations(),
+            accept_error: None,
         }
     }
 }
@@ -371,6 +379,21 @@ impl TimeSpec {
 }
 
 impl ContactSolverSpec {
+    /// `accept_error`, checked: finite and ≥ `tolerance` (the job refuses it outside a
+    /// `rigid_bodies` scene).
+    pub fn accept_error(&self) -> Result<Option<f64>, SpecError> {
+        match self.accept_error {
+            Some(bound) if !(bound.is_finite() && bound >= self.tolerance) => Err(SpecError::new(
+                "contact_solver.accept_error",
+                format!(
+                    "must be finite and ≥ contact_solver.tolerance ({}), got {bound}",
+                    self.tolerance
+                ),
+            )),
+            bound => Ok(bound),
+        }
+    }
+
     /// The checked LCP solver options (tolerance > 0, at least one iteration).
     pub fn options(&self) -> Result<LcpOptions, SpecError> {
         if !self.tolerance.is_finite() || self.tolerance <= 0.0 {
