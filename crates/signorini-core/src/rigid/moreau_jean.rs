@@ -295,6 +295,15 @@ pub struct StepReport {
     pub position_residual: f64,
 }
 
+/// A step's friction solve ([`RigidMoreauJean::solve_friction`]): the impulses, the FC3D
+/// iterations spent, the error, and whether the impulses were accepted above the tolerance.
+struct FrictionSolve {
+    impulse: Vec<f64>,
+    iterations: usize,
+    error: f64,
+    accepted: bool,
+}
+
 /// One active contact: its bodies' Jacobian blocks and its start velocity.
 #[derive(Debug, Clone)]
 struct ActiveContact {
@@ -572,36 +581,12 @@ impl RigidMoreauJean {
                 if !warm {
                     impulse.fill(0.0);
                 }
-                let solution = problem
-                    .and_then(|problem| {
-                        phases.problem(&problem, &impulse);
-                        solve_fc3d_from(&problem, &self.params.fc3d, &impulse)
-                    })
-                    .map(|s| (s.r, s.iterations, s.error, false))
-                    .or_else(|source| match source {
-                        // Above the tolerance but within the bound the caller accepts: the
-                        // solver's best iterate goes on, counted (module documentation).
-                        Fc3dError::NotConverged {
-                            iterations,
-                            error,
-                            best,
-                            ..
-                        } if self.params.accept_error.is_some_and(|bound| error <= bound) => {
-                            Ok((best, iterations, error, true))
-                        }
-                        source => Err(RigidStepError::Friction {
-                            step,
-                            t,
-                            contacts: m,
-                            source,
-                        }),
-                    })?;
+                let solved = self.solve_friction(problem, &impulse, phases, (step, t))?;
                 phases.enter(StepPhase::Update);
-                let (r, iterations, error, accepted) = solution;
-                report.friction_iterations += iterations;
-                report.friction_error = error;
-                report.friction_accepted |= accepted;
-                impulse = r;
+                report.friction_iterations += solved.iterations;
+                report.friction_error = solved.error;
+                report.friction_accepted |= solved.accepted;
+                impulse = solved.impulse;
             }
             // (v, Ω)^{i+1} = free + M⁻¹ (Gᵀ P + Jᵀ Λ), Λ = −A⁺ J (free + M⁻¹ Gᵀ P), and the
             // residual of (1b) there.
@@ -658,6 +643,50 @@ impl RigidMoreauJean {
                 source,
             })?;
         Ok(report)
+    }
+
+    /// The one-step friction problem (`problem`, or why it could not be built) solved from
+    /// `impulse`: its solution, or, when the solver spends its budget above the tolerance and
+    /// its best iterate's error is within `accept_error`, that iterate, accepted (module
+    /// documentation, *Unsolved friction problems*).
+    fn solve_friction(
+        &self,
+        problem: Result<Fc3dProblem, Fc3dError>,
+        impulse: &[f64],
+        phases: &mut dyn StepPhases,
+        (step, t): (u64, f64),
+    ) -> Result<FrictionSolve, RigidStepError> {
+        let outcome = problem.and_then(|problem| {
+            phases.problem(&problem, impulse);
+            solve_fc3d_from(&problem, &self.params.fc3d, impulse)
+        });
+        match outcome {
+            Ok(s) => Ok(FrictionSolve {
+                impulse: s.r,
+                iterations: s.iterations,
+                error: s.error,
+                accepted: false,
+            }),
+            Err(Fc3dError::NotConverged {
+                iterations,
+                error,
+                best,
+                ..
+            }) if self.params.accept_error.is_some_and(|bound| error <= bound) => {
+                Ok(FrictionSolve {
+                    impulse: best,
+                    iterations,
+                    error,
+                    accepted: true,
+                })
+            }
+            Err(source) => Err(RigidStepError::Friction {
+                step,
+                t,
+                contacts: impulse.len() / 3,
+                source,
+            }),
+        }
     }
 
     /// The free twist of each free body at the Newton iterate (v, Ω)^i: v_free = v_k + h g, and
