@@ -92,6 +92,34 @@ fn last(rec: &Recorder, name: &str) -> f64 {
     *col(rec, name).last().unwrap()
 }
 
+/// Half the height of a box of [`box_stack`].
+const BOX_HALF_HEIGHT: f64 = 0.1;
+
+/// `count` boxes 0.2 m high (density 500, μ = 0.5, e = 0), each 1 cm narrower than the one
+/// below, stacked face on face on a floor, at rest.
+fn box_stack(count: usize) -> RigidScene {
+    let a = BOX_HALF_HEIGHT;
+    let mut parts = vec![floor()];
+    for i in 0..count {
+        parts.push(free(
+            &format!("box{i}"),
+            Shape::Box {
+                half_extents: [0.2 - 0.01 * i as f64, 0.2 - 0.01 * i as f64, a],
+            },
+            500.0,
+            at_rest([0.0, 0.0, a + 2.0 * a * i as f64], [0.0; 3]),
+        ));
+    }
+    scene(
+        parts,
+        ContactLaw {
+            restitution: 0.0,
+            friction: 0.5,
+        },
+        G,
+    )
+}
+
 /// Ten boxes 0.2 m high (μ = 0.5), each 1 cm narrower than the one below, stacked face on face
 /// on a floor and released at rest: the tower stands still for 10 s (h = 2 ms). Each box rests on
 /// the one below through its four lower corners (parry's box–box manifold; equal faces would
@@ -103,26 +131,8 @@ fn last(rec: &Recorder, name: &str) -> f64 {
 /// energy in every recorded step.
 #[test]
 fn a_stack_of_ten_boxes_stands_still_for_ten_seconds() {
-    let a = 0.1;
-    let mut parts = vec![floor()];
-    for i in 0..10 {
-        parts.push(free(
-            &format!("box{i}"),
-            Shape::Box {
-                half_extents: [0.2 - 0.01 * i as f64, 0.2 - 0.01 * i as f64, a],
-            },
-            500.0,
-            at_rest([0.0, 0.0, a + 2.0 * a * i as f64], [0.0; 3]),
-        ));
-    }
-    let s = scene(
-        parts,
-        ContactLaw {
-            restitution: 0.0,
-            friction: 0.5,
-        },
-        G,
-    );
+    let a = BOX_HALF_HEIGHT;
+    let s = box_stack(10);
     let detector = ParryDetectors.detector(&s.bodies).unwrap();
     let rec = simulate(
         &s,
@@ -381,26 +391,7 @@ fn a_rigid_ball_on_a_floor_equals_the_same_ball_written_as_a_lagrangian_model() 
 /// energy ledger still closes to round-off (it holds for any impulse the update applies).
 #[test]
 fn a_step_above_the_friction_tolerance_fails_unless_its_error_is_accepted_and_then_is_counted() {
-    let a = 0.1;
-    let mut parts = vec![floor()];
-    for i in 0..3 {
-        parts.push(free(
-            &format!("box{i}"),
-            Shape::Box {
-                half_extents: [0.2 - 0.01 * i as f64, 0.2 - 0.01 * i as f64, a],
-            },
-            500.0,
-            at_rest([0.0, 0.0, a + 2.0 * a * i as f64], [0.0; 3]),
-        ));
-    }
-    let s = scene(
-        parts,
-        ContactLaw {
-            restitution: 0.0,
-            friction: 0.5,
-        },
-        G,
-    );
+    let s = box_stack(3);
     let unreachable = |accept_error| {
         let mut params = RigidMoreauJeanParams {
             accept_error,
