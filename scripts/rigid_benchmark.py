@@ -236,7 +236,7 @@ def run_siconos(steps):
     solver.iparam[sn.SICONOS_IPARAM_MAX_ITER] = 1000
     solver.dparam[sn.SICONOS_DPARAM_TOL] = 1e-6
     stats = {"contacts": 0, "max_contacts": 0, "iterations": 0, "residual_max": 0.0,
-             "first": None, "last": None}
+             "first": None, "last": None, "steps": 0}
 
     def energy(io):
         e = 0.0
@@ -255,10 +255,18 @@ def run_siconos(steps):
         m = problem.getSizeOutput() // 3
         stats["contacts"] += m
         stats["max_contacts"] = max(stats["max_contacts"], m)
+        iterations, residual = 0, 0.0
         if m:
             so = problem.numericsSolverOptions()
-            stats["iterations"] += so.iparam[sn.SICONOS_IPARAM_ITER_DONE]
-            stats["residual_max"] = max(stats["residual_max"], so.dparam[sn.SICONOS_DPARAM_RESIDU])
+            iterations = so.iparam[sn.SICONOS_IPARAM_ITER_DONE]
+            residual = so.dparam[sn.SICONOS_DPARAM_RESIDU]
+            stats["iterations"] += iterations
+            stats["residual_max"] = max(stats["residual_max"], residual)
+        stats["steps"] += 1
+        # Progress on stderr, a line a step: a run stopped early still says how far it got.
+        print(json.dumps({"step": stats["steps"], "contacts": int(m), "iterations": int(iterations),
+                          "residual": float(residual), "seconds": stats["last"] - stats["first"]}),
+              file=sys.stderr, flush=True)
 
     with MechanicsHdf5Runner(mode="r+", io_filename=path) as io:
         io.run(with_timer=False, bullet_options=options, face_class=None, edge_class=None,

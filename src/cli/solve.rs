@@ -41,6 +41,11 @@ pub struct SolveArgs {
     /// `nsgs_aa` and `auto` fall back to; a rigid time step gives 1.5).
     #[arg(long, default_value_t = Fc3dOptions::default().relaxation)]
     pub relaxation: f64,
+    /// Stop Gauss–Seidel's sweeps (`nsgs`, `nsgs_aa`, `auto`'s sweeping stages) once this many
+    /// in a row have not brought the smallest error below 0.9 times its value when they began
+    /// (a rigid time step gives 1 000); none by default.
+    #[arg(long)]
+    pub stall_sweeps: Option<usize>,
     /// Start each solve from `FILE.start` (3 × contacts numbers, one a line: the warm start the
     /// rigid bench's `--dump` writes next to the problem) instead of r = 0.
     #[arg(long)]
@@ -92,11 +97,15 @@ pub fn solve(args: SolveArgs) -> Result<()> {
         relaxation: args.relaxation,
         dense_newton_max: args.dense_newton_max,
         newton_linear,
+        stall_sweeps: args.stall_sweeps,
         ..Fc3dOptions::default()
     };
     options
         .check_relaxation()
         .map_err(|e| anyhow::anyhow!("--relaxation: {e}"))?;
+    options
+        .check_stall_sweeps()
+        .map_err(|e| anyhow::anyhow!("--stall-sweeps: {e}"))?;
     if args.out.is_some() && !cfg!(feature = "hdf5") {
         bail!(
             "--out writes FCLib HDF5 files: this signorini was built without HDF5; rebuild with \

@@ -11,8 +11,9 @@
 //! contacts (`RigidMoreauJeanParams::warm_start`), to measure what the warm start saves;
 //! `--solver auto|nsgs|prox` and `--auto-sweeps N` set the FC3D solver and `auto`'s Gauss–Seidel
 //! budget before its proximal-point stage and `--relaxation W` the over-relaxation of its plain
-//! sweeps (`Fc3dOptions`; `rigid::RELAXATION` by default, 1 for none), to measure what the time
-//! stepping needs; `--trace` prints each step's contacts, FC3D iterations, error and milliseconds on
+//! sweeps (`Fc3dOptions`; `rigid::RELAXATION` by default, 1 for none) and `--stall-sweeps N` the
+//! stagnation window of the sweeps (`rigid::STALL_SWEEPS` by default, 0 for none), to measure what
+//! the time stepping needs; `--trace` prints each step's contacts, FC3D iterations, error and milliseconds on
 //! stderr. The line also gives how many steps took ≤ 10, ≤ 100, ≤ 1 000 and more FC3D
 //! iterations. `--dump K FILE` (repeatable) writes step K's one-step friction problem (W, q, μ) as a Siconos
 //! `.dat` file (sparse-block storage) that `signorini solve` and Siconos' `fc3d_driver` read, and
@@ -123,6 +124,7 @@ fn main() {
     let mut kind = Fc3dSolverKind::Auto;
     let mut auto_sweeps = signorini_core::rigid::AUTO_SWEEPS;
     let mut relaxation = signorini_core::rigid::RELAXATION;
+    let mut stall_sweeps = Some(signorini_core::rigid::STALL_SWEEPS);
     while let Some(a) = args.next() {
         if a == "--cold" {
             warm_start = false;
@@ -142,6 +144,13 @@ fn main() {
                 .next()
                 .and_then(|s| s.parse().ok())
                 .expect("--relaxation W");
+        } else if a == "--stall-sweeps" {
+            // 0: no stagnation test.
+            let n: usize = args
+                .next()
+                .and_then(|s| s.parse().ok())
+                .expect("--stall-sweeps N");
+            stall_sweeps = (n > 0).then_some(n);
         } else if a == "--dump" {
             let step = args
                 .next()
@@ -170,6 +179,7 @@ fn main() {
                 kind,
                 auto_sweeps,
                 relaxation,
+                stall_sweeps,
                 tolerance: spec.contact_solver.tolerance,
                 max_iterations: spec.contact_solver.max_iterations,
                 ..Fc3dOptions::default()
@@ -243,11 +253,12 @@ fn main() {
     let solver = kind.name();
     let split = clock.spent.map(|d| d.as_secs_f64());
     println!(
-        "{{\"code\": \"signorini\", \"bodies\": {}, \"h\": {h}, \"steps\": {count}, \"seconds\": {seconds:.4}, \"steps_per_second\": {:.2}, \"ms_per_step\": {:.4}, \"contacts_per_step\": {:.1}, \"max_contacts\": {max_contacts}, \"warm_start\": {warm_start}, \"solver\": \"{solver}\", \"auto_sweeps\": {auto_sweeps}, \"relaxation\": {relaxation}, \"steps_by_iterations\": {{\"le10\": {}, \"le100\": {}, \"le1000\": {}, \"more\": {}}}, \"friction_iterations_per_step\": {:.2}, \"friction_error_max\": {friction_error_max:e}, \"friction_steps_accepted\": {accepted}, \"split_seconds\": {{\"detection\": {:.4}, \"assembly\": {:.4}, \"solve\": {:.4}, \"update\": {:.4}}}, \"energy_start\": {:.6}, \"energy_end\": {:.6}}}",
+        "{{\"code\": \"signorini\", \"bodies\": {}, \"h\": {h}, \"steps\": {count}, \"seconds\": {seconds:.4}, \"steps_per_second\": {:.2}, \"ms_per_step\": {:.4}, \"contacts_per_step\": {:.1}, \"max_contacts\": {max_contacts}, \"warm_start\": {warm_start}, \"solver\": \"{solver}\", \"auto_sweeps\": {auto_sweeps}, \"relaxation\": {relaxation}, \"stall_sweeps\": {}, \"steps_by_iterations\": {{\"le10\": {}, \"le100\": {}, \"le1000\": {}, \"more\": {}}}, \"friction_iterations_per_step\": {:.2}, \"friction_error_max\": {friction_error_max:e}, \"friction_steps_accepted\": {accepted}, \"split_seconds\": {{\"detection\": {:.4}, \"assembly\": {:.4}, \"solve\": {:.4}, \"update\": {:.4}}}, \"energy_start\": {:.6}, \"energy_end\": {:.6}}}",
         scene.bodies.len(),
         count as f64 / seconds,
         1e3 * seconds / count as f64,
         contacts as f64 / count as f64,
+        stall_sweeps.unwrap_or(0),
         histogram[0],
         histogram[1],
         histogram[2],

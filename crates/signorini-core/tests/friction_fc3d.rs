@@ -597,3 +597,62 @@ fn anderson_acceleration_crosses_a_column_of_spheres_in_few_sweeps() {
     );
     assert!(fast.iterations <= 85, "{}", fast.iterations);
 }
+
+/// The stagnation window (`Fc3dOptions::stall_sweeps`) stops sweeps that no longer make progress
+/// and nothing else. On the column of 30 spheres Gauss–Seidel crawls at a steady rate (6 223
+/// sweeps to 1e-10) that a window of 100 sweeps leaves alone, to the last bit; asked for an error
+/// below round-off (1e-300), the sweeps reach their floor (1.4e-16) and stop a window later
+/// instead of spending the budget, plain and accelerated, with the smallest error the whole
+/// budget finds. A window of
+/// zero sweeps, or one given to a solver that does not sweep, is refused.
+#[test]
+fn sweeps_stop_when_they_stall_and_only_then() {
+    let problem = sphere_column(30);
+    let window = 100;
+    let options = |kind, tolerance, stall_sweeps| Fc3dOptions {
+        kind,
+        tolerance,
+        max_iterations: 20_000,
+        stall_sweeps,
+        ..Fc3dOptions::default()
+    };
+    for kind in [Fc3dSolverKind::Nsgs, Fc3dSolverKind::NsgsAnderson] {
+        let free = solve_fc3d(&problem, &options(kind, 1e-10, None)).unwrap();
+        let watched = solve_fc3d(&problem, &options(kind, 1e-10, Some(window))).unwrap();
+        assert_eq!(free, watched, "{kind:?}");
+        let Err(Fc3dError::NotConverged {
+            iterations, error, ..
+        }) = solve_fc3d(&problem, &options(kind, 1e-300, None))
+        else {
+            panic!("{kind:?} reached 1e-300");
+        };
+        assert_eq!(iterations, 20_000, "{kind:?}");
+        let floor = error;
+        assert!(floor <= 1e-15, "{kind:?}: {floor:e}");
+        let Err(Fc3dError::NotConverged {
+            iterations, error, ..
+        }) = solve_fc3d(&problem, &options(kind, 1e-300, Some(window)))
+        else {
+            panic!("{kind:?} reached 1e-300");
+        };
+        // Stopped a window after the floor (the plain sweeps reach it after about 11 200; the
+        // accelerated ones reach 1e-10 in tens, then fall back to plain sweeps from the start,
+        // whose window starts over), with the same smallest error as the whole budget found.
+        assert!(
+            iterations < 12_000 && iterations > window,
+            "{kind:?}: stopped after {iterations} sweeps at {error:e} (floor {floor:e})"
+        );
+        assert_eq!(error, floor, "{kind:?}");
+        assert!(error <= 1e-15, "{kind:?}: {error:e}");
+    }
+    assert!(matches!(
+        solve_fc3d(&problem, &options(Fc3dSolverKind::Nsgs, 1e-8, Some(0))),
+        Err(Fc3dError::InvalidStallSweeps)
+    ));
+    for kind in [Fc3dSolverKind::Prox, Fc3dSolverKind::NewtonAlartCurnier] {
+        assert!(matches!(
+            solve_fc3d(&problem, &options(kind, 1e-8, Some(window))),
+            Err(Fc3dError::StallSweepsWithoutSweeps { .. })
+        ));
+    }
+}

@@ -164,7 +164,8 @@ pub(crate) fn check_solve(
     Ok(())
 }
 
-/// Checks a solve's problem ([`Fc3dProblem::validate`]), tolerance and over-relaxation.
+/// Checks a solve's problem ([`Fc3dProblem::validate`]), tolerance, over-relaxation and
+/// stagnation window.
 pub(crate) fn check_problem(problem: &Fc3dProblem, options: &Fc3dOptions) -> Result<(), Fc3dError> {
     problem.validate()?;
     if options.tolerance.is_nan() || options.tolerance <= 0.0 {
@@ -172,7 +173,8 @@ pub(crate) fn check_problem(problem: &Fc3dProblem, options: &Fc3dOptions) -> Res
             tolerance: options.tolerance,
         });
     }
-    options.check_relaxation()
+    options.check_relaxation()?;
+    options.check_stall_sweeps()
 }
 
 /// The error of successive iterates of one problem, as the iterative solvers measure it after
@@ -398,9 +400,30 @@ pub struct Fc3dOptions {
     /// where it fails; never the accelerated sweeps): module `fc3d_nsgs`. Default 1 (none); a
     /// rigid time step gives 1.5 (`rigid::RELAXATION`).
     pub relaxation: f64,
+    /// Stops Gauss–Seidel's sweeps, plain or accelerated (`Nsgs`, `NsgsAnderson` and `Auto`'s
+    /// sweeping stages), once this many sweeps in a row have not brought the smallest error
+    /// below 0.9 times what it was when they began (module `fc3d_nsgs`, *Stagnation*): the
+    /// budget left goes to the next stage or ends the solve instead of replaying a cycle.
+    /// Default `None` (sweeps run until the tolerance or the budget); a rigid time step gives
+    /// `rigid::STALL_SWEEPS`. `Some(0)` is refused, and so is any value for a solver that does
+    /// not sweep (`NewtonAlartCurnier`, `Prox`).
+    pub stall_sweeps: Option<usize>,
 }
 
 impl Fc3dOptions {
+    /// Refuses a stagnation window of zero sweeps, or one given to a solver that does not sweep.
+    pub fn check_stall_sweeps(&self) -> Result<(), Fc3dError> {
+        match (self.stall_sweeps, self.kind) {
+            (Some(0), _) => Err(Fc3dError::InvalidStallSweeps),
+            (Some(_), Fc3dSolverKind::NewtonAlartCurnier | Fc3dSolverKind::Prox) => {
+                Err(Fc3dError::StallSweepsWithoutSweeps {
+                    solver: self.kind.name(),
+                })
+            }
+            _ => Ok(()),
+        }
+    }
+
     /// Refuses an over-relaxation outside (0, 2).
     pub fn check_relaxation(&self) -> Result<(), Fc3dError> {
         if self.relaxation > 0.0 && self.relaxation < 2.0 {
@@ -427,6 +450,7 @@ impl Default for Fc3dOptions {
             prox_outer_iterations: 100,
             prox_inner_iterations: 100,
             relaxation: 1.0,
+            stall_sweeps: None,
         }
     }
 }
@@ -508,6 +532,15 @@ pub enum Fc3dError {
     InvalidRelaxation {
         /// The over-relaxation given.
         relaxation: f64,
+    },
+    /// A stagnation window of zero sweeps.
+    #[error("stall_sweeps must be ≥ 1 (or absent: no stagnation test)")]
+    InvalidStallSweeps,
+    /// A stagnation window for a solver that does not sweep.
+    #[error("stall_sweeps applies to Gauss–Seidel's sweeps; solver {solver} does not sweep")]
+    StallSweepsWithoutSweeps {
+        /// The solver's name.
+        solver: &'static str,
     },
     /// A start (warm start) whose length is not 3m.
     #[error("the start has {got} entries, the problem has {expected} unknowns")]

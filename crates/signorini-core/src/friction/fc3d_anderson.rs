@@ -40,6 +40,10 @@
 //! not), and blocks of plain sweeps alternating with the acceleration again were slower still
 //! (Round 7). The smallest error is still tracked over both phases.
 //!
+//! **Stagnation.** With [`Fc3dOptions::stall_sweeps`] the sweeps stop as plain Gauss–Seidel's
+//! do ([`super::fc3d_nsgs`], *Stagnation*), the window counted over accelerated sweeps and
+//! restarts alike, and started over when the plain sweeps start over from `start`.
+//!
 //! **Over-relaxed fallback.** The plain sweeps are over-relaxed by [`Fc3dOptions::relaxation`]
 //! (ω; 1 by default, 1.5 in a rigid time step: module [`super::fc3d_nsgs`]); the accelerated
 //! ones never are. On the piles of the 1 000-sphere benchmark (docs/rigid_benchmark.md, Round 11)
@@ -49,7 +53,7 @@
 //! Deterministic; `iterations` counts sweeps, accelerated and plain.
 
 use super::fc3d::{ErrorMeter, Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, check_solve};
-use super::fc3d_nsgs::{LOCAL_TOLERANCE, diagonal_blocks, local_tolerance, sweep};
+use super::fc3d_nsgs::{LOCAL_TOLERANCE, Stagnation, diagonal_blocks, local_tolerance, sweep};
 use nalgebra::{DMatrix, DVector};
 use std::collections::VecDeque;
 
@@ -102,7 +106,10 @@ pub(crate) fn nsgs_anderson(
     let mut best_at_restart = f64::INFINITY;
     let mut accelerated = true;
     let mut last_error = f64::INFINITY;
-    for iteration in 1..=options.max_iterations {
+    let mut stagnation = Stagnation::new(options.stall_sweeps);
+    let mut iteration = 0;
+    while iteration < options.max_iterations {
+        iteration += 1;
         let mut g = r.clone();
         let omega = if accelerated { 1.0 } else { options.relaxation };
         // The accelerated sweeps solve their local problems tightly: Anderson's combination
@@ -133,6 +140,9 @@ pub(crate) fn nsgs_anderson(
         } else {
             stalled += 1;
         }
+        if stagnation.stalled(error) {
+            break;
+        }
         if !accelerated {
             r = g;
             continue;
@@ -148,6 +158,10 @@ pub(crate) fn nsgs_anderson(
             last = None;
             stalled = 0;
             accelerated = fruitless < FRUITLESS_RESTARTS;
+            if !accelerated {
+                // Gauss–Seidel's own iterates from the start: their errors start over too.
+                stagnation.restart();
+            }
             r = match (&best.1, accelerated) {
                 (Some(best), true) => best.clone(),
                 _ => start.to_vec(),
@@ -163,7 +177,7 @@ pub(crate) fn nsgs_anderson(
     }
     Err(Fc3dError::NotConverged {
         solver: "nsgs_aa",
-        iterations: options.max_iterations,
+        iterations: iteration,
         error: best.0,
         tolerance: options.tolerance,
         best: best.1.unwrap_or_else(|| start.to_vec()),

@@ -16,7 +16,7 @@ pub use detector::{ContactDetector, ContactPoint, DetectError, DetectorFactory, 
 pub use joint::{Joint, JointKind, JointSide};
 pub use moreau_jean::{
     AUTO_SWEEPS, ContactImpulse, RELAXATION, RigidMoreauJean, RigidMoreauJeanParams, RigidScratch,
-    RigidStepError, StepPhase, StepPhases, StepReport,
+    RigidStepError, STALL_SWEEPS, StepPhase, StepPhases, StepReport,
 };
 pub use scene::{ContactLaw, RigidScene};
 pub use stepping::{
