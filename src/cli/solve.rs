@@ -11,7 +11,7 @@ use crate::problem_file::{self, RawProblem};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use signorini_core::friction::{
-    Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dSolution, Fc3dSolverKind, solve_fc3d,
+    Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dSolution, Fc3dSolverKind, Fc3dStall, solve_fc3d,
     solve_fc3d_from,
 };
 use std::path::{Path, PathBuf};
@@ -43,9 +43,13 @@ pub struct SolveArgs {
     pub relaxation: f64,
     /// Stop Gauss–Seidel's sweeps (`nsgs`, `nsgs_aa`, `auto`'s sweeping stages) once this many
     /// in a row have not brought the smallest error below 0.9 times its value when they began
-    /// (a rigid time step gives 1 000); none by default.
+    /// (a rigid time step that accepts errors up to a bound gives 1 000); none by default.
     #[arg(long)]
     pub stall_sweeps: Option<usize>,
+    /// ... only while the smallest error is at most this (a rigid time step gives its
+    /// `contact_solver.accept_error`); at any error by default.
+    #[arg(long, requires = "stall_sweeps")]
+    pub stall_below: Option<f64>,
     /// Start each solve from `FILE.start` (3 × contacts numbers, one a line: the warm start the
     /// rigid bench's `--dump` writes next to the problem) instead of r = 0.
     #[arg(long)]
@@ -97,15 +101,18 @@ pub fn solve(args: SolveArgs) -> Result<()> {
         relaxation: args.relaxation,
         dense_newton_max: args.dense_newton_max,
         newton_linear,
-        stall_sweeps: args.stall_sweeps,
+        stall: args.stall_sweeps.map(|sweeps| Fc3dStall {
+            sweeps,
+            below: args.stall_below.unwrap_or(f64::INFINITY),
+        }),
         ..Fc3dOptions::default()
     };
     options
         .check_relaxation()
         .map_err(|e| anyhow::anyhow!("--relaxation: {e}"))?;
     options
-        .check_stall_sweeps()
-        .map_err(|e| anyhow::anyhow!("--stall-sweeps: {e}"))?;
+        .check_stall()
+        .map_err(|e| anyhow::anyhow!("--stall-sweeps, --stall-below: {e}"))?;
     if args.out.is_some() && !cfg!(feature = "hdf5") {
         bail!(
             "--out writes FCLib HDF5 files: this signorini was built without HDF5; rebuild with \

@@ -12,8 +12,8 @@
 //! `--solver auto|nsgs|prox` and `--auto-sweeps N` set the FC3D solver and `auto`'s Gauss–Seidel
 //! budget before its proximal-point stage and `--relaxation W` the over-relaxation of its plain
 //! sweeps (`Fc3dOptions`; `rigid::RELAXATION` by default, 1 for none) and `--stall-sweeps N` the
-//! stagnation window of the sweeps (`rigid::STALL_SWEEPS` by default, 0 for none), to measure what
-//! the time stepping needs; `--trace` prints each step's contacts, FC3D iterations, error and milliseconds on
+//! stagnation window of the sweeps within the spec's `accept_error` (`rigid::STALL_SWEEPS` by
+//! default, 0 for none), to measure what the time stepping needs; `--trace` prints each step's contacts, FC3D iterations, error and milliseconds on
 //! stderr. The line also gives how many steps took ≤ 10, ≤ 100, ≤ 1 000 and more FC3D
 //! iterations. `--dump K FILE` (repeatable) writes step K's one-step friction problem (W, q, μ) as a Siconos
 //! `.dat` file (sparse-block storage) that `signorini solve` and Siconos' `fc3d_driver` read, and
@@ -179,7 +179,6 @@ fn main() {
                 kind,
                 auto_sweeps,
                 relaxation,
-                stall_sweeps,
                 tolerance: spec.contact_solver.tolerance,
                 max_iterations: spec.contact_solver.max_iterations,
                 ..Fc3dOptions::default()
@@ -189,6 +188,7 @@ fn main() {
                 .contact_solver
                 .accept_error()
                 .unwrap_or_else(|e| panic!("{e}")),
+            stall_sweeps,
             ..RigidMoreauJeanParams::default()
         },
         h,

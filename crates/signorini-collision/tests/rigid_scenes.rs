@@ -9,7 +9,7 @@ use signorini_core::job::{self, Job};
 use signorini_core::observer::Recorder;
 use signorini_core::rigid::{
     Body, BodyState, ContactDetector, ContactLaw, ContactPoint, DetectError, DetectorFactory, Pose,
-    RigidMoreauJean, RigidMoreauJeanParams, RigidScene, RigidStepping, Shape,
+    RigidMoreauJean, RigidMoreauJeanParams, RigidScene, RigidStepping, STALL_SWEEPS, Shape,
 };
 use signorini_core::spec::JobSpec;
 use signorini_core::stepping::run;
@@ -429,4 +429,46 @@ fn a_step_above_the_friction_tolerance_fails_unless_its_error_is_accepted_and_th
     for (k, e) in col(&rec, "energy_error").iter().enumerate() {
         assert!(e.abs() <= 1e-12 * scale, "record {k}: energy_error {e:e}");
     }
+}
+
+/// The stack asked for 1e-300 again, with a budget of 20 000 sweeps: with `accept_error` its
+/// sweeps reach their round-off floor and stop `stall_sweeps` later (the stall within the bound,
+/// `rigid::STALL_SWEEPS` by default), where without the stagnation test every step spends the
+/// whole budget; the steps, their acceptance and the ledger are the same either way.
+#[test]
+fn a_rigid_step_stops_sweeping_once_its_solver_stalls_within_the_accepted_error() {
+    let s = box_stack(3);
+    let steps = 5;
+    let budget = 20_000;
+    let stats = |stall_sweeps| {
+        let mut params = RigidMoreauJeanParams {
+            accept_error: Some(0.1),
+            stall_sweeps,
+            ..RigidMoreauJeanParams::default()
+        };
+        params.fc3d.tolerance = 1e-300;
+        params.fc3d.max_iterations = budget;
+        let scheme = RigidMoreauJean::new(params, 2e-3);
+        let detector = ParryDetectors.detector(&s.bodies).unwrap();
+        let mut family = RigidStepping::new(&s, &scheme, detector, steps);
+        run(&mut family, 1, &mut Recorder::default(), None).unwrap();
+        family.stats().clone()
+    };
+    let spent = stats(None);
+    let stopped = stats(Some(STALL_SWEEPS));
+    for s in [&spent, &stopped] {
+        assert_eq!(s.steps, steps);
+        assert_eq!(s.friction_steps_accepted, steps);
+        assert!(s.friction_error_max <= 1e-12, "{s:?}");
+    }
+    // `auto`: 5 000 accelerated sweeps, the proximal point method, then the plain sweeps twice
+    // (over-relaxed, then not), each with the whole budget.
+    assert!(
+        spent.friction_iterations_total >= steps * 2 * budget as u64,
+        "{spent:?}"
+    );
+    assert!(
+        stopped.friction_iterations_total < steps * budget as u64 / 2,
+        "{stopped:?}"
+    );
 }

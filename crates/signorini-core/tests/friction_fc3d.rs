@@ -7,7 +7,7 @@
 use proptest::prelude::*;
 use signorini_core::friction::{
     BlockCsr, Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind,
-    FrictionProblem, solve_fc3d, solve_fc3d_from, solve_fc3d_newton, solve_fc3d_nsgs,
+    Fc3dStall, FrictionProblem, solve_fc3d, solve_fc3d_from, solve_fc3d_newton, solve_fc3d_nsgs,
     solve_fc3d_nsgs_anderson, solve_fc3d_prox, solve_friction,
 };
 use signorini_core::lcp::{LcpOptions, LcpSolverKind};
@@ -598,27 +598,33 @@ fn anderson_acceleration_crosses_a_column_of_spheres_in_few_sweeps() {
     assert!(fast.iterations <= 85, "{}", fast.iterations);
 }
 
-/// The stagnation window (`Fc3dOptions::stall_sweeps`) stops sweeps that no longer make progress
+/// The stagnation test (`Fc3dOptions::stall`) stops sweeps that no longer make progress
 /// and nothing else. On the column of 30 spheres Gauss–Seidel crawls at a steady rate (6 223
 /// sweeps to 1e-10) that a window of 100 sweeps leaves alone, to the last bit; asked for an error
 /// below round-off (1e-300), the sweeps reach their floor (1.4e-16) and stop a window later
 /// instead of spending the budget, plain and accelerated, with the smallest error the whole
-/// budget finds. A window of
-/// zero sweeps, or one given to a solver that does not sweep, is refused.
+/// budget finds; with the test bounded below that floor (1e-20) they go on to the end of the
+/// budget. A window of zero sweeps, a bound that is not a positive number, or a test given to
+/// a solver that does not sweep is refused.
 #[test]
 fn sweeps_stop_when_they_stall_and_only_then() {
     let problem = sphere_column(30);
     let window = 100;
-    let options = |kind, tolerance, stall_sweeps| Fc3dOptions {
+    let stall = |sweeps, below| Some(Fc3dStall { sweeps, below });
+    let options = |kind, tolerance, stall| Fc3dOptions {
         kind,
         tolerance,
         max_iterations: 20_000,
-        stall_sweeps,
+        stall,
         ..Fc3dOptions::default()
     };
     for kind in [Fc3dSolverKind::Nsgs, Fc3dSolverKind::NsgsAnderson] {
         let free = solve_fc3d(&problem, &options(kind, 1e-10, None)).unwrap();
-        let watched = solve_fc3d(&problem, &options(kind, 1e-10, Some(window))).unwrap();
+        let watched = solve_fc3d(
+            &problem,
+            &options(kind, 1e-10, stall(window, f64::INFINITY)),
+        )
+        .unwrap();
         assert_eq!(free, watched, "{kind:?}");
         let Err(Fc3dError::NotConverged {
             iterations, error, ..
@@ -631,7 +637,10 @@ fn sweeps_stop_when_they_stall_and_only_then() {
         assert!(floor <= 1e-15, "{kind:?}: {floor:e}");
         let Err(Fc3dError::NotConverged {
             iterations, error, ..
-        }) = solve_fc3d(&problem, &options(kind, 1e-300, Some(window)))
+        }) = solve_fc3d(
+            &problem,
+            &options(kind, 1e-300, stall(window, f64::INFINITY)),
+        )
         else {
             panic!("{kind:?} reached 1e-300");
         };
@@ -643,15 +652,32 @@ fn sweeps_stop_when_they_stall_and_only_then() {
             "{kind:?}: stopped after {iterations} sweeps at {error:e} (floor {floor:e})"
         );
         assert_eq!(error, floor, "{kind:?}");
+        // Sweeps stalled above the test's bound go on: here they spend the budget again.
+        let Err(Fc3dError::NotConverged { iterations, .. }) =
+            solve_fc3d(&problem, &options(kind, 1e-300, stall(window, 1e-20)))
+        else {
+            panic!("{kind:?} reached 1e-300");
+        };
+        assert_eq!(iterations, 20_000, "{kind:?}");
         assert!(error <= 1e-15, "{kind:?}: {error:e}");
     }
     assert!(matches!(
-        solve_fc3d(&problem, &options(Fc3dSolverKind::Nsgs, 1e-8, Some(0))),
-        Err(Fc3dError::InvalidStallSweeps)
+        solve_fc3d(
+            &problem,
+            &options(Fc3dSolverKind::Nsgs, 1e-8, stall(0, 1.0))
+        ),
+        Err(Fc3dError::InvalidStall { .. })
+    ));
+    assert!(matches!(
+        solve_fc3d(
+            &problem,
+            &options(Fc3dSolverKind::Nsgs, 1e-8, stall(10, f64::NAN))
+        ),
+        Err(Fc3dError::InvalidStall { .. })
     ));
     for kind in [Fc3dSolverKind::Prox, Fc3dSolverKind::NewtonAlartCurnier] {
         assert!(matches!(
-            solve_fc3d(&problem, &options(kind, 1e-8, Some(window))),
+            solve_fc3d(&problem, &options(kind, 1e-8, stall(window, 1.0))),
             Err(Fc3dError::StallSweepsWithoutSweeps { .. })
         ));
     }

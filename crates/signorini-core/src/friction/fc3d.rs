@@ -174,7 +174,7 @@ pub(crate) fn check_problem(problem: &Fc3dProblem, options: &Fc3dOptions) -> Res
         });
     }
     options.check_relaxation()?;
-    options.check_stall_sweeps()
+    options.check_stall()
 }
 
 /// The error of successive iterates of one problem, as the iterative solvers measure it after
@@ -401,20 +401,37 @@ pub struct Fc3dOptions {
     /// rigid time step gives 1.5 (`rigid::RELAXATION`).
     pub relaxation: f64,
     /// Stops Gauss–Seidel's sweeps, plain or accelerated (`Nsgs`, `NsgsAnderson` and `Auto`'s
-    /// sweeping stages), once this many sweeps in a row have not brought the smallest error
-    /// below 0.9 times what it was when they began (module `fc3d_nsgs`, *Stagnation*): the
+    /// sweeping stages), when they stall ([`Fc3dStall`]; module `fc3d_nsgs`, *Stagnation*): the
     /// budget left goes to the next stage or ends the solve instead of replaying a cycle.
-    /// Default `None` (sweeps run until the tolerance or the budget); a rigid time step gives
-    /// `rigid::STALL_SWEEPS`. `Some(0)` is refused, and so is any value for a solver that does
-    /// not sweep (`NewtonAlartCurnier`, `Prox`).
-    pub stall_sweeps: Option<usize>,
+    /// Default `None` (sweeps run until the tolerance or the budget); a rigid time step that
+    /// accepts errors up to a bound gives `rigid::STALL_SWEEPS` sweeps below that bound. Refused
+    /// for a solver that does not sweep (`NewtonAlartCurnier`, `Prox`).
+    pub stall: Option<Fc3dStall>,
+}
+
+/// The stagnation test of Gauss–Seidel's sweeps ([`Fc3dOptions::stall`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fc3dStall {
+    /// The sweeps stop once this many in a row have not brought the smallest error below 0.9
+    /// times what it was when they began; ≥ 1.
+    pub sweeps: usize,
+    /// ... and only while the smallest error is at most this (∞: at any error), > 0: a rigid step
+    /// gives its `accept_error`, since only an error within it lets the step go on, and sweeps
+    /// above it must keep trying.
+    pub below: f64,
 }
 
 impl Fc3dOptions {
-    /// Refuses a stagnation window of zero sweeps, or one given to a solver that does not sweep.
-    pub fn check_stall_sweeps(&self) -> Result<(), Fc3dError> {
-        match (self.stall_sweeps, self.kind) {
-            (Some(0), _) => Err(Fc3dError::InvalidStallSweeps),
+    /// Refuses a stagnation test of zero sweeps or of a bound that is not a positive number, or
+    /// one given to a solver that does not sweep.
+    pub fn check_stall(&self) -> Result<(), Fc3dError> {
+        match (self.stall, self.kind) {
+            (Some(stall), _) if stall.sweeps == 0 || stall.below.is_nan() || stall.below <= 0.0 => {
+                Err(Fc3dError::InvalidStall {
+                    sweeps: stall.sweeps,
+                    below: stall.below,
+                })
+            }
             (Some(_), Fc3dSolverKind::NewtonAlartCurnier | Fc3dSolverKind::Prox) => {
                 Err(Fc3dError::StallSweepsWithoutSweeps {
                     solver: self.kind.name(),
@@ -450,7 +467,7 @@ impl Default for Fc3dOptions {
             prox_outer_iterations: 100,
             prox_inner_iterations: 100,
             relaxation: 1.0,
-            stall_sweeps: None,
+            stall: None,
         }
     }
 }
@@ -533,11 +550,18 @@ pub enum Fc3dError {
         /// The over-relaxation given.
         relaxation: f64,
     },
-    /// A stagnation window of zero sweeps.
-    #[error("stall_sweeps must be ≥ 1 (or absent: no stagnation test)")]
-    InvalidStallSweeps,
-    /// A stagnation window for a solver that does not sweep.
-    #[error("stall_sweeps applies to Gauss–Seidel's sweeps; solver {solver} does not sweep")]
+    /// A stagnation test of zero sweeps, or whose bound is not a positive number.
+    #[error(
+        "stagnation test of {sweeps} sweeps below {below}: the sweeps must be ≥ 1 and the bound > 0"
+    )]
+    InvalidStall {
+        /// The sweeps given.
+        sweeps: usize,
+        /// The bound given.
+        below: f64,
+    },
+    /// A stagnation test for a solver that does not sweep.
+    #[error("the stagnation test applies to Gauss–Seidel's sweeps; solver {solver} does not sweep")]
     StallSweepsWithoutSweeps {
         /// The solver's name.
         solver: &'static str,

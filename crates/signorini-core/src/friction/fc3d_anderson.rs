@@ -40,7 +40,7 @@
 //! not), and blocks of plain sweeps alternating with the acceleration again were slower still
 //! (Round 7). The smallest error is still tracked over both phases.
 //!
-//! **Stagnation.** With [`Fc3dOptions::stall_sweeps`] the sweeps stop as plain Gauss–Seidel's
+//! **Stagnation.** With [`Fc3dOptions::stall`] the sweeps stop as plain Gauss–Seidel's
 //! do ([`super::fc3d_nsgs`], *Stagnation*), the window counted over accelerated sweeps and
 //! restarts alike, and started over when the plain sweeps start over from `start`.
 //!
@@ -106,7 +106,7 @@ pub(crate) fn nsgs_anderson(
     let mut best_at_restart = f64::INFINITY;
     let mut accelerated = true;
     let mut last_error = f64::INFINITY;
-    let mut stagnation = Stagnation::new(options.stall_sweeps);
+    let mut stagnation = Stagnation::new(options.stall);
     let mut iteration = 0;
     while iteration < options.max_iterations {
         iteration += 1;

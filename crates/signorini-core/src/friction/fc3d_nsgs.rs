@@ -42,15 +42,17 @@
 //! stay at an error of 1.399·10⁻⁵ from sweep 1 000 to sweep 50 000, the residual concentrated on
 //! four contacts whose local problems are each solved to 10⁻¹⁶ in turn (and Siconos' NSGS,
 //! shuffled or not, its ADMM, extragradient and Alart–Curnier Newton do not reach 10⁻⁶ on that
-//! problem either). With [`Fc3dOptions::stall_sweeps`] = N the sweeps stop once N sweeps in a
-//! row have not brought the smallest error below [`STAGNATION_GAIN`] times its value when they
-//! began ([`Stagnation`]); the error is then [`Fc3dError::NotConverged`] with the sweeps done.
-//! A linear rate that slow (≥ 0.9 over N sweeps) would need more than 130 N sweeps to gain six
-//! orders of magnitude.
+//! problem either). With [`Fc3dOptions::stall`] = (N, ε) the sweeps stop once N sweeps in a row
+//! have not brought the smallest error below [`STAGNATION_GAIN`] times its value when they began
+//! and that error is at most ε ([`Stagnation`]); the error is then [`Fc3dError::NotConverged`]
+//! with the sweeps done. A linear rate that slow (≥ 0.9 over N sweeps) would need more than
+//! 130 N sweeps to gain six orders of magnitude. The bound ε is there for the time step that
+//! accepts errors up to it: a step of the pile stalled at 1.03·10⁻⁴ for 1 000 sweeps, with an
+//! acceptance bound of 10⁻⁴, where the sweeps that went on reached it.
 
 use super::block3::{self, Block};
 use super::fc3d::{
-    ErrorMeter, Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, check_solve,
+    ErrorMeter, Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dStall, check_solve,
     contact_natural_map, project_cone,
 };
 use super::fc3d_newton::{alart_curnier, weight};
@@ -73,41 +75,45 @@ const LOCAL_TOLERANCE_RATIO: f64 = 1e-2;
 /// the local tolerance is looser.
 const LOCAL_ACCEPTED: f64 = 1e-11;
 
-/// The factor by which the smallest error must fall within [`Fc3dOptions::stall_sweeps`] sweeps
-/// for the sweeps to go on (module documentation, *Stagnation*).
+/// The factor by which the smallest error must fall within [`Fc3dStall::sweeps`] sweeps for the
+/// sweeps to go on (module documentation, *Stagnation*).
 pub(crate) const STAGNATION_GAIN: f64 = 0.9;
 
 /// The stagnation test of a sequence of sweeps (module documentation, *Stagnation*): the
-/// smallest error when the current window began, and the sweeps since.
+/// smallest error when the current window began, the sweeps since, and the smallest error.
 pub(crate) struct Stagnation {
-    window: Option<usize>,
+    test: Option<Fc3dStall>,
     mark: f64,
     since: usize,
+    smallest: f64,
 }
 
 impl Stagnation {
-    /// A test over `window` sweeps (`None`: never stalled).
-    pub(crate) fn new(window: Option<usize>) -> Self {
+    /// The test `test` (`None`: never stalled).
+    pub(crate) fn new(test: Option<Fc3dStall>) -> Self {
         Self {
-            window,
+            test,
             mark: f64::INFINITY,
             since: 0,
+            smallest: f64::INFINITY,
         }
     }
 
-    /// Takes a sweep's error; true when the sweeps have stalled: `window` sweeps in a row without
-    /// an error below [`STAGNATION_GAIN`] times the mark. An error below it becomes the mark.
+    /// Takes a sweep's error; true when the sweeps have stalled: [`Fc3dStall::sweeps`] in a row
+    /// without an error below [`STAGNATION_GAIN`] times the mark, the smallest error within
+    /// [`Fc3dStall::below`]. An error below it becomes the mark.
     pub(crate) fn stalled(&mut self, error: f64) -> bool {
-        let Some(window) = self.window else {
+        let Some(test) = self.test else {
             return false;
         };
+        self.smallest = self.smallest.min(error);
         if error < STAGNATION_GAIN * self.mark {
             self.mark = error;
             self.since = 0;
             false
         } else {
             self.since += 1;
-            self.since >= window
+            self.since >= test.sweeps && self.smallest <= test.below
         }
     }
 
@@ -115,6 +121,7 @@ impl Stagnation {
     pub(crate) fn restart(&mut self) {
         self.mark = f64::INFINITY;
         self.since = 0;
+        self.smallest = f64::INFINITY;
     }
 }
 
@@ -149,7 +156,7 @@ pub(crate) fn nsgs(
     // The sweep output of smallest error, copied only when a sweep fails to converge.
     let mut best: Option<(f64, Vec<f64>)> = None;
     let mut error = f64::INFINITY;
-    let mut stagnation = Stagnation::new(options.stall_sweeps);
+    let mut stagnation = Stagnation::new(options.stall);
     let mut sweeps = 0;
     while sweeps < options.max_iterations {
         sweeps += 1;

@@ -55,7 +55,7 @@ mod work;
 
 pub use block_csr::{BlockCsr, BlockCsrError};
 pub use fc3d::{
-    Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind,
+    Fc3dError, Fc3dNewtonLinear, Fc3dOptions, Fc3dProblem, Fc3dSolution, Fc3dSolverKind, Fc3dStall,
     natural_map_error,
 };
 pub use fc3d_anderson::solve_fc3d_nsgs_anderson;

@@ -102,7 +102,8 @@ use super::detector::{ContactDetector, ContactPoint, DetectError};
 use super::joint::{InverseMass, JointRow, add_joint_impulse, joint_operator, project};
 use super::scene::RigidScene;
 use crate::friction::{
-    BlockCsr, Fc3dError, Fc3dOptions, Fc3dProblem, solve_fc3d_from, split_tangential_work,
+    BlockCsr, Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dStall, solve_fc3d_from,
+    split_tangential_work,
 };
 use nalgebra::{DMatrix, DVector, Matrix3, Quaternion, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
@@ -160,13 +161,14 @@ pub const AUTO_SWEEPS: usize = 5000;
 /// faster still on three of them, but 1.7 stalled on one and 1.85 on all: 1.5 keeps a margin.
 pub const RELAXATION: f64 = 1.5;
 
-/// The stagnation window of a rigid step's Gauss–Seidel sweeps (`Fc3dOptions::stall_sweeps`;
-/// none for a lone problem): sweeps stop once 1 000 in a row have not cut the smallest error by
-/// 10 %. On the formed pile of the 1 000-sphere benchmark (docs/rigid_benchmark.md, Round 18)
-/// the sweeps of some steps cycle at a fixed error for their whole budget (step 569: 1.399·10⁻⁵
-/// from sweep 1 000 to sweep 50 000): with the window that step's `auto` took 2.7 s instead of
-/// 6.6 s (and 2.3 s with 500 sweeps), the four dumped steps it converges on the same or
-/// faster, while a window of 200 sweeps made one of them fail.
+/// The stagnation window of a rigid step's Gauss–Seidel sweeps when the step accepts errors up
+/// to `accept_error` ([`RigidMoreauJeanParams::stall_sweeps`], `Fc3dOptions::stall`; none for a
+/// lone problem): sweeps within that bound stop once 1 000 in a row have not cut the smallest
+/// error by 10 %. On the formed pile of the 1 000-sphere benchmark (docs/rigid_benchmark.md,
+/// Round 18) the sweeps of some steps cycle at a fixed error for their whole budget (step 569:
+/// 1.399·10⁻⁵ from sweep 1 000 to sweep 50 000): with the window that step's `auto` took 2.7 s
+/// instead of 6.6 s (and 2.3 s with 500 sweeps), and the four dumped steps it converges on
+/// the same or faster, while a window of 200 sweeps made one of them fail.
 pub const STALL_SWEEPS: usize = 1000;
 
 /// Parameters of the scheme.
@@ -195,6 +197,10 @@ pub struct RigidMoreauJeanParams {
     /// `fc3d.tolerance` (module documentation, *Unsolved friction problems*); `None` (default):
     /// such a step fails.
     pub accept_error: Option<f64>,
+    /// With `accept_error`, the FC3D solver's sweeps stop once this many in a row have not cut
+    /// their smallest error by 10 % and that error is within `accept_error` (`Fc3dOptions::stall`,
+    /// which this sets for each solve). Default [`STALL_SWEEPS`]; `None`: they spend the budget.
+    pub stall_sweeps: Option<usize>,
 }
 
 impl Default for RigidMoreauJeanParams {
@@ -208,13 +214,13 @@ impl Default for RigidMoreauJeanParams {
                 tolerance: 1e-12,
                 auto_sweeps: AUTO_SWEEPS,
                 relaxation: RELAXATION,
-                stall_sweeps: Some(STALL_SWEEPS),
                 ..Fc3dOptions::default()
             },
             projection_tolerance: 1e-12,
             projection_max_iterations: 20,
             warm_start: true,
             accept_error: None,
+            stall_sweeps: Some(STALL_SWEEPS),
         }
     }
 }
@@ -666,9 +672,18 @@ impl RigidMoreauJean {
         phases: &mut dyn StepPhases,
         (step, t): (u64, f64),
     ) -> Result<FrictionSolve, RigidStepError> {
+        // Sweeps stalled within the acceptance bound stop there (`stall_sweeps`).
+        let options = Fc3dOptions {
+            stall: self
+                .params
+                .accept_error
+                .zip(self.params.stall_sweeps)
+                .map(|(below, sweeps)| Fc3dStall { sweeps, below }),
+            ..self.params.fc3d
+        };
         let outcome = problem.and_then(|problem| {
             phases.problem(&problem, impulse);
-            solve_fc3d_from(&problem, &self.params.fc3d, impulse)
+            solve_fc3d_from(&problem, &options, impulse)
         });
         match outcome {
             Ok(s) => Ok(FrictionSolve {
