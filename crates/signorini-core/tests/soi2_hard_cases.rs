@@ -315,6 +315,17 @@ fn n_four_bar_with_forty_loops_through_two_passages_under_every_scheme() {
     ns_alpha_four_bar_within_the_benchmark_bounds(40, 1e-3, 2.0, 2);
 }
 
+/// A02 with N = 10 over 14.6 s under generalized-α-SOI2: step 14 451 lands 9.7·10⁻⁶ rad from
+/// a horizontal position (φ_0 = −14π) and returns multipliers of 5.5·10⁴ (1/σ_min along the vanishing
+/// rows). Started from them, the next step's Newton diverged to increments of 3·10⁷, contracted
+/// at 0.4 an iterate and failed after its 25 (step 14 452, "did not converge"); after a step
+/// whose multipliers jumped (`MULTIPLIER_JUMP`) the next one starts from zero multipliers, and
+/// the run stays within the benchmark's bounds through the passage.
+#[test]
+fn n_four_bar_with_ten_loops_through_a_step_next_to_a_singular_position() {
+    n_four_bar_within_the_benchmark_bounds(10, &schemes()[0], 14.6, 14);
+}
+
 /// The benchmark itself: A02 with N = 40 over its 20 s at h = 10⁻³ under the four schemes,
 /// within the bounds above (a minute or two of CPU in all: run it on purpose,
 /// `cargo test -p signorini-core --test soi2_hard_cases -- --ignored --nocapture`;

@@ -178,7 +178,19 @@ pub struct NewtonCache {
     deficient: Vec<(NewtonFactor, f64, usize)>,
     /// Jacobians built (AD evaluations of the full matrix), for statistics.
     pub jacobians: u64,
+    /// The last step's multipliers jumped ([`MULTIPLIER_JUMP`]): the next step starts Newton
+    /// from zero multipliers ([`solve_step_with`]). Part of a checkpoint (absent from older
+    /// ones: false), so that a resumed run starts where the uninterrupted one does.
+    #[serde(default)]
+    multipliers_jumped: bool,
 }
+
+/// A step's multipliers have jumped when their max-norm exceeds this many times 1 + the last
+/// step's. Next to a singular position the multipliers of the vanishing rows grow like
+/// 1/σ_min(g_y): on A02 (N = 10, h = 1e-3, generalized-α-SOI2) ‖λ‖∞ went 33, 37, 47, 59, 96,
+/// 235 over the steps before its eighth passage, then 5.5·10⁴ on the step that landed 9.7·10⁻⁶
+/// rad from the horizontal (docs/benchmarks.md, round 18).
+const MULTIPLIER_JUMP: f64 = 30.0;
 
 /// Jacobians kept per run (one per distinct step size, least recently used dropped).
 const CACHED_JACOBIANS: usize = 4;
@@ -192,6 +204,7 @@ impl NewtonCache {
             banded: Vec::new(),
             deficient: Vec::new(),
             jacobians: 0,
+            multipliers_jumped: false,
         }
     }
 
@@ -1242,6 +1255,21 @@ pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
             x.extend_from_slice(&state.lambda);
         }
     }
+    if cache.multipliers_jumped {
+        // After a step next to a singular position, its multipliers (of size 1/σ_min along the
+        // vanishing rows, carrying a finite force g_yᵀλ there) are no start for this step,
+        // where σ_min has grown: on A02 their force was 260× too large at the first iterate,
+        // the increments 3·10⁷, and Newton then contracted at 0.4 an iterate and ran out of
+        // iterations. From zero the first residual is the size of the constraint forces.
+        let (a_len, lambda_len) = (n, dims.holonomic);
+        let multipliers = match method.formulation {
+            Formulation::General | Formulation::Additive | Formulation::HhtSoi2 => {
+                2 * a_len..2 * a_len + 2 * lambda_len
+            }
+            Formulation::HhtI3 => a_len..a_len + lambda_len,
+        };
+        x[multipliers].fill(0.0);
+    }
     let solved = match cache.strategy {
         NewtonStrategy::Full => solve_newton_full(&sys, &mut x, &method.newton).map(|(i, _)| {
             cache.jacobians += i.iterations as u64;
@@ -1252,6 +1280,8 @@ pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
         }
     };
     let (a, mut lambda, psi, at) = sys.unpack(&x);
+    cache.multipliers_jumped =
+        solved.is_ok() && max_norm(&lambda) > MULTIPLIER_JUMP * (1.0 + max_norm(&state.lambda));
     let mut info = solved.map_err(|e| {
         let (y, z) = (sys.y1(&at), sys.z1(&a));
         newton_error(e, step, t1, "step", rank_at(model, t1, &y, &z))
