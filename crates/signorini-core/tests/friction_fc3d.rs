@@ -678,7 +678,7 @@ fn sweeps_stop_when_they_stall_and_only_then() {
     for kind in [Fc3dSolverKind::Prox, Fc3dSolverKind::NewtonAlartCurnier] {
         assert!(matches!(
             solve_fc3d(&problem, &options(kind, 1e-8, stall(window, 1.0))),
-            Err(Fc3dError::StallSweepsWithoutSweeps { .. })
+            Err(Fc3dError::StallWithoutSweeps { .. })
         ));
     }
 }

@@ -433,7 +433,7 @@ impl Fc3dOptions {
                 })
             }
             (Some(_), Fc3dSolverKind::NewtonAlartCurnier | Fc3dSolverKind::Prox) => {
-                Err(Fc3dError::StallSweepsWithoutSweeps {
+                Err(Fc3dError::StallWithoutSweeps {
                     solver: self.kind.name(),
                 })
             }
@@ -562,7 +562,7 @@ pub enum Fc3dError {
     },
     /// A stagnation test for a solver that does not sweep.
     #[error("the stagnation test applies to Gauss–Seidel's sweeps; solver {solver} does not sweep")]
-    StallSweepsWithoutSweeps {
+    StallWithoutSweeps {
         /// The solver's name.
         solver: &'static str,
     },
