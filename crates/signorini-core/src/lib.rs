@@ -6,6 +6,7 @@
 //! [`observer::Observer`]; the service decides where the records go.
 #![warn(missing_docs)]
 
+pub(crate) mod anderson;
 pub mod band;
 pub mod banded_contact;
 pub mod capabilities;

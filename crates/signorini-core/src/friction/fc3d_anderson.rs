@@ -3,22 +3,9 @@
 //! One Gauss–Seidel sweep over the contacts ([`super::fc3d_nsgs`]) is a map `r ↦ g(r)` whose
 //! fixed points are the solutions; on a dense pile of rigid bodies it converges linearly with a
 //! rate close to 1 (the load has to cross the pile contact after contact). Anderson's method
-//! (D. G. Anderson, *Iterative procedures for nonlinear integral equations*, J. ACM
-//! 12(4):547–560, 1965, doi:10.1145/321296.321305; in the form of H. F. Walker, P. Ni, *Anderson
-//! acceleration for fixed-point iterations*, SIAM J. Numer. Anal. 49(4):1715–1735, 2011,
-//! doi:10.1137/10078356X, Algorithm AA) combines the last `d + 1` sweeps: with the residual
-//! `f_k = g(r_k) − r_k` and the differences of the last d residuals and sweeps,
-//!
-//! ```text
-//! ΔF_k = [f_{k−d+1} − f_{k−d}, …, f_k − f_{k−1}],   ΔG_k = [g(r_{k−d+1}) − g(r_{k−d}), …]
-//! γ_k = argmin_γ ‖f_k − ΔF_k γ‖₂
-//! r_{k+1} = g(r_k) − ΔG_k γ_k
-//! ```
-//!
-//! (for a linear map this is GMRES on `r − g(r) = 0`, which is why it helps where the sweeps crawl).
-//! The least-squares problem is solved through its d × d normal equations (singular values of
-//! ΔF_kᵀΔF_k below 10⁻¹⁴ of the largest dropped). The error is measured on the sweeps' outputs
-//! `g(r_k)`, which satisfy the cone contact by contact. The map is only semismooth (a contact
+//! ([`crate::anderson`]) combines the last `d + 1` sweeps; for a linear map it is GMRES on
+//! `r − g(r) = 0`, which is why it helps where the sweeps crawl. The error is measured on the
+//! sweeps' outputs `g(r_k)`, which satisfy the cone contact by contact. The map is only semismooth (a contact
 //! that changes between take-off, stick and slide changes it), so the history is dropped and the
 //! next sweep starts from the sweep output of smallest error whenever a sweep's error exceeds
 //! [`RESTART_GROWTH`] times the smallest error so far or [`STALL`] sweeps in a row have not
@@ -54,8 +41,7 @@
 
 use super::fc3d::{ErrorMeter, Fc3dError, Fc3dOptions, Fc3dProblem, Fc3dSolution, check_solve};
 use super::fc3d_nsgs::{LOCAL_TOLERANCE, Stagnation, diagonal_blocks, local_tolerance, sweep};
-use nalgebra::{DMatrix, DVector};
-use std::collections::VecDeque;
+use crate::anderson::Accelerator;
 
 /// Depth d: sweeps combined (besides the last).
 const DEPTH: usize = 5;
@@ -69,9 +55,6 @@ const FRUITLESS_RESTARTS: usize = 3;
 /// A restart makes progress when the smallest error is at most this factor times the smallest
 /// error at the previous restart.
 const PROGRESS: f64 = 0.5;
-/// Singular values of ΔFᵀΔF below this fraction of the largest are dropped (those of ΔF below
-/// 10⁻⁷ of its largest: below that the Gram matrix holds round-off only).
-const GRAM_CUT: f64 = 1e-14;
 
 /// Solves the problem by Gauss–Seidel sweeps with Anderson acceleration (module documentation)
 /// from `start`, falling back to plain sweeps from `start` after [`FRUITLESS_RESTARTS`] restarts
@@ -98,8 +81,7 @@ pub(crate) fn nsgs_anderson(
     let mut r = start.to_vec();
     // The sweep output of smallest error (none yet: the start, of infinite error).
     let mut best = (f64::INFINITY, None::<Vec<f64>>);
-    let mut last: Option<(Vec<f64>, Vec<f64>)> = None;
-    let mut history = History::default();
+    let mut accelerator = Accelerator::new(DEPTH);
     let mut stalled = 0;
     // Restarts in a row without progress, and the smallest error at the last restart.
     let mut fruitless = 0;
@@ -154,8 +136,7 @@ pub(crate) fn nsgs_anderson(
                 fruitless += 1;
             }
             best_at_restart = best.0;
-            history.clear();
-            last = None;
+            accelerator.clear();
             stalled = 0;
             accelerated = fruitless < FRUITLESS_RESTARTS;
             if !accelerated {
@@ -168,12 +149,7 @@ pub(crate) fn nsgs_anderson(
             };
             continue;
         }
-        let f: Vec<f64> = g.iter().zip(&r).map(|(g, r)| g - r).collect();
-        if let Some((f_last, g_last)) = last.take() {
-            history.push(difference(&f, &f_last), difference(&g, &g_last));
-        }
-        r = history.extrapolate(&f, &g);
-        last = Some((f, g));
+        r = accelerator.next(&r, g);
     }
     Err(Fc3dError::NotConverged {
         solver: "nsgs_aa",
@@ -182,108 +158,4 @@ pub(crate) fn nsgs_anderson(
         tolerance: options.tolerance,
         best: best.1.unwrap_or_else(|| start.to_vec()),
     })
-}
-
-fn difference(a: &[f64], b: &[f64]) -> Vec<f64> {
-    a.iter().zip(b).map(|(a, b)| a - b).collect()
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
-/// The last d differences `(Δf, Δg)` (oldest first) and the Gram matrix `ΔFᵀΔF` of the Δf,
-/// kept up to date as they come and go: a new difference costs d dot products, not d².
-#[derive(Default)]
-struct History {
-    differences: VecDeque<(Vec<f64>, Vec<f64>)>,
-    /// `gram[i][j] = Δf_i · Δf_j` for the stored differences.
-    gram: VecDeque<VecDeque<f64>>,
-}
-
-impl History {
-    fn clear(&mut self) {
-        self.differences.clear();
-        self.gram.clear();
-    }
-
-    /// Appends a difference, dropping the oldest beyond [`DEPTH`].
-    fn push(&mut self, df: Vec<f64>, dg: Vec<f64>) {
-        if self.differences.len() == DEPTH {
-            self.differences.pop_front();
-            self.gram.pop_front();
-            for row in &mut self.gram {
-                row.pop_front();
-            }
-        }
-        let column: Vec<f64> = self.differences.iter().map(|(f, _)| dot(f, &df)).collect();
-        for (row, &x) in self.gram.iter_mut().zip(&column) {
-            row.push_back(x);
-        }
-        let mut row: VecDeque<f64> = column.into();
-        row.push_back(dot(&df, &df));
-        self.gram.push_back(row);
-        self.differences.push_back((df, dg));
-    }
-
-    /// `g − ΔG γ` with `γ = argmin ‖f − ΔF γ‖₂` (module documentation), γ from the normal
-    /// equations `ΔFᵀΔF γ = ΔFᵀ f` (d × d) by the singular value decomposition, singular values
-    /// below [`GRAM_CUT`] of the largest dropped; `g` itself without history or when that solve
-    /// fails.
-    fn extrapolate(&self, f: &[f64], g: &[f64]) -> Vec<f64> {
-        let history = &self.differences;
-        if history.is_empty() {
-            return g.to_vec();
-        }
-        let d = history.len();
-        let gram = DMatrix::from_fn(d, d, |i, j| self.gram[i][j]);
-        let rhs = DVector::from_fn(d, |i, _| dot(&history[i].0, f));
-        let svd = gram.svd(true, true);
-        let cut = GRAM_CUT * svd.singular_values.max();
-        let Ok(gamma) = svd.solve(&rhs, cut) else {
-            return g.to_vec();
-        };
-        let mut next = g.to_vec();
-        for (j, (_, dg)) in history.iter().enumerate() {
-            for (x, d) in next.iter_mut().zip(dg) {
-                *x -= gamma[j] * d;
-            }
-        }
-        if next.iter().all(|x| x.is_finite()) {
-            next
-        } else {
-            g.to_vec()
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The Gram matrix kept up to date as differences come and go past the depth is, bit for
-    /// bit, the one computed afresh from the differences held.
-    #[test]
-    fn the_kept_gram_matrix_is_the_fresh_one() {
-        let mut history = History::default();
-        for k in 0..2 * DEPTH + 3 {
-            let df: Vec<f64> = (0..7).map(|i| ((k * 7 + i) as f64 * 0.37).sin()).collect();
-            let dg: Vec<f64> = df.iter().map(|x| 2.0 * x).collect();
-            history.push(df, dg);
-            let d = history.differences.len();
-            assert_eq!(d, (k + 1).min(DEPTH));
-            for i in 0..d {
-                for j in 0..d {
-                    let fresh = dot(&history.differences[i].0, &history.differences[j].0);
-                    assert_eq!(
-                        history.gram[i][j].to_bits(),
-                        fresh.to_bits(),
-                        "{k}: ({i}, {j})"
-                    );
-                }
-            }
-        }
-        history.clear();
-        assert!(history.differences.is_empty() && history.gram.is_empty());
-    }
 }
