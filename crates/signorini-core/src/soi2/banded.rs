@@ -291,12 +291,7 @@ impl BandLu {
         for k in (0..n).rev() {
             let last = (k + kl + ku).min(n - 1);
             let row = self.at(k, k);
-            let s = x[k]
-                - x[k + 1..=last]
-                    .iter()
-                    .zip(&self.ab[row + 1..=row + last - k])
-                    .map(|(xj, u)| u * xj)
-                    .sum::<f64>();
+            let s = x[k] - dot(&x[k + 1..=last], &self.ab[row + 1..=row + last - k]);
             let d = self.ab[self.at(k, k)];
             if d == 0.0 {
                 return false;
@@ -308,6 +303,22 @@ impl BandLu {
         }
         true
     }
+}
+
+/// `a · b` over four partial sums: a row of U has up to kl + ku entries, and one running sum
+/// waits on each addition in turn (on A02 with N = 40, 24 entries a row, the back
+/// substitution was a fifth of simplified Newton's time).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut sums = [0.0; 4];
+    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (a4.remainder(), b4.remainder());
+    for (p, q) in a4.zip(b4) {
+        for k in 0..4 {
+            sums[k] += p[k] * q[k];
+        }
+    }
+    let tail: f64 = ra.iter().zip(rb).map(|(p, q)| p * q).sum();
+    (sums[0] + sums[1]) + (sums[2] + sums[3]) + tail
 }
 
 #[cfg(test)]

@@ -105,6 +105,11 @@ impl Pattern {
                 rows_of[c].push(r);
             }
         }
+        // Each row once per column (rows come in order): a joint naming a coordinate twice
+        // would otherwise count its entry twice in sums over the pattern.
+        for rows in &mut rows_of {
+            rows.dedup();
+        }
         let groups = group_columns(&rows_of, &cols_of);
         let band = BandOrder::of_pattern(&rows_of);
         Pattern {
