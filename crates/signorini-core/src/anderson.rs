@@ -80,12 +80,19 @@ impl History {
 
     /// γ = argmin ‖f − ΔF γ‖₂ from the normal equations `ΔFᵀΔF γ = ΔFᵀ f` by the singular
     /// value decomposition, singular values below [`GRAM_CUT`] of the largest dropped; `None`
-    /// when that solve fails. Histories of one and two differences are solved in closed form
-    /// and by nalgebra's 2 × 2 SVD (the general one on a dynamic 2 × 2 matrix was 9 % of
-    /// simplified Newton's time on A02).
+    /// when that solve fails. A history of depth ≤ 2 is solved in closed form and by
+    /// nalgebra's static 2 × 2 SVD (the general one on a dynamic 2 × 2 matrix was 9 % of
+    /// simplified Newton's time on A02). Deeper histories keep the general SVD from their first
+    /// difference on: the FC3D sweeps (depth 5) hand their best iterate to a proximal stage that
+    /// is sensitive to round-off, and with the closed forms for their first two extrapolations
+    /// `auto` took 280 Newton iterations on FCLib's Capsules-i122-1617 instead of 131.
     fn coefficients(&self, f: &[f64]) -> Option<Vec<f64>> {
         let history = &self.differences;
         let rhs: Vec<f64> = history.iter().map(|(df, _)| dot(df, f)).collect();
+        if self.depth > 2 {
+            let d = history.len();
+            return solve_gram(DMatrix::from_fn(d, d, |i, j| self.gram[i][j]), rhs);
+        }
         match history.len() {
             1 => {
                 let gram = self.gram[0][0];
@@ -103,7 +110,7 @@ impl History {
                 let gamma = svd.solve(&Vector2::new(rhs[0], rhs[1]), cut).ok()?;
                 Some(vec![gamma[0], gamma[1]])
             }
-            d => solve_gram(DMatrix::from_fn(d, d, |i, j| self.gram[i][j]), rhs),
+            _ => None,
         }
     }
 
