@@ -463,11 +463,7 @@ fn solve_newton_full<R: Residual>(
                 increment,
             });
         }
-        let band = res
-            .pattern()
-            .filter(|p| p.size() == n)
-            .and_then(Pattern::band);
-        let factor = NewtonFactor::with_band(&jac, band, || res.joints_deficient(x));
+        let factor = factor_jacobian(res, &jac, x);
         singular |= factor.deficient();
         let mut dx = r.clone();
         if !factor.solve_mut(&mut dx) {
@@ -604,13 +600,8 @@ fn solve_newton_simplified<R: Residual>(
     // The Jacobian in use was built during this step (not carried over from an earlier one).
     let mut built_here = false;
     let mut singular = current.as_ref().is_some_and(NewtonFactor::deficient);
-    let mut previous = f64::INFINITY;
+    let mut iterates = Iterates::new();
     let mut fallback = false;
-    let mut accelerator = Accelerator::new(ANDERSON_DEPTH);
-    // The contraction of plain iterates with the Jacobian in use, and whether the current
-    // iterate was extrapolated by Anderson's method.
-    let mut plain_rate = None;
-    let mut extrapolated = false;
     for it in 1..=opts.max_iterations {
         if current.is_none() {
             if jac.nrows() != n {
@@ -618,18 +609,11 @@ fn solve_newton_simplified<R: Residual>(
             }
             build_jacobian(res, x, &mut xd, &mut rd, &mut jac, &mut r);
             cache.jacobians += 1;
-            let band = res
-                .pattern()
-                .filter(|p| p.size() == n)
-                .and_then(Pattern::band);
-            let factor = NewtonFactor::with_band(&jac, band, || res.joints_deficient(x));
+            let factor = factor_jacobian(res, &jac, x);
             singular |= factor.deficient();
             current = Some(factor);
             built_here = true;
-            previous = f64::INFINITY;
-            accelerator.clear();
-            plain_rate = None;
-            extrapolated = false;
+            iterates.restart();
         } else {
             res.eval(x, r.as_mut_slice());
         }
@@ -639,7 +623,7 @@ fn solve_newton_simplified<R: Residual>(
                 return Err(NewtonFailure::Diverged {
                     iterations: it - 1,
                     residual: rnorm,
-                    increment: previous,
+                    increment: iterates.previous,
                 });
             }
             fallback = true;
@@ -676,20 +660,12 @@ fn solve_newton_simplified<R: Residual>(
             *xi -= d;
         }
         let scale = 1.0 + xnorm.max(max_norm(x));
-        let slow = increment >= CONTRACTION_LIMIT * previous;
-        // The error estimates below take the contraction of the plain iterates x − Δx, the
-        // one accepted: after an extrapolation ‖Δx_k‖/‖Δx_{k−1}‖ measures Anderson's method,
-        // up to 300× faster on A02 (0.001 against 0.33).
-        let mut rate = increment / previous;
-        if extrapolated {
-            rate = rate.max(plain_rate.unwrap_or(rate));
-        } else if previous.is_finite() {
-            plain_rate = Some(rate);
-        }
+        let slow = increment >= CONTRACTION_LIMIT * iterates.previous;
+        let rate = iterates.rate(increment);
         // Stalled at the round-off floor: only trusted with a Jacobian of this step, or with
         // an older one whose plain iterates contracted fast (otherwise slow contraction is the
         // Jacobian's fault).
-        let trusted = built_here || plain_rate.is_some_and(|p: f64| p <= TRUSTED_RATE);
+        let trusted = built_here || iterates.contract_fast();
         let stalled =
             trusted && slow && increment <= (100.0 * opts.tolerance * scale).max(res.noise_floor());
         let at_floor = at_rounding(increment, rate, res.rounding());
@@ -724,27 +700,15 @@ fn solve_newton_simplified<R: Residual>(
             });
         }
         // Rebuilt at the next iterate when the contraction is slow, or when a Jacobian of an
-        // earlier step contracts at a rate ρ that cannot reach the tolerance within the
-        // iterations left (‖Δx‖ ρ^left / (1 − ρ) > tolerance, Hairer & Wanner's test for reusing
-        // a Jacobian): near a singular position an old Jacobian contracts at ρ ≈ ½ for the whole
-        // budget.
-        let left = (opts.max_iterations - it) as i32;
-        let hopeless = !built_here
-            && rate < 1.0
-            && increment * rate.powi(left) / (1.0 - rate) > opts.tolerance * scale;
+        // earlier step cannot reach the tolerance.
+        let left = opts.max_iterations - it;
+        let hopeless = !built_here && hopeless(increment, rate, left, opts.tolerance * scale);
         if slow || hopeless {
             current = None;
         } else if !singular {
-            // Anderson's method on the map x ↦ x − J⁻¹F(x) of the reused Jacobian J
-            // ([`crate::anderson`]): near a solution that map is linear, contracting at the
-            // rate J's age gives it, and the method is then GMRES preconditioned by J. On A02
-            // an old Jacobian leaves the multipliers contracting at 0.33 an iterate (the
-            // accelerations converge in two); extrapolated, they converge in two more.
-            extrapolated = accelerator.extrapolates();
-            let g = x.to_vec();
-            x.copy_from_slice(&accelerator.next(&x_here, g));
+            iterates.extrapolate(&x_here, x);
         }
-        previous = increment;
+        iterates.previous = increment;
         if it == opts.max_iterations && !built_here {
             fallback = true;
         }
@@ -760,8 +724,92 @@ fn solve_newton_simplified<R: Residual>(
     Err(NewtonFailure::Diverged {
         iterations: opts.max_iterations,
         residual: r.amax(),
-        increment: previous,
+        increment: iterates.previous,
     })
+}
+
+/// Whether iterates contracting at `rate` from an increment of max-norm `increment` cannot
+/// reach `tolerance` within `left` iterations, ‖Δx‖ ρ^left / (1 − ρ) > tolerance (Hairer &
+/// Wanner's test for reusing a Jacobian): near a singular position an old Jacobian contracts at
+/// ρ ≈ ½ for the whole budget.
+fn hopeless(increment: f64, rate: f64, left: usize, tolerance: f64) -> bool {
+    let left = i32::try_from(left).unwrap_or(i32::MAX);
+    rate < 1.0 && increment * rate.powi(left) / (1.0 - rate) > tolerance
+}
+
+/// Simplified Newton's iterates under one Jacobian: the contraction of their increments and
+/// their extrapolation by Anderson's method.
+struct Iterates {
+    /// ‖Δx‖∞ of the last iterate (∞ before the first).
+    previous: f64,
+    /// The contraction of the plain iterates x − Δx with this Jacobian, measured on its first
+    /// two increments (before any extrapolation).
+    plain_rate: Option<f64>,
+    /// The current iterate was extrapolated.
+    extrapolated: bool,
+    accelerator: Accelerator,
+}
+
+impl Iterates {
+    fn new() -> Self {
+        Self {
+            previous: f64::INFINITY,
+            plain_rate: None,
+            extrapolated: false,
+            accelerator: Accelerator::new(ANDERSON_DEPTH),
+        }
+    }
+
+    /// A new Jacobian: a new map, its contraction measured afresh.
+    fn restart(&mut self) {
+        self.previous = f64::INFINITY;
+        self.plain_rate = None;
+        self.extrapolated = false;
+        self.accelerator.clear();
+    }
+
+    /// The contraction the error estimates take for an iterate of max-norm `increment`: that
+    /// of the plain iterates x − Δx, the one accepted. After an extrapolation
+    /// ‖Δx_k‖/‖Δx_{k−1}‖ measures Anderson's method, up to 300× faster on A02 (0.001 against
+    /// 0.33), and would understate the accepted iterate's error by as much.
+    fn rate(&mut self, increment: f64) -> f64 {
+        let rate = increment / self.previous;
+        if self.extrapolated {
+            rate.max(self.plain_rate.unwrap_or(rate))
+        } else {
+            if self.previous.is_finite() {
+                self.plain_rate = Some(rate);
+            }
+            rate
+        }
+    }
+
+    /// The plain iterates contract at [`TRUSTED_RATE`] or faster.
+    fn contract_fast(&self) -> bool {
+        self.plain_rate.is_some_and(|p| p <= TRUSTED_RATE)
+    }
+
+    /// Replaces the plain iterate `x` = `x_here` − Δx by Anderson's extrapolation on the map
+    /// x ↦ x − J⁻¹F(x) of the reused Jacobian J ([`crate::anderson`]): near a solution that
+    /// map is linear, contracting at the rate J's age gives it, and the method is then GMRES
+    /// preconditioned by J. On A02 an old Jacobian leaves the multipliers contracting at 0.33
+    /// an iterate (the accelerations converge in two); extrapolated, they converge in two more.
+    fn extrapolate(&mut self, x_here: &[f64], x: &mut [f64]) {
+        self.extrapolated = self.accelerator.extrapolates();
+        let g = x.to_vec();
+        x.copy_from_slice(&self.accelerator.next(x_here, g));
+    }
+}
+
+/// The factorisation of Newton's matrix `jac` at `x`: band LU in the band order of the
+/// residual's pattern when it has one, else dense LU; the SVD when singular with
+/// rank-deficient joints ([`NewtonFactor::with_band`]).
+fn factor_jacobian<R: Residual>(res: &R, jac: &DMatrix<f64>, x: &[f64]) -> NewtonFactor {
+    let band = res
+        .pattern()
+        .filter(|p| p.size() == jac.nrows())
+        .and_then(Pattern::band);
+    NewtonFactor::with_band(jac, band, || res.joints_deficient(x))
 }
 
 /// The error of a Newton failure at `step`, time `t`, with the numerical rank of (g_y; k_z)
