@@ -19,6 +19,7 @@
 //! of the 3D friction problem ([`crate::friction`]) and by simplified Newton in the SOI2 schemes
 //! ([`crate::soi2`]), where `g` is one iterate with a reused Jacobian.
 
+use crate::dense::dot;
 use nalgebra::{DMatrix, DVector, Matrix2, Vector2};
 use std::collections::VecDeque;
 
@@ -29,10 +30,6 @@ const GRAM_CUT: f64 = 1e-14;
 /// `a − b`, entry by entry.
 fn difference(a: &[f64], b: &[f64]) -> Vec<f64> {
     a.iter().zip(b).map(|(a, b)| a - b).collect()
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 /// The last d differences `(Δf, Δg)` (oldest first) and the Gram matrix `ΔFᵀΔF` of the Δf,
