@@ -125,11 +125,14 @@ async fn watch_replays_a_finished_job_from_any_seq() {
     got.extend(state_rows);
     assert_eq!(got, want, "the replay is the stored result, bit for bit");
 
-    // From the middle: the same frames from that seq on.
-    let (later, _, _) = watch_from(&mut client, &id, 40).await;
-    assert_eq!(later.len(), energy.len() - 40);
-    assert_eq!(later[0].step, energy[40].step);
-    assert_eq!(later[0].values, energy[40].values);
+    // From anywhere, in any of the stored chunks (30 001 rows are three of them), up to past
+    // the last frame: the same frames from that seq on.
+    let n = energy.len();
+    for from in [40, n / 3, n / 2, 2 * n / 3, n - 1, n, n + 5] {
+        let (later, _, end) = watch_from(&mut client, &id, from as u64).await;
+        assert_eq!(end, pb::JobState::Succeeded as i32);
+        assert_eq!(later, energy[from.min(n)..], "from seq {from}");
+    }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

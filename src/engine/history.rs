@@ -93,6 +93,29 @@ impl History {
         self.ended
     }
 
+    /// The first stored chunk with a batch of `seq ≥ from_seq` (the number of chunks when none
+    /// has), by bisection: `seq` grows with the rows, so a watcher asking for the last frames of
+    /// a long run reads a few chunks, not all of them (it read all 1 608 batches of a
+    /// 400 000-step run to answer with none, which took longer than a query's timeout on a
+    /// loaded machine).
+    fn first_chunk_from(&self, from_seq: u64) -> Result<usize, EngineError> {
+        let chunks = self.stored.chunks();
+        let (mut below, mut above) = (0, chunks.len());
+        while below < above {
+            let mid = below + (above - below) / 2;
+            let chunk = self.stored.read(&chunks[mid])?;
+            let last_seq = batches_of(&chunk, chunks[mid].first_row)
+                .last()
+                .map(|b| b.0);
+            if last_seq.is_some_and(|s| s < from_seq) {
+                below = mid + 1;
+            } else {
+                above = mid;
+            }
+        }
+        Ok(below)
+    }
+
     /// Gives `send` every batch of `seq ≥ from_seq`, in order, reading one stored chunk at a
     /// time (blocking), until `send` returns false; the last batch of an ended job is marked
     /// `last`. Returns the `seq` of the last batch given.
@@ -138,7 +161,8 @@ impl History {
                 None => true,
             }
         };
-        for meta in self.stored.chunks() {
+        let chunks = self.stored.chunks();
+        for meta in &chunks[self.first_chunk_from(from_seq)?..] {
             let chunk = self.stored.read(meta)?;
             for b in batches_of(&chunk, meta.first_row) {
                 if b.0 >= from_seq && !give(make(&chunk, meta.first_row, b), &mut given) {
