@@ -69,6 +69,11 @@ impl Expected {
     }
 }
 
+/// How long a history query may take: the server reads up to [`stream::HISTORY_FRAMES`] frames
+/// from its store for it, on a machine that may be busy with the jobs themselves (zenoh's
+/// default of 10 s was once exceeded on a loaded two-core CI machine).
+const HISTORY_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(60);
+
 /// The recorded frames of `kind` with `from ≤ seq < before` (to the last one when `before` is
 /// `None`), in `seq` order, asked [`stream::HISTORY_FRAMES`] at a time.
 async fn fetch(
@@ -87,6 +92,7 @@ async fn fetch(
     loop {
         let replies = session
             .get(format!("{key}/*?from_seq={from}"))
+            .timeout(HISTORY_TIMEOUT)
             .await
             .map_err(|e| anyhow!("zenoh get of the history: {e}"))?;
         let mut got = Vec::new();
