@@ -187,7 +187,10 @@ fn main() {
                 "| {n} | {scheme} | {steps} | {cpu:.2} | {wall:.2} | {:.0} | {iterations:.2} | {jacobians:.3} | {error:.2e} | {drift:.1e} |",
                 steps as f64 / cpu.max(1e-9),
             );
-            eprintln!("  (N = {n}: validation and compilation {compiled:.3} s CPU, included)");
+            eprintln!(
+                "  (N = {n}: validation and compilation {compiled:.3} s CPU, included; last φ_0 {:?}, to compare runs bit for bit)",
+                first.last().copied().unwrap_or(f64::NAN)
+            );
         }
     }
 }

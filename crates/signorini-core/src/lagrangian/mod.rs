@@ -601,6 +601,15 @@ impl ConstrainedModel for UserModel {
         self.eval(&self.mass, t, y, None, m);
     }
 
+    /// The entries M's tape stores, in its (row-major) order, but for those zero at `y`.
+    fn mass_entries_at(&self, t: f64, y: &[f64], out: &mut Vec<(usize, usize, f64)>) {
+        self.stored_entries(StoredMatrix::Mass, t, y, |i, k, m| {
+            if m != 0.0 {
+                out.push((i, k, m));
+            }
+        });
+    }
+
     fn force<T: Scalar>(&self, t: T, y: &[T], z: &[T], lambda: &[T], _psi: &[T], f: &mut [T]) {
         self.eval(&self.forces, t, y, Some(z), f);
         if self.joints > 0 {

@@ -1329,8 +1329,8 @@ pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
         .zip(&state.z)
         .map(|(y, z)| y + h * (1.0 + alpha) * z)
         .collect();
-    let mut m1 = vec![0.0; n * n];
-    model.mass(t0 + (1.0 + alpha) * h, &y_pred, &mut m1);
+    let mut m1 = Vec::new();
+    model.mass_entries_at(t0 + (1.0 + alpha) * h, &y_pred, &mut m1);
     let ma_alpha = ma_used(model, method, state, h);
     let mut f0 = vec![0.0; n];
     model.force(t0, &state.y, &state.z, &state.lambda, &state.psi, &mut f0);
@@ -1345,12 +1345,7 @@ pub fn solve_step_with<M: ConstrainedModel + ?Sized>(
         a_alpha: &state.a_alpha,
         ma_alpha: &ma_alpha,
         f0: &f0,
-        m1: &m1
-            .iter()
-            .enumerate()
-            .filter(|&(_, &m)| m != 0.0)
-            .map(|(k, &m)| (k / n, k % n, m))
-            .collect::<Vec<_>>(),
+        m1: &m1,
     };
     // Start from the previous values (tilded = untilded, corrections 0).
     let mut x = Vec::with_capacity(sys.size());

@@ -95,6 +95,21 @@ pub trait ConstrainedModel {
     /// Mass matrix M(t, y), n×n row-major, nonsingular.
     fn mass<T: Scalar>(&self, t: T, y: &[T], m: &mut [T]);
 
+    /// M(t, y) as its structural nonzeros (row, column, value) in row-major order, appended
+    /// to `out`: what the schemes multiply with. Default: the nonzero entries of
+    /// [`Self::mass`] (an n×n array per call, which a large model overrides).
+    fn mass_entries_at(&self, t: f64, y: &[f64], out: &mut Vec<(usize, usize, f64)>) {
+        let n = y.len();
+        let mut m = vec![0.0; n * n];
+        self.mass(t, y, &mut m);
+        out.extend(
+            m.into_iter()
+                .enumerate()
+                .filter(|&(_, v)| v != 0.0)
+                .map(|(k, v)| (k / n, k % n, v)),
+        );
+    }
+
     /// Forces f(t, y, z, λ, ψ), n entries (reaction forces included).
     fn force<T: Scalar>(&self, t: T, y: &[T], z: &[T], lambda: &[T], psi: &[T], f: &mut [T]);
 
