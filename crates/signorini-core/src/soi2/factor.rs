@@ -65,27 +65,33 @@ impl NewtonFactor {
         band: Option<&BandOrder>,
         joints_deficient: impl FnOnce() -> bool,
     ) -> NewtonFactor {
-        let (regular, (lo, hi)) = match band {
-            Some(band) => {
-                let lu = BandLu::factor(j, band);
-                let range = lu.pivot_range();
-                (NewtonFactor::Banded(lu), range)
-            }
-            None => {
-                let lu = j.clone().lu();
-                let range = pivot_range(&lu);
-                (NewtonFactor::Regular(lu), range)
-            }
+        let regular = match band {
+            Some(band) => NewtonFactor::Banded(BandLu::factor(j, band)),
+            None => NewtonFactor::Regular(j.clone().lu()),
         };
-        // A matrix with a NaN or an infinity stays with LU, whose solve then fails or gives a
-        // non-finite increment that Newton reports.
-        if (hi > 0.0 && lo >= LU_PIVOT_RATIO * hi)
-            || !j.iter().all(|v| v.is_finite())
-            || !joints_deficient()
-        {
+        let finite = || j.iter().all(|v| v.is_finite());
+        NewtonFactor::choose(regular, finite, joints_deficient, || j.clone())
+    }
+
+    /// The LU factorisation `regular` of a matrix, unless its pivots show it numerically
+    /// singular while the joints have lost rank: then the SVD of the matrix (`dense` forms it).
+    /// A matrix with a NaN or an infinity (`finite` says whether it has none) stays with LU,
+    /// whose solve then fails or gives a non-finite increment that Newton reports.
+    pub(super) fn choose(
+        regular: NewtonFactor,
+        finite: impl FnOnce() -> bool,
+        joints_deficient: impl FnOnce() -> bool,
+        dense: impl FnOnce() -> DMatrix<f64>,
+    ) -> NewtonFactor {
+        let (lo, hi) = match &regular {
+            NewtonFactor::Regular(lu) => pivot_range(lu),
+            NewtonFactor::Banded(lu) => lu.pivot_range(),
+            NewtonFactor::Deficient { .. } => return regular,
+        };
+        if (hi > 0.0 && lo >= LU_PIVOT_RATIO * hi) || !finite() || !joints_deficient() {
             return regular;
         }
-        NewtonFactor::least_squares(j)
+        NewtonFactor::least_squares(&dense())
     }
 
     /// The SVD of `j` with its numerical rank (singular values above [`RANK_TOLERANCE`] · σ_max):

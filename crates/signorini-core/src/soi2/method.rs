@@ -9,6 +9,7 @@
 
 use super::banded::BandLu;
 use super::factor::NewtonFactor;
+use super::jacobian::Jacobian;
 use super::sparsity::Pattern;
 use super::{
     ConstrainedModel, Dims, Dual64, Scalar, Soi2Error, constraint_numerical_rank, constraint_rank,
@@ -346,52 +347,6 @@ enum NewtonFailure {
     },
 }
 
-/// Fills `jac` with the AD Jacobian of `res` at `x` and `r` with F(x): one dual evaluation per
-/// group of structurally orthogonal columns when the residual knows its pattern, one per column
-/// otherwise. With a pattern only its entries are written: `jac` must be zero outside it, as
-/// allocated and as every earlier build of the same residual left it (zeroing the whole matrix
-/// again was a third of A02's time at N = 160, 1 282 unknowns, 13 MB).
-fn build_jacobian<R: Residual>(
-    res: &R,
-    x: &[f64],
-    xd: &mut [Dual64],
-    rd: &mut [Dual64],
-    jac: &mut DMatrix<f64>,
-    r: &mut DVector<f64>,
-) {
-    let n = x.len();
-    for (d, &v) in xd.iter_mut().zip(x.iter()) {
-        *d = Dual64::from_re(v);
-    }
-    if let Some(pattern) = res.pattern().filter(|p| p.size() == n && n > 0) {
-        for group in pattern.groups() {
-            for &j in group {
-                xd[j].eps = 1.0;
-            }
-            res.eval(xd, rd);
-            for &j in group {
-                xd[j].eps = 0.0;
-                for &i in pattern.rows_of(j) {
-                    jac[(i, j)] = rd[i].eps;
-                }
-            }
-        }
-        for (ri, d) in r.iter_mut().zip(rd.iter()) {
-            *ri = d.re;
-        }
-        return;
-    }
-    for j in 0..n {
-        xd[j].eps = 1.0;
-        res.eval(xd, rd);
-        for i in 0..n {
-            jac[(i, j)] = rd[i].eps;
-            r[i] = rd[i].re;
-        }
-        xd[j].eps = 0.0;
-    }
-}
-
 /// Newton's method on `res` from `x`; the Jacobian of each iterate by forward-mode AD
 /// (one dual evaluation per column).
 fn solve_newton<R: Residual>(
@@ -400,30 +355,6 @@ fn solve_newton<R: Residual>(
     opts: &NewtonOptions,
 ) -> Result<StepInfo, NewtonFailure> {
     solve_newton_full(res, x, opts).map(|(info, _)| info)
-}
-
-/// ‖J‖∞, the largest row sum of |J| (the scale of the residual test), over the entries of
-/// `pattern` when the residual has one (the others are zero), each row's sum in the order of its
-/// columns. Over the whole dense matrix it was 9 % of A02's time at N = 160 (1 282 unknowns).
-fn row_sum_norm(jac: &DMatrix<f64>, pattern: Option<&Pattern>) -> f64 {
-    let mut sums = vec![0.0; jac.nrows()];
-    match pattern.filter(|p| p.size() == jac.ncols()) {
-        Some(pattern) => {
-            for j in 0..jac.ncols() {
-                for &i in pattern.rows_of(j) {
-                    sums[i] += jac[(i, j)].abs();
-                }
-            }
-        }
-        None => {
-            for column in jac.column_iter() {
-                for (sum, v) in sums.iter_mut().zip(column.iter()) {
-                    *sum += v.abs();
-                }
-            }
-        }
-    }
-    sums.into_iter().fold(0.0, f64::max)
 }
 
 /// The residual test of [`NewtonOptions`]: ‖F(x)‖∞ ≤ ‖J‖∞ · (tolerance · scale + rounding),
@@ -448,13 +379,13 @@ fn solve_newton_full<R: Residual>(
     let n = res.size();
     let mut xd: Vec<Dual64> = x.iter().map(|&v| Dual64::from_re(v)).collect();
     let mut rd = vec![Dual64::from_re(0.0); n];
-    let mut jac = DMatrix::<f64>::zeros(n, n);
+    let mut jac = Jacobian::for_residual(res);
     let mut r = DVector::<f64>::zeros(n);
     let mut increment = f64::INFINITY;
     let mut previous = f64::INFINITY;
     let mut singular = false;
     for it in 1..=opts.max_iterations {
-        build_jacobian(res, x, &mut xd, &mut rd, &mut jac, &mut r);
+        jac.build(res, x, &mut xd, &mut rd, &mut r);
         let rnorm = r.amax();
         if !rnorm.is_finite() {
             return Err(NewtonFailure::Diverged {
@@ -463,7 +394,7 @@ fn solve_newton_full<R: Residual>(
                 increment,
             });
         }
-        let factor = factor_jacobian(res, &jac, x);
+        let factor = jac.factor(res, x);
         singular |= factor.deficient();
         let mut dx = r.clone();
         if !factor.solve_mut(&mut dx) {
@@ -509,13 +440,7 @@ fn solve_newton_full<R: Residual>(
         if slow || factor.deficient() {
             // The residual test: the equations hold although the increment cannot shrink.
             res.eval(x, r.as_mut_slice());
-            if residual_holds(
-                res,
-                &r,
-                row_sum_norm(&jac, res.pattern()),
-                opts.tolerance,
-                scale,
-            ) {
+            if residual_holds(res, &r, jac.row_sum_norm(res), opts.tolerance, scale) {
                 let info = StepInfo {
                     iterations: it,
                     residual: r.amax(),
@@ -594,7 +519,7 @@ fn solve_newton_simplified<R: Residual>(
     // and a step builds 0.4 Jacobians on average; zeroing it at every step (830 kB) and M's
     // dense product below made 0.33 M of the 6.89 M instructions of a soi2_generalized_alpha
     // step (callgrind).
-    let mut jac = DMatrix::<f64>::zeros(0, 0);
+    let mut jac: Option<Jacobian> = None;
     let mut r = DVector::<f64>::zeros(n);
     let mut dx = DVector::<f64>::zeros(n);
     // The Jacobian in use was built during this step (not carried over from an earlier one).
@@ -604,12 +529,10 @@ fn solve_newton_simplified<R: Residual>(
     let mut fallback = false;
     for it in 1..=opts.max_iterations {
         if current.is_none() {
-            if jac.nrows() != n {
-                jac = DMatrix::zeros(n, n);
-            }
-            build_jacobian(res, x, &mut xd, &mut rd, &mut jac, &mut r);
+            let jac = jac.get_or_insert_with(|| Jacobian::for_residual(res));
+            jac.build(res, x, &mut xd, &mut rd, &mut r);
             cache.jacobians += 1;
-            let factor = factor_jacobian(res, &jac, x);
+            let factor = jac.factor(res, x);
             singular |= factor.deficient();
             current = Some(factor);
             built_here = true;
@@ -675,16 +598,14 @@ fn solve_newton_simplified<R: Residual>(
             res.eval(x, r.as_mut_slice());
             converged = residual_holds(res, &r, norm, opts.tolerance, scale);
         }
-        if !converged && built_here && (slow || factor.deficient()) {
+        if !converged
+            && built_here
+            && (slow || factor.deficient())
+            && let Some(jac) = &jac
+        {
             // The residual test (the Jacobian of this step is in `jac`).
             res.eval(x, r.as_mut_slice());
-            converged = residual_holds(
-                res,
-                &r,
-                row_sum_norm(&jac, res.pattern()),
-                opts.tolerance,
-                scale,
-            );
+            converged = residual_holds(res, &r, jac.row_sum_norm(res), opts.tolerance, scale);
             singular |= converged;
         }
         if converged {
@@ -799,17 +720,6 @@ impl Iterates {
         let g = x.to_vec();
         x.copy_from_slice(&self.accelerator.next(x_here, g));
     }
-}
-
-/// The factorisation of Newton's matrix `jac` at `x`: band LU in the band order of the
-/// residual's pattern when it has one, else dense LU; the SVD when singular with
-/// rank-deficient joints ([`NewtonFactor::with_band`]).
-fn factor_jacobian<R: Residual>(res: &R, jac: &DMatrix<f64>, x: &[f64]) -> NewtonFactor {
-    let band = res
-        .pattern()
-        .filter(|p| p.size() == jac.nrows())
-        .and_then(Pattern::band);
-    NewtonFactor::with_band(jac, band, || res.joints_deficient(x))
 }
 
 /// The error of a Newton failure at `step`, time `t`, with the numerical rank of (g_y; k_z)

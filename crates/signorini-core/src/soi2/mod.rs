@@ -28,6 +28,7 @@
 
 pub mod banded;
 pub mod factor;
+mod jacobian;
 pub mod method;
 pub mod models;
 pub mod run;
