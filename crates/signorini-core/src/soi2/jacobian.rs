@@ -1,4 +1,5 @@
-//! Newton's matrix J = ∂F/∂x of a step's residual, built by forward-mode AD and factorised.
+//! A step's residual F(x) and Newton's matrix J = ∂F/∂x, built by forward-mode AD and
+//! factorised.
 //!
 //! A residual whose pattern has a band order (a large mechanism, [`super::banded`]) keeps only
 //! the values of its pattern's entries and goes to the band LU from them: no n×n array is
@@ -6,12 +7,41 @@
 //! 13 % of A02's time at N = 160, 1 282 unknowns, 13 MB). The dense matrix is formed only for
 //! the SVD of a singular matrix with rank-deficient joints. Any other residual is built densely.
 
-use super::Dual64;
 use super::banded::BandLu;
 use super::factor::NewtonFactor;
-use super::method::Residual;
 use super::sparsity::Pattern;
+use super::{Dual64, Scalar};
 use nalgebra::{DMatrix, DVector};
+
+/// A residual function F(x) written for any scalar, so that its Jacobian comes from AD.
+pub trait Residual {
+    /// Number of unknowns (= of equations).
+    fn size(&self) -> usize;
+    /// F(x).
+    fn eval<T: Scalar>(&self, x: &[T], r: &mut [T]);
+    /// Size of the increments that round-off alone produces (0 when negligible): Newton stops
+    /// when its increments stop shrinking below this floor.
+    fn noise_floor(&self) -> f64 {
+        0.0
+    }
+    /// The rounding of the data the residual is evaluated from, as a change of the unknowns
+    /// (0 when negligible): the residual test's bound ‖J‖∞ · (tolerance · (1 + ‖x‖∞) + this)
+    /// accepts the residual such a change produces (see [`NewtonOptions`]).
+    fn rounding(&self) -> f64 {
+        0.0
+    }
+    /// Whether the constraint Jacobian (g_y; k_z) has lost rank at the iterate `x` (then a
+    /// singular Newton matrix is solved in the least-squares sense).
+    fn joints_deficient(&self, x: &[f64]) -> bool {
+        let _ = x;
+        false
+    }
+    /// The structure of the Jacobian, when known (then it is built one dual evaluation per
+    /// group of structurally orthogonal columns); `None`: one per column.
+    fn pattern(&self) -> Option<&Pattern> {
+        None
+    }
+}
 
 /// Newton's matrix as built.
 pub(super) enum Jacobian {

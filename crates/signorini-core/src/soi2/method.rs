@@ -9,7 +9,7 @@
 
 use super::banded::BandLu;
 use super::factor::NewtonFactor;
-use super::jacobian::Jacobian;
+use super::jacobian::{Jacobian, Residual};
 use super::sparsity::Pattern;
 use super::{
     ConstrainedModel, Dims, Dual64, Scalar, Soi2Error, constraint_numerical_rank, constraint_rank,
@@ -305,36 +305,6 @@ pub struct StepInfo {
     pub rank: Option<usize>,
     /// Attempts rejected for a Newton failure and retried with h/2 (variable-step runs).
     pub rejected: u64,
-}
-
-/// A residual function F(x) written for any scalar, so that its Jacobian comes from AD.
-pub trait Residual {
-    /// Number of unknowns (= of equations).
-    fn size(&self) -> usize;
-    /// F(x).
-    fn eval<T: Scalar>(&self, x: &[T], r: &mut [T]);
-    /// Size of the increments that round-off alone produces (0 when negligible): Newton stops
-    /// when its increments stop shrinking below this floor.
-    fn noise_floor(&self) -> f64 {
-        0.0
-    }
-    /// The rounding of the data the residual is evaluated from, as a change of the unknowns
-    /// (0 when negligible): the residual test's bound ‖J‖∞ · (tolerance · (1 + ‖x‖∞) + this)
-    /// accepts the residual such a change produces (see [`NewtonOptions`]).
-    fn rounding(&self) -> f64 {
-        0.0
-    }
-    /// Whether the constraint Jacobian (g_y; k_z) has lost rank at the iterate `x` (then a
-    /// singular Newton matrix is solved in the least-squares sense).
-    fn joints_deficient(&self, x: &[f64]) -> bool {
-        let _ = x;
-        false
-    }
-    /// The structure of the Jacobian, when known (then it is built one dual evaluation per
-    /// group of structurally orthogonal columns); `None`: one per column.
-    fn pattern(&self) -> Option<&Pattern> {
-        None
-    }
 }
 
 /// Newton failures before they get a step and a time.
