@@ -1,6 +1,6 @@
 //! Small dense linear algebra shared by the schemes that assemble their matrices densely (the
 //! nonlinear Moreau–Jean and nonsmooth generalized-α schemes, the mixed LCP): row-major dot
-//! products, the kinetic energy ½ vᵀMv, an LU factorisation that refuses a matrix singular
+//! products, an LU factorisation that refuses a matrix singular
 //! to working precision, and singular values that refuse a matrix holding a NaN.
 
 use nalgebra::{DMatrix, DVector, Dyn, LU};
@@ -22,14 +22,6 @@ pub fn amax(x: &[f64]) -> f64 {
     x.iter().fold(0.0f64, |m, v| m.max(v.abs()))
 }
 
-/// The kinetic energy ½ vᵀ M v, M row-major n×n.
-pub fn kinetic(mass: &[f64], v: &[f64]) -> f64 {
-    let n = v.len();
-    0.5 * (0..n)
-        .map(|i| v[i] * dot(&mass[i * n..(i + 1) * n], v))
-        .sum::<f64>()
-}
-
 /// LU factors of `w` (partial pivoting), or `None` when `w` is singular to working precision:
 /// a pivot |U_jj| ≤ n ε max_i |w_ij| (relative to its own column of `w`, so that scaling a
 /// coordinate, e.g. a mass of 1e-7 next to one of 1e3, does not make `w` look singular), or a
@@ -48,11 +40,15 @@ pub fn lu_factor_with(w: DMatrix<f64>, column_max: &mut Vec<f64>) -> Option<LU<f
     // U's diagonal read in place: `LU::u()` would copy the whole upper triangle, a matrix
     // allocated per factorisation (per Newton iterate of the nonlinear schemes).
     let factors = lu.lu_internal();
-    let singular = (0..n).any(|j| {
-        let p = factors[(j, j)].abs();
-        !p.is_finite() || p <= n as f64 * f64::EPSILON * column_max[j]
-    });
+    let singular = (0..n).any(|j| negligible_pivot(factors[(j, j)], n, column_max[j]));
     (!singular).then_some(lu)
+}
+
+/// Whether the pivot `p` of an n×n LU factorisation is negligible against the largest entry
+/// `column_max` of its column: |p| ≤ n ε column_max, or not finite.
+pub fn negligible_pivot(p: f64, n: usize, column_max: f64) -> bool {
+    let p = p.abs();
+    !p.is_finite() || p <= n as f64 * f64::EPSILON * column_max
 }
 
 #[cfg(test)]
@@ -60,9 +56,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn kinetic_energy_of_a_two_mass_system() {
-        // M = [[2, 1], [1, 3]], v = (1, −2): vᵀMv = 2 − 4 + 12 = 10.
-        assert_eq!(kinetic(&[2.0, 1.0, 1.0, 3.0], &[1.0, -2.0]), 5.0);
+    fn dot_and_max_norm() {
         assert_eq!(dot(&[1.0, 2.0, 3.0], &[4.0, -5.0, 6.0]), 12.0);
         assert_eq!(amax(&[1.0, -7.5, 3.0]), 7.5);
     }

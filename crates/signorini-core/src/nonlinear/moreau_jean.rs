@@ -141,13 +141,14 @@
 use super::LagrangianSystem;
 use super::joints::JointedSystem;
 use crate::contact::{Activation, IndexSetRule, LcpStats};
-use crate::dense::{amax, dot, kinetic, lu_factor_with};
+use crate::dense::{amax, dot, lu_factor_with, negligible_pivot};
 use crate::friction::{self, FrictionError, FrictionProblem};
 use crate::lcp::{
     self, EqualityElimination, Lcp, LcpError, LcpOptions, MixedLcp, MixedLcpError, MixedSolution,
     solve_mixed,
 };
 use crate::observer::Columns;
+use crate::soi2::banded::{BandLu, BandOrder};
 use crate::stepping;
 use crate::triplets::Triplets;
 use nalgebra::{DMatrix, DVectorViewMut};
@@ -369,10 +370,10 @@ impl NonlinearStepReport {
     /// A report of the state `state` (no step taken: works zero).
     pub fn of_state<S: LagrangianSystem + ?Sized>(system: &S, state: &NonlinearState) -> Self {
         let (n, m) = (system.dofs(), system.contacts());
-        let mut mass = vec![0.0; n * n];
-        system.mass(&state.q, &mut mass);
+        let mut mass = Triplets::new(n, n);
+        system.mass_entries(&state.q, &mut mass);
         let mut report = Self {
-            kinetic: kinetic(&mass, &state.v),
+            kinetic: kinetic(&mass, &state.v, &mut vec![0.0; n]),
             potential: system.potential(state.t, &state.q),
             gap: vec![0.0; m],
             local_velocity: vec![0.0; m],
@@ -576,15 +577,23 @@ pub struct NonlinearMoreauJean {
     /// Whether some contact has μ > 0 (the tangent rows are then formed where needed).
     friction: bool,
     memory: MoreauJeanMemory,
+    /// The band order of W = M − hθ ∂F/∂v − h²θ² ∂F/∂q when its structure makes the band LU
+    /// pay (a large model with sparse matrices, [`BandOrder::of_pattern`]); else W is
+    /// factorised densely.
+    band: Option<BandOrder>,
     s: Scratch,
 }
 
 /// The buffers one step works in; nothing here is read by the next step.
 #[derive(Debug, Clone)]
 struct Scratch {
-    mass: Vec<f64>,
-    dfdq: Vec<f64>,
-    dfdv: Vec<f64>,
+    /// M(q) at the iterate, as its entries.
+    mass: Triplets,
+    /// ∂F/∂q and ∂F/∂v at the iterate, as their entries.
+    dfdq: Triplets,
+    dfdv: Triplets,
+    /// M Δv (or M v for the kinetic energy).
+    mass_times: Vec<f64>,
     forces: Vec<f64>,
     applied: Vec<f64>,
     jac: Vec<f64>,
@@ -692,10 +701,12 @@ impl NonlinearMoreauJean {
                 roundoff_step: u64::MAX,
                 roundoff: z(m),
             },
+            band: iteration_matrix_band(system),
             s: Scratch {
-                mass: z(n * n),
-                dfdq: z(n * n),
-                dfdv: z(n * n),
+                mass: Triplets::new(n, n),
+                dfdq: Triplets::new(n, n),
+                dfdv: Triplets::new(n, n),
+                mass_times: z(n),
                 forces: z(n),
                 applied: z(n),
                 jac: z(m * n),
@@ -819,8 +830,9 @@ impl NonlinearMoreauJean {
         )?;
         system.gaps(t_k, &state.q, &mut e.gaps);
         at.check_at(&e.gaps, "a gap g(q, t)", &state.q, &[])?;
-        system.mass(&state.q, &mut self.s.mass);
-        e.energy = kinetic(&self.s.mass, &state.v) + system.potential(t_k, &state.q);
+        system.mass_entries(&state.q, &mut self.s.mass);
+        e.energy = kinetic(&self.s.mass, &state.v, &mut self.s.mass_times)
+            + system.potential(t_k, &state.q);
         if self.friction {
             e.tangent_velocity = vec![0.0; m];
             system.tangent_jacobian(t_k, &state.q, &mut self.s.tjac);
@@ -849,8 +861,8 @@ impl NonlinearMoreauJean {
         s.dv.fill(0.0);
         position(&state.q, &state.v, &s.dv, h, theta, &mut s.q);
         s.v.copy_from_slice(&state.v);
-        system.mass(&s.q, &mut s.mass);
-        at.check_at(&s.mass, "M(q)", &s.q, &[])?;
+        system.mass_entries(&s.q, &mut s.mass);
+        at.check_entries_at(&s.mass, "M(q)", &s.q, &[])?;
         system.forces(at.t, &s.q, &s.v, &mut s.forces);
         at.check_at(&s.forces, "F(t, q, v)", &s.q, &s.v)?;
         for ((p, q), v) in s.predicted.iter_mut().zip(&state.q).zip(&state.v) {
@@ -915,37 +927,83 @@ impl NonlinearMoreauJean {
         Ok(outcome)
     }
 
-    /// W^i = M(q^i) − hθ ∂F/∂v − h²θ² ∂F/∂q at (t_{k+1}, q^i, v^i), factorised by LU.
+    /// W^i = M(q^i) − hθ ∂F/∂v − h²θ² ∂F/∂q at (t_{k+1}, q^i, v^i), assembled from the
+    /// matrices' entries and factorised by LU with partial pivoting: in the band order of
+    /// `self.band` when there is one (no n×n array), else densely.
     fn iteration_matrix<S: JointedSystem + ?Sized>(
         &mut self,
         system: &S,
         at: StepAt,
         iteration: usize,
-    ) -> Result<Lu, NonlinearStepError> {
+    ) -> Result<IterationLu, NonlinearStepError> {
         let (h, theta, n, s) = (self.h, self.params.theta, self.n, &mut self.s);
-        system.force_jacobians(at.t, &s.q, &s.v, &mut s.dfdq, &mut s.dfdv);
-        at.check(&s.dfdq, "∂F/∂q")?;
-        at.check(&s.dfdv, "∂F/∂v")?;
+        system.force_jacobian_entries(at.t, &s.q, &s.v, &mut s.dfdq, &mut s.dfdv);
+        at.check_entries_at(&s.dfdq, "∂F/∂q", &s.q, &s.v)?;
+        at.check_entries_at(&s.dfdv, "∂F/∂v", &s.q, &s.v)?;
         let (cv, cq) = (h * theta, h * h * theta * theta);
-        let w = DMatrix::from_fn(n, n, |i, j| {
-            let r = i * n + j;
-            s.mass[r] - cv * s.dfdv[r] - cq * s.dfdq[r]
-        });
-        lu_factor_with(w, &mut s.column_max).ok_or(at.singular(iteration))
+        // M, then −hθ ∂F/∂v, then −h²θ² ∂F/∂q, summed entry by entry in that order.
+        let entries = || {
+            let scaled = |t: &'_ Triplets, c: f64| {
+                t.entries()
+                    .iter()
+                    .map(move |&(i, j, v)| (i, j, -(c * v)))
+                    .collect::<Vec<_>>()
+            };
+            let mut all = s.mass.entries().to_vec();
+            all.extend(scaled(&s.dfdv, cv));
+            all.extend(scaled(&s.dfdq, cq));
+            all
+        };
+        if let Some(band) = &self.band {
+            // W's entries, each position summed once (a stable sort keeps the order above),
+            // and its column maxima for the singularity test.
+            let mut w = entries();
+            w.sort_by_key(|&(i, j, _)| (j, i));
+            w.dedup_by(|next, kept| {
+                let same = (next.0, next.1) == (kept.0, kept.1);
+                if same {
+                    kept.2 += next.2;
+                }
+                same
+            });
+            s.column_max.fill(0.0);
+            for &(_, j, v) in &w {
+                s.column_max[j] = s.column_max[j].max(v.abs());
+            }
+            // W's structure is fixed when the scheme is made, from the same entries.
+            let Some(lu) = BandLu::factor_entries(band, w) else {
+                unreachable!("the band order is that of W's entries")
+            };
+            let singular = lu
+                .pivots_by_column()
+                .any(|(j, p)| negligible_pivot(p, n, s.column_max[j]));
+            return if singular {
+                Err(at.singular(iteration))
+            } else {
+                Ok(IterationLu::Band(lu))
+            };
+        }
+        let mut w = DMatrix::zeros(n, n);
+        for (i, j, v) in entries() {
+            w[(i, j)] += v;
+        }
+        lu_factor_with(w, &mut s.column_max)
+            .map(IterationLu::Dense)
+            .ok_or(at.singular(iteration))
     }
 
     /// The free velocity Δv_free = Δv^i − (W^i)⁻¹ R_free(v^i).
     fn free_velocity(
         &mut self,
-        lu: &Lu,
+        lu: &IterationLu,
         start: &EndOfStep,
         at: StepAt,
     ) -> Result<(), NonlinearStepError> {
         let (h, theta, n, s) = (self.h, self.params.theta, self.n, &mut self.s);
+        mass_times(&s.mass, &s.dv, &mut s.mass_times);
         for i in 0..n {
-            let md = dot(&s.mass[i * n..(i + 1) * n], &s.dv);
             let f_theta = (1.0 - theta) * start.forces[i] + theta * s.forces[i];
-            s.residual[i] = md - h * f_theta;
+            s.residual[i] = s.mass_times[i] - h * f_theta;
         }
         solve_in_place(lu, &mut s.residual);
         for (d, r) in s.dv.iter_mut().zip(&s.residual) {
@@ -1025,7 +1083,7 @@ impl NonlinearMoreauJean {
     fn one_step_problem<S: JointedSystem + ?Sized>(
         &mut self,
         system: &S,
-        lu: &Lu,
+        lu: &IterationLu,
         state: &NonlinearState,
         report: &mut NonlinearStepReport,
         at: StepAt,
@@ -1173,8 +1231,8 @@ impl NonlinearMoreauJean {
         for ((v, vk), d) in s.v.iter_mut().zip(&state.v).zip(&s.dv) {
             *v = vk + d;
         }
-        system.mass(&s.q, &mut s.mass);
-        at.check_at(&s.mass, "M(q)", &s.q, &[])?;
+        system.mass_entries(&s.q, &mut s.mass);
+        at.check_entries_at(&s.mass, "M(q)", &s.q, &[])?;
         system.forces(at.t, &s.q, &s.v, &mut s.forces);
         at.check_at(&s.forces, "F(t, q, v)", &s.q, &s.v)?;
         if m > 0 {
@@ -1192,8 +1250,9 @@ impl NonlinearMoreauJean {
             at.check(&s.joint_directions, "the joint Jacobian")?;
         }
         let (mut r_max, mut scale) = (0.0f64, 0.0f64);
+        mass_times(&s.mass, &s.dv, &mut s.mass_times);
         for i in 0..n {
-            let md = dot(&s.mass[i * n..(i + 1) * n], &s.dv);
+            let md = s.mass_times[i];
             let (fk, f1) = ((1.0 - theta) * start.forces[i], theta * s.forces[i]);
             let (mut hp, mut hp_abs) = (0.0, 0.0);
             for &a in &s.active {
@@ -1291,7 +1350,7 @@ impl NonlinearMoreauJean {
     /// impulses (Λ, P) add (W^i)⁻¹(G_midᵀ Λ + Hᵀ P) to Δv.
     fn mixed_problem(
         &mut self,
-        lu: &Lu,
+        lu: &IterationLu,
         report: &mut NonlinearStepReport,
         at: StepAt,
         iteration: usize,
@@ -1374,7 +1433,7 @@ impl NonlinearMoreauJean {
     fn condensed_friction_problem<S: JointedSystem + ?Sized>(
         &mut self,
         system: &S,
-        lu: &Lu,
+        lu: &IterationLu,
         state: &NonlinearState,
         report: &mut NonlinearStepReport,
         at: StepAt,
@@ -1493,7 +1552,7 @@ impl NonlinearMoreauJean {
             work_ext += f_theta * (state.v[i] + theta * s.dv[i]);
         }
         work_ext *= h;
-        report.kinetic = kinetic(&s.mass, &s.v);
+        report.kinetic = kinetic(&s.mass, &s.v, &mut s.mass_times);
         report.potential = system.potential(at.t, &s.q);
         let energy = report.energy();
         if !energy.is_finite() {
@@ -1548,13 +1607,67 @@ impl NonlinearMoreauJean {
     }
 }
 
-/// LU factors of an iteration matrix.
-pub(crate) type Lu = nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>;
+/// LU factors of an iteration matrix W: dense, or in a band order.
+#[derive(Debug)]
+enum IterationLu {
+    Dense(nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>),
+    Band(BandLu),
+}
 
-/// b ← W⁻¹ b with the LU factors of W.
-fn solve_in_place(lu: &Lu, b: &mut [f64]) {
-    let n = b.len();
-    lu.solve_mut(&mut DVectorViewMut::from_slice(b, n));
+/// b ← W⁻¹ b with the LU factors of W (b holds W's n rows at its head).
+fn solve_in_place(lu: &IterationLu, b: &mut [f64]) {
+    match lu {
+        IterationLu::Dense(lu) => {
+            let n = b.len();
+            lu.solve_mut(&mut DVectorViewMut::from_slice(b, n));
+        }
+        IterationLu::Band(lu) => {
+            // Its pivots were checked when it was made.
+            lu.solve_mut(b);
+        }
+    }
+}
+
+/// The band order of a system's iteration matrix W = M − hθ ∂F/∂v − h²θ² ∂F/∂q, from the
+/// structural entries of M, ∂F/∂q and ∂F/∂v (evaluated once at q = v = 0, t = 0: only
+/// their positions are read), when the band LU pays ([`BandOrder::of_pattern`]: at least 48
+/// unknowns and a band well inside the matrix).
+fn iteration_matrix_band<S: LagrangianSystem + ?Sized>(system: &S) -> Option<BandOrder> {
+    let n = system.dofs();
+    if n < 48 {
+        return None;
+    }
+    let (zeros, mut mass, mut dq, mut dv) = (
+        vec![0.0; n],
+        Triplets::new(n, n),
+        Triplets::new(n, n),
+        Triplets::new(n, n),
+    );
+    system.mass_entries(&zeros, &mut mass);
+    system.force_jacobian_entries(0.0, &zeros, &zeros, &mut dq, &mut dv);
+    let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for &(i, j, _) in [&mass, &dq, &dv].into_iter().flat_map(Triplets::entries) {
+        rows_of[j].push(i);
+    }
+    for rows in &mut rows_of {
+        rows.sort_unstable();
+        rows.dedup();
+    }
+    BandOrder::of_pattern(&rows_of)
+}
+
+/// `out` ← M x, M as its entries (each row summed in the order of its entries: for the
+/// row-major entries of a model, the order of a dense row's dot product).
+fn mass_times(mass: &Triplets, x: &[f64], out: &mut [f64]) {
+    out.fill(0.0);
+    mass.mul_add(x, out);
+}
+
+/// The kinetic energy ½ vᵀ M v, M as its entries; `buffer` takes M v.
+fn kinetic(mass: &Triplets, v: &[f64], buffer: &mut Vec<f64>) -> f64 {
+    buffer.resize(v.len(), 0.0);
+    mass_times(mass, v, buffer);
+    0.5 * v.iter().zip(buffer.iter()).map(|(a, b)| a * b).sum::<f64>()
 }
 
 /// Row r of the stacked rows `[J; H_{a_1}; T_{a_1}; H_{a_2}; T_{a_2}; …]` of a friction

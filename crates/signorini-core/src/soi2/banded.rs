@@ -265,6 +265,11 @@ impl BandLu {
         }
     }
 
+    /// The pivots u_kk, each with the unknown whose column of the original matrix it is in.
+    pub fn pivots_by_column(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
+        (0..self.n).map(|k| (self.order[k], self.ab[self.at(k, k)]))
+    }
+
     /// Largest and smallest |u_kk|.
     pub fn pivot_range(&self) -> (f64, f64) {
         (0..self.n)
