@@ -8,16 +8,22 @@
 //! (`UserModel::new`: the derivatives and their tapes), in wall time (`*_s`) and in CPU time of
 //! the thread (`*_cpu_s`, from `/proc/thread-self/schedstat`: what to compare on a loaded
 //! machine), and the process's peak resident memory after it (VmHWM; the sizes run in
-//! increasing order, so the peak is the largest model's).
+//! increasing order, so the peak is the largest model's). With `--run STEPS [--scheme S]` each
+//! bar is then run STEPS steps under `moreau_jean` (or S, e.g. `ns_generalized_alpha`): what
+//! running a model of that size costs (CPU seconds, ms a step, peak memory) and its ledger and
+//! joint residual.
 //!
-//! `cargo bench -p signorini-core --bench compile_cost [-- --sizes 100,1000,10000]` (the
-//! default sizes are 100, 1 000 and 10 000).
+//! `cargo bench -p signorini-core --bench compile_cost [-- --sizes 100,1000,10000] [--run 2000
+//! [--scheme ns_generalized_alpha]]`
+//! (the default sizes are 100, 1 000 and 10 000).
 
 // Only the core library must stay pure (clippy.toml): a benchmark times itself and prints.
 #![allow(clippy::disallowed_macros, clippy::disallowed_methods)]
 
+use signorini_core::job::{Job, run};
 use signorini_core::lagrangian::UserModel;
-use signorini_core::spec::LagrangianSpec;
+use signorini_core::observer::Recorder;
+use signorini_core::spec::{JobSpec, LagrangianSpec};
 use std::fmt::Write;
 use std::time::Instant;
 
@@ -81,6 +87,16 @@ fn main() {
                 .collect()
         })
         .unwrap_or_else(|| vec![100, 1_000, 10_000]);
+    let run_steps: Option<u64> = args
+        .iter()
+        .position(|a| a == "--run")
+        .and_then(|i| args.get(i + 1))
+        .map(|s| s.parse().expect("--run STEPS"));
+    let scheme = args
+        .iter()
+        .position(|a| a == "--scheme")
+        .and_then(|i| args.get(i + 1))
+        .map_or("moreau_jean", String::as_str);
     for n in sizes {
         let text = bar_spec(n);
         let (t0, c0) = (Instant::now(), cpu_s());
@@ -102,5 +118,47 @@ fn main() {
             c3 - c2,
             peak_mib(),
         );
+        if let Some(steps) = run_steps {
+            run_bar(&text, n, steps, scheme);
+        }
     }
+}
+
+/// Runs the bar `steps` steps under `scheme` (its defaults; θ = ½ for `moreau_jean`; h = 10⁻⁴,
+/// every 100th step recorded)
+/// through the job path, and prints the CPU seconds of the run (validation and compilation
+/// again included), the peak memory after it, the largest |energy_error| and joint residual.
+fn run_bar(model: &str, n: usize, steps: u64, scheme: &str) {
+    let mut model: serde_json::Value = toml::from_str(model).expect("the bar spec parses");
+    model["scene"] = "lagrangian".into();
+    let doc = serde_json::json!({
+        "name": format!("bar of {n} nodes"),
+        "model": model,
+        "integrator": if scheme == "moreau_jean" {
+            serde_json::json!({ "scheme": scheme, "theta": 0.5 })
+        } else {
+            serde_json::json!({ "scheme": scheme })
+        },
+        "time": { "h": 1e-4, "steps": steps },
+        "output": { "every": 100 },
+    });
+    let spec: JobSpec = serde_json::from_value(doc).expect("a job spec");
+    let c0 = cpu_s();
+    let job = Job::from_spec(&spec).expect("a valid job");
+    let mut rec = Recorder::default();
+    run(&job, 1, &mut rec).expect("the bar runs");
+    let cpu = cpu_s() - c0;
+    let amax = |name: &str| {
+        rec.column(name)
+            .expect("a column")
+            .iter()
+            .fold(0.0f64, |m, v| m.max(v.abs()))
+    };
+    println!(
+        "{{\"bench\":\"run_bar\",\"n\":{n},\"scheme\":\"{scheme}\",\"steps\":{steps},\"run_cpu_s\":{cpu:.3},\"ms_per_step\":{:.4},\"peak_mib\":{:.1},\"max_energy_error\":{:.2e},\"max_position_residual\":{:.2e}}}",
+        1e3 * cpu / steps as f64,
+        peak_mib(),
+        amax("energy_error"),
+        amax("position_residual"),
+    );
 }

@@ -134,7 +134,7 @@ use super::moreau_jean::{
     solve_mixed_at, stacked_row,
 };
 use crate::contact::LcpStats;
-use crate::dense::{amax, dot, lu_factor};
+use crate::dense::{amax, dot, lu_factor, negligible_pivot};
 use crate::friction;
 use crate::lcp::LcpOptions;
 use crate::observer::Columns;
@@ -384,15 +384,66 @@ fn mat(rows: usize, cols: usize, data: &[f64]) -> DMatrix<f64> {
 /// q_{k+1}, and `M⁻¹ Cᵀ`, which maps the stage's impulses to its velocity jump.
 fn delassus(
     rows: &DMatrix<f64>,
-    mass: &[f64],
+    mass: &Triplets,
     at: StepAt,
 ) -> Result<(DMatrix<f64>, DMatrix<f64>), NonlinearStepError> {
-    let n = rows.ncols();
-    let m_lu = lu_factor(mat(n, n, mass)).ok_or_else(|| at.singular(0))?;
+    let m_lu = MassFactor::new(mass).ok_or_else(|| at.singular(0))?;
     let y = m_lu
         .solve(&rows.transpose())
         .ok_or_else(|| at.singular(0))?;
     Ok((rows * &y, y))
+}
+
+/// LU factors of a mass matrix given as its entries: in its reverse Cuthill–McKee band order
+/// when its structure makes the band LU pay (a long chain's banded M: no n×n array), else
+/// dense, as before (the small and the dense models keep their bits).
+enum MassFactor {
+    Dense(nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>),
+    Band(BandLu),
+}
+
+impl MassFactor {
+    /// The factors of `mass`, `None` when it is singular to working precision (a pivot at or
+    /// below n ε times the largest entry of its column, [`crate::dense::negligible_pivot`]).
+    fn new(mass: &Triplets) -> Option<MassFactor> {
+        let n = mass.rows();
+        let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); n];
+        let mut column_max = vec![0.0f64; n];
+        for &(i, j, v) in mass.entries() {
+            rows_of[j].push(i);
+            column_max[j] = column_max[j].max(v.abs());
+        }
+        for rows in &mut rows_of {
+            rows.sort_unstable();
+            rows.dedup();
+        }
+        match BandOrder::of_pattern(&rows_of) {
+            Some(band) => {
+                let lu = BandLu::factor_entries(&band, mass.entries().iter().copied())?;
+                let singular = lu
+                    .pivots_by_column()
+                    .any(|(j, p)| negligible_pivot(p, n, column_max[j]));
+                (!singular).then_some(MassFactor::Band(lu))
+            }
+            None => lu_factor(mat(n, n, &mass.to_dense())).map(MassFactor::Dense),
+        }
+    }
+
+    /// M⁻¹ B.
+    fn solve(&self, b: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+        match self {
+            MassFactor::Dense(lu) => lu.solve(b),
+            MassFactor::Band(lu) => {
+                let mut x = b.clone();
+                for mut column in x.column_iter_mut() {
+                    if !lu.solve_mut(column.as_mut_slice()) {
+                        return None;
+                    }
+                }
+                Some(x)
+            }
+        }
+    }
 }
 
 /// The velocity jump of the impulses `z`: `v += M⁻¹ Cᵀ z` (`y` = `M⁻¹ Cᵀ` from [`delassus`]).
@@ -885,14 +936,12 @@ impl NonsmoothGeneralizedAlpha {
         let mut hj = vec![0.0; m * n];
         let mut q = qt.clone();
         let mut position_iterations = 0;
-        // M̃'s dense LU, unless the joints' Delassus operator has a band (factorised then when
-        // a contact joins the stage or the band path declines).
+        // M̃'s LU ([`MassFactor`]), unless the joints' Delassus operator has a band
+        // (factorised then when a contact joins the stage or the band path declines).
         let structure = system.joint_structure();
         let mut m_lu = match structure {
             Some(_) => None,
-            None => {
-                Some(lu_factor(mat(n, n, &smooth.mass.to_dense())).ok_or_else(|| at.singular(0))?)
-            }
+            None => Some(MassFactor::new(&smooth.mass).ok_or_else(|| at.singular(0))?),
         };
         // The weight of coordinate j in a constraint row's scale.
         let weight: Vec<f64> = (0..n)
@@ -920,7 +969,7 @@ impl NonsmoothGeneralizedAlpha {
             position_iterations += match banded {
                 Some(iterations) => iterations,
                 None => {
-                    // C̃ rows and Y = M̃⁻¹ C̃ᵀ (n×k), dense.
+                    // C̃ rows and Y = M̃⁻¹ C̃ᵀ (n×k), dense arrays.
                     let rows_t = constraint_rows(&smooth.gj.to_dense(), &hj, active, n);
                     scale = (0..k)
                         .map(|r| {
@@ -930,8 +979,7 @@ impl NonsmoothGeneralizedAlpha {
                         .fold(0.0f64, f64::max);
                     let lu = match m_lu.take() {
                         Some(lu) => lu,
-                        None => lu_factor(mat(n, n, &smooth.mass.to_dense()))
-                            .ok_or_else(|| at.singular(0))?,
+                        None => MassFactor::new(&smooth.mass).ok_or_else(|| at.singular(0))?,
                     };
                     let ct = mat(k, n, &rows_t);
                     let y = lu.solve(&ct.transpose()).ok_or_else(|| at.singular(0))?;
@@ -1249,7 +1297,7 @@ impl NonsmoothGeneralizedAlpha {
             }
         }
         let rows = mat(k, n, &constraint_rows(&r.gj.to_dense(), &r.hj, active, n));
-        let (d, y) = delassus(&rows, &r.mass.to_dense(), at)?;
+        let (d, y) = delassus(&rows, &r.mass, at)?;
         for (c, &a) in active.iter().enumerate() {
             b[nb + c] = self.normal_row(system, impact, r, a, report);
         }
@@ -1300,7 +1348,7 @@ impl NonsmoothGeneralizedAlpha {
         let rows = DMatrix::from_fn(size, n, |i, j| {
             stacked_row(&gj, &r.hj, &r.tj, active, (n, nb), i)[j]
         });
-        let (d, y) = delassus(&rows, &r.mass.to_dense(), at)?;
+        let (d, y) = delassus(&rows, &r.mass, at)?;
         let mut b = vec![0.0; size];
         system.joint_rates(t1, impact.q, vt, &mut b[..nb]);
         for (c, &a) in active.iter().enumerate() {
@@ -1663,4 +1711,55 @@ pub fn ns_alpha_columns(
     names.extend(["position_residual".into(), "velocity_residual".into()]);
     probe_columns(probes, &mut names);
     Columns::new(names)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A pentadiagonal, diagonally dominant M of n unknowns (not symmetric), as its entries.
+    fn banded(n: usize) -> Triplets {
+        let mut m = Triplets::new(n, n);
+        for i in 0..n {
+            for j in i.saturating_sub(2)..(i + 3).min(n) {
+                let v = if i == j {
+                    5.0 + (i % 7) as f64
+                } else {
+                    ((i * 3 + j * 5) % 11) as f64 / 11.0 - 0.5
+                };
+                m.push(i, j, v);
+            }
+        }
+        m
+    }
+
+    /// The mass factor takes the band LU for a long banded M and the dense LU for a small one;
+    /// both solve M X = B to round-off against nalgebra's dense LU, and a singular M is refused
+    /// on either path.
+    #[test]
+    fn the_mass_factor_is_banded_when_it_pays_and_solves_as_the_dense_lu() {
+        for (n, band) in [(10, false), (200, true)] {
+            let m = banded(n);
+            let factor = MassFactor::new(&m).expect("regular");
+            assert_eq!(matches!(factor, MassFactor::Band(_)), band, "n = {n}");
+            let b = DMatrix::from_fn(n, 3, |i, j| ((i + 2 * j) % 5) as f64 - 2.0);
+            let x = factor.solve(&b).expect("a solve");
+            let dense = mat(n, n, &m.to_dense());
+            let reference = dense.clone().lu().solve(&b).expect("regular");
+            let error = (&x - &reference).amax() / reference.amax();
+            assert!(error <= 1e-14, "n = {n}: {error:e}");
+            assert!((&dense * &x - &b).amax() <= 1e-13 * b.amax());
+            // Row 3 made a copy of row 2: singular.
+            let mut singular = Triplets::new(n, n);
+            for &(i, j, v) in m.entries() {
+                if i != 3 {
+                    singular.push(i, j, v);
+                }
+                if i == 2 {
+                    singular.push(3, j, v);
+                }
+            }
+            assert!(MassFactor::new(&singular).is_none(), "n = {n}: singular");
+        }
+    }
 }
