@@ -594,6 +594,8 @@ struct Scratch {
     dfdv: Triplets,
     /// M Δv (or M v for the kinetic energy).
     mass_times: Vec<f64>,
+    /// The entries of W (band path).
+    w_entries: Vec<(usize, usize, f64)>,
     forces: Vec<f64>,
     applied: Vec<f64>,
     jac: Vec<f64>,
@@ -707,6 +709,7 @@ impl NonlinearMoreauJean {
                 dfdq: Triplets::new(n, n),
                 dfdv: Triplets::new(n, n),
                 mass_times: z(n),
+                w_entries: Vec::new(),
                 forces: z(n),
                 applied: z(n),
                 jac: z(m * n),
@@ -941,55 +944,50 @@ impl NonlinearMoreauJean {
         at.check_entries_at(&s.dfdq, "∂F/∂q", &s.q, &s.v)?;
         at.check_entries_at(&s.dfdv, "∂F/∂v", &s.q, &s.v)?;
         let (cv, cq) = (h * theta, h * h * theta * theta);
-        // M, then −hθ ∂F/∂v, then −h²θ² ∂F/∂q, summed entry by entry in that order.
-        let entries = || {
-            let scaled = |t: &'_ Triplets, c: f64| {
-                t.entries()
-                    .iter()
-                    .map(move |&(i, j, v)| (i, j, -(c * v)))
-                    .collect::<Vec<_>>()
-            };
-            let mut all = s.mass.entries().to_vec();
-            all.extend(scaled(&s.dfdv, cv));
-            all.extend(scaled(&s.dfdq, cq));
-            all
-        };
-        if let Some(band) = &self.band {
-            // W's entries, each position summed once (a stable sort keeps the order above),
-            // and its column maxima for the singularity test.
-            let mut w = entries();
-            w.sort_by_key(|&(i, j, _)| (j, i));
-            w.dedup_by(|next, kept| {
-                let same = (next.0, next.1) == (kept.0, kept.1);
-                if same {
-                    kept.2 += next.2;
+        // M, then −hθ ∂F/∂v, then −h²θ² ∂F/∂q, summed position by position in that order.
+        let terms = [(&s.mass, None), (&s.dfdv, Some(cv)), (&s.dfdq, Some(cq))];
+        let term = |c: Option<f64>, v: f64| c.map_or(v, |c| -(c * v));
+        let Some(band) = &self.band else {
+            let mut w = DMatrix::zeros(n, n);
+            for (t, c) in terms {
+                for &(i, j, v) in t.entries() {
+                    w[(i, j)] += term(c, v);
                 }
-                same
-            });
-            s.column_max.fill(0.0);
-            for &(_, j, v) in &w {
-                s.column_max[j] = s.column_max[j].max(v.abs());
             }
-            // W's structure is fixed when the scheme is made, from the same entries.
-            let Some(lu) = BandLu::factor_entries(band, w) else {
-                unreachable!("the band order is that of W's entries")
-            };
-            let singular = lu
-                .pivots_by_column()
-                .any(|(j, p)| negligible_pivot(p, n, s.column_max[j]));
-            return if singular {
-                Err(at.singular(iteration))
-            } else {
-                Ok(IterationLu::Band(lu))
-            };
+            return lu_factor_with(w, &mut s.column_max)
+                .map(IterationLu::Dense)
+                .ok_or(at.singular(iteration));
+        };
+        // W's entries, each position summed once (a stable sort keeps the order above), and
+        // its column maxima for the singularity test.
+        let w = &mut s.w_entries;
+        w.clear();
+        for (t, c) in terms {
+            w.extend(t.entries().iter().map(|&(i, j, v)| (i, j, term(c, v))));
         }
-        let mut w = DMatrix::zeros(n, n);
-        for (i, j, v) in entries() {
-            w[(i, j)] += v;
+        w.sort_by_key(|&(i, j, _)| (j, i));
+        w.dedup_by(|next, kept| {
+            let same = (next.0, next.1) == (kept.0, kept.1);
+            if same {
+                kept.2 += next.2;
+            }
+            same
+        });
+        s.column_max.fill(0.0);
+        for &(_, j, v) in w.iter() {
+            s.column_max[j] = s.column_max[j].max(v.abs());
         }
-        lu_factor_with(w, &mut s.column_max)
-            .map(IterationLu::Dense)
-            .ok_or(at.singular(iteration))
+        // W's structure is fixed when the scheme is made, from the same entries.
+        let Some(lu) = BandLu::factor_entries(band, w.iter().copied()) else {
+            unreachable!("the band order is that of W's entries")
+        };
+        if lu
+            .pivots_by_column()
+            .any(|(j, p)| negligible_pivot(p, n, s.column_max[j]))
+        {
+            return Err(at.singular(iteration));
+        }
+        Ok(IterationLu::Band(lu))
     }
 
     /// The free velocity Δv_free = Δv^i − (W^i)⁻¹ R_free(v^i).
