@@ -285,6 +285,7 @@ where
             while let Ok(query) = queryable.recv_async().await {
                 let history = history.clone();
                 tokio::spawn(async move {
+                    let started = std::time::Instant::now();
                     let asked = query.key_expr().clone();
                     let from_seq = query
                         .parameters()
@@ -330,6 +331,12 @@ where
                     }
                     if let Ok(false) = reader.await {
                         let _ = query.reply_err(format!("no job at {asked}")).await;
+                    }
+                    let took = started.elapsed();
+                    if took > std::time::Duration::from_secs(1) {
+                        tracing::warn!("history query {asked} from seq {from_seq} took {took:?}");
+                    } else {
+                        tracing::debug!("history query {asked} from seq {from_seq} in {took:?}");
                     }
                 });
             }

@@ -69,10 +69,15 @@ impl Expected {
     }
 }
 
-/// How long a history query may take: the server reads up to [`stream::HISTORY_FRAMES`] frames
-/// from its store for it, on a machine that may be busy with the jobs themselves (zenoh's
-/// default of 10 s was once exceeded on a loaded two-core CI machine).
-const HISTORY_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(60);
+/// How long one history query may take: the server reads up to [`stream::HISTORY_FRAMES`]
+/// frames from its store for it, on a machine that may be busy with the jobs themselves.
+const HISTORY_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(15);
+
+/// Times a history query is asked before its timeout is an error: a query the server drops
+/// without a final reply (zenoh 1.10.2 did, for a query naming a key-expression resource the
+/// watcher was undeclaring: `watch_session` now keeps its subscription until the history
+/// queries end) is asked again; the query is idempotent.
+const HISTORY_ATTEMPTS: usize = 3;
 
 /// The recorded frames of `kind` with `from ≤ seq < before` (to the last one when `before` is
 /// `None`), in `seq` order, asked [`stream::HISTORY_FRAMES`] at a time.
@@ -90,23 +95,23 @@ async fn fetch(
     let mut frames: Vec<pb::StepFrame> = Vec::new();
     let mut from = from;
     loop {
-        let replies = session
-            .get(format!("{key}/*?from_seq={from}"))
-            .timeout(HISTORY_TIMEOUT)
-            .await
-            .map_err(|e| anyhow!("zenoh get of the history: {e}"))?;
-        let mut got = Vec::new();
-        while let Ok(reply) = replies.recv_async().await {
-            match reply.result() {
-                Ok(sample) => got.push(pb::StepFrame::decode(&*sample.payload().to_bytes())?),
-                Err(e) => {
+        let selector = format!("{key}/*?from_seq={from}");
+        let mut attempt = 1;
+        let mut got = loop {
+            match ask(session, &selector).await? {
+                Answer::Frames(got) => break got,
+                Answer::TimedOut if attempt < HISTORY_ATTEMPTS => {
+                    tracing::warn!("history query {selector} timed out; asking again");
+                    attempt += 1;
+                }
+                Answer::TimedOut => {
                     return Err(anyhow!(
-                        "history of {key}: {}",
-                        String::from_utf8_lossy(&e.payload().to_bytes())
+                        "history of {key}: no answer in {HISTORY_ATTEMPTS} queries of {} s each",
+                        HISTORY_TIMEOUT.as_secs()
                     ));
                 }
             }
-        }
+        };
         got.sort_by_key(|f| f.seq);
         got.dedup_by_key(|f| f.seq);
         let full = got.len() >= stream::HISTORY_FRAMES;
@@ -123,4 +128,36 @@ async fn fetch(
         }
         from = last + 1;
     }
+}
+
+/// What one history query gave.
+enum Answer {
+    /// Its frames (all of them: the query ended).
+    Frames(Vec<pb::StepFrame>),
+    /// The query's timeout passed before it ended.
+    TimedOut,
+}
+
+/// One history query of `selector`: its frames, or that it timed out; an error reply (an
+/// unknown job) or an undecodable frame is an error.
+async fn ask(session: &zenoh::Session, selector: &str) -> Result<Answer> {
+    let replies = session
+        .get(selector)
+        .timeout(HISTORY_TIMEOUT)
+        .await
+        .map_err(|e| anyhow!("zenoh get of the history: {e}"))?;
+    let mut got = Vec::new();
+    while let Ok(reply) = replies.recv_async().await {
+        match reply.result() {
+            Ok(sample) => got.push(pb::StepFrame::decode(&*sample.payload().to_bytes())?),
+            Err(e) => {
+                let why = String::from_utf8_lossy(&e.payload().to_bytes()).into_owned();
+                if why == "Timeout" {
+                    return Ok(Answer::TimedOut);
+                }
+                return Err(anyhow!("history of {selector}: {why}"));
+            }
+        }
+    }
+    Ok(Answer::Frames(got))
 }
