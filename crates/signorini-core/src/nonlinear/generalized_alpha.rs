@@ -134,7 +134,7 @@ use super::moreau_jean::{
     solve_mixed_at, stacked_row,
 };
 use crate::contact::LcpStats;
-use crate::dense::{amax, dot, lu_factor, negligible_pivot};
+use crate::dense::{amax, dot, lu_factor};
 use crate::friction;
 use crate::lcp::LcpOptions;
 use crate::observer::Columns;
@@ -407,24 +407,8 @@ impl MassFactor {
     /// below n ε times the largest entry of its column, [`crate::dense::negligible_pivot`]).
     fn new(mass: &Triplets) -> Option<MassFactor> {
         let n = mass.rows();
-        let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); n];
-        let mut column_max = vec![0.0f64; n];
-        for &(i, j, v) in mass.entries() {
-            rows_of[j].push(i);
-            column_max[j] = column_max[j].max(v.abs());
-        }
-        for rows in &mut rows_of {
-            rows.sort_unstable();
-            rows.dedup();
-        }
-        match BandOrder::of_pattern(&rows_of) {
-            Some(band) => {
-                let lu = BandLu::factor_entries(&band, mass.entries().iter().copied())?;
-                let singular = lu
-                    .pivots_by_column()
-                    .any(|(j, p)| negligible_pivot(p, n, column_max[j]));
-                (!singular).then_some(MassFactor::Band(lu))
-            }
+        match BandOrder::of_entries(n, mass.entries().iter().map(|&(i, j, _)| (i, j))) {
+            Some(band) => BandLu::factor_regular(&band, mass.entries()).map(MassFactor::Band),
             None => lu_factor(mat(n, n, &mass.to_dense())).map(MassFactor::Dense),
         }
     }

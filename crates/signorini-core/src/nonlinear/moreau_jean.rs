@@ -141,7 +141,7 @@
 use super::LagrangianSystem;
 use super::joints::JointedSystem;
 use crate::contact::{Activation, IndexSetRule, LcpStats};
-use crate::dense::{amax, dot, lu_factor_with, negligible_pivot};
+use crate::dense::{amax, dot, lu_factor_with};
 use crate::friction::{self, FrictionError, FrictionProblem};
 use crate::lcp::{
     self, EqualityElimination, Lcp, LcpError, LcpOptions, MixedLcp, MixedLcpError, MixedSolution,
@@ -958,8 +958,7 @@ impl NonlinearMoreauJean {
                 .map(IterationLu::Dense)
                 .ok_or(at.singular(iteration));
         };
-        // W's entries, each position summed once (a stable sort keeps the order above), and
-        // its column maxima for the singularity test.
+        // W's entries, each position summed once (a stable sort keeps the order above).
         let w = &mut s.w_entries;
         w.clear();
         for (t, c) in terms {
@@ -973,20 +972,7 @@ impl NonlinearMoreauJean {
             }
             same
         });
-        s.column_max.fill(0.0);
-        for &(_, j, v) in w.iter() {
-            s.column_max[j] = s.column_max[j].max(v.abs());
-        }
-        // W's structure is fixed when the scheme is made, from the same entries.
-        let Some(lu) = BandLu::factor_entries(band, w.iter().copied()) else {
-            unreachable!("the band order is that of W's entries")
-        };
-        if lu
-            .pivots_by_column()
-            .any(|(j, p)| negligible_pivot(p, n, s.column_max[j]))
-        {
-            return Err(at.singular(iteration));
-        }
+        let lu = BandLu::factor_regular(band, w).ok_or(at.singular(iteration))?;
         Ok(IterationLu::Band(lu))
     }
 
@@ -1643,15 +1629,8 @@ fn iteration_matrix_band<S: LagrangianSystem + ?Sized>(system: &S) -> Option<Ban
     );
     system.mass_entries(&zeros, &mut mass);
     system.force_jacobian_entries(0.0, &zeros, &zeros, &mut dq, &mut dv);
-    let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); n];
-    for &(i, j, _) in [&mass, &dq, &dv].into_iter().flat_map(Triplets::entries) {
-        rows_of[j].push(i);
-    }
-    for rows in &mut rows_of {
-        rows.sort_unstable();
-        rows.dedup();
-    }
-    BandOrder::of_pattern(&rows_of)
+    let entries = [&mass, &dq, &dv].into_iter().flat_map(Triplets::entries);
+    BandOrder::of_entries(n, entries.map(|&(i, j, _)| (i, j)))
 }
 
 /// `out` ← M x, M as its entries (each row summed in the order of its entries: for the

@@ -10,6 +10,7 @@
 //! does the same), so the factorisation costs O(n · kl · (kl + ku)) instead of the dense n³/3,
 //! and a solve O(n · (2 kl + ku)).
 
+use crate::dense::negligible_pivot;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
@@ -59,10 +60,27 @@ pub struct BandOrder {
 }
 
 impl BandOrder {
+    /// The reverse Cuthill–McKee order of the n×n matrix with structural entries `entries`
+    /// (row, column; repeats allowed), and its bandwidths; `None` when the band LU would not
+    /// cost less than a quarter of the dense one, or the matrix is small (below 48 unknowns,
+    /// where the dense LU is as fast and its results stay as they were).
+    pub fn of_entries(
+        n: usize,
+        entries: impl IntoIterator<Item = (usize, usize)>,
+    ) -> Option<BandOrder> {
+        let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for (i, j) in entries {
+            rows_of[j].push(i);
+        }
+        for rows in &mut rows_of {
+            rows.sort_unstable();
+            rows.dedup();
+        }
+        BandOrder::of_pattern(&rows_of)
+    }
+
     /// The reverse Cuthill–McKee order of a matrix whose column c touches the rows
-    /// `rows_of[c]`, and its bandwidths; `None` when the band LU would not cost less than a
-    /// quarter of the dense one, or the matrix is small (below 48 unknowns, where the dense LU
-    /// is as fast and its results stay as they were).
+    /// `rows_of[c]` (see [`BandOrder::of_entries`]).
     pub fn of_pattern(rows_of: &[Vec<usize>]) -> Option<BandOrder> {
         let size = rows_of.len();
         if size < 48 {
@@ -265,9 +283,21 @@ impl BandLu {
         }
     }
 
-    /// The pivots u_kk, each with the unknown whose column of the original matrix it is in.
-    pub fn pivots_by_column(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
-        (0..self.n).map(|k| (self.order[k], self.ab[self.at(k, k)]))
+    /// [`BandLu::factor_entries`] of a matrix given with each position once, `None` also when
+    /// it is singular to working precision: a pivot u_kk at or below n ε times the largest
+    /// entry of its column of the original matrix, or not finite
+    /// ([`crate::dense::negligible_pivot`], the test of the dense LU).
+    pub fn factor_regular(band: &BandOrder, entries: &[(usize, usize, f64)]) -> Option<BandLu> {
+        let n = band.order.len();
+        let mut column_max = vec![0.0f64; n];
+        for &(_, j, v) in entries {
+            let c = column_max.get_mut(j)?;
+            *c = c.max(v.abs());
+        }
+        let lu = BandLu::factor_entries(band, entries.iter().copied())?;
+        let singular =
+            (0..n).any(|k| negligible_pivot(lu.ab[lu.at(k, k)], n, column_max[lu.order[k]]));
+        (!singular).then_some(lu)
     }
 
     /// Largest and smallest |u_kk|.
