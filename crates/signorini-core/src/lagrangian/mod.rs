@@ -20,6 +20,7 @@
 
 pub(crate) mod newton_terms;
 pub mod projection;
+mod state_terms;
 
 pub use projection::{PROJECTION_ITERATIONS, ProjectionError, StartProjection, project_start};
 
@@ -27,9 +28,10 @@ use crate::expr::{Expr, Node, Number, Tape};
 use crate::nonlinear::LagrangianSystem;
 use crate::nonlinear::delassus::JointStructure;
 use crate::soi2::sparsity::{Coupling, Pattern};
-use crate::soi2::{ConstrainedModel, Dims, InitialValues, Scalar};
+use crate::soi2::{ConstrainedModel, Dims, InitialValues, Scalar, StateTerms};
 use crate::triplets::Triplets;
 use newton_terms::{NewtonSources, NewtonTerms};
+use state_terms::StateTape;
 use std::sync::OnceLock;
 
 /// Relative tolerance of the symmetry check of M at q0.
@@ -92,15 +94,25 @@ pub struct UserModel {
     /// `ns_generalized_alpha`'s Newton matrix are derived from.
     newton_sources: NewtonSources,
     /// Those terms' tapes, built at first use ([`newton_terms`]).
-    newton_terms: NewtonTermsCell,
+    newton_terms: FirstUse<NewtonTerms>,
+    /// F and g, which [`StateTape`] is compiled from with the joints' derivatives.
+    state_sources: (Vec<Expr>, Vec<Expr>),
+    /// The terms of an SOI2 step's residual on one tape, built at first use ([`state_terms`]).
+    state_tape: FirstUse<StateTape>,
 }
 
-/// [`NewtonTerms`] built at first use: a cache, so two models compare equal whether or not it
-/// is filled.
-#[derive(Debug, Clone, Default)]
-struct NewtonTermsCell(OnceLock<NewtonTerms>);
+/// A value built at first use: a cache, so two models compare equal whether or not it is
+/// filled.
+#[derive(Debug, Clone)]
+struct FirstUse<T>(OnceLock<T>);
 
-impl PartialEq for NewtonTermsCell {
+impl<T> Default for FirstUse<T> {
+    fn default() -> Self {
+        FirstUse(OnceLock::new())
+    }
+}
+
+impl<T> PartialEq for FirstUse<T> {
     fn eq(&self, _other: &Self) -> bool {
         true
     }
@@ -465,7 +477,9 @@ impl UserModel {
                 joint_jacobian,
                 joint_rate,
             },
-            newton_terms: NewtonTermsCell::default(),
+            newton_terms: FirstUse::default(),
+            state_sources: (forces, joints),
+            state_tape: FirstUse::default(),
         }
     }
 
@@ -475,6 +489,14 @@ impl UserModel {
         self.newton_terms
             .0
             .get_or_init(|| NewtonTerms::new(self.n, &self.newton_sources))
+    }
+
+    /// The terms of an SOI2 step's residual on one tape, compiled at the first call.
+    fn state_tape(&self) -> &StateTape {
+        self.state_tape.0.get_or_init(|| {
+            let (forces, joints) = &self.state_sources;
+            StateTape::new(self.n, forces, joints, &self.newton_sources)
+        })
     }
 
     /// Which coordinates each equation of motion and each joint uses.
@@ -621,6 +643,20 @@ impl ConstrainedModel for UserModel {
 
     fn g<T: Scalar>(&self, t: T, y: &[T], out: &mut [T]) {
         self.eval(&self.joint, t, y, None, out);
+    }
+
+    /// One tape for all the terms ([`state_terms`]); a `lagrangian` model has no
+    /// nonholonomic constraint, so ψ is empty.
+    fn state_terms<T: Scalar>(
+        &self,
+        t: T,
+        (y, z): (&[T], &[T]),
+        multipliers: &[(&[T], &[T])],
+        with_g_y: bool,
+    ) -> StateTerms<T> {
+        let lambdas: Vec<&[T]> = multipliers.iter().map(|&(lambda, _)| lambda).collect();
+        self.state_tape()
+            .eval(&self.variables(t, y, Some(z)), &lambdas, with_g_y)
     }
 
     fn g_y<T: Scalar>(&self, t: T, y: &[T], out: &mut [T]) {

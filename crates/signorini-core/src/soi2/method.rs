@@ -1026,7 +1026,6 @@ impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
         let sg = 1.0 / (beta * h * h); // scale of position-level rows
         let sv = 1.0 / (gamma * h); // scale of velocity-level rows
         let zero = Vec::<T>::new();
-        let mut f = vec![T::zero(); n];
         match self.method.formulation {
             Formulation::General | Formulation::Additive => {
                 // x = [ã_{1+α}, a_{1+α}, λ̃₁, λ₁, ψ̃₁, ψ₁]
@@ -1043,24 +1042,29 @@ impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
                 let (r_f, rest) = rest.split_at_mut(mg);
                 let (r_g, rest) = rest.split_at_mut(mg);
                 let (r_h, r_i) = rest.split_at_mut(mk);
+                let general = self.method.formulation == Formulation::General;
+                let multipliers: &[(&[T], &[T])] = if general {
+                    &[(l, p), (lt, pt)]
+                } else {
+                    &[(l, p)]
+                };
+                let terms = self
+                    .model
+                    .state_terms(t1, (&y1, &z1), multipliers, !general);
                 // (13e)
-                self.model.force(t1, &y1, &z1, l, p, &mut f);
-                self.dynamics(1.0 - alpha_m, a, 1.0 - alpha_f, &f, r_e);
-                if self.method.formulation == Formulation::General {
+                self.dynamics(1.0 - alpha_m, a, 1.0 - alpha_f, &terms.forces[0], r_e);
+                if general {
                     // (13d): f at (t₁, y₁, z₁, λ̃₁, ψ̃₁).
-                    self.model.force(t1, &y1, &z1, lt, pt, &mut f);
-                    self.dynamics(1.0 - alpha_m, at, 1.0 - alpha_f, &f, r_d);
+                    self.dynamics(1.0 - alpha_m, at, 1.0 - alpha_f, &terms.forces[1], r_d);
                 } else {
                     // Additive (13d): (1−α_m)M_{1+α}(ã − a) − (1−α_f)[g_yᵀ(λ₁ − λ̃₁) + k_zᵀ(ψ₁ − ψ̃₁)].
-                    let mut gy = Vec::new();
-                    self.model.g_y_entries(t1, &y1, &mut gy);
                     let mut kz = vec![T::zero(); mk * n];
                     self.model.k_z(t1, &y1, &z1, &mut kz);
                     r_d.fill(T::zero());
                     for &(i, j, mij) in self.m1 {
                         r_d[i] += (at[j] - a[j]) * ((1.0 - alpha_m) * mij);
                     }
-                    for &(q, i, g) in &gy {
+                    for &(q, i, g) in &terms.g_y {
                         r_d[i] -= g * (l[q] - lt[q]) * (1.0 - alpha_f);
                     }
                     for (i, r) in r_d.iter_mut().enumerate() {
@@ -1070,8 +1074,8 @@ impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
                     }
                 }
                 // (13f), (13g)
-                self.model.g(t1, &y1, r_f);
-                self.model.g_dot(t1, &y1, &z1, r_g);
+                r_f.copy_from_slice(&terms.g);
+                r_g.copy_from_slice(&terms.g_dot);
                 // (13h), (13i)
                 self.model.k(t1, &y1, &zt1, r_h);
                 self.model.k(t1, &y1, &z1, r_i);
@@ -1093,22 +1097,20 @@ impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
                 let (r_c, rest) = r.split_at_mut(n);
                 let (r_d, rest) = rest.split_at_mut(n);
                 let (r_e, r_f) = rest.split_at_mut(mg);
+                let terms = self.model.state_terms(t1, (&y1, &z1), &[(l, &zero)], true);
                 // (17c): M_{1+α} δ̃ − g_yᵀ(t₁, y₁) μ̃
-                let mut gy = Vec::new();
-                self.model.g_y_entries(t1, &y1, &mut gy);
                 r_c.fill(T::zero());
                 for &(i, j, mij) in self.m1 {
                     r_c[i] += delta[j] * mij;
                 }
-                for &(q, i, g) in &gy {
+                for &(q, i, g) in &terms.g_y {
                     r_c[i] -= g * mu[q];
                 }
                 // (17d): M_{1+α} a − (1+α) f(t₁, y₁, z₁, λ₁) + α f₀
-                self.model.force(t1, &y1, &z1, l, &zero, &mut f);
-                self.dynamics(1.0, a, 1.0 + alpha, &f, r_d);
+                self.dynamics(1.0, a, 1.0 + alpha, &terms.forces[0], r_d);
                 // (17e), (17f)
-                self.model.g(t1, &y1, r_e);
-                self.model.g_dot(t1, &y1, &z1, r_f);
+                r_e.copy_from_slice(&terms.g);
+                r_f.copy_from_slice(&terms.g_dot);
                 r_e.iter_mut().for_each(|v| *v *= sg);
                 r_f.iter_mut().for_each(|v| *v *= sv);
             }
@@ -1119,9 +1121,9 @@ impl<M: ConstrainedModel + ?Sized> Residual for StepSystem<'_, M> {
                 let y1 = self.y1(a); // (2a)
                 let z1 = self.z1(a); // (2b)
                 let (r_d, r_e) = r.split_at_mut(n);
-                self.model.force(t1, &y1, &z1, l, &zero, &mut f);
-                self.dynamics(1.0, a, 1.0 + alpha, &f, r_d); // (2c) with α_m = 0
-                self.model.g(t1, &y1, r_e); // index-3 position constraint
+                let terms = self.model.state_terms(t1, (&y1, &z1), &[(l, &zero)], false);
+                self.dynamics(1.0, a, 1.0 + alpha, &terms.forces[0], r_d); // (2c) with α_m = 0
+                r_e.copy_from_slice(&terms.g); // index-3 position constraint
                 r_e.iter_mut().for_each(|v| *v *= sg);
             }
         }

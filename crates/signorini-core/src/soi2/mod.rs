@@ -86,6 +86,19 @@ pub struct ExactValues {
     pub psi: Vec<f64>,
 }
 
+/// The terms of a step's residual at its new state ([`ConstrainedModel::state_terms`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StateTerms<T> {
+    /// f(t, y, z, λ_k, ψ_k) for each multiplier set asked for, n entries each.
+    pub forces: Vec<Vec<T>>,
+    /// g(t, y), m_g entries (11c).
+    pub g: Vec<T>,
+    /// g_t + g_y z, m_g entries (11d).
+    pub g_dot: Vec<T>,
+    /// g_y's structural nonzeros (row, column, value) when asked for, else empty.
+    pub g_y: Vec<(usize, usize, T)>,
+}
+
 /// A nonlinear constrained mechanical system (11). Matrices are row-major slices.
 ///
 /// Every function is generic in the scalar so that Newton's Jacobians come from forward-mode AD.
@@ -155,6 +168,41 @@ pub trait ConstrainedModel {
         for (o, v) in out.iter_mut().zip(&gd) {
             *o = v.eps;
         }
+    }
+
+    /// At one (t, y, z): f(t, y, z, λ_k, ψ_k) for each (λ_k, ψ_k) of `multipliers`, g(t, y),
+    /// g_t + g_y z and, when `with_g_y`, g_y's entries: the terms a step's residual takes at its
+    /// new state, asked for at once so that a model can share their work (a `lagrangian`
+    /// model runs one tape, which computes the sines and cosines of y once instead of once per
+    /// term). Default: [`Self::force`], [`Self::g`], [`Self::g_dot`], [`Self::g_y_entries`].
+    fn state_terms<T: Scalar>(
+        &self,
+        t: T,
+        (y, z): (&[T], &[T]),
+        multipliers: &[(&[T], &[T])],
+        with_g_y: bool,
+    ) -> StateTerms<T> {
+        let m = self.dims().holonomic;
+        let forces = multipliers
+            .iter()
+            .map(|(lambda, psi)| {
+                let mut f = vec![T::zero(); y.len()];
+                self.force(t, y, z, lambda, psi, &mut f);
+                f
+            })
+            .collect();
+        let mut terms = StateTerms {
+            forces,
+            g: vec![T::zero(); m],
+            g_dot: vec![T::zero(); m],
+            g_y: Vec::new(),
+        };
+        self.g(t, y, &mut terms.g);
+        self.g_dot(t, y, z, &mut terms.g_dot);
+        if with_g_y {
+            self.g_y_entries(t, y, &mut terms.g_y);
+        }
+        terms
     }
 
     /// Nonholonomic constraints k(t, y, z), m_k entries (11e). Default: none.
