@@ -296,8 +296,6 @@ pub struct Soi2State {
 pub struct StepInfo {
     /// Newton iterations.
     pub iterations: usize,
-    /// Scaled residual max-norm after the last iteration.
-    pub residual: f64,
     /// The Newton matrix was numerically singular, or the step was accepted on its residual
     /// test (see [`NewtonOptions`]).
     pub singular: bool,
@@ -400,16 +398,15 @@ fn solve_newton_full<R: Residual>(
         let at_floor = at_rounding(increment, increment / previous, res.rounding());
         previous = increment;
         if increment <= opts.tolerance * scale || stalled || at_floor {
-            res.eval(x, r.as_mut_slice());
             // A least-squares increment also vanishes where no solution is: a singular matrix
             // must also pass the residual test.
-            let holds = factor
-                .singular_norm()
-                .is_none_or(|norm| residual_holds(res, &r, norm, (opts.tolerance, scale), start));
+            let holds = factor.singular_norm().is_none_or(|norm| {
+                res.eval(x, r.as_mut_slice());
+                residual_holds(res, &r, norm, (opts.tolerance, scale), start)
+            });
             if holds {
                 let info = StepInfo {
                     iterations: it,
-                    residual: r.amax(),
                     singular,
                     ..StepInfo::default()
                 };
@@ -429,7 +426,6 @@ fn solve_newton_full<R: Residual>(
             ) {
                 let info = StepInfo {
                     iterations: it,
-                    residual: r.amax(),
                     singular: true,
                     ..StepInfo::default()
                 };
@@ -615,13 +611,11 @@ fn solve_newton_simplified<R: Residual>(
             singular |= converged;
         }
         if converged {
-            res.eval(x, r.as_mut_slice());
             if let Some(factor) = current {
                 cache.put(factor, h, n);
             }
             return Ok(StepInfo {
                 iterations: it,
-                residual: r.amax(),
                 singular,
                 ..StepInfo::default()
             });
@@ -1441,7 +1435,6 @@ fn advance_halving<M: ConstrainedModel + ?Sized>(
     state.step = step + 1;
     Ok(StepInfo {
         iterations: first.iterations + second.iterations,
-        residual: second.residual,
         singular: first.singular || second.singular,
         rank: match (first.rank, second.rank) {
             (Some(a), Some(b)) => Some(a.min(b)),
