@@ -580,7 +580,9 @@ async fn every_familys_page_draws_its_ledger_and_residuals_running_and_finished(
             "string",
             "string_free",
             0.01,
-            2.0,
+            // 2.5·10⁶ steps: the string runs 100 000 steps in 0.2 s, and at 2 s the job
+            // had ended before the watcher saw it running on a loaded machine.
+            50.0,
             &["kinetic", "strain", "energy"],
             &["balance_residual"],
         ),
