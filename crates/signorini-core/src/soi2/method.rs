@@ -1475,10 +1475,13 @@ pub fn ma_used<M: ConstrainedModel + ?Sized>(
                 .zip(&state.z)
                 .map(|(y, z)| y + h * alpha * z)
                 .collect();
-            (mass_matrix(model, state.t + alpha * h, &y_a)
-                * DVector::from_column_slice(&state.a_alpha))
-            .as_slice()
-            .to_vec()
+            let mut m = Vec::new();
+            model.mass_entries_at(state.t + alpha * h, &y_a, &mut m);
+            let mut ma = vec![0.0; y_a.len()];
+            for (i, j, mij) in m {
+                ma[i] += mij * state.a_alpha[j];
+            }
+            ma
         }
     }
 }

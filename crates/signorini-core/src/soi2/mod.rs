@@ -525,16 +525,21 @@ pub fn check_consistency<M: ConstrainedModel + ?Sized>(
     Ok(())
 }
 
-/// Kinetic energy ½ zᵀ M(t, y) z.
+/// Kinetic energy ½ zᵀ M(t, y) z, over M's entries ([`ConstrainedModel::mass_entries_at`]:
+/// a recorded step of a long chain formed an n × n array).
 pub fn kinetic_energy<M: ConstrainedModel + ?Sized>(
     model: &M,
     t: f64,
     y: &[f64],
     z: &[f64],
 ) -> f64 {
-    let m = mass_matrix(model, t, y);
-    let zv = DVector::from_column_slice(z);
-    0.5 * zv.dot(&(&m * &zv))
+    let mut m = Vec::new();
+    model.mass_entries_at(t, y, &mut m);
+    let mut mz = vec![0.0; z.len()];
+    for (i, j, mij) in m {
+        mz[i] += mij * z[j];
+    }
+    0.5 * z.iter().zip(&mz).map(|(a, b)| a * b).sum::<f64>()
 }
 
 /// Global errors ‖·‖₂ at the end of a run against the exact solution: y_N, z_N, λ_N, ψ_N at
