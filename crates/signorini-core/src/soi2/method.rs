@@ -508,9 +508,9 @@ fn solve_newton_simplified<R: Residual>(
     let mut built_here = false;
     let mut singular = current.as_ref().is_some_and(NewtonFactor::deficient);
     let mut iterates = Iterates::new();
-    let mut fallback = false;
     // The residual of the start value.
     let mut start = f64::INFINITY;
+    let mut stopped = None;
     for it in 1..=opts.max_iterations {
         if current.is_none() {
             let jac = jac.get_or_insert_with(|| Jacobian::for_residual(res));
@@ -528,52 +528,45 @@ fn solve_newton_simplified<R: Residual>(
         if it == 1 {
             start = rnorm;
         }
-        if !rnorm.is_finite() {
-            if built_here {
-                return Err(NewtonFailure::Diverged {
-                    iterations: it - 1,
-                    residual: rnorm,
-                    increment: iterates.previous,
-                });
-            }
-            fallback = true;
-            break;
-        }
         if !built_here && rnorm > start {
             // A reused Jacobian took the iterate further from the equations than the start
             // value was: the iterate is no place to build one (on A02 next to a singular
             // position, the first increment of an old Jacobian was 2·10⁹, and Newton never
             // came back from there with Jacobians built at its iterates); full Newton starts
             // over from the start value.
-            fallback = true;
             break;
         }
         let Some(factor) = current.as_ref() else {
             unreachable!("the Jacobian was just built");
         };
-        dx.copy_from(&r);
-        if !factor.solve_mut(&mut dx) {
-            // The reused factorisation is dropped (not put back).
-            if built_here {
-                return Err(NewtonFailure::Singular);
+        // The reused factorisation of a failed iterate is dropped (not put back).
+        let failure = if !rnorm.is_finite() {
+            Some(NewtonFailure::Diverged {
+                iterations: it - 1,
+                residual: rnorm,
+                increment: iterates.previous,
+            })
+        } else {
+            dx.copy_from(&r);
+            if !factor.solve_mut(&mut dx) {
+                Some(NewtonFailure::Singular)
+            } else if !dx.amax().is_finite() {
+                Some(NewtonFailure::Diverged {
+                    iterations: it,
+                    residual: rnorm,
+                    increment: dx.amax(),
+                })
+            } else {
+                None
             }
-            fallback = true;
+        };
+        if let Some(failure) = failure {
+            // A Jacobian of this step fails the step; a reused one hands it to full Newton.
+            stopped = Some(failure).filter(|_| built_here);
             break;
         }
         let xnorm = max_norm(x);
         let increment = dx.amax();
-        if !increment.is_finite() {
-            // The reused factorisation is dropped (not put back).
-            if built_here {
-                return Err(NewtonFailure::Diverged {
-                    iterations: it,
-                    residual: rnorm,
-                    increment,
-                });
-            }
-            fallback = true;
-            break;
-        }
         let x_here = x.to_vec();
         for (xi, d) in x.iter_mut().zip(dx.iter()) {
             *xi -= d;
@@ -581,35 +574,21 @@ fn solve_newton_simplified<R: Residual>(
         let scale = 1.0 + xnorm.max(max_norm(x));
         let slow = increment >= CONTRACTION_LIMIT * iterates.previous;
         let rate = iterates.rate(increment);
-        // Stalled at the round-off floor: only trusted with a Jacobian of this step, or with
-        // an older one whose plain iterates contracted fast (otherwise slow contraction is the
-        // Jacobian's fault).
-        let trusted = built_here || iterates.contract_fast();
-        let stalled =
-            trusted && slow && increment <= (100.0 * opts.tolerance * scale).max(res.noise_floor());
-        let at_floor = at_rounding(increment, rate, res.rounding());
-        let mut converged = increment <= opts.tolerance * scale || stalled || at_floor;
-        if converged && let Some(norm) = factor.singular_norm() {
-            // A least-squares increment also vanishes where no solution is.
-            res.eval(x, r.as_mut_slice());
-            converged = residual_holds(res, &r, norm, (opts.tolerance, scale), start);
-        }
-        if !converged
-            && built_here
-            && (slow || factor.deficient())
-            && let Some(jac) = &jac
-        {
-            // The residual test (the Jacobian of this step is in `jac`).
-            res.eval(x, r.as_mut_slice());
-            converged = residual_holds(
-                res,
-                &r,
-                jac.row_sum_norm(res),
-                (opts.tolerance, scale),
-                start,
-            );
-            singular |= converged;
-        }
+        let test = IterateTest {
+            increment,
+            rate,
+            slow,
+            scale,
+            start,
+            built_here,
+            // Stalled at the round-off floor: only trusted with a Jacobian of this step, or
+            // with an older one whose plain iterates contracted fast (otherwise slow
+            // contraction is the Jacobian's fault).
+            trusted: built_here || iterates.contract_fast(),
+        };
+        let (converged, on_residual) =
+            test.passes(res, x, &mut r, opts.tolerance, (factor, jac.as_ref()));
+        singular |= on_residual;
         if converged {
             if let Some(factor) = current {
                 cache.put(factor, h, n);
@@ -630,23 +609,79 @@ fn solve_newton_simplified<R: Residual>(
             iterates.extrapolate(&x_here, x);
         }
         iterates.previous = increment;
-        if it == opts.max_iterations && !built_here {
-            fallback = true;
+        if it == opts.max_iterations && built_here {
+            res.eval(x, r.as_mut_slice());
+            stopped = Some(NewtonFailure::Diverged {
+                iterations: opts.max_iterations,
+                residual: r.amax(),
+                increment: iterates.previous,
+            });
         }
     }
-    if fallback {
-        x.copy_from_slice(&x_start);
-        let (info, factor) = solve_newton_full(res, x, opts)?;
-        cache.jacobians += info.iterations as u64;
-        cache.put(factor, h, n);
-        return Ok(info);
+    if let Some(failure) = stopped {
+        return Err(failure);
     }
-    res.eval(x, r.as_mut_slice());
-    Err(NewtonFailure::Diverged {
-        iterations: opts.max_iterations,
-        residual: r.amax(),
-        increment: iterates.previous,
-    })
+    x.copy_from_slice(&x_start);
+    let (info, factor) = solve_newton_full(res, x, opts)?;
+    cache.jacobians += info.iterations as u64;
+    cache.put(factor, h, n);
+    Ok(info)
+}
+
+/// One iterate of simplified Newton, as its convergence test sees it.
+struct IterateTest {
+    /// ‖Δx‖∞ and the contraction ρ of the plain iterates ([`Iterates::rate`]).
+    increment: f64,
+    rate: f64,
+    /// ‖Δx‖ ≥ [`CONTRACTION_LIMIT`] times the last one.
+    slow: bool,
+    /// 1 + ‖x‖∞ over the iterate and the one before.
+    scale: f64,
+    /// The residual of the start value ([`residual_holds`]).
+    start: f64,
+    /// The Jacobian in use was built in this step.
+    built_here: bool,
+    /// The round-off stall exit is trusted to the Jacobian ([`TRUSTED_RATE`]).
+    trusted: bool,
+}
+
+impl IterateTest {
+    /// Whether the iterate `x` passes the tests of [`NewtonOptions`] (the increment test, the
+    /// round-off exits, the residual test on a singular factorisation or on stalled increments
+    /// with a Jacobian of this step), and whether it passed on the residual test after the
+    /// increment test failed (a step then counted singular). `factor` is the factorisation in
+    /// use, `jac` the Jacobian built in this step if any; `r` is scratch for the residual.
+    fn passes<R: Residual>(
+        &self,
+        res: &R,
+        x: &[f64],
+        r: &mut DVector<f64>,
+        tolerance: f64,
+        (factor, jac): (&NewtonFactor, Option<&Jacobian>),
+    ) -> (bool, bool) {
+        let bound = (tolerance, self.scale);
+        let stalled = self.trusted
+            && self.slow
+            && self.increment <= (100.0 * tolerance * self.scale).max(res.noise_floor());
+        let at_floor = at_rounding(self.increment, self.rate, res.rounding());
+        let mut converged = self.increment <= tolerance * self.scale || stalled || at_floor;
+        if converged && let Some(norm) = factor.singular_norm() {
+            // A least-squares increment also vanishes where no solution is.
+            res.eval(x, r.as_mut_slice());
+            converged = residual_holds(res, r, norm, bound, self.start);
+        }
+        if !converged
+            && self.built_here
+            && (self.slow || factor.deficient())
+            && let Some(jac) = jac
+        {
+            // The residual test (the Jacobian of this step is in `jac`).
+            res.eval(x, r.as_mut_slice());
+            let holds = residual_holds(res, r, jac.row_sum_norm(res), bound, self.start);
+            return (holds, holds);
+        }
+        (converged, false)
+    }
 }
 
 /// Whether iterates contracting at `rate` from an increment of max-norm `increment` cannot
