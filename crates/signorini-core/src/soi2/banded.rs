@@ -501,5 +501,23 @@ mod tests {
         for (u, v) in x.iter().zip(dense.iter()) {
             assert!((u - v).abs() < 1e-13, "{u} vs {v}");
         }
+        // Read back as a checkpoint stores it (its columns are not stored but gathered again):
+        // the same factorisation and the same solve to the last bit.
+        let bytes = rmp_serde::to_vec_named(&lu).expect("serialised");
+        let back: BandLu = rmp_serde::from_slice(&bytes).expect("read back");
+        assert_eq!(back, lu);
+        assert_eq!(back.fault(size), None);
+        let mut y = b.clone();
+        assert!(back.solve_mut(&mut y));
+        assert_eq!(
+            y.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            x.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+        );
+        // A stored band that does not fit its entries is refused, not gathered.
+        let mut wrong = lu.clone();
+        wrong.kl += 1;
+        let bytes = rmp_serde::to_vec_named(&wrong).expect("serialised");
+        let back: BandLu = rmp_serde::from_slice(&bytes).expect("read back");
+        assert!(back.fault(size).is_some());
     }
 }
