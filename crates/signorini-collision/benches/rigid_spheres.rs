@@ -209,6 +209,8 @@ fn main() {
     let mut friction_error_max: f64 = 0.0;
     // Steps that went on with a friction solve above the tolerance (`contact_solver.accept_error`).
     let mut accepted = 0u64;
+    // The largest penetration at the start of a step (the stepper's `max_penetration` column).
+    let mut max_penetration: f64 = 0.0;
     let mut histogram = [0u64; 4];
     let (k0, v0) = RigidMoreauJean::energies(&scene, &state);
     let start = Instant::now();
@@ -227,6 +229,7 @@ fn main() {
             )
             .unwrap_or_else(|e| panic!("{e}"));
         clock.stop();
+        max_penetration = max_penetration.max(scratch.max_penetration());
         contacts += report.contacts as u64;
         max_contacts = max_contacts.max(report.contacts);
         friction_iterations += report.friction_iterations as u64;
@@ -253,7 +256,7 @@ fn main() {
     let solver = kind.name();
     let split = clock.spent.map(|d| d.as_secs_f64());
     println!(
-        "{{\"code\": \"signorini\", \"bodies\": {}, \"h\": {h}, \"steps\": {count}, \"seconds\": {seconds:.4}, \"steps_per_second\": {:.2}, \"ms_per_step\": {:.4}, \"contacts_per_step\": {:.1}, \"max_contacts\": {max_contacts}, \"warm_start\": {warm_start}, \"solver\": \"{solver}\", \"auto_sweeps\": {auto_sweeps}, \"relaxation\": {relaxation}, \"stall_sweeps\": {}, \"steps_by_iterations\": {{\"le10\": {}, \"le100\": {}, \"le1000\": {}, \"more\": {}}}, \"friction_iterations_per_step\": {:.2}, \"friction_error_max\": {friction_error_max:e}, \"friction_steps_accepted\": {accepted}, \"split_seconds\": {{\"detection\": {:.4}, \"assembly\": {:.4}, \"solve\": {:.4}, \"update\": {:.4}}}, \"energy_start\": {:.6}, \"energy_end\": {:.6}}}",
+        "{{\"code\": \"signorini\", \"bodies\": {}, \"h\": {h}, \"steps\": {count}, \"seconds\": {seconds:.4}, \"steps_per_second\": {:.2}, \"ms_per_step\": {:.4}, \"contacts_per_step\": {:.1}, \"max_contacts\": {max_contacts}, \"warm_start\": {warm_start}, \"solver\": \"{solver}\", \"auto_sweeps\": {auto_sweeps}, \"relaxation\": {relaxation}, \"stall_sweeps\": {}, \"steps_by_iterations\": {{\"le10\": {}, \"le100\": {}, \"le1000\": {}, \"more\": {}}}, \"friction_iterations_per_step\": {:.2}, \"friction_error_max\": {friction_error_max:e}, \"friction_steps_accepted\": {accepted}, \"max_penetration\": {max_penetration:e}, \"split_seconds\": {{\"detection\": {:.4}, \"assembly\": {:.4}, \"solve\": {:.4}, \"update\": {:.4}}}, \"energy_start\": {:.6}, \"energy_end\": {:.6}}}",
         scene.bodies.len(),
         count as f64 / seconds,
         1e3 * seconds / count as f64,

@@ -956,37 +956,45 @@ impl RigidMoreauJean {
         condensed: Option<&Condensed>,
     ) -> Result<Fc3dProblem, Fc3dError> {
         let m = active.len();
-        let mut entries = Vec::new();
+        let mut blocks = Vec::new();
+        // J⁻¹ times the angular part of each row of the blocks touching the body, once a body.
+        let mut turned: Vec<[V3; 3]> = Vec::new();
         for (b, touching) in adjacency.iter().enumerate() {
             if touching.is_empty() {
                 continue;
             }
             let inv_mass = 1.0 / scene.bodies[b].mass;
+            turned.clear();
+            turned.extend(touching.iter().map(|&(d, sd)| {
+                active[d].sides[sd].map_or([V3::zeros(); 3], |(_, gd)| {
+                    gd.map(|row| j_inv[b] * V3::new(row[3], row[4], row[5]))
+                })
+            }));
             for &(c, sc) in touching {
                 let Some((_, gc)) = active[c].sides[sc] else {
                     continue;
                 };
-                for &(d, sd) in touching {
+                for (&(d, sd), turned_d) in touching.iter().zip(&turned) {
                     let Some((_, gd)) = active[d].sides[sd] else {
                         continue;
                     };
+                    let mut block = [0.0; 9];
                     for (i, row_c) in gc.iter().enumerate() {
                         let a_c = V3::new(row_c[0], row_c[1], row_c[2]);
                         let b_c = V3::new(row_c[3], row_c[4], row_c[5]);
                         for (j, row_d) in gd.iter().enumerate() {
                             let a_d = V3::new(row_d[0], row_d[1], row_d[2]);
-                            let b_d = V3::new(row_d[3], row_d[4], row_d[5]);
-                            let w = inv_mass * a_c.dot(&a_d) + b_c.dot(&(j_inv[b] * b_d));
-                            entries.push((3 * c + i, 3 * d + j, w));
+                            block[3 * i + j] = inv_mass * a_c.dot(&a_d) + b_c.dot(&turned_d[j]);
                         }
                     }
+                    blocks.push((c, d, block));
                 }
             }
         }
         let mut free: Vec<(V3, V3)> = v_free.iter().copied().zip(w_free.iter().copied()).collect();
         if let Some(c) = condensed {
             free = c.free.clone();
-            c.add_delassus_correction(active, &mut entries);
+            c.add_delassus_correction(active, &mut blocks);
         }
         let mut q = Vec::with_capacity(3 * m);
         let mut mu = Vec::with_capacity(m);
@@ -995,7 +1003,7 @@ impl RigidMoreauJean {
             q.extend([u[0] + contact.restitution * contact.u_start[0], u[1], u[2]]);
             mu.push(contact.friction);
         }
-        let w = BlockCsr::from_triplets(3, 3 * m, entries)?;
+        let w = BlockCsr::from_blocks(m, &blocks)?;
         Ok(Fc3dProblem { w, q, mu })
     }
 }
@@ -1070,12 +1078,12 @@ impl Condensed {
         -(&self.a_plus * jv)
     }
 
-    /// Appends the entries of −C A⁺ Cᵀ to W's triplets (only contacts on jointed bodies have a
+    /// Appends the blocks of −C A⁺ Cᵀ to W's blocks (only contacts on jointed bodies have a
     /// row of C).
     fn add_delassus_correction(
         &self,
         active: &[ActiveContact],
-        entries: &mut Vec<(usize, usize, f64)>,
+        blocks: &mut Vec<(usize, usize, [f64; 9])>,
     ) {
         let nj = self.rows.len();
         let mut coupled: Vec<(usize, DMatrix<f64>)> = Vec::new();
@@ -1108,11 +1116,13 @@ impl Condensed {
             let left = cc * &self.a_plus;
             for (d, cd) in &coupled {
                 let product = &left * cd.transpose();
+                let mut block = [0.0; 9];
                 for i in 0..3 {
                     for k in 0..3 {
-                        entries.push((3 * c + i, 3 * d + k, -product[(i, k)]));
+                        block[3 * i + k] = -product[(i, k)];
                     }
                 }
+                blocks.push((*c, *d, block));
             }
         }
     }
