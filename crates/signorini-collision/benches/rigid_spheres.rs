@@ -15,7 +15,9 @@
 //! stagnation window of the sweeps within the spec's `accept_error` (`rigid::STALL_SWEEPS` by
 //! default, 0 for none), to measure what the time stepping needs; `--trace` prints each step's contacts, FC3D iterations, error and milliseconds on
 //! stderr. The line also gives how many steps took ≤ 10, ≤ 100, ≤ 1 000 and more FC3D
-//! iterations. `--dump K FILE` (repeatable) writes step K's one-step friction problem (W, q, μ) as a Siconos
+//! iterations. `--tolerance T` and `--accept-error E|none` replace the spec's
+//! `contact_solver.tolerance` and `accept_error` (the benchmark's runs at several tolerances).
+//! `--dump K FILE` (repeatable) writes step K's one-step friction problem (W, q, μ) as a Siconos
 //! `.dat` file (sparse-block storage) that `signorini solve` and Siconos' `fc3d_driver` read, and
 //! the start its solver was given (the warm start) to `FILE.start`, one number a line.
 
@@ -125,6 +127,9 @@ fn main() {
     let mut auto_sweeps = signorini_core::rigid::AUTO_SWEEPS;
     let mut relaxation = signorini_core::rigid::RELAXATION;
     let mut stall_sweeps = Some(signorini_core::rigid::STALL_SWEEPS);
+    let mut tolerance: Option<f64> = None;
+    // `Some(None)`: no acceptance above the tolerance.
+    let mut accept_error: Option<Option<f64>> = None;
     while let Some(a) = args.next() {
         if a == "--cold" {
             warm_start = false;
@@ -151,6 +156,15 @@ fn main() {
                 .and_then(|s| s.parse().ok())
                 .expect("--stall-sweeps N");
             stall_sweeps = (n > 0).then_some(n);
+        } else if a == "--tolerance" {
+            tolerance = Some(
+                args.next()
+                    .and_then(|s| s.parse().ok())
+                    .expect("--tolerance T"),
+            );
+        } else if a == "--accept-error" {
+            let e = args.next().expect("--accept-error E|none");
+            accept_error = Some((e != "none").then(|| e.parse().expect("--accept-error E|none")));
         } else if a == "--dump" {
             let step = args
                 .next()
@@ -179,15 +193,16 @@ fn main() {
                 kind,
                 auto_sweeps,
                 relaxation,
-                tolerance: spec.contact_solver.tolerance,
+                tolerance: tolerance.unwrap_or(spec.contact_solver.tolerance),
                 max_iterations: spec.contact_solver.max_iterations,
                 ..Fc3dOptions::default()
             },
             warm_start,
-            accept_error: spec
-                .contact_solver
-                .accept_error()
-                .unwrap_or_else(|e| panic!("{e}")),
+            accept_error: accept_error.unwrap_or_else(|| {
+                spec.contact_solver
+                    .accept_error()
+                    .unwrap_or_else(|e| panic!("{e}"))
+            }),
             stall_sweeps,
             ..RigidMoreauJeanParams::default()
         },
@@ -253,20 +268,36 @@ fn main() {
     }
     let seconds = start.elapsed().as_secs_f64();
     let (k1, v1) = RigidMoreauJean::energies(&scene, &state);
+    // The gaps at which the last step's loaded contacts (P_n > 0) stand: the index set takes
+    // a contact from the predicted gap `margin` on, so a pile at rest stands on gaps in
+    // [0, margin] instead of touching.
+    let loaded: Vec<f64> = scratch
+        .active_impulses()
+        .filter(|(_, p)| p[0] > 0.0)
+        .map(|(c, _)| c.gap)
+        .collect();
+    let gap_mean = loaded.iter().sum::<f64>() / loaded.len().max(1) as f64;
+    let gap_max = loaded.iter().copied().fold(0.0, f64::max);
     let solver = kind.name();
     let split = clock.spent.map(|d| d.as_secs_f64());
     println!(
-        "{{\"code\": \"signorini\", \"bodies\": {}, \"h\": {h}, \"steps\": {count}, \"seconds\": {seconds:.4}, \"steps_per_second\": {:.2}, \"ms_per_step\": {:.4}, \"contacts_per_step\": {:.1}, \"max_contacts\": {max_contacts}, \"warm_start\": {warm_start}, \"solver\": \"{solver}\", \"auto_sweeps\": {auto_sweeps}, \"relaxation\": {relaxation}, \"stall_sweeps\": {}, \"steps_by_iterations\": {{\"le10\": {}, \"le100\": {}, \"le1000\": {}, \"more\": {}}}, \"friction_iterations_per_step\": {:.2}, \"friction_error_max\": {friction_error_max:e}, \"friction_steps_accepted\": {accepted}, \"max_penetration\": {max_penetration:e}, \"split_seconds\": {{\"detection\": {:.4}, \"assembly\": {:.4}, \"solve\": {:.4}, \"update\": {:.4}}}, \"energy_start\": {:.6}, \"energy_end\": {:.6}}}",
+        "{{\"code\": \"signorini\", \"bodies\": {}, \"h\": {h}, \"steps\": {count}, \"seconds\": {seconds:.4}, \"steps_per_second\": {:.2}, \"ms_per_step\": {:.4}, \"contacts_per_step\": {:.1}, \"max_contacts\": {max_contacts}, \"warm_start\": {warm_start}, \"solver\": \"{solver}\", \"tolerance\": {:e}, \"accept_error\": {}, \"auto_sweeps\": {auto_sweeps}, \"relaxation\": {relaxation}, \"stall_sweeps\": {}, \"steps_by_iterations\": {{\"le10\": {}, \"le100\": {}, \"le1000\": {}, \"more\": {}}}, \"friction_iterations_per_step\": {:.2}, \"friction_error_max\": {friction_error_max:e}, \"friction_steps_accepted\": {accepted}, \"max_penetration\": {max_penetration:e}, \"loaded_contacts_end\": {}, \"loaded_gap_mean_end\": {gap_mean:e}, \"loaded_gap_max_end\": {gap_max:e}, \"split_seconds\": {{\"detection\": {:.4}, \"assembly\": {:.4}, \"solve\": {:.4}, \"update\": {:.4}}}, \"energy_start\": {:.6}, \"energy_end\": {:.6}}}",
         scene.bodies.len(),
         count as f64 / seconds,
         1e3 * seconds / count as f64,
         contacts as f64 / count as f64,
+        scheme.params().fc3d.tolerance,
+        scheme
+            .params()
+            .accept_error
+            .map_or("null".to_string(), |e| format!("{e:e}")),
         stall_sweeps.unwrap_or(0),
         histogram[0],
         histogram[1],
         histogram[2],
         histogram[3],
         friction_iterations as f64 / count as f64,
+        loaded.len(),
         split[0],
         split[1],
         split[2],
