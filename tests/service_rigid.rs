@@ -406,6 +406,13 @@ async fn a_rigid_jobs_page_draws_the_bodies_in_3d_at_the_streamed_poses() {
         .map(|b| b["points"].as_array().expect("points").len())
         .collect();
     assert_eq!(points, [8, 2 + 11 * 24, 4]);
+    let half_spaces: Vec<&Value> = scene["bodies"]
+        .as_array()
+        .expect("bodies")
+        .iter()
+        .map(|b| &b["half_space"])
+        .collect();
+    assert_eq!(half_spaces, [false, false, true]);
 
     let mut b = Browser::launch();
     let base = format!("http://{}", server.http);
@@ -446,6 +453,38 @@ async fn a_rigid_jobs_page_draws_the_bodies_in_3d_at_the_streamed_poses() {
     b.wait_for(
         "the energy plot",
         "+document.getElementById('energy').dataset.points > 10",
+    );
+    // A ball in a box of five half-spaces: the camera, outside the box, sees the ball through
+    // the walls between them, which are drawn only from inside.
+    let mut boxed = box_and_ball(10, 10, false);
+    let walls = [
+        ("xm", [1.0, 0.0, 0.0]),
+        ("xp", [-1.0, 0.0, 0.0]),
+        ("ym", [0.0, 1.0, 0.0]),
+        ("yp", [0.0, -1.0, 0.0]),
+    ];
+    let bodies = boxed["model"]["bodies"].as_array_mut().expect("bodies");
+    for (name, normal) in walls {
+        bodies.push(json!({
+            "name": format!("wall_{name}"),
+            "shape": { "kind": "half_space", "normal": normal },
+            "position": normal.map(|x| -0.8 * x)
+        }));
+    }
+    let (code, body) = server
+        .http("POST", "/v1/jobs?id=boxed", Some(&boxed.to_string()), None)
+        .await;
+    assert_eq!(code, 201, "{body}");
+    wait_terminal(&mut client, "boxed").await;
+    b.open(&format!("{base}/jobs/boxed"));
+    b.wait_for(
+        "the boxed job's last step",
+        "+document.getElementById('scene3d').dataset.step === 10",
+    );
+    let coloured = b.eval("+document.getElementById('scene3d').dataset.coloured");
+    assert!(
+        coloured.as_u64().is_some_and(|n| n > 2000),
+        "{coloured} pixels of the free bodies in the box"
     );
     // A job of another model has no 3D view.
     let (code, body) = server

@@ -1,5 +1,7 @@
 //! `GET /v1/jobs/{id}/scene`: what the live page's 3D view draws of a `rigid_bodies` job, once:
-//! each body's name, whether it is fixed, and its surface in its body frame
+//! each body's name, whether it is fixed, whether it is a half-space (a square facing its free
+//! side, which the view leaves out when the camera is behind it: the walls of a box would
+//! otherwise hide what is inside), and its surface in its body frame
 //! ([`signorini_collision::surface`]); the poses come per step with the job's stream (the
 //! `state` events of `/v1/jobs/{id}/events?state=true`). Another job is refused naming
 //! `model.scene`.
@@ -10,6 +12,7 @@ use axum::Json;
 use axum::extract::{Path, State};
 use serde_json::{Value, json};
 use signorini_collision::surface::scene_surfaces;
+use signorini_core::rigid::Shape;
 use signorini_core::spec::{ModelSpec, SpecError};
 
 /// The bodies of a rigid job with their surfaces.
@@ -34,7 +37,13 @@ pub(super) async fn job_scene(
         .zip(&scene.bodies)
         .zip(&surfaces)
         .map(|((name, body), s)| {
-            json!({ "name": name, "fixed": body.fixed, "points": s.points, "faces": s.faces })
+            json!({
+                "name": name,
+                "fixed": body.fixed,
+                "half_space": matches!(body.shape, Shape::HalfSpace { .. }),
+                "points": s.points,
+                "faces": s.faces
+            })
         })
         .collect();
     Ok(Json(json!({ "id": id, "bodies": bodies })))
