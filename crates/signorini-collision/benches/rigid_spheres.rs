@@ -27,7 +27,8 @@ use signorini_core::friction::{Fc3dOptions, Fc3dSolverKind};
 use signorini_core::rigid::{
     DetectorFactory, RigidMoreauJean, RigidMoreauJeanParams, RigidScratch, StepPhase, StepPhases,
 };
-use signorini_core::spec::{JobSpec, ModelSpec};
+use signorini_core::contact::Activation;
+use signorini_core::spec::{IntegratorSpec, JobSpec, ModelSpec};
 use std::fmt::Write as _;
 use std::time::{Duration, Instant};
 
@@ -187,8 +188,16 @@ fn main() {
     let steps = time.steps(None).expect("steps");
     let h = steps.h;
     let count = steps_arg.unwrap_or(steps.count());
+    // The spec's θ and index set, as a job takes them (`job::rigid`).
+    let IntegratorSpec::MoreauJean(integrator) = &spec.integrator else {
+        panic!("{path}: a rigid_bodies spec runs with moreau_jean");
+    };
     let scheme = RigidMoreauJean::new(
         RigidMoreauJeanParams {
+            theta: integrator.theta,
+            gamma: integrator.index_set.activation_gamma.unwrap_or(0.5),
+            activation_gap: (integrator.index_set.activation == Activation::PredictedGap)
+                .then_some(0.0),
             fc3d: Fc3dOptions {
                 kind,
                 auto_sweeps,

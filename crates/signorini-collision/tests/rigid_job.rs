@@ -130,3 +130,68 @@ fn a_rigid_run_has_the_section_18_columns_and_resumes_bit_for_bit() {
         serde_json::to_string(&full.summary).unwrap()
     );
 }
+
+/// A ball dropped onto a floor at 2 m/s (h = 1 ms, e = 0, margin 5 mm), under the two index-set
+/// rules of a rigid scene. By default a contact enters the index set at predicted gap
+/// g + ½ h U_n ≤ margin: it is taken at g ∈ (4, 6] mm (the step before, g + ½ h U_n was above
+/// the margin and the ball falls 2 mm a step), U_n = 0 from then on, and the trapezoidal
+/// position update moves it ½ h |U_n| = 1 mm more, so the ball rests 3 to 5 mm above the floor
+/// and never touches it. With `activation = "predicted_gap"` (Siconos' rule, ≤ 0) the same
+/// reasoning with 0 for the margin gives a rest between 2 mm into the floor and touching it. The
+/// ledger closes in both.
+#[test]
+fn a_rigid_ball_rests_within_the_margin_by_default_and_touches_with_the_predicted_gap_rule() {
+    let rest_gap = |activation: Option<&str>| {
+        let mut integrator = serde_json::json!({ "scheme": "moreau_jean" });
+        if let Some(a) = activation {
+            integrator["activation"] = a.into();
+        }
+        let spec: JobSpec = serde_json::from_value(serde_json::json!({
+            "model": {
+                "scene": "rigid_bodies",
+                "contact": { "friction": 0.3, "restitution": 0.0, "margin": 5e-3 },
+                "bodies": [
+                    { "name": "ball", "shape": { "kind": "sphere", "radius": 0.1 },
+                      "density": 1000.0, "position": [0.0, 0.0, 0.125],
+                      "velocity": [0.0, 0.0, -2.0] },
+                    { "name": "floor", "shape": { "kind": "half_space", "normal": [0.0, 0.0, 1.0] } }
+                ]
+            },
+            "integrator": integrator,
+            "time": { "h": 1e-3, "steps": 300 }
+        }))
+        .unwrap();
+        let job = Job::from_spec(&spec).unwrap();
+        let mut rec = Recorder::default();
+        job::run_with_detectors(&job, 1, &mut rec, None, &ParryDetectors).unwrap();
+        let scale = rec.column("energy").unwrap()[0].abs();
+        let worst = rec
+            .column("energy_error")
+            .unwrap()
+            .iter()
+            .fold(0.0_f64, |m, e| m.max(e.abs()));
+        assert!(
+            worst <= 1e-11 * scale,
+            "{activation:?}: energy error {worst}"
+        );
+        let z = rec.column("ball_z").unwrap();
+        let vz = rec.column("ball_vz").unwrap();
+        // At rest for the last 100 steps: one height, no velocity.
+        assert!(
+            z[200..].iter().all(|&x| x == z[300]),
+            "{activation:?}: {z:?}"
+        );
+        assert_eq!(vz[300], 0.0, "{activation:?}");
+        z[300] - 0.1
+    };
+    let gap = rest_gap(None);
+    assert!(
+        gap > 3e-3 && gap <= 5e-3,
+        "default rule: rests {gap} m above the floor"
+    );
+    let gap = rest_gap(Some("predicted_gap"));
+    assert!(
+        gap > -2e-3 && gap <= 0.0,
+        "predicted gap ≤ 0: rests {gap} m above the floor"
+    );
+}

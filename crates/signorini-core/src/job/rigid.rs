@@ -2,6 +2,7 @@
 //! solver, the output) and the run through the one driver with a caller's contact detector.
 
 use crate::checkpoint::Checkpoint;
+use crate::contact::Activation;
 use crate::friction::{Fc3dOptions, Fc3dSolverKind};
 use crate::lcp::LcpSolverKind;
 use crate::observer::Observer;
@@ -27,8 +28,9 @@ pub(super) struct RigidJob {
 }
 
 /// Checks a `rigid_bodies` spec: the scene first, then `integrator.scheme` (only `moreau_jean`),
-/// θ and the predicted gap's γ (`integrator.activation_gamma`, default ½; the rule is always
-/// the predicted gap within `model.contact.margin`), the contact solver (`auto`: the FC3D chain
+/// θ and the predicted gap's γ (`integrator.activation_gamma`, default ½; a contact enters the
+/// index set at predicted gap ≤ `model.contact.margin`, or ≤ 0 with `integrator.activation =
+/// "predicted_gap"`, Siconos' rule, the margin then only finding the candidates), the contact solver (`auto`: the FC3D chain
 /// of NSGS and Newton–Alart–Curnier, at `contact_solver.tolerance` on Siconos' relative error),
 /// and the output (no probes: the bodies' columns are recorded).
 pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob, SpecError> {
@@ -70,6 +72,7 @@ pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob,
     let params = RigidMoreauJeanParams {
         theta: p.theta,
         gamma,
+        activation_gap: (p.index_set.activation == Activation::PredictedGap).then_some(0.0),
         // A rigid step's own FC3D settings (first-stage sweeps, over-relaxation) come with the
         // scheme's defaults.
         fc3d: Fc3dOptions {

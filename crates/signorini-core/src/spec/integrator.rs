@@ -135,7 +135,9 @@ impl Default for MoreauJeanSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 pub struct IndexSetSpec {
     /// Index-set rule: `gap_and_velocity` ((24) of Acary 2016, default) or `predicted_gap`
-    /// (Siconos' `g(q_k) + γ h U_k ≤ 0`, no sign test on U_k).
+    /// (Siconos' `g(q_k) + γ h U_k ≤ 0`, no sign test on U_k). A `rigid_bodies` scene takes its
+    /// contacts at predicted gap ≤ `model.contact.margin` by default, and at ≤ 0 with
+    /// `predicted_gap`.
     #[serde(default)]
     pub activation: Activation,
     /// γ > 0 of the predicted-gap rule, default 1 (only with `activation = "predicted_gap"`).

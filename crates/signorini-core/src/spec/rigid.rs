@@ -47,7 +47,10 @@ pub struct RigidContactSpec {
     pub friction: f64,
     /// Contact points of gap ≤ margin are detected, and enter the index set when their
     /// predicted gap g + γ h U_n is ≤ margin (≥ 0, default 1e-3 m). A body landing comes to rest
-    /// at most about this far from what it lands on: take it small against the bodies' size.
+    /// at most about this far from what it lands on: take it small against the bodies' size,
+    /// or set `integrator.activation = "predicted_gap"` (Siconos' rule: predicted gap ≤ 0, the
+    /// margin only finding the candidates), with which bodies touch and an impact may leave up
+    /// to ½ h |U_n| of penetration.
     #[serde(default = "default_margin")]
     #[schemars(range(min = 0.0))]
     pub margin: f64,
