@@ -418,8 +418,9 @@ mod random {
     fn index_set() -> impl Strategy<Value = IndexSetSpec> {
         (
             prop_oneof![
-                Just(Activation::GapAndVelocity),
-                Just(Activation::PredictedGap)
+                Just(None),
+                Just(Some(Activation::GapAndVelocity)),
+                Just(Some(Activation::PredictedGap))
             ],
             ox(),
         )

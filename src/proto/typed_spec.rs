@@ -297,10 +297,11 @@ fn linear_to_proto(l: &LinearSpec) -> Result<pb::LinearModel, JsonOnly> {
     })
 }
 
-fn activation_to_proto(a: Activation) -> i32 {
+fn activation_to_proto(a: Option<Activation>) -> i32 {
     let a = match a {
-        Activation::GapAndVelocity => pb::Activation::GapAndVelocity,
-        Activation::PredictedGap => pb::Activation::PredictedGap,
+        None => pb::Activation::Unspecified,
+        Some(Activation::GapAndVelocity) => pb::Activation::GapAndVelocity,
+        Some(Activation::PredictedGap) => pb::Activation::PredictedGap,
     };
     a as i32
 }

@@ -301,11 +301,11 @@ fn integrator_spec(p: pb::IntegratorSpec) -> Result<IntegratorSpec, SpecError> {
     })
 }
 
-fn activation(p: i32) -> Result<Activation, SpecError> {
+fn activation(p: i32) -> Result<Option<Activation>, SpecError> {
     match pb::Activation::try_from(p) {
-        Ok(pb::Activation::Unspecified) => Ok(Activation::default()),
-        Ok(pb::Activation::GapAndVelocity) => Ok(Activation::GapAndVelocity),
-        Ok(pb::Activation::PredictedGap) => Ok(Activation::PredictedGap),
+        Ok(pb::Activation::Unspecified) => Ok(None),
+        Ok(pb::Activation::GapAndVelocity) => Ok(Some(Activation::GapAndVelocity)),
+        Ok(pb::Activation::PredictedGap) => Ok(Some(Activation::PredictedGap)),
         Err(_) => Err(SpecError::new(
             "integrator.activation",
             format!("unknown value {p}"),

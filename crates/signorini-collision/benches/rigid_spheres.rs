@@ -22,12 +22,12 @@
 //! the start its solver was given (the warm start) to `FILE.start`, one number a line.
 
 use signorini_collision::ParryDetectors;
+use signorini_core::contact::Activation;
 use signorini_core::friction::Fc3dProblem;
 use signorini_core::friction::{Fc3dOptions, Fc3dSolverKind};
 use signorini_core::rigid::{
     DetectorFactory, RigidMoreauJean, RigidMoreauJeanParams, RigidScratch, StepPhase, StepPhases,
 };
-use signorini_core::contact::Activation;
 use signorini_core::spec::{IntegratorSpec, JobSpec, ModelSpec};
 use std::fmt::Write as _;
 use std::time::{Duration, Instant};
@@ -196,7 +196,7 @@ fn main() {
         RigidMoreauJeanParams {
             theta: integrator.theta,
             gamma: integrator.index_set.activation_gamma.unwrap_or(0.5),
-            activation_gap: (integrator.index_set.activation == Activation::PredictedGap)
+            activation_gap: (integrator.index_set.activation == Some(Activation::PredictedGap))
                 .then_some(0.0),
             fc3d: Fc3dOptions {
                 kind,

@@ -194,4 +194,12 @@ fn a_rigid_ball_rests_within_the_margin_by_default_and_touches_with_the_predicte
         gap > -2e-3 && gap <= 0.0,
         "predicted gap ≤ 0: rests {gap} m above the floor"
     );
+    // Acary's rule (24) is not a rigid scene's: asked for, it is refused, not replaced.
+    let mut spec = serde_json::to_value(spec()).unwrap();
+    spec["integrator"]["activation"] = "gap_and_velocity".into();
+    let spec: JobSpec = serde_json::from_value(spec).unwrap();
+    let Err(e) = Job::from_spec(&spec) else {
+        panic!("gap_and_velocity accepted on a rigid scene");
+    };
+    assert_eq!(e.field, "integrator.activation", "{e}");
 }

@@ -142,7 +142,7 @@ fn check_agreement(name: &'static str) {
     let f = load(name);
     match &f.spec.integrator {
         IntegratorSpec::MoreauJean(p) => {
-            assert_eq!(p.index_set.activation, Activation::PredictedGap)
+            assert_eq!(p.index_set.activation, Some(Activation::PredictedGap))
         }
         other => panic!("{name}: unexpected scheme {}", other.scheme()),
     }
@@ -221,7 +221,7 @@ fn default_index_set_differs_as_documented() {
                     .index_set
                     .activation_gamma
                     .expect("the sidecar records Siconos' γ");
-                p.index_set.activation = Activation::GapAndVelocity;
+                p.index_set.activation = Some(Activation::GapAndVelocity);
                 p.index_set.activation_gamma = None;
                 (spec.time.as_ref().expect("time").h, gamma)
             }

@@ -51,6 +51,12 @@ pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob,
         ));
     }
     p.index_set.rule()?;
+    if p.index_set.activation == Some(Activation::GapAndVelocity) {
+        return Err(SpecError::new(
+            "integrator.activation",
+            "a rigid_bodies scene takes its contacts by their predicted gap: leave activation out (≤ model.contact.margin) or write \"predicted_gap\" (≤ 0, Siconos' rule)",
+        ));
+    }
     let gamma = p.index_set.activation_gamma.unwrap_or(0.5);
     let steps = spec.time_section()?.steps(support::refusal(
         spec.integrator.scheme(),
@@ -72,7 +78,7 @@ pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob,
     let params = RigidMoreauJeanParams {
         theta: p.theta,
         gamma,
-        activation_gap: (p.index_set.activation == Activation::PredictedGap).then_some(0.0),
+        activation_gap: (p.index_set.activation == Some(Activation::PredictedGap)).then_some(0.0),
         // A rigid step's own FC3D settings (first-stage sweeps, over-relaxation) come with the
         // scheme's defaults.
         fc3d: Fc3dOptions {

@@ -134,12 +134,12 @@ impl Default for MoreauJeanSpec {
 /// contacts enter a step's LCP. Its fields sit directly in `[integrator]`.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 pub struct IndexSetSpec {
-    /// Index-set rule: `gap_and_velocity` ((24) of Acary 2016, default) or `predicted_gap`
-    /// (Siconos' `g(q_k) + γ h U_k ≤ 0`, no sign test on U_k). A `rigid_bodies` scene takes its
-    /// contacts at predicted gap ≤ `model.contact.margin` by default, and at ≤ 0 with
-    /// `predicted_gap`.
-    #[serde(default)]
-    pub activation: Activation,
+    /// Index-set rule: `gap_and_velocity` ((24) of Acary 2016, the default when left out) or
+    /// `predicted_gap` (Siconos' `g(q_k) + γ h U_k ≤ 0`, no sign test on U_k). A `rigid_bodies`
+    /// scene takes its contacts at predicted gap ≤ `model.contact.margin` when it is left out,
+    /// at ≤ 0 with `predicted_gap`, and refuses `gap_and_velocity`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub activation: Option<Activation>,
     /// γ > 0 of the predicted-gap rule, default 1 (only with `activation = "predicted_gap"`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(extend("exclusiveMinimum" = 0.0))]
@@ -150,7 +150,7 @@ impl IndexSetSpec {
     /// The validated rule; errors name `integrator.activation_gamma`.
     pub fn rule(&self) -> Result<IndexSetRule, SpecError> {
         let gamma = match (self.activation, self.activation_gamma) {
-            (Activation::GapAndVelocity, Some(_)) => {
+            (None | Some(Activation::GapAndVelocity), Some(_)) => {
                 return Err(SpecError::new(
                     "integrator.activation_gamma",
                     "only used with activation = \"predicted_gap\"",
@@ -165,7 +165,7 @@ impl IndexSetSpec {
             (_, g) => g.unwrap_or(1.0),
         };
         Ok(IndexSetRule {
-            activation: self.activation,
+            activation: self.activation.unwrap_or_default(),
             gamma,
         })
     }
