@@ -63,8 +63,8 @@ pub struct Rows {
 }
 
 /// Values of one column-by-column encoding (JSON, NPZ) held at once: the columns are read in
-/// groups that fit, one pass over the stored series a group, and a column of more rows than
-/// this is streamed alone. A result of many columns (a rigid scene's pose and twist of every
+/// groups that fit, with the steps and times, one pass over the stored series a group; when a
+/// column's rows do not fit with them, each column is streamed alone. A result of many columns (a rigid scene's pose and twist of every
 /// body: 13 079 columns for 1 005 bodies) took one pass a column, each reading every stored
 /// chunk: 10 s for 21 rows.
 pub const GROUP_VALUES: usize = 1 << 20;
@@ -321,11 +321,17 @@ impl Col {
     }
 }
 
-/// The kept values of a cut, column after column: the value columns read in groups of
-/// [`GROUP_VALUES`] values, one pass over the series a group.
+/// The kept values of a cut, column after column: `step`, `t` and the value columns read in
+/// groups of [`GROUP_VALUES`] values (the steps and times with the first group), one pass over
+/// the series a group; when one column's rows do not fit with the steps and times, each column
+/// is streamed in a pass of its own.
 struct Columns<'a> {
     cut: &'a Cut,
     series: &'a Series,
+    /// Value columns a group holds (0: each column streamed alone).
+    width: usize,
+    /// The kept steps and times, once read.
+    steps: Option<(Vec<u64>, Vec<f64>)>,
     /// The cut's columns `group_start..group_start + group.len()`, read.
     group_start: usize,
     group: Vec<Vec<f64>>,
@@ -333,9 +339,12 @@ struct Columns<'a> {
 
 impl<'a> Columns<'a> {
     fn new(cut: &'a Cut, series: &'a Series) -> Self {
+        let rows = usize::try_from(cut.rows()).unwrap_or(usize::MAX).max(1);
         Self {
             cut,
             series,
+            width: (GROUP_VALUES / rows).saturating_sub(2),
+            steps: None,
             group_start: 0,
             group: Vec::new(),
         }
@@ -343,44 +352,74 @@ impl<'a> Columns<'a> {
 
     /// Calls `f` with each value of `col` in the kept rows.
     fn each(&mut self, col: Col, mut f: impl FnMut(Value) -> io::Result<()>) -> io::Result<()> {
-        let (cut, series) = (self.cut, self.series);
-        let c = match col {
-            Col::Step => {
-                return cut.for_each_in(series, 0..0, |rows| {
-                    rows.steps.iter().try_for_each(|&s| f(Value::U64(s)))
+        if self.width == 0 {
+            return self
+                .cut
+                .for_each_in(self.series, col.range(), |rows| match col {
+                    Col::Step => rows.steps.iter().try_for_each(|&s| f(Value::U64(s))),
+                    Col::T => rows.t.iter().try_for_each(|&t| f(Value::F64(t))),
+                    Col::Value(_) => rows.values.iter().try_for_each(|&v| f(Value::F64(v))),
                 });
-            }
-            Col::T => {
-                return cut.for_each_in(series, 0..0, |rows| {
-                    rows.t.iter().try_for_each(|&t| f(Value::F64(t)))
-                });
-            }
-            Col::Value(c) => c,
-        };
-        let rows = usize::try_from(cut.rows()).unwrap_or(usize::MAX);
-        let width = GROUP_VALUES / rows.max(1);
-        if width == 0 {
-            return cut.for_each_in(series, c..c + 1, |rows| {
-                rows.values.iter().try_for_each(|&v| f(Value::F64(v)))
-            });
         }
-        if !(self.group_start..self.group_start + self.group.len()).contains(&c) {
-            let end = (c + width).min(cut.at.len());
-            self.group_start = c;
-            self.group = vec![Vec::with_capacity(rows); end - c];
-            let group = &mut self.group;
-            cut.for_each_in(series, c..end, |rows| {
+        match col {
+            Col::Step | Col::T if self.steps.is_none() => self.read_group(0)?,
+            Col::Value(c)
+                if !(self.group_start..self.group_start + self.group.len()).contains(&c) =>
+            {
+                self.read_group(c)?
+            }
+            _ => {}
+        }
+        let (steps, t) = self.steps.as_ref().expect("read with the first group");
+        match col {
+            Col::Step => steps.iter().try_for_each(|&s| f(Value::U64(s))),
+            Col::T => t.iter().try_for_each(|&t| f(Value::F64(t))),
+            Col::Value(c) => self.group[c - self.group_start]
+                .iter()
+                .try_for_each(|&v| f(Value::F64(v))),
+        }
+    }
+
+    /// Reads the value columns `c..c + width` (fewer at the end), and the steps and times on
+    /// the first read, in one pass over the series.
+    fn read_group(&mut self, c: usize) -> io::Result<()> {
+        let end = (c + self.width).min(self.cut.at.len());
+        let rows = usize::try_from(self.cut.rows()).unwrap_or(0);
+        self.group_start = c;
+        self.group = vec![Vec::with_capacity(rows); end - c];
+        let mut steps = self
+            .steps
+            .is_none()
+            .then(|| (Vec::with_capacity(rows), Vec::with_capacity(rows)));
+        let group = &mut self.group;
+        self.cut.for_each_in(self.series, c..end, |rows| {
+            if let Some((s, t)) = &mut steps {
+                s.extend_from_slice(&rows.steps);
+                t.extend_from_slice(&rows.t);
+            }
+            if end > c {
                 for row in rows.values.chunks_exact(end - c) {
                     for (column, &v) in group.iter_mut().zip(row) {
                         column.push(v);
                     }
                 }
-                Ok(())
-            })?;
+            }
+            Ok(())
+        })?;
+        if steps.is_some() {
+            self.steps = steps;
         }
-        self.group[c - self.group_start]
-            .iter()
-            .try_for_each(|&v| f(Value::F64(v)))
+        Ok(())
+    }
+}
+
+impl Col {
+    /// The cut's value columns a pass for this column alone reads.
+    fn range(self) -> std::ops::Range<usize> {
+        match self {
+            Col::Step | Col::T => 0..0,
+            Col::Value(c) => c..c + 1,
+        }
     }
 }
 
