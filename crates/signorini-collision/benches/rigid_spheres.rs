@@ -22,13 +22,12 @@
 //! the start its solver was given (the warm start) to `FILE.start`, one number a line.
 
 use signorini_collision::ParryDetectors;
-use signorini_core::contact::Activation;
 use signorini_core::friction::Fc3dProblem;
-use signorini_core::friction::{Fc3dOptions, Fc3dSolverKind};
+use signorini_core::friction::Fc3dSolverKind;
 use signorini_core::rigid::{
-    DetectorFactory, RigidMoreauJean, RigidMoreauJeanParams, RigidScratch, StepPhase, StepPhases,
+    DetectorFactory, RigidMoreauJean, RigidScratch, StepPhase, StepPhases,
 };
-use signorini_core::spec::{IntegratorSpec, JobSpec, ModelSpec};
+use signorini_core::spec::{JobSpec, ModelSpec};
 use std::fmt::Write as _;
 use std::time::{Duration, Instant};
 
@@ -188,35 +187,20 @@ fn main() {
     let steps = time.steps(None).expect("steps");
     let h = steps.h;
     let count = steps_arg.unwrap_or(steps.count());
-    // The spec's θ and index set, as a job takes them (`job::rigid`).
-    let IntegratorSpec::MoreauJean(integrator) = &spec.integrator else {
-        panic!("{path}: a rigid_bodies spec runs with moreau_jean");
-    };
-    let scheme = RigidMoreauJean::new(
-        RigidMoreauJeanParams {
-            theta: integrator.theta,
-            gamma: integrator.index_set.activation_gamma.unwrap_or(0.5),
-            activation_gap: (integrator.index_set.activation == Some(Activation::PredictedGap))
-                .then_some(0.0),
-            fc3d: Fc3dOptions {
-                kind,
-                auto_sweeps,
-                relaxation,
-                tolerance: tolerance.unwrap_or(spec.contact_solver.tolerance),
-                max_iterations: spec.contact_solver.max_iterations,
-                ..Fc3dOptions::default()
-            },
-            warm_start,
-            accept_error: accept_error.unwrap_or_else(|| {
-                spec.contact_solver
-                    .accept_error()
-                    .unwrap_or_else(|e| panic!("{e}"))
-            }),
-            stall_sweeps,
-            ..RigidMoreauJeanParams::default()
-        },
-        h,
-    );
+    // The spec's parameters as a job takes them, then the benchmark's own settings.
+    let mut params = signorini_core::job::rigid_params(&spec).unwrap_or_else(|e| panic!("{e}"));
+    params.fc3d.kind = kind;
+    params.fc3d.auto_sweeps = auto_sweeps;
+    params.fc3d.relaxation = relaxation;
+    if let Some(t) = tolerance {
+        params.fc3d.tolerance = t;
+    }
+    if let Some(e) = accept_error {
+        params.accept_error = e;
+    }
+    params.warm_start = warm_start;
+    params.stall_sweeps = stall_sweeps;
+    let scheme = RigidMoreauJean::new(params, h);
     let mut detector = ParryDetectors.detector(&scene.bodies).expect("shapes");
     let mut state = scene.initial.clone();
     let mut scratch = RigidScratch::default();

@@ -7,6 +7,8 @@ mod rigid;
 mod soi2;
 mod wave;
 
+pub use rigid::rigid_params;
+
 use crate::band::SymBand;
 use crate::banded_contact::{banded_refusal, uses_banded};
 use crate::checkpoint::{Checkpoint, CheckpointError};

@@ -27,14 +27,37 @@ pub(super) struct RigidJob {
     pub(super) contacts: bool,
 }
 
-/// Checks a `rigid_bodies` spec: the scene first, then `integrator.scheme` (only `moreau_jean`),
-/// θ and the predicted gap's γ (`integrator.activation_gamma`, default ½; a contact enters the
-/// index set at predicted gap ≤ `model.contact.margin`, or ≤ 0 with `integrator.activation =
-/// "predicted_gap"`, Siconos' rule, the margin then only finding the candidates), the contact solver (`auto`: the FC3D chain
-/// of NSGS and Newton–Alart–Curnier, at `contact_solver.tolerance` on Siconos' relative error),
-/// and the output (no probes: the bodies' columns are recorded).
+/// Checks a `rigid_bodies` spec: the scene first, then the scheme's parameters
+/// ([`rigid_params`]), the time and the output (no probes: the bodies' columns are recorded).
 pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob, SpecError> {
     let scene = r.validate()?;
+    let params = rigid_params(spec)?;
+    let steps = spec.time_section()?.steps(support::refusal(
+        spec.integrator.scheme(),
+        ModelFamily::RigidBodies,
+        Feature::VariableStep,
+        "",
+    ))?;
+    let output = spec.output.options(Probes::Unsupported(
+        "rigid bodies record every body's pose and twist: probes do not apply",
+    ))?;
+    Ok(RigidJob {
+        scene,
+        scheme: RigidMoreauJean::new(params, steps.h),
+        steps: steps.count(),
+        every: output.every,
+        contacts: spec.output.contacts || spec.output.vtk,
+    })
+}
+
+/// The Moreau–Jean parameters of a `rigid_bodies` spec, checked: `integrator.scheme` (only
+/// `moreau_jean`), θ and the predicted gap's γ (`integrator.activation_gamma`, default ½; a
+/// contact enters the index set at predicted gap ≤ `model.contact.margin`, or ≤ 0 with
+/// `integrator.activation = "predicted_gap"`, Siconos' rule, the margin then only finding the
+/// candidates), and the contact solver (`auto`: the FC3D chain of NSGS and
+/// Newton–Alart–Curnier, at `contact_solver.tolerance` on Siconos' relative error, with
+/// `accept_error`). A job and the rigid benchmark take their parameters from here.
+pub fn rigid_params(spec: &JobSpec) -> Result<RigidMoreauJeanParams, SpecError> {
     let IntegratorSpec::MoreauJean(p) = &spec.integrator else {
         return Err(SpecError::new(
             "integrator.scheme",
@@ -57,13 +80,6 @@ pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob,
             "a rigid_bodies scene takes its contacts by their predicted gap: leave activation out (≤ model.contact.margin) or write \"predicted_gap\" (≤ 0, Siconos' rule)",
         ));
     }
-    let gamma = p.index_set.activation_gamma.unwrap_or(0.5);
-    let steps = spec.time_section()?.steps(support::refusal(
-        spec.integrator.scheme(),
-        ModelFamily::RigidBodies,
-        Feature::VariableStep,
-        "",
-    ))?;
     let lcp = spec.contact_solver.options()?;
     let accept_error = spec.contact_solver.accept_error()?;
     if lcp.kind != LcpSolverKind::Auto {
@@ -72,12 +88,9 @@ pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob,
             "rigid bodies solve the 3D friction problem: only `auto` (Gauss–Seidel, then Newton–Alart–Curnier) applies",
         ));
     }
-    let output = spec.output.options(Probes::Unsupported(
-        "rigid bodies record every body's pose and twist: probes do not apply",
-    ))?;
-    let params = RigidMoreauJeanParams {
+    Ok(RigidMoreauJeanParams {
         theta: p.theta,
-        gamma,
+        gamma: p.index_set.activation_gamma.unwrap_or(0.5),
         activation_gap: (p.index_set.activation == Some(Activation::PredictedGap)).then_some(0.0),
         // A rigid step's own FC3D settings (first-stage sweeps, over-relaxation) come with the
         // scheme's defaults.
@@ -89,13 +102,6 @@ pub(super) fn rigid_job(r: &RigidBodiesSpec, spec: &JobSpec) -> Result<RigidJob,
         },
         accept_error,
         ..RigidMoreauJeanParams::default()
-    };
-    Ok(RigidJob {
-        scene,
-        scheme: RigidMoreauJean::new(params, steps.h),
-        steps: steps.count(),
-        every: output.every,
-        contacts: spec.output.contacts || spec.output.vtk,
     })
 }
 
